@@ -1,0 +1,31 @@
+# The README's two commands. Both create .venv if it is missing and install the project.
+PYTHON ?= python3
+VENV   ?= .venv
+PY     := $(VENV)/bin/python
+export MLFLOW_DISABLE_TELEMETRY := true
+export MPLCONFIGDIR := $(CURDIR)/.cache/matplotlib
+
+.PHONY: run test clean
+
+$(PY):
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --upgrade pip
+
+$(VENV)/.installed: pyproject.toml | $(PY)
+	$(PY) -m pip install -e .
+	touch $@
+
+$(VENV)/.installed-dev: pyproject.toml | $(PY)
+	$(PY) -m pip install -e ".[dev]"
+	touch $@ $(VENV)/.installed
+
+# Main job: the paper's settings on the Google 5-qubit benchmark (per-target table + JSON).
+run: $(VENV)/.installed
+	$(VENV)/bin/workbench evaluate experiments/paper_main_body.toml --json reports/paper_main_body.json
+
+# Default test suite (slow checks: `$(PY) -m pytest -m slow`).
+test: $(VENV)/.installed-dev
+	$(PY) -m pytest -n 2
+
+clean:
+	rm -rf $(VENV) .cache

@@ -1,0 +1,29 @@
+import os
+import tempfile
+from pathlib import Path
+
+import pytest
+
+os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
+os.environ.setdefault("MPLCONFIGDIR", tempfile.mkdtemp(prefix="workbench-mpl-"))
+
+SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "google_5q"
+
+
+@pytest.fixture(scope="session")
+def google_5q_dir():
+    """A directory with the benchmark files: the shared copy when present, otherwise the
+    loader's cache, filled by a real (verified) download."""
+    from workbench.datasets.google_5q import google_5q_csv_path, load_google_5q
+
+    if SHARED_DATA.is_dir():
+        return SHARED_DATA
+    load_google_5q()  # downloads into the user cache when missing
+    return google_5q_csv_path().parent
+
+
+@pytest.fixture(scope="session")
+def google_5q(google_5q_dir):
+    from workbench.datasets import load_google_5q
+
+    return load_google_5q(google_5q_dir)

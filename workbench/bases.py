@@ -1,0 +1,154 @@
+"""Basis regressors by name, and the paper's stacking basis.
+
+Every entry of :data:`BASES` is a small factory ``f(**params) -> regressor``. LightGBM models
+are built with ``n_jobs=1`` (the data are tiny, and on few cores its threads spin under
+contention when folds, trials or targets run in parallel) and ``verbose=-1``.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable
+
+from lightgbm import LGBMRegressor
+from sklearn.base import BaseEstimator, TransformerMixin
+from sklearn.ensemble import StackingRegressor
+from sklearn.gaussian_process import GaussianProcessRegressor
+from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
+from sklearn.kernel_ridge import KernelRidge
+from sklearn.linear_model import Ridge
+from sklearn.neural_network import MLPRegressor
+from sklearn.preprocessing import QuantileTransformer, StandardScaler
+from sklearn.utils.validation import check_is_fitted
+
+__all__ = [
+    "BASES",
+    "PAPER_PARAMS",
+    "TRANSFORMS",
+    "NormalQuantileTransformer",
+    "make_basis",
+    "make_transform",
+    "paper_basis",
+]
+
+#: The paper's LightGBM settings shared by all targets (GOSS sampling, absolute-error objective).
+PAPER_LGBM = dict(objective="mae", boosting_type="gbdt", data_sample_strategy="goss",
+                  num_leaves=32, max_depth=20, learning_rate=0.2, reg_alpha=0.3, reg_lambda=0.3,
+                  max_bin=512, subsample_for_bin=200)
+
+#: The paper's per-target stacking hyperparameters (scikit-physlearn's ``_paper_params.py``).
+PAPER_PARAMS: dict[str, dict[str, Any]] = {
+    "Y1": dict(mlp_hidden=(3,), mlp_alpha=17.0, mlp_max_iter=4390, lgbm_n_estimators=1060,
+               final_hidden=(10,), final_alpha=15.0, final_max_iter=4070),
+    "Y2": dict(mlp_hidden=(11,), mlp_alpha=15.0, mlp_max_iter=4440, lgbm_n_estimators=1100,
+               final_hidden=(13,), final_alpha=15.0, final_max_iter=3700),
+    "Y3": dict(mlp_hidden=(8,), mlp_alpha=5.0, mlp_max_iter=3500, lgbm_n_estimators=750,
+               final_hidden=(8,), final_alpha=8.0, final_max_iter=2000),
+    "Y4": dict(mlp_hidden=(10,), mlp_alpha=9.0, mlp_max_iter=4500, lgbm_n_estimators=380,
+               final_hidden=(8,), final_alpha=10.0, final_max_iter=4250),
+    "Y5": dict(mlp_hidden=(12,), mlp_alpha=8.0, mlp_max_iter=3450, lgbm_n_estimators=990,
+               final_hidden=(7,), final_alpha=4.0, final_max_iter=3650),
+}
+
+
+def paper_stacking(*, mlp_hidden=(10,), mlp_alpha=10.0, mlp_max_iter=4000,
+                   lgbm_n_estimators=500, final_hidden=(10,), final_alpha=10.0,
+                   final_max_iter=4000, cv=5, random_state=None) -> StackingRegressor:
+    """The paper's basis: stacking of [tanh L-BFGS MLP, LightGBM] -> tanh L-BFGS MLP."""
+    first = MLPRegressor(hidden_layer_sizes=tuple(mlp_hidden), activation="tanh",
+                         solver="lbfgs", alpha=mlp_alpha, max_iter=mlp_max_iter,
+                         random_state=random_state)
+    lgbm = LGBMRegressor(n_estimators=lgbm_n_estimators, n_jobs=1, verbose=-1,
+                         random_state=random_state, **PAPER_LGBM)
+    final = MLPRegressor(hidden_layer_sizes=tuple(final_hidden), activation="tanh",
+                         solver="lbfgs", alpha=final_alpha, max_iter=final_max_iter,
+                         random_state=random_state)
+    return StackingRegressor(estimators=[("mlp", first), ("lgbm", lgbm)],
+                             final_estimator=final, cv=cv, passthrough=True)
+
+
+def paper_basis(target: str | int, random_state=None) -> StackingRegressor:
+    """The paper's stacking basis for target ``"Y1"``..``"Y5"`` (or position 0..4)."""
+    key = f"Y{target + 1}" if isinstance(target, int) else target
+    if key not in PAPER_PARAMS:
+        raise ValueError(f"unknown paper target {target!r}; valid: {', '.join(PAPER_PARAMS)}")
+    return paper_stacking(**PAPER_PARAMS[key], random_state=random_state)
+
+
+def ridge(**params) -> Ridge:
+    return Ridge(**params)
+
+
+def kernel_ridge(**params) -> KernelRidge:
+    return KernelRidge(**{"kernel": "rbf", **params})
+
+
+def lightgbm(**params) -> LGBMRegressor:
+    return LGBMRegressor(**{"n_jobs": 1, "verbose": -1, **params})
+
+
+def mlp(**params) -> MLPRegressor:
+    if "hidden_layer_sizes" in params:
+        params["hidden_layer_sizes"] = tuple(params["hidden_layer_sizes"])
+    return MLPRegressor(**{"activation": "tanh", "solver": "lbfgs", "max_iter": 2000, **params})
+
+
+def gaussian_process(*, length_scale=1.0, noise_level=1.0, **params) -> GaussianProcessRegressor:
+    kernel = ConstantKernel() * RBF(length_scale=length_scale) + WhiteKernel(noise_level)
+    return GaussianProcessRegressor(**{"kernel": kernel, "normalize_y": True, **params})
+
+
+#: Basis factories by name.
+BASES: dict[str, Callable[..., Any]] = {
+    "paper_stacking": paper_stacking,
+    "ridge": ridge,
+    "kernel_ridge": kernel_ridge,
+    "lightgbm": lightgbm,
+    "mlp": mlp,
+    "gaussian_process": gaussian_process,
+}
+
+
+def make_basis(name: str, **params):
+    """Build the basis ``name`` of :data:`BASES` with ``params``."""
+    if name not in BASES:
+        raise ValueError(f"unknown basis {name!r}; valid names are: {', '.join(sorted(BASES))}")
+    return BASES[name](**params)
+
+
+class NormalQuantileTransformer(TransformerMixin, BaseEstimator):
+    """``QuantileTransformer(output_distribution="normal")`` with ``n_quantiles`` capped at
+    the number of rows, so small training sets fit without a warning."""
+
+    def __init__(self, n_quantiles=1000, subsample=10_000, random_state=None):
+        self.n_quantiles = n_quantiles
+        self.subsample = subsample
+        self.random_state = random_state
+
+    def fit(self, X, y=None):
+        n_rows = len(X)
+        self.transformer_ = QuantileTransformer(
+            n_quantiles=max(1, min(self.n_quantiles, n_rows)), output_distribution="normal",
+            subsample=self.subsample, random_state=self.random_state).fit(X)
+        self.n_features_in_ = self.transformer_.n_features_in_
+        return self
+
+    def transform(self, X):
+        check_is_fitted(self)
+        return self.transformer_.transform(X)
+
+
+#: Basis-input transforms by name.
+TRANSFORMS: dict[str, Callable[..., Any]] = {
+    "quantile_normal": NormalQuantileTransformer,
+    "standard": StandardScaler,
+}
+
+
+def make_transform(name: str | None, **params):
+    """Build the input transform ``name`` of :data:`TRANSFORMS` (``None``/"none": no transform)."""
+    if name is None or name == "none":
+        return None
+    if name not in TRANSFORMS:
+        raise ValueError(f"unknown input transform {name!r}; valid names are: "
+                         f"{', '.join(['none', *sorted(TRANSFORMS)])}")
+    return TRANSFORMS[name](**params)

@@ -1,0 +1,277 @@
+"""Base boosting: gradient boosting that starts from a scientific model's prediction.
+
+For one target::
+
+    h(X) = prior(X) + sum_{k=1..K} coef_k * b_k(T(X[:, basis_features]))
+
+fitted greedily (the paper's Alg. 1): at stage k the basis regressor ``b_k`` is fitted to the
+pseudo-residuals of ``y`` against the current model ``h_{k-1}``, and ``coef_k`` is the exact
+minimiser of ``line_loss(y, h_{k-1} + a * b_k) + penalty * |a|``. ``T`` is an optional
+transform of the basis inputs; it never touches the prior term.
+"""
+
+from __future__ import annotations
+
+import numbers
+
+import numpy as np
+from sklearn.base import BaseEstimator, RegressorMixin, clone
+from sklearn.tree import DecisionTreeRegressor
+from sklearn.utils import check_random_state
+from sklearn.utils.validation import check_is_fitted, validate_data
+
+from .line_search import line_search
+from .losses import get_loss
+
+__all__ = ["BaseBoostRegressor", "PriorModel", "seed_estimator"]
+
+
+def seed_estimator(estimator, seed: int):
+    """Set every ``random_state`` parameter of ``estimator`` (nested ones too) to ``seed``."""
+    keys = [k for k in estimator.get_params(deep=True)
+            if k == "random_state" or k.endswith("__random_state")]
+    if keys:
+        estimator.set_params(**{k: int(seed) for k in keys})
+    return estimator
+
+
+def _is_column(prior) -> bool:
+    return isinstance(prior, (str, numbers.Integral)) and not isinstance(prior, bool)
+
+
+def _column_index(key, feature_names, n_features: int, what: str) -> int:
+    if isinstance(key, str):
+        if feature_names is None:
+            raise ValueError(f"{what} {key!r} is a column name, but X has no column names "
+                             "(pass a pandas DataFrame or use an integer index)")
+        names = list(feature_names)
+        if key not in names:
+            raise ValueError(f"{what} {key!r} is not a column of X; columns are: {names}")
+        return names.index(key)
+    if not -n_features <= int(key) < n_features:
+        raise ValueError(f"{what} {key!r} is out of range for X with {n_features} columns")
+    return int(key) % n_features
+
+
+def _check_1d_finite(values, n: int, what: str) -> np.ndarray:
+    arr = np.asarray(values, dtype=float)
+    if arr.ndim == 2 and arr.shape[1] == 1:
+        arr = arr[:, 0]
+    if arr.shape != (n,):
+        raise ValueError(f"{what} must give one value per row: expected shape ({n},), "
+                         f"got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        bad = np.flatnonzero(~np.isfinite(arr))[:10].tolist()
+        raise ValueError(f"{what} contains NaN or infinite values (rows {bad})")
+    return arr
+
+
+class PriorModel(RegressorMixin, BaseEstimator):
+    """The incumbent: the scientific model alone, as a scikit-learn regressor.
+
+    Parameters
+    ----------
+    prior : None, str, int, estimator or callable
+        ``None``: a constant, the mean of the training targets (ordinary boosting's start).
+        ``str``/``int``: the column of ``X`` (name or index) holding the prior prediction.
+        An estimator: cloned and fitted on ``(X, y)``, like scikit-learn's ``init``; wrap an
+        already fitted model in ``sklearn.frozen.FrozenEstimator`` to use it as is.
+        A callable: ``prior(X)`` returns the prediction (``X`` as passed to ``fit``/``predict``).
+    """
+
+    def __init__(self, prior=None):
+        self.prior = prior
+
+    def fit(self, X, y):
+        X_raw = X
+        X, y = validate_data(self, X, y, y_numeric=True, dtype=float,
+                             ensure_all_finite=not callable(self.prior))
+        prior = self.prior
+        if prior is None:
+            self.constant_ = float(np.mean(y))
+        elif _is_column(prior):
+            self.column_ = _column_index(prior, getattr(self, "feature_names_in_", None),
+                                         X.shape[1], "prior column")
+        elif hasattr(prior, "fit") and hasattr(prior, "predict"):
+            self.estimator_ = clone(prior).fit(X_raw, y)
+        elif callable(prior):
+            pass
+        else:
+            raise TypeError("prior must be None, a column name or index, an estimator or a "
+                            f"callable; got {type(prior).__name__}")
+        return self
+
+    def predict(self, X):
+        check_is_fitted(self)
+        X_raw = X
+        X = validate_data(self, X, reset=False, dtype=float,
+                          ensure_all_finite=not callable(self.prior))
+        n = X.shape[0]
+        if hasattr(self, "constant_"):
+            return np.full(n, self.constant_)
+        if hasattr(self, "column_"):
+            return _check_1d_finite(X[:, self.column_], n, "prior column")
+        if hasattr(self, "estimator_"):
+            return _check_1d_finite(self.estimator_.predict(X_raw), n, "prior estimator output")
+        return _check_1d_finite(self.prior(X_raw), n, "prior callable output")
+
+    def __sklearn_is_fitted__(self):
+        return hasattr(self, "n_features_in_")
+
+
+class BaseBoostRegressor(RegressorMixin, BaseEstimator):
+    """Base boosting for one target.
+
+    Parameters
+    ----------
+    prior : None, str, int, estimator or callable, default=None
+        The scientific prediction the expansion starts from; see :class:`PriorModel`.
+        ``None`` starts from the mean of ``y`` (ordinary gradient boosting).
+    basis : regressor, default=None
+        Any scikit-learn regressor, cloned for every stage. ``None`` means
+        ``DecisionTreeRegressor(max_depth=3)``.
+    n_stages : int, default=1
+        Number of stages ``K`` (>= 1).
+    loss : str or Loss, default="squared_error"
+        Loss whose negative gradient gives the pseudo-residuals; one of
+        :data:`workbench.losses.LOSSES`.
+    line_search_loss : str or Loss, default="absolute_error"
+        Loss of the line search for each stage's coefficient.
+    line_search_penalty : float, default=0.1
+        L1 penalty on each coefficient in the line search.
+    basis_features : list of str or int, default=None
+        Columns of ``X`` fed to the basis (``None``: all columns).
+    input_transform : transformer, default=None
+        Applied (cloned and fitted) to the basis inputs only, never to the prior term.
+    alpha : float, default=0.9
+        Huber's quantile for ``delta`` and the quantile loss's level.
+    random_state : int, RandomState or None, default=None
+        Seeds the transform and each stage's basis (every nested ``random_state``). ``None``
+        leaves the basis's own ``random_state`` values as they are.
+
+    Attributes
+    ----------
+    prior_model_ : PriorModel
+        The fitted prior term.
+    prior_values_ : ndarray of shape (n_samples,)
+        The prior's predictions on the training rows.
+    input_transform_ : transformer or None
+    basis_columns_ : ndarray of int
+        Indices of the basis input columns.
+    estimators_ : list of regressors
+        The fitted basis function of each stage.
+    coefs_ : ndarray of shape (n_stages,)
+        The line-search coefficient of each stage.
+    train_score_ : ndarray of shape (n_stages + 1,)
+        Training loss (the pseudo-residual loss) of the prior and after each stage.
+    """
+
+    def __init__(self, prior=None, basis=None, n_stages=1, loss="squared_error",
+                 line_search_loss="absolute_error", line_search_penalty=0.1,
+                 basis_features=None, input_transform=None, alpha=0.9, random_state=None):
+        self.prior = prior
+        self.basis = basis
+        self.n_stages = n_stages
+        self.loss = loss
+        self.line_search_loss = line_search_loss
+        self.line_search_penalty = line_search_penalty
+        self.basis_features = basis_features
+        self.input_transform = input_transform
+        self.alpha = alpha
+        self.random_state = random_state
+
+    def _check_params(self):
+        if (not isinstance(self.n_stages, numbers.Integral) or isinstance(self.n_stages, bool)
+                or self.n_stages < 1):
+            raise ValueError(f"n_stages must be an integer >= 1, got {self.n_stages!r}")
+        if not (isinstance(self.line_search_penalty, numbers.Real)
+                and self.line_search_penalty >= 0):
+            raise ValueError("line_search_penalty must be a number >= 0, got "
+                             f"{self.line_search_penalty!r}")
+        loss = get_loss(self.loss, alpha=self.alpha)
+        line_loss = get_loss(self.line_search_loss, alpha=self.alpha)
+        basis = DecisionTreeRegressor(max_depth=3) if self.basis is None else self.basis
+        if not (hasattr(basis, "fit") and hasattr(basis, "predict")):
+            raise TypeError(f"basis must be a scikit-learn regressor, got {type(basis).__name__}")
+        transform = self.input_transform
+        if transform is not None and not (hasattr(transform, "fit")
+                                          and hasattr(transform, "transform")):
+            raise TypeError("input_transform must be a scikit-learn transformer, got "
+                            f"{type(transform).__name__}")
+        return loss, line_loss, basis
+
+    def _basis_columns(self, n_features: int) -> np.ndarray:
+        if self.basis_features is None:
+            return np.arange(n_features)
+        cols = self.basis_features
+        if _is_column(cols):
+            cols = [cols]
+        if len(cols) == 0:
+            raise ValueError("basis_features is empty")
+        names = getattr(self, "feature_names_in_", None)
+        return np.array([_column_index(c, names, n_features, "basis feature") for c in cols])
+
+    def _basis_inputs(self, X: np.ndarray) -> np.ndarray:
+        Z = X[:, self.basis_columns_]
+        if self.input_transform_ is not None:
+            Z = self.input_transform_.transform(Z)
+        return Z
+
+    def fit(self, X, y):
+        """Fit the prior and ``n_stages`` stages on ``(X, y)``; returns ``self``."""
+        loss, line_loss, basis = self._check_params()
+        X_raw = X
+        X, y = validate_data(self, X, y, y_numeric=True, dtype=float)
+        rng = check_random_state(self.random_state)
+        seeds = rng.randint(np.iinfo(np.int32).max, size=self.n_stages + 1)
+
+        self.prior_model_ = PriorModel(prior=self.prior).fit(X_raw, y)
+        self.prior_values_ = self.prior_model_.predict(X_raw)
+        self.basis_columns_ = self._basis_columns(X.shape[1])
+        self.input_transform_ = None
+        if self.input_transform is not None:
+            transform = clone(self.input_transform)
+            if self.random_state is not None:
+                seed_estimator(transform, seeds[-1])
+            self.input_transform_ = transform.fit(X[:, self.basis_columns_])
+        Z = self._basis_inputs(X)
+
+        current = self.prior_values_.copy()
+        self.estimators_, coefs, scores = [], [], [loss(y, current)]
+        for k in range(self.n_stages):
+            residual = loss.negative_gradient(y, current)
+            est = clone(basis)
+            if self.random_state is not None:
+                seed_estimator(est, seeds[k])
+            est.fit(Z, residual)
+            direction = _check_1d_finite(est.predict(Z), len(y),
+                                         f"basis prediction at stage {k + 1}")
+            coef = line_search(y, current, direction, line_loss, self.line_search_penalty)
+            current = current + coef * direction
+            self.estimators_.append(est)
+            coefs.append(coef)
+            scores.append(loss(y, current))
+        self.coefs_ = np.asarray(coefs)
+        self.train_score_ = np.asarray(scores)
+        return self
+
+    def predict_prior(self, X) -> np.ndarray:
+        """The prior term alone for ``X``."""
+        check_is_fitted(self)
+        return self.prior_model_.predict(X)
+
+    def staged_predict(self, X):
+        """Yield the prediction after each stage ``k = 1..n_stages``."""
+        check_is_fitted(self)
+        pred = self.prior_model_.predict(X)
+        Z = self._basis_inputs(validate_data(self, X, reset=False, dtype=float))
+        for est, coef in zip(self.estimators_, self.coefs_):
+            pred = pred + coef * np.asarray(est.predict(Z), dtype=float).ravel()
+            yield pred
+
+    def predict(self, X) -> np.ndarray:
+        """``prior(X) + sum_k coef_k * b_k(T(X))``."""
+        pred = None
+        for pred in self.staged_predict(X):
+            pass
+        return pred

@@ -1,0 +1,65 @@
+"""The dataset type shared by every loader."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+
+@dataclass(frozen=True)
+class Hamiltonian:
+    """Per-example parameters of a chain's control-model Hamiltonian.
+
+    ``onsite`` holds the N diagonal entries (qubit frequencies, MHz) and ``couplings`` the
+    N - 1 nearest-neighbour couplings, one row per example, aligned with the dataset's rows.
+    The prior is the ascending eigenvalues of ``sign * H``.
+    """
+
+    onsite: pd.DataFrame
+    couplings: pd.DataFrame
+    sign: int = -1
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """Features, one prior column per target, the targets and a train/test split.
+
+    All frames share one row index. ``train_index`` and ``test_index`` hold index labels.
+    """
+
+    name: str
+    features: pd.DataFrame
+    prior: pd.DataFrame
+    targets: pd.DataFrame
+    train_index: np.ndarray
+    test_index: np.ndarray
+    hamiltonian: Hamiltonian | None = None
+
+    @property
+    def target_names(self) -> list[str]:
+        return [str(c) for c in self.targets.columns]
+
+    @property
+    def prior_names(self) -> list[str]:
+        return [str(c) for c in self.prior.columns]
+
+    @property
+    def feature_names(self) -> list[str]:
+        return [str(c) for c in self.features.columns]
+
+    @property
+    def X(self) -> pd.DataFrame:
+        """Model inputs: the features followed by the prior columns."""
+        return pd.concat([self.features, self.prior], axis=1)
+
+    def split(self) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame, pd.DataFrame]:
+        """``X_train, X_test, y_train, y_test`` for the dataset's split."""
+        X = self.X
+        return (
+            X.loc[self.train_index],
+            X.loc[self.test_index],
+            self.targets.loc[self.train_index],
+            self.targets.loc[self.test_index],
+        )

@@ -1,0 +1,163 @@
+"""Experiment configs (TOML files under ``experiments/``): read, check, and turn into models.
+
+A config has these sections (see ``experiments/paper_main_body.toml`` for an annotated one)::
+
+    name, description, random_state, n_jobs     # top level
+    [data]        source = "google_5q", data_dir (optional)
+    [model]       basis, basis_params, n_stages, loss, line_search_loss, line_search_penalty,
+                  alpha, basis_inputs ("prior" | "prior+features"), input_transform
+    [model.targets.<target>]  the same keys, overriding [model] for one target
+    [selection]   cv (folds, contiguous unless shuffle = true), shuffle, scoring
+
+Unknown sections, keys, names and targets are errors that list what is valid.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from sklearn.model_selection import KFold
+
+from ..bases import make_basis, make_transform
+from ..boosting import BaseBoostRegressor
+from ..datasets import Dataset, load_google_5q
+from ..losses import get_loss
+from ..multitarget import MultiTargetBaseBoost
+from ..selection import BaseBoostCV
+
+__all__ = ["ConfigError", "ExperimentConfig", "build_model", "load_config", "load_dataset"]
+
+TOP_KEYS = {"name", "description", "random_state", "n_jobs", "data", "model", "selection"}
+DATA_KEYS = {"source", "data_dir"}
+MODEL_KEYS = {"basis", "basis_params", "n_stages", "loss", "line_search_loss",
+              "line_search_penalty", "alpha", "basis_inputs", "input_transform",
+              "input_transform_params"}
+SELECTION_KEYS = {"cv", "shuffle", "scoring"}
+BASIS_INPUTS = ("prior", "prior+features")
+SOURCES = ("google_5q",)
+
+MODEL_DEFAULTS: dict[str, Any] = dict(
+    basis="paper_stacking", basis_params={}, n_stages=1, loss="squared_error",
+    line_search_loss="absolute_error", line_search_penalty=0.1, alpha=0.9,
+    basis_inputs="prior", input_transform="quantile_normal", input_transform_params={},
+)
+SELECTION_DEFAULTS: dict[str, Any] = dict(cv=5, shuffle=False, scoring="neg_mean_absolute_error")
+
+
+class ConfigError(ValueError):
+    """A config file that cannot be used; the message names the file and the problem."""
+
+
+def _check_keys(where: str, table: dict, valid: set[str]) -> None:
+    unknown = sorted(set(table) - valid)
+    if unknown:
+        raise ConfigError(f"{where}: unknown key(s) {unknown}; valid keys are {sorted(valid)}")
+
+
+@dataclass(frozen=True)
+class ExperimentConfig:
+    """A checked config: the raw tables plus where the file lives (for relative paths)."""
+
+    path: Path | None
+    name: str
+    random_state: int | None
+    n_jobs: int | None
+    data: dict[str, Any]
+    model: dict[str, Any]
+    targets: dict[str, dict[str, Any]]
+    selection: dict[str, Any]
+
+    def model_for(self, target: str) -> dict[str, Any]:
+        """The model settings of one target: ``[model]`` overridden by its target table."""
+        merged = {**MODEL_DEFAULTS, **self.model}
+        override = self.targets.get(target, {})
+        merged.update({k: v for k, v in override.items() if k != "basis_params"})
+        if "basis" in override and override["basis"] != self.model.get("basis"):
+            merged["basis_params"] = dict(override.get("basis_params", {}))
+        else:
+            merged["basis_params"] = {**merged["basis_params"], **override.get("basis_params", {})}
+        return merged
+
+
+def parse_config(raw: dict[str, Any], path: Path | None = None) -> ExperimentConfig:
+    """Check a config's tables and return an :class:`ExperimentConfig`."""
+    where = str(path) if path else "config"
+    _check_keys(where, raw, TOP_KEYS)
+    data = dict(raw.get("data", {}))
+    _check_keys(f"{where} [data]", data, DATA_KEYS)
+    if data.get("source") not in SOURCES:
+        raise ConfigError(f"{where} [data]: source must be one of {list(SOURCES)}, got "
+                          f"{data.get('source')!r}")
+    model = dict(raw.get("model", {}))
+    targets = model.pop("targets", {})
+    _check_keys(f"{where} [model]", model, MODEL_KEYS)
+    for name, table in targets.items():
+        _check_keys(f"{where} [model.targets.{name}]", table, MODEL_KEYS)
+    selection = {**SELECTION_DEFAULTS, **raw.get("selection", {})}
+    _check_keys(f"{where} [selection]", selection, SELECTION_KEYS)
+    cfg = ExperimentConfig(path=path, name=str(raw.get("name", path.stem if path else "config")),
+                           random_state=raw.get("random_state"), n_jobs=raw.get("n_jobs"),
+                           data=data, model=model, targets=targets, selection=selection)
+    for target in [None, *targets]:  # resolve every name now, not halfway through a run
+        settings = cfg.model_for(target) if target else {**MODEL_DEFAULTS, **model}
+        label = f"{where} [model{'.targets.' + target if target else ''}]"
+        try:
+            get_loss(settings["loss"])
+            get_loss(settings["line_search_loss"])
+            make_basis(settings["basis"], **settings["basis_params"])
+            make_transform(settings["input_transform"], **settings["input_transform_params"])
+        except (ValueError, TypeError) as exc:
+            raise ConfigError(f"{label}: {exc}") from None
+        if settings["basis_inputs"] not in BASIS_INPUTS:
+            raise ConfigError(f"{label}: basis_inputs must be one of {list(BASIS_INPUTS)}, got "
+                              f"{settings['basis_inputs']!r}")
+    return cfg
+
+
+def load_config(path: str | Path) -> ExperimentConfig:
+    """Read and check a TOML config file."""
+    path = Path(path)
+    try:
+        raw = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise ConfigError(f"config file not found: {path}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: not valid TOML: {exc}") from None
+    return parse_config(raw, path)
+
+
+def load_dataset(cfg: ExperimentConfig) -> Dataset:
+    """The dataset named by the config's ``[data]`` section."""
+    data_dir = cfg.data.get("data_dir")
+    if data_dir is not None and cfg.path is not None:
+        data_dir = (cfg.path.parent / data_dir).resolve()
+    return load_google_5q(data_dir)
+
+
+def build_model(cfg: ExperimentConfig, dataset: Dataset) -> MultiTargetBaseBoost:
+    """One :class:`BaseBoostCV` per target, target ``j`` boosting from prior column ``j``."""
+    names = dataset.target_names
+    unknown = sorted(set(cfg.targets) - set(names))
+    if unknown:
+        raise ConfigError(f"[model.targets]: unknown target(s) {unknown}; the dataset's "
+                          f"targets are {names}")
+    selection = cfg.selection
+    cv = KFold(selection["cv"], shuffle=selection["shuffle"],
+               random_state=cfg.random_state if selection["shuffle"] else None)
+    per_target = {}
+    for target, prior in zip(names, dataset.prior_names):
+        s = cfg.model_for(target)
+        inputs = dataset.prior_names + (dataset.feature_names
+                                        if s["basis_inputs"] == "prior+features" else [])
+        booster = BaseBoostRegressor(
+            prior=prior, basis=make_basis(s["basis"], **s["basis_params"]),
+            n_stages=s["n_stages"], loss=s["loss"], line_search_loss=s["line_search_loss"],
+            line_search_penalty=s["line_search_penalty"], alpha=s["alpha"],
+            basis_features=inputs,
+            input_transform=make_transform(s["input_transform"], **s["input_transform_params"]))
+        per_target[target] = BaseBoostCV(booster, cv=cv, scoring=selection["scoring"])
+    return MultiTargetBaseBoost(target_estimators=per_target, n_jobs=cfg.n_jobs,
+                                random_state=cfg.random_state)

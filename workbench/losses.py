@@ -1,0 +1,182 @@
+"""Regression losses for base boosting: value, negative gradient and the shape the line search needs.
+
+Each loss is a function of the residual ``u = y - prediction`` and is *piecewise quadratic*
+in ``u`` between a few known kink points (``kinks``). That is all the exact line search in
+:mod:`workbench.line_search` needs. Values are means over examples (as in scikit-learn's
+and the reference implementation's losses), so a line-search penalty is on the same scale
+whatever the number of rows.
+
+Losses whose shape depends on the data (Huber's ``delta``) are *bound* to a residual vector
+with :meth:`Loss.bind` before use; the bound loss has fixed parameters, which keeps the line
+objective convex.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = [
+    "LOSSES",
+    "AbsoluteError",
+    "Huber",
+    "Loss",
+    "Quantile",
+    "SquaredError",
+    "get_loss",
+]
+
+
+class Loss:
+    """Base class. Subclasses define ``name``, :meth:`elementwise`, :meth:`psi` and ``kinks``."""
+
+    name: str = ""
+
+    def bind(self, residual: np.ndarray) -> Loss:
+        """Return a loss whose data-dependent parameters are fixed from ``residual``."""
+        return self
+
+    def elementwise(self, u: np.ndarray) -> np.ndarray:
+        """Loss of each residual ``u = y - prediction``."""
+        raise NotImplementedError
+
+    def psi(self, u: np.ndarray) -> np.ndarray:
+        """Negative gradient with respect to the prediction, as a function of ``u``."""
+        raise NotImplementedError
+
+    def kinks(self) -> tuple[float, ...]:
+        """Residual values between which the loss is a single quadratic (or linear) piece."""
+        return ()
+
+    def __call__(self, y: np.ndarray, pred: np.ndarray) -> float:
+        """Mean loss of ``pred`` against ``y``."""
+        return float(np.mean(self.elementwise(np.asarray(y) - np.asarray(pred))))
+
+    def negative_gradient(self, y: np.ndarray, pred: np.ndarray) -> np.ndarray:
+        """Pseudo-residuals ``-dL/dpred`` at ``pred`` (a bound copy of the loss is used)."""
+        u = np.asarray(y, dtype=float) - np.asarray(pred, dtype=float)
+        return self.bind(u).psi(u)
+
+
+@dataclass(frozen=True)
+class SquaredError(Loss):
+    """``mean(u**2)``; pseudo-residual ``u``."""
+
+    name = "squared_error"
+
+    def elementwise(self, u):
+        return u * u
+
+    def psi(self, u):
+        return np.array(u, dtype=float, copy=True)
+
+
+@dataclass(frozen=True)
+class AbsoluteError(Loss):
+    """``mean(|u|)``; pseudo-residual ``sign(u)``."""
+
+    name = "absolute_error"
+
+    def elementwise(self, u):
+        return np.abs(u)
+
+    def psi(self, u):
+        return np.sign(u).astype(float)
+
+    def kinks(self):
+        return (0.0,)
+
+
+@dataclass(frozen=True)
+class Huber(Loss):
+    """Huber loss: ``u**2 / 2`` for ``|u| <= delta``, ``delta * (|u| - delta / 2)`` beyond.
+
+    ``delta=None`` (default) takes ``delta`` as the ``quantile`` quantile of ``|u|`` of the
+    residuals the loss is bound to, as in Friedman (2001) and scikit-learn.
+    """
+
+    quantile: float = 0.9
+    delta: float | None = None
+    name = "huber"
+
+    def __post_init__(self):
+        if not 0.0 < self.quantile <= 1.0:
+            raise ValueError(f"huber quantile must be in (0, 1], got {self.quantile!r}")
+        if self.delta is not None and not self.delta >= 0.0:
+            raise ValueError(f"huber delta must be >= 0, got {self.delta!r}")
+
+    def bind(self, residual):
+        if self.delta is not None:
+            return self
+        delta = float(np.quantile(np.abs(residual), self.quantile)) if len(residual) else 0.0
+        return Huber(quantile=self.quantile, delta=delta)
+
+    def _delta(self):
+        if self.delta is None:
+            raise RuntimeError("Huber loss is not bound to residuals: call bind(residual) first")
+        return self.delta
+
+    def elementwise(self, u):
+        d = self._delta()
+        a = np.abs(u)
+        return np.where(a <= d, 0.5 * u * u, d * (a - 0.5 * d))
+
+    def psi(self, u):
+        d = self._delta()
+        return np.clip(u, -d, d).astype(float)
+
+    def kinks(self):
+        d = self._delta()
+        return (-d, d) if d > 0 else (0.0,)
+
+    def __call__(self, y, pred):
+        u = np.asarray(y, dtype=float) - np.asarray(pred, dtype=float)
+        return float(np.mean(self.bind(u).elementwise(u)))
+
+
+@dataclass(frozen=True)
+class Quantile(Loss):
+    """Pinball loss for the ``alpha`` quantile: ``alpha * u`` if ``u > 0`` else ``(alpha - 1) * u``."""
+
+    alpha: float = 0.9
+    name = "quantile"
+
+    def __post_init__(self):
+        if not 0.0 < self.alpha < 1.0:
+            raise ValueError(f"quantile alpha must be in (0, 1), got {self.alpha!r}")
+
+    def elementwise(self, u):
+        return np.where(u > 0, self.alpha * u, (self.alpha - 1.0) * u)
+
+    def psi(self, u):
+        return np.where(u > 0, self.alpha, self.alpha - 1.0).astype(float)
+
+    def kinks(self):
+        return (0.0,)
+
+
+#: The registry of losses by name. ``alpha`` is Huber's quantile or the quantile level.
+LOSSES: dict[str, type[Loss]] = {
+    "squared_error": SquaredError,
+    "absolute_error": AbsoluteError,
+    "huber": Huber,
+    "quantile": Quantile,
+}
+
+
+def get_loss(loss: str | Loss, alpha: float = 0.9) -> Loss:
+    """Resolve a loss name (or pass a :class:`Loss` instance through).
+
+    ``alpha`` sets Huber's ``quantile`` and the quantile loss's level, as ``alpha`` does in
+    scikit-learn's ``GradientBoostingRegressor``; other losses ignore it.
+    """
+    if isinstance(loss, Loss):
+        return loss
+    if not isinstance(loss, str) or loss not in LOSSES:
+        raise ValueError(f"unknown loss {loss!r}; valid names are: {', '.join(sorted(LOSSES))}")
+    if loss == "huber":
+        return Huber(quantile=alpha)
+    if loss == "quantile":
+        return Quantile(alpha=alpha)
+    return LOSSES[loss]()

@@ -1,0 +1,116 @@
+"""Multi-target base boosting: one model per target, each with its own prior column."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+from joblib import Parallel, delayed
+from sklearn.base import BaseEstimator, MetaEstimatorMixin, RegressorMixin, clone
+from sklearn.utils import check_random_state
+from sklearn.utils.validation import check_is_fitted
+
+from .boosting import seed_estimator
+from .selection import BaseBoostCV
+
+__all__ = ["MultiTargetBaseBoost"]
+
+
+def _set_prior(estimator, prior):
+    """Set every ``prior`` parameter of ``estimator`` (nested ones too) to ``prior``."""
+    keys = [k for k in estimator.get_params(deep=True) if k == "prior" or k.endswith("__prior")]
+    if not keys:
+        raise ValueError(f"{type(estimator).__name__} has no 'prior' parameter to set")
+    return estimator.set_params(**{k: prior for k in keys})
+
+
+def _fit_one(estimator, X, y):
+    return estimator.fit(X, y)
+
+
+class MultiTargetBaseBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
+    """Fit one base-boosting model per target column; target ``j`` uses prior ``priors[j]``.
+
+    Parameters
+    ----------
+    estimator : regressor, default=None
+        Template for every target (``None``: ``BaseBoostCV()``), cloned per target.
+    priors : list, default=None
+        One prior per target (a column name or index of ``X``, an estimator or a callable),
+        set on every ``prior`` parameter of that target's estimator. ``None`` keeps the
+        template's prior.
+    target_estimators : dict, default=None
+        Per-target overrides of ``estimator``, keyed by target name or position.
+    n_jobs : int, default=None
+        Targets fitted in parallel (processes; give LightGBM/BLAS one thread each).
+    random_state : int, RandomState or None, default=None
+        If set, each target's estimator gets its own seed drawn from it.
+
+    Attributes
+    ----------
+    estimators_ : list of fitted regressors, one per target
+    target_names_ : list of str
+    """
+
+    def __init__(self, estimator=None, *, priors=None, target_estimators=None, n_jobs=None,
+                 random_state=None):
+        self.estimator = estimator
+        self.priors = priors
+        self.target_estimators = target_estimators
+        self.n_jobs = n_jobs
+        self.random_state = random_state
+
+    def _estimators_for(self, names: list[str]) -> list:
+        n_targets = len(names)
+        overrides = dict(self.target_estimators or {})
+        unknown = [k for k in overrides if k not in names and k not in range(n_targets)]
+        if unknown:
+            raise ValueError(f"target_estimators has unknown targets {unknown}; targets are "
+                             f"{names}")
+        if self.priors is not None and len(self.priors) != n_targets:
+            raise ValueError(f"priors has {len(self.priors)} entries but y has {n_targets} "
+                             f"targets {names}: give one prior per target")
+        rng = check_random_state(self.random_state)
+        seeds = rng.randint(np.iinfo(np.int32).max, size=n_targets)
+        template = BaseBoostCV() if self.estimator is None else self.estimator
+        ests = []
+        for j, name in enumerate(names):
+            est = clone(overrides.get(name, overrides.get(j, template)))
+            if self.priors is not None:
+                _set_prior(est, self.priors[j])
+            if self.random_state is not None:
+                seed_estimator(est, seeds[j])
+            ests.append(est)
+        return ests
+
+    def fit(self, X, Y):
+        """Fit each target's estimator on ``(X, Y[:, j])``; returns ``self``."""
+        if isinstance(Y, pd.DataFrame):
+            names = [str(c) for c in Y.columns]
+            Y = Y.to_numpy(dtype=float)
+        else:
+            Y = np.asarray(Y, dtype=float)
+            if Y.ndim != 2:
+                raise ValueError(f"Y must be 2-D (n_samples, n_targets), got shape {Y.shape}")
+            names = [f"y{j}" for j in range(Y.shape[1])]
+        if len(X) != len(Y):
+            raise ValueError(f"X has {len(X)} rows but Y has {len(Y)}")
+        ests = self._estimators_for(names)
+        self.estimators_ = Parallel(n_jobs=self.n_jobs)(
+            delayed(_fit_one)(est, X, Y[:, j]) for j, est in enumerate(ests))
+        self.target_names_ = names
+        self.n_features_in_ = X.shape[1]
+        if hasattr(X, "columns"):
+            self.feature_names_in_ = np.asarray([str(c) for c in X.columns], dtype=object)
+        return self
+
+    def predict(self, X) -> pd.DataFrame:
+        """Predictions as a DataFrame with one column per target (``X``'s index if any)."""
+        check_is_fitted(self)
+        pred = np.column_stack([est.predict(X) for est in self.estimators_])
+        return pd.DataFrame(pred, columns=self.target_names_, index=getattr(X, "index", None))
+
+    @property
+    def selected_(self) -> list[str]:
+        """Per target: ``"prior"`` or ``"boosted"`` where the estimator reports it."""
+        check_is_fitted(self)
+        return [getattr(est, "selected_", "boosted") for est in self.estimators_]

@@ -1,0 +1,153 @@
+"""Inbuilt model selection (the paper's Alg. 2): boost only where cross-validation says it helps."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+from joblib import Parallel, delayed
+from sklearn.base import BaseEstimator, MetaEstimatorMixin, RegressorMixin, clone
+from sklearn.exceptions import FitFailedWarning
+from sklearn.metrics import check_scoring
+from sklearn.model_selection import check_cv
+from sklearn.utils import check_random_state
+from sklearn.utils.validation import check_is_fitted, validate_data
+
+from .boosting import BaseBoostRegressor, PriorModel, seed_estimator
+
+__all__ = ["BaseBoostCV", "find_prior"]
+
+
+def find_prior(estimator):
+    """The ``prior`` parameter of ``estimator`` (or of the one it wraps, e.g. in a Pipeline)."""
+    params = estimator.get_params(deep=True)
+    if "prior" in params:
+        return params["prior"]
+    nested = [k for k in params if k.endswith("__prior")]
+    if len(nested) == 1:
+        return params[nested[0]]
+    raise ValueError(f"cannot find the prior of {type(estimator).__name__} (found "
+                     f"{len(nested)} nested 'prior' parameters); pass incumbent=")
+
+
+def _safe_index(X, idx):
+    return X.iloc[idx] if hasattr(X, "iloc") else X[idx]
+
+
+def _fold(incumbent, estimator, X, y, train, test, scorer):
+    X_tr, X_te, y_tr, y_te = _safe_index(X, train), _safe_index(X, test), y[train], y[test]
+    prior_score = scorer(clone(incumbent).fit(X_tr, y_tr), X_te, y_te)
+    try:
+        score = scorer(clone(estimator).fit(X_tr, y_tr), X_te, y_te)
+        error = None
+    except Exception as exc:  # a failed candidate is recorded, never chosen
+        score, error = np.nan, f"{type(exc).__name__}: {exc}"
+    return float(prior_score), float(score), error
+
+
+class BaseBoostCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
+    """Choose between the prior alone (the incumbent) and a boosted candidate by CV.
+
+    Both are scored on the same folds of the training rows. The candidate is selected only
+    if every one of its folds succeeded and its mean score is strictly better; ties and
+    failures go to the prior (with a ``FitFailedWarning`` for failures).
+
+    Parameters
+    ----------
+    estimator : regressor, default=None
+        The candidate (``None``: ``BaseBoostRegressor()``).
+    incumbent : regressor, default=None
+        The prior-alone model; ``None`` builds ``PriorModel(prior=<the estimator's prior>)``.
+    cv : int, CV splitter or iterable, default=5
+        As in scikit-learn; an int gives contiguous, unshuffled ``KFold`` (the paper's).
+    scoring : str or callable, default="neg_mean_absolute_error"
+        Selection score, greater is better.
+    refit : bool, default=True
+        Refit the selected model on all rows. ``False`` only computes the fold scores
+        (e.g. inside a hyperparameter search).
+    n_jobs : int, default=None
+        Folds fitted in parallel.
+    random_state : int, RandomState or None, default=None
+        If set, seeds every ``random_state`` of the candidate (and of ``cv`` when it shuffles).
+
+    Attributes
+    ----------
+    selected_ : {"prior", "boosted"}
+    cv_scores_prior_, cv_scores_boosted_ : ndarray of shape (n_splits,)
+        Per-fold scores (NaN where the candidate failed).
+    fit_errors_ : list of str
+        Messages of the candidate's failed fits.
+    best_estimator_ : regressor
+        The selected model refitted on all rows (when ``refit=True``).
+    """
+
+    def __init__(self, estimator=None, *, incumbent=None, cv=5,
+                 scoring="neg_mean_absolute_error", refit=True, n_jobs=None, random_state=None):
+        self.estimator = estimator
+        self.incumbent = incumbent
+        self.cv = cv
+        self.scoring = scoring
+        self.refit = refit
+        self.n_jobs = n_jobs
+        self.random_state = random_state
+
+    def _candidate(self):
+        est = BaseBoostRegressor() if self.estimator is None else clone(self.estimator)
+        if self.random_state is not None:
+            seed_estimator(est, check_random_state(self.random_state).randint(2**31 - 1))
+        return est
+
+    def fit(self, X, y):
+        """Score both models by CV, then (if ``refit``) refit the selected one; returns ``self``."""
+        candidate = self._candidate()
+        incumbent = (PriorModel(prior=find_prior(candidate)) if self.incumbent is None
+                     else self.incumbent)
+        validate_data(self, X, y, y_numeric=True, dtype=float)
+        y = np.asarray(y, dtype=float)
+        if y.ndim == 2 and y.shape[1] == 1:
+            y = y[:, 0]
+        cv = check_cv(self.cv, y, classifier=False)
+        scorer = check_scoring(candidate, scoring=self.scoring)
+        folds = Parallel(n_jobs=self.n_jobs)(
+            delayed(_fold)(incumbent, candidate, X, y, train, test, scorer)
+            for train, test in cv.split(X, y)
+        )
+        self.cv_scores_prior_ = np.array([f[0] for f in folds])
+        self.cv_scores_boosted_ = np.array([f[1] for f in folds])
+        self.fit_errors_ = [f[2] for f in folds if f[2] is not None]
+        boosted_ok = not self.fit_errors_ and np.all(np.isfinite(self.cv_scores_boosted_))
+        if self.fit_errors_:
+            warnings.warn(f"{len(self.fit_errors_)} of {len(folds)} candidate fits failed; "
+                          f"selecting the prior. First error: {self.fit_errors_[0]}",
+                          FitFailedWarning, stacklevel=2)
+        wins = boosted_ok and self.cv_scores_boosted_.mean() > self.cv_scores_prior_.mean()
+        self.selected_ = "boosted" if wins else "prior"
+        if self.refit:
+            if wins:
+                try:
+                    self.best_estimator_ = candidate.fit(X, y)
+                except Exception as exc:
+                    warnings.warn(f"refitting the candidate on all rows failed ({exc}); "
+                                  "selecting the prior", FitFailedWarning, stacklevel=2)
+                    self.fit_errors_.append(f"{type(exc).__name__}: {exc}")
+                    self.selected_ = "prior"
+            if self.selected_ == "prior":
+                self.best_estimator_ = clone(incumbent).fit(X, y)
+        return self
+
+    @property
+    def cv_score_(self) -> float:
+        """Mean CV score of the selected model."""
+        check_is_fitted(self)
+        scores = self.cv_scores_boosted_ if self.selected_ == "boosted" else self.cv_scores_prior_
+        return float(np.mean(scores))
+
+    def predict(self, X):
+        check_is_fitted(self)
+        if not hasattr(self, "best_estimator_"):
+            raise AttributeError("BaseBoostCV was fitted with refit=False: it has fold scores "
+                                 "but no model to predict with")
+        return self.best_estimator_.predict(X)
+
+    def __sklearn_is_fitted__(self):
+        return hasattr(self, "selected_")
