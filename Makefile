@@ -23,9 +23,10 @@ $(VENV)/.installed-dev: pyproject.toml | $(PY)
 run: $(VENV)/.installed
 	$(VENV)/bin/workbench evaluate experiments/paper_main_body.toml --json reports/paper_main_body.json
 
-# Default test suite (slow checks: `$(PY) -m pytest -m slow`).
+# Default test suite (slow checks: `$(PY) -m pytest -m slow`). Two workers, one BLAS/OpenMP
+# thread each: on 2 cores, oversubscribed threads are the usual slowdown.
 test: $(VENV)/.installed-dev
-	$(PY) -m pytest -n 2
+	OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 $(PY) -m pytest -n 2
 
 clean:
 	rm -rf $(VENV) .cache

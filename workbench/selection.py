@@ -10,7 +10,7 @@ from sklearn.base import BaseEstimator, MetaEstimatorMixin, RegressorMixin, clon
 from sklearn.exceptions import FitFailedWarning
 from sklearn.metrics import check_scoring
 from sklearn.model_selection import check_cv
-from sklearn.utils import check_random_state
+from sklearn.utils import _safe_indexing, check_random_state
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .boosting import BaseBoostRegressor, PriorModel, seed_estimator
@@ -30,12 +30,8 @@ def find_prior(estimator):
                      f"{len(nested)} nested 'prior' parameters); pass incumbent=")
 
 
-def _safe_index(X, idx):
-    return X.iloc[idx] if hasattr(X, "iloc") else X[idx]
-
-
 def _fold(incumbent, estimator, X, y, train, test, scorer):
-    X_tr, X_te, y_tr, y_te = _safe_index(X, train), _safe_index(X, test), y[train], y[test]
+    X_tr, X_te, y_tr, y_te = _safe_indexing(X, train), _safe_indexing(X, test), y[train], y[test]
     prior_score = scorer(clone(incumbent).fit(X_tr, y_tr), X_te, y_te)
     try:
         score = scorer(clone(estimator).fit(X_tr, y_tr), X_te, y_te)
@@ -103,6 +99,8 @@ class BaseBoostCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         incumbent = (PriorModel(prior=find_prior(candidate)) if self.incumbent is None
                      else self.incumbent)
         validate_data(self, X, y, y_numeric=True, dtype=float)
+        if not hasattr(X, "iloc"):  # keep DataFrames (column names) for the sub-estimators
+            X = np.asarray(X)
         y = np.asarray(y, dtype=float)
         if y.ndim == 2 and y.shape[1] == 1:
             y = y[:, 0]
