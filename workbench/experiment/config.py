@@ -19,16 +19,17 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from sklearn.metrics import get_scorer
 from sklearn.model_selection import KFold
 
 from ..bases import make_basis, make_transform
 from ..boosting import BaseBoostRegressor
 from ..datasets import Dataset, load_google_5q
-from ..losses import get_loss
 from ..multitarget import MultiTargetBaseBoost
 from ..selection import BaseBoostCV
 
-__all__ = ["ConfigError", "ExperimentConfig", "build_model", "load_config", "load_dataset"]
+__all__ = ["ConfigError", "ExperimentConfig", "build_model", "load_config", "load_dataset",
+           "make_booster", "parse_config"]
 
 TOP_KEYS = {"name", "description", "random_state", "n_jobs", "data", "model", "selection"}
 DATA_KEYS = {"source", "data_dir"}
@@ -70,50 +71,94 @@ class ExperimentConfig:
     targets: dict[str, dict[str, Any]]
     selection: dict[str, Any]
 
-    def model_for(self, target: str) -> dict[str, Any]:
-        """The model settings of one target: ``[model]`` overridden by its target table."""
+    def model_for(self, target: str | None) -> dict[str, Any]:
+        """The model settings of one target: ``[model]`` overridden by its target table.
+
+        ``basis_params`` (``input_transform_params``) merge over the parent's while the target
+        keeps the parent's basis (transform), and start afresh when it names another one.
+        """
         merged = {**MODEL_DEFAULTS, **self.model}
-        override = self.targets.get(target, {})
-        merged.update({k: v for k, v in override.items() if k != "basis_params"})
-        if "basis" in override and override["basis"] != self.model.get("basis"):
-            merged["basis_params"] = dict(override.get("basis_params", {}))
-        else:
-            merged["basis_params"] = {**merged["basis_params"], **override.get("basis_params", {})}
+        override = self.targets.get(target, {}) if target is not None else {}
+        for key, params in (("basis", "basis_params"),
+                            ("input_transform", "input_transform_params")):
+            if key in override and override[key] != merged[key]:
+                merged[params] = {}
+            merged[params] = {**merged[params], **override.get(params, {})}
+        merged.update({k: v for k, v in override.items() if not k.endswith("_params")})
         return merged
 
 
+def _table(where: str, value: Any) -> dict[str, Any]:
+    if not isinstance(value, dict):
+        raise ConfigError(f"{where} must be a table, got {type(value).__name__} {value!r}")
+    return dict(value)
+
+
+def make_booster(settings: dict[str, Any], prior, inputs: list[str]) -> BaseBoostRegressor:
+    """The :class:`BaseBoostRegressor` that one target's settings describe."""
+    return BaseBoostRegressor(
+        prior=prior, basis=make_basis(settings["basis"], **settings["basis_params"]),
+        n_stages=settings["n_stages"], loss=settings["loss"],
+        line_search_loss=settings["line_search_loss"],
+        line_search_penalty=settings["line_search_penalty"], alpha=settings["alpha"],
+        basis_features=inputs,
+        input_transform=make_transform(settings["input_transform"],
+                                       **settings["input_transform_params"]))
+
+
 def parse_config(raw: dict[str, Any], path: Path | None = None) -> ExperimentConfig:
-    """Check a config's tables and return an :class:`ExperimentConfig`."""
+    """Check a config's tables and return an :class:`ExperimentConfig`.
+
+    Every name and value is resolved here (bases, losses, transforms, scoring, n_stages...),
+    so a bad config fails at load time, never halfway through a run.
+    """
     where = str(path) if path else "config"
     _check_keys(where, raw, TOP_KEYS)
-    data = dict(raw.get("data", {}))
+    data = _table(f"{where} [data]", raw.get("data", {}))
     _check_keys(f"{where} [data]", data, DATA_KEYS)
     if data.get("source") not in SOURCES:
         raise ConfigError(f"{where} [data]: source must be one of {list(SOURCES)}, got "
                           f"{data.get('source')!r}")
-    model = dict(raw.get("model", {}))
-    targets = model.pop("targets", {})
+    model = _table(f"{where} [model]", raw.get("model", {}))
+    targets = _table(f"{where} [model.targets]", model.pop("targets", {}))
     _check_keys(f"{where} [model]", model, MODEL_KEYS)
+    tables = {None: model}
     for name, table in targets.items():
+        tables[name] = _table(f"{where} [model.targets.{name}]", table)
         _check_keys(f"{where} [model.targets.{name}]", table, MODEL_KEYS)
-    selection = {**SELECTION_DEFAULTS, **raw.get("selection", {})}
+    for name, table in tables.items():
+        label = f"{where} [model{'' if name is None else '.targets.' + name}]"
+        for key in ("basis_params", "input_transform_params"):
+            _table(f"{label} {key}", table.get(key, {}))
+    selection = {**SELECTION_DEFAULTS, **_table(f"{where} [selection]", raw.get("selection", {}))}
     _check_keys(f"{where} [selection]", selection, SELECTION_KEYS)
+    cv = selection["cv"]
+    if not isinstance(cv, int) or isinstance(cv, bool) or cv < 2:
+        raise ConfigError(f"{where} [selection]: cv must be an integer >= 2, got {cv!r}")
+    if not isinstance(selection["shuffle"], bool):
+        raise ConfigError(f"{where} [selection]: shuffle must be true or false, got "
+                          f"{selection['shuffle']!r}")
+    for key in ("random_state", "n_jobs"):
+        value = raw.get(key)
+        if value is not None and (not isinstance(value, int) or isinstance(value, bool)):
+            raise ConfigError(f"{where}: {key} must be an integer, got {value!r}")
+    try:
+        get_scorer(selection["scoring"])
+    except ValueError as exc:
+        raise ConfigError(f"{where} [selection]: scoring: {exc}") from None
     cfg = ExperimentConfig(path=path, name=str(raw.get("name", path.stem if path else "config")),
                            random_state=raw.get("random_state"), n_jobs=raw.get("n_jobs"),
                            data=data, model=model, targets=targets, selection=selection)
-    for target in [None, *targets]:  # resolve every name now, not halfway through a run
-        settings = cfg.model_for(target) if target else {**MODEL_DEFAULTS, **model}
-        label = f"{where} [model{'.targets.' + target if target else ''}]"
-        try:
-            get_loss(settings["loss"])
-            get_loss(settings["line_search_loss"])
-            make_basis(settings["basis"], **settings["basis_params"])
-            make_transform(settings["input_transform"], **settings["input_transform_params"])
-        except (ValueError, TypeError) as exc:
-            raise ConfigError(f"{label}: {exc}") from None
+    for target in tables:
+        settings = cfg.model_for(target)
+        label = f"{where} [model{'' if target is None else '.targets.' + target}]"
         if settings["basis_inputs"] not in BASIS_INPUTS:
             raise ConfigError(f"{label}: basis_inputs must be one of {list(BASIS_INPUTS)}, got "
                               f"{settings['basis_inputs']!r}")
+        try:
+            make_booster(settings, prior=None, inputs=None)._check_params()
+        except (ValueError, TypeError) as exc:
+            raise ConfigError(f"{label}: {exc}") from None
     return cfg
 
 
@@ -121,9 +166,11 @@ def load_config(path: str | Path) -> ExperimentConfig:
     """Read and check a TOML config file."""
     path = Path(path)
     try:
-        raw = tomllib.loads(path.read_text())
+        raw = tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise ConfigError(f"config file not found: {path}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"cannot read config file {path}: {exc}") from None
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{path}: not valid TOML: {exc}") from None
     return parse_config(raw, path)
@@ -152,12 +199,7 @@ def build_model(cfg: ExperimentConfig, dataset: Dataset) -> MultiTargetBaseBoost
         s = cfg.model_for(target)
         inputs = dataset.prior_names + (dataset.feature_names
                                         if s["basis_inputs"] == "prior+features" else [])
-        booster = BaseBoostRegressor(
-            prior=prior, basis=make_basis(s["basis"], **s["basis_params"]),
-            n_stages=s["n_stages"], loss=s["loss"], line_search_loss=s["line_search_loss"],
-            line_search_penalty=s["line_search_penalty"], alpha=s["alpha"],
-            basis_features=inputs,
-            input_transform=make_transform(s["input_transform"], **s["input_transform_params"]))
+        booster = make_booster(s, prior=prior, inputs=inputs)
         per_target[target] = BaseBoostCV(booster, cv=cv, scoring=selection["scoring"])
     return MultiTargetBaseBoost(target_estimators=per_target, n_jobs=cfg.n_jobs,
                                 random_state=cfg.random_state)

@@ -25,10 +25,15 @@ def _avg(values) -> float:
     return float(np.mean(values))
 
 
-def evaluate(cfg: ExperimentConfig, progress: TextIO | None = sys.stderr) -> dict[str, Any]:
+def evaluate(cfg: ExperimentConfig, progress: TextIO | None | bool = True) -> dict[str, Any]:
     """Fit per target on the training rows (model selection by CV on those rows only), then
-    score prior and model on the test rows. Returns the JSON-ready result."""
+    score prior and model on the test rows. Returns the JSON-ready result.
+
+    ``progress``: a stream for progress lines, ``True`` for the current ``sys.stderr``,
+    ``None``/``False`` for none."""
     start = time.perf_counter()
+    if progress is True:
+        progress = sys.stderr
     ds = load_dataset(cfg)
     X_train, X_test, y_train, y_test = ds.split()
     model = build_model(cfg, ds)

@@ -1,0 +1,236 @@
+"""Tests for the ``workbench`` command (``workbench.experiment.cli.main``)."""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import io
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from workbench.datasets import google_5q as g5
+from workbench.experiment.cli import main
+
+PAPER_TOML = Path(__file__).resolve().parents[1] / "experiments" / "paper_main_body.toml"
+TARGETS = [f"eeig{i}" for i in range(1, 6)]
+
+# the cheap MLP bases below stop early on purpose
+pytestmark = pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
+
+
+def write_config(tmp_path: Path, data_dir: Path | None, model: str = 'basis = "ridge"', *,
+                 random_state: int = 0, name: str = "cfg.toml") -> Path:
+    data_line = f"data_dir = {json.dumps(str(data_dir))}\n" if data_dir is not None else ""
+    path = tmp_path / name
+    path.write_text(f'name = "cli_test"\nrandom_state = {random_state}\n\n'
+                    f'[data]\nsource = "google_5q"\n{data_line}\n[model]\n{model}\n')
+    return path
+
+
+def _numbers(result: dict) -> dict:
+    """The JSON minus what legitimately differs between runs (timing, file path)."""
+    return {k: v for k, v in result.items() if k not in ("wall_s", "config")}
+
+
+def _assert_clean_error(err: str, *needles: str) -> None:
+    assert "Traceback" not in err
+    first, *rest = err.strip().splitlines()
+    assert first.startswith("workbench: error:"), err
+    for needle in needles:
+        assert needle in err, (needle, err)
+
+
+# --- the paper config end to end (run once per module) ------------------------------------
+
+def _run_paper(google_5q_dir: Path, out: Path) -> dict:
+    stdout, stderr = io.StringIO(), io.StringIO()
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv(g5.ENV_VAR, str(google_5q_dir))
+        with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
+            rc = main(["evaluate", str(PAPER_TOML), "--json", str(out)])
+    return dict(rc=rc, stdout=stdout.getvalue(), stderr=stderr.getvalue())
+
+
+@pytest.fixture(scope="module")
+def paper_run(google_5q_dir, tmp_path_factory):
+    """The paper config through ``main`` once (~11 s). Under pytest-xdist the workers share
+    one run through a lock in the session's common temp directory, so the evaluation is not
+    repeated (and does not compete with itself for the cores) on every worker."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        root = tmp_path_factory.getbasetemp().parent / "paper_run"  # this session's, shared
+    else:
+        root = tmp_path_factory.mktemp("paper_run")
+    root.mkdir(exist_ok=True)
+    out = root / "sub" / "paper.json"
+    record = root / "run.json"
+    with open(root / "lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not record.exists():
+            record.write_text(json.dumps(_run_paper(google_5q_dir, out)))
+    run = json.loads(record.read_text())
+    run["out"] = out
+    run["result"] = json.loads(out.read_text()) if out.exists() else None
+    return run
+
+
+def test_paper_run_exit_code_and_json_written(paper_run):
+    assert paper_run["rc"] == 0, paper_run["stderr"]
+    assert paper_run["out"].is_file()  # parent directory created on demand
+    assert not paper_run["out"].with_name(paper_run["out"].name + ".tmp").exists()
+    assert f"wrote {paper_run['out']}" in paper_run["stdout"]
+
+
+def test_paper_run_json_schema(paper_run):
+    r = paper_run["result"]
+    assert r is not None
+    assert r["targets"] == TARGETS
+    assert r["n_train"] == 95 and r["n_test"] == 41
+    for part in ("prior", "model"):
+        for key in ("test_mae", "test_mse", "cv_mae"):
+            values = r[part][key]
+            assert len(values) == 5 and all(np.isfinite(values)), (part, key)
+            assert r[part][f"{key}_avg"] == pytest.approx(np.mean(values))
+    assert all(v >= 0 for v in r["model"]["test_mae"] + r["model"]["test_mse"])
+    assert len(r["model"]["selected"]) == 5
+    assert set(r["model"]["selected"]) <= {"prior", "boosted"}
+    assert isinstance(r["wall_s"], float) and r["wall_s"] > 0
+
+
+def test_paper_run_meets_acceptance_criterion(paper_run):
+    r = paper_run["result"]
+    assert r["prior"]["test_mae_avg"] == pytest.approx(1.3411, abs=1e-3)
+    assert r["model"]["test_mae_avg"] <= 1.10
+    for name, prior_mae, model_mae in zip(r["targets"], r["prior"]["test_mae"],
+                                          r["model"]["test_mae"]):
+        assert model_mae < prior_mae, name
+
+
+def test_paper_run_prints_table(paper_run):
+    out = paper_run["stdout"]
+    for name in TARGETS:
+        assert re.search(rf"^{name}\s", out, re.M), name
+    avg_line = next(line for line in out.splitlines() if line.startswith("average"))
+    r = paper_run["result"]
+    assert f"{r['prior']['test_mae_avg']:.3f}" in avg_line
+    assert f"{r['model']['test_mae_avg']:.3f}" in avg_line
+    assert "Traceback" not in paper_run["stderr"]
+
+
+# --- cheap configs -------------------------------------------------------------------------
+
+def _run_json(tmp_path: Path, cfg: Path, tag: str, *extra: str) -> dict:
+    out = tmp_path / f"{tag}.json"
+    assert main(["evaluate", str(cfg), "--json", str(out), *extra]) == 0
+    return json.loads(out.read_text())
+
+
+@pytest.mark.parametrize("model", [
+    'basis = "ridge"',
+    'basis = "mlp"\nbasis_params = { hidden_layer_sizes = [4], max_iter = 50 }',
+], ids=["ridge", "mlp"])
+def test_repeatable_with_same_random_state(tmp_path, google_5q_dir, capsys, model):
+    cfg = write_config(tmp_path, google_5q_dir, model)
+    first = _run_json(tmp_path, cfg, "a")
+    second = _run_json(tmp_path, cfg, "b")
+    assert _numbers(first) == _numbers(second)
+    assert first["targets"] == TARGETS
+    out = capsys.readouterr().out
+    assert out.count("average") == 2
+
+
+def test_random_state_matters_for_random_basis(tmp_path, google_5q_dir, capsys):
+    """Guards the repeatability test above against passing only because nothing is random."""
+    model = 'basis = "mlp"\nbasis_params = { hidden_layer_sizes = [4], max_iter = 50 }'
+    a = _run_json(tmp_path, write_config(tmp_path, google_5q_dir, model, name="a.toml"), "a")
+    b = _run_json(tmp_path, write_config(tmp_path, google_5q_dir, model, random_state=1,
+                                         name="b.toml"), "b")
+    assert a["model"]["cv_mae_boosted"] != b["model"]["cv_mae_boosted"]
+    assert a["prior"] == b["prior"]  # the prior never depends on the seed
+
+
+def test_jobs_override_gives_same_numbers(tmp_path, google_5q_dir, capsys):
+    cfg = write_config(tmp_path, google_5q_dir)
+    serial = _run_json(tmp_path, cfg, "serial")
+    parallel = _run_json(tmp_path, cfg, "parallel", "--jobs", "2")
+    assert _numbers(serial) == _numbers(parallel)
+
+
+def test_data_dir_from_environment(tmp_path, google_5q_dir, monkeypatch, capsys):
+    monkeypatch.setenv(g5.ENV_VAR, str(google_5q_dir))
+    cfg = write_config(tmp_path, None)
+    r = _run_json(tmp_path, cfg, "env")
+    assert r["prior"]["test_mae_avg"] == pytest.approx(1.3411, abs=1e-3)
+    assert r["config"] == str(cfg)
+
+
+# --- error paths ---------------------------------------------------------------------------
+
+def test_unknown_basis_is_a_clean_error(tmp_path, google_5q_dir, capsys):
+    cfg = write_config(tmp_path, google_5q_dir, 'basis = "bogus_basis"')
+    out = tmp_path / "never.json"
+    assert main(["evaluate", str(cfg), "--json", str(out)]) == 2
+    captured = capsys.readouterr()
+    _assert_clean_error(captured.err, "bogus_basis", "ridge", "paper_stacking")
+    assert len(captured.err.strip().splitlines()) == 1
+    assert not out.exists()
+    assert captured.out == ""
+
+
+def test_missing_config_is_a_clean_error(tmp_path, capsys):
+    missing = tmp_path / "missing.toml"
+    out = tmp_path / "never.json"
+    assert main(["evaluate", str(missing), "--json", str(out)]) == 2
+    captured = capsys.readouterr()
+    _assert_clean_error(captured.err, str(missing), "not found")
+    assert len(captured.err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_unavailable_data_is_a_clean_error(tmp_path, monkeypatch, capsys):
+    empty = tmp_path / "empty_data"
+    empty.mkdir()
+    calls = []
+
+    def failing_cmd(dest):
+        calls.append(dest)
+        return [sys.executable, "-c", "raise SystemExit(1)"]
+
+    monkeypatch.setattr(g5, "_pip_download_cmd", failing_cmd)
+    monkeypatch.delenv(g5.ENV_VAR, raising=False)
+    cfg = write_config(tmp_path, empty)
+    out = tmp_path / "never.json"
+    assert main(["evaluate", str(cfg), "--json", str(out)]) == 2
+    err = capsys.readouterr().err
+    _assert_clean_error(err, "WORKBENCH_DATA_DIR", "google_5q data unavailable")
+    assert calls, "the download was not attempted"
+    assert not out.exists()
+    assert list(empty.iterdir()) == []  # nothing half-written into the data directory
+
+
+def test_directory_as_config_is_a_clean_error(tmp_path, capsys):
+    assert main(["evaluate", str(tmp_path)]) == 2
+    _assert_clean_error(capsys.readouterr().err, str(tmp_path))
+
+
+def test_missing_subcommand_is_usage_error(capsys):
+    with pytest.raises(SystemExit) as info:
+        main([])
+    assert info.value.code == 2
+    assert "usage: workbench" in capsys.readouterr().err
+
+
+# --- the installed console script -----------------------------------------------------------
+
+def test_console_script_help():
+    script = Path(sys.executable).parent / "workbench"
+    assert script.is_file()
+    res = subprocess.run([str(script), "--help"], capture_output=True, text=True, timeout=60)
+    assert res.returncode == 0, res.stderr
+    assert "usage: workbench" in res.stdout and "evaluate" in res.stdout
