@@ -1,0 +1,155 @@
+"""The device simulator: schema, determinism, mismatch mechanisms, I/O, and boosting on it."""
+
+import dataclasses
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import workbench
+from workbench.simulate import MECHANISMS, Mismatch, Simulation, simulate, write_simulation
+
+
+def _cols(d, prefix, n):
+    return d[[f"{prefix}{k}" for k in range(1, n + 1)]].to_numpy()
+
+
+def prior_mae(sim: Simulation) -> float:
+    n, d = sim.truth["n_sites"], sim.data
+    return float(np.abs(_cols(d, "model_E", n) - _cols(d, "measured_E", n)).mean())
+
+
+def test_same_seed_is_identical_and_other_seed_differs():
+    a, b = simulate(5, 50, seed=3), simulate(5, 50, seed=3)
+    pd.testing.assert_frame_equal(a.data, b.data, check_exact=True)
+    assert a.truth == b.truth
+    c = simulate(5, 50, seed=4)
+    assert not np.allclose(a.data.to_numpy(), c.data.to_numpy())
+    assert a.truth["device"] != c.truth["device"]
+
+
+@pytest.mark.parametrize("n", [2, 5, 7])
+def test_columns_and_shape(n):
+    sim = simulate(n, 11, seed=1)
+    expected = ([f"v_q{k}" for k in range(1, n + 1)] + [f"v_c{k}" for k in range(1, n)]
+                + [f"model_f{k}" for k in range(1, n + 1)] + [f"model_g{k}" for k in range(1, n)]
+                + [f"model_E{k}" for k in range(1, n + 1)]
+                + [f"measured_E{k}" for k in range(1, n + 1)])
+    assert list(sim.data.columns) == expected
+    assert sim.data.shape == (11, len(expected))
+    assert np.isfinite(sim.data.to_numpy()).all()
+    assert sim.truth["n_sites"] == n and sim.truth["n_experiments"] == 11
+    assert sim.truth["sign"] == -1
+
+
+def test_invalid_arguments():
+    with pytest.raises(ValueError, match="n_sites"):
+        simulate(1, 10)
+    with pytest.raises(ValueError) as err:
+        Mismatch.only("crosstalk", "gremlins")
+    assert "gremlins" in str(err.value)
+    assert all(name in str(err.value) for name in MECHANISMS)
+    with pytest.raises(ValueError):
+        Mismatch(noise_sd=-1.0)
+
+
+def test_mismatch_constructors():
+    assert all(v == 0 for v in dataclasses.asdict(Mismatch.none()).values())
+    assert all(v > 0 for v in dataclasses.asdict(Mismatch.default()).values())
+    sub = Mismatch.only("crosstalk", "noise")
+    assert sub.crosstalk == Mismatch.default().crosstalk
+    assert sub.noise_sd == Mismatch.default().noise_sd
+    assert sub.drift == sub.misidentified_rate == 0
+    assert simulate(5, 5, seed=0).truth["mismatch"] == Mismatch.default().to_dict()
+
+
+def test_no_mismatch_means_the_prior_is_exact():
+    sim = simulate(5, 200, seed=2, mismatch=Mismatch.none())
+    assert prior_mae(sim) < 1e-9
+
+
+@pytest.mark.parametrize("name", list(MECHANISMS))
+def test_each_mechanism_alone_makes_the_prior_wrong(name):
+    sim = simulate(5, 500, seed=5, mismatch=Mismatch.only(name))
+    assert prior_mae(sim) > 1e-3
+
+
+@pytest.mark.parametrize("field", ["drift", "crosstalk", "coupler_nonlinearity",
+                                   "coupler_frequency_shift", "next_nearest_coupling",
+                                   "noise_sd"])
+def test_prior_error_grows_with_strength(field):
+    one = Mismatch(**{field: getattr(Mismatch.default(), field)})
+    three = Mismatch(**{field: 3 * getattr(Mismatch.default(), field)})
+    mae1 = prior_mae(simulate(5, 500, seed=6, mismatch=one))
+    mae3 = prior_mae(simulate(5, 500, seed=6, mismatch=three))
+    assert mae3 > 1.5 * mae1 > 0
+
+
+def test_default_prior_error_is_realistic_and_values_in_range():
+    sim = simulate(5, 1000, seed=0)
+    assert 0.3 < prior_mae(sim) < 5
+    d = sim.data
+    for prefix in ("model_E", "measured_E"):
+        assert (np.diff(_cols(d, prefix, 5), axis=1) >= 0).all()
+    f, g = _cols(d, "model_f", 5), _cols(d, "model_g", 4)
+    assert 5800 < f.min() and f.max() < 6100
+    assert -80 < g.min() and g.max() < 0
+    assert (-6200 < _cols(d, "model_E", 5)).all() and (_cols(d, "model_E", 5) < -5700).all()
+    assert (np.abs(_cols(d, "v_q", 5)) <= 0.015).all()
+    assert ((0.10 <= _cols(d, "v_c", 4)) & (_cols(d, "v_c", 4) <= 0.22)).all()
+
+
+def test_truth_records_misidentified_peaks():
+    sim = simulate(5, 400, seed=7, mismatch=Mismatch(misidentified_rate=0.1))
+    peaks = sim.truth["mechanisms"]["misidentified_peaks"]
+    rows = np.array(peaks["rows"])
+    assert 10 < len(rows) < 80 and len(peaks["level"]) == len(rows)
+    assert all(1 <= k <= 5 for k in peaks["level"])
+    err = np.abs(_cols(sim.data, "model_E", 5) - _cols(sim.data, "measured_E", 5)).sum(axis=1)
+    assert (err[rows] > 2.9).all()
+    assert np.delete(err, rows).max() < 1e-9
+
+
+def test_write_simulation_round_trips(tmp_path):
+    sim = simulate(5, 30, seed=8)
+    csv, truth = write_simulation(sim, tmp_path / "dev.csv")
+    assert csv == tmp_path / "dev.csv" and truth == tmp_path / "dev.truth.json"
+    back = pd.read_csv(csv)
+    assert list(back.columns) == list(sim.data.columns)
+    np.testing.assert_allclose(back.to_numpy(), sim.data.to_numpy(), rtol=0, atol=1e-9)
+    loaded = json.loads(truth.read_text())
+    assert loaded == sim.truth
+    assert set(loaded["mechanisms"]) == set(MECHANISMS)
+    assert not [p for p in tmp_path.iterdir() if p.name not in ("dev.csv", "dev.truth.json")]
+
+
+def test_large_simulations_are_fast():
+    import time
+
+    start = time.perf_counter()
+    big = simulate(5, 100_000, seed=0)
+    wide = simulate(50, 1_000, seed=0)
+    assert time.perf_counter() - start < 10
+    assert big.data.shape == (100_000, 28) and wide.data.shape == (1_000, 298)
+    assert (np.diff(_cols(wide.data, "measured_E", 50), axis=1) >= 0).all()
+
+
+def test_base_boosting_beats_the_prior_on_simulated_data():
+    d = simulate(5, 300, seed=0).data
+    features = [c for c in d.columns if c.startswith("v_")] + [f"model_E{j}" for j in range(1, 6)]
+    X = d[features]
+    train, test = slice(0, 200), slice(200, 300)
+    boosted, prior = [], []
+    for j in range(1, 6):
+        y = d[f"measured_E{j}"]
+        # the voltages are ~0.01 V: ridge's default alpha=1 would shrink them away
+        model = workbench.BaseBoostCV(workbench.BaseBoostRegressor(
+            prior=f"model_E{j}", basis=workbench.make_basis("ridge", alpha=1e-6),
+            basis_features=features, n_stages=3, random_state=0), cv=5)
+        model.fit(X.iloc[train], y.iloc[train])
+        boosted.append(np.abs(model.predict(X.iloc[test]) - y.iloc[test]).mean())
+        prior.append(np.abs(X[f"model_E{j}"].iloc[test] - y.iloc[test]).mean())
+    boosted, prior = np.array(boosted), np.array(prior)
+    assert (boosted < prior).sum() >= 4, (boosted, prior)
+    assert boosted.mean() < prior.mean()

@@ -1,0 +1,249 @@
+"""Simulated calibration data for a chain of coupled flux-tunable qubits (units: MHz, volts).
+
+A *control model* maps qubit biases ``V_q`` (N) and coupler biases ``V_c`` (N - 1) to a
+tight-binding Hamiltonian: transmon frequencies ``f_i`` on the diagonal, couplings ``g_i``
+between qubits i and i+1 off it. The prior is ``eigvalsh(sign * H_model)`` (sign = -1). The
+*true device* departs from the model in named, switchable ways (:class:`Mismatch`); its
+eigenvalues, plus noise and occasional misidentified peaks, are the measured targets.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["MECHANISMS", "Mismatch", "Simulation", "simulate", "write_simulation"]
+
+SIGN = -1
+Q_RANGE, C_RANGE = (-0.015, 0.015), (0.10, 0.22)  # uniform bias ranges (V)
+V_CAL = 0.16  # coupler bias at which the control model was calibrated (V)
+#: mechanism name -> Mismatch field
+MECHANISMS = {**{k: k for k in ("drift", "crosstalk", "coupler_nonlinearity",
+                                 "coupler_frequency_shift", "next_nearest_coupling")},
+              "noise": "noise_sd", "misidentified_peaks": "misidentified_rate"}
+
+
+@dataclass(frozen=True)
+class Mismatch:
+    """How the true device departs from the control model; 0 switches a mechanism off.
+
+    drift: multiplier of per-element parameter offsets (1 = sd 1.5 MHz on f_max, 0.2 mV on
+        the sweet spot V0, 0.3 % on the flux period, 3 % on g_max, 1 mV on the coupler midpoint).
+    crosstalk: flux crosstalk fraction; qubit i feels ~this fraction (x U(0.5, 1.5), random
+        sign) of the bias of neighbouring qubits i±1 and of its adjacent couplers (coupler bias
+        relative to the calibration point V_CAL, whose constant part the model absorbed).
+    coupler_nonlinearity: MHz; true g gains kappa * ((V_c - 0.16) / 0.06)^2, |kappa| ~ this.
+    coupler_frequency_shift: dimensionless; each coupler pulls its two qubits down by
+        this * g^2 / Delta_c (Delta_c ~ 1 GHz, a dispersive shift).
+    next_nearest_coupling: H[i, i+2] = -this * eta_i * sqrt(|g_i g_{i+1}|), eta_i ~ U(0.5, 1.5).
+    noise_sd: Gaussian measurement noise on each measured eigenvalue (MHz).
+    misidentified_rate: per-experiment probability that one eigenvalue is a wrong peak
+        (shifted by ±3-10 MHz).
+    """
+
+    drift: float = 0.0
+    crosstalk: float = 0.0
+    coupler_nonlinearity: float = 0.0
+    coupler_frequency_shift: float = 0.0
+    next_nearest_coupling: float = 0.0
+    noise_sd: float = 0.0
+    misidentified_rate: float = 0.0
+
+    def __post_init__(self):
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if not (np.isfinite(value) and value >= 0):
+                raise ValueError(f"Mismatch.{f.name} must be a finite number >= 0, got {value!r}")
+        if self.misidentified_rate > 1:
+            raise ValueError(f"misidentified_rate must be <= 1, got {self.misidentified_rate}")
+
+    @classmethod
+    def none(cls) -> Mismatch:
+        """Everything off: the true device is the control model."""
+        return cls()
+
+    @classmethod
+    def default(cls) -> Mismatch:
+        """Every mechanism on at realistic sizes (prior MAE ~1-2 MHz at N = 5)."""
+        return cls(drift=0.6, crosstalk=0.006, coupler_nonlinearity=1.5,
+                   coupler_frequency_shift=0.3, next_nearest_coupling=0.03, noise_sd=0.3,
+                   misidentified_rate=0.02)
+
+    @classmethod
+    def only(cls, *names: str) -> Mismatch:
+        """The named mechanisms at their default sizes, the others off."""
+        unknown = [n for n in names if n not in MECHANISMS]
+        if unknown:
+            raise ValueError(f"unknown mismatch mechanism(s) {unknown}; valid names are: "
+                             f"{', '.join(MECHANISMS)}")
+        default = cls.default()
+        return cls(**{MECHANISMS[n]: getattr(default, MECHANISMS[n]) for n in names})
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+@dataclass
+class Simulation:
+    """Simulated experiments (``data``) and everything injected to make them (``truth``)."""
+
+    data: pd.DataFrame
+    truth: dict
+
+
+def transmon_frequency(v, f_max, v0, period):
+    """Flux-tunable transmon: f = f_max sqrt(|cos(pi (V - V0) / period)|)."""
+    return f_max * np.sqrt(np.abs(np.cos(np.pi * (v - v0) / period)))
+
+
+def coupler_coupling(v, g_max, v_half, width):
+    """Tunable (gmon-like) coupler: g = -g_max / (1 + exp(-(V - V_half) / width)), monotone."""
+    return -g_max / (1.0 + np.exp(-(v - v_half) / width))
+
+
+def _eigenvalues(f, g, nnn=None, chunk_elements=4_000_000) -> np.ndarray:
+    """Ascending eigenvalues of sign * H per row, built and diagonalised chunk by chunk."""
+    m, n = f.shape
+    out = np.empty((m, n))
+    step = max(1, min(20_000, chunk_elements // (n * n)))
+    d, u = np.arange(n), np.arange(n - 1)
+    for s in range(0, m, step):
+        sl = slice(s, s + step)
+        h = np.zeros((len(out[sl]), n, n))
+        h[:, d, d] = f[sl]
+        h[:, u, u + 1] = h[:, u + 1, u] = g[sl]
+        if nnn is not None and n > 2:
+            h[:, u[:-1], u[:-1] + 2] = h[:, u[:-1] + 2, u[:-1]] = nnn[sl]
+        out[sl] = np.linalg.eigvalsh(np.multiply(h, SIGN, out=h))
+    return out
+
+
+def _device(rng, n):
+    """Control-model constants of one device (so f ~ 5880-6025 MHz, g ~ -1..-70 MHz)."""
+    return dict(f_max=rng.uniform(5995, 6025, n), v0=rng.uniform(-0.004, 0.004, n),
+                period=rng.uniform(0.22, 0.26, n), g_max=rng.uniform(62, 75, n - 1),
+                v_half=rng.uniform(0.165, 0.175, n - 1), width=rng.uniform(0.018, 0.022, n - 1))
+
+
+def simulate(n_sites: int = 5, n_experiments: int = 136, *, seed: int | None = 0,
+             mismatch: Mismatch | None = None) -> Simulation:
+    """Simulate ``n_experiments`` random bias settings of an ``n_sites`` chain.
+
+    All random draws are made in a fixed order whatever the mismatch, so the same seed gives
+    the same device and voltages and only the switched-on mechanisms change the targets.
+    """
+    if int(n_sites) != n_sites or n_sites < 2:
+        raise ValueError(f"n_sites must be an integer >= 2, got {n_sites!r}")
+    if int(n_experiments) != n_experiments or n_experiments < 1:
+        raise ValueError(f"n_experiments must be an integer >= 1, got {n_experiments!r}")
+    n, m = int(n_sites), int(n_experiments)
+    mm = Mismatch.default() if mismatch is None else mismatch
+    rng = np.random.default_rng(seed)
+    ctrl = _device(rng, n)
+    # unit-size draws of every mechanism, scaled by the mismatch strengths below
+    z = {k: rng.standard_normal(v.shape) for k, v in ctrl.items()}
+    xt = rng.uniform(0.5, 1.5, (4, n - 1)) * rng.choice([-1.0, 1.0], (4, n - 1))
+    kappa = rng.uniform(0.5, 1.5, n - 1) * rng.choice([-1.0, 1.0], n - 1)
+    delta_c = rng.uniform(800, 1200, n - 1)
+    eta = rng.uniform(0.5, 1.5, max(n - 2, 0))
+    vq = rng.uniform(*Q_RANGE, (m, n))
+    vc = rng.uniform(*C_RANGE, (m, n - 1))
+    noise = rng.standard_normal((m, n))
+    bad_u, bad_level = rng.random(m), rng.integers(0, n, m)
+    bad_shift = rng.uniform(3, 10, m) * rng.choice([-1.0, 1.0], m)
+
+    # control model and its prior
+    f_model = transmon_frequency(vq, ctrl["f_max"], ctrl["v0"], ctrl["period"])
+    g_model = coupler_coupling(vc, ctrl["g_max"], ctrl["v_half"], ctrl["width"])
+    e_model = _eigenvalues(f_model, g_model)
+
+    # true device
+    sd = dict(f_max=1.5, v0=2e-4, period=0.003, g_max=0.03, v_half=1e-3, width=0.02)
+    rel = {"period", "g_max", "width"}
+    true = {k: v * (1 + mm.drift * sd[k] * z[k]) if k in rel else v + mm.drift * sd[k] * z[k]
+            for k, v in ctrl.items()}
+    xt = mm.crosstalk * xt  # rows: q_k+1 <- q_k, q_k <- q_k+1, q_k <- c_k, q_k+1 <- c_k
+    v_eff = vq.copy()
+    v_eff[:, 1:] += xt[0] * vq[:, :-1] + xt[3] * (vc - V_CAL)
+    v_eff[:, :-1] += xt[1] * vq[:, 1:] + xt[2] * (vc - V_CAL)
+    f_true = transmon_frequency(v_eff, true["f_max"], true["v0"], true["period"])
+    g_true = coupler_coupling(vc, true["g_max"], true["v_half"], true["width"])
+    g_true = g_true + mm.coupler_nonlinearity * kappa * ((vc - V_CAL) / 0.06) ** 2
+    shift_coef = mm.coupler_frequency_shift / delta_c  # per MHz, frequencies pulled down
+    pull = g_true**2 * shift_coef
+    f_true[:, :-1] -= pull  # coupler i pulls qubits i and i+1
+    f_true[:, 1:] -= pull
+    nnn = -mm.next_nearest_coupling * eta * np.sqrt(np.abs(g_true[:, :-1] * g_true[:, 1:]))
+    e_true = _eigenvalues(f_true, g_true, nnn)
+    measured = e_true + mm.noise_sd * noise
+    bad = np.flatnonzero(bad_u < mm.misidentified_rate)  # one wrong peak in these rows
+    measured[bad, bad_level[bad]] += bad_shift[bad]
+    measured.sort(axis=1)
+
+    names = ([f"v_q{k}" for k in range(1, n + 1)] + [f"v_c{k}" for k in range(1, n)]
+             + [f"model_f{k}" for k in range(1, n + 1)] + [f"model_g{k}" for k in range(1, n)]
+             + [f"model_E{k}" for k in range(1, n + 1)]
+             + [f"measured_E{k}" for k in range(1, n + 1)])
+    data = pd.DataFrame(np.hstack([vq, vc, f_model, g_model, e_model, measured]), columns=names)
+
+    pairs = range(n - 1)
+    truth = {
+        "n_sites": n, "n_experiments": m, "seed": None if seed is None else int(seed),
+        "sign": SIGN, "units": "MHz, V", "mismatch": mm.to_dict(),
+        "voltage_ranges": {"qubit": list(Q_RANGE), "coupler": list(C_RANGE)},
+        "device": {"control": {k: v.tolist() for k, v in ctrl.items()},
+                   "true": {k: v.tolist() for k, v in true.items()}},
+        "mechanisms": {
+            "drift": {k: (np.asarray(true[k]) - ctrl[k]).tolist() for k in ctrl},
+            "crosstalk": {  # [qubit row, qubit/coupler column (0-based), value]
+                "qubit_from_qubit": [[a + 1, a, float(xt[0, a])] for a in pairs]
+                + [[a, a + 1, float(xt[1, a])] for a in pairs],
+                "qubit_from_coupler": [[a, a, float(xt[2, a])] for a in pairs]
+                + [[a + 1, a, float(xt[3, a])] for a in pairs],
+                "formula": "V_eff = V_q + C_qq V_q + C_qc (V_c - 0.16)"},
+            "coupler_nonlinearity": {"kappa_MHz": (mm.coupler_nonlinearity * kappa).tolist(),
+                                     "formula": "g += kappa ((V_c - 0.16) / 0.06)^2"},
+            "coupler_frequency_shift": {
+                "sign": -1, "coef_per_MHz": shift_coef.tolist(), "delta_c_MHz": delta_c.tolist(),
+                "formula": "f_i and f_i+1 += sign * coef_i * g_i^2 (true g)"},
+            "next_nearest_coupling": {
+                "eta": (mm.next_nearest_coupling * eta).tolist(),
+                "formula": "H[i, i+2] = -eta_i sqrt(|g_i g_i+1|) (true g)"},
+            "noise": {"sd_MHz": mm.noise_sd},
+            "misidentified_peaks": {
+                "rate": mm.misidentified_rate, "rows": bad.tolist(),
+                "level": (bad_level[bad] + 1).tolist(), "shift_MHz": bad_shift[bad].tolist(),
+                "note": "level k (1-based): the k-th ascending true eigenvalue + shift"},
+        },
+    }
+    return Simulation(data=data, truth=json.loads(json.dumps(truth)))
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        os.chmod(tmp, 0o644)
+        with os.fdopen(fd, "w", newline="") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_simulation(sim: Simulation, out: str | Path) -> tuple[Path, Path]:
+    """Write ``out`` (CSV, no index) and ``<out without .csv>.truth.json``, each atomically."""
+    out = Path(out)
+    stem = out.with_suffix("") if out.suffix.lower() == ".csv" else out
+    truth_path = stem.parent / f"{stem.name}.truth.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    _atomic_write(out, sim.data.to_csv(index=False))
+    _atomic_write(truth_path, json.dumps(sim.truth, indent=1) + "\n")
+    return out, truth_path
