@@ -3,7 +3,9 @@
 A config has these sections (see ``experiments/paper_main_body.toml`` for an annotated one)::
 
     name, description, random_state, n_jobs     # top level
-    [data]        source = "google_5q", data_dir (optional)
+    [data]        source = "google_5q" (data_dir optional), or a CSV of your own:
+                  csv, prior, targets, features, test_fraction | split_column, split_seed
+    [data.hamiltonian]  onsite, couplings, sign (optional, for physics-aware models)
     [model]       basis, basis_params, n_stages, loss, line_search_loss, line_search_penalty,
                   alpha, basis_inputs ("prior" | "prior+features"), input_transform
     [model.targets.<target>]  the same keys, overriding [model] for one target
@@ -24,7 +26,7 @@ from sklearn.model_selection import KFold
 
 from ..bases import make_basis, make_transform
 from ..boosting import BaseBoostRegressor
-from ..datasets import Dataset, load_google_5q
+from ..datasets import Dataset, DatasetError, load_csv_dataset, load_google_5q
 from ..multitarget import MultiTargetBaseBoost
 from ..selection import BaseBoostCV
 
@@ -32,13 +34,15 @@ __all__ = ["ConfigError", "ExperimentConfig", "build_model", "load_config", "loa
            "make_booster", "parse_config"]
 
 TOP_KEYS = {"name", "description", "random_state", "n_jobs", "data", "model", "selection"}
-DATA_KEYS = {"source", "data_dir"}
+DATA_KEYS = {"source", "data_dir", "csv", "prior", "targets", "features", "test_fraction",
+             "split_column", "split_seed", "hamiltonian"}
+HAMILTONIAN_KEYS = {"onsite", "couplings", "sign"}
 MODEL_KEYS = {"basis", "basis_params", "n_stages", "loss", "line_search_loss",
               "line_search_penalty", "alpha", "basis_inputs", "input_transform",
               "input_transform_params"}
 SELECTION_KEYS = {"cv", "shuffle", "scoring"}
 BASIS_INPUTS = ("prior", "prior+features")
-SOURCES = ("google_5q",)
+SOURCES = ("google_5q", "csv")
 
 MODEL_DEFAULTS: dict[str, Any] = dict(
     basis="paper_stacking", basis_params={}, n_stages=1, loss="squared_error",
@@ -94,6 +98,30 @@ def _table(where: str, value: Any) -> dict[str, Any]:
     return dict(value)
 
 
+def _check_data(where: str, data: dict[str, Any]) -> None:
+    csv_keys = sorted((DATA_KEYS - {"source", "data_dir"}) & set(data))
+    if data["source"] == "google_5q":
+        if csv_keys:
+            raise ConfigError(f"{where}: {csv_keys} apply to source = \"csv\" only")
+        return
+    for key in ("csv", "prior", "targets"):
+        if key not in data:
+            raise ConfigError(f"{where}: source = \"csv\" needs {key!r}")
+    for key in ("prior", "targets", "features"):
+        value = data.get(key, [])
+        if not (isinstance(value, list) and all(isinstance(v, str) for v in value)):
+            raise ConfigError(f"{where}: {key} must be a list of column names, got {value!r}")
+    if len(data["prior"]) != len(data["targets"]):
+        raise ConfigError(f"{where}: {len(data['prior'])} prior column(s) for "
+                          f"{len(data['targets'])} target(s): give one prior column per target")
+    if ("test_fraction" in data) == ("split_column" in data):
+        raise ConfigError(f"{where}: give exactly one of test_fraction or split_column")
+    ham = _table(f"{where}.hamiltonian", data.get("hamiltonian", {}))
+    _check_keys(f"{where}.hamiltonian", ham, HAMILTONIAN_KEYS)
+    if ham and not {"onsite", "couplings"} <= set(ham):
+        raise ConfigError(f"{where}.hamiltonian: needs both onsite and couplings")
+
+
 def make_booster(settings: dict[str, Any], prior, inputs: list[str]) -> BaseBoostRegressor:
     """The :class:`BaseBoostRegressor` that one target's settings describe."""
     return BaseBoostRegressor(
@@ -116,9 +144,12 @@ def parse_config(raw: dict[str, Any], path: Path | None = None) -> ExperimentCon
     _check_keys(where, raw, TOP_KEYS)
     data = _table(f"{where} [data]", raw.get("data", {}))
     _check_keys(f"{where} [data]", data, DATA_KEYS)
+    if "csv" in data:
+        data.setdefault("source", "csv")
     if data.get("source") not in SOURCES:
         raise ConfigError(f"{where} [data]: source must be one of {list(SOURCES)}, got "
                           f"{data.get('source')!r}")
+    _check_data(f"{where} [data]", data)
     model = _table(f"{where} [model]", raw.get("model", {}))
     targets = _table(f"{where} [model.targets]", model.pop("targets", {}))
     _check_keys(f"{where} [model]", model, MODEL_KEYS)
@@ -177,11 +208,30 @@ def load_config(path: str | Path) -> ExperimentConfig:
 
 
 def load_dataset(cfg: ExperimentConfig) -> Dataset:
-    """The dataset named by the config's ``[data]`` section."""
-    data_dir = cfg.data.get("data_dir")
-    if data_dir is not None and cfg.path is not None:
-        data_dir = (cfg.path.parent / data_dir).resolve()
-    return load_google_5q(data_dir)
+    """The dataset named by the config's ``[data]`` section (paths relative to the config).
+
+    Raises :class:`~workbench.datasets.DatasetError` for unusable data, including a training
+    split too small for the configured CV folds.
+    """
+    data = cfg.data
+    base = cfg.path.parent if cfg.path is not None else Path.cwd()
+    if data["source"] == "google_5q":
+        data_dir = data.get("data_dir")
+        ds = load_google_5q((base / data_dir).resolve() if data_dir is not None else None)
+    else:
+        ham = data.get("hamiltonian", {})
+        ds = load_csv_dataset(
+            (base / data["csv"]).resolve(), prior=data["prior"], targets=data["targets"],
+            features=data.get("features", []), test_fraction=data.get("test_fraction"),
+            split_column=data.get("split_column"), split_seed=data.get("split_seed", 0),
+            onsite=ham.get("onsite"), couplings=ham.get("couplings"), sign=ham.get("sign", -1),
+            name=cfg.name)
+    folds = cfg.selection["cv"]
+    if len(ds.train_index) < 2 * folds:
+        raise DatasetError(f"the training split has {len(ds.train_index)} rows, too few for "
+                           f"[selection] cv = {folds} (each fold needs at least 2 rows: "
+                           f"at least {2 * folds} training rows)")
+    return ds
 
 
 def build_model(cfg: ExperimentConfig, dataset: Dataset) -> MultiTargetBaseBoost:

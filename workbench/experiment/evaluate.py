@@ -75,14 +75,16 @@ def evaluate(cfg: ExperimentConfig, progress: TextIO | None | bool = True) -> di
 
 def format_table(result: dict[str, Any]) -> str:
     """Per-target table: prior and model test MAE, the model's CV MAE and what was selected."""
-    lines = [f"{'target':<10}{'prior MAE':>11}{'model MAE':>11}{'model CV MAE':>14}  selected",
-             "-" * 56]
+    w = max(10, *(len(t) + 2 for t in result["targets"]))
+    rule = "-" * (w + 46)
+    lines = [f"{'target':<{w}}{'prior MAE':>11}{'model MAE':>11}{'model CV MAE':>14}  selected",
+             rule]
     rows = zip(result["targets"], result["prior"]["test_mae"], result["model"]["test_mae"],
                result["model"]["cv_mae"], result["model"]["selected"])
     for name, p, m, c, s in rows:
-        lines.append(f"{name:<10}{p:>11.3f}{m:>11.3f}{c:>14.3f}  {s}")
-    lines.append("-" * 56)
-    lines.append(f"{'average':<10}{result['prior']['test_mae_avg']:>11.3f}"
+        lines.append(f"{name:<{w}}{p:>11.3f}{m:>11.3f}{c:>14.3f}  {s}")
+    lines.append(rule)
+    lines.append(f"{'average':<{w}}{result['prior']['test_mae_avg']:>11.3f}"
                  f"{result['model']['test_mae_avg']:>11.3f}{result['model']['cv_mae_avg']:>14.3f}")
     lines.append(f"test MAE in the targets' units (MHz for the benchmark); "
                  f"wall time {result['wall_s']:.1f} s")

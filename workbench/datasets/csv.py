@@ -1,0 +1,151 @@
+"""Datasets from a CSV file of your own experiments.
+
+One row per experiment; columns named by the caller: one prior column per target (same
+order), the targets, optional extra basis inputs (features), and optionally the control
+model's Hamiltonian parameters. The split comes from a ``train``/``test`` column or from a
+seeded random ``test_fraction``. Every problem is reported as a :class:`DatasetError` that
+names the file, the columns and the rows; nothing is written anywhere.
+"""
+
+from __future__ import annotations
+
+import csv
+from collections import Counter
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+import pandas as pd
+
+from .base import Dataset, Hamiltonian
+
+__all__ = ["DatasetError", "load_csv_dataset"]
+
+
+class DatasetError(ValueError):
+    """Input data that cannot be used; the message says what is wrong and where."""
+
+
+def _rows(labels, limit: int = 5) -> str:
+    """Row labels as the lines of the file they come from (header is line 1)."""
+    lines = [f"line {int(i) + 2}" for i in list(labels)[:limit]]
+    more = len(labels) - limit
+    return ", ".join(lines) + (f" and {more} more" if more > 0 else "")
+
+
+def _read(path: Path) -> pd.DataFrame:
+    if not path.is_file():
+        raise DatasetError(f"CSV file not found: {path}")
+    try:
+        with path.open(newline="", encoding="utf-8") as fh:
+            header = next(csv.reader(fh), None)
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DatasetError(f"cannot read {path}: {exc}") from None
+    if not header or not any(h.strip() for h in header):
+        raise DatasetError(f"{path} is empty: expected a header row and one row per experiment")
+    dups = sorted(name for name, count in Counter(header).items() if count > 1)
+    if dups:
+        raise DatasetError(f"{path}: duplicated column names {dups}")
+    try:
+        frame = pd.read_csv(path, dtype=str, keep_default_na=False)
+    except (pd.errors.ParserError, UnicodeDecodeError) as exc:
+        raise DatasetError(f"{path} is not a well-formed CSV file: {exc}") from None
+    if frame.empty:
+        raise DatasetError(f"{path} has a header but no rows")
+    return frame
+
+
+def _numeric(frame: pd.DataFrame, columns: Sequence[str], path: Path) -> pd.DataFrame:
+    out = {}
+    for col in columns:
+        raw = frame[col].str.strip()
+        values = pd.to_numeric(raw.replace({"": "nan"}), errors="coerce")
+        bad = values.isna() & ~raw.str.lower().isin(["", "nan", "na", "null"])
+        if bad.any():
+            first = raw[bad].iloc[0]
+            raise DatasetError(f"{path}: column {col!r} has non-numeric values (e.g. {first!r} "
+                               f"at {_rows(frame.index[bad])})")
+        out[col] = values.astype(float)
+    data = pd.DataFrame(out, index=frame.index)
+    finite = np.isfinite(data.to_numpy())
+    if not finite.all():
+        bad_cols = [c for c, ok in zip(columns, finite.all(axis=0)) if not ok]
+        bad_rows = data.index[~finite.all(axis=1)]
+        raise DatasetError(f"{path}: missing, NaN or infinite values in column(s) {bad_cols} "
+                           f"at {_rows(bad_rows)}")
+    return data
+
+
+def _split(frame: pd.DataFrame, path: Path, test_fraction, split_column, split_seed):
+    if (test_fraction is None) == (split_column is None):
+        raise DatasetError("give exactly one of test_fraction or split_column")
+    if split_column is not None:
+        if split_column not in frame.columns:
+            raise DatasetError(f"{path}: split column {split_column!r} is missing")
+        values = frame[split_column].str.strip().str.lower()
+        bad = ~values.isin(["train", "test"])
+        if bad.any():
+            raise DatasetError(f"{path}: split column {split_column!r} must hold 'train' or "
+                               f"'test'; found {frame[split_column][bad].iloc[0]!r} at "
+                               f"{_rows(frame.index[bad])}")
+        train, test = frame.index[values == "train"], frame.index[values == "test"]
+    else:
+        if not 0.0 <= float(test_fraction) < 1.0:
+            raise DatasetError(f"test_fraction must be in [0, 1), got {test_fraction!r}")
+        order = np.random.default_rng(split_seed).permutation(len(frame))
+        n_test = int(round(len(frame) * float(test_fraction)))
+        test, train = np.sort(frame.index[order[:n_test]]), np.sort(frame.index[order[n_test:]])
+    if len(test) == 0:
+        raise DatasetError(f"{path}: the test split is empty ({len(frame)} rows; "
+                           f"test_fraction={test_fraction}, split_column={split_column!r})")
+    if len(train) == 0:
+        raise DatasetError(f"{path}: the training split is empty")
+    return np.asarray(train), np.asarray(test)
+
+
+def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequence[str],
+                     features: Sequence[str] = (), test_fraction: float | None = None,
+                     split_column: str | None = None, split_seed: int = 0,
+                     onsite: Sequence[str] | None = None, couplings: Sequence[str] | None = None,
+                     sign: int = -1, name: str | None = None) -> Dataset:
+    """Read a CSV of experiments into a :class:`Dataset`.
+
+    ``prior[j]`` is the scientific model's prediction of ``targets[j]``. ``onsite`` (N
+    columns) and ``couplings`` (N - 1 columns) optionally give the control model's chain
+    Hamiltonian per row; its prior is the ascending eigenvalues of ``sign * H``.
+    """
+    path = Path(path)
+    prior, targets, features = list(prior), list(targets), list(features)
+    if not targets:
+        raise DatasetError("no target columns given")
+    if len(prior) != len(targets):
+        raise DatasetError(f"{len(prior)} prior column(s) {prior} for {len(targets)} target(s) "
+                           f"{targets}: give one prior column per target, in the same order")
+    if (onsite is None) != (couplings is None):
+        raise DatasetError("give both onsite and couplings columns for the Hamiltonian, or neither")
+    ham_cols = [*(onsite or []), *(couplings or [])]
+    if onsite is not None and len(couplings) != len(onsite) - 1:
+        raise DatasetError(f"a chain of {len(onsite)} sites has {len(onsite) - 1} couplings, "
+                           f"got {len(couplings)}: {list(couplings)}")
+    if sign not in (-1, 1):
+        raise DatasetError(f"sign must be -1 or 1, got {sign!r}")
+    used = list(dict.fromkeys([*features, *prior, *targets, *ham_cols]))
+    named_twice = sorted(c for c, n in Counter([*features, *prior, *targets]).items() if n > 1)
+    if named_twice:
+        raise DatasetError(f"column(s) {named_twice} named in more than one role")
+
+    frame = _read(path)
+    missing = [c for c in [*used, *([split_column] if split_column else [])]
+               if c not in frame.columns]
+    if missing:
+        raise DatasetError(f"{path}: missing column(s) {missing}; the file has columns "
+                           f"{list(frame.columns)}")
+    data = _numeric(frame, used, path)
+    train, test = _split(frame, path, test_fraction, split_column, split_seed)
+    hamiltonian = None
+    if onsite is not None:
+        hamiltonian = Hamiltonian(onsite=data[list(onsite)], couplings=data[list(couplings)],
+                                  sign=int(sign))
+    return Dataset(name=name or path.stem, features=data[features], prior=data[prior],
+                   targets=data[targets], train_index=train, test_index=test,
+                   hamiltonian=hamiltonian)
