@@ -160,7 +160,7 @@ def test_bad_basis_inputs(tmp_path):
                          ids=["unknown_source", "missing_source"])
 def test_unknown_or_missing_data_source(tmp_path, data):
     path = write_config(tmp_path, data=data)
-    with pytest.raises(ConfigError, match=r"\[data\].*source must be one of \['google_5q'\]"):
+    with pytest.raises(ConfigError, match=r"\[data\].*source must be one of \['google_5q', 'csv'\]"):
         load_config(path)
 
 
