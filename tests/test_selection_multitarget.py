@@ -178,3 +178,24 @@ def test_multitarget_parallel_equals_serial(multi):
         parallel = MultiTargetBaseBoost(base, priors=["p1", "p2"], random_state=0,
                                         n_jobs=2).fit(X, Y)
     pd.testing.assert_frame_equal(serial.predict(X), parallel.predict(X))
+
+
+def test_fold_callback_sees_each_fold_and_can_stop_the_fit(data):
+    X, y = data
+    seen = []
+    cv = BaseBoostCV(BaseBoostRegressor(prior=2, basis=Ridge()), cv=4)
+    cv.fit(X, y, fold_callback=lambda i, p, b: seen.append((i, p, b)))
+    assert [s[0] for s in seen] == [0, 1, 2, 3]
+    np.testing.assert_array_equal([s[1] for s in seen], cv.cv_scores_prior_)
+    np.testing.assert_array_equal([s[2] for s in seen], cv.cv_scores_boosted_)
+
+    class Stop(Exception):
+        pass
+
+    def stop_after_two(i, p, b):
+        if i == 1:
+            raise Stop
+
+    with pytest.raises(Stop):
+        BaseBoostCV(BaseBoostRegressor(prior=2, basis=Ridge()), cv=4).fit(
+            X, y, fold_callback=stop_after_two)

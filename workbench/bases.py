@@ -87,8 +87,10 @@ def lightgbm(**params) -> LGBMRegressor:
 
 
 def mlp(**params) -> MLPRegressor:
+    """An MLP basis (tanh, L-BFGS by default); an int ``hidden_layer_sizes`` is one layer."""
     if "hidden_layer_sizes" in params:
-        params["hidden_layer_sizes"] = tuple(params["hidden_layer_sizes"])
+        sizes = params["hidden_layer_sizes"]
+        params["hidden_layer_sizes"] = (sizes,) if isinstance(sizes, int) else tuple(sizes)
     return MLPRegressor(**{"activation": "tanh", "solver": "lbfgs", "max_iter": 2000, **params})
 
 

@@ -93,8 +93,14 @@ class BaseBoostCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
             seed_estimator(est, check_random_state(self.random_state).randint(2**31 - 1))
         return est
 
-    def fit(self, X, y):
-        """Score both models by CV, then (if ``refit``) refit the selected one; returns ``self``."""
+    def fit(self, X, y, fold_callback=None):
+        """Score both models by CV, then (if ``refit``) refit the selected one; returns ``self``.
+
+        ``fold_callback(fold, prior_score, boosted_score)``, if given, is called after each
+        fold (folds then run one after another); an exception it raises stops the fit. This
+        lets a hyperparameter search report per-fold scores to a pruner without the core
+        knowing about it.
+        """
         candidate = self._candidate()
         incumbent = (PriorModel(prior=find_prior(candidate)) if self.incumbent is None
                      else self.incumbent)
@@ -106,10 +112,16 @@ class BaseBoostCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
             y = y[:, 0]
         cv = check_cv(self.cv, y, classifier=False)
         scorer = check_scoring(candidate, scoring=self.scoring)
-        folds = Parallel(n_jobs=self.n_jobs)(
-            delayed(_fold)(incumbent, candidate, X, y, train, test, scorer)
-            for train, test in cv.split(X, y)
-        )
+        splits = cv.split(X, y)
+        if fold_callback is None:
+            folds = Parallel(n_jobs=self.n_jobs)(
+                delayed(_fold)(incumbent, candidate, X, y, train, test, scorer)
+                for train, test in splits)
+        else:
+            folds = []
+            for i, (train, test) in enumerate(splits):
+                folds.append(_fold(incumbent, candidate, X, y, train, test, scorer))
+                fold_callback(i, folds[-1][0], folds[-1][1])
         self.cv_scores_prior_ = np.array([f[0] for f in folds])
         self.cv_scores_boosted_ = np.array([f[1] for f in folds])
         self.fit_errors_ = [f[2] for f in folds if f[2] is not None]

@@ -21,6 +21,21 @@ def _write_json(path: str, payload: dict) -> None:
     tmp.replace(out)  # never leave a half-written result
 
 
+def _cmd_sweep(args) -> int:
+    from .search import run_sweep, with_overrides  # imports Optuna only for sweeps
+
+    cfg = with_overrides(load_config(args.config), trials=args.trials, workers=args.workers,
+                         storage=args.storage)
+    result, _ = run_sweep(cfg)
+    print(format_table(result))
+    print(f"nested-CV MAE: model {result['nested_cv_mae_avg']:.3f}, prior "
+          f"{result['nested_cv_prior_mae_avg']:.3f} (average over targets)")
+    if args.json:
+        _write_json(args.json, result)
+        print(f"wrote {args.json}")
+    return 0
+
+
 def _cmd_evaluate(args) -> int:
     cfg = load_config(args.config)
     if args.jobs is not None:
@@ -66,6 +81,17 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--jobs", type=int, default=None, metavar="N",
                     help="targets fitted in parallel (overrides the config's n_jobs)")
     ev.set_defaults(func=_cmd_evaluate)
+
+    sw = sub.add_parser("sweep", help="nested-CV hyperparameter search (Optuna), then one "
+                        "evaluation of the chosen configuration on the test rows")
+    sw.add_argument("config", help="experiment config (TOML) with [search], [cv], [study]")
+    sw.add_argument("--trials", type=int, default=None, help="trials per study")
+    sw.add_argument("--workers", type=int, default=None,
+                    help="processes working on the shared storage")
+    sw.add_argument("--storage", default=None,
+                    help="Optuna storage: a journal file path or an RDB URL")
+    sw.add_argument("--json", metavar="PATH", help="also write the results as JSON")
+    sw.set_defaults(func=_cmd_sweep)
 
     sim = sub.add_parser("simulate", help="simulate a chain of coupled qubits and write a CSV "
                          "(plus a .truth.json sidecar with the injected mismatches)")

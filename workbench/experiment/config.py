@@ -10,6 +10,10 @@ A config has these sections (see ``experiments/paper_main_body.toml`` for an ann
                   alpha, basis_inputs ("prior" | "prior+features"), input_transform
     [model.targets.<target>]  the same keys, overriding [model] for one target
     [selection]   cv (folds, contiguous unless shuffle = true), shuffle, scoring
+    [search]      the space a sweep searches (see workbench.experiment.space)
+    [cv]          outer_folds, inner_folds, repeats, seed (nested CV of a sweep)
+    [study]       trials, timeout, sampler, pruner, storage, study_name, workers
+    [tracking]    tracking_uri, experiment (MLflow)
 
 Unknown sections, keys, names and targets are errors that list what is valid.
 """
@@ -17,7 +21,7 @@ Unknown sections, keys, names and targets are errors that list what is valid.
 from __future__ import annotations
 
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -29,11 +33,13 @@ from ..boosting import BaseBoostRegressor
 from ..datasets import Dataset, DatasetError, load_csv_dataset, load_google_5q
 from ..multitarget import MultiTargetBaseBoost
 from ..selection import BaseBoostCV
+from .space import SearchSpace, SpaceError
 
 __all__ = ["ConfigError", "ExperimentConfig", "build_model", "load_config", "load_dataset",
-           "make_booster", "parse_config"]
+           "make_booster", "parse_config", "target_inputs"]
 
-TOP_KEYS = {"name", "description", "random_state", "n_jobs", "data", "model", "selection"}
+TOP_KEYS = {"name", "description", "random_state", "n_jobs", "data", "model", "selection",
+            "search", "cv", "study", "tracking"}
 DATA_KEYS = {"source", "data_dir", "csv", "prior", "targets", "features", "test_fraction",
              "split_column", "split_seed", "hamiltonian"}
 HAMILTONIAN_KEYS = {"onsite", "couplings", "sign"}
@@ -50,6 +56,17 @@ MODEL_DEFAULTS: dict[str, Any] = dict(
     basis_inputs="prior", input_transform="quantile_normal", input_transform_params={},
 )
 SELECTION_DEFAULTS: dict[str, Any] = dict(cv=5, shuffle=False, scoring="neg_mean_absolute_error")
+#: Nested cross-validation of a sweep (``workbench sweep``).
+CV_DEFAULTS: dict[str, Any] = dict(outer_folds=5, inner_folds=5, repeats=1, seed=0)
+#: The Optuna studies of a sweep. ``storage``: a journal file path (one machine, several
+#: processes) or an RDB URL such as ``postgresql://...`` (several machines).
+STUDY_DEFAULTS: dict[str, Any] = dict(trials=20, timeout=None, sampler="tpe", pruner="median",
+                                      storage="mlruns/optuna.journal", study_name=None,
+                                      workers=1, stale_after_s=600)
+SAMPLERS = ("tpe", "random")
+PRUNERS = ("none", "median", "wilcoxon")
+#: MLflow tracking; ``tracking_uri`` None means $MLFLOW_TRACKING_URI or mlruns/mlflow.db.
+TRACKING_DEFAULTS: dict[str, Any] = dict(tracking_uri=None, experiment=None)
 
 
 class ConfigError(ValueError):
@@ -74,6 +91,10 @@ class ExperimentConfig:
     model: dict[str, Any]
     targets: dict[str, dict[str, Any]]
     selection: dict[str, Any]
+    search: SearchSpace = field(default_factory=SearchSpace)
+    cv: dict[str, Any] = field(default_factory=lambda: dict(CV_DEFAULTS))
+    study: dict[str, Any] = field(default_factory=lambda: dict(STUDY_DEFAULTS))
+    tracking: dict[str, Any] = field(default_factory=lambda: dict(TRACKING_DEFAULTS))
 
     def model_for(self, target: str | None) -> dict[str, Any]:
         """The model settings of one target: ``[model]`` overridden by its target table.
@@ -120,6 +141,39 @@ def _check_data(where: str, data: dict[str, Any]) -> None:
     _check_keys(f"{where}.hamiltonian", ham, HAMILTONIAN_KEYS)
     if ham and not {"onsite", "couplings"} <= set(ham):
         raise ConfigError(f"{where}.hamiltonian: needs both onsite and couplings")
+
+
+def _positive_int(where: str, key: str, value: Any, minimum: int) -> None:
+    if not isinstance(value, int) or isinstance(value, bool) or value < minimum:
+        raise ConfigError(f"{where}: {key} must be an integer >= {minimum}, got {value!r}")
+
+
+def _check_sweep_sections(where: str, raw: dict[str, Any]):
+    try:
+        search = SearchSpace.from_table(_table(f"{where} [search]", raw.get("search", {})))
+    except SpaceError as exc:
+        raise ConfigError(f"{where} [search]: {exc}") from None
+    cv = {**CV_DEFAULTS, **_table(f"{where} [cv]", raw.get("cv", {}))}
+    _check_keys(f"{where} [cv]", cv, set(CV_DEFAULTS))
+    for key, minimum in (("outer_folds", 2), ("inner_folds", 2), ("repeats", 1), ("seed", 0)):
+        _positive_int(f"{where} [cv]", key, cv[key], minimum)
+    study = {**STUDY_DEFAULTS, **_table(f"{where} [study]", raw.get("study", {}))}
+    _check_keys(f"{where} [study]", study, set(STUDY_DEFAULTS))
+    _positive_int(f"{where} [study]", "trials", study["trials"], 1)
+    _positive_int(f"{where} [study]", "workers", study["workers"], 1)
+    if study["sampler"] not in SAMPLERS:
+        raise ConfigError(f"{where} [study]: unknown sampler {study['sampler']!r}; valid: "
+                          f"{list(SAMPLERS)}")
+    if study["pruner"] not in PRUNERS:
+        raise ConfigError(f"{where} [study]: unknown pruner {study['pruner']!r}; valid: "
+                          f"{list(PRUNERS)}")
+    if study["timeout"] is not None and not (isinstance(study["timeout"], (int, float))
+                                             and study["timeout"] > 0):
+        raise ConfigError(f"{where} [study]: timeout must be a number of seconds > 0, got "
+                          f"{study['timeout']!r}")
+    tracking = {**TRACKING_DEFAULTS, **_table(f"{where} [tracking]", raw.get("tracking", {}))}
+    _check_keys(f"{where} [tracking]", tracking, set(TRACKING_DEFAULTS))
+    return search, cv, study, tracking
 
 
 def make_booster(settings: dict[str, Any], prior, inputs: list[str]) -> BaseBoostRegressor:
@@ -177,9 +231,11 @@ def parse_config(raw: dict[str, Any], path: Path | None = None) -> ExperimentCon
         get_scorer(selection["scoring"])
     except ValueError as exc:
         raise ConfigError(f"{where} [selection]: scoring: {exc}") from None
+    search, cv, study, tracking = _check_sweep_sections(where, raw)
     cfg = ExperimentConfig(path=path, name=str(raw.get("name", path.stem if path else "config")),
                            random_state=raw.get("random_state"), n_jobs=raw.get("n_jobs"),
-                           data=data, model=model, targets=targets, selection=selection)
+                           data=data, model=model, targets=targets, selection=selection,
+                           search=search, cv=cv, study=study, tracking=tracking)
     for target in tables:
         settings = cfg.model_for(target)
         label = f"{where} [model{'' if target is None else '.targets.' + target}]"
@@ -234,6 +290,12 @@ def load_dataset(cfg: ExperimentConfig) -> Dataset:
     return ds
 
 
+def target_inputs(settings: dict[str, Any], dataset: Dataset) -> list[str]:
+    """The basis input columns that ``settings["basis_inputs"]`` names."""
+    extra = dataset.feature_names if settings["basis_inputs"] == "prior+features" else []
+    return dataset.prior_names + extra
+
+
 def build_model(cfg: ExperimentConfig, dataset: Dataset) -> MultiTargetBaseBoost:
     """One :class:`BaseBoostCV` per target, target ``j`` boosting from prior column ``j``."""
     names = dataset.target_names
@@ -247,9 +309,7 @@ def build_model(cfg: ExperimentConfig, dataset: Dataset) -> MultiTargetBaseBoost
     per_target = {}
     for target, prior in zip(names, dataset.prior_names):
         s = cfg.model_for(target)
-        inputs = dataset.prior_names + (dataset.feature_names
-                                        if s["basis_inputs"] == "prior+features" else [])
-        booster = make_booster(s, prior=prior, inputs=inputs)
+        booster = make_booster(s, prior=prior, inputs=target_inputs(s, dataset))
         per_target[target] = BaseBoostCV(booster, cv=cv, scoring=selection["scoring"])
     return MultiTargetBaseBoost(target_estimators=per_target, n_jobs=cfg.n_jobs,
                                 random_state=cfg.random_state)

@@ -8,9 +8,11 @@ from typing import Any, TextIO
 
 import numpy as np
 
+from ..datasets import Dataset
+from ..multitarget import MultiTargetBaseBoost
 from .config import ExperimentConfig, build_model, load_dataset
 
-__all__ = ["evaluate", "format_table"]
+__all__ = ["evaluate", "fit_and_score", "format_table"]
 
 
 def _mae(a, b) -> np.ndarray:
@@ -35,16 +37,22 @@ def evaluate(cfg: ExperimentConfig, progress: TextIO | None | bool = True) -> di
     if progress is True:
         progress = sys.stderr
     ds = load_dataset(cfg)
-    X_train, X_test, y_train, y_test = ds.split()
-    model = build_model(cfg, ds)
     if progress:
-        print(f"[{cfg.name}] fitting {len(ds.target_names)} targets on {len(X_train)} training "
-              f"rows (test rows: {len(X_test)})", file=progress, flush=True)
+        print(f"[{cfg.name}] fitting {len(ds.target_names)} targets on {len(ds.train_index)} "
+              f"training rows (test rows: {len(ds.test_index)})", file=progress, flush=True)
+    result, _ = fit_and_score(cfg, ds, build_model(cfg, ds))
+    result["wall_s"] = time.perf_counter() - start
+    return result
+
+
+def fit_and_score(cfg: ExperimentConfig, ds: Dataset, model: MultiTargetBaseBoost):
+    """Fit ``model`` (one BaseBoostCV per target) on the training rows and score prior and
+    model once on the test rows. Returns ``(result, fitted model)``."""
+    X_train, X_test, y_train, y_test = ds.split()
     model.fit(X_train, y_train)
     pred = model.predict(X_test).to_numpy()
     prior_test = ds.prior.loc[ds.test_index].to_numpy()
     cvs = model.estimators_
-    cv_mae = [-e.cv_score_ for e in cvs]
     result = {
         "name": cfg.name,
         "config": str(cfg.path) if cfg.path else None,
@@ -59,7 +67,7 @@ def evaluate(cfg: ExperimentConfig, progress: TextIO | None | bool = True) -> di
         "model": {
             "test_mae": _mae(y_test, pred).tolist(),
             "test_mse": _mse(y_test, pred).tolist(),
-            "cv_mae": cv_mae,
+            "cv_mae": [-e.cv_score_ for e in cvs],
             "cv_mae_boosted": [float(-np.mean(e.cv_scores_boosted_)) for e in cvs],
             "selected": model.selected_,
             "coefs": [e.best_estimator_.coefs_.tolist() if e.selected_ == "boosted" else []
@@ -69,8 +77,7 @@ def evaluate(cfg: ExperimentConfig, progress: TextIO | None | bool = True) -> di
     for part in ("prior", "model"):
         for key in ("test_mae", "test_mse", "cv_mae"):
             result[part][f"{key}_avg"] = _avg(result[part][key])
-    result["wall_s"] = time.perf_counter() - start
-    return result
+    return result, model
 
 
 def format_table(result: dict[str, Any]) -> str:

@@ -1,0 +1,363 @@
+"""``workbench sweep``: nested cross-validation driven by Optuna studies.
+
+Per target, on the training rows only:
+
+1. *Outer folds* estimate generalisation. In each outer fold an Optuna study searches the
+   config's ``[search]`` space; a trial's value is the inner-CV mean absolute error of the
+   boosted candidate, read from :class:`~workbench.BaseBoostCV`'s own fold scores (reported
+   fold by fold, so a pruner can stop poor trials). The best configuration is refitted (with
+   BaseBoostCV's fallback to the prior) on the outer-training rows and scored once on the
+   outer-validation rows: the mean over outer folds is the nested-CV estimate.
+2. A *final* study on all training rows chooses the configuration that is refitted and scored
+   once on the test rows.
+
+Studies live in shared storage (a journal file by default, or an RDB URL), so an interrupted
+sweep resumes where it stopped and several processes, or machines, can work on one sweep:
+each trial records its worker and a heartbeat; a running trial whose process is gone (same
+host) or whose heartbeat is older than ``stale_after_s`` is marked failed and not counted, and
+a trial started beyond the budget is marked ``surplus`` and not run. So every study finishes
+exactly ``trials`` counted trials, none lost or repeated.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import socket
+import sys
+import time
+import zlib
+from dataclasses import replace
+from pathlib import Path
+from typing import Any, Callable, TextIO
+
+import numpy as np
+import optuna
+from optuna.trial import FixedTrial, FrozenTrial, TrialState
+from sklearn.model_selection import KFold, RepeatedKFold
+
+from ..datasets import Dataset
+from ..multitarget import MultiTargetBaseBoost
+from ..selection import BaseBoostCV
+from .config import ExperimentConfig, load_dataset, make_booster, target_inputs
+from .evaluate import fit_and_score
+
+__all__ = ["open_storage", "run_search", "run_sweep", "study_names"]
+
+optuna.logging.set_verbosity(optuna.logging.WARNING)
+
+THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def open_storage(storage: str, root: Path):
+    """An Optuna storage: an RDB URL as is, else a journal file (relative to ``root``)."""
+    if "://" in storage:
+        return storage
+    path = Path(storage)
+    path = path if path.is_absolute() else root / path
+    path.parent.mkdir(parents=True, exist_ok=True)
+    backend = optuna.storages.journal.JournalFileBackend(str(path))
+    return optuna.storages.JournalStorage(backend)
+
+
+def _root(cfg: ExperimentConfig) -> Path:
+    """Relative storage paths resolve against the working directory (the project root)."""
+    return Path.cwd()
+
+
+def study_names(cfg: ExperimentConfig, targets: list[str]) -> list[tuple[str, str, int | None]]:
+    """``(study name, target, outer fold or None for the final study)`` in sweep order."""
+    base = cfg.study["study_name"] or cfg.name
+    n_outer = cfg.cv["outer_folds"] * cfg.cv["repeats"]
+    out = []
+    for t in targets:
+        out += [(f"{base}.{t}.outer{k}", t, k) for k in range(n_outer)]
+        out.append((f"{base}.{t}.final", t, None))
+    return out
+
+
+def _outer_splits(cfg: ExperimentConfig, n_rows: int):
+    c = cfg.cv
+    if c["repeats"] > 1:
+        splitter = RepeatedKFold(n_splits=c["outer_folds"], n_repeats=c["repeats"],
+                                 random_state=c["seed"])
+    else:
+        splitter = KFold(c["outer_folds"], shuffle=True, random_state=c["seed"])
+    return list(splitter.split(np.zeros((n_rows, 1))))
+
+
+def _inner_cv(cfg: ExperimentConfig) -> KFold:
+    return KFold(cfg.cv["inner_folds"], shuffle=True, random_state=cfg.cv["seed"])
+
+
+def _sampler(cfg: ExperimentConfig, name: str):
+    seed = (cfg.cv["seed"] + zlib.crc32(name.encode())) % 2**31
+    if cfg.study["sampler"] == "random":
+        return optuna.samplers.RandomSampler(seed=seed)
+    return optuna.samplers.TPESampler(seed=seed)
+
+
+def _pruner(cfg: ExperimentConfig):
+    name = cfg.study["pruner"]
+    if name == "median":  # reported values: running mean of the inner folds' MAE
+        return optuna.pruners.MedianPruner(n_startup_trials=3)
+    if name == "wilcoxon":  # reported values: each inner fold's MAE
+        return optuna.pruners.WilcoxonPruner(p_threshold=0.1)
+    return optuna.pruners.NopPruner()
+
+
+def _rows(ds: Dataset, target: str, fold: int | None, cfg: ExperimentConfig):
+    """Search rows (X, y) of one study: an outer fold's training rows, or all training rows."""
+    X = ds.X.loc[ds.train_index]
+    y = ds.targets.loc[ds.train_index, target]
+    if fold is None:
+        return X, y
+    train, _ = _outer_splits(cfg, len(X))[fold]
+    return X.iloc[train], y.iloc[train]
+
+
+def settings_for(cfg: ExperimentConfig, target: str, params: dict[str, Any]) -> dict[str, Any]:
+    """The model settings of a finished trial's parameters."""
+    return cfg.search.sample(FixedTrial(params), cfg.model_for(target))
+
+
+def _booster_cv(cfg: ExperimentConfig, ds: Dataset, target: str,
+                settings: dict[str, Any], **kwargs) -> BaseBoostCV:
+    prior = ds.prior_names[ds.target_names.index(target)]
+    booster = make_booster(settings, prior=prior, inputs=target_inputs(settings, ds))
+    return BaseBoostCV(booster, cv=_inner_cv(cfg), scoring=cfg.selection["scoring"],
+                       random_state=cfg.random_state, **kwargs)
+
+
+def _objective(cfg, ds, target, X, y, trial) -> float:
+    settings = cfg.search.sample(trial, cfg.model_for(target))
+    cv = _booster_cv(cfg, ds, target, settings, refit=False)
+    per_fold = cfg.study["pruner"] == "wilcoxon"
+    maes: list[float] = []
+
+    def on_fold(i, prior_score, boosted_score):
+        trial.set_user_attr("heartbeat", time.time())
+        if not np.isfinite(boosted_score):
+            raise RuntimeError(f"candidate fit failed in inner fold {i}")
+        maes.append(-boosted_score)
+        trial.report(maes[-1] if per_fold else float(np.mean(maes)), i)
+        if trial.should_prune():
+            raise optuna.TrialPruned(f"pruned after inner fold {i}")
+
+    cv.fit(X, y.to_numpy(), fold_callback=on_fold)
+    trial.set_user_attr("prior_cv_mae", float(-np.mean(cv.cv_scores_prior_)))
+    trial.set_user_attr("fold_mae", [float(m) for m in maes])
+    return float(np.mean(maes))
+
+
+def _counted(t: FrozenTrial) -> bool:
+    """Whether a trial uses one of the study's ``trials`` (stale and surplus ones do not)."""
+    attrs = t.user_attrs
+    if attrs.get("surplus"):
+        return False
+    if t.state == TrialState.FAIL:
+        return "finished_by" in attrs  # failed in the objective, not marked stale by others
+    return True
+
+
+def _fail_stale(study: optuna.Study, stale_after_s: float) -> None:
+    host, now = socket.gethostname(), time.time()
+    for t in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
+        worker = t.user_attrs.get("worker", "")
+        w_host, _, w_pid = worker.rpartition(":")
+        dead = w_host == host and w_pid.isdigit() and not _alive(int(w_pid))
+        started = t.datetime_start.timestamp() if t.datetime_start else now
+        old = now - t.user_attrs.get("heartbeat", started) > stale_after_s
+        if dead or old:
+            try:
+                study.tell(t.number, state=TrialState.FAIL)
+            except (RuntimeError, ValueError):  # finished meanwhile
+                pass
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _best_value(study: optuna.Study) -> float | None:
+    try:
+        return study.best_value
+    except ValueError:
+        return None
+
+
+def run_study(study: optuna.Study, objective: Callable, n_trials: int, *,
+              timeout: float | None = None, stale_after_s: float = 600,
+              progress: TextIO | None = None) -> None:
+    """Run trials until the study holds ``n_trials`` counted trials (or ``timeout`` s pass)."""
+    worker = f"{socket.gethostname()}:{os.getpid()}"
+    start = time.perf_counter()
+    _fail_stale(study, stale_after_s)
+    while timeout is None or time.perf_counter() - start < timeout:
+        trials = study.get_trials(deepcopy=False)
+        if sum(_counted(t) for t in trials) >= n_trials:
+            return
+        trial = study.ask()
+        trial.set_user_attr("worker", worker)
+        trial.set_user_attr("heartbeat", time.time())
+        earlier = [t for t in study.get_trials(deepcopy=False) if t.number < trial.number]
+        if sum(_counted(t) for t in earlier) >= n_trials:  # another worker filled the budget
+            trial.set_user_attr("surplus", True)
+            study.tell(trial, state=TrialState.FAIL)
+            return
+        state, value, note = TrialState.COMPLETE, None, ""
+        try:
+            value = objective(trial)
+        except optuna.TrialPruned as exc:
+            state, note = TrialState.PRUNED, str(exc)
+        except Exception as exc:  # a failed configuration is recorded, never chosen
+            state, note = TrialState.FAIL, f"{type(exc).__name__}: {exc}"
+            trial.set_user_attr("error", note[:2000])
+        trial.set_user_attr("finished_by", worker)
+        study.tell(trial, value if state == TrialState.COMPLETE else None, state=state)
+        if progress:
+            best = _best_value(study)
+            shown = f"MAE {value:.4f}" if value is not None else note[:60]
+            print(f"[{study.study_name}] trial {trial.number:>3} {state.name.lower():<8} "
+                  f"{shown}  best {best if best is None else round(best, 4)}",
+                  file=progress, flush=True)
+
+
+def run_search(cfg: ExperimentConfig, storage_url: str, *, progress: TextIO | None = None
+               ) -> None:
+    """Run (or resume) every study of the sweep in this process."""
+    ds = load_dataset(cfg)
+    storage = open_storage(storage_url, _root(cfg))
+    for name, target, fold in study_names(cfg, ds.target_names):
+        study = optuna.create_study(study_name=name, storage=storage, direction="minimize",
+                                    sampler=_sampler(cfg, name), pruner=_pruner(cfg),
+                                    load_if_exists=True)
+        X, y = _rows(ds, target, fold, cfg)
+        run_study(study, lambda trial: _objective(cfg, ds, target, X, y, trial),
+                  cfg.study["trials"], timeout=cfg.study["timeout"],
+                  stale_after_s=cfg.study["stale_after_s"], progress=progress)
+
+
+def _worker(cfg: ExperimentConfig, storage_url: str) -> None:
+    run_search(cfg, storage_url, progress=sys.stderr)
+
+
+def _search_in_workers(cfg: ExperimentConfig, storage_url: str, workers: int,
+                       progress: TextIO | None) -> None:
+    if workers == 1:
+        run_search(cfg, storage_url, progress=progress)
+        return
+    # Create the storage and studies once, before workers race to do it.
+    ds = load_dataset(cfg)
+    storage = open_storage(storage_url, _root(cfg))
+    for name, _, _ in study_names(cfg, ds.target_names):
+        optuna.create_study(study_name=name, storage=storage, direction="minimize",
+                            load_if_exists=True)
+    saved = {k: os.environ.get(k) for k in THREAD_ENV}
+    os.environ.update({k: "1" for k in THREAD_ENV})  # one BLAS/OpenMP thread per worker
+    try:
+        ctx = multiprocessing.get_context("spawn")
+        procs = [ctx.Process(target=_worker, args=(cfg, storage_url)) for _ in range(workers)]
+        for p in procs:
+            p.start()
+        for p in procs:
+            p.join()
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+    failed = [p.exitcode for p in procs if p.exitcode != 0]
+    if failed:
+        raise RuntimeError(f"{len(failed)} of {workers} sweep workers exited with codes {failed}")
+
+
+def _load(cfg: ExperimentConfig, storage_url: str, name: str) -> optuna.Study:
+    return optuna.load_study(study_name=name, storage=open_storage(storage_url, _root(cfg)),
+                             sampler=_sampler(cfg, name), pruner=_pruner(cfg))
+
+
+def _best_params(study: optuna.Study) -> dict[str, Any] | None:
+    done = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
+    return min(done, key=lambda t: (t.value, t.number)).params if done else None
+
+
+def run_sweep(cfg: ExperimentConfig, *, storage: str | None = None, workers: int | None = None,
+              progress: TextIO | None | bool = True) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Search, then evaluate. Returns ``(result, details)``: the JSON-ready result (the
+    ``evaluate`` fields plus ``nested_cv_mae``, ``nested_cv_mae_avg``, ``best_params``) and
+    in-process details (the fitted final model, dataset, studies, outer-fold results)."""
+    start = time.perf_counter()
+    if progress is True:
+        progress = sys.stderr
+    storage_url = storage or cfg.study["storage"]
+    workers = workers or cfg.study["workers"]
+    ds = load_dataset(cfg)
+    names = study_names(cfg, ds.target_names)
+    if progress:
+        print(f"[{cfg.name}] sweep: {len(names)} studies x {cfg.study['trials']} trials, "
+              f"{workers} worker(s), storage {storage_url}", file=progress, flush=True)
+    _search_in_workers(cfg, storage_url, workers, progress)
+
+    studies = {name: _load(cfg, storage_url, name) for name, _, _ in names}
+    X_all = ds.X.loc[ds.train_index]
+    outer = _outer_splits(cfg, len(X_all))
+    nested, nested_prior, folds, best = {}, {}, [], {}
+    for name, target, fold in names:
+        params = _best_params(studies[name])
+        if fold is None:
+            best[target] = params
+            continue
+        train, val = outer[fold]
+        y_all = ds.targets.loc[ds.train_index, target].to_numpy()
+        prior_col = ds.prior_names[ds.target_names.index(target)]
+        prior_val = X_all[prior_col].to_numpy()[val]
+        if params is None:  # no trial completed: the prior stands
+            pred, selected = prior_val, "prior"
+        else:
+            model = _booster_cv(cfg, ds, target, settings_for(cfg, target, params))
+            model.fit(X_all.iloc[train], y_all[train])
+            pred, selected = model.predict(X_all.iloc[val]), model.selected_
+        mae = float(np.mean(np.abs(y_all[val] - pred)))
+        prior_mae = float(np.mean(np.abs(y_all[val] - prior_val)))
+        nested.setdefault(target, []).append(mae)
+        nested_prior.setdefault(target, []).append(prior_mae)
+        folds.append(dict(target=target, fold=fold, study=name, mae=mae, prior_mae=prior_mae,
+                          selected=selected, n_train=len(train), n_val=len(val),
+                          params=params))
+
+    final = MultiTargetBaseBoost(target_estimators={
+        t: (_booster_cv(cfg, ds, t, settings_for(cfg, t, best[t])) if best[t] is not None
+            else _booster_cv(cfg, ds, t, cfg.model_for(t)))
+        for t in ds.target_names}, random_state=cfg.random_state, n_jobs=cfg.n_jobs)
+    result, fitted = fit_and_score(cfg, ds, final)
+    result["nested_cv_mae"] = [float(np.mean(nested[t])) for t in ds.target_names]
+    result["nested_cv_mae_avg"] = float(np.mean(result["nested_cv_mae"]))
+    result["nested_cv_prior_mae"] = [float(np.mean(nested_prior[t])) for t in ds.target_names]
+    result["nested_cv_prior_mae_avg"] = float(np.mean(result["nested_cv_prior_mae"]))
+    result["best_params"] = [best[t] for t in ds.target_names]
+    counts = {n: sum(_counted(t) for t in s.get_trials(deepcopy=False))
+              for n, s in studies.items()}
+    result["trials"] = {"per_study": cfg.study["trials"], "counted": sum(counts.values()),
+                        "studies": len(studies)}
+    result["wall_s"] = time.perf_counter() - start
+    details = dict(model=fitted, dataset=ds, studies=studies, outer_folds=folds,
+                   storage=storage_url)
+    return result, details
+
+
+def with_overrides(cfg: ExperimentConfig, *, trials: int | None = None,
+                   workers: int | None = None, storage: str | None = None) -> ExperimentConfig:
+    """``cfg`` with command-line overrides of the ``[study]`` table."""
+    study = dict(cfg.study)
+    for key, value in (("trials", trials), ("workers", workers), ("storage", storage)):
+        if value is not None:
+            study[key] = value
+    return replace(cfg, study=study)

@@ -1,0 +1,115 @@
+"""Search spaces from a config's ``[search]`` table.
+
+Each entry is a choice list (categorical), a range table ``{ low, high, log?, step? }`` (int
+when both ends are ints, else float) or a plain value (fixed). Basis hyperparameters are
+conditional: ``[search.basis_params.<basis>]`` is sampled only in trials that pick that basis,
+as parameters named ``<basis>.<name>``. Sampling goes through any object with Optuna's
+``suggest_categorical``/``suggest_int``/``suggest_float`` (an Optuna trial, or
+``optuna.trial.FixedTrial`` to rebuild the settings of a finished trial).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..bases import BASES, TRANSFORMS
+from ..losses import LOSSES
+
+__all__ = ["SearchSpace", "SpaceError"]
+
+#: The model settings a search may vary, with the valid values of the categorical ones.
+NAMED_CHOICES: dict[str, tuple[str, ...]] = {
+    "basis": tuple(BASES),
+    "loss": tuple(LOSSES),
+    "line_search_loss": tuple(LOSSES),
+    "input_transform": ("none", *TRANSFORMS),
+    "basis_inputs": ("prior", "prior+features"),
+}
+NUMERIC = ("n_stages", "line_search_penalty", "alpha")
+SEARCH_KEYS = {*NAMED_CHOICES, *NUMERIC, "basis_params"}
+
+
+class SpaceError(ValueError):
+    """A search space that cannot be sampled; the message names the entry."""
+
+
+def _check_spec(name: str, spec: Any, valid: tuple[str, ...] | None = None) -> None:
+    if isinstance(spec, list):
+        if not spec:
+            raise SpaceError(f"{name}: empty choice list")
+        if any(isinstance(v, (list, dict)) for v in spec):
+            raise SpaceError(f"{name}: choices must be plain values, got {spec!r}")
+        values = spec
+    elif isinstance(spec, dict):
+        unknown = sorted(set(spec) - {"low", "high", "log", "step"})
+        if unknown or not {"low", "high"} <= set(spec):
+            raise SpaceError(f"{name}: a range needs low and high (and optionally log, step); "
+                             f"got keys {sorted(spec)}")
+        if not spec["low"] <= spec["high"]:
+            raise SpaceError(f"{name}: low {spec['low']!r} is above high {spec['high']!r}")
+        if spec.get("log") and spec["low"] <= 0:
+            raise SpaceError(f"{name}: a log range needs low > 0, got {spec['low']!r}")
+        values = []
+    else:
+        values = [spec]
+    if valid is not None:
+        bad = [v for v in values if v not in valid]
+        if bad or isinstance(spec, dict):
+            raise SpaceError(f"{name}: unknown value(s) {bad or spec!r}; valid: {list(valid)}")
+
+
+def _suggest(trial, name: str, spec: Any) -> Any:
+    if isinstance(spec, list):
+        return trial.suggest_categorical(name, spec)
+    if isinstance(spec, dict):
+        low, high, log = spec["low"], spec["high"], bool(spec.get("log", False))
+        if isinstance(low, int) and isinstance(high, int) and not isinstance(spec.get("step"), float):
+            return trial.suggest_int(name, low, high, log=log, step=spec.get("step", 1))
+        return trial.suggest_float(name, float(low), float(high), log=log, step=spec.get("step"))
+    return spec
+
+
+@dataclass(frozen=True)
+class SearchSpace:
+    """The ``[search]`` table, checked."""
+
+    table: dict[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def from_table(cls, table: dict[str, Any]) -> SearchSpace:
+        unknown = sorted(set(table) - SEARCH_KEYS)
+        if unknown:
+            raise SpaceError(f"unknown key(s) {unknown}; valid keys are {sorted(SEARCH_KEYS)}")
+        for name, spec in table.items():
+            if name != "basis_params":
+                _check_spec(name, spec, NAMED_CHOICES.get(name))
+        params = table.get("basis_params", {})
+        if not isinstance(params, dict):
+            raise SpaceError(f"basis_params must be a table of tables, got {params!r}")
+        for basis, specs in params.items():
+            if basis not in BASES:
+                raise SpaceError(f"basis_params.{basis}: unknown basis; valid: {sorted(BASES)}")
+            if not isinstance(specs, dict):
+                raise SpaceError(f"basis_params.{basis} must be a table, got {specs!r}")
+            for pname, spec in specs.items():
+                _check_spec(f"basis_params.{basis}.{pname}", spec)
+        return cls(table=dict(table))
+
+    def sample(self, trial, base: dict[str, Any]) -> dict[str, Any]:
+        """Model settings: ``base`` (a target's ``[model]`` settings) with searched entries
+        replaced by the trial's values."""
+        settings = dict(base)
+        for name, spec in self.table.items():
+            if name != "basis_params":
+                settings[name] = _suggest(trial, name, spec)
+        if settings["input_transform"] != base["input_transform"]:
+            settings["input_transform_params"] = {}
+        specs = self.table.get("basis_params", {}).get(settings["basis"])
+        if settings["basis"] != base["basis"]:
+            settings["basis_params"] = {}
+        if specs:
+            settings["basis_params"] = {
+                **settings["basis_params"],
+                **{k: _suggest(trial, f"{settings['basis']}.{k}", v) for k, v in specs.items()}}
+        return settings
