@@ -1,0 +1,318 @@
+"""Augmented learning curves: the model, its training error and the incumbent, per training size.
+
+The base-boosting paper's "augmented" learning curve adds a third line to the usual two: at
+each training size it shows the model's training error, its cross-validated error, and the
+cross-validated error of the incumbent (the prior alone, i.e. the scientific model), all on
+the same folds and the same rows. Where the model's CV error falls below the incumbent's,
+learning from data beats the physics alone.
+
+Protocol (:func:`augmented_learning_curve`):
+
+* ``cv`` splits the rows into fold-training and fold-validation rows (an int ``k`` means
+  ``KFold(k, shuffle=True, random_state=...)``).
+* Each fold's training rows are shuffled once with a seeded permutation; size ``s`` uses the
+  first ``s`` rows of that permutation, so the subsets of one fold are nested.
+* At each (size, fold) a clone of the estimator and a clone of the incumbent are fitted on
+  those ``s`` rows. The training error is the estimator's error on the same ``s`` rows; the
+  CV error and the incumbent error are measured on the fold's validation rows.
+* ``train_sizes`` are absolute row counts. A size larger than the smallest fold-training set
+  is an error (the reference implementation silently trained on fewer rows than it
+  reported); the rows actually used are recorded in ``LearningCurve.n_train_rows``.
+* A failing candidate fit gives NaN at that (size, fold) and one ``FitFailedWarning``;
+  the curve is still computed everywhere else.
+
+This module belongs to the core: it imports only numpy, pandas and scikit-learn. The
+figure lives in :mod:`workbench.experiment.figures`.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+import warnings
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from joblib import Parallel, delayed
+from sklearn.base import clone
+from sklearn.exceptions import FitFailedWarning
+from sklearn.metrics import check_scoring
+from sklearn.model_selection import KFold, check_cv
+from sklearn.utils import _safe_indexing, check_random_state
+
+from .boosting import PriorModel, seed_estimator
+from .selection import find_prior
+
+__all__ = ["LearningCurve", "augmented_learning_curve"]
+
+_SEED_MAX = np.iinfo(np.int32).max
+
+
+def _readonly(values, dtype) -> np.ndarray:
+    arr = np.array(values, dtype=dtype)  # a copy the caller cannot alias
+    arr.setflags(write=False)
+    return arr
+
+
+def _json_list(arr: np.ndarray) -> list:
+    """Nested lists with NaN/inf replaced by ``None`` (strict JSON has no NaN)."""
+    if arr.ndim == 0:
+        v = arr.item()
+        return None if isinstance(v, float) and not math.isfinite(v) else v
+    return [_json_list(a) for a in arr]
+
+
+@dataclass(frozen=True, eq=False)
+class LearningCurve:
+    """The result of :func:`augmented_learning_curve`.
+
+    Errors are positive (``-score``, e.g. the MAE for ``"neg_mean_absolute_error"``); rows
+    are training sizes, columns folds. NaN marks a (size, fold) where the candidate failed.
+
+    Attributes
+    ----------
+    train_sizes : ndarray of int, shape (n_sizes,)
+        The requested training sizes (row counts), ascending.
+    n_train_rows : ndarray of int, shape (n_sizes, n_folds)
+        Rows actually used to fit at each (size, fold).
+    train_error, cv_error, incumbent_error : ndarray of shape (n_sizes, n_folds)
+        The candidate's error on its own training rows, its error on the fold's validation
+        rows, and the incumbent's error on the same validation rows.
+    n_validation_rows : ndarray of int, shape (n_folds,)
+        Validation rows of each fold.
+    scoring : str
+        The scorer's name (or ``repr`` of a callable scorer).
+    fit_errors : tuple of str
+        ``"size=<s>, fold=<f>: <exception>"`` for each failed candidate fit.
+    """
+
+    train_sizes: np.ndarray
+    n_train_rows: np.ndarray
+    train_error: np.ndarray
+    cv_error: np.ndarray
+    incumbent_error: np.ndarray
+    n_validation_rows: np.ndarray
+    scoring: str = "neg_mean_absolute_error"
+    fit_errors: tuple[str, ...] = field(default=())
+
+    def __post_init__(self):
+        sizes = _readonly(self.train_sizes, int)
+        object.__setattr__(self, "train_sizes", sizes)
+        rows = _readonly(self.n_train_rows, int)
+        object.__setattr__(self, "n_train_rows", rows)
+        shape = (len(sizes), rows.shape[1] if rows.ndim == 2 else -1)
+        if rows.shape != shape:
+            raise ValueError(f"n_train_rows must have shape (n_sizes, n_folds) = "
+                             f"({len(sizes)}, n_folds); got {rows.shape}")
+        for name in ("train_error", "cv_error", "incumbent_error"):
+            arr = _readonly(getattr(self, name), float)
+            if arr.shape != rows.shape:
+                raise ValueError(f"{name} must have shape {rows.shape}; got {arr.shape}")
+            object.__setattr__(self, name, arr)
+        val = _readonly(self.n_validation_rows, int)
+        if val.shape != (rows.shape[1],):
+            raise ValueError(f"n_validation_rows must have shape ({rows.shape[1]},); "
+                             f"got {val.shape}")
+        object.__setattr__(self, "n_validation_rows", val)
+        object.__setattr__(self, "fit_errors", tuple(self.fit_errors))
+
+    @property
+    def n_folds(self) -> int:
+        return int(self.n_train_rows.shape[1])
+
+    @property
+    def mean_train_rows(self) -> np.ndarray:
+        """Mean rows actually used per size (the honest x-axis of the curve)."""
+        return self.n_train_rows.mean(axis=1)
+
+    # Means over folds are NaN where any fold failed: a partial mean would not be comparable
+    # with the incumbent's, which is measured on every fold.
+    @property
+    def train_error_mean(self) -> np.ndarray:
+        return self.train_error.mean(axis=1)
+
+    @property
+    def train_error_std(self) -> np.ndarray:
+        return self.train_error.std(axis=1)
+
+    @property
+    def cv_error_mean(self) -> np.ndarray:
+        return self.cv_error.mean(axis=1)
+
+    @property
+    def cv_error_std(self) -> np.ndarray:
+        """Standard deviation across folds (``ddof=0``, as scikit-learn's curve displays)."""
+        return self.cv_error.std(axis=1)
+
+    @property
+    def incumbent_error_mean(self) -> np.ndarray:
+        return self.incumbent_error.mean(axis=1)
+
+    @property
+    def incumbent_error_std(self) -> np.ndarray:
+        return self.incumbent_error.std(axis=1)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready: plain lists, NaN as ``None``."""
+        return {
+            "scoring": self.scoring,
+            "n_folds": self.n_folds,
+            "train_sizes": self.train_sizes.tolist(),
+            "n_train_rows": self.n_train_rows.tolist(),
+            "n_validation_rows": self.n_validation_rows.tolist(),
+            "train_error": _json_list(self.train_error),
+            "cv_error": _json_list(self.cv_error),
+            "incumbent_error": _json_list(self.incumbent_error),
+            "train_error_mean": _json_list(self.train_error_mean),
+            "cv_error_mean": _json_list(self.cv_error_mean),
+            "cv_error_std": _json_list(self.cv_error_std),
+            "incumbent_error_mean": _json_list(self.incumbent_error_mean),
+            "fit_errors": list(self.fit_errors),
+        }
+
+
+def _check_train_sizes(train_sizes) -> np.ndarray:
+    sizes = np.atleast_1d(np.asarray(train_sizes))
+    if sizes.ndim != 1 or sizes.size == 0:
+        raise ValueError(f"train_sizes must be a non-empty 1-D sequence of row counts; got "
+                         f"{train_sizes!r}")
+    if sizes.dtype == bool or not all(isinstance(s, numbers.Real) for s in sizes.tolist()):
+        raise ValueError(f"train_sizes must be integer row counts; got {train_sizes!r}")
+    if not np.all(np.isfinite(sizes)) or np.any(sizes != np.round(sizes)):
+        raise ValueError("train_sizes must be absolute, whole row counts (not fractions of the "
+                         f"training set); got {sizes.tolist()}")
+    sizes = sizes.astype(int)
+    if np.any(sizes < 1):
+        raise ValueError(f"train_sizes must be >= 1; got {sizes.tolist()}")
+    if len(np.unique(sizes)) != len(sizes):
+        raise ValueError(f"train_sizes contains duplicates: {sizes.tolist()}")
+    return np.sort(sizes)
+
+
+def _check_cv(cv, y, random_state):
+    if isinstance(cv, numbers.Integral) and not isinstance(cv, bool):
+        if cv < 2:
+            raise ValueError(f"cv must be >= 2 folds; got {cv}")
+        return KFold(int(cv), shuffle=True, random_state=random_state)
+    return check_cv(cv, y, classifier=False)
+
+
+def _error_of(scorer, model, X, y) -> float:
+    return -float(scorer(model, X, y))
+
+
+def _one(estimator, incumbent, X, y, rows, val, size, fold, scorer):
+    """Fit and score candidate and incumbent at one (size, fold)."""
+    X_fit, y_fit = _safe_indexing(X, rows), y[rows]
+    X_val, y_val = _safe_indexing(X, val), y[val]
+    inc_error = _error_of(scorer, clone(incumbent).fit(X_fit, y_fit), X_val, y_val)
+    try:
+        model = clone(estimator).fit(X_fit, y_fit)
+        train_error = _error_of(scorer, model, X_fit, y_fit)
+        cv_error = _error_of(scorer, model, X_val, y_val)
+        error = None
+    except Exception as exc:  # a failed candidate is recorded, never crashes the curve
+        train_error = cv_error = np.nan
+        error = f"size={size}, fold={fold}: {type(exc).__name__}: {exc}"
+    return len(rows), train_error, cv_error, inc_error, error
+
+
+def augmented_learning_curve(estimator, X, y, *, train_sizes, cv=5, incumbent=None,
+                             scoring="neg_mean_absolute_error", random_state=None,
+                             n_jobs=None) -> LearningCurve:
+    """The augmented learning curve of ``estimator`` against its incumbent (see module doc).
+
+    Parameters
+    ----------
+    estimator : regressor
+        The candidate, cloned for every (size, fold).
+    X : array-like or DataFrame of shape (n_samples, n_features)
+        DataFrames are kept as such, so column-name priors and basis features work.
+    y : array-like of shape (n_samples,) (or one column)
+    train_sizes : sequence of int
+        Absolute training sizes (row counts). Each must be at most the smallest
+        fold-training set; otherwise ``ValueError`` names the size and the maximum.
+    cv : int or CV splitter, default=5
+        An int ``k`` means ``KFold(k, shuffle=True, random_state=...)``; any scikit-learn
+        splitter or iterable of (train, validation) index pairs is used as given.
+    incumbent : regressor, default=None
+        The prior-alone model; ``None`` builds ``PriorModel(prior=find_prior(estimator))``.
+    scoring : str or callable, default="neg_mean_absolute_error"
+        A "greater is better" scorer of an error: the reported error is ``-score``. Strings
+        must name a ``neg_*`` scorer.
+    random_state : int, RandomState or None, default=None
+        Seeds the folds (int ``cv``), the per-fold row permutations and, when not ``None``,
+        every ``random_state`` of the estimator (as :class:`~workbench.BaseBoostCV` does).
+        The same value gives identical numbers.
+    n_jobs : int, default=None
+        (size, fold) fits run in parallel with joblib.
+
+    Returns
+    -------
+    LearningCurve
+    """
+    if isinstance(scoring, str) and not scoring.startswith("neg_"):
+        raise ValueError(f"scoring must name an error scorer ('neg_...', reported as a positive "
+                         f"error), got {scoring!r}")
+    sizes = _check_train_sizes(train_sizes)
+    if not hasattr(X, "iloc"):  # keep DataFrames (column names) for the sub-estimators
+        X = np.asarray(X)
+    y = np.asarray(y, dtype=float)
+    if y.ndim == 2 and y.shape[1] == 1:
+        y = y[:, 0]
+    if len(X) != len(y):
+        raise ValueError(f"X and y have different numbers of rows: {len(X)} and {len(y)}")
+
+    rng = check_random_state(random_state)
+    cv_seed, estimator_seed = (int(s) for s in rng.randint(_SEED_MAX, size=2))
+    estimator = clone(estimator)
+    if random_state is not None:
+        seed_estimator(estimator, estimator_seed)
+    if incumbent is None:
+        incumbent = PriorModel(prior=find_prior(estimator))
+    scorer = check_scoring(estimator, scoring=scoring)
+    splitter = _check_cv(cv, y, cv_seed if random_state is not None else None)
+
+    folds = [(np.asarray(tr), np.asarray(va)) for tr, va in splitter.split(X, y)]
+    if len(folds) == 0:
+        raise ValueError("cv produced no folds")
+    fold_sizes = [len(tr) for tr, _ in folds]
+    max_size = min(fold_sizes)
+    too_big = sizes[sizes > max_size]
+    if too_big.size:
+        raise ValueError(
+            f"train size {int(too_big[0])} is larger than the smallest fold-training set: at "
+            f"most {max_size} rows can be used ({len(folds)} folds of {len(y)} rows; "
+            f"fold-training sizes {sorted(set(fold_sizes))}). Use train_sizes <= {max_size}.")
+    perms = [check_random_state(int(seed)).permutation(tr)
+             for seed, (tr, _) in zip(rng.randint(_SEED_MAX, size=len(folds)), folds)]
+
+    tasks = [(i, j) for i in range(len(sizes)) for j in range(len(folds))]
+    results = Parallel(n_jobs=n_jobs)(
+        delayed(_one)(estimator, incumbent, X, y, perms[j][: sizes[i]], folds[j][1],
+                      int(sizes[i]), j, scorer)
+        for i, j in tasks
+    )
+    shape = (len(sizes), len(folds))
+    n_rows = np.zeros(shape, dtype=int)
+    train_err, cv_err, inc_err = (np.full(shape, np.nan) for _ in range(3))
+    errors = []
+    for (i, j), (n, tr_e, cv_e, inc_e, err) in zip(tasks, results):
+        n_rows[i, j], train_err[i, j], cv_err[i, j], inc_err[i, j] = n, tr_e, cv_e, inc_e
+        if err is not None:
+            errors.append(err)
+    if errors:
+        warnings.warn(f"{len(errors)} of {len(tasks)} candidate fits of the learning curve "
+                      f"failed and are NaN. First error: {errors[0]}", FitFailedWarning,
+                      stacklevel=2)
+    return LearningCurve(
+        train_sizes=sizes,
+        n_train_rows=n_rows,
+        train_error=train_err,
+        cv_error=cv_err,
+        incumbent_error=inc_err,
+        n_validation_rows=[len(va) for _, va in folds],
+        scoring=scoring if isinstance(scoring, str) else repr(scoring),
+        fit_errors=tuple(errors),
+    )
