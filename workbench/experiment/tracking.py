@@ -1,0 +1,614 @@
+"""MLflow tracking for experiments: runs (nested), params, metrics, artifacts and models.
+
+Part of the experiment layer: it imports MLflow, the core (:mod:`workbench`) never imports it.
+
+Everything goes through an explicit :class:`mlflow.MlflowClient` bound to one tracking URI;
+MLflow's global state (tracking URI, active run, experiment) is neither read nor changed
+(models are saved with ``mlflow.pyfunc.save_model`` and uploaded through the client, so no
+active run is needed).
+
+The default store is a SQLite file plus a local artifact directory inside the project::
+
+    <root>/mlruns/mlflow.db          runs, params, metrics, tags   (sqlite:///...)
+    <root>/mlruns/artifacts/         figures, tables, models        (file:///...)
+
+Several processes may write to the same SQLite store; create it once with
+:func:`ensure_store` before starting them (parallel schema migrations race). MLflow waits up
+to 20 s for a locked database during normal operations (hard-coded ``busy_timeout``); the
+first connection of a process uses SQLite's connect timeout (5 s, or ``?timeout=<s>`` in the
+URI, e.g. ``sqlite:////abs/mlflow.db?timeout=30``). Store problems (locked or corrupt
+database, unreachable server, out-of-date schema) raise :class:`TrackingError` naming the
+store; the store itself is never deleted or rewritten.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import importlib.metadata
+import logging
+import math
+import os
+import shutil
+import socket
+import subprocess
+import tempfile
+import time
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+from typing import Any
+from urllib.parse import urlsplit, urlunsplit
+
+import mlflow
+import pandas as pd
+from mlflow import MlflowClient
+from mlflow.entities import LoggedModelOutput, Metric, Param, RunTag
+from mlflow.exceptions import MlflowException
+
+__all__ = [
+    "DEFAULT_STORE",
+    "MAX_PARAM_LENGTH",
+    "Tracker",
+    "TrackingError",
+    "dataset_hash",
+    "default_artifact_root",
+    "default_tracking_uri",
+    "ensure_store",
+    "git_commit",
+    "resolve_tracking_uri",
+]
+
+_logger = logging.getLogger(__name__)
+
+DEFAULT_STORE = "mlruns"
+#: MLflow's limit on a param value (``mlflow.utils.validation.MAX_PARAM_VAL_LENGTH``).
+MAX_PARAM_LENGTH = 6000
+_MAX_TAG_LENGTH = 8000
+_MAX_PARAMS_TAGS_PER_BATCH = 100
+_MAX_METRICS_PER_BATCH = 1000
+PARENT_TAG = "mlflow.parentRunId"
+SKIPPED_METRICS_TAG = "workbench.skipped_metrics"
+TRUNCATED_PARAMS_TAG = "workbench.truncated_params"
+_RUN_STATUSES = ("FINISHED", "FAILED", "KILLED")
+_SQLITE_HEADER = b"SQLite format 3\x00"
+#: Distributions pinned in a logged model's requirements (those installed).
+MODEL_REQUIREMENTS = ("mlflow", "cloudpickle", "numpy", "pandas", "scipy", "scikit-learn",
+                      "lightgbm", "joblib")
+
+
+# --------------------------------------------------------------------------- URIs
+
+
+def default_tracking_uri(root: Path) -> str:
+    """``sqlite:///<abs root>/mlruns/mlflow.db``."""
+    return "sqlite:///" + str(Path(root).resolve() / DEFAULT_STORE / "mlflow.db")
+
+
+def default_artifact_root(root: Path) -> str:
+    """``file:///<abs root>/mlruns/artifacts``."""
+    return (Path(root).resolve() / DEFAULT_STORE / "artifacts").as_uri()
+
+
+def _split_sqlite(uri: str) -> tuple[str, str] | None:
+    """``(path, query)`` of a ``sqlite:///`` URI (``path`` relative unless it starts with
+    ``/``), ``None`` for other URIs and in-memory databases."""
+    if not uri.startswith("sqlite:///"):
+        return None
+    path, sep, query = uri.removeprefix("sqlite:///").partition("?")
+    if not path or path == ":memory:":
+        return None
+    return path, sep + query
+
+
+def _absolute_sqlite(uri: str, base: Path) -> str:
+    """``uri`` with a relative sqlite path made absolute against ``base``."""
+    parts = _split_sqlite(uri)
+    if parts is None or Path(parts[0]).is_absolute():
+        return uri
+    path, query = parts
+    return "sqlite:///" + str((Path(base) / path).resolve()) + query
+
+
+def resolve_tracking_uri(cli: str | None, config: str | None, root: Path) -> str:
+    """The tracking URI to use: the CLI flag, else ``$MLFLOW_TRACKING_URI``, else the config
+    value, else :func:`default_tracking_uri`. A relative sqlite path in the config
+    (``sqlite:///mlruns/mlflow.db``) is relative to ``root``; in the CLI flag or the
+    environment it is relative to the current directory, as the user typed it there."""
+    if cli:
+        return _absolute_sqlite(cli, Path.cwd())
+    env = os.environ.get("MLFLOW_TRACKING_URI")
+    if env:
+        return _absolute_sqlite(env, Path.cwd())
+    if config:
+        return _absolute_sqlite(config, Path(root))
+    return default_tracking_uri(root)
+
+
+def _sqlite_path(uri: str) -> Path | None:
+    parts = _split_sqlite(uri)
+    return Path(parts[0]) if parts else None
+
+
+def _redact(uri: str) -> str:
+    """``uri`` without a password."""
+    try:
+        parts = urlsplit(uri)
+        if parts.password:
+            netloc = f"{parts.username}:***@{parts.hostname}"
+            if parts.port:
+                netloc += f":{parts.port}"
+            return urlunsplit(parts._replace(netloc=netloc))
+    except ValueError:
+        pass
+    return uri
+
+
+def _describe_store(uri: str) -> str:
+    path = _sqlite_path(uri)
+    return f"SQLite database {path}" if path else f"tracking store {_redact(uri)}"
+
+
+# --------------------------------------------------------------------------- errors
+
+
+class TrackingError(RuntimeError):
+    """The tracking store cannot be used (locked, corrupt, unreachable, ...)."""
+
+
+def _translate(exc: BaseException, uri: str) -> TrackingError | None:
+    """A :class:`TrackingError` for store problems, ``None`` for other errors."""
+    store = _describe_store(uri)
+    text = f"{type(exc).__name__}: {exc}"
+    cause = exc.__cause__ or exc.__context__
+    if cause is not None:
+        text += f" | {type(cause).__name__}: {cause}"
+    low = text.lower()
+    if "database is locked" in low:
+        return TrackingError(
+            f"{store} is locked by another process (SQLite 'database is locked' after waiting "
+            "for the lock). Retry when the other writer is done; for many parallel writers use "
+            "an MLflow server or a PostgreSQL store.")
+    if "file is not a database" in low or "database disk image is malformed" in low:
+        return TrackingError(
+            f"{store} is not a valid SQLite database (corrupt, or another kind of file); it was "
+            "left untouched. Restore it from a backup, move it away, or point the tracking URI "
+            "at another file.")
+    if "out-of-date database schema" in low:
+        return TrackingError(
+            f"{store} has an older MLflow schema: back it up, then run "
+            f"'mlflow db upgrade {_redact(uri)}'. ({exc})")
+    if any(s in low for s in ("connection refused", "max retries exceeded",
+                              "failed to establish a new connection", "name or service not known",
+                              "connectionerror", "timed out")):
+        return TrackingError(f"cannot reach the MLflow {store}: {exc}")
+    if "sqlite3.databaseerror" in low or "sqlite3.operationalerror" in low:
+        return TrackingError(f"{store} cannot be used: {exc}")
+    return None
+
+
+def _check_sqlite_file(uri: str) -> None:
+    """Create the parent directory of a sqlite store; refuse a file that is not SQLite
+    (checked by its header, without writing to it)."""
+    path = _sqlite_path(uri)
+    if path is None:
+        return
+    if path.is_dir():
+        raise TrackingError(f"SQLite database {path} is a directory, not a database file")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if path.is_file() and path.stat().st_size > 0:
+        with path.open("rb") as fh:
+            header = fh.read(len(_SQLITE_HEADER))
+        if header != _SQLITE_HEADER:
+            raise TrackingError(
+                f"SQLite database {path} is not a valid SQLite database (corrupt, or another "
+                "kind of file); it was left untouched. Restore it from a backup, move it away, "
+                "or point the tracking URI at another file.")
+
+
+def _check_server(uri: str, timeout: float = 5.0) -> None:
+    """Fail fast when an http(s) tracking server does not accept connections (MLflow itself
+    retries for minutes)."""
+    parts = urlsplit(uri)
+    if parts.scheme not in ("http", "https") or not parts.hostname:
+        return
+    port = parts.port or (443 if parts.scheme == "https" else 80)
+    try:
+        with socket.create_connection((parts.hostname, port), timeout=timeout):
+            pass
+    except OSError as exc:
+        raise TrackingError(f"cannot reach the MLflow tracking server {_redact(uri)}: {exc}") \
+            from exc
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def git_commit(root: Path) -> str | None:
+    """``git rev-parse HEAD`` in ``root``; ``None`` outside a repository or without git."""
+    try:
+        out = subprocess.run(["git", "rev-parse", "HEAD"], cwd=str(root), capture_output=True,
+                             text=True, timeout=10, check=False)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    sha = out.stdout.strip()
+    if out.returncode != 0 or len(sha) != 40 or any(c not in "0123456789abcdef" for c in sha):
+        return None
+    return sha
+
+
+def dataset_hash(*frames: pd.DataFrame | pd.Series) -> str:
+    """SHA-256 over the values, index, column names and dtypes of each frame (stable across
+    processes: ``pandas.util.hash_pandas_object`` uses a fixed key)."""
+    h = hashlib.sha256()
+    for i, frame in enumerate(frames):
+        h.update(f"frame{i}:{type(frame).__name__}:{frame.shape}\n".encode())
+        if isinstance(frame, pd.DataFrame):
+            h.update(repr([(str(c), str(t)) for c, t in frame.dtypes.items()]).encode())
+        else:
+            h.update(repr((str(frame.name), str(frame.dtype))).encode())
+        h.update(pd.util.hash_pandas_object(frame, index=True).to_numpy().tobytes())
+    return h.hexdigest()
+
+
+def _now_ms() -> int:
+    return int(time.time() * 1000)
+
+
+def _chunks(items: list, size: int) -> Iterator[list]:
+    for i in range(0, len(items), size):
+        yield items[i:i + size]
+
+
+def _param_value(key: str, value: Any) -> tuple[str, bool]:
+    text = str(value)
+    if len(text) <= MAX_PARAM_LENGTH:
+        return text, False
+    note = f"...[truncated, {len(text)} chars]"
+    _logger.warning("param %r is %d characters long; truncated to MLflow's limit of %d",
+                    key, len(text), MAX_PARAM_LENGTH)
+    return text[:MAX_PARAM_LENGTH - len(note)] + note, True
+
+
+def _tag_value(value: Any) -> str:
+    text = str(value)
+    return text if len(text) <= _MAX_TAG_LENGTH else text[:_MAX_TAG_LENGTH - 3] + "..."
+
+
+def _requirements() -> list[str]:
+    reqs = []
+    for dist in MODEL_REQUIREMENTS:
+        try:
+            reqs.append(f"{dist}=={importlib.metadata.version(dist)}")
+        except importlib.metadata.PackageNotFoundError:
+            pass
+    return reqs
+
+
+class _DropMessages(logging.Filter):
+    """Drop log records containing one of ``texts`` (MLflow's notices for deliberate choices)."""
+
+    def __init__(self, *texts: str):
+        super().__init__()
+        self.texts = texts
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        message = record.getMessage()
+        return not any(t in message for t in self.texts)
+
+
+@contextlib.contextmanager
+def _quiet(logger_name: str, *texts: str) -> Iterator[None]:
+    log, flt = logging.getLogger(logger_name), _DropMessages(*texts)
+    log.addFilter(flt)
+    try:
+        yield
+    finally:
+        log.removeFilter(flt)
+
+
+class _PyfuncModel(mlflow.pyfunc.PythonModel):
+    """An MLflow pyfunc wrapper holding a fitted model (pickled with cloudpickle by MLflow;
+    the ``workbench`` package travels with it as ``code_paths``)."""
+
+    def __init__(self, model):
+        self.model = model
+
+    # A DataFrame type hint: MLflow then neither infers a schema from it nor warns about a
+    # missing hint; the logged signature (inferred from the input example) validates inputs.
+    def predict(self, context, model_input: pd.DataFrame, params: dict[str, Any] | None = None):
+        return self.model.predict(model_input)
+
+
+# --------------------------------------------------------------------------- tracker
+
+
+class Tracker:
+    """Log runs of one experiment to one tracking store through an explicit client.
+
+    Parameters
+    ----------
+    tracking_uri : str
+        E.g. :func:`default_tracking_uri` or :func:`resolve_tracking_uri`'s result.
+    experiment_name : str
+        Created on first use (with ``artifact_location=artifact_root``) if missing.
+    artifact_root : str, default=None
+        Artifact location for a new experiment. ``None``: ``artifacts/`` next to a SQLite
+        database file, the server's default otherwise. An existing experiment keeps its own.
+
+    The client is created on first use; constructing a ``Tracker`` touches nothing.
+    """
+
+    def __init__(self, tracking_uri: str, experiment_name: str, artifact_root: str | None = None):
+        self.tracking_uri = str(tracking_uri)
+        self.experiment_name = experiment_name
+        if artifact_root is None and (path := _sqlite_path(self.tracking_uri)):
+            artifact_root = (path.resolve().parent / "artifacts").as_uri()
+        self.artifact_root = artifact_root
+        self._client: MlflowClient | None = None
+        self._experiment_id: str | None = None
+        self._skipped: dict[str, set[str]] = {}
+
+    def __repr__(self) -> str:
+        return (f"Tracker({_redact(self.tracking_uri)!r}, {self.experiment_name!r}, "
+                f"artifact_root={self.artifact_root!r})")
+
+    def __getstate__(self):  # picklable for worker processes; the client is rebuilt there
+        state = self.__dict__.copy()
+        state["_client"] = None
+        return state
+
+    @contextlib.contextmanager
+    def _errors(self) -> Iterator[None]:
+        """Re-raise store problems as :class:`TrackingError`."""
+        try:
+            yield
+        except TrackingError:
+            raise
+        except Exception as exc:
+            err = _translate(exc, self.tracking_uri)
+            if err is None:
+                raise
+            raise err from exc
+
+    @property
+    def client(self) -> MlflowClient:
+        """The :class:`mlflow.MlflowClient` (created, with its store, on first use)."""
+        if self._client is None:
+            _check_sqlite_file(self.tracking_uri)
+            _check_server(self.tracking_uri)
+            with self._errors():
+                self._client = MlflowClient(self.tracking_uri)
+        return self._client
+
+    @property
+    def experiment_id(self) -> str:
+        """The experiment's id; the experiment is created if it does not exist."""
+        if self._experiment_id is None:
+            client = self.client
+            with self._errors():
+                exp = client.get_experiment_by_name(self.experiment_name)
+                if exp is None:
+                    try:
+                        client.create_experiment(self.experiment_name,
+                                                 artifact_location=self.artifact_root)
+                    except MlflowException as exc:
+                        # Another process may have created it meanwhile: look it up again.
+                        if _translate(exc, self.tracking_uri) is not None:
+                            raise
+                        _logger.debug("create_experiment(%r) failed (%s); looking it up again",
+                                      self.experiment_name, exc)
+                    exp = client.get_experiment_by_name(self.experiment_name)
+                    if exp is None:
+                        raise TrackingError(f"could not create experiment "
+                                            f"{self.experiment_name!r} in "
+                                            f"{_describe_store(self.tracking_uri)}")
+            if exp.lifecycle_stage != "active":
+                raise TrackingError(
+                    f"experiment {self.experiment_name!r} (id {exp.experiment_id}) in "
+                    f"{_describe_store(self.tracking_uri)} is deleted; restore it "
+                    f"('mlflow experiments restore --experiment-id {exp.experiment_id}') or use "
+                    "another name")
+            self._experiment_id = exp.experiment_id
+        return self._experiment_id
+
+    # ----------------------------------------------------------------- runs
+
+    def start_run(self, name: str, *, parent_run_id: str | None = None,
+                  tags: Mapping[str, Any] | None = None,
+                  params: Mapping[str, Any] | None = None) -> str:
+        """Create a run (a child of ``parent_run_id`` if given) and return its id."""
+        all_tags = {str(k): _tag_value(v) for k, v in (tags or {}).items()}
+        if parent_run_id:
+            all_tags[PARENT_TAG] = parent_run_id
+        experiment_id = self.experiment_id
+        with self._errors():
+            run = self.client.create_run(experiment_id, run_name=name, tags=all_tags)
+        run_id = run.info.run_id
+        if params:
+            self.log_params(run_id, params)
+        return run_id
+
+    def end_run(self, run_id: str, status: str = "FINISHED") -> None:
+        """Mark the run ``FINISHED``, ``FAILED`` or ``KILLED``."""
+        if status not in _RUN_STATUSES:
+            raise ValueError(f"status must be one of {_RUN_STATUSES}, got {status!r}")
+        with self._errors():
+            self.client.set_terminated(run_id, status=status)
+
+    @contextlib.contextmanager
+    def run(self, name: str, parent_run_id: str | None = None,
+            tags: Mapping[str, Any] | None = None,
+            params: Mapping[str, Any] | None = None) -> Iterator[str]:
+        """``with tracker.run("fold-0", parent_run_id=pid) as run_id:`` ... ends the run
+        ``FINISHED``, or ``FAILED`` (``KILLED`` on ``KeyboardInterrupt``) and re-raises."""
+        run_id = self.start_run(name, parent_run_id=parent_run_id, tags=tags, params=params)
+        try:
+            yield run_id
+        except BaseException as exc:
+            status = "KILLED" if isinstance(exc, KeyboardInterrupt) else "FAILED"
+            try:
+                self.end_run(run_id, status)
+            except Exception as end_exc:  # never mask the original error
+                _logger.warning("could not mark run %s %s: %s", run_id, status, end_exc)
+            raise
+        else:
+            self.end_run(run_id, "FINISHED")
+
+    def children(self, parent_run_id: str) -> list:
+        """The child runs of ``parent_run_id`` (:class:`mlflow.entities.Run`), oldest first."""
+        with self._errors():
+            experiment_id = self.client.get_run(parent_run_id).info.experiment_id
+            runs, token = [], None
+            while True:
+                page = self.client.search_runs(
+                    [experiment_id], filter_string=f"tags.`{PARENT_TAG}` = '{parent_run_id}'",
+                    order_by=["attributes.start_time ASC"], max_results=1000, page_token=token)
+                runs.extend(page)
+                token = page.token
+                if not token:
+                    return runs
+
+    # ----------------------------------------------------------------- params, metrics, tags
+
+    def _log_batch(self, run_id: str, *, metrics=(), params=(), tags=()) -> None:
+        with self._errors():
+            for chunk in _chunks(list(params), _MAX_PARAMS_TAGS_PER_BATCH):
+                self.client.log_batch(run_id, params=chunk)
+            for chunk in _chunks(list(tags), _MAX_PARAMS_TAGS_PER_BATCH):
+                self.client.log_batch(run_id, tags=chunk)
+            for chunk in _chunks(list(metrics), _MAX_METRICS_PER_BATCH):
+                self.client.log_batch(run_id, metrics=chunk)
+
+    def log_params(self, run_id: str, params: Mapping[str, Any]) -> None:
+        """Log params (values as strings; longer than 6000 characters: truncated, with a note
+        in the value and the key in the tag ``workbench.truncated_params``)."""
+        items, truncated = [], []
+        for key, value in params.items():
+            text, cut = _param_value(str(key), value)
+            items.append(Param(str(key), text))
+            if cut:
+                truncated.append(str(key))
+        tags = [RunTag(TRUNCATED_PARAMS_TAG, _tag_value(",".join(truncated)))] if truncated else []
+        self._log_batch(run_id, params=items, tags=tags)
+
+    def log_metrics(self, run_id: str, metrics: Mapping[str, float],
+                    step: int | None = None) -> None:
+        """Log metrics in one batch; NaN/inf values are skipped and their names recorded in
+        the tag ``workbench.skipped_metrics``."""
+        ts, items, skipped = _now_ms(), [], []
+        for key, value in metrics.items():
+            value = float(value)
+            if math.isfinite(value):
+                items.append(Metric(str(key), value, ts, int(step or 0)))
+            else:
+                skipped.append(str(key))
+        tags = []
+        if skipped:
+            seen = self._skipped.setdefault(run_id, set())
+            seen.update(f"{k}@{int(step or 0)}" if step is not None else k for k in skipped)
+            _logger.warning("run %s: skipped non-finite metrics %s", run_id, skipped)
+            tags = [RunTag(SKIPPED_METRICS_TAG, _tag_value(",".join(sorted(seen))))]
+        self._log_batch(run_id, metrics=items, tags=tags)
+
+    def set_tags(self, run_id: str, tags: Mapping[str, Any]) -> None:
+        """Set tags (values as strings)."""
+        self._log_batch(run_id, tags=[RunTag(str(k), _tag_value(v)) for k, v in tags.items()])
+
+    # ----------------------------------------------------------------- artifacts
+
+    def log_dict(self, run_id: str, obj: Any, artifact_file: str) -> None:
+        """``obj`` as JSON (``.json``) or YAML (``.yaml``/``.yml``)."""
+        with self._errors():
+            self.client.log_dict(run_id, obj, artifact_file)
+
+    def log_text(self, run_id: str, text: str, artifact_file: str) -> None:
+        with self._errors():
+            self.client.log_text(run_id, text, artifact_file)
+
+    def log_file(self, run_id: str, path: str | os.PathLike, artifact_path: str | None = None) -> None:
+        """Copy a local file (or directory) into the run's artifacts under ``artifact_path``."""
+        path = Path(path)
+        with self._errors():
+            if path.is_dir():
+                self.client.log_artifacts(run_id, str(path), artifact_path)
+            else:
+                self.client.log_artifact(run_id, str(path), artifact_path)
+
+    def log_figure(self, run_id: str, fig, artifact_file: str) -> None:
+        """A matplotlib figure, saved in the format of ``artifact_file``'s suffix (PNG)."""
+        with self._errors():
+            self.client.log_figure(run_id, fig, artifact_file)
+
+    def log_table(self, run_id: str, table: pd.DataFrame, artifact_file: str) -> None:
+        """A DataFrame as an MLflow table (``artifact_file`` ends with ``.json``)."""
+        with self._errors():
+            self.client.log_table(run_id, table, artifact_file)
+
+    # ----------------------------------------------------------------- models
+
+    def log_model(self, run_id: str, model, input_example: pd.DataFrame,
+                  name: str = "model") -> str:
+        """Log a fitted model (``predict(DataFrame)`` -> DataFrame or array) as an MLflow
+        pyfunc model linked to ``run_id``; returns its URI ``models:/<model_id>``.
+
+        The model is cloudpickled inside a small :class:`mlflow.pyfunc.PythonModel`; the
+        ``workbench`` package is stored with it (``code_paths``), so it loads with
+        ``mlflow.pyfunc.load_model`` where only the pinned requirements are installed. The
+        signature is inferred from ``input_example`` and the model's prediction on it; the
+        first 5 rows are stored as the input example. Requirements are pinned from the
+        installed versions (no inference subprocess)."""
+        import workbench
+
+        example = pd.DataFrame(input_example)
+        signature = mlflow.models.infer_signature(example, model.predict(example))
+        experiment_id = self.experiment_id
+        with self._errors():
+            logged = self.client.create_logged_model(experiment_id, name=name,
+                                                     source_run_id=run_id)
+        try:
+            with tempfile.TemporaryDirectory(prefix="workbench-model-") as tmp:
+                code = Path(tmp) / "code" / "workbench"
+                shutil.copytree(Path(workbench.__file__).parent, code,
+                                ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+                local = Path(tmp) / "model"
+                # cloudpickle is the deliberate choice here (the docs' "models from code" would
+                # need a script per model): silence MLflow's notice about it for this call.
+                meta = mlflow.models.Model(artifact_path=logged.artifact_location, run_id=run_id,
+                                           model_uuid=logged.model_id, model_id=logged.model_id)
+                with _quiet("mlflow.pyfunc", "serialized using CloudPickle"):
+                    mlflow.pyfunc.save_model(
+                        str(local), python_model=_PyfuncModel(model), mlflow_model=meta,
+                        signature=signature, input_example=example.head(5),
+                        pip_requirements=_requirements(), code_paths=[str(code)])
+                with self._errors():
+                    self.client.log_model_artifacts(logged.model_id, str(local))
+            with self._errors():
+                self.client.log_outputs(run_id, [LoggedModelOutput(logged.model_id, step=0)])
+                self.client.finalize_logged_model(logged.model_id, "READY")
+        except BaseException:
+            with contextlib.suppress(Exception):
+                self.client.finalize_logged_model(logged.model_id, "FAILED")
+            raise
+        return f"models:/{logged.model_id}"
+
+    def model_artifact_uri(self, model_uri: str) -> str:
+        """The artifact location of ``models:/<model_id>`` (loadable without a tracking
+        URI, e.g. ``mlflow.pyfunc.load_model(tracker.model_artifact_uri(uri))``)."""
+        model_id = model_uri.removeprefix("models:/").split("/")[0]
+        with self._errors():
+            return self.client.get_logged_model(model_id).artifact_location
+
+    def load_model(self, model_uri: str):
+        """``mlflow.pyfunc.load_model`` for a model of this store (no global state used)."""
+        if model_uri.startswith("models:/"):
+            model_uri = self.model_artifact_uri(model_uri)
+        with self._errors():
+            return mlflow.pyfunc.load_model(model_uri)
+
+
+def ensure_store(tracking_uri: str, experiment_name: str,
+                 artifact_root: str | None = None) -> str:
+    """Create the store (schema) and the experiment once, e.g. before starting parallel
+    workers; returns the experiment id."""
+    return Tracker(tracking_uri, experiment_name, artifact_root).experiment_id
+
