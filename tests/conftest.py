@@ -10,6 +10,15 @@ os.environ.setdefault("MPLCONFIGDIR", tempfile.mkdtemp(prefix="workbench-mpl-"))
 SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "google_5q"
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _mlflow_store(tmp_path_factory):
+    """Every test session (each xdist worker) logs to its own temporary MLflow store, never to
+    the project's mlruns/."""
+    store = tmp_path_factory.mktemp("mlflow") / "mlflow.db"
+    os.environ["MLFLOW_TRACKING_URI"] = f"sqlite:///{store}"
+    yield store
+
+
 @pytest.fixture(scope="session")
 def google_5q_dir():
     """A directory with the benchmark files: the shared copy when present, otherwise the

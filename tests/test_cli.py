@@ -100,6 +100,18 @@ def test_paper_run_json_schema(paper_run):
     assert all(v >= 0 for v in r["model"]["test_mae"] + r["model"]["test_mse"])
     assert len(r["model"]["selected"]) == 5
     assert set(r["model"]["selected"]) <= {"prior", "boosted"}
+    # evaluate logs one parent run (no children) with the metrics, figures and the model
+    from mlflow import MlflowClient
+
+    client = MlflowClient(r["mlflow"]["tracking_uri"])
+    run = client.get_run(r["mlflow"]["run_id"])
+    assert run.data.metrics["test_mae_avg"] == pytest.approx(r["model"]["test_mae_avg"])
+    assert run.data.tags["workbench.kind"] == "evaluate"
+    assert not client.search_runs([run.info.experiment_id],
+                                  f"tags.mlflow.parentRunId = '{run.info.run_id}'")
+    plots = {a.path for a in client.list_artifacts(run.info.run_id, "plots")}
+    assert {"plots/mae_bars.png", "plots/learning_curve_eeig3.png", "plots/shap_eeig1.png"} <= plots
+    assert r["mlflow"]["model_uri"].startswith("models:/")
     assert isinstance(r["wall_s"], float) and r["wall_s"] > 0
 
 
@@ -127,7 +139,7 @@ def test_paper_run_prints_table(paper_run):
 
 def _run_json(tmp_path: Path, cfg: Path, tag: str, *extra: str) -> dict:
     out = tmp_path / f"{tag}.json"
-    assert main(["evaluate", str(cfg), "--json", str(out), *extra]) == 0
+    assert main(["evaluate", str(cfg), "--json", str(out), "--no-track", *extra]) == 0
     return json.loads(out.read_text())
 
 
@@ -234,3 +246,31 @@ def test_console_script_help():
     res = subprocess.run([str(script), "--help"], capture_output=True, text=True, timeout=60)
     assert res.returncode == 0, res.stderr
     assert "usage: workbench" in res.stdout and "evaluate" in res.stdout
+
+
+def test_ui_command_serves_the_local_store_on_loopback(tmp_path):
+    from workbench.experiment.cli import ui_command
+
+    uri = f"sqlite:///{tmp_path / 'mlruns' / 'mlflow.db'}"
+    cmd = ui_command(uri, 5055)
+    assert cmd[1:4] == ["-m", "mlflow", "server"]
+    assert cmd[cmd.index("--host") + 1] == "127.0.0.1"
+    assert cmd[cmd.index("--port") + 1] == "5055"
+    assert cmd[cmd.index("--backend-store-uri") + 1] == uri
+    assert cmd[cmd.index("--default-artifact-root") + 1] == (tmp_path / "mlruns" / "artifacts").as_uri()
+
+
+def test_corrupt_store_is_a_clean_error_and_left_untouched(tmp_path, capsys, google_5q_dir,
+                                                          monkeypatch):
+    monkeypatch.setenv("WORKBENCH_DATA_DIR", str(google_5q_dir))
+    db = tmp_path / "mlflow.db"
+    db.write_bytes(b"not a database at all" * 10)
+    before = db.read_bytes()
+    cfg = tmp_path / "c.toml"
+    cfg.write_text('[data]\nsource = "google_5q"\n[model]\nbasis = "ridge"\n')
+    out = tmp_path / "out.json"
+    assert main(["evaluate", str(cfg), "--json", str(out), "--tracking-uri",
+                 f"sqlite:///{db}"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("workbench: error:") and "mlflow.db" in err[0]
+    assert db.read_bytes() == before and not out.exists()

@@ -140,7 +140,7 @@ def test_simulated_csv_evaluates_through_a_config(tmp_path, capsys):
     assert (tmp_path / "dev.truth.json").is_file()
     cfg = _config(tmp_path, "dev.csv", "test_fraction = 0.3")
     out = tmp_path / "out.json"
-    assert main(["evaluate", str(cfg), "--json", str(out)]) == 0
+    assert main(["evaluate", str(cfg), "--json", str(out), "--no-track"]) == 0
     res = json.loads(out.read_text())
     assert res["targets"] == ["measured_E1", "measured_E2", "measured_E3"]
     assert res["n_train"] == 140 and res["n_test"] == 60

@@ -26,21 +26,64 @@ def project(tmp_path, monkeypatch, google_5q_dir):
     return smoke
 
 
-def test_smoke_sweep_json(project, tmp_path, capsys):
+@pytest.fixture
+def smoke_run(project, tmp_path, capsys):
+    """The smoke sweep (3 trials per study) with tracking in a temporary store."""
     out = tmp_path / "out.json"
-    assert main(["sweep", str(project), "--trials", "3", "--json", str(out)]) == 0
-    res = json.loads(out.read_text())
+    uri = f"sqlite:///{tmp_path / 'store' / 'mlflow.db'}"
+    assert main(["sweep", str(project), "--trials", "3", "--json", str(out),
+                 "--tracking-uri", uri]) == 0
+    return json.loads(out.read_text()), uri, capsys.readouterr().err
+
+
+def test_smoke_sweep_json_and_tracking(smoke_run, tmp_path):
+    import matplotlib.image
+    import mlflow
+    import pandas as pd
+    from mlflow import MlflowClient
+
+    from workbench.datasets import load_google_5q
+
+    res, uri, err = smoke_run
     for key in ("targets", "prior", "model", "wall_s", "nested_cv_mae", "nested_cv_mae_avg",
-                "best_params"):
+                "best_params", "mlflow"):
         assert key in res
     assert len(res["nested_cv_mae"]) == len(res["best_params"]) == 5
     assert res["trials"] == {"per_study": 3, "counted": 5 * 4 * 3, "studies": 20}
     assert all(p is None or "basis" in p for p in res["best_params"])
-    # honest and useful: the nested-CV estimate of the model beats the prior's on these rows
+    # the nested-CV estimate of the model beats the prior's on the training rows
     assert res["nested_cv_mae_avg"] < res["nested_cv_prior_mae_avg"]
     assert (tmp_path / "mlruns" / "optuna.journal").is_file()
-    err = capsys.readouterr().err
     assert "trial   0" in err and "best" in err  # a progress line per trial
+
+    client = MlflowClient(uri)
+    run = client.get_run(res["mlflow"]["run_id"])
+    parents = client.search_runs([run.info.experiment_id],
+                                 "tags.`workbench.kind` = 'sweep'")
+    assert len(parents) == 1
+    children = client.search_runs([run.info.experiment_id],
+                                  f"tags.mlflow.parentRunId = '{run.info.run_id}'",
+                                  max_results=1000)
+    kinds = pd.Series([c.data.tags["workbench.kind"] for c in children]).value_counts()
+    assert kinds["trial"] == 60 and kinds["outer_fold"] == 15
+    for name in ("test_mae_avg", "prior_test_mae_avg", "nested_cv_mae_avg", "cv_mae_avg",
+                 "test_mae.eeig1", "test_mse.eeig5", "nested_cv_mae.eeig3"):
+        assert name in run.data.metrics
+    assert run.data.metrics["test_mae_avg"] == pytest.approx(res["model"]["test_mae_avg"])
+    assert run.data.tags["dataset_hash"] and run.data.tags["git_commit"]
+    plots = [a.path for a in client.list_artifacts(run.info.run_id, "plots")]
+    assert len(plots) >= 3 and all(p.endswith(".png") for p in plots)
+    local = client.download_artifacts(run.info.run_id, plots[0], str(tmp_path))
+    assert matplotlib.image.imread(local).size > 0
+
+    ds = load_google_5q()
+    _, X_test, _, _ = ds.split()
+    served = mlflow.pyfunc.load_model(
+        client.get_logged_model(res["mlflow"]["model_uri"].split("/")[-1]).artifact_location
+    ).predict(X_test)
+    assert list(served.columns) == ds.target_names
+    test_mae = (served.to_numpy() - ds.targets.loc[ds.test_index].to_numpy())
+    assert abs(test_mae).mean(axis=0) == pytest.approx(res["model"]["test_mae"], rel=1e-9)
 
 
 INTERRUPTED = textwrap.dedent("""

@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
+import subprocess
 import sys
 from pathlib import Path
 
 from ..datasets import DatasetError, DataUnavailableError
 from ..simulate import Mismatch, simulate, write_simulation
-from .config import ConfigError, load_config
+from .config import ConfigError, load_config, load_dataset
 from .evaluate import evaluate, format_table
+from .tracking import TrackingError
 
 
 def _write_json(path: str, payload: dict) -> None:
@@ -21,12 +24,56 @@ def _write_json(path: str, payload: dict) -> None:
     tmp.replace(out)  # never leave a half-written result
 
 
+def _check_before_work(cfg, args) -> None:
+    """Fail on bad data or an unusable MLflow store before any fitting or searching."""
+    load_dataset(cfg)
+    if not args.no_track:
+        from .record import tracker_for
+
+        tracker_for(cfg, args.tracking_uri).experiment_id
+
+
+def _cmd_ui(args) -> int:
+    from .tracking import resolve_tracking_uri
+
+    uri = resolve_tracking_uri(args.tracking_uri, None, Path.cwd())
+    cmd = ui_command(uri, args.port)
+    print(f"MLflow UI for {uri} at http://127.0.0.1:{args.port} (Ctrl-C stops it)", flush=True)
+    try:
+        return subprocess.call(cmd)
+    except KeyboardInterrupt:
+        return 0
+
+
+def ui_command(tracking_uri: str, port: int) -> list[str]:
+    """The ``mlflow server`` command line serving ``tracking_uri`` on 127.0.0.1."""
+    cmd = [sys.executable, "-m", "mlflow", "server", "--backend-store-uri", tracking_uri,
+           "--host", "127.0.0.1", "--port", str(port)]
+    if tracking_uri.startswith("sqlite:///"):
+        from .tracking import _sqlite_path
+
+        root = _sqlite_path(tracking_uri).parent / "artifacts"
+        cmd += ["--default-artifact-root", root.resolve().as_uri()]
+    return cmd
+
+
 def _cmd_sweep(args) -> int:
     from .search import run_sweep, with_overrides  # imports Optuna only for sweeps
 
+    from .search import settings_for
+
     cfg = with_overrides(load_config(args.config), trials=args.trials, workers=args.workers,
                          storage=args.storage)
-    result, _ = run_sweep(cfg)
+    _check_before_work(cfg, args)
+    result, details = run_sweep(cfg)
+    if not args.no_track:
+        from .record import record
+
+        best = {t: settings_for(cfg, t, p) for t, p in zip(result["targets"],
+                                                          result["best_params"]) if p}
+        result["mlflow"] = record(cfg, result, details["model"], details["dataset"],
+                                  kind="sweep", tracking_uri=args.tracking_uri,
+                                  details=details, settings=best)
     print(format_table(result))
     print(f"nested-CV MAE: model {result['nested_cv_mae_avg']:.3f}, prior "
           f"{result['nested_cv_prior_mae_avg']:.3f} (average over targets)")
@@ -40,7 +87,13 @@ def _cmd_evaluate(args) -> int:
     cfg = load_config(args.config)
     if args.jobs is not None:
         cfg = type(cfg)(**{**cfg.__dict__, "n_jobs": args.jobs})
-    result = evaluate(cfg)
+    _check_before_work(cfg, args)
+    result, model, ds = evaluate(cfg, return_model=True)
+    if not args.no_track:
+        from .record import record
+
+        result["mlflow"] = record(cfg, result, model, ds, kind="evaluate",
+                                  tracking_uri=args.tracking_uri)
     print(format_table(result))
     if args.json:
         _write_json(args.json, result)
@@ -71,6 +124,13 @@ def _cmd_simulate(args) -> int:
     return 0
 
 
+def _tracking_args(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--tracking-uri", default=None,
+                        help="MLflow store (default: $MLFLOW_TRACKING_URI, then the config's "
+                        "[tracking], then sqlite:///mlruns/mlflow.db)")
+    parser.add_argument("--no-track", action="store_true", help="do not log to MLflow")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="workbench", description="Base boosting workbench.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -80,6 +140,7 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--json", metavar="PATH", help="also write the results as JSON")
     ev.add_argument("--jobs", type=int, default=None, metavar="N",
                     help="targets fitted in parallel (overrides the config's n_jobs)")
+    _tracking_args(ev)
     ev.set_defaults(func=_cmd_evaluate)
 
     sw = sub.add_parser("sweep", help="nested-CV hyperparameter search (Optuna), then one "
@@ -91,7 +152,14 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--storage", default=None,
                     help="Optuna storage: a journal file path or an RDB URL")
     sw.add_argument("--json", metavar="PATH", help="also write the results as JSON")
+    _tracking_args(sw)
     sw.set_defaults(func=_cmd_sweep)
+
+    ui = sub.add_parser("ui", help="start the MLflow UI on the local store at 127.0.0.1")
+    ui.add_argument("--tracking-uri", default=None,
+                    help="store to serve (default: $MLFLOW_TRACKING_URI or mlruns/mlflow.db)")
+    ui.add_argument("--port", type=int, default=5000)
+    ui.set_defaults(func=_cmd_ui)
 
     sim = sub.add_parser("simulate", help="simulate a chain of coupled qubits and write a CSV "
                          "(plus a .truth.json sidecar with the injected mismatches)")
@@ -108,9 +176,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    logging.getLogger("mlflow").setLevel(logging.WARNING)  # keep the per-trial lines readable
     try:
         return args.func(args)
-    except (ConfigError, DatasetError, DataUnavailableError, UsageError) as exc:
+    except (ConfigError, DatasetError, DataUnavailableError, TrackingError, UsageError) as exc:
         print(f"workbench: error: {exc}", file=sys.stderr)
         return 2
 

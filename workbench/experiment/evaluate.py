@@ -27,9 +27,11 @@ def _avg(values) -> float:
     return float(np.mean(values))
 
 
-def evaluate(cfg: ExperimentConfig, progress: TextIO | None | bool = True) -> dict[str, Any]:
+def evaluate(cfg: ExperimentConfig, progress: TextIO | None | bool = True,
+             return_model: bool = False):
     """Fit per target on the training rows (model selection by CV on those rows only), then
-    score prior and model on the test rows. Returns the JSON-ready result.
+    score prior and model on the test rows. Returns the JSON-ready result (and, with
+    ``return_model``, the fitted model and the dataset too).
 
     ``progress``: a stream for progress lines, ``True`` for the current ``sys.stderr``,
     ``None``/``False`` for none."""
@@ -40,9 +42,9 @@ def evaluate(cfg: ExperimentConfig, progress: TextIO | None | bool = True) -> di
     if progress:
         print(f"[{cfg.name}] fitting {len(ds.target_names)} targets on {len(ds.train_index)} "
               f"training rows (test rows: {len(ds.test_index)})", file=progress, flush=True)
-    result, _ = fit_and_score(cfg, ds, build_model(cfg, ds))
+    result, model = fit_and_score(cfg, ds, build_model(cfg, ds))
     result["wall_s"] = time.perf_counter() - start
-    return result
+    return (result, model, ds) if return_model else result
 
 
 def fit_and_score(cfg: ExperimentConfig, ds: Dataset, model: MultiTargetBaseBoost):
