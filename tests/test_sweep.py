@@ -163,3 +163,42 @@ def test_failed_and_pruned_trials_are_recorded_not_chosen(tmp_path):
     assert states.count(TrialState.FAIL) == 1 and states.count(TrialState.PRUNED) == 1
     assert study.get_trials()[1].user_attrs["error"] == "RuntimeError: basis exploded"
     assert study.best_trial.state == TrialState.COMPLETE
+
+
+def test_trial_of_a_vanished_machine_is_failed_and_rerun(tmp_path):
+    import time
+
+    study = optuna.create_study(study_name="m", storage=open_storage(str(tmp_path / "m.j"),
+                                                                      tmp_path))
+    ghost = study.ask()  # started on another machine that then went away
+    ghost.set_user_attr("worker", "other-host:4242")
+    ghost.set_user_attr("heartbeat", time.time() - 3600)
+    live = study.ask()  # another machine's trial that is still running (fresh heartbeat)
+    live.set_user_attr("worker", "other-host:4243")
+    live.set_user_attr("heartbeat", time.time())
+
+    def finish_live_later(trial):
+        if trial.number == 4:  # the live trial finishes while this worker is busy
+            study.tell(live, 0.5)
+        return trial.suggest_float("x", 0, 1)
+
+    run_study(study, finish_live_later, 5, stale_after_s=60)
+    trials = study.get_trials()
+    assert trials[0].state == TrialState.FAIL and not _counted(trials[0])
+    assert trials[1].state == TrialState.COMPLETE and trials[1].value == 0.5
+    assert sum(_counted(t) for t in trials) == 5
+    assert all(t.state != TrialState.RUNNING for t in trials)
+
+
+def test_workers_propose_different_configurations():
+    from workbench.experiment.config import load_config
+    from workbench.experiment.search import _sampler
+
+    from pathlib import Path
+
+    cfg = load_config(Path(__file__).resolve().parents[1] / SMOKE)
+    a, b = _sampler(cfg, "s", 0), _sampler(cfg, "s", 1)
+    pa = optuna.create_study(sampler=a).ask().suggest_float("x", 0, 1)
+    pb = optuna.create_study(sampler=b).ask().suggest_float("x", 0, 1)
+    assert pa != pb
+    assert optuna.create_study(sampler=_sampler(cfg, "s", 0)).ask().suggest_float("x", 0, 1) == pa

@@ -90,8 +90,10 @@ def _inner_cv(cfg: ExperimentConfig) -> KFold:
     return KFold(cfg.cv["inner_folds"], shuffle=True, random_state=cfg.cv["seed"])
 
 
-def _sampler(cfg: ExperimentConfig, name: str):
-    seed = (cfg.cv["seed"] + zlib.crc32(name.encode())) % 2**31
+def _sampler(cfg: ExperimentConfig, name: str, worker: int = 0):
+    """Seeded per study and per worker (workers with one seed would propose the same
+    configurations)."""
+    seed = (cfg.cv["seed"] + zlib.crc32(name.encode()) + 7919 * worker) % 2**31
     if cfg.study["sampler"] == "random":
         return optuna.samplers.RandomSampler(seed=seed)
     return optuna.samplers.TPESampler(seed=seed)
@@ -194,14 +196,20 @@ def _best_value(study: optuna.Study) -> float | None:
 
 def run_study(study: optuna.Study, objective: Callable, n_trials: int, *,
               timeout: float | None = None, stale_after_s: float = 600,
-              progress: TextIO | None = None) -> None:
-    """Run trials until the study holds ``n_trials`` counted trials (or ``timeout`` s pass)."""
+              progress: TextIO | None = None, wait: bool = True) -> None:
+    """Run trials until the study holds ``n_trials`` counted trials (or ``timeout`` s pass).
+
+    With ``wait``, return only once no counted trial is still running elsewhere (so the study
+    is complete); without, return as soon as the budget is taken."""
     worker = f"{socket.gethostname()}:{os.getpid()}"
     start = time.perf_counter()
-    _fail_stale(study, stale_after_s)
     while timeout is None or time.perf_counter() - start < timeout:
-        trials = study.get_trials(deepcopy=False)
-        if sum(_counted(t) for t in trials) >= n_trials:
+        _fail_stale(study, stale_after_s)
+        counted = [t for t in study.get_trials(deepcopy=False) if _counted(t)]
+        if len(counted) >= n_trials:
+            if wait and any(t.state == TrialState.RUNNING for t in counted):
+                time.sleep(0.2)  # another worker's last trials: leave the study complete
+                continue
             return
         trial = study.ask()
         trial.set_user_attr("worker", worker)
@@ -210,7 +218,7 @@ def run_study(study: optuna.Study, objective: Callable, n_trials: int, *,
         if sum(_counted(t) for t in earlier) >= n_trials:  # another worker filled the budget
             trial.set_user_attr("surplus", True)
             study.tell(trial, state=TrialState.FAIL)
-            return
+            continue
         state, value, note = TrialState.COMPLETE, None, ""
         try:
             value = objective(trial)
@@ -229,23 +237,29 @@ def run_study(study: optuna.Study, objective: Callable, n_trials: int, *,
                   file=progress, flush=True)
 
 
-def run_search(cfg: ExperimentConfig, storage_url: str, *, progress: TextIO | None = None
-               ) -> None:
-    """Run (or resume) every study of the sweep in this process."""
+def run_search(cfg: ExperimentConfig, storage_url: str, *, progress: TextIO | None = None,
+               worker: int = 0) -> None:
+    """Run (or resume) every study of the sweep in this process (``worker``: its index)."""
     ds = load_dataset(cfg)
     storage = open_storage(storage_url, _root(cfg))
+    studies = []
     for name, target, fold in study_names(cfg, ds.target_names):
         study = optuna.create_study(study_name=name, storage=storage, direction="minimize",
-                                    sampler=_sampler(cfg, name), pruner=_pruner(cfg),
-                                    load_if_exists=True)
+                                    sampler=_sampler(cfg, name, worker),
+                                    pruner=_pruner(cfg), load_if_exists=True)
         X, y = _rows(ds, target, fold, cfg)
-        run_study(study, lambda trial: _objective(cfg, ds, target, X, y, trial),
-                  cfg.study["trials"], timeout=cfg.study["timeout"],
-                  stale_after_s=cfg.study["stale_after_s"], progress=progress)
+        studies.append((study, target, X, y))
+    # First pass: take trials wherever budget is left, never idling while another worker
+    # finishes a study's last trials; second pass: make sure every study is complete.
+    for wait in (False, True):
+        for study, target, X, y in studies:
+            run_study(study, lambda trial: _objective(cfg, ds, target, X, y, trial),
+                      cfg.study["trials"], timeout=cfg.study["timeout"],
+                      stale_after_s=cfg.study["stale_after_s"], progress=progress, wait=wait)
 
 
-def _worker(cfg: ExperimentConfig, storage_url: str) -> None:
-    run_search(cfg, storage_url, progress=sys.stderr)
+def _worker(cfg: ExperimentConfig, storage_url: str, index: int, show: bool) -> None:
+    run_search(cfg, storage_url, progress=sys.stderr if show else None, worker=index)
 
 
 def _search_in_workers(cfg: ExperimentConfig, storage_url: str, workers: int,
@@ -263,7 +277,8 @@ def _search_in_workers(cfg: ExperimentConfig, storage_url: str, workers: int,
     os.environ.update({k: "1" for k in THREAD_ENV})  # one BLAS/OpenMP thread per worker
     try:
         ctx = multiprocessing.get_context("spawn")
-        procs = [ctx.Process(target=_worker, args=(cfg, storage_url)) for _ in range(workers)]
+        procs = [ctx.Process(target=_worker, args=(cfg, storage_url, i, bool(progress)))
+                 for i in range(workers)]
         for p in procs:
             p.start()
         for p in procs:
