@@ -23,7 +23,7 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 from .line_search import line_search
 from .losses import get_loss
 
-__all__ = ["BaseBoostRegressor", "PriorModel", "seed_estimator"]
+__all__ = ["BaseBoostRegressor", "PriorModel", "check_predictions", "seed_estimator"]
 
 
 def seed_estimator(estimator, seed: int):
@@ -53,7 +53,8 @@ def _column_index(key, feature_names, n_features: int, what: str) -> int:
     return int(key) % n_features
 
 
-def _check_1d_finite(values, n: int, what: str) -> np.ndarray:
+def check_predictions(values, n: int, what: str) -> np.ndarray:
+    """``values`` as a finite float array of shape ``(n,)``, or a ValueError naming ``what``."""
     arr = np.asarray(values, dtype=float)
     if arr.ndim == 2 and arr.shape[1] == 1:
         arr = arr[:, 0]
@@ -110,10 +111,10 @@ class PriorModel(RegressorMixin, BaseEstimator):
         if hasattr(self, "constant_"):
             return np.full(n, self.constant_)
         if hasattr(self, "column_"):
-            return _check_1d_finite(X[:, self.column_], n, "prior column")
+            return check_predictions(X[:, self.column_], n, "prior column")
         if hasattr(self, "estimator_"):
-            return _check_1d_finite(self.estimator_.predict(X_raw), n, "prior estimator output")
-        return _check_1d_finite(self.prior(X_raw), n, "prior callable output")
+            return check_predictions(self.estimator_.predict(X_raw), n, "prior estimator output")
+        return check_predictions(self.prior(X_raw), n, "prior callable output")
 
     def __sklearn_is_fitted__(self):
         return hasattr(self, "n_features_in_")
@@ -244,7 +245,7 @@ class BaseBoostRegressor(RegressorMixin, BaseEstimator):
             if self.random_state is not None:
                 seed_estimator(est, seeds[k])
             est.fit(Z, residual)
-            direction = _check_1d_finite(est.predict(Z), len(y),
+            direction = check_predictions(est.predict(Z), len(y),
                                          f"basis prediction at stage {k + 1}")
             coef = line_search(y, current, direction, line_loss, self.line_search_penalty)
             current = current + coef * direction

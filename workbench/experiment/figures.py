@@ -19,6 +19,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
+from ..boosting import check_predictions
 from ..curves import LearningCurve
 
 __all__ = ["learning_curve_figure", "mae_bars", "save_figure", "shap_summary"]
@@ -150,16 +151,6 @@ def learning_curve_figure(curve: LearningCurve, *, target: str, unit: str = "MHz
     return fig
 
 
-def _one_output(values, n: int) -> np.ndarray:
-    arr = np.asarray(values, dtype=float)
-    if arr.ndim == 2 and arr.shape[1] == 1:
-        arr = arr[:, 0]
-    if arr.shape != (n,):
-        raise ValueError(f"predict must return one value per row: expected shape ({n},), "
-                         f"got {arr.shape}")
-    return arr
-
-
 def shap_summary(predict: Callable[[np.ndarray], np.ndarray], X: pd.DataFrame, *, target: str,
                  unit: str = "MHz", background_size: int = 50, nsamples: int | str = "auto",
                  max_display: int = 10, random_state: int = 0, title: str | None = None,
@@ -187,7 +178,7 @@ def shap_summary(predict: Callable[[np.ndarray], np.ndarray], X: pd.DataFrame, *
     names = [str(c) for c in X.columns]
     data = X.to_numpy(dtype=float)
     background = shap.sample(data, background_size, random_state=random_state)
-    explainer = shap.KernelExplainer(lambda a: _one_output(predict(a), len(a)), background,
+    explainer = shap.KernelExplainer(lambda a: check_predictions(predict(a), len(a), "predict"), background,
                                      seed=random_state)
     values = np.asarray(explainer.shap_values(data, nsamples=nsamples, silent=True),
                         dtype=float)
