@@ -19,9 +19,9 @@ $(VENV)/.installed-dev: pyproject.toml | $(PY)
 	$(PY) -m pip install -e ".[dev]"
 	touch $@ $(VENV)/.installed
 
-# Main job: the paper's settings on the Google 5-qubit benchmark (per-target table + JSON).
+# Main job: reproduce the paper (figures, tables, report in reports/; runs in mlruns/).
 run: $(VENV)/.installed
-	$(VENV)/bin/workbench evaluate experiments/paper_main_body.toml --json reports/paper_main_body.json
+	$(VENV)/bin/workbench reproduce --out reports
 
 # Default test suite (slow checks: `$(PY) -m pytest -m slow`). Two workers, one BLAS/OpenMP
 # thread each: on 2 cores, oversubscribed threads are the usual slowdown.

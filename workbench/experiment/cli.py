@@ -57,6 +57,20 @@ def ui_command(tracking_uri: str, port: int) -> list[str]:
     return cmd
 
 
+def _cmd_reproduce(args) -> int:
+    from .reproduce import reproduce
+
+    res = reproduce(args.out, tracking_uri=args.tracking_uri, quick=args.quick,
+                    track=not args.no_track, seed=args.seed)
+    print(f"paper settings: average test MAE {res['settings']['paper']['model']['test_mae_avg']:.3f}"
+          f" MHz (control program {res['settings']['paper']['prior']['test_mae_avg']:.3f}); "
+          f"improved {res['settings']['improved']['model']['test_mae_avg']:.3f}; nested-CV "
+          f"search {res['settings']['search']['model']['test_mae_avg']:.3f}")
+    print(f"wrote {Path(args.out) / 'README.md'} and {len(res['figures'])} figure entries "
+          f"in {res['wall_s']:.0f} s")
+    return 0
+
+
 def _cmd_sweep(args) -> int:
     from .search import run_sweep, with_overrides  # imports Optuna only for sweeps
 
@@ -154,6 +168,15 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--json", metavar="PATH", help="also write the results as JSON")
     _tracking_args(sw)
     sw.set_defaults(func=_cmd_sweep)
+
+    rep = sub.add_parser("reproduce", help="compute the paper's results and figures into a "
+                         "report folder and the MLflow experiment paper-reproduction")
+    rep.add_argument("--out", default="reports", help="output folder (default: reports)")
+    rep.add_argument("--quick", action="store_true",
+                     help="fewer curve points, SHAP rows and search trials (for tests)")
+    rep.add_argument("--seed", type=int, default=0)
+    _tracking_args(rep)
+    rep.set_defaults(func=_cmd_reproduce)
 
     ui = sub.add_parser("ui", help="start the MLflow UI on the local store at 127.0.0.1")
     ui.add_argument("--tracking-uri", default=None,

@@ -3,6 +3,10 @@
 * :func:`mae_bars` -- per-target test error, control program vs learned model (Fig. 2, S4).
 * :func:`learning_curve_figure` -- the augmented learning curve (Fig. 4, S5).
 * :func:`shap_summary` -- SHAP beeswarm summary of a model's predictions (Fig. 5, S8).
+* :func:`correlation_heatmap` -- pairwise Pearson correlations of the training examples (Fig. 3).
+* :func:`voltage_boxplots` -- boxplots of the qubit and coupler bias voltages (Fig. S2).
+* :func:`prior_target_boxplots` -- paired boxplots of prior and target eigenenergies (Fig. S3).
+* :func:`model_comparison_bars` -- per-target error bars of 2 to 4 systems (Fig. S6, S7).
 * :func:`save_figure` -- write a figure to PNG and close it.
 
 Figures are built on :class:`matplotlib.figure.Figure` directly, never through pyplot, so no
@@ -12,7 +16,7 @@ The same data give the same figure.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -22,13 +26,19 @@ from matplotlib.figure import Figure
 from ..boosting import check_predictions
 from ..curves import LearningCurve
 
-__all__ = ["learning_curve_figure", "mae_bars", "save_figure", "shap_summary"]
+__all__ = ["correlation_heatmap", "learning_curve_figure", "mae_bars", "model_comparison_bars",
+           "prior_target_boxplots", "save_figure", "shap_summary", "voltage_boxplots"]
 
 #: Colours (Okabe-Ito, readable in grey scale and by colour-blind readers).
 PRIOR_COLOR = "#7f7f7f"
 MODEL_COLOR = "#0072B2"
 TRAIN_COLOR = "#E69F00"
 INCUMBENT_COLOR = "#000000"
+MEASURED_COLOR = "#009E73"
+QUBIT_COLOR = "#56B4E9"
+COUPLER_COLOR = "#E69F00"
+#: Colours of the systems of :func:`model_comparison_bars` not named after a known system.
+OTHER_SYSTEM_COLORS = ("#D55E00", "#009E73", "#CC79A7", "#56B4E9")
 
 _METRICS = {  # scorer name -> (axis label, is the unit squared)
     "neg_mean_absolute_error": ("MAE", False),
@@ -59,6 +69,27 @@ def _values(name: str, values, n: int) -> np.ndarray:
     if arr.shape != (n,):
         raise ValueError(f"{name} must have one value per target ({n}); got shape {arr.shape}")
     return arr
+
+
+def _grouped_bars(ax, names: list[str], series: Sequence[tuple[str, np.ndarray, str]], *,
+                  average: bool, fmt: str = "%.2f", fontsize: float = 8) -> list:
+    """Draw one bar per (label, values, colour) series in each group of ``names``, annotated.
+
+    The series of a group share a total width of 0.76, side by side in the given order; with
+    ``average`` the last group is set apart by a dotted line. Returns the bar containers.
+    """
+    x = np.arange(len(names), dtype=float)
+    n = len(series)
+    width = 0.76 / n
+    containers = [ax.bar(x + (i - (n - 1) / 2) * width, values, width, label=label, color=color)
+                  for i, (label, values, color) in enumerate(series)]
+    for bars in containers:
+        ax.bar_label(bars, fmt=fmt, padding=2, fontsize=fontsize)
+    if average:
+        ax.axvline(len(names) - 1.5, color="#bbbbbb", lw=1, ls=":")
+    ax.set_xticks(x, names, fontsize=10)
+    ax.set_xlabel("target", fontsize=11)
+    return containers
 
 
 def mae_bars(targets: Sequence[str], prior, model, *, metric: str = "MAE", unit: str = "MHz",
@@ -96,16 +127,8 @@ def mae_bars(targets: Sequence[str], prior, model, *, metric: str = "MAE", unit:
 
     fig = _new_figure(max(5.0, 0.95 * len(names) + 1.8), 4.0)
     ax = fig.add_subplot()
-    x = np.arange(len(names), dtype=float)
-    width = 0.38
-    bars_prior = ax.bar(x - width / 2, prior, width, label=labels[0], color=PRIOR_COLOR)
-    bars_model = ax.bar(x + width / 2, model, width, label=labels[1], color=MODEL_COLOR)
-    for bars in (bars_prior, bars_model):
-        ax.bar_label(bars, fmt="%.2f", padding=2, fontsize=8)
-    if average:
-        ax.axvline(len(names) - 1.5, color="#bbbbbb", lw=1, ls=":")
-    ax.set_xticks(x, names, fontsize=10)
-    ax.set_xlabel("target", fontsize=11)
+    _grouped_bars(ax, names, [(labels[0], prior, PRIOR_COLOR), (labels[1], model, MODEL_COLOR)],
+                  average=average)
     ax.set_ylabel(f"{metric} ({unit})", fontsize=11)
     top = np.nanmax(np.concatenate([prior, model])) if np.any(np.isfinite(prior)) else 1.0
     ax.set_ylim(0, top * 1.22 if np.isfinite(top) and top > 0 else 1.0)
@@ -202,6 +225,282 @@ def shap_summary(predict: Callable[[np.ndarray], np.ndarray], X: pd.DataFrame, *
     default = f"SHAP summary: {target}, {len(data)} rows x {len(names)} features"
     ax.set_title(_with_setting(title or default, setting), fontsize=12)
     return fig, values
+
+
+def _numeric_frame(name: str, frame) -> pd.DataFrame:
+    """``frame`` as a float DataFrame; a clear error for anything else, empty or non-numeric."""
+    if not isinstance(frame, pd.DataFrame):
+        raise TypeError(f"{name} must be a pandas DataFrame (its columns name the series); got "
+                        f"{type(frame).__name__}")
+    if frame.shape[0] == 0 or frame.shape[1] == 0:
+        raise ValueError(f"{name} is empty: shape {frame.shape}")
+    bad = [str(c) for c in frame.columns if not pd.api.types.is_numeric_dtype(frame[c])
+           or pd.api.types.is_bool_dtype(frame[c])]
+    if bad:
+        raise ValueError(f"{name} has non-numeric columns: {bad}")
+    return frame.astype(float)
+
+
+def _column_data(name: str, frame: pd.DataFrame) -> list[np.ndarray]:
+    """Each column's finite values (NaN rows dropped); an error naming an all-missing column."""
+    data = []
+    for column in frame.columns:
+        values = frame[column].to_numpy(dtype=float)
+        values = values[np.isfinite(values)]
+        if values.size == 0:
+            raise ValueError(f"{name} column {str(column)!r} has no finite values")
+        data.append(values)
+    return data
+
+
+def _boxplot(ax, data: list[np.ndarray], positions, color: str, *, width: float = 0.6) -> dict:
+    """Filled boxplots (median line black, outliers as small open circles) at ``positions``."""
+    return ax.boxplot(data, positions=positions, widths=width, patch_artist=True,
+                      manage_ticks=False,
+                      boxprops={"facecolor": color, "edgecolor": "#333333", "linewidth": 1},
+                      medianprops={"color": "#000000", "linewidth": 1.5},
+                      whiskerprops={"color": "#333333"}, capprops={"color": "#333333"},
+                      flierprops={"marker": "o", "markersize": 3.5, "markerfacecolor": "none",
+                                  "markeredgecolor": "#333333", "alpha": 0.8})
+
+
+def correlation_heatmap(frame: pd.DataFrame, *, title: str | None = None,
+                        setting: str | None = None) -> Figure:
+    """Heatmap of the pairwise Pearson correlations of the columns of ``frame`` (Fig. 3).
+
+    For the paper's figure, pass the training examples' prior columns and targets renamed
+    ``X1..X5`` and ``Y1..Y5``. Every cell is annotated with its correlation (2 decimals); the
+    diverging colour map is fixed to [-1, 1] so that colours compare across figures. A
+    constant column has no correlation: its cells are grey and read "n/a".
+    """
+    frame = _numeric_frame("frame", frame)
+    if frame.shape[1] < 2:
+        raise ValueError(f"a correlation heatmap needs at least 2 columns; got "
+                         f"{list(map(str, frame.columns))}")
+    if len(frame) < 2:
+        raise ValueError(f"a correlation needs at least 2 rows; got {len(frame)}")
+    corr = frame.corr(method="pearson")
+    names = [str(c) for c in corr.columns]
+    n = len(names)
+    values = corr.to_numpy(dtype=float)
+
+    import matplotlib
+
+    cmap = matplotlib.colormaps["RdBu_r"].with_extremes(bad="#d9d9d9")
+    side = max(4.0, 0.58 * n + 1.6)
+    fig = _new_figure(side + 1.1, side)
+    ax = fig.add_subplot()
+    image = ax.imshow(np.ma.masked_invalid(values), cmap=cmap, vmin=-1.0, vmax=1.0,
+                      interpolation="nearest")
+    fontsize = 9 if n <= 10 else 7 if n <= 16 else 5
+    for i in range(n):
+        for j in range(n):
+            v = values[i, j]
+            text = "n/a" if not np.isfinite(v) else f"{v:.2f}".replace("-0.00", "0.00")
+            ax.text(j, i, text, ha="center",
+                    va="center", fontsize=fontsize,
+                    color="#ffffff" if np.isfinite(v) and abs(v) > 0.6 else "#000000")
+    ax.set_xticks(np.arange(n), names, fontsize=10, rotation=90 if max(map(len, names)) > 4
+                  else 0)
+    ax.set_yticks(np.arange(n), names, fontsize=10)
+    ax.tick_params(length=0)
+    for spine in ax.spines.values():
+        spine.set_visible(False)
+    bar = fig.colorbar(image, ax=ax, shrink=0.85, ticks=[-1, -0.5, 0, 0.5, 1])
+    bar.set_label("Pearson correlation", fontsize=11)
+    bar.ax.tick_params(labelsize=9)
+    default = f"Pairwise Pearson correlation, {len(frame)} rows x {n} columns"
+    ax.set_title(_with_setting(title or default, setting), fontsize=12)
+    return fig
+
+
+def voltage_boxplots(voltages: pd.DataFrame, *, title: str | None = None,
+                     unit: str = "a.u.") -> Figure:
+    """Boxplots of the bias voltage features (Fig. S2): qubit and coupler biases side by side.
+
+    Columns whose name starts with ``q`` (``qvolt5..qvolt9``) are qubit biases, those starting
+    with ``c`` (``cvolt5..cvolt8``) coupler biases; each kind gets its own panel and y axis,
+    as their ranges differ by an order of magnitude. The data only name these columns
+    "voltages" and give no unit, hence the default ``unit="a.u."``. Boxes span the quartiles,
+    whiskers 1.5 IQR; circles are the rows beyond. Missing values are left out.
+    """
+    voltages = _numeric_frame("voltages", voltages)
+    columns = [str(c) for c in voltages.columns]
+    qubits = [c for c in voltages.columns if str(c).lower().startswith("q")]
+    couplers = [c for c in voltages.columns if str(c).lower().startswith("c")]
+    other = [str(c) for c in voltages.columns if c not in qubits and c not in couplers]
+    if other:
+        raise ValueError(f"cannot tell qubit from coupler voltages: the columns {other} start "
+                         f"with neither 'q' (qubit) nor 'c' (coupler); got {columns}")
+    panels = [(kind, cols, color) for kind, cols, color in
+              (("qubit", qubits, QUBIT_COLOR), ("coupler", couplers, COUPLER_COLOR)) if cols]
+
+    widths = [len(cols) for _, cols, _ in panels]
+    fig = _new_figure(max(6.0, 0.72 * sum(widths) + 2.6), 4.4)
+    axes = fig.subplots(1, len(panels), width_ratios=widths, squeeze=False)[0]
+    for ax, (kind, cols, color) in zip(axes, panels, strict=True):
+        data = _column_data("voltages", voltages[cols])
+        x = np.arange(len(cols), dtype=float)
+        _boxplot(ax, data, x, color)
+        ax.axhline(0.0, color="#bbbbbb", lw=0.8, ls=":", zorder=0)
+        ax.set_xticks(x, [str(c) for c in cols], fontsize=10)
+        ax.set_xlim(-0.6, len(cols) - 0.4)
+        ax.set_title(f"{kind} biases ({len(cols)})", fontsize=11)
+        ax.set_xlabel(f"{kind} bias feature", fontsize=11)
+        ax.set_ylabel(f"bias voltage ({unit})", fontsize=11)
+        ax.grid(True, axis="y", color="#e5e5e5", lw=0.6)
+        ax.set_axisbelow(True)
+        _style(ax)
+    fig.suptitle(title or f"Bias voltages, {len(voltages)} rows", fontsize=12)
+    return fig
+
+
+def _pair_label(j: int, prior_name: str, target_name: str) -> str:
+    label = f"X{j} | Y{j}"
+    if prior_name != target_name and (prior_name, target_name) != (f"X{j}", f"Y{j}"):
+        label += f"\n{prior_name} | {target_name}"
+    return label
+
+
+def prior_target_boxplots(prior: pd.DataFrame, targets: pd.DataFrame, *, unit: str = "MHz",
+                          title: str | None = None,
+                          labels: tuple[str, str] = ("control program (X)", "measured (Y)")
+                          ) -> Figure:
+    """Joint boxplots of prior and targets (Fig. S3): for each eigenenergy j, the prior's
+    column j (Xj) and the targets' column j (Yj) side by side.
+
+    The columns are paired by position; both frames hold the same examples (same number of
+    rows). Values are plotted as given (about -6000 MHz on the benchmark), without an axis
+    offset. Missing values are left out.
+    """
+    prior = _numeric_frame("prior", prior)
+    targets = _numeric_frame("targets", targets)
+    if prior.shape[1] != targets.shape[1]:
+        raise ValueError(f"prior and targets must have one column per eigenenergy each: prior "
+                         f"has {prior.shape[1]} columns, targets {targets.shape[1]}")
+    if len(prior) != len(targets):
+        raise ValueError(f"prior and targets must hold the same examples: prior has "
+                         f"{len(prior)} rows, targets {len(targets)}")
+    n = prior.shape[1]
+    x = np.arange(1, n + 1, dtype=float)
+    offset, width = 0.2, 0.36
+    fig = _new_figure(max(6.0, 1.15 * n + 2.2), 4.6)
+    ax = fig.add_subplot()
+    box_prior = _boxplot(ax, _column_data("prior", prior), x - offset, PRIOR_COLOR,
+                         width=width)
+    box_target = _boxplot(ax, _column_data("targets", targets), x + offset, MEASURED_COLOR,
+                          width=width)
+    names = [_pair_label(j, str(p), str(t))
+             for j, p, t in zip(range(1, n + 1), prior.columns, targets.columns, strict=True)]
+    ax.set_xticks(x, names, fontsize=10)
+    ax.set_xlim(0.4, n + 0.6)
+    ax.ticklabel_format(axis="y", useOffset=False, style="plain")
+    ax.set_xlabel("eigenenergy j (sorted, lowest first)", fontsize=11)
+    ax.set_ylabel(f"eigenenergy ({unit})", fontsize=11)
+    ax.grid(True, axis="y", color="#e5e5e5", lw=0.6)
+    ax.set_axisbelow(True)
+    ax.legend([box_prior["boxes"][0], box_target["boxes"][0]], list(labels), loc="upper left",
+              frameon=False, fontsize=10)
+    default = f"{labels[0]} and {labels[1]} eigenenergies, {len(prior)} rows"
+    ax.set_title(title or default, fontsize=12)
+    _style(ax)
+    return fig
+
+
+def _system_colors(systems: list[str]) -> list[str]:
+    """The control program grey and base boosting blue (as in :func:`mae_bars`), other
+    systems the next unused colour of :data:`OTHER_SYSTEM_COLORS`, in order."""
+    colors, used, others = [], set(), iter(OTHER_SYSTEM_COLORS)
+    for system in systems:
+        name = system.lower()
+        color = (PRIOR_COLOR if "control program" in name else
+                 MODEL_COLOR if "base boost" in name else None)
+        if color is None or color in used:
+            color = next(c for c in others if c not in used)
+        used.add(color)
+        colors.append(color)
+    return colors
+
+
+def model_comparison_bars(targets: Sequence[str], values: Mapping[str, Sequence[float]], *,
+                          metric: str = "MAE", unit: str = "MHz", title: str | None = None,
+                          setting: str | None = None, log: bool = False,
+                          average: bool = True) -> Figure:
+    """Grouped bars of a per-target error for 2 to 4 systems, plus their averages (Fig. S6, S7).
+
+    Parameters
+    ----------
+    targets : sequence of str
+        Target names, one bar group each.
+    values : mapping of str to sequence of float
+        System name (legend entry) -> its error per target, in the order of the bars. A system
+        named "control program ..." is grey and "base boosting ..." blue, as in
+        :func:`mae_bars`.
+    metric, unit : str
+        Axis label ``"<metric> (<unit>)"``; give ``unit="MHz²"`` for an MSE.
+    title : str, optional
+        Default: ``"Test <metric> per target: <system 1> vs <system 2> ..."``.
+    setting : str, optional
+        A second title line naming the setting.
+    log : bool, default=False
+        Logarithmic y axis, for systems an order of magnitude apart (needs positive values).
+    average : bool, default=True
+        Append an "average" group (the mean over targets), set apart by a dotted line.
+    """
+    names = [str(t) for t in targets]
+    if not names:
+        raise ValueError("targets is empty")
+    if not isinstance(values, Mapping):
+        raise TypeError(f"values must map each system's name to its values; got "
+                        f"{type(values).__name__}")
+    systems = [str(s) for s in values]
+    if not 2 <= len(systems) <= len(OTHER_SYSTEM_COLORS):
+        raise ValueError(f"model_comparison_bars compares 2 to {len(OTHER_SYSTEM_COLORS)} "
+                         f"systems; got {len(systems)}: {systems}")
+    arrays = []
+    for system, v in zip(systems, values.values(), strict=True):
+        arr = _values(f"values[{system!r}]", v, len(names))
+        if not np.isfinite(arr).all():
+            raise ValueError(f"values[{system!r}] has non-finite values: {arr.tolist()}")
+        if log and (arr <= 0).any():
+            raise ValueError(f"log=True needs positive values; values[{system!r}] has "
+                             f"{arr.tolist()}")
+        arrays.append(np.append(arr, arr.mean()) if average else arr)
+    if average:
+        names = [*names, "average"]
+
+    n = len(systems)
+    fig = _new_figure(max(5.0, (0.42 * n + 0.15) * len(names) + 1.8), 4.4)
+    ax = fig.add_subplot()
+    every = np.concatenate(arrays)
+    biggest = np.abs(every).max()
+    fmt = "%.2f" if biggest < 100 else "%.1f" if biggest < 1000 else "%.0f"
+    _grouped_bars(ax, names, list(zip(systems, arrays, _system_colors(systems), strict=True)),
+                  average=average, fmt=fmt, fontsize=8 if n <= 3 else 7)
+    ax.set_ylabel(f"{metric} ({unit}, log scale)" if log else f"{metric} ({unit})", fontsize=11)
+    if log:
+        from matplotlib.ticker import FuncFormatter
+
+        ax.set_yscale("log")
+        ax.set_ylim(every.min() / 2.0, every.max() * 2.5)
+        ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+    else:
+        top, bottom = max(every.max(), 0.0), min(every.min(), 0.0)
+        span = top - bottom if top > bottom else 1.0
+        ax.set_ylim(bottom - (0.12 * span if bottom < 0 else 0), top + 0.12 * span)
+        if bottom < 0:
+            ax.axhline(0.0, color="#333333", lw=0.8)
+    handles, legend_labels = ax.get_legend_handles_labels()
+    ncols = n if sum(map(len, systems)) <= 100 else 2
+    if ncols == 2 and n == 4:  # legends fill column by column: keep the bars' order in rows
+        handles, legend_labels = ([seq[i] for i in (0, 2, 1, 3)]
+                                  for seq in (handles, legend_labels))
+    fig.legend(handles, legend_labels, loc="outside lower center", ncols=ncols, frameon=False,
+               fontsize=10)
+    default = f"Test {metric} per target: " + " vs ".join(systems)
+    ax.set_title(_with_setting(title or default, setting), fontsize=12)
+    _style(ax)
+    return fig
 
 
 def save_figure(fig: Figure, path: str | Path, *, dpi: int = 120) -> Path:

@@ -1,0 +1,76 @@
+"""workbench reproduce --quick: every manifest entry, the report, numbers that agree everywhere."""
+
+import json
+
+import matplotlib.image
+import pytest
+
+from workbench.experiment.cli import main
+
+FIGURE_IDS = ["fig2_mae_bars", "fig3_correlation", "fig4_learning_curve_Y3", "fig5_shap_Y1",
+              "figS2_voltage_boxplots", "figS3_prior_target_boxplots", "figS4_mse_bars",
+              "figS5_learning_curves", "figS6_tabula_rasa_mae", "figS7_tabula_rasa_mse",
+              "figS8_shap"]
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory, google_5q_dir):
+    root = tmp_path_factory.mktemp("reproduce")
+    uri = f"sqlite:///{root / 'store' / 'mlflow.db'}"
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("WORKBENCH_DATA_DIR", str(google_5q_dir))
+        mp.chdir(root)  # the search's journal lands here
+        assert main(["reproduce", "--quick", "--out", str(root / "reports"),
+                     "--tracking-uri", uri]) == 0
+    return root / "reports", uri
+
+
+def test_every_figure_is_written(quick_run):
+    out, _ = quick_run
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert sorted(manifest) == sorted(FIGURE_IDS)
+    for fig_id, files in manifest.items():
+        files = [files] if isinstance(files, str) else files
+        for f in files:
+            assert matplotlib.image.imread(out / f).size > 0, f
+    assert len(manifest["figS5_learning_curves"]) == len(manifest["figS8_shap"]) == 5
+
+
+def test_report_and_numbers(quick_run):
+    out, uri = quick_run
+    res = json.loads((out / "results.json").read_text())
+    paper = res["settings"]["paper"]
+    assert paper["model"]["test_mae_avg"] <= 1.10
+    assert all(m < p for m, p in zip(paper["model"]["test_mae"], paper["prior"]["test_mae"]))
+    text = (out / "README.md").read_text()
+    assert f"**{paper['model']['test_mae_avg']:.3f}**" in text
+    for fig_id in FIGURE_IDS:
+        assert "figures/" + fig_id.split("_")[0] in text or fig_id in text
+    # learning-curve sizes are rows actually used, never more than 5-fold CV can train on
+    lc = res["learning_curves"]
+    assert max(lc["train_sizes"]) <= 76
+    for curve in lc["curves"].values():
+        assert curve["n_train_rows"] == [[s] * lc["folds"] for s in lc["train_sizes"]]
+
+
+def test_figures_show_the_json_numbers_and_mlflow_has_them(quick_run, tmp_path):
+    from mlflow import MlflowClient
+
+    from workbench.experiment.figures import mae_bars, save_figure
+
+    out, uri = quick_run
+    res = json.loads((out / "results.json").read_text())
+    paper = res["settings"]["paper"]
+    redrawn = save_figure(mae_bars(res["short"], paper["prior"]["test_mae"],
+                                   paper["model"]["test_mae"],
+                                   title="Test MAE per eigenenergy (Fig. 2)",
+                                   setting="paper settings"), tmp_path / "fig2.png")
+    assert redrawn.read_bytes() == (out / "figures" / "fig2_mae_bars.png").read_bytes()
+    client = MlflowClient(uri)
+    run = client.get_run(res["mlflow"]["run_id"])
+    assert run.data.metrics["paper.test_mae_avg"] == pytest.approx(paper["model"]["test_mae_avg"])
+    children = client.search_runs([run.info.experiment_id],
+                                  f"tags.mlflow.parentRunId = '{run.info.run_id}'")
+    assert {c.info.run_name for c in children} == {"benchmark", "data", "learning_curves",
+                                                   "shap", "tabula_rasa"}
+    assert client.get_experiment(run.info.experiment_id).name == "paper-reproduction"
