@@ -60,7 +60,8 @@ def ui_command(tracking_uri: str, port: int) -> list[str]:
 def _cmd_reproduce(args) -> int:
     from .reproduce import reproduce
 
-    res = reproduce(args.out, tracking_uri=args.tracking_uri, quick=args.quick,
+    res = reproduce(args.out, tracking_uri=args.tracking_uri, storage=args.storage,
+                    quick=args.quick,
                     track=not args.no_track, seed=args.seed)
     print(f"paper settings: average test MAE {res['settings']['paper']['model']['test_mae_avg']:.3f}"
           f" MHz (control program {res['settings']['paper']['prior']['test_mae_avg']:.3f}); "
@@ -175,6 +176,8 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--quick", action="store_true",
                      help="fewer curve points, SHAP rows and search trials (for tests)")
     rep.add_argument("--seed", type=int, default=0)
+    rep.add_argument("--storage", default=None,
+                     help="Optuna storage of the search (a journal file path or an RDB URL)")
     _tracking_args(rep)
     rep.set_defaults(func=_cmd_reproduce)
 

@@ -26,6 +26,7 @@ import os
 import socket
 import sys
 import time
+import warnings
 import zlib
 from dataclasses import replace
 from pathlib import Path
@@ -34,6 +35,7 @@ from typing import Any, Callable, TextIO
 import numpy as np
 import optuna
 from optuna.trial import FixedTrial, FrozenTrial, TrialState
+from sklearn.exceptions import ConvergenceWarning
 from sklearn.model_selection import KFold, RepeatedKFold
 
 from ..datasets import Dataset
@@ -146,7 +148,9 @@ def _objective(cfg, ds, target, X, y, trial) -> float:
         if trial.should_prune():
             raise optuna.TrialPruned(f"pruned after inner fold {i}")
 
-    cv.fit(X, y.to_numpy(), fold_callback=on_fold)
+    with warnings.catch_warnings():  # an MLP's max_iter is the search's business, not noise
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        cv.fit(X, y.to_numpy(), fold_callback=on_fold)
     trial.set_user_attr("prior_cv_mae", float(-np.mean(cv.cv_scores_prior_)))
     trial.set_user_attr("fold_mae", [float(m) for m in maes])
     return float(np.mean(maes))
