@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import logging
 import subprocess
@@ -101,7 +102,7 @@ def _cmd_sweep(args) -> int:
 def _cmd_evaluate(args) -> int:
     cfg = load_config(args.config)
     if args.jobs is not None:
-        cfg = type(cfg)(**{**cfg.__dict__, "n_jobs": args.jobs})
+        cfg = dataclasses.replace(cfg, n_jobs=args.jobs)
     _check_before_work(cfg, args)
     result, model, ds = evaluate(cfg, return_model=True)
     if not args.no_track:

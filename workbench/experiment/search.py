@@ -62,7 +62,7 @@ def open_storage(storage: str, root: Path):
     return optuna.storages.JournalStorage(backend)
 
 
-def _root(cfg: ExperimentConfig) -> Path:
+def _root() -> Path:
     """Relative storage paths resolve against the working directory (the project root)."""
     return Path.cwd()
 
@@ -245,7 +245,7 @@ def run_search(cfg: ExperimentConfig, storage_url: str, *, progress: TextIO | No
                worker: int = 0) -> None:
     """Run (or resume) every study of the sweep in this process (``worker``: its index)."""
     ds = load_dataset(cfg)
-    storage = open_storage(storage_url, _root(cfg))
+    storage = open_storage(storage_url, _root())
     studies = []
     for name, target, fold in study_names(cfg, ds.target_names):
         study = optuna.create_study(study_name=name, storage=storage, direction="minimize",
@@ -273,7 +273,7 @@ def _search_in_workers(cfg: ExperimentConfig, storage_url: str, workers: int,
         return
     # Create the storage and studies once, before workers race to do it.
     ds = load_dataset(cfg)
-    storage = open_storage(storage_url, _root(cfg))
+    storage = open_storage(storage_url, _root())
     for name, _, _ in study_names(cfg, ds.target_names):
         optuna.create_study(study_name=name, storage=storage, direction="minimize",
                             load_if_exists=True)
@@ -299,7 +299,7 @@ def _search_in_workers(cfg: ExperimentConfig, storage_url: str, workers: int,
 
 
 def _load(cfg: ExperimentConfig, storage_url: str, name: str) -> optuna.Study:
-    return optuna.load_study(study_name=name, storage=open_storage(storage_url, _root(cfg)),
+    return optuna.load_study(study_name=name, storage=open_storage(storage_url, _root()),
                              sampler=_sampler(cfg, name), pruner=_pruner(cfg))
 
 
