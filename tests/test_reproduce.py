@@ -74,3 +74,28 @@ def test_figures_show_the_json_numbers_and_mlflow_has_them(quick_run, tmp_path):
     assert {c.info.run_name for c in children} == {"benchmark", "data", "learning_curves",
                                                    "shap", "tabula_rasa"}
     assert client.get_experiment(run.info.experiment_id).name == "paper-reproduction"
+
+
+def test_same_seed_same_numbers_and_figures(quick_run, tmp_path, google_5q_dir, monkeypatch):
+    out, _ = quick_run
+    monkeypatch.setenv("WORKBENCH_DATA_DIR", str(google_5q_dir))
+    monkeypatch.chdir(tmp_path)  # a fresh search storage: the search is redone, not resumed
+    assert main(["reproduce", "--quick", "--out", str(tmp_path / "again"), "--no-track"]) == 0
+    first = json.loads((out / "results.json").read_text())
+    second = json.loads((tmp_path / "again" / "results.json").read_text())
+    for key in ("settings", "tabula_rasa", "correlation", "learning_curves"):
+        a, b = json.dumps(first[key], sort_keys=True), json.dumps(second[key], sort_keys=True)
+        if key == "settings":  # wall times differ, numbers must not
+            a, b = (json.dumps(_without_wall(json.loads(x)), sort_keys=True) for x in (a, b))
+        assert a == b, key
+    for fig_id, files in first["figures"].items():
+        for f in files:
+            assert (out / f).read_bytes() == (tmp_path / "again" / f).read_bytes(), f
+
+
+def _without_wall(obj):
+    if isinstance(obj, dict):
+        return {k: _without_wall(v) for k, v in obj.items() if k not in ("wall_s", "config")}
+    if isinstance(obj, list):
+        return [_without_wall(v) for v in obj]
+    return obj
