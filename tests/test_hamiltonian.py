@@ -7,7 +7,7 @@ from sklearn.base import clone
 from sklearn.model_selection import KFold
 
 from workbench.hamiltonian import chain_hamiltonian, chain_spectrum
-from workbench.param_boost import HamiltonianParameterRegressor
+from workbench.param_boost import HamiltonianParameterRegressor, default_library
 from workbench.simulate import Mismatch, simulate
 
 
@@ -141,6 +141,48 @@ def test_regressor_huber_and_library(coupler_shift):
     assert mae < 0.25 * prior_mae
 
 
+def _mae(model, frame):
+    return np.abs(model.predict(frame) - frame[MEASURED].to_numpy()).mean()
+
+
+def test_regressor_warm_start_reaches_the_same_fit(coupler_shift):
+    train, test, _ = coupler_shift
+    cold = HamiltonianParameterRegressor(onsite=ONSITE, couplings=COUPLINGS, tol=1e-10,
+                                         max_iter=50).fit(train, train[MEASURED])
+    warm = clone(cold).fit(train, train[MEASURED], coef_init=cold.coef_)
+    assert warm.n_iter_ < cold.n_iter_
+    assert np.allclose(warm.predict(test), cold.predict(test), atol=1e-6)
+    # a covariate the start lacks starts at 0; one the model lacks is ignored
+    bigger = {p: names + (["v_q1"] if p == "model_f1" else [])
+              for p, names in default_library(ONSITE, COUPLINGS).items()}
+    grown = clone(cold).set_params(covariates=bigger).fit(train, train[MEASURED],
+                                                          coef_init=cold.coef_)
+    assert grown.train_loss_[0] == pytest.approx(cold.train_loss_[-1], rel=1e-9)
+    assert grown.train_loss_[-1] <= cold.train_loss_[-1]
+    with pytest.raises(ValueError, match="coef_init"):
+        clone(cold).fit(train, train[MEASURED], coef_init=np.zeros(3))
+
+
+def test_regressor_absolute_loss_and_l1(coupler_shift):
+    train, test, _ = coupler_shift
+    prior_mae = np.abs(test[PRIOR].to_numpy() - test[MEASURED].to_numpy()).mean()
+    base = dict(onsite=ONSITE, couplings=COUPLINGS, features=["v_c1", "v_q1", "v_q2"])
+    l1 = HamiltonianParameterRegressor(**base, loss="absolute_error").fit(
+        train, train[MEASURED])
+    assert np.all(np.diff(l1.train_loss_) <= 0)
+    assert _mae(l1, test) < 0.25 * prior_mae
+    ridge = HamiltonianParameterRegressor(**base, alpha=1.0).fit(train, train[MEASURED])
+    sparse = HamiltonianParameterRegressor(**base, alpha=1.0, alpha_l1=20.0).fit(
+        train, train[MEASURED])
+    n_terms = (ridge.coef_.index.get_level_values("covariate") != "intercept").sum()
+    table = sparse.coefficient_table()
+    kept = (table["covariate"] != "intercept").sum()
+    assert 0 < kept < n_terms  # the L1 penalty zeroes coefficients exactly
+    assert set(table.columns) == {"parameter", "covariate", "coef", "covariate_sd"}
+    assert len(ridge.coefficient_table()) == len(ridge.coef_)
+    assert _mae(sparse, test) < 0.5 * prior_mae
+
+
 def test_regressor_clone_and_params():
     model = HamiltonianParameterRegressor(onsite=ONSITE, couplings=COUPLINGS, alpha=3.0,
                                           loss="huber")
@@ -153,9 +195,17 @@ def test_regressor_clone_and_params():
 @pytest.mark.parametrize("kwargs, match", [
     (dict(couplings=COUPLINGS), "onsite must name at least 2"),
     (dict(onsite=ONSITE, couplings=COUPLINGS[:2]), "couplings must name"),
-    (dict(onsite=ONSITE, couplings=COUPLINGS, loss="absolute_error"), "loss must be"),
+    (dict(onsite=ONSITE, couplings=COUPLINGS, loss="quantile"), "unknown loss 'quantile'; "
+     "valid names are: squared_error, absolute_error, huber"),
+    (dict(onsite=ONSITE, couplings=COUPLINGS, alpha_l1=-0.1), "alpha_l1"),
+    (dict(onsite=ONSITE, couplings=COUPLINGS, covariates={"nope": ["v_q1"]}),
+     "unknown parameter"),
+    (dict(onsite=ONSITE, couplings=COUPLINGS, covariates={"model_f1": ["v_x9"]}),
+     "unknown covariate 'v_x9'"),
+    (dict(onsite=ONSITE, couplings=COUPLINGS, covariates={"model_f1": ["v_q1^x"]}),
+     "unknown covariate"),
     (dict(onsite=ONSITE, couplings=COUPLINGS, alpha=-1), "alpha"),
-    (dict(onsite=ONSITE, couplings=COUPLINGS, covariates="cubic"), "covariates"),
+    (dict(onsite=ONSITE, couplings=COUPLINGS, covariates="cubic"), "covariates must be"),
     (dict(onsite=ONSITE, couplings=COUPLINGS, sign=0), "sign"),
     (dict(onsite=ONSITE, couplings=COUPLINGS, features=["nope"]), "not columns of X"),
 ])

@@ -4,7 +4,7 @@
 ascending eigenvalues of ``sign * H(theta(x) + delta(x))``, where ``theta(x)`` are the control
 model's onsite frequencies and couplings (columns of ``X``) and the correction of each
 parameter ``p`` is linear in a small covariate library, ``delta_p(x) = phi_p(x) . c_p``.
-The coefficients are fitted by (robust, ridge-regularised) Gauss-Newton with an exact
+The coefficients are fitted by (robust, regularised) Gauss-Newton with an exact
 re-diagonalisation at every iteration; the Jacobian comes from Hellmann-Feynman
 (:func:`workbench.hamiltonian.chain_spectrum`).
 """
@@ -20,10 +20,28 @@ from sklearn.utils.validation import check_is_fitted
 
 from .hamiltonian import chain_spectrum
 
-__all__ = ["HamiltonianParameterRegressor"]
+__all__ = ["HamiltonianParameterRegressor", "PARAM_LOSSES", "default_library"]
 
-LOSSES = ("squared_error", "huber")
-COVARIATES = ("default",)
+
+def _squared(r, delta):
+    return 0.5 * r * r, np.ones_like(r)
+
+
+def _absolute(r, delta):
+    a = np.abs(r)
+    floor = 1e-4 * max(float(np.median(a)), 1e-12)  # IRLS weights 1/|r|, bounded
+    return a, 1.0 / np.maximum(a, floor)
+
+
+def _huber(r, delta):
+    a = np.abs(r)
+    return (np.where(a <= delta, 0.5 * r * r, delta * (a - 0.5 * delta)),
+            np.minimum(1.0, delta / np.maximum(a, 1e-12)))
+
+
+#: Losses of the parameter-space fit by name (the names of :data:`workbench.LOSSES`):
+#: ``f(residual, huber_delta) -> (loss of each residual, IRLS weight of each residual)``.
+PARAM_LOSSES = {"squared_error": _squared, "absolute_error": _absolute, "huber": _huber}
 
 
 def _names(value, what: str) -> list[str]:
@@ -54,6 +72,57 @@ def _columns(X: pd.DataFrame, names: list[str], what: str) -> np.ndarray:
     return values
 
 
+def _detunings(onsite: list[str]) -> list[str]:
+    return [f"{a}-{b}" for a, b in zip(onsite, onsite[1:])]
+
+
+def default_library(onsite, couplings) -> dict[str, list[str]]:
+    """The default covariates of each parameter (besides the intercept).
+
+    Onsite ``f_i``: ``f_i``, ``f_i^2`` and each adjacent coupling with its square. Coupling
+    ``g_i``: ``g_i``, ``g_i^2`` and the adjacent detuning ``f_i-f_{i+1}``.
+    """
+    on, co = list(onsite), list(couplings)
+    lib = {}
+    for i, p in enumerate(on):
+        nb = [co[j] for j in (i - 1, i) if 0 <= j < len(co)]
+        lib[p] = [p, f"{p}^2"] + [n for g in nb for n in (g, f"{g}^2")]
+    for i, p in enumerate(co):
+        lib[p] = [p, f"{p}^2", f"{on[i]}-{on[i + 1]}"]
+    return lib
+
+
+def _parse(name: str, variables) -> tuple[str, int]:
+    """Covariate name -> (variable, power): ``"x"`` -> (x, 1), ``"x^2"`` -> (x, 2)."""
+    if name in variables:
+        return name, 1
+    base, sep, power = name.rpartition("^")
+    if sep and base in variables and power.isdigit() and int(power) >= 1:
+        return base, int(power)
+    raise ValueError(f"unknown covariate {name!r}: a covariate is a parameter, an adjacent "
+                     "detuning 'f_i-f_j', or a column of X, optionally followed by '^k'; "
+                     f"X's columns are {sorted(v for v in variables)}")
+
+
+def _soft(z, t):
+    return np.sign(z) * np.maximum(np.abs(z) - t, 0.0)
+
+
+def _lasso_quadratic(H, b, l1, x0, max_iter=20000, tol=1e-9):
+    """argmin_x 0.5 x'Hx - b'x + sum(l1 * |x|) for positive semi-definite ``H`` (FISTA)."""
+    lipschitz = max(float(np.linalg.eigvalsh(H)[-1]), 1e-300)
+    x, z, t = x0.copy(), x0.copy(), 1.0
+    for _ in range(max_iter):
+        x_new = _soft(z - (H @ z - b) / lipschitz, l1 / lipschitz)
+        t_new = 0.5 * (1.0 + np.sqrt(1.0 + 4.0 * t * t))
+        z = x_new + ((t - 1.0) / t_new) * (x_new - x)
+        done = np.abs(x_new - x).max() <= tol * max(1.0, np.abs(x_new).max())
+        x, t = x_new, t_new
+        if done:
+            break
+    return x
+
+
 class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
     """Multi-output regressor of a chain's N eigenvalues via corrections of its Hamiltonian.
 
@@ -61,25 +130,22 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
     ``theta = X[onsite + couplings]`` and ``delta_p(x) = phi_p(x) . c_p`` for each of the
     ``2N - 1`` parameters.
 
-    Covariate library (``covariates="default"``), for parameter ``p``:
+    The covariates ``phi_p`` of parameter ``p`` are an intercept (never penalised) and the
+    covariates that ``covariates`` names for ``p``. A covariate is a *variable* optionally
+    raised to a power (``"f1^2"``); variables are the parameters themselves, the adjacent
+    detunings ``"f_i-f_{i+1}"`` (named from the onsite columns) and any column of ``X``
+    (e.g. voltages). Every variable is centred by its training mean before the power is
+    taken; every covariate is then standardised with its training mean and sd (sd 0 -> 1),
+    so a coefficient is in the targets' units (MHz) per standard deviation of its covariate.
 
-    * ``intercept`` (never penalised);
-    * ``p`` and ``p^2`` (its own control value, centred by the training mean, and the square
-      of the centred value);
-    * onsite ``f_i`` only: each adjacent coupling ``g_{i-1}``, ``g_i`` (those that exist)
-      and its square (centred as above);
-    * coupling ``g_i`` only: the adjacent detuning ``f_i - f_{i+1}`` (centred);
-    * every column named in ``features`` (e.g. voltages) and its square (centred).
-
-    Every non-intercept column is then standardised with training mean and sd (sd 0 -> 1).
-    Names are the input column names, e.g. ``"f1^2"``, ``"f1-f2"``; see ``covariate_names_``.
-
-    Fitting minimises ``sum rho(y - lambda) + alpha / 2 * ||c_without_intercepts||^2`` with
-    ``rho`` squared error (``r^2 / 2``) or Huber (IRLS weights ``min(1, delta / |r|)``) by
-    Gauss-Newton: ``(A^T W A + alpha D) dc = A^T W r - alpha D c`` with ``A`` the stacked
-    ``J[:, k, p] * phi_p(x)`` and ``D`` the penalty mask; the step is halved (up to 30 times)
-    until the objective does not increase; iteration stops when the relative improvement is
-    below ``tol``, no step improves it, or after ``max_iter`` iterations.
+    Fitting minimises ``sum rho(y - lambda) + alpha / 2 * ||c||^2 + alpha_l1 * ||c||_1``
+    (intercepts excluded from both penalties), ``rho`` one of :data:`PARAM_LOSSES`
+    (``r^2 / 2``, ``|r|`` or Huber), by Gauss-Newton with IRLS weights:
+    ``(A^T W A + alpha D) dc = A^T W r - alpha D c`` with ``A`` the stacked
+    ``J[:, k, p] * phi_p(x)``; with ``alpha_l1 > 0`` the step minimises the same quadratic
+    model plus the L1 term (FISTA). The step is halved (up to 30 times) until
+    the objective does not increase; iteration stops when the relative improvement is below
+    ``tol``, no step improves it, or after ``max_iter`` iterations.
 
     Parameters
     ----------
@@ -89,15 +155,18 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         Columns of ``X`` with the N - 1 nearest-neighbour couplings, in chain order.
     sign : {-1, 1}, default=-1
         The targets are eigenvalues of ``sign * H``.
-    covariates : {"default"}, default="default"
-        The covariate library (see above).
+    covariates : "default" or dict of str -> list of str, default="default"
+        ``"default"``: :func:`default_library`. A dict maps parameter names to their
+        covariate names; parameters it does not list get only an intercept.
     features : list of str, default=None
-        Extra columns of ``X`` (e.g. voltages) added, with their squares, to every library.
+        Columns of ``X`` added, with their squares, to *every* parameter's covariates.
     alpha : float, default=1.0
-        Ridge penalty on the non-intercept coefficients (standardised covariates).
-    loss : {"squared_error", "huber"}, default="squared_error"
+        Ridge penalty on the non-intercept coefficients.
+    alpha_l1 : float, default=0.0
+        L1 penalty on the non-intercept coefficients.
+    loss : {"squared_error", "absolute_error", "huber"}, default="squared_error"
     huber_delta : float, default=1.0
-        Huber threshold (MHz).
+        Huber threshold (targets' units).
     max_iter : int, default=20
         Maximum Gauss-Newton iterations.
     tol : float, default=1e-6
@@ -108,9 +177,9 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
     parameter_names_ : list of str
         ``onsite + couplings``.
     covariate_names_ : dict of str -> list of str
-        Covariate names of each parameter (starting with ``"intercept"``).
+        Covariates of each parameter (starting with ``"intercept"``).
     coef_ : pandas.DataFrame
-        One row per (parameter, covariate), column ``"coef"`` (per standardised covariate).
+        One row per (parameter, covariate), column ``"coef"`` (MHz per covariate sd).
     n_iter_ : int
         Gauss-Newton iterations taken.
     train_loss_ : ndarray
@@ -119,14 +188,15 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
     """
 
     def __init__(self, *, onsite=None, couplings=None, sign=-1, covariates="default",
-                 features=None, alpha=1.0, loss="squared_error", huber_delta=1.0,
-                 max_iter=20, tol=1e-6):
+                 features=None, alpha=1.0, alpha_l1=0.0, loss="squared_error",
+                 huber_delta=1.0, max_iter=20, tol=1e-6):
         self.onsite = onsite
         self.couplings = couplings
         self.sign = sign
         self.covariates = covariates
         self.features = features
         self.alpha = alpha
+        self.alpha_l1 = alpha_l1
         self.loss = loss
         self.huber_delta = huber_delta
         self.max_iter = max_iter
@@ -142,18 +212,32 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
             raise ValueError(f"couplings must name len(onsite) - 1 = {len(onsite) - 1} "
                              f"columns, got {len(couplings)}: {couplings!r}")
         features = _names(self.features, "features")
-        overlap = set(features) & set(onsite + couplings)
-        if set(onsite) & set(couplings) or overlap:
+        if set(onsite) & set(couplings) or set(features) & set(onsite + couplings):
             raise ValueError("onsite, couplings and features must name distinct columns")
         if isinstance(self.sign, bool) or self.sign not in (-1, 1):
             raise ValueError(f"sign must be -1 or 1, got {self.sign!r}")
-        if self.covariates not in COVARIATES:
-            raise ValueError(f"covariates must be one of {COVARIATES}, got {self.covariates!r}")
-        if not (isinstance(self.alpha, numbers.Real) and np.isfinite(self.alpha)
-                and self.alpha >= 0):
-            raise ValueError(f"alpha must be a finite number >= 0, got {self.alpha!r}")
-        if self.loss not in LOSSES:
-            raise ValueError(f"loss must be one of {LOSSES}, got {self.loss!r}")
+        params = onsite + couplings
+        if isinstance(self.covariates, str):
+            if self.covariates != "default":
+                raise ValueError('covariates must be "default" or a dict parameter -> list of '
+                                 f"covariate names, got {self.covariates!r}")
+            library = default_library(onsite, couplings)
+        elif isinstance(self.covariates, dict):
+            unknown = [p for p in self.covariates if p not in params]
+            if unknown:
+                raise ValueError(f"covariates names unknown parameter(s) {unknown}; "
+                                 f"parameters are {params}")
+            library = {p: _names(self.covariates.get(p, []), f"covariates[{p!r}]")
+                       for p in params}
+        else:
+            raise ValueError('covariates must be "default" or a dict parameter -> list of '
+                             f"covariate names, got {type(self.covariates).__name__}")
+        for name, value, low in (("alpha", self.alpha, 0), ("alpha_l1", self.alpha_l1, 0)):
+            if not (isinstance(value, numbers.Real) and np.isfinite(value) and value >= low):
+                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+        if self.loss not in PARAM_LOSSES:
+            raise ValueError(f"unknown loss {self.loss!r}; valid names are: "
+                             f"{', '.join(PARAM_LOSSES)}")
         if not (isinstance(self.huber_delta, numbers.Real) and np.isfinite(self.huber_delta)
                 and self.huber_delta > 0):
             raise ValueError(f"huber_delta must be a finite number > 0, got "
@@ -163,64 +247,48 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
             raise ValueError(f"max_iter must be an integer >= 0, got {self.max_iter!r}")
         if not (isinstance(self.tol, numbers.Real) and self.tol >= 0):
             raise ValueError(f"tol must be a number >= 0, got {self.tol!r}")
-        return onsite, couplings, features
-
-    def _inputs(self, X, onsite, couplings, features):
-        if not isinstance(X, pd.DataFrame):
-            raise ValueError("X must be a pandas DataFrame holding the onsite, coupling and "
-                             f"feature columns by name, got {type(X).__name__}")
-        if len(X) == 0:
-            raise ValueError("X has no rows")
-        theta = _columns(X, onsite + couplings, "parameter")
-        V = _columns(X, features, "feature") if features else np.empty((len(X), 0))
-        return theta, V
+        return onsite, couplings, features, library
 
     # ------------------------------------------------------------------ covariates
-    def _variables(self, theta, V) -> dict[str, np.ndarray]:
-        """Every raw variable any library uses, by name."""
-        N = len(self.onsite_)
+    def _resolve_library(self, X, onsite, couplings, features, library):
+        """(variable, power) terms of each parameter and the X columns they read."""
+        params = onsite + couplings
+        internal = set(params) | set(_detunings(onsite))
+        variables = internal | {str(c) for c in X.columns}
+        every = [(v, k) for v in features for k in (1, 2)]
+        terms = {p: [_parse(name, variables) for name in library[p]] + every for p in params}
+        columns = list(dict.fromkeys(v for ts in terms.values() for v, _ in ts
+                                     if v not in internal))
+        return terms, columns
+
+    def _variables(self, X) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        theta = _columns(X, self.parameter_names_, "parameter")
         out = {name: theta[:, j] for j, name in enumerate(self.parameter_names_)}
-        for i in range(N - 1):
-            a, b = self.onsite_[i], self.onsite_[i + 1]
-            out[f"{a}-{b}"] = theta[:, i] - theta[:, i + 1]
-        out.update({name: V[:, j] for j, name in enumerate(self.features_)})
-        return out
+        for i, name in enumerate(_detunings(self.onsite_)):
+            out[name] = theta[:, i] - theta[:, i + 1]
+        if self.columns_:
+            V = _columns(X, self.columns_, "covariate")
+            out.update({name: V[:, j] for j, name in enumerate(self.columns_)})
+        return theta, out
 
-    def _library(self) -> dict[str, list[tuple[str, int]]]:
-        """(variable, power) terms of each parameter's library (intercept excluded)."""
-        N = len(self.onsite_)
-        on, co = self.onsite_, self.couplings_
-        extra = [(v, k) for v in self.features_ for k in (1, 2)]
-        lib = {}
-        for i, p in enumerate(on):
-            neighbours = [co[j] for j in (i - 1, i) if 0 <= j < N - 1]
-            lib[p] = [(p, 1), (p, 2)] + [(g, k) for g in neighbours for k in (1, 2)] + extra
-        for i, p in enumerate(co):
-            lib[p] = [(p, 1), (p, 2), (f"{on[i]}-{on[i + 1]}", 1)] + extra
-        return lib
-
-    def _design(self, theta, V) -> list[np.ndarray]:
+    def _design(self, variables: dict[str, np.ndarray], n: int, fitting: bool) -> list:
         """Standardised covariate matrix ``phi_p`` (with intercept first) of each parameter."""
-        vars_ = self._variables(theta, V)
         phis = []
         for p in self.parameter_names_:
-            cols = [(vars_[v] - self.var_mean_[v]) ** k for v, k in self.library_[p]]
-            raw = np.column_stack(cols) if cols else np.empty((len(theta), 0))
-            if p not in self.col_mean_:  # fitting: training statistics
+            cols = [(variables[v] - self.var_mean_[v]) ** k for v, k in self.terms_[p]]
+            raw = np.column_stack(cols) if cols else np.empty((n, 0))
+            if fitting:
                 sd = raw.std(axis=0)
                 self.col_mean_[p], self.col_scale_[p] = raw.mean(axis=0), np.where(sd > 0, sd, 1.0)
             z = (raw - self.col_mean_[p]) / self.col_scale_[p]
-            phis.append(np.column_stack([np.ones(len(theta)), z]))
+            phis.append(np.column_stack([np.ones(n), z]))
         return phis
 
     # ------------------------------------------------------------------ model
     def _objective(self, r, c, penalty):
-        if self.loss == "huber":
-            a, d = np.abs(r), self.huber_delta
-            data = np.where(a <= d, 0.5 * r**2, d * (a - 0.5 * d)).sum()
-        else:
-            data = 0.5 * np.sum(r**2)
-        return float(data + 0.5 * self.alpha * np.sum(penalty * c**2))
+        data = PARAM_LOSSES[self.loss](r, self.huber_delta)[0].sum()
+        pc = penalty * c
+        return float(data + 0.5 * self.alpha * np.sum(pc * c) + self.alpha_l1 * np.abs(pc).sum())
 
     def _delta(self, phis, c):
         return np.column_stack([phi @ c[sl] for phi, sl in zip(phis, self._slices)])
@@ -229,10 +297,40 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         N = len(self.onsite_)
         return chain_spectrum(theta[:, :N], theta[:, N:], self.sign)
 
-    def fit(self, X, y):
-        """Fit the coefficients on ``X`` (DataFrame) and ``y`` (n, N ascending eigenvalues)."""
-        onsite, couplings, features = self._check_params()
-        theta0, V = self._inputs(X, onsite, couplings, features)
+    def _initial(self, coef_init, index) -> np.ndarray:
+        c = np.zeros(len(index))
+        if coef_init is None:
+            return c
+        if isinstance(coef_init, pd.DataFrame):
+            coef_init = coef_init["coef"]
+        if not isinstance(coef_init, pd.Series):
+            raise ValueError("coef_init must be a fitted model's coef_ (a DataFrame or Series "
+                             "indexed by (parameter, covariate))")
+        known = coef_init.to_dict()
+        for j, key in enumerate(index):
+            value = known.get(key)
+            if value is not None and np.isfinite(value):
+                c[j] = value
+        return c
+
+    def fit(self, X, y, coef_init=None):
+        """Fit the coefficients on ``X`` (DataFrame) and ``y`` (n, N ascending eigenvalues).
+
+        ``coef_init``: starting coefficients, e.g. another fit's ``coef_``; entries are
+        matched by (parameter, covariate), missing ones start at 0 and ones this model's
+        covariates lack are ignored (a warm start when covariates are added or removed).
+        """
+        onsite, couplings, features, library = self._check_params()
+        if not isinstance(X, pd.DataFrame):
+            raise ValueError("X must be a pandas DataFrame holding the onsite, coupling and "
+                             f"covariate columns by name, got {type(X).__name__}")
+        if len(X) == 0:
+            raise ValueError("X has no rows")
+        self.onsite_, self.couplings_, self.features_ = onsite, couplings, features
+        self.parameter_names_ = onsite + couplings
+        self.terms_, self.columns_ = self._resolve_library(X, onsite, couplings, features,
+                                                           library)
+        theta0, variables = self._variables(X)
         n, N = len(theta0), len(onsite)
         y = np.asarray(y, dtype=float)
         if y.shape != (n, N):
@@ -240,40 +338,37 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
                              f"got {y.shape}")
         if not np.all(np.isfinite(y)):
             raise ValueError("y contains NaN or infinite values")
-
-        self.onsite_, self.couplings_, self.features_ = onsite, couplings, features
-        self.parameter_names_ = onsite + couplings
         self.feature_names_in_ = np.asarray([str(c) for c in X.columns], dtype=object)
         self.n_features_in_ = X.shape[1]
-        self.library_ = self._library()
-        self.var_mean_ = {k: float(v.mean()) for k, v in self._variables(theta0, V).items()}
+        self.var_mean_ = {k: float(v.mean()) for k, v in variables.items()}
         self.col_mean_, self.col_scale_ = {}, {}
-        phis = self._design(theta0, V)
+        phis = self._design(variables, n, fitting=True)
         self.covariate_names_ = {
-            p: ["intercept"] + [v if k == 1 else f"{v}^{k}" for v, k in self.library_[p]]
+            p: ["intercept"] + [v if k == 1 else f"{v}^{k}" for v, k in self.terms_[p]]
             for p in self.parameter_names_}
+        index = [(p, name) for p in self.parameter_names_ for name in self.covariate_names_[p]]
         sizes = [phi.shape[1] for phi in phis]
         ends = np.cumsum(sizes)
         self._slices = [slice(e - s, e) for s, e in zip(sizes, ends)]
         penalty = np.ones(ends[-1])
         penalty[ends - np.asarray(sizes)] = 0.0  # intercepts are not penalised
 
-        c = np.zeros(ends[-1])
-        lam, jac = self._spectrum(theta0)
+        c = self._initial(coef_init, index)
+        lam, jac = self._spectrum(theta0 + self._delta(phis, c))
         r = y - lam
         obj = self._objective(r, c, penalty)
         history, n_iter = [obj], 0
+        loss = PARAM_LOSSES[self.loss]
         for n_iter in range(1, self.max_iter + 1):
-            if self.loss == "huber":
-                w = np.minimum(1.0, self.huber_delta / np.maximum(np.abs(r), 1e-12))
-            else:
-                w = np.ones_like(r)
+            w = loss(r, self.huber_delta)[1].ravel()
             A = np.hstack([(jac[:, :, j, None] * phi[:, None, :]).reshape(n * N, -1)
                            for j, phi in enumerate(phis)])
-            wf = w.ravel()
-            G = A.T @ (wf[:, None] * A) + self.alpha * np.diag(penalty)
-            b = A.T @ (wf * r.ravel()) - self.alpha * penalty * c
-            dc = np.linalg.lstsq(G, b, rcond=None)[0]
+            H = A.T @ (w[:, None] * A) + self.alpha * np.diag(penalty)
+            g = A.T @ (w * r.ravel()) - self.alpha * penalty * c
+            if self.alpha_l1 > 0:
+                dc = _lasso_quadratic(H, g + H @ c, self.alpha_l1 * penalty, c) - c
+            else:
+                dc = np.linalg.lstsq(H, g, rcond=None)[0]
             step, accepted = 1.0, False
             for _ in range(30):
                 c_new = c + step * dc
@@ -294,20 +389,39 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         self._coef = c
         self.n_iter_ = n_iter
         self.train_loss_ = np.asarray(history)
-        index = pd.MultiIndex.from_tuples(
-            [(p, name) for p in self.parameter_names_ for name in self.covariate_names_[p]],
-            names=["parameter", "covariate"])
-        self.coef_ = pd.DataFrame({"coef": c}, index=index)
+        self.coef_ = pd.DataFrame(
+            {"coef": c}, index=pd.MultiIndex.from_tuples(index, names=["parameter", "covariate"]))
         return self
 
     def _corrected(self, X) -> np.ndarray:
         check_is_fitted(self)
-        theta0, V = self._inputs(X, self.onsite_, self.couplings_, self.features_)
-        return theta0 + self._delta(self._design(theta0, V), self._coef)
+        if not isinstance(X, pd.DataFrame):
+            raise ValueError("X must be a pandas DataFrame holding the onsite, coupling and "
+                             f"covariate columns by name, got {type(X).__name__}")
+        theta0, variables = self._variables(X)
+        return theta0 + self._delta(self._design(variables, len(theta0), fitting=False),
+                                    self._coef)
 
     def corrected_parameters(self, X) -> pd.DataFrame:
         """``theta(X) + delta(X)``, columns named like the onsite and coupling inputs."""
         return pd.DataFrame(self._corrected(X), columns=self.parameter_names_, index=X.index)
+
+    def coefficient_table(self) -> pd.DataFrame:
+        """The non-zero coefficients: parameter, covariate, coefficient in MHz per covariate sd
+        (``coef``) and, for non-intercept terms, the covariate's training sd (``covariate_sd``)."""
+        check_is_fitted(self)
+        rows = []
+        for p in self.parameter_names_:
+            sds = np.concatenate([[np.nan], self.col_scale_[p]])
+            for name, coef, sd in zip(self.covariate_names_[p], self._coef[self._slice_of(p)],
+                                      sds):
+                if coef != 0.0:
+                    rows.append(dict(parameter=p, covariate=name, coef=float(coef),
+                                     covariate_sd=float(sd)))
+        return pd.DataFrame(rows, columns=["parameter", "covariate", "coef", "covariate_sd"])
+
+    def _slice_of(self, p: str) -> slice:
+        return self._slices[self.parameter_names_.index(p)]
 
     def predict(self, X) -> np.ndarray:
         """Ascending eigenvalues of ``sign * H(theta(X) + delta(X))``, shape (n, N)."""

@@ -1,0 +1,340 @@
+"""Covariate selection for the parameter-space regressor by cross-validation.
+
+:func:`forward_select` chooses the covariates of each Hamiltonian parameter by greedy forward
+stepwise selection over (parameter, covariate) pairs from a candidate pool
+(:func:`candidate_pool`), scoring each candidate by repeated K-fold CV MAE on the rows it is
+given, and only those. :class:`HamiltonianSelectionCV` wraps the selection and the refit in
+one estimator (as ``LassoCV`` wraps its path), so nested CV is ``cross_val_predict`` of it.
+"""
+
+from __future__ import annotations
+
+import numbers
+import sys
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+import pandas as pd
+from sklearn.base import BaseEstimator, RegressorMixin, clone
+from sklearn.model_selection import KFold
+from sklearn.utils import check_random_state
+from sklearn.utils.parallel import Parallel, delayed
+from sklearn.utils.validation import check_is_fitted
+
+from .param_boost import HamiltonianParameterRegressor, default_library
+
+__all__ = ["HamiltonianSelectionCV", "SelectionResult", "candidate_pool", "cv_mae",
+           "forward_select"]
+
+
+# ---------------------------------------------------------------------- candidate pools
+
+def candidate_pool(onsite, couplings, qubit_features=None, coupler_features=None, *,
+                   squares=True, base="default", neighbours=True) -> dict[str, list[str]]:
+    """Physically meaningful candidate covariates of each Hamiltonian parameter.
+
+    ``base="default"`` starts from :func:`~workbench.param_boost.default_library` (the
+    parameter and its square; for onsite ``f_i`` the adjacent couplings and their squares;
+    for ``g_i`` the adjacent detuning); ``base=None`` from nothing. Then, each with its
+    square when ``squares``:
+
+    * onsite ``f_i``: its qubit's feature and the adjacent couplers' features; with
+      ``neighbours``, also the neighbouring onsite frequencies ``f_{i+-1}``, the detunings
+      to them and the neighbouring qubits' features;
+    * coupling ``g_i``: its coupler's feature; with ``neighbours``, also the two coupled
+      frequencies, the squared detuning and the two qubits' features.
+
+    ``qubit_features`` (N names) and ``coupler_features`` (N - 1 names) are in chain order,
+    e.g. ``qvolt5..qvolt9`` and ``cvolt5..cvolt8`` on the benchmark. Duplicates are dropped.
+    """
+    on, co = list(onsite), list(couplings)
+    qf = list(qubit_features) if qubit_features is not None else []
+    cf = list(coupler_features) if coupler_features is not None else []
+    if qf and len(qf) != len(on):
+        raise ValueError(f"qubit_features needs {len(on)} names (one per site), got {len(qf)}")
+    if cf and len(cf) != len(co):
+        raise ValueError(f"coupler_features needs {len(co)} names (one per coupling), got "
+                         f"{len(cf)}")
+    if base not in ("default", None):
+        raise ValueError(f'base must be "default" or None, got {base!r}')
+    pool = default_library(on, co) if base == "default" else {p: [] for p in on + co}
+    pw = (1, 2) if squares else (1,)
+
+    def terms(*variables):
+        return [v if k == 1 else f"{v}^{k}" for v in variables for k in pw]
+
+    N = len(on)
+    for i, p in enumerate(on):
+        adjacent = [j for j in (i - 1, i) if 0 <= j < N - 1]  # couplings touching site i
+        extra = terms(*(qf[i:i + 1] if qf else []), *([cf[j] for j in adjacent] if cf else []))
+        if neighbours:
+            sites = [j for j in (i - 1, i + 1) if 0 <= j < N]
+            extra += [on[j] for j in sites]
+            extra += terms(*(f"{on[min(i, j)]}-{on[max(i, j)]}" for j in sites))
+            extra += terms(*([qf[j] for j in sites] if qf else []))
+        pool[p] = list(dict.fromkeys(pool[p] + extra))
+    for i, p in enumerate(co):
+        extra = terms(*(cf[i:i + 1] if cf else []))
+        if neighbours:
+            extra += [on[i], on[i + 1], f"{on[i]}-{on[i + 1]}^2"]
+            extra += terms(*(qf[i:i + 2] if qf else []))
+        pool[p] = list(dict.fromkeys(pool[p] + extra))
+    return pool
+
+
+# ---------------------------------------------------------------------- CV scoring
+
+def _splits(n: int, cv: int, n_repeats: int, random_state: int):
+    return [split for r in range(n_repeats)
+            for split in KFold(cv, shuffle=True, random_state=random_state + r).split(np.arange(n))]
+
+
+def cv_mae(estimator, X, y, *, cv=5, n_repeats=1, random_state=0) -> float:
+    """Repeated K-fold CV MAE of ``estimator`` on ``(X, y)`` (mean over all held-out
+    values; KFold shuffled with seeds ``random_state .. random_state + n_repeats - 1``)."""
+    y = np.asarray(y, dtype=float)
+    abs_sum, count = 0.0, 0
+    for fit_rows, val_rows in _splits(len(X), cv, n_repeats, random_state):
+        fitted = clone(estimator).fit(X.iloc[fit_rows], y[fit_rows])
+        abs_sum += np.abs(fitted.predict(X.iloc[val_rows]) - y[val_rows]).sum()
+        count += y[val_rows].size
+    return float(abs_sum / count)
+
+
+def _fit_splits(base, covariates, X, y, splits, warm) -> tuple[float, list]:
+    """CV MAE of ``base`` with ``covariates`` over ``splits`` and each split's coef_."""
+    est = clone(base).set_params(covariates=covariates)
+    abs_sum, count, coefs = 0.0, 0, []
+    for (fit_rows, val_rows), init in zip(splits, warm):
+        fitted = clone(est).fit(X.iloc[fit_rows], y[fit_rows], coef_init=init)
+        abs_sum += np.abs(fitted.predict(X.iloc[val_rows]) - y[val_rows]).sum()
+        count += y[val_rows].size
+        coefs.append(fitted.coef_)
+    return abs_sum / count, coefs
+
+
+def _score_many(base, libraries, X, y, splits, warm) -> list[float]:
+    return [_fit_splits(base, lib, X, y, splits, warm)[0] for lib in libraries]
+
+
+# ---------------------------------------------------------------------- selection
+
+@dataclass
+class SelectionResult:
+    """Outcome of :func:`forward_select`.
+
+    covariates : parameter -> selected covariate names (refit with
+        ``HamiltonianParameterRegressor(covariates=result.covariates, ...)`` or
+        ``result.estimator()``).
+    path : DataFrame with columns step, parameter, covariate, cv_mae (step 0 = start).
+    cv_mae : CV MAE of the final selection (the last path entry).
+    n_rows : rows the selection saw; index : their index labels.
+    """
+
+    covariates: dict
+    path: pd.DataFrame
+    cv_mae: float
+    n_rows: int
+    index: pd.Index
+    regressor_params: dict = field(default_factory=dict)
+    seconds: float = 0.0
+
+    @property
+    def selected(self) -> list[tuple[str, str]]:
+        """Pairs added by the selection, in order."""
+        return [tuple(r) for r in self.path.iloc[1:][["parameter", "covariate"]].to_numpy()]
+
+    def estimator(self, **params) -> HamiltonianParameterRegressor:
+        """An unfitted regressor with the selected covariates."""
+        return HamiltonianParameterRegressor(covariates=self.covariates,
+                                             **{**self.regressor_params, **params})
+
+
+def forward_select(X, y, *, candidates, cv=5, n_repeats=1, random_state=0, max_steps=30,
+                   min_improvement=1e-3, start=None, n_jobs=None,
+                   progress: Callable[[str], None] | None = None,
+                   **regressor_params) -> SelectionResult:
+    """Greedy forward stepwise selection of (parameter, covariate) pairs by K-fold CV MAE.
+
+    Starts from ``start`` (default: intercepts only); at each step tries adding every
+    remaining candidate pair, keeps the one with the lowest repeated K-fold CV MAE (KFold
+    shuffled with seeds ``random_state .. random_state + n_repeats - 1``, the same splits for
+    every candidate) and stops when it improves the current CV MAE by less than
+    ``min_improvement`` (targets' units) or after ``max_steps`` additions. Each candidate's
+    fit on a split starts from the current selection's coefficients on that split (a warm
+    start). Only ``X`` and ``y`` are used: pass the training rows alone.
+
+    Parameters
+    ----------
+    X : DataFrame with the onsite, coupling and candidate-feature columns.
+    y : (n, N) ascending eigenvalues.
+    candidates : dict parameter -> list of covariate names (see :func:`candidate_pool`).
+    n_jobs : candidates are scored in parallel (joblib processes) when > 1.
+    progress : called with one line per step.
+    **regressor_params : passed to :class:`~workbench.param_boost.HamiltonianParameterRegressor`
+        (``onsite``, ``couplings``, ``sign``, ``alpha``, ``loss``, ...; not ``covariates``).
+    """
+    t0 = time.perf_counter()
+    if not isinstance(X, pd.DataFrame):
+        raise ValueError("X must be a pandas DataFrame")
+    if "covariates" in regressor_params:
+        raise ValueError("pass the starting covariates as start=, not covariates=")
+    if not (isinstance(max_steps, numbers.Integral) and max_steps >= 0):
+        raise ValueError(f"max_steps must be an integer >= 0, got {max_steps!r}")
+    if not isinstance(candidates, dict):
+        raise ValueError("candidates must be a dict parameter -> list of covariate names, got "
+                         f"{type(candidates).__name__}")
+    y = np.asarray(y, dtype=float)
+    base = HamiltonianParameterRegressor(**regressor_params)
+    base._check_params()
+    params = list(base.onsite) + list(base.couplings)
+    for what, table in (("candidates", candidates), ("start", start or {})):
+        unknown = [p for p in table if p not in params]
+        if unknown:
+            raise ValueError(f"{what} name unknown parameter(s) {unknown}; parameters are "
+                             f"{params}")
+    current = {p: list((start or {}).get(p, [])) for p in params}
+    pool = [(p, c) for p in params for c in dict.fromkeys(candidates.get(p, []))
+            if c not in current[p]]
+    splits = _splits(len(X), cv, n_repeats, random_state)
+    jobs = 1 if n_jobs is None else int(n_jobs)
+
+    def score(libraries, warm):
+        if jobs > 1 and len(libraries) > 1:
+            chunks = [libraries[i::jobs] for i in range(jobs)]
+            res = Parallel(n_jobs=jobs)(delayed(_score_many)(base, ch, X, y, splits, warm)
+                                        for ch in chunks)
+            out = [None] * len(libraries)
+            for i, r in enumerate(res):
+                out[i::jobs] = r
+            return out
+        return _score_many(base, libraries, X, y, splits, warm)
+
+    best, warm = _fit_splits(base, current, X, y, splits, [None] * len(splits))
+    rows = [dict(step=0, parameter=None, covariate=None, cv_mae=best)]
+    if progress:
+        progress(f"start: cv_mae={best:.4f} ({len(pool)} candidate terms)")
+    for step in range(1, max_steps + 1):
+        if not pool:
+            break
+        trials = [{**current, p: current[p] + [c]} for p, c in pool]
+        scores = np.asarray(score(trials, warm))
+        k = int(np.argmin(scores))
+        if not best - scores[k] > min_improvement:
+            break
+        p, c = pool.pop(k)
+        current[p] = current[p] + [c]
+        best, warm = _fit_splits(base, current, X, y, splits, warm)
+        rows.append(dict(step=step, parameter=p, covariate=c, cv_mae=best))
+        if progress:
+            progress(f"step {step}: {p} <- {c}  cv_mae={best:.4f} "
+                     f"({time.perf_counter() - t0:.0f} s)")
+    path = pd.DataFrame(rows, columns=["step", "parameter", "covariate", "cv_mae"])
+    return SelectionResult(covariates={p: v for p, v in current.items() if v}, path=path,
+                           cv_mae=float(best), n_rows=len(X), index=X.index.copy(),
+                           regressor_params=dict(regressor_params),
+                           seconds=time.perf_counter() - t0)
+
+
+def _print_progress(line: str) -> None:
+    print(f"[selection] {line}", file=sys.stderr, flush=True)
+
+
+class HamiltonianSelectionCV(RegressorMixin, BaseEstimator):
+    """Forward covariate selection by CV (on the rows given to ``fit``), then a refit.
+
+    ``fit`` runs :func:`forward_select` with these settings and fits a
+    :class:`~workbench.param_boost.HamiltonianParameterRegressor` with the selected
+    covariates on all the rows. Cloning it and cross-validating gives nested CV (the
+    selection runs again inside each outer fold).
+
+    Parameters
+    ----------
+    onsite, couplings, sign, alpha, alpha_l1, loss, huber_delta, max_iter, tol
+        As in :class:`~workbench.param_boost.HamiltonianParameterRegressor`.
+    candidates : dict parameter -> list of covariate names, default=None
+        The pool (:func:`candidate_pool`); ``None``: the default library.
+    start : dict, default=None
+        Covariates every candidate model has (``None``: intercepts only).
+    cv, n_repeats : int, default=5, 1
+        The selection's repeated K-fold CV.
+    max_steps, min_improvement
+        As in :func:`forward_select`.
+    random_state : int, RandomState or None, default=None
+        Seeds the selection's fold shuffling.
+    n_jobs : int, default=None
+        Candidates scored in parallel.
+    verbose : bool, default=False
+        Print one line per selection step (to stderr).
+
+    Attributes
+    ----------
+    selection_ : SelectionResult
+    estimator_ : HamiltonianParameterRegressor (fitted on all rows)
+    """
+
+    def __init__(self, *, onsite=None, couplings=None, sign=-1, candidates=None, start=None,
+                 cv=5, n_repeats=1, max_steps=30, min_improvement=1e-3, alpha=1.0,
+                 alpha_l1=0.0, loss="squared_error", huber_delta=1.0, max_iter=20, tol=1e-6,
+                 random_state=None, n_jobs=None, verbose=False):
+        self.onsite = onsite
+        self.couplings = couplings
+        self.sign = sign
+        self.candidates = candidates
+        self.start = start
+        self.cv = cv
+        self.n_repeats = n_repeats
+        self.max_steps = max_steps
+        self.min_improvement = min_improvement
+        self.alpha = alpha
+        self.alpha_l1 = alpha_l1
+        self.loss = loss
+        self.huber_delta = huber_delta
+        self.max_iter = max_iter
+        self.tol = tol
+        self.random_state = random_state
+        self.n_jobs = n_jobs
+        self.verbose = verbose
+
+    def _regressor_params(self):
+        return dict(onsite=self.onsite, couplings=self.couplings, sign=self.sign,
+                    alpha=self.alpha, alpha_l1=self.alpha_l1, loss=self.loss,
+                    huber_delta=self.huber_delta, max_iter=self.max_iter, tol=self.tol)
+
+    def fit(self, X, y):
+        for name, value, low in (("cv", self.cv, 2), ("n_repeats", self.n_repeats, 1)):
+            if not isinstance(value, numbers.Integral) or isinstance(value, bool) or value < low:
+                raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+        if not (isinstance(self.min_improvement, numbers.Real) and self.min_improvement >= 0):
+            raise ValueError(f"min_improvement must be a number >= 0, got "
+                             f"{self.min_improvement!r}")
+        candidates = self.candidates
+        if candidates is None:
+            candidates = default_library(self.onsite or [], self.couplings or [])
+        if isinstance(self.random_state, numbers.Integral):
+            seed = int(self.random_state)
+        else:
+            seed = int(check_random_state(self.random_state).randint(2**31 - 1 - self.n_repeats))
+        progress = _print_progress if self.verbose else None
+        self.selection_ = forward_select(
+            X, y, candidates=candidates, cv=self.cv, n_repeats=self.n_repeats,
+            random_state=seed, max_steps=self.max_steps, min_improvement=self.min_improvement,
+            start=self.start, n_jobs=self.n_jobs, progress=progress, **self._regressor_params())
+        self.estimator_ = self.selection_.estimator().fit(X, y)
+        self.n_features_in_ = X.shape[1]
+        self.feature_names_in_ = self.estimator_.feature_names_in_
+        return self
+
+    def predict(self, X):
+        check_is_fitted(self)
+        return self.estimator_.predict(X)
+
+    def corrected_parameters(self, X) -> pd.DataFrame:
+        """The refitted regressor's corrected Hamiltonian parameters."""
+        check_is_fitted(self)
+        return self.estimator_.corrected_parameters(X)
+
+    def __sklearn_is_fitted__(self):
+        return hasattr(self, "estimator_")
