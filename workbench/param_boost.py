@@ -58,14 +58,19 @@ def _names(value, what: str) -> list[str]:
 
 
 def _columns(X: pd.DataFrame, names: list[str], what: str) -> np.ndarray:
-    missing = [c for c in names if c not in X.columns]
+    position = {str(c): i for i, c in enumerate(X.columns)}
+    missing = [c for c in names if c not in position]
     if missing:
         raise ValueError(f"{what} column(s) {missing} are not columns of X; columns are: "
-                         f"{[str(c) for c in X.columns]}")
-    try:
-        values = X[names].to_numpy(dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{what} columns {names} must be numeric: {exc}") from None
+                         f"{list(position)}")
+    index = [position[c] for c in names]
+    try:  # fast path: an all-numeric frame converts as one block
+        values = X.to_numpy(dtype=float)[:, index]
+    except (TypeError, ValueError):
+        try:
+            values = X.iloc[:, index].to_numpy(dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"{what} columns {names} must be numeric: {exc}") from None
     if not np.all(np.isfinite(values)):
         rows = np.flatnonzero(~np.isfinite(values).all(axis=1))[:10].tolist()
         raise ValueError(f"{what} columns contain NaN or infinite values (rows {rows})")
@@ -179,7 +184,8 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
     covariate_names_ : dict of str -> list of str
         Covariates of each parameter (starting with ``"intercept"``).
     coef_ : pandas.DataFrame
-        One row per (parameter, covariate), column ``"coef"`` (MHz per covariate sd).
+        One row per (parameter, covariate), column ``"coef"`` (MHz per covariate sd);
+        ``coef_dict()`` gives the same as a dict.
     n_iter_ : int
         Gauss-Newton iterations taken.
     train_loss_ : ndarray
@@ -301,12 +307,16 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         c = np.zeros(len(index))
         if coef_init is None:
             return c
-        if isinstance(coef_init, pd.DataFrame):
+        if isinstance(coef_init, pd.DataFrame) and "coef" in coef_init.columns:
             coef_init = coef_init["coef"]
-        if not isinstance(coef_init, pd.Series):
+        if isinstance(coef_init, pd.Series):
+            known = coef_init.to_dict()
+        elif isinstance(coef_init, dict):
+            known = coef_init
+        else:
             raise ValueError("coef_init must be a fitted model's coef_ (a DataFrame or Series "
-                             "indexed by (parameter, covariate))")
-        known = coef_init.to_dict()
+                             "indexed by (parameter, covariate)) or a dict keyed by "
+                             f"(parameter, covariate), got {type(coef_init).__name__}")
         for j, key in enumerate(index):
             value = known.get(key)
             if value is not None and np.isfinite(value):
@@ -316,7 +326,8 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
     def fit(self, X, y, coef_init=None):
         """Fit the coefficients on ``X`` (DataFrame) and ``y`` (n, N ascending eigenvalues).
 
-        ``coef_init``: starting coefficients, e.g. another fit's ``coef_``; entries are
+        ``coef_init``: starting coefficients, e.g. another fit's ``coef_`` (or
+        ``coef_dict()``); entries are
         matched by (parameter, covariate), missing ones start at 0 and ones this model's
         covariates lack are ignored (a warm start when covariates are added or removed).
         """
@@ -368,7 +379,10 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
             if self.alpha_l1 > 0:
                 dc = _lasso_quadratic(H, g + H @ c, self.alpha_l1 * penalty, c) - c
             else:
-                dc = np.linalg.lstsq(H, g, rcond=None)[0]
+                try:
+                    dc = np.linalg.solve(H, g)
+                except np.linalg.LinAlgError:  # singular (alpha = 0, collinear covariates)
+                    dc = np.linalg.lstsq(H, g, rcond=None)[0]
             step, accepted = 1.0, False
             for _ in range(30):
                 c_new = c + step * dc
@@ -386,12 +400,22 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
             history.append(obj)
             if improvement < self.tol:
                 break
-        self._coef = c
+        self._coef, self._index = c, index
         self.n_iter_ = n_iter
         self.train_loss_ = np.asarray(history)
-        self.coef_ = pd.DataFrame(
-            {"coef": c}, index=pd.MultiIndex.from_tuples(index, names=["parameter", "covariate"]))
         return self
+
+    @property
+    def coef_(self) -> pd.DataFrame:
+        """One row per (parameter, covariate), column ``"coef"``."""
+        check_is_fitted(self)
+        index = pd.MultiIndex.from_tuples(self._index, names=["parameter", "covariate"])
+        return pd.DataFrame({"coef": self._coef}, index=index)
+
+    def coef_dict(self) -> dict[tuple[str, str], float]:
+        """``{(parameter, covariate): coefficient}`` (a cheap ``coef_init``)."""
+        check_is_fitted(self)
+        return dict(zip(self._index, self._coef.tolist()))
 
     def _corrected(self, X) -> np.ndarray:
         check_is_fitted(self)
@@ -428,4 +452,4 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         return self._spectrum(self._corrected(X))[0]
 
     def __sklearn_is_fitted__(self):
-        return hasattr(self, "coef_")
+        return hasattr(self, "_coef")

@@ -91,6 +91,11 @@ def _splits(n: int, cv: int, n_repeats: int, random_state: int):
             for split in KFold(cv, shuffle=True, random_state=random_state + r).split(np.arange(n))]
 
 
+def _sliced(X, y, splits):
+    """``(X_fit, y_fit, X_val, y_val)`` of each split, sliced once."""
+    return [(X.iloc[f], y[f], X.iloc[v], y[v]) for f, v in splits]
+
+
 def cv_mae(estimator, X, y, *, cv=5, n_repeats=1, random_state=0) -> float:
     """Repeated K-fold CV MAE of ``estimator`` on ``(X, y)`` (mean over all held-out
     values; KFold shuffled with seeds ``random_state .. random_state + n_repeats - 1``)."""
@@ -103,20 +108,21 @@ def cv_mae(estimator, X, y, *, cv=5, n_repeats=1, random_state=0) -> float:
     return float(abs_sum / count)
 
 
-def _fit_splits(base, covariates, X, y, splits, warm) -> tuple[float, list]:
-    """CV MAE of ``base`` with ``covariates`` over ``splits`` and each split's coef_."""
+def _fit_splits(base, covariates, folds, warm) -> tuple[float, list]:
+    """CV MAE of ``base`` with ``covariates`` over the sliced ``folds``, and each fold's
+    coefficients (to warm-start the next fits)."""
     est = clone(base).set_params(covariates=covariates)
     abs_sum, count, coefs = 0.0, 0, []
-    for (fit_rows, val_rows), init in zip(splits, warm):
-        fitted = clone(est).fit(X.iloc[fit_rows], y[fit_rows], coef_init=init)
-        abs_sum += np.abs(fitted.predict(X.iloc[val_rows]) - y[val_rows]).sum()
-        count += y[val_rows].size
-        coefs.append(fitted.coef_)
+    for (X_fit, y_fit, X_val, y_val), init in zip(folds, warm):
+        fitted = clone(est).fit(X_fit, y_fit, coef_init=init)
+        abs_sum += np.abs(fitted.predict(X_val) - y_val).sum()
+        count += y_val.size
+        coefs.append(fitted.coef_dict())
     return abs_sum / count, coefs
 
 
-def _score_many(base, libraries, X, y, splits, warm) -> list[float]:
-    return [_fit_splits(base, lib, X, y, splits, warm)[0] for lib in libraries]
+def _score_many(base, libraries, folds, warm) -> list[float]:
+    return [_fit_splits(base, lib, folds, warm)[0] for lib in libraries]
 
 
 # ---------------------------------------------------------------------- selection
@@ -198,21 +204,21 @@ def forward_select(X, y, *, candidates, cv=5, n_repeats=1, random_state=0, max_s
     current = {p: list((start or {}).get(p, [])) for p in params}
     pool = [(p, c) for p in params for c in dict.fromkeys(candidates.get(p, []))
             if c not in current[p]]
-    splits = _splits(len(X), cv, n_repeats, random_state)
+    folds = _sliced(X, y, _splits(len(X), cv, n_repeats, random_state))
     jobs = 1 if n_jobs is None else int(n_jobs)
 
     def score(libraries, warm):
         if jobs > 1 and len(libraries) > 1:
             chunks = [libraries[i::jobs] for i in range(jobs)]
-            res = Parallel(n_jobs=jobs)(delayed(_score_many)(base, ch, X, y, splits, warm)
+            res = Parallel(n_jobs=jobs)(delayed(_score_many)(base, ch, folds, warm)
                                         for ch in chunks)
             out = [None] * len(libraries)
             for i, r in enumerate(res):
                 out[i::jobs] = r
             return out
-        return _score_many(base, libraries, X, y, splits, warm)
+        return _score_many(base, libraries, folds, warm)
 
-    best, warm = _fit_splits(base, current, X, y, splits, [None] * len(splits))
+    best, warm = _fit_splits(base, current, folds, [None] * len(folds))
     rows = [dict(step=0, parameter=None, covariate=None, cv_mae=best)]
     if progress:
         progress(f"start: cv_mae={best:.4f} ({len(pool)} candidate terms)")
@@ -226,7 +232,7 @@ def forward_select(X, y, *, candidates, cv=5, n_repeats=1, random_state=0, max_s
             break
         p, c = pool.pop(k)
         current[p] = current[p] + [c]
-        best, warm = _fit_splits(base, current, X, y, splits, warm)
+        best, warm = _fit_splits(base, current, folds, warm)
         rows.append(dict(step=step, parameter=p, covariate=c, cv_mae=best))
         if progress:
             progress(f"step {step}: {p} <- {c}  cv_mae={best:.4f} "
