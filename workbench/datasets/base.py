@@ -14,12 +14,16 @@ class Hamiltonian:
 
     ``onsite`` holds the N diagonal entries (qubit frequencies, MHz) and ``couplings`` the
     N - 1 nearest-neighbour couplings, one row per example, aligned with the dataset's rows.
-    The prior is the ascending eigenvalues of ``sign * H``.
+    The prior is the ascending eigenvalues of ``sign * H``. ``qubit_features`` (N names) and
+    ``coupler_features`` (N - 1 names) optionally name the dataset features that act on each
+    site and coupling (e.g. bias voltages), in chain order, for physics-aware covariates.
     """
 
     onsite: pd.DataFrame
     couplings: pd.DataFrame
     sign: int = -1
+    qubit_features: tuple[str, ...] | None = None
+    coupler_features: tuple[str, ...] | None = None
 
 
 @dataclass(frozen=True)
@@ -54,9 +58,20 @@ class Dataset:
         """Model inputs: the features followed by the prior columns."""
         return pd.concat([self.features, self.prior], axis=1)
 
-    def split(self) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame, pd.DataFrame]:
-        """``X_train, X_test, y_train, y_test`` for the dataset's split."""
-        X = self.X
+    @property
+    def X_physics(self) -> pd.DataFrame:
+        """:attr:`X` followed by the control model's onsite and coupling columns."""
+        if self.hamiltonian is None:
+            raise ValueError(f"dataset {self.name!r} has no Hamiltonian parameters (for a CSV, "
+                             "name them in [data.hamiltonian] onsite and couplings)")
+        ham = self.hamiltonian
+        return pd.concat([self.X, ham.onsite, ham.couplings], axis=1)
+
+    def split(self, X: pd.DataFrame | None = None
+              ) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame, pd.DataFrame]:
+        """``X_train, X_test, y_train, y_test`` for the dataset's split (of ``X``, default
+        :attr:`X`)."""
+        X = self.X if X is None else X
         return (
             X.loc[self.train_index],
             X.loc[self.test_index],

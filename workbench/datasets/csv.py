@@ -107,12 +107,16 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
                      features: Sequence[str] = (), test_fraction: float | None = None,
                      split_column: str | None = None, split_seed: int = 0,
                      onsite: Sequence[str] | None = None, couplings: Sequence[str] | None = None,
-                     sign: int = -1, name: str | None = None) -> Dataset:
+                     sign: int = -1, qubit_features: Sequence[str] | None = None,
+                     coupler_features: Sequence[str] | None = None,
+                     name: str | None = None) -> Dataset:
     """Read a CSV of experiments into a :class:`Dataset`.
 
     ``prior[j]`` is the scientific model's prediction of ``targets[j]``. ``onsite`` (N
     columns) and ``couplings`` (N - 1 columns) optionally give the control model's chain
     Hamiltonian per row; its prior is the ascending eigenvalues of ``sign * H``.
+    ``qubit_features`` (N) and ``coupler_features`` (N - 1), columns among ``features``,
+    name what acts on each site and coupling (e.g. bias voltages), in chain order.
     """
     path = Path(path)
     prior, targets, features = list(prior), list(targets), list(features)
@@ -129,6 +133,19 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
                            f"got {len(couplings)}: {list(couplings)}")
     if sign not in (-1, 1):
         raise DatasetError(f"sign must be -1 or 1, got {sign!r}")
+    for what, names, size in (("qubit_features", qubit_features, len(onsite or [])),
+                              ("coupler_features", coupler_features, len(couplings or []))):
+        if names is None:
+            continue
+        if onsite is None:
+            raise DatasetError(f"{what} needs the Hamiltonian's onsite and couplings columns")
+        if len(names) != size:
+            raise DatasetError(f"{what} needs {size} column(s), one per "
+                               f"{'site' if what == 'qubit_features' else 'coupling'}, got "
+                               f"{len(names)}: {list(names)}")
+        outside = [c for c in names if c not in features]
+        if outside:
+            raise DatasetError(f"{what} {outside} must be among the features {features}")
     used = list(dict.fromkeys([*features, *prior, *targets, *ham_cols]))
     named_twice = sorted(c for c, n in Counter([*features, *prior, *targets]).items() if n > 1)
     if named_twice:
@@ -144,8 +161,10 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
     train, test = _split(frame, path, test_fraction, split_column, split_seed)
     hamiltonian = None
     if onsite is not None:
-        hamiltonian = Hamiltonian(onsite=data[list(onsite)], couplings=data[list(couplings)],
-                                  sign=int(sign))
+        hamiltonian = Hamiltonian(
+            onsite=data[list(onsite)], couplings=data[list(couplings)], sign=int(sign),
+            qubit_features=tuple(qubit_features) if qubit_features is not None else None,
+            coupler_features=tuple(coupler_features) if coupler_features is not None else None)
     return Dataset(name=name or path.stem, features=data[features], prior=data[prior],
                    targets=data[targets], train_index=train, test_index=test,
                    hamiltonian=hamiltonian)

@@ -252,5 +252,7 @@ def load_google_5q(data_dir: str | os.PathLike[str] | None = None, *,
             onsite=y[list(ONSITE)].rename(columns=ONSITE),
             couplings=y[list(COUPLINGS)].rename(columns=COUPLINGS),
             sign=-1,
+            qubit_features=tuple(FEATURES[:5]),
+            coupler_features=tuple(FEATURES[5:]),
         ),
     )

@@ -6,9 +6,14 @@ A config has these sections (see ``experiments/paper_main_body.toml`` for an ann
     [data]        source = "google_5q" (data_dir optional), or a CSV of your own:
                   csv, prior, targets, features, test_fraction | split_column, split_seed
     [data.hamiltonian]  onsite, couplings, sign (optional, for physics-aware models)
-    [model]       basis, basis_params, n_stages, loss, line_search_loss, line_search_penalty,
-                  alpha, basis_inputs ("prior" | "prior+features"), input_transform
-    [model.targets.<target>]  the same keys, overriding [model] for one target
+    [model]       family ("eigenvalue" | "hamiltonian"), basis, basis_params, n_stages, loss,
+                  line_search_loss, line_search_penalty, alpha,
+                  basis_inputs ("prior" | "prior+features"), input_transform
+    [model.targets.<target>]  the same keys but family, overriding [model] for one target
+    [model.hamiltonian]  the parameter-space model of family = "hamiltonian" (its eigenvalue-
+                  space boosting stage on top uses the [model] keys above)
+    [evaluation]  extra estimates of evaluate: repeated CV on the training rows, nested CV
+                  over all rows
     [selection]   cv (folds, contiguous unless shuffle = true), shuffle, scoring
     [search]      the space a sweep searches (see workbench.experiment.space)
     [cv]          outer_folds, inner_folds, repeats, seed (nested CV of a sweep)
@@ -25,27 +30,49 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import pandas as pd
 from sklearn.metrics import get_scorer
 from sklearn.model_selection import KFold
 
 from ..bases import make_basis, make_transform
 from ..boosting import BaseBoostRegressor
 from ..datasets import Dataset, DatasetError, load_csv_dataset, load_google_5q
+from ..fitted_prior import FittedPriorBoost
 from ..multitarget import MultiTargetBaseBoost
+from ..param_boost import PARAM_LOSSES, HamiltonianParameterRegressor, default_library
+from ..param_select import HamiltonianSelectionCV, candidate_pool
 from ..selection import BaseBoostCV
 from .space import SearchSpace, SpaceError
 
 __all__ = ["ConfigError", "ExperimentConfig", "build_model", "load_config", "load_dataset",
-           "make_booster", "parse_config", "target_inputs"]
+           "make_booster", "make_hamiltonian", "model_inputs", "parse_config", "target_inputs"]
 
 TOP_KEYS = {"name", "description", "random_state", "n_jobs", "data", "model", "selection",
-            "search", "cv", "study", "tracking"}
+            "search", "cv", "study", "tracking", "evaluation"}
 DATA_KEYS = {"source", "data_dir", "csv", "prior", "targets", "features", "test_fraction",
              "split_column", "split_seed", "hamiltonian"}
-HAMILTONIAN_KEYS = {"onsite", "couplings", "sign"}
+HAMILTONIAN_KEYS = {"onsite", "couplings", "sign", "qubit_features", "coupler_features"}
 MODEL_KEYS = {"basis", "basis_params", "n_stages", "loss", "line_search_loss",
               "line_search_penalty", "alpha", "basis_inputs", "input_transform",
               "input_transform_params"}
+FAMILIES = ("eigenvalue", "hamiltonian")
+#: ``[model.hamiltonian]``: the parameter-space model (``family = "hamiltonian"``).
+#: ``start``: covariates every model has ("default": the default library, "none": intercepts);
+#: ``candidates``: the pool ("physical": candidate_pool with neighbours, "local": without,
+#: "none"); ``selection``: "forward" (forward selection by CV from start over the pool) or
+#: "none" (start and pool together, regularised by alpha / alpha_l1).
+HAMILTONIAN_DEFAULTS: dict[str, Any] = dict(
+    loss="huber", huber_delta=0.5, alpha=1.0, alpha_l1=0.0, max_iter=20, start="default",
+    candidates="physical", selection="forward", selection_cv=5, selection_repeats=1,
+    max_steps=20, min_improvement=1e-3, boost_stage=True, prior_cv=5)
+HAMILTONIAN_CHOICES: dict[str, tuple[str, ...]] = {
+    "loss": tuple(PARAM_LOSSES), "start": ("default", "none"),
+    "candidates": ("physical", "local", "none"), "selection": ("forward", "none")}
+#: ``[evaluation]``: ``cv_repeats`` > 0 adds a repeated ``cv_folds``-fold CV of the chosen
+#: model on the training rows (seeds ``cv_seed``...); ``nested_folds`` > 0 adds a nested CV
+#: over all rows (training and test), every choice remade inside each outer fold.
+EVALUATION_DEFAULTS: dict[str, Any] = dict(cv_folds=5, cv_repeats=0, cv_seed=1000,
+                                           nested_folds=0, nested_seed=0)
 SELECTION_KEYS = {"cv", "shuffle", "scoring"}
 BASIS_INPUTS = ("prior", "prior+features")
 SOURCES = ("google_5q", "csv")
@@ -95,6 +122,9 @@ class ExperimentConfig:
     cv: dict[str, Any] = field(default_factory=lambda: dict(CV_DEFAULTS))
     study: dict[str, Any] = field(default_factory=lambda: dict(STUDY_DEFAULTS))
     tracking: dict[str, Any] = field(default_factory=lambda: dict(TRACKING_DEFAULTS))
+    family: str = "eigenvalue"
+    hamiltonian: dict[str, Any] = field(default_factory=lambda: dict(HAMILTONIAN_DEFAULTS))
+    evaluation: dict[str, Any] = field(default_factory=lambda: dict(EVALUATION_DEFAULTS))
 
     def model_for(self, target: str | None) -> dict[str, Any]:
         """The model settings of one target: ``[model]`` overridden by its target table.
@@ -176,6 +206,62 @@ def _check_sweep_sections(where: str, raw: dict[str, Any]):
     return search, cv, study, tracking
 
 
+def _check_hamiltonian(where: str, table, family: str) -> dict[str, Any]:
+    label = f"{where} [model.hamiltonian]"
+    if table is not None and family != "hamiltonian":
+        raise ConfigError(f"{label}: applies to family = \"hamiltonian\" only (family is "
+                          f"{family!r})")
+    settings = {**HAMILTONIAN_DEFAULTS, **_table(label, table or {})}
+    _check_keys(label, settings, set(HAMILTONIAN_DEFAULTS))
+    for key, valid in HAMILTONIAN_CHOICES.items():
+        if settings[key] not in valid:
+            raise ConfigError(f"{label}: unknown {key} {settings[key]!r}; valid: {list(valid)}")
+    for key, minimum in (("selection_cv", 2), ("selection_repeats", 1), ("max_steps", 0),
+                         ("max_iter", 0), ("prior_cv", 2)):
+        _positive_int(label, key, settings[key], minimum)
+    if not isinstance(settings["boost_stage"], bool):
+        raise ConfigError(f"{label}: boost_stage must be true or false, got "
+                          f"{settings['boost_stage']!r}")
+    for key in ("huber_delta", "alpha", "alpha_l1", "min_improvement"):
+        value = settings[key]
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or value < 0:
+            raise ConfigError(f"{label}: {key} must be a number >= 0, got {value!r}")
+    if settings["huber_delta"] <= 0:
+        raise ConfigError(f"{label}: huber_delta must be > 0, got {settings['huber_delta']!r}")
+    return settings
+
+
+def make_hamiltonian(settings: dict[str, Any], dataset: Dataset, *, random_state=None,
+                     n_jobs=None):
+    """The parameter-space model that ``[model.hamiltonian]`` settings describe: a
+    :class:`HamiltonianSelectionCV` (``selection = "forward"``) or a
+    :class:`HamiltonianParameterRegressor` with the start and pool covariates together."""
+    ham = dataset.hamiltonian
+    if ham is None:
+        raise ConfigError(f"family = \"hamiltonian\" needs a dataset with Hamiltonian "
+                          f"parameters; {dataset.name!r} has none")
+    on, co = list(ham.onsite.columns), list(ham.couplings.columns)
+    common = dict(onsite=on, couplings=co, sign=ham.sign, loss=settings["loss"],
+                  huber_delta=float(settings["huber_delta"]), alpha=float(settings["alpha"]),
+                  alpha_l1=float(settings["alpha_l1"]), max_iter=settings["max_iter"])
+    start = default_library(on, co) if settings["start"] == "default" else {}
+    if settings["candidates"] == "none":
+        pool = {}
+    else:
+        pool = candidate_pool(on, co, ham.qubit_features, ham.coupler_features, base=None,
+                              neighbours=settings["candidates"] == "physical")
+    if settings["selection"] == "none":
+        merged = {p: list(dict.fromkeys(start.get(p, []) + pool.get(p, [])))
+                  for p in on + co}
+        return HamiltonianParameterRegressor(covariates=merged, **common)
+    return HamiltonianSelectionCV(candidates=pool, start=start or None,
+                                  cv=settings["selection_cv"],
+                                  n_repeats=settings["selection_repeats"],
+                                  max_steps=settings["max_steps"],
+                                  min_improvement=float(settings["min_improvement"]),
+                                  random_state=random_state, n_jobs=n_jobs, **common)
+
+
 def make_booster(settings: dict[str, Any], prior, inputs: list[str]) -> BaseBoostRegressor:
     """The :class:`BaseBoostRegressor` that one target's settings describe."""
     return BaseBoostRegressor(
@@ -206,6 +292,10 @@ def parse_config(raw: dict[str, Any], path: Path | None = None) -> ExperimentCon
     _check_data(f"{where} [data]", data)
     model = _table(f"{where} [model]", raw.get("model", {}))
     targets = _table(f"{where} [model.targets]", model.pop("targets", {}))
+    family = model.pop("family", "eigenvalue")
+    if family not in FAMILIES:
+        raise ConfigError(f"{where} [model]: unknown family {family!r}; valid: {list(FAMILIES)}")
+    hamiltonian = _check_hamiltonian(where, model.pop("hamiltonian", None), family)
     _check_keys(f"{where} [model]", model, MODEL_KEYS)
     tables = {None: model}
     for name, table in targets.items():
@@ -232,10 +322,22 @@ def parse_config(raw: dict[str, Any], path: Path | None = None) -> ExperimentCon
     except ValueError as exc:
         raise ConfigError(f"{where} [selection]: scoring: {exc}") from None
     search, cv, study, tracking = _check_sweep_sections(where, raw)
+    evaluation = {**EVALUATION_DEFAULTS,
+                  **_table(f"{where} [evaluation]", raw.get("evaluation", {}))}
+    _check_keys(f"{where} [evaluation]", evaluation, set(EVALUATION_DEFAULTS))
+    for key, minimum in (("cv_folds", 2), ("cv_repeats", 0), ("cv_seed", 0),
+                         ("nested_folds", 0), ("nested_seed", 0)):
+        _positive_int(f"{where} [evaluation]", key, evaluation[key], minimum)
+    if evaluation["nested_folds"] == 1:
+        raise ConfigError(f"{where} [evaluation]: nested_folds must be 0 (off) or >= 2, got 1")
+    if family == "hamiltonian" and data["source"] == "csv" and not data.get("hamiltonian"):
+        raise ConfigError(f"{where}: family = \"hamiltonian\" needs the Hamiltonian's columns "
+                          "in [data.hamiltonian] (onsite, couplings)")
     cfg = ExperimentConfig(path=path, name=str(raw.get("name", path.stem if path else "config")),
                            random_state=raw.get("random_state"), n_jobs=raw.get("n_jobs"),
                            data=data, model=model, targets=targets, selection=selection,
-                           search=search, cv=cv, study=study, tracking=tracking)
+                           search=search, cv=cv, study=study, tracking=tracking, family=family,
+                           hamiltonian=hamiltonian, evaluation=evaluation)
     for target in tables:
         settings = cfg.model_for(target)
         label = f"{where} [model{'' if target is None else '.targets.' + target}]"
@@ -281,6 +383,7 @@ def load_dataset(cfg: ExperimentConfig) -> Dataset:
             features=data.get("features", []), test_fraction=data.get("test_fraction"),
             split_column=data.get("split_column"), split_seed=data.get("split_seed", 0),
             onsite=ham.get("onsite"), couplings=ham.get("couplings"), sign=ham.get("sign", -1),
+            qubit_features=ham.get("qubit_features"), coupler_features=ham.get("coupler_features"),
             name=cfg.name)
     folds = cfg.selection["cv"]
     if len(ds.train_index) < 2 * folds:
@@ -290,14 +393,35 @@ def load_dataset(cfg: ExperimentConfig) -> Dataset:
     return ds
 
 
-def target_inputs(settings: dict[str, Any], dataset: Dataset) -> list[str]:
-    """The basis input columns that ``settings["basis_inputs"]`` names."""
+#: Prefix of the columns holding the parameter-space model's prediction (family hamiltonian).
+PRIOR_PREFIX = "prior_"
+
+
+def target_inputs(settings: dict[str, Any], dataset: Dataset,
+                  family: str = "eigenvalue") -> list[str]:
+    """The basis input columns that ``settings["basis_inputs"]`` names: the prior columns
+    (for family hamiltonian, the parameter-space model's predictions), optionally with the
+    features."""
     extra = dataset.feature_names if settings["basis_inputs"] == "prior+features" else []
+    if family == "hamiltonian":
+        return [f"{PRIOR_PREFIX}{t}" for t in dataset.target_names] + extra
     return dataset.prior_names + extra
 
 
-def build_model(cfg: ExperimentConfig, dataset: Dataset) -> MultiTargetBaseBoost:
-    """One :class:`BaseBoostCV` per target, target ``j`` boosting from prior column ``j``."""
+def model_inputs(cfg: ExperimentConfig, dataset: Dataset) -> pd.DataFrame:
+    """The frame a config's model reads: :attr:`Dataset.X`, plus the Hamiltonian's
+    parameter columns for family hamiltonian."""
+    return dataset.X_physics if cfg.family == "hamiltonian" else dataset.X
+
+
+def build_model(cfg: ExperimentConfig, dataset: Dataset):
+    """The config's unfitted model.
+
+    Family eigenvalue: one :class:`BaseBoostCV` per target, target ``j`` boosting from prior
+    column ``j`` (a :class:`MultiTargetBaseBoost`). Family hamiltonian: a
+    :class:`FittedPriorBoost` whose physics model is :func:`make_hamiltonian` and whose
+    per-target stage is the same BaseBoostCV, boosting from the physics model's prediction.
+    """
     names = dataset.target_names
     unknown = sorted(set(cfg.targets) - set(names))
     if unknown:
@@ -306,10 +430,20 @@ def build_model(cfg: ExperimentConfig, dataset: Dataset) -> MultiTargetBaseBoost
     selection = cfg.selection
     cv = KFold(selection["cv"], shuffle=selection["shuffle"],
                random_state=cfg.random_state if selection["shuffle"] else None)
+    hamiltonian = cfg.family == "hamiltonian"
     per_target = {}
     for target, prior in zip(names, dataset.prior_names):
         s = cfg.model_for(target)
-        booster = make_booster(s, prior=prior, inputs=target_inputs(s, dataset))
+        booster = make_booster(s, prior=None if hamiltonian else prior,
+                               inputs=target_inputs(s, dataset, cfg.family))
         per_target[target] = BaseBoostCV(booster, cv=cv, scoring=selection["scoring"])
-    return MultiTargetBaseBoost(target_estimators=per_target, n_jobs=cfg.n_jobs,
-                                random_state=cfg.random_state)
+    boost = MultiTargetBaseBoost(target_estimators=per_target, n_jobs=cfg.n_jobs,
+                                 random_state=cfg.random_state)
+    if not hamiltonian:
+        return boost
+    h = cfg.hamiltonian
+    physics = make_hamiltonian(h, dataset, random_state=cfg.random_state, n_jobs=cfg.n_jobs)
+    return FittedPriorBoost(physics, boost, prior_prefix=PRIOR_PREFIX,
+                            cv=KFold(h["prior_cv"], shuffle=True,
+                                     random_state=cfg.random_state or 0),
+                            boost_stage=h["boost_stage"])

@@ -7,12 +7,17 @@ import time
 from typing import Any, TextIO
 
 import numpy as np
+import pandas as pd
+from sklearn.base import clone
+from sklearn.model_selection import KFold
 
 from ..datasets import Dataset
-from ..multitarget import MultiTargetBaseBoost
-from .config import ExperimentConfig, build_model, load_dataset
+from ..fitted_prior import FittedPriorBoost
+from ..param_select import HamiltonianSelectionCV
+from .config import ExperimentConfig, build_model, load_dataset, model_inputs
 
-__all__ = ["evaluate", "fit_and_score", "format_table"]
+__all__ = ["evaluate", "fit_and_score", "fixed_choices", "format_table", "nested_cv_all",
+           "repeated_cv"]
 
 
 def _mae(a, b) -> np.ndarray:
@@ -43,24 +48,110 @@ def evaluate(cfg: ExperimentConfig, progress: TextIO | None | bool = True,
         print(f"[{cfg.name}] fitting {len(ds.target_names)} targets on {len(ds.train_index)} "
               f"training rows (test rows: {len(ds.test_index)})", file=progress, flush=True)
     result, model = fit_and_score(cfg, ds, build_model(cfg, ds))
+    ev = cfg.evaluation
+    if ev["cv_repeats"] > 0:
+        _say(progress, f"[{cfg.name}] repeated CV of the chosen model on the training rows "
+                       f"({ev['cv_repeats']} x {ev['cv_folds']} folds)")
+        rep = repeated_cv(cfg, ds, fixed_choices(model))
+        result["repeated_cv"] = rep
+        if cfg.family == "hamiltonian":
+            result["model"]["cv_mae"] = rep["model_mae"]
+            result["model"]["cv_mae_avg"] = rep["model_mae_avg"]
+    if ev["nested_folds"] > 0:
+        _say(progress, f"[{cfg.name}] nested CV over all {len(ds.targets)} rows "
+                       f"({ev['nested_folds']} outer folds, every choice remade inside)")
+        result["nested_cv_all"] = nested_cv_all(cfg, ds, progress=progress)
     result["wall_s"] = time.perf_counter() - start
     return (result, model, ds) if return_model else result
 
 
-def fit_and_score(cfg: ExperimentConfig, ds: Dataset, model: MultiTargetBaseBoost):
-    """Fit ``model`` (one BaseBoostCV per target) on the training rows and score prior and
-    model once on the test rows. Returns ``(result, fitted model)``."""
-    X_train, X_test, y_train, y_test = ds.split()
+def _say(progress, text: str) -> None:
+    if progress:
+        print(text, file=progress, flush=True)
+
+
+def fixed_choices(model):
+    """An unfitted copy of a fitted model with the choices it made on its training rows kept
+    (the parameter-space model's selected covariates); other models are cloned as they are
+    (BaseBoostCV repeats its own selection wherever it is fitted)."""
+    if isinstance(model, FittedPriorBoost) and isinstance(model.physics_, HamiltonianSelectionCV):
+        return clone(model).set_params(physics=model.physics_.selection_.estimator())
+    return clone(model)
+
+
+def _oof(model, X: pd.DataFrame, Y: pd.DataFrame, splits, progress=None, label=""
+         ) -> np.ndarray:
+    """Out-of-fold predictions of ``model`` refitted on each split's training rows."""
+    pred = np.empty(Y.shape)
+    for k, (train, val) in enumerate(splits):
+        fitted = clone(model).fit(X.iloc[train], Y.iloc[train])
+        pred[val] = np.asarray(fitted.predict(X.iloc[val]), dtype=float)
+        if label:
+            _say(progress, f"{label}: outer fold {k + 1}/{len(splits)} MAE "
+                           f"{np.abs(pred[val] - Y.iloc[val].to_numpy()).mean():.3f}")
+    return pred
+
+
+def repeated_cv(cfg: ExperimentConfig, ds: Dataset, model) -> dict[str, Any]:
+    """Repeated K-fold CV MAE (``[evaluation]`` cv_folds, cv_repeats, seeds cv_seed...) of
+    ``model`` (unfitted) on the training rows only, with the control program's MAE there."""
+    ev = cfg.evaluation
+    X = model_inputs(cfg, ds).loc[ds.train_index]
+    Y = ds.targets.loc[ds.train_index]
+    per_repeat = [_mae(Y, _oof(model, X, Y, KFold(ev["cv_folds"], shuffle=True,
+                                                  random_state=ev["cv_seed"] + r).split(X)))
+                  for r in range(ev["cv_repeats"])]
+    mae = np.mean(per_repeat, axis=0)
+    prior = _mae(Y, ds.prior.loc[ds.train_index].to_numpy())
+    return {"folds": ev["cv_folds"], "repeats": ev["cv_repeats"], "seed": ev["cv_seed"],
+            "model_mae": mae.tolist(), "model_mae_avg": _avg(mae),
+            "model_mae_avg_per_repeat": [_avg(m) for m in per_repeat],
+            "prior_mae": prior.tolist(), "prior_mae_avg": _avg(prior)}
+
+
+def nested_cv_all(cfg: ExperimentConfig, ds: Dataset, progress: TextIO | None = None
+                  ) -> dict[str, Any]:
+    """Nested CV over every row (training and test): in each of ``nested_folds`` outer folds
+    the whole model, every choice included, is fitted on the other rows and scored on the
+    fold's rows. The least noisy estimate for small data; no choice is made from it."""
+    ev = cfg.evaluation
+    X, Y = model_inputs(cfg, ds), ds.targets
+    splits = list(KFold(ev["nested_folds"], shuffle=True,
+                        random_state=ev["nested_seed"]).split(X))
+    pred = _oof(build_model(cfg, ds), X, Y, splits, progress, f"[{cfg.name}] nested CV")
+    mae = _mae(Y, pred)
+    prior = _mae(Y, ds.prior.to_numpy())
+    return {"folds": ev["nested_folds"], "seed": ev["nested_seed"], "n_rows": len(Y),
+            "model_mae": mae.tolist(), "model_mae_avg": _avg(mae),
+            "prior_mae": prior.tolist(), "prior_mae_avg": _avg(prior)}
+
+
+def fit_and_score(cfg: ExperimentConfig, ds: Dataset, model):
+    """Fit ``model`` (the config's, from :func:`build_model`) on the training rows and score
+    prior and model once on the test rows. Returns ``(result, fitted model)``."""
+    X_train, X_test, y_train, y_test = ds.split(model_inputs(cfg, ds))
     model.fit(X_train, y_train)
     pred = model.predict(X_test).to_numpy()
     prior_test = ds.prior.loc[ds.test_index].to_numpy()
+    if cfg.family == "hamiltonian":
+        result = _hamiltonian_result(cfg, ds, model, pred, prior_test, y_test, y_train)
+    else:
+        result = _eigenvalue_result(cfg, ds, model, pred, prior_test, y_test, len(X_train))
+    for part in ("prior", "model"):
+        for key in ("test_mae", "test_mse", "cv_mae"):
+            result[part][f"{key}_avg"] = _avg(result[part][key])
+    return result, model
+
+
+def _eigenvalue_result(cfg, ds, model, pred, prior_test, y_test, n_train) -> dict[str, Any]:
     cvs = model.estimators_
-    result = {
+    return {
         "name": cfg.name,
         "config": str(cfg.path) if cfg.path else None,
         "targets": ds.target_names,
-        "n_train": len(X_train),
-        "n_test": len(X_test),
+        "family": cfg.family,
+        "n_train": n_train,
+        "n_test": len(y_test),
         "prior": {
             "test_mae": _mae(y_test, prior_test).tolist(),
             "test_mse": _mse(y_test, prior_test).tolist(),
@@ -76,10 +167,55 @@ def fit_and_score(cfg: ExperimentConfig, ds: Dataset, model: MultiTargetBaseBoos
                       for e in cvs],
         },
     }
-    for part in ("prior", "model"):
-        for key in ("test_mae", "test_mse", "cv_mae"):
-            result[part][f"{key}_avg"] = _avg(result[part][key])
-    return result, model
+
+
+def _hamiltonian_result(cfg, ds, model: FittedPriorBoost, pred, prior_test, y_test,
+                        y_train) -> dict[str, Any]:
+    """Result of family hamiltonian. ``model.cv_mae`` is the CV MAE of the parameter-space
+    model's fixed choices on the training rows (replaced by the repeated CV when
+    ``[evaluation] cv_repeats`` > 0); ``selected`` says, per target, whether the
+    eigenvalue-space stage was kept."""
+    physics = model.physics_
+    regressor = physics.estimator_ if isinstance(physics, HamiltonianSelectionCV) else physics
+    prior_train = ds.prior.loc[ds.train_index].to_numpy()
+    ham: dict[str, Any] = {
+        "covariates": regressor.covariate_names_,
+        "coefficients": regressor.coefficient_table().to_dict(orient="records"),
+        "n_iter": regressor.n_iter_,
+    }
+    if isinstance(physics, HamiltonianSelectionCV):
+        sel = physics.selection_
+        ham["selection"] = {"cv_mae": sel.cv_mae, "steps": len(sel.path) - 1,
+                            "path": sel.path.to_dict(orient="records"),
+                            "seconds": sel.seconds}
+    boosted = model.boost_stage
+    cvs = model.boost_.estimators_ if boosted else []
+    stage_cv = ([float(-np.mean(e.cv_scores_prior_)) for e in cvs] if boosted
+                else [float("nan")] * len(ds.target_names))
+    return {
+        "name": cfg.name,
+        "config": str(cfg.path) if cfg.path else None,
+        "family": cfg.family,
+        "targets": ds.target_names,
+        "n_train": len(y_train),
+        "n_test": len(y_test),
+        "prior": {
+            "test_mae": _mae(y_test, prior_test).tolist(),
+            "test_mse": _mse(y_test, prior_test).tolist(),
+            "cv_mae": _mae(y_train, prior_train).tolist(),  # no fit: CV MAE = training MAE
+        },
+        "model": {
+            "test_mae": _mae(y_test, pred).tolist(),
+            "test_mse": _mse(y_test, pred).tolist(),
+            "cv_mae": [-e.cv_score_ for e in cvs] if boosted else stage_cv,
+            "cv_mae_hamiltonian": stage_cv,
+            "selected": ["hamiltonian+boosted" if s == "boosted" else "hamiltonian"
+                         for s in model.selected_],
+            "coefs": [e.best_estimator_.coefs_.tolist() if e.selected_ == "boosted" else []
+                      for e in cvs],
+        },
+        "hamiltonian": ham,
+    }
 
 
 def format_table(result: dict[str, Any]) -> str:
@@ -97,4 +233,12 @@ def format_table(result: dict[str, Any]) -> str:
                  f"{result['model']['test_mae_avg']:>11.3f}{result['model']['cv_mae_avg']:>14.3f}")
     lines.append(f"test MAE in the targets' units (MHz for the benchmark); "
                  f"wall time {result['wall_s']:.1f} s")
+    if "repeated_cv" in result:
+        r = result["repeated_cv"]
+        lines.append(f"repeated CV on the training rows ({r['repeats']} x {r['folds']} folds): "
+                     f"model {r['model_mae_avg']:.3f}, prior {r['prior_mae_avg']:.3f}")
+    if "nested_cv_all" in result:
+        r = result["nested_cv_all"]
+        lines.append(f"nested CV over all {r['n_rows']} rows ({r['folds']} outer folds): "
+                     f"model {r['model_mae_avg']:.3f}, prior {r['prior_mae_avg']:.3f}")
     return "\n".join(lines)

@@ -1,0 +1,114 @@
+"""Base boosting on top of a fitted physics model (workbench.fitted_prior)."""
+
+import warnings
+
+import numpy as np
+import pandas as pd
+import pytest
+from sklearn.base import BaseEstimator, RegressorMixin, clone
+from sklearn.exceptions import FitFailedWarning
+from sklearn.linear_model import Ridge
+
+from workbench import BaseBoostCV, BaseBoostRegressor, MultiTargetBaseBoost
+from workbench.fitted_prior import FittedPriorBoost
+from workbench.param_boost import HamiltonianParameterRegressor
+from workbench.simulate import Mismatch, simulate
+
+N = 5
+ONSITE = [f"model_f{i}" for i in range(1, N + 1)]
+COUPLINGS = [f"model_g{i}" for i in range(1, N)]
+MEASURED = [f"measured_E{i}" for i in range(1, N + 1)]
+VOLTAGES = [f"v_q{i}" for i in range(1, N + 1)] + [f"v_c{i}" for i in range(1, N)]
+INPUTS = VOLTAGES + ["temperature"]
+PRIORS = [f"prior_{t}" for t in MEASURED]
+
+
+@pytest.fixture(scope="module")
+def crosstalk():
+    """A coupler-induced frequency shift (which the Hamiltonian model corrects) plus an effect
+    of a variable outside the Hamiltonian ("temperature", on the third eigenvalue only) that
+    only the eigenvalue-space stage can learn."""
+    data = simulate(N, 260, seed=3, mismatch=Mismatch(coupler_frequency_shift=1.0,
+                                                      noise_sd=0.05)).data
+    data["temperature"] = np.random.default_rng(0).normal(size=len(data))
+    data["measured_E3"] += 1.5 * data["temperature"]
+    return data.iloc[:180], data.iloc[180:]
+
+
+def _physics():
+    return HamiltonianParameterRegressor(onsite=ONSITE, couplings=COUPLINGS)
+
+
+def _boost(basis):
+    booster = BaseBoostRegressor(basis=basis, basis_features=PRIORS + INPUTS,
+                                 line_search_penalty=0.0)
+    return MultiTargetBaseBoost(BaseBoostCV(booster, cv=5), random_state=0)
+
+
+def _mae(pred, frame):
+    return float(np.abs(np.asarray(pred) - frame[MEASURED].to_numpy()).mean())
+
+
+def test_boosting_stage_learns_what_the_physics_model_missed(crosstalk):
+    train, test = crosstalk
+    model = FittedPriorBoost(_physics(), _boost(Ridge(alpha=1e-3)))
+    model.fit(train, train[MEASURED])
+    pred = model.predict(test)
+    assert isinstance(pred, pd.DataFrame) and list(pred.columns) == MEASURED
+    assert pred.index.equals(test.index)
+    assert model.prior_columns_ == PRIORS
+    physics_alone = model.predict_prior(test)
+    assert np.allclose(physics_alone, _physics().fit(train, train[MEASURED]).predict(test))
+    assert model.selected_[2] == "boosted"
+    assert _mae(pred, test) < 0.9 * _mae(physics_alone, test)
+    e3 = test["measured_E3"].to_numpy()
+    assert np.abs(pred["measured_E3"] - e3).mean() < 0.5 * np.abs(physics_alone[:, 2] - e3).mean()
+    # the stage was trained on out-of-fold prior values, not the in-sample fit
+    in_sample = model.predict_prior(train)
+    oof = model.oof_prior_.to_numpy()
+    assert model.oof_prior_.index.equals(train.index)
+    assert not np.allclose(oof, in_sample)
+    y = train[MEASURED].to_numpy()
+    assert np.abs(oof - y).mean() > np.abs(in_sample - y).mean()
+
+
+class _Broken(RegressorMixin, BaseEstimator):
+    def fit(self, X, y):
+        raise RuntimeError("this basis always fails")
+
+    def predict(self, X):
+        raise RuntimeError("never fitted")
+
+
+def test_failed_boosting_keeps_the_physics_model(crosstalk):
+    train, test = crosstalk
+    model = FittedPriorBoost(_physics(), _boost(_Broken()))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FitFailedWarning)
+        model.fit(train, train[MEASURED])
+    assert model.selected_ == ["prior"] * N
+    assert np.allclose(model.predict(test).to_numpy(), model.predict_prior(test))
+
+
+def test_without_boost_stage_and_params(crosstalk):
+    train, test = crosstalk
+    model = FittedPriorBoost(_physics(), _boost(Ridge()), boost_stage=False, cv=3)
+    twin = clone(model)
+    assert twin.get_params()["cv"] == 3 and twin.get_params()["boost_stage"] is False
+    twin.fit(train, train[MEASURED].to_numpy())
+    assert list(twin.predict(test).columns) == [f"y{j}" for j in range(N)]
+    assert twin.selected_ == ["prior"] * N
+    assert not hasattr(twin, "boost_")
+    assert np.allclose(twin.predict(test).to_numpy(), twin.predict_prior(test))
+
+
+@pytest.mark.parametrize("change, match", [
+    (dict(physics=None), "physics must be"),
+    (dict(prior_prefix="v_"), r"X already has column\(s\) \['v_q1'"),
+])
+def test_bad_setups_raise(crosstalk, change, match):
+    train, _ = crosstalk
+    model = FittedPriorBoost(**{"physics": _physics(), "boost": _boost(Ridge()), **change})
+    Y = train[MEASURED].set_axis([f"q{i}" for i in range(1, N + 1)], axis=1)
+    with pytest.raises(ValueError, match=match):
+        model.fit(train, Y)

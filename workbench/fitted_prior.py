@@ -1,0 +1,134 @@
+"""Base boosting on top of a fitted multi-output physics model.
+
+:class:`FittedPriorBoost` first fits a multi-output model of all targets (for instance the
+parameter-space :class:`~workbench.param_select.HamiltonianSelectionCV`), then uses its
+prediction for target ``j`` as the prior of a per-target base-boosting stage
+(:class:`~workbench.MultiTargetBaseBoost` of :class:`~workbench.BaseBoostCV`, so each target
+keeps the physics model alone unless cross-validation says boosting helps).
+
+The boosting stage is trained on *out-of-fold* prior values, as scikit-learn's stacking does:
+on the training rows the prior column holds predictions of models refitted without each row
+(with the physics model's own choices fixed, e.g. the selected covariates); on new rows it
+holds the fitted physics model's predictions. Boosting the in-sample residuals of a flexible
+physics model would learn from residuals that are smaller than the ones it meets later.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+from sklearn.base import BaseEstimator, MetaEstimatorMixin, RegressorMixin, clone
+from sklearn.model_selection import check_cv
+from sklearn.utils.validation import check_is_fitted
+
+from .multitarget import MultiTargetBaseBoost
+
+__all__ = ["FittedPriorBoost"]
+
+
+def _refittable(fitted):
+    """An unfitted estimator with the fitted model's choices fixed (``estimator_`` of a
+    selection wrapper such as HamiltonianSelectionCV, else the model itself)."""
+    return clone(getattr(fitted, "estimator_", fitted))
+
+
+class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
+    """A multi-output model as the prior of per-target base boosting.
+
+    Parameters
+    ----------
+    physics : regressor
+        Multi-output regressor of all targets, fitted on ``(X, Y)``; ``predict`` returns
+        ``(n, n_targets)``.
+    boost : MultiTargetBaseBoost, default=None
+        The per-target stage (``None``: ``MultiTargetBaseBoost()``, i.e. ``BaseBoostCV`` with
+        its defaults). Its ``priors`` are set to the prior columns added here.
+    prior_prefix : str, default="prior_"
+        The prior of target ``t`` is added to ``X`` as column ``prior_prefix + t``; the
+        boosting stage's ``basis_features`` may name these columns.
+    cv : int or CV splitter, default=5
+        Folds of the out-of-fold prior on the training rows.
+    boost_stage : bool, default=True
+        ``False`` fits the physics model alone (``predict`` is its prediction).
+
+    Attributes
+    ----------
+    physics_ : the fitted physics model
+    boost_ : the fitted MultiTargetBaseBoost (``boost_stage=True``)
+    prior_columns_ : list of str
+    oof_prior_ : DataFrame, the out-of-fold prior on the training rows
+    target_names_ : list of str
+    """
+
+    def __init__(self, physics=None, boost=None, *, prior_prefix="prior_", cv=5,
+                 boost_stage=True):
+        self.physics = physics
+        self.boost = boost
+        self.prior_prefix = prior_prefix
+        self.cv = cv
+        self.boost_stage = boost_stage
+
+    def _with_prior(self, X: pd.DataFrame, prior: np.ndarray) -> pd.DataFrame:
+        clash = [c for c in self.prior_columns_ if c in X.columns]
+        if clash:
+            raise ValueError(f"X already has column(s) {clash}; choose another prior_prefix")
+        added = pd.DataFrame(prior, columns=self.prior_columns_, index=X.index)
+        return pd.concat([X, added], axis=1)
+
+    def fit(self, X, Y):
+        if self.physics is None:
+            raise ValueError("physics must be a multi-output regressor, got None")
+        if not isinstance(X, pd.DataFrame):
+            raise ValueError(f"X must be a pandas DataFrame, got {type(X).__name__}")
+        if isinstance(Y, pd.DataFrame):
+            names = [str(c) for c in Y.columns]
+            Y_arr = Y.to_numpy(dtype=float)
+        else:
+            Y_arr = np.asarray(Y, dtype=float)
+            if Y_arr.ndim != 2:
+                raise ValueError(f"Y must be 2-D (n_samples, n_targets), got shape "
+                                 f"{Y_arr.shape}")
+            names = [f"y{j}" for j in range(Y_arr.shape[1])]
+        if len(X) != len(Y_arr):
+            raise ValueError(f"X has {len(X)} rows but Y has {len(Y_arr)}")
+        self.target_names_ = names
+        self.prior_columns_ = [f"{self.prior_prefix}{t}" for t in names]
+        self.physics_ = clone(self.physics).fit(X, Y_arr)
+        self.n_features_in_ = X.shape[1]
+        self.feature_names_in_ = np.asarray([str(c) for c in X.columns], dtype=object)
+        if not self.boost_stage:
+            return self
+        oof = np.empty_like(Y_arr)
+        for train, val in check_cv(self.cv).split(X):
+            model = _refittable(self.physics_).fit(X.iloc[train], Y_arr[train])
+            oof[val] = model.predict(X.iloc[val])
+        self.oof_prior_ = pd.DataFrame(oof, columns=self.prior_columns_, index=X.index)
+        boost = MultiTargetBaseBoost() if self.boost is None else clone(self.boost)
+        boost.set_params(priors=self.prior_columns_)
+        Y_frame = pd.DataFrame(Y_arr, columns=names, index=X.index)
+        self.boost_ = boost.fit(self._with_prior(X, oof), Y_frame)
+        return self
+
+    def predict_prior(self, X) -> np.ndarray:
+        """The physics model's prediction, shape ``(n, n_targets)``."""
+        check_is_fitted(self)
+        return np.asarray(self.physics_.predict(X), dtype=float)
+
+    def predict(self, X) -> pd.DataFrame:
+        """Predictions as a DataFrame with one column per target."""
+        check_is_fitted(self)
+        prior = self.predict_prior(X)
+        if not self.boost_stage:
+            return pd.DataFrame(prior, columns=self.target_names_, index=X.index)
+        return self.boost_.predict(self._with_prior(X, prior))
+
+    @property
+    def selected_(self) -> list[str]:
+        """Per target: ``"prior"`` (the physics model alone) or ``"boosted"``."""
+        check_is_fitted(self)
+        if not self.boost_stage:
+            return ["prior"] * len(self.target_names_)
+        return self.boost_.selected_
+
+    def __sklearn_is_fitted__(self):
+        return hasattr(self, "physics_")
