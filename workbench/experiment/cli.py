@@ -104,13 +104,26 @@ def _cmd_evaluate(args) -> int:
     if args.jobs is not None:
         cfg = dataclasses.replace(cfg, n_jobs=args.jobs)
     _check_before_work(cfg, args)
+    if args.out is not None and cfg.family != "hamiltonian":
+        raise UsageError("--out writes the parameter-space model's tables and figures: it "
+                         f"needs a config with [model] family = \"hamiltonian\" ({args.config} "
+                         f"has family {cfg.family!r})")
     result, model, ds = evaluate(cfg, return_model=True)
+    if args.out is not None:
+        from .parameters import write_hamiltonian_outputs
+
+        written = write_hamiltonian_outputs(args.out, model, ds, setting=f"evaluate of "
+                                                                        f"{cfg.name}")
+        result["outputs"] = {k: str(v) for k, v in written.items()}
     if not args.no_track:
         from .record import record
 
         result["mlflow"] = record(cfg, result, model, ds, kind="evaluate",
                                   tracking_uri=args.tracking_uri)
     print(format_table(result))
+    if args.out is not None:
+        print(f"wrote {', '.join(sorted(Path(p).name for p in result['outputs'].values()))} "
+              f"to {args.out}")
     if args.json:
         _write_json(args.json, result)
         print(f"wrote {args.json}")
@@ -156,6 +169,9 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--json", metavar="PATH", help="also write the results as JSON")
     ev.add_argument("--jobs", type=int, default=None, metavar="N",
                     help="targets fitted in parallel (overrides the config's n_jobs)")
+    ev.add_argument("--out", metavar="DIR", default=None,
+                    help="family hamiltonian: write the coefficient, corrected-parameter and "
+                    "selection tables (CSV) and figures (PNG) to DIR")
     _tracking_args(ev)
     ev.set_defaults(func=_cmd_evaluate)
 

@@ -17,7 +17,7 @@ from ..param_select import HamiltonianSelectionCV
 from .config import ExperimentConfig, build_model, load_dataset, model_inputs
 
 __all__ = ["evaluate", "fit_and_score", "fixed_choices", "format_table", "nested_cv_all",
-           "repeated_cv"]
+           "physics_regressor", "repeated_cv"]
 
 
 def _mae(a, b) -> np.ndarray:
@@ -169,6 +169,18 @@ def _eigenvalue_result(cfg, ds, model, pred, prior_test, y_test, n_train) -> dic
     }
 
 
+def _records(table: pd.DataFrame) -> list[dict[str, Any]]:
+    """Rows as JSON-ready dicts (NaN -> None)."""
+    return table.astype(object).where(table.notna(), None).to_dict(orient="records")
+
+
+def physics_regressor(model: FittedPriorBoost):
+    """The fitted :class:`~workbench.param_boost.HamiltonianParameterRegressor` inside a
+    fitted family-hamiltonian model (after its covariate selection, if any)."""
+    physics = model.physics_
+    return physics.estimator_ if isinstance(physics, HamiltonianSelectionCV) else physics
+
+
 def _hamiltonian_result(cfg, ds, model: FittedPriorBoost, pred, prior_test, y_test,
                         y_train) -> dict[str, Any]:
     """Result of family hamiltonian. ``model.cv_mae`` is the CV MAE of the parameter-space
@@ -176,17 +188,17 @@ def _hamiltonian_result(cfg, ds, model: FittedPriorBoost, pred, prior_test, y_te
     ``[evaluation] cv_repeats`` > 0); ``selected`` says, per target, whether the
     eigenvalue-space stage was kept."""
     physics = model.physics_
-    regressor = physics.estimator_ if isinstance(physics, HamiltonianSelectionCV) else physics
+    regressor = physics_regressor(model)
     prior_train = ds.prior.loc[ds.train_index].to_numpy()
     ham: dict[str, Any] = {
         "covariates": regressor.covariate_names_,
-        "coefficients": regressor.coefficient_table().to_dict(orient="records"),
+        "coefficients": _records(regressor.coefficient_table()),
         "n_iter": regressor.n_iter_,
     }
     if isinstance(physics, HamiltonianSelectionCV):
         sel = physics.selection_
         ham["selection"] = {"cv_mae": sel.cv_mae, "steps": len(sel.path) - 1,
-                            "path": sel.path.to_dict(orient="records"),
+                            "path": _records(sel.path),
                             "seconds": sel.seconds}
     boosted = model.boost_stage
     cvs = model.boost_.estimators_ if boosted else []

@@ -7,6 +7,8 @@
 * :func:`voltage_boxplots` -- boxplots of the qubit and coupler bias voltages (Fig. S2).
 * :func:`prior_target_boxplots` -- paired boxplots of prior and target eigenenergies (Fig. S3).
 * :func:`model_comparison_bars` -- per-target error bars of 2 to 4 systems (Fig. S6, S7).
+* :func:`parameter_corrections` -- control-model vs corrected Hamiltonian parameters.
+* :func:`selection_path_figure` -- CV error along a forward covariate selection.
 * :func:`save_figure` -- write a figure to PNG and close it.
 
 Figures are built on :class:`matplotlib.figure.Figure` directly, never through pyplot, so no
@@ -27,7 +29,8 @@ from ..boosting import check_predictions
 from ..curves import LearningCurve
 
 __all__ = ["correlation_heatmap", "learning_curve_figure", "mae_bars", "model_comparison_bars",
-           "prior_target_boxplots", "save_figure", "shap_summary", "voltage_boxplots"]
+           "parameter_corrections", "prior_target_boxplots", "save_figure",
+           "selection_path_figure", "shap_summary", "voltage_boxplots"]
 
 #: Colours (Okabe-Ito, readable in grey scale and by colour-blind readers).
 PRIOR_COLOR = "#7f7f7f"
@@ -499,6 +502,74 @@ def model_comparison_bars(targets: Sequence[str], values: Mapping[str, Sequence[
                fontsize=10)
     default = f"Test {metric} per target: " + " vs ".join(systems)
     ax.set_title(_with_setting(title or default, setting), fontsize=12)
+    _style(ax)
+    return fig
+
+
+def parameter_corrections(control: pd.DataFrame, corrected: pd.DataFrame, *,
+                          groups: Mapping[str, Sequence] | None = None, unit: str = "MHz",
+                          title: str | None = None, setting: str | None = None) -> Figure:
+    """One panel per Hamiltonian parameter: its correction (corrected - control) against the
+    control model's value, one point per experiment.
+
+    ``control`` and ``corrected`` share columns (parameters) and rows (experiments).
+    ``groups`` optionally maps a legend label to row labels (e.g. ``{"training": idx,
+    "test": idx}``); rows in no group are drawn as "other".
+    """
+    control, corrected = _numeric_frame("control", control), _numeric_frame("corrected",
+                                                                            corrected)
+    if list(control.columns) != list(corrected.columns) or not control.index.equals(
+            corrected.index):
+        raise ValueError("control and corrected must have the same columns and rows; got "
+                         f"{list(control.columns)} and {list(corrected.columns)}")
+    delta = corrected - control
+    names = [str(c) for c in control.columns]
+    ncols = min(5, len(names))
+    nrows = -(-len(names) // ncols)
+    fig = _new_figure(2.6 * ncols + 0.6, 2.4 * nrows + 0.9)
+    axes = fig.subplots(nrows, ncols, squeeze=False)
+    members = {label: control.index.isin(list(rows)) for label, rows in (groups or {}).items()}
+    rest = ~np.any(list(members.values()), axis=0) if members else np.ones(len(control), bool)
+    if rest.any():
+        members["other" if members else "experiments"] = rest
+    colors = dict(zip(members, (MODEL_COLOR, TRAIN_COLOR, *OTHER_SYSTEM_COLORS)))
+    for ax, name in zip(axes.ravel(), names):
+        for label, mask in members.items():
+            ax.scatter(control.loc[mask, name], delta.loc[mask, name], s=12, alpha=0.75,
+                       color=colors[label], label=label, edgecolors="none")
+        ax.axhline(0.0, color=INCUMBENT_COLOR, lw=0.8, ls=":")
+        d = delta[name]
+        ax.set_title(f"{name}: {d.mean():+.2f} ± {d.std():.2f} {unit}", fontsize=10)
+        ax.set_xlabel(f"control {name} ({unit})", fontsize=9)
+        ax.set_ylabel(f"correction ({unit})", fontsize=9)
+        _style(ax)
+        ax.tick_params(labelsize=8)
+    for ax in axes.ravel()[len(names):]:
+        ax.set_visible(False)
+    axes.ravel()[0].legend(frameon=False, fontsize=8)
+    fig.suptitle(_with_setting(title or "Hamiltonian parameters: correction vs control model "
+                               "(mean ± sd)", setting), fontsize=12)
+    return fig
+
+
+def selection_path_figure(path: pd.DataFrame, *, unit: str = "MHz", title: str | None = None,
+                          setting: str | None = None) -> Figure:
+    """CV MAE after each step of a forward covariate selection (``path``: the columns step,
+    parameter, covariate, cv_mae of :class:`workbench.param_select.SelectionResult`)."""
+    missing = {"step", "parameter", "covariate", "cv_mae"} - set(path.columns)
+    if missing or path.empty:
+        raise ValueError(f"path needs rows and the columns step, parameter, covariate, cv_mae; "
+                         f"missing {sorted(missing)}" if missing else "path has no rows")
+    labels = ["start" if i == 0 else f"{p} ← {c}" for i, (p, c) in
+              enumerate(zip(path["parameter"], path["covariate"]))]
+    fig = _new_figure(max(5.0, 0.42 * len(labels) + 2.0), 4.2)
+    ax = fig.add_subplot()
+    ax.plot(np.arange(len(labels)), path["cv_mae"].to_numpy(dtype=float), marker="o",
+            color=MODEL_COLOR)
+    ax.set_xticks(np.arange(len(labels)), labels, rotation=60, ha="right", fontsize=8)
+    ax.set_xlabel("covariate added (parameter ← covariate)", fontsize=10)
+    ax.set_ylabel(f"CV MAE ({unit})", fontsize=11)
+    ax.set_title(_with_setting(title or "Forward covariate selection", setting), fontsize=12)
     _style(ax)
     return fig
 

@@ -1,6 +1,11 @@
 """Record an ``evaluate`` or ``sweep`` in MLflow: one parent run with the metrics, the config,
 the figures (MAE/MSE bars, an augmented learning curve and a SHAP summary per target) and the
-fitted multi-target model; for a sweep, a child run per trial and per outer fold."""
+fitted multi-target model; for a sweep, a child run per trial and per outer fold.
+
+For family hamiltonian the per-target learning curves and SHAP summaries (which need one
+single-target model per target) are replaced by the parameter-space model's own outputs:
+the parameter-correction and selection-path figures and the coefficient, corrected-parameter
+and selection-path tables (CSV) of :mod:`workbench.experiment.parameters`."""
 
 from __future__ import annotations
 
@@ -14,7 +19,7 @@ import pandas as pd
 
 from ..curves import augmented_learning_curve
 from ..datasets import Dataset
-from .config import ExperimentConfig
+from .config import ExperimentConfig, model_inputs
 from .figures import learning_curve_figure, mae_bars, shap_summary
 from .tracking import Tracker, dataset_hash, git_commit, resolve_tracking_uri
 
@@ -51,6 +56,12 @@ def _metrics(result: dict[str, Any]) -> dict[str, float]:
             m[f"{prefix}{key}_avg"] = result[part][f"{key}_avg"]
             for t, v in zip(result["targets"], result[part][key]):
                 m[f"{prefix}{key}.{t}"] = v
+    for key in ("repeated_cv", "nested_cv_all"):
+        if key in result:
+            m[f"{key}_mae_avg"] = result[key]["model_mae_avg"]
+            m[f"prior_{key}_mae_avg"] = result[key]["prior_mae_avg"]
+            for t, v in zip(result["targets"], result[key]["model_mae"]):
+                m[f"{key}_mae.{t}"] = v
     if "nested_cv_mae" in result:
         m["nested_cv_mae_avg"] = result["nested_cv_mae_avg"]
         m["prior_nested_cv_mae_avg"] = result["nested_cv_prior_mae_avg"]
@@ -61,6 +72,17 @@ def _metrics(result: dict[str, Any]) -> dict[str, float]:
     return m
 
 
+def _hamiltonian_artifacts(tracker: Tracker, run_id: str, model, ds: Dataset,
+                           setting: str) -> None:
+    from .parameters import hamiltonian_figures, hamiltonian_tables
+
+    for name, fig in hamiltonian_figures(model, ds, setting).items():
+        tracker.log_figure(run_id, fig, f"plots/{name}.png")
+    for name, table in hamiltonian_tables(model, ds).items():
+        tracker.log_text(run_id, table.to_csv(index=name == "corrected_parameters"),
+                         f"hamiltonian/{name}.csv")
+
+
 def _figures(tracker: Tracker, run_id: str, cfg: ExperimentConfig, result, model, ds: Dataset,
              setting: str, progress) -> dict[str, Any]:
     X_train, _, y_train, _ = ds.split()
@@ -69,6 +91,9 @@ def _figures(tracker: Tracker, run_id: str, cfg: ExperimentConfig, result, model
                        metric=metric, unit="MHz" if metric == "MAE" else "MHz²",
                        title=f"Test {metric} per target", setting=setting)
         tracker.log_figure(run_id, fig, f"plots/{name}.png")
+    if cfg.family == "hamiltonian":
+        _hamiltonian_artifacts(tracker, run_id, model, ds, setting)
+        return {}
     folds = cfg.selection["cv"]
     sizes = curve_sizes(len(X_train), folds)
     curves = {}
@@ -146,7 +171,7 @@ def record(cfg: ExperimentConfig, result: dict[str, Any], model, ds: Dataset, *,
     if progress is True:
         progress = sys.stderr
     tracker = tracker_for(cfg, tracking_uri)
-    X_train, X_test, y_train, y_test = ds.split()
+    X_train, X_test, y_train, y_test = ds.split(model_inputs(cfg, ds))
     tags = {"workbench.kind": kind, "config": str(cfg.path) if cfg.path else "",
             "dataset": ds.name, "dataset_hash": dataset_hash(ds.X, ds.targets),
             "git_commit": git_commit(Path(__file__).resolve().parents[2]) or "unknown"}
@@ -155,6 +180,9 @@ def record(cfg: ExperimentConfig, result: dict[str, Any], model, ds: Dataset, *,
     for target in result["targets"]:
         chosen = (settings or {}).get(target) or cfg.model_for(target)
         params.update(_flat(f"{target}.", chosen))
+    if cfg.family == "hamiltonian":
+        params["family"] = "hamiltonian"
+        params.update(_flat("hamiltonian.", cfg.hamiltonian))
     setting = f"{kind} of {cfg.name}"
     with tracker.run(f"{kind} {cfg.name}", tags=tags, params=params) as run_id:
         if progress:

@@ -1,0 +1,212 @@
+"""Family hamiltonian end to end: config, evaluate (CLI), tables, figures and MLflow."""
+
+import dataclasses
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from PIL import Image
+
+from workbench.experiment.cli import main
+from workbench.experiment.config import (ConfigError, build_model, load_config, load_dataset,
+                                         parse_config)
+from workbench.experiment.evaluate import evaluate
+from workbench.experiment.tracking import Tracker
+from workbench.fitted_prior import FittedPriorBoost
+from workbench.param_boost import HamiltonianParameterRegressor
+from workbench.param_select import HamiltonianSelectionCV
+from workbench.simulate import Mismatch, simulate, write_simulation
+
+N = 5
+DATA = {
+    "csv": "device.csv",
+    "prior": [f"model_E{i}" for i in range(1, N + 1)],
+    "targets": [f"measured_E{i}" for i in range(1, N + 1)],
+    "features": [f"v_q{i}" for i in range(1, N + 1)] + [f"v_c{i}" for i in range(1, N)],
+    "test_fraction": 0.3,
+    "hamiltonian": {"onsite": [f"model_f{i}" for i in range(1, N + 1)],
+                    "couplings": [f"model_g{i}" for i in range(1, N)], "sign": -1,
+                    "qubit_features": [f"v_q{i}" for i in range(1, N + 1)],
+                    "coupler_features": [f"v_c{i}" for i in range(1, N)]},
+}
+FAST = {"candidates": "local", "max_steps": 3, "selection_cv": 3}
+
+
+@pytest.fixture(scope="module")
+def device(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("device")
+    mismatch = Mismatch(coupler_frequency_shift=1.0, crosstalk=0.01, noise_sd=0.1)
+    write_simulation(simulate(N, 150, seed=1, mismatch=mismatch), folder / "device.csv")
+    return folder
+
+
+def _raw(hamiltonian=None, evaluation=None, **model):
+    raw = {"name": "ham", "random_state": 0, "data": dict(DATA),
+           "model": {"family": "hamiltonian", "basis": "ridge",
+                     "basis_inputs": "prior+features", "input_transform": "standard",
+                     "hamiltonian": {**FAST, **(hamiltonian or {})}, **model},
+           "selection": {"cv": 3}}
+    if evaluation is not None:
+        raw["evaluation"] = evaluation
+    return raw
+
+
+def _toml(path: Path, raw: dict) -> Path:
+    def value(v):
+        return json.dumps(v) if not isinstance(v, bool) else str(v).lower()
+
+    lines = [f"{k} = {value(v)}" for k, v in raw.items() if not isinstance(v, dict)]
+    tables = [("data", raw["data"]), ("model", raw["model"]), ("selection", raw["selection"])]
+    if "evaluation" in raw:
+        tables.append(("evaluation", raw["evaluation"]))
+    for name, table in tables:
+        lines.append(f"[{name}]")
+        lines += [f"{k} = {value(v)}" for k, v in table.items() if not isinstance(v, dict)]
+        for sub, inner in table.items():
+            if isinstance(inner, dict):
+                lines.append(f"[{name}.{sub}]")
+                lines += [f"{k} = {value(v)}" for k, v in inner.items()]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_config_builds_the_parameter_space_model(device):
+    cfg = parse_config(_raw(), device / "config.toml")
+    assert cfg.family == "hamiltonian" and cfg.hamiltonian["candidates"] == "local"
+    ds = load_dataset(cfg)
+    assert ds.hamiltonian.qubit_features == tuple(DATA["hamiltonian"]["qubit_features"])
+    model = build_model(cfg, ds)
+    assert isinstance(model, FittedPriorBoost)
+    assert isinstance(model.physics, HamiltonianSelectionCV)
+    assert model.physics.get_params()["max_steps"] == 3
+    assert set(model.physics.candidates["model_f1"]) == {"v_q1", "v_q1^2", "v_c1", "v_c1^2"}
+    fixed = build_model(parse_config(_raw({"selection": "none"}), device / "c.toml"), ds)
+    assert isinstance(fixed.physics, HamiltonianParameterRegressor)
+    assert "v_q1" in fixed.physics.covariates["model_f1"]  # start and pool together
+    assert "model_f1^2" in fixed.physics.covariates["model_f1"]
+
+
+@pytest.mark.parametrize("change, match", [
+    (lambda r: r["model"].update(family="hamiltonain"), r"unknown family 'hamiltonain'"),
+    (lambda r: r["model"].update(family="eigenvalue"),
+     r"\[model.hamiltonian\]: applies to family = \"hamiltonian\" only"),
+    (lambda r: r["model"]["hamiltonian"].update(candidate="local"),
+     r"unknown key\(s\) \['candidate'\]"),
+    (lambda r: r["model"]["hamiltonian"].update(loss="quantile"),
+     r"unknown loss 'quantile'; valid: \['squared_error', 'absolute_error', 'huber'\]"),
+    (lambda r: r["model"]["hamiltonian"].update(selection_cv=1), "selection_cv must be"),
+    (lambda r: r["model"]["hamiltonian"].update(huber_delta=0), "huber_delta must be > 0"),
+    (lambda r: r["model"]["hamiltonian"].update(boost_stage="yes"), "boost_stage must be"),
+    (lambda r: r["data"].pop("hamiltonian"), r"needs the Hamiltonian's columns"),
+    (lambda r: r.update(evaluation={"nested_folds": 1}), "nested_folds must be 0"),
+    (lambda r: r.update(evaluation={"cv_repeat": 1}), r"unknown key\(s\) \['cv_repeat'\]"),
+])
+def test_bad_hamiltonian_configs_raise(device, change, match):
+    raw = json.loads(json.dumps(_raw()))
+    change(raw)
+    with pytest.raises(ConfigError, match=match):
+        parse_config(raw, device / "config.toml")
+
+
+def test_qubit_features_must_match_the_chain(device):
+    raw = _raw()
+    raw["data"]["hamiltonian"] = {**DATA["hamiltonian"], "qubit_features": ["v_q1", "v_q2"]}
+    cfg = parse_config(raw, device / "config.toml")
+    with pytest.raises(ValueError, match="qubit_features needs 5 column"):
+        load_dataset(cfg)
+
+
+@pytest.fixture(scope="module")
+def cli_run(device, tmp_path_factory):
+    out = tmp_path_factory.mktemp("run")
+    cfg = _toml(device / "ham.toml", _raw(evaluation={"cv_repeats": 2, "cv_folds": 3,
+                                                      "nested_folds": 2}))
+    store = f"sqlite:///{out / 'mlflow.db'}"
+    code = main(["evaluate", str(cfg), "--json", str(out / "out.json"), "--out",
+                 str(out / "tables"), "--tracking-uri", store])
+    return code, json.loads((out / "out.json").read_text()), out, store, cfg
+
+
+def test_evaluate_reports_every_estimate(cli_run):
+    code, result, _, _, _ = cli_run
+    assert code == 0
+    assert result["family"] == "hamiltonian"
+    prior, model = result["prior"], result["model"]
+    assert model["test_mae_avg"] < 0.5 * prior["test_mae_avg"]
+    assert all(s in ("hamiltonian", "hamiltonian+boosted") for s in model["selected"])
+    ham = result["hamiltonian"]
+    assert 1 <= ham["selection"]["steps"] <= 3
+    assert len(ham["selection"]["path"]) == ham["selection"]["steps"] + 1
+    assert {r["parameter"] for r in ham["coefficients"]} <= set(
+        DATA["hamiltonian"]["onsite"] + DATA["hamiltonian"]["couplings"])
+    rep, nested = result["repeated_cv"], result["nested_cv_all"]
+    assert rep["repeats"] == 2 and len(rep["model_mae_avg_per_repeat"]) == 2
+    assert model["cv_mae"] == rep["model_mae"]  # the table shows the repeated CV
+    assert rep["model_mae_avg"] < 0.5 * rep["prior_mae_avg"]
+    assert nested["n_rows"] == 150 and nested["folds"] == 2
+    assert nested["model_mae_avg"] < 0.5 * nested["prior_mae_avg"]
+
+
+def test_evaluate_writes_tables_and_figures(cli_run):
+    _, result, out, _, _ = cli_run
+    tables = out / "tables"
+    coef = pd.read_csv(tables / "coefficients.csv")
+    assert list(coef.columns) == ["parameter", "covariate", "coef", "covariate_sd"]
+    params = pd.read_csv(tables / "corrected_parameters.csv", index_col=0)
+    assert len(params) == 150 and set(params["split"]) == {"train", "test"}
+    assert (params["split"] == "train").sum() == result["n_train"]
+    assert np.allclose(params["model_f1_corrected"] - params["model_f1_control"],
+                       params["model_f1_correction"])
+    path = pd.read_csv(tables / "selection_path.csv")
+    assert path["cv_mae"].is_monotonic_decreasing
+    for name in ("parameter_corrections", "selection_path"):
+        with Image.open(tables / f"{name}.png") as im:
+            assert im.size[0] > 300 and im.size[1] > 200
+
+
+def test_evaluate_is_tracked_and_the_model_serves(cli_run):
+    _, result, _, store, cfg = cli_run
+    tracker = Tracker(store, "ham")
+    run = tracker.client.get_run(result["mlflow"]["run_id"])
+    assert run.data.params["family"] == "hamiltonian"
+    assert run.data.metrics["nested_cv_all_mae_avg"] == pytest.approx(
+        result["nested_cv_all"]["model_mae_avg"])
+    arts = {a.path for a in tracker.client.list_artifacts(run.info.run_id, "hamiltonian")}
+    assert arts == {"hamiltonian/coefficients.csv", "hamiltonian/corrected_parameters.csv",
+                    "hamiltonian/selection_path.csv"}
+    plots = {a.path for a in tracker.client.list_artifacts(run.info.run_id, "plots")}
+    assert {"plots/parameter_corrections.png", "plots/selection_path.png",
+            "plots/mae_bars.png"} <= plots
+    served = tracker.load_model(result["mlflow"]["model_uri"])
+    _, model, ds = evaluate(parse_config_from(cfg), progress=None, return_model=True)
+    X = ds.X_physics.loc[ds.test_index]
+    assert np.allclose(np.asarray(served.predict(X)), model.predict(X).to_numpy())
+
+
+def parse_config_from(path: Path):
+    """The config of ``path`` without its extra CV estimates (the same fitted model)."""
+    cfg = load_config(path)
+    return dataclasses.replace(cfg, evaluation={**cfg.evaluation, "cv_repeats": 0,
+                                                "nested_folds": 0})
+
+
+def test_out_needs_family_hamiltonian(device, capsys):
+    raw = _raw()
+    raw["model"] = {"basis": "ridge"}
+    cfg = _toml(device / "eigen.toml", raw)
+    assert main(["evaluate", str(cfg), "--no-track", "--out", str(device / "x")]) == 2
+    assert "--out writes the parameter-space model's tables" in capsys.readouterr().err
+    assert not (device / "x").exists()
+
+
+def test_same_seed_same_numbers(device):
+    cfg = parse_config(_raw(), device / "config.toml")
+    first = evaluate(cfg, progress=None)
+    second = evaluate(cfg, progress=None)
+    for key in ("test_mae", "cv_mae"):
+        assert first["model"][key] == second["model"][key]
+    assert first["hamiltonian"]["coefficients"] == second["hamiltonian"]["coefficients"]
+    assert os.environ["MLFLOW_DISABLE_TELEMETRY"] == "true"
