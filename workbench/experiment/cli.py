@@ -87,9 +87,10 @@ def _cmd_sweep(args) -> int:
 
         best = {t: settings_for(cfg, t, p) for t, p in zip(result["targets"],
                                                           result["best_params"]) if p}
-        result["mlflow"] = record(cfg, result, details["model"], details["dataset"],
-                                  kind="sweep", tracking_uri=args.tracking_uri,
-                                  details=details, settings=best)
+        # the chosen configuration (family hamiltonian: its [model.hamiltonian] settings too)
+        result["mlflow"] = record(details["config"], result, details["model"],
+                                  details["dataset"], kind="sweep",
+                                  tracking_uri=args.tracking_uri, details=details, settings=best)
     print(format_table(result))
     print(f"nested-CV MAE: model {result['nested_cv_mae_avg']:.3f}, prior "
           f"{result['nested_cv_prior_mae_avg']:.3f} (average over targets)")

@@ -16,6 +16,7 @@ A config has these sections (see ``experiments/paper_main_body.toml`` for an ann
                   over all rows
     [selection]   cv (folds, contiguous unless shuffle = true), shuffle, scoring
     [search]      the space a sweep searches (see workbench.experiment.space)
+    [search.hamiltonian]  family hamiltonian: the [model.hamiltonian] settings a sweep varies
     [cv]          outer_folds, inner_folds, repeats, seed (nested CV of a sweep)
     [study]       trials, timeout, sampler, pruner, storage, study_name, workers
     [tracking]    tracking_uri, experiment (MLflow)
@@ -68,6 +69,11 @@ HAMILTONIAN_DEFAULTS: dict[str, Any] = dict(
 HAMILTONIAN_CHOICES: dict[str, tuple[str, ...]] = {
     "loss": tuple(PARAM_LOSSES), "start": ("default", "none"),
     "candidates": ("physical", "local", "none"), "selection": ("forward", "none")}
+#: ``[search.hamiltonian]``: the keys a sweep may vary, with the valid values of the
+#: categorical ones (every value a search can take is also checked like ``[model.hamiltonian]``).
+HAMILTONIAN_SEARCH: dict[str, tuple[Any, ...] | None] = {
+    key: HAMILTONIAN_CHOICES.get(key, (True, False) if key == "boost_stage" else None)
+    for key in HAMILTONIAN_DEFAULTS}
 #: ``[evaluation]``: ``cv_repeats`` > 0 adds a repeated ``cv_folds``-fold CV of the chosen
 #: model on the training rows (seeds ``cv_seed``...); ``nested_folds`` > 0 adds a nested CV
 #: over all rows (training and test), every choice remade inside each outer fold.
@@ -178,11 +184,19 @@ def _positive_int(where: str, key: str, value: Any, minimum: int) -> None:
         raise ConfigError(f"{where}: {key} must be an integer >= {minimum}, got {value!r}")
 
 
-def _check_sweep_sections(where: str, raw: dict[str, Any]):
+def _check_sweep_sections(where: str, raw: dict[str, Any], family: str = "eigenvalue"):
+    table = _table(f"{where} [search]", raw.get("search", {}))
+    hamiltonian = family == "hamiltonian"
+    if "hamiltonian" in table and not hamiltonian:
+        raise ConfigError(f"{where} [search.hamiltonian]: applies to family = \"hamiltonian\" "
+                          f"only (family is {family!r})")
     try:
-        search = SearchSpace.from_table(_table(f"{where} [search]", raw.get("search", {})))
+        search = SearchSpace.from_table(table, HAMILTONIAN_SEARCH if hamiltonian else None)
     except SpaceError as exc:
         raise ConfigError(f"{where} [search]: {exc}") from None
+    for key, values in search.hamiltonian_values().items():
+        for value in values:
+            _check_hamiltonian(where, {key: value}, family, section="search.hamiltonian")
     cv = {**CV_DEFAULTS, **_table(f"{where} [cv]", raw.get("cv", {}))}
     _check_keys(f"{where} [cv]", cv, set(CV_DEFAULTS))
     for key, minimum in (("outer_folds", 2), ("inner_folds", 2), ("repeats", 1), ("seed", 0)):
@@ -206,8 +220,9 @@ def _check_sweep_sections(where: str, raw: dict[str, Any]):
     return search, cv, study, tracking
 
 
-def _check_hamiltonian(where: str, table, family: str) -> dict[str, Any]:
-    label = f"{where} [model.hamiltonian]"
+def _check_hamiltonian(where: str, table, family: str,
+                       section: str = "model.hamiltonian") -> dict[str, Any]:
+    label = f"{where} [{section}]"
     if table is not None and family != "hamiltonian":
         raise ConfigError(f"{label}: applies to family = \"hamiltonian\" only (family is "
                           f"{family!r})")
@@ -321,7 +336,7 @@ def parse_config(raw: dict[str, Any], path: Path | None = None) -> ExperimentCon
         get_scorer(selection["scoring"])
     except ValueError as exc:
         raise ConfigError(f"{where} [selection]: scoring: {exc}") from None
-    search, cv, study, tracking = _check_sweep_sections(where, raw)
+    search, cv, study, tracking = _check_sweep_sections(where, raw, family)
     evaluation = {**EVALUATION_DEFAULTS,
                   **_table(f"{where} [evaluation]", raw.get("evaluation", {}))}
     _check_keys(f"{where} [evaluation]", evaluation, set(EVALUATION_DEFAULTS))

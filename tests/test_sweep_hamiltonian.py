@@ -1,0 +1,263 @@
+"""workbench sweep for family = "hamiltonian": one study per outer fold (and a final one) for
+all targets together, searching [search.hamiltonian] (and the shared boosting stage)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import optuna
+import pytest
+from optuna.trial import TrialState
+
+from workbench.experiment import search
+from workbench.experiment.cli import main
+from workbench.experiment.config import ConfigError, load_config, load_dataset
+from workbench.experiment.evaluate import evaluate
+from workbench.experiment.search import (_counted, _study_objective, open_storage, run_study,
+                                         run_sweep, settings_for, study_names)
+from workbench.simulate import Mismatch, simulate
+
+N = 5
+TARGETS = [f"measured_E{i}" for i in range(1, N + 1)]
+
+DATA = f"""
+[data]
+csv = "sim.csv"
+prior = {json.dumps([f"model_E{i}" for i in range(1, N + 1)])}
+targets = {json.dumps(TARGETS)}
+features = {json.dumps([f"v_q{i}" for i in range(1, N + 1)] + [f"v_c{i}" for i in range(1, N)])}
+test_fraction = 0.3
+
+[data.hamiltonian]
+onsite = {json.dumps([f"model_f{i}" for i in range(1, N + 1)])}
+couplings = {json.dumps([f"model_g{i}" for i in range(1, N)])}
+sign = -1
+qubit_features = {json.dumps([f"v_q{i}" for i in range(1, N + 1)])}
+coupler_features = {json.dumps([f"v_c{i}" for i in range(1, N)])}
+"""
+
+MODEL = """
+[model]
+family = "hamiltonian"
+basis = "ridge"
+basis_inputs = "prior+features"
+input_transform = "standard"
+
+[model.hamiltonian]
+selection = "none"
+boost_stage = false
+prior_cv = 2
+"""
+
+SEARCH = """
+[search.hamiltonian]
+alpha = { low = 0.1, high = 10.0, log = true }
+loss = ["huber", "squared_error"]
+huber_delta = { low = 0.2, high = 2.0 }
+candidates = ["physical", "local", "none"]
+selection = ["none"]
+"""
+
+SWEEP = """
+[cv]
+outer_folds = 2
+inner_folds = 3
+seed = 0
+
+[study]
+trials = 3
+storage = "optuna.journal"
+"""
+
+
+@pytest.fixture(scope="module")
+def sim_csv(tmp_path_factory):
+    path = tmp_path_factory.mktemp("sim") / "sim.csv"
+    simulate(N, 120, seed=0, mismatch=Mismatch.only("coupler_frequency_shift")).data.to_csv(
+        path, index=False)
+    return path
+
+
+@pytest.fixture
+def project(tmp_path, monkeypatch, sim_csv):
+    """A temporary project directory holding the simulated CSV (storage lands there)."""
+    (tmp_path / "sim.csv").write_bytes(sim_csv.read_bytes())
+    monkeypatch.chdir(tmp_path)
+    return tmp_path
+
+
+def write(directory, *, model=MODEL, search_=SEARCH, sweep=SWEEP, name="h.toml"):
+    path = directory / name
+    path.write_text(f'name = "hsweep"\nrandom_state = 0\n{DATA}\n{model}\n{search_}\n{sweep}\n')
+    return path
+
+
+def _counts(storage, names):
+    return {n: sum(_counted(t) for t in optuna.load_study(study_name=n, storage=storage)
+                   .get_trials()) for n in names}
+
+
+# --- the search space ---------------------------------------------------------------------
+
+def test_study_names_have_one_unit_for_all_targets(project):
+    cfg = load_config(write(project))
+    assert study_names(cfg, TARGETS) == [("hsweep.hamiltonian.outer0", "hamiltonian", 0),
+                                         ("hsweep.hamiltonian.outer1", "hamiltonian", 1),
+                                         ("hsweep.hamiltonian.final", "hamiltonian", None)]
+    eig = load_config(write(project, model='[model]\nbasis = "ridge"', search_="",
+                            name="e.toml"))
+    assert len(study_names(eig, TARGETS)) == 3 * N  # eigenvalue: per target, as before
+    assert study_names(eig, TARGETS)[0] == ("hsweep.measured_E1.outer0", "measured_E1", 0)
+
+
+def test_sampled_names_and_settings(project):
+    cfg = load_config(write(project, search_=SEARCH + '\n[search]\nline_search_penalty = '
+                            '{ low = 0.0, high = 0.5 }\n'))
+    trial = optuna.create_study(sampler=optuna.samplers.RandomSampler(seed=1)).ask()
+    ham = cfg.search.sample_hamiltonian(trial, cfg.hamiltonian)
+    assert set(trial.params) == {"hamiltonian.alpha", "hamiltonian.loss",
+                                 "hamiltonian.huber_delta", "hamiltonian.candidates",
+                                 "hamiltonian.selection"}
+    assert ham["alpha"] == trial.params["hamiltonian.alpha"] and ham["selection"] == "none"
+    assert ham["prior_cv"] == 2 and ham["boost_stage"] is False  # unsearched: the config's
+    params = {**trial.params, "line_search_penalty": 0.25}
+    s = settings_for(cfg, "measured_E2", params)
+    assert s["line_search_penalty"] == 0.25 and s["basis"] == "ridge"
+    assert s["hamiltonian"] == ham
+
+
+@pytest.mark.parametrize("entry, match", [
+    ("bogus = [1, 2]", r"\[search\].*hamiltonian: unknown key\(s\) \['bogus'\]; valid keys "
+                       r"are .*'alpha'.*'boost_stage'"),
+    ('loss = ["huber", "cauchy"]', r"hamiltonian\.loss: unknown value\(s\) \['cauchy'\].*"
+                                   r"'squared_error'"),
+    ('candidates = ["physical", "everything"]', r"hamiltonian\.candidates.*'everything'"),
+    ('selection = "backward"', r"hamiltonian\.selection.*'backward'"),
+    ('boost_stage = ["yes"]', r"hamiltonian\.boost_stage.*'yes'"),
+    ("boost_stage = { low = 0, high = 1 }", r"hamiltonian\.boost_stage"),
+    ("alpha = { low = -1.0, high = 1.0 }", r"\[search\.hamiltonian\]: alpha must be a number "
+                                           r">= 0, got -1\.0"),
+    ("huber_delta = [0.0, 1.0]", r"\[search\.hamiltonian\]: huber_delta must be > 0"),
+    ("selection_cv = { low = 1, high = 3 }", r"\[search\.hamiltonian\]: selection_cv must be "
+                                             r"an integer >= 2, got 1"),
+    ('max_steps = { low = "a", high = "b" }', r"hamiltonian\.max_steps: a range needs numbers"),
+    ("alpha = { low = 10.0, high = 1.0 }", r"hamiltonian\.alpha: low 10\.0 is above high"),
+])
+def test_bad_hamiltonian_search_is_a_config_error(project, entry, match):
+    with pytest.raises(ConfigError, match=match):
+        load_config(write(project, search_=f"[search.hamiltonian]\n{entry}\n"))
+
+
+def test_hamiltonian_search_needs_family_hamiltonian(project):
+    path = write(project, model='[model]\nbasis = "ridge"', search_=SEARCH)
+    with pytest.raises(ConfigError, match=r"\[search\.hamiltonian\]: applies to family = "
+                                          r"\"hamiltonian\" only \(family is 'eigenvalue'\)"):
+        load_config(path)
+
+
+def test_eigenvalue_keys_in_search_are_allowed_for_family_hamiltonian(project):
+    stage = '[search]\nbasis = ["ridge", "kernel_ridge"]\nn_stages = { low = 1, high = 2 }\n'
+    cfg = load_config(write(project, search_=f"{SEARCH}\n{stage}"))
+    assert cfg.search.table["basis"] == ["ridge", "kernel_ridge"]
+    assert "hamiltonian" not in cfg.search.table and "alpha" in cfg.search.hamiltonian
+
+
+# --- the sweep ----------------------------------------------------------------------------
+
+def test_sweep_nested_cv_results_and_resume(project, capsys):
+    cfg_path = write(project)
+    out = project / "out.json"
+    assert main(["sweep", str(cfg_path), "--json", str(out), "--no-track"]) == 0
+    res = json.loads(out.read_text())
+    assert "nested-CV MAE" in capsys.readouterr().out
+    assert res["family"] == "hamiltonian" and res["targets"] == TARGETS
+    assert res["trials"] == {"per_study": 3, "counted": 3 * 3, "studies": 3}
+    for key in ("nested_cv_mae", "nested_cv_prior_mae"):
+        assert len(res[key]) == N and all(math.isfinite(v) for v in res[key])
+    # the coupler frequency shift is learnable: far better than the control program
+    assert res["nested_cv_mae_avg"] < 0.5 * res["nested_cv_prior_mae_avg"]
+    assert res["model"]["test_mae_avg"] < 0.5 * res["prior"]["test_mae_avg"]
+    best = res["best_params"]
+    assert len(best) == N and all(p == best[0] for p in best)
+    assert best[0] and all(k.startswith("hamiltonian.") for k in best[0])
+
+    storage = open_storage("optuna.journal", project)
+    names = [n for n, _, _ in study_names(load_config(cfg_path), TARGETS)]
+    assert sorted(optuna.get_all_study_names(storage)) == sorted(names)
+    assert _counts(storage, names) == {n: 3 for n in names}
+    for name in names:
+        for t in optuna.load_study(study_name=name, storage=storage).get_trials():
+            assert t.state == TrialState.COMPLETE
+            folds = t.user_attrs["fold_mae"]
+            assert len(folds) == 3 and "heartbeat" in t.user_attrs
+            assert t.value == pytest.approx(np.mean(folds))
+            assert t.user_attrs["prior_cv_mae"] > t.value
+            # median pruner: the running mean of the inner folds' MAE, fold by fold
+            running = [np.mean(folds[:i + 1]) for i in range(3)]
+            assert [t.intermediate_values[i] for i in range(3)] == pytest.approx(running)
+
+    # a second run resumes: no new trials, the same choice and the same numbers
+    res2, details = run_sweep(load_config(cfg_path), progress=None)
+    assert _counts(storage, names) == {n: 3 for n in names}
+    assert res2["best_params"] == best
+    assert res2["nested_cv_mae"] == pytest.approx(res["nested_cv_mae"])
+    assert res2["model"]["test_mae"] == pytest.approx(res["model"]["test_mae"])
+    folds = details["outer_folds"]
+    assert [(f["target"], f["fold"], f["study"]) for f in folds] == [
+        ("hamiltonian", 0, "hsweep.hamiltonian.outer0"),
+        ("hamiltonian", 1, "hsweep.hamiltonian.outer1")]
+    for f in folds:
+        assert f["selected"] == ",".join(["hamiltonian"] * N)
+        assert f["n_train"] + f["n_val"] == res["n_train"]
+        assert f["mae"] < f["prior_mae"] and f["params"]["hamiltonian.selection"] == "none"
+    assert np.mean([f["mae"] for f in folds]) == pytest.approx(res["nested_cv_mae_avg"])
+    # the final model is the final study's choice
+    chosen = details["config"].hamiltonian
+    assert chosen["alpha"] == best[0]["hamiltonian.alpha"]
+    assert chosen["candidates"] == best[0]["hamiltonian.candidates"]
+
+
+def test_sweep_with_the_boosting_stage_searched_too(project):
+    stage = ('\n[search]\nline_search_penalty = { low = 0.0, high = 0.5 }\n'
+             '[selection]\ncv = 2\n')
+    search_ = (SEARCH.replace('selection = ["none"]', 'selection = "none"\nboost_stage = [true]')
+               .replace('"physical", "local", "none"', '"local", "none"'))  # fewer covariates
+    sweep = SWEEP.replace("trials = 3", "trials = 2").replace("inner_folds = 3",
+                                                              "inner_folds = 2")
+    cfg = load_config(write(project, search_=search_ + stage, sweep=sweep))
+    res, details = run_sweep(cfg, progress=None)
+    best = res["best_params"][0]
+    assert set(best) == {"hamiltonian.alpha", "hamiltonian.loss", "hamiltonian.huber_delta",
+                         "hamiltonian.candidates", "hamiltonian.boost_stage",
+                         "line_search_penalty"}
+    model = details["model"]
+    assert model.boost_stage is True
+    penalties = {e.estimator.line_search_penalty for e in model.boost_.estimators_}
+    assert penalties == {best["line_search_penalty"]}  # one setting shared by all targets
+    assert res["trials"]["counted"] == 3 * 2
+    assert res["nested_cv_mae_avg"] < res["nested_cv_prior_mae_avg"]
+
+
+def test_no_completed_trial_keeps_the_prior_then_the_config_settings(project, monkeypatch):
+    def broken(cfg, ds, X, Y, trial):
+        raise RuntimeError("every configuration fails")
+
+    monkeypatch.setattr(search, "_hamiltonian_objective", broken)
+    cfg = load_config(write(project, sweep=SWEEP.replace("trials = 3", "trials = 1")))
+    res, details = run_sweep(cfg, progress=None)
+    assert res["best_params"] == [None] * N
+    assert res["nested_cv_mae"] == res["nested_cv_prior_mae"]  # outer folds: the prior stands
+    assert all(f["selected"] == "prior" for f in details["outer_folds"])
+    own = evaluate(cfg, progress=None)  # final: the config's own settings
+    assert res["model"]["test_mae"] == pytest.approx(own["model"]["test_mae"])
+
+
+def test_wilcoxon_pruner_reads_each_inner_fold(project):
+    cfg = load_config(write(project, sweep=SWEEP + 'pruner = "wilcoxon"\n'))
+    ds = load_dataset(cfg)
+    study = optuna.create_study(pruner=optuna.pruners.NopPruner())
+    run_study(study, _study_objective(cfg, ds, "hamiltonian", None), 2)
+    for t in study.get_trials():
+        assert [t.intermediate_values[i] for i in range(3)] == t.user_attrs["fold_mae"]
