@@ -10,7 +10,8 @@ from workbench.experiment.cli import main
 FIGURE_IDS = ["fig2_mae_bars", "fig3_correlation", "fig4_learning_curve_Y3", "fig5_shap_Y1",
               "figS2_voltage_boxplots", "figS3_prior_target_boxplots", "figS4_mse_bars",
               "figS5_learning_curves", "figS6_tabula_rasa_mae", "figS7_tabula_rasa_mse",
-              "figS8_shap"]
+              "figS8_shap", "figH1_hamiltonian_mae_bars", "figH2_parameter_corrections",
+              "figH3_selection_path"]
 
 
 @pytest.fixture(scope="module")
@@ -46,6 +47,13 @@ def test_report_and_numbers(quick_run):
     assert f"**{paper['model']['test_mae_avg']:.3f}**" in text
     for fig_id in FIGURE_IDS:
         assert "figures/" + fig_id.split("_")[0] in text or fig_id in text
+    ham = res["settings"]["hamiltonian"]
+    assert ham["family"] == "hamiltonian"
+    assert ham["model"]["test_mae_avg"] < ham["prior"]["test_mae_avg"]
+    assert f"**{ham['model']['test_mae_avg']:.3f}**" in text  # the report's table row
+    assert "Repeated CV of the chosen model" in text
+    for name, path in res["hamiltonian_tables"].items():
+        assert (out / path).is_file() and f"[{name}]({path})" in text
     # learning-curve sizes are rows actually used, never more than 5-fold CV can train on
     lc = res["learning_curves"]
     assert max(lc["train_sizes"]) <= 76
@@ -72,7 +80,10 @@ def test_figures_show_the_json_numbers_and_mlflow_has_them(quick_run, tmp_path):
     children = client.search_runs([run.info.experiment_id],
                                   f"tags.mlflow.parentRunId = '{run.info.run_id}'")
     assert {c.info.run_name for c in children} == {"benchmark", "data", "learning_curves",
-                                                   "shap", "tabula_rasa"}
+                                                   "shap", "tabula_rasa", "hamiltonian"}
+    ham = res["settings"]["hamiltonian"]
+    assert run.data.metrics["hamiltonian.test_mae_avg"] == pytest.approx(
+        ham["model"]["test_mae_avg"])
     assert client.get_experiment(run.info.experiment_id).name == "paper-reproduction"
 
 
@@ -95,7 +106,8 @@ def test_same_seed_same_numbers_and_figures(quick_run, tmp_path, google_5q_dir, 
 
 def _without_wall(obj):
     if isinstance(obj, dict):
-        return {k: _without_wall(v) for k, v in obj.items() if k not in ("wall_s", "config")}
+        return {k: _without_wall(v) for k, v in obj.items()
+                if k not in ("wall_s", "config", "seconds")}
     if isinstance(obj, list):
         return [_without_wall(v) for v in obj]
     return obj
