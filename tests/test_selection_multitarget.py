@@ -97,6 +97,25 @@ def test_prior_and_candidate_scored_on_the_same_folds(data):
     np.testing.assert_allclose(cv.cv_scores_boosted_, expected_boosted)
 
 
+def test_out_of_fold_predictions_of_both_models(data):
+    X, y = data
+    folds = list(KFold(4).split(X))
+    cv = BaseBoostCV(BaseBoostRegressor(prior=2, basis=Ridge()), cv=folds).fit(X, y)
+    expected = np.empty_like(y)
+    for tr, te in folds:
+        expected[te] = BaseBoostRegressor(prior=2, basis=Ridge()).fit(X[tr], y[tr]).predict(X[te])
+    np.testing.assert_allclose(cv.cv_predictions_boosted_, expected)
+    np.testing.assert_array_equal(cv.cv_predictions_prior_, X[:, 2])
+    assert cv.selected_ == "boosted" and cv.cv_predictions_ is cv.cv_predictions_boosted_
+    # the fold scores are the MAE of these predictions, fold by fold
+    np.testing.assert_allclose(
+        cv.cv_scores_boosted_, [-np.mean(np.abs(y[te] - expected[te])) for _, te in folds])
+    with pytest.warns(FitFailedWarning):
+        failed = BaseBoostCV(BaseBoostRegressor(prior=2, basis=FailingRegressor())).fit(X, y)
+    assert np.all(np.isnan(failed.cv_predictions_boosted_))
+    assert failed.cv_predictions_ is failed.cv_predictions_prior_
+
+
 def test_refit_false_scores_only(data):
     X, y = data
     cv = BaseBoostCV(BaseBoostRegressor(prior=2, basis=Ridge()), refit=False).fit(X, y)

@@ -261,3 +261,21 @@ def test_wilcoxon_pruner_reads_each_inner_fold(project):
     run_study(study, _study_objective(cfg, ds, "hamiltonian", None), 2)
     for t in study.get_trials():
         assert [t.intermediate_values[i] for i in range(3)] == t.user_attrs["fold_mae"]
+
+
+def test_two_worker_processes_run_the_sweep(project):
+    """``--workers 2``: spawned processes share the journal; every study still ends with
+    exactly ``trials`` counted trials and no trial number twice."""
+    cfg = load_config(write(project))
+    result, details = run_sweep(cfg, workers=2, progress=None)
+    storage = open_storage(cfg.study["storage"], project)
+    names = [n for n, _, _ in study_names(cfg, TARGETS)]
+    assert _counts(storage, names) == {n: 3 for n in names}
+    for n in names:
+        numbers = [t.number for t in optuna.load_study(study_name=n, storage=storage)
+                   .get_trials()]
+        assert len(numbers) == len(set(numbers))
+    workers = {t.user_attrs.get("worker") for s in details["studies"].values()
+               for t in s.get_trials() if _counted(t)}
+    assert len(workers) == 2  # both processes took trials
+    assert result["trials"]["counted"] == 3 * len(names)

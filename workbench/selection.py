@@ -31,14 +31,16 @@ def find_prior(estimator):
 
 
 def _fold(incumbent, estimator, X, y, train, test, scorer):
+    """Scores of both models on one fold and their predictions on its held-out rows."""
     X_tr, X_te, y_tr, y_te = _safe_indexing(X, train), _safe_indexing(X, test), y[train], y[test]
-    prior_score = scorer(clone(incumbent).fit(X_tr, y_tr), X_te, y_te)
+    prior = clone(incumbent).fit(X_tr, y_tr)
+    prior_score, prior_pred = scorer(prior, X_te, y_te), prior.predict(X_te)
     try:
-        score = scorer(clone(estimator).fit(X_tr, y_tr), X_te, y_te)
-        error = None
+        fitted = clone(estimator).fit(X_tr, y_tr)
+        score, pred, error = scorer(fitted, X_te, y_te), fitted.predict(X_te), None
     except Exception as exc:  # a failed candidate is recorded, never chosen
-        score, error = np.nan, f"{type(exc).__name__}: {exc}"
-    return float(prior_score), float(score), error
+        score, pred, error = np.nan, np.full(len(test), np.nan), f"{type(exc).__name__}: {exc}"
+    return float(prior_score), float(score), error, np.asarray(prior_pred), np.asarray(pred)
 
 
 class BaseBoostCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
@@ -71,6 +73,9 @@ class BaseBoostCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
     selected_ : {"prior", "boosted"}
     cv_scores_prior_, cv_scores_boosted_ : ndarray of shape (n_splits,)
         Per-fold scores (NaN where the candidate failed).
+    cv_predictions_prior_, cv_predictions_boosted_ : ndarray of shape (n_samples,)
+        Out-of-fold predictions of each model (NaN for rows in no held-out fold and where
+        the candidate failed; a row held out by several folds keeps the last).
     fit_errors_ : list of str
         Messages of the candidate's failed fits.
     best_estimator_ : regressor
@@ -112,7 +117,7 @@ class BaseBoostCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
             y = y[:, 0]
         cv = check_cv(self.cv, y, classifier=False)
         scorer = check_scoring(candidate, scoring=self.scoring)
-        splits = cv.split(X, y)
+        splits = list(cv.split(X, y))
         if fold_callback is None:
             folds = Parallel(n_jobs=self.n_jobs)(
                 delayed(_fold)(incumbent, candidate, X, y, train, test, scorer)
@@ -124,6 +129,11 @@ class BaseBoostCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
                 fold_callback(i, folds[-1][0], folds[-1][1])
         self.cv_scores_prior_ = np.array([f[0] for f in folds])
         self.cv_scores_boosted_ = np.array([f[1] for f in folds])
+        self.cv_predictions_prior_ = np.full(len(y), np.nan)
+        self.cv_predictions_boosted_ = np.full(len(y), np.nan)
+        for (_, test), fold in zip(splits, folds):
+            self.cv_predictions_prior_[test] = fold[3]
+            self.cv_predictions_boosted_[test] = fold[4]
         self.fit_errors_ = [f[2] for f in folds if f[2] is not None]
         boosted_ok = not self.fit_errors_ and np.all(np.isfinite(self.cv_scores_boosted_))
         if self.fit_errors_:
@@ -144,6 +154,13 @@ class BaseBoostCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
             if self.selected_ == "prior":
                 self.best_estimator_ = clone(incumbent).fit(X, y)
         return self
+
+    @property
+    def cv_predictions_(self) -> np.ndarray:
+        """Out-of-fold predictions of the selected model."""
+        check_is_fitted(self)
+        return (self.cv_predictions_boosted_ if self.selected_ == "boosted"
+                else self.cv_predictions_prior_)
 
     @property
     def cv_score_(self) -> float:

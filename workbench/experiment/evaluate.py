@@ -55,8 +55,9 @@ def evaluate(cfg: ExperimentConfig, progress: TextIO | None | bool = True,
         rep = repeated_cv(cfg, ds, fixed_choices(model))
         result["repeated_cv"] = rep
         if cfg.family == "hamiltonian":
-            result["model"]["cv_mae"] = rep["model_mae"]
-            result["model"]["cv_mae_avg"] = rep["model_mae_avg"]
+            for key in ("mae", "mse"):
+                result["model"][f"cv_{key}"] = rep[f"model_{key}"]
+                result["model"][f"cv_{key}_avg"] = rep[f"model_{key}_avg"]
     if ev["nested_folds"] > 0:
         _say(progress, f"[{cfg.name}] nested CV over all {len(ds.targets)} rows "
                        f"({ev['nested_folds']} outer folds, every choice remade inside)")
@@ -98,13 +99,16 @@ def repeated_cv(cfg: ExperimentConfig, ds: Dataset, model) -> dict[str, Any]:
     ev = cfg.evaluation
     X = model_inputs(cfg, ds).loc[ds.train_index]
     Y = ds.targets.loc[ds.train_index]
-    per_repeat = [_mae(Y, _oof(model, X, Y, KFold(ev["cv_folds"], shuffle=True,
-                                                  random_state=ev["cv_seed"] + r).split(X)))
-                  for r in range(ev["cv_repeats"])]
+    preds = [_oof(model, X, Y, KFold(ev["cv_folds"], shuffle=True,
+                                     random_state=ev["cv_seed"] + r).split(X))
+             for r in range(ev["cv_repeats"])]
+    per_repeat = [_mae(Y, p) for p in preds]
     mae = np.mean(per_repeat, axis=0)
+    mse = np.mean([_mse(Y, p) for p in preds], axis=0)
     prior = _mae(Y, ds.prior.loc[ds.train_index].to_numpy())
     return {"folds": ev["cv_folds"], "repeats": ev["cv_repeats"], "seed": ev["cv_seed"],
             "model_mae": mae.tolist(), "model_mae_avg": _avg(mae),
+            "model_mse": mse.tolist(), "model_mse_avg": _avg(mse),
             "model_mae_avg_per_repeat": [_avg(m) for m in per_repeat],
             "prior_mae": prior.tolist(), "prior_mae_avg": _avg(prior)}
 
@@ -119,10 +123,11 @@ def nested_cv_all(cfg: ExperimentConfig, ds: Dataset, progress: TextIO | None = 
     splits = list(KFold(ev["nested_folds"], shuffle=True,
                         random_state=ev["nested_seed"]).split(X))
     pred = _oof(build_model(cfg, ds), X, Y, splits, progress, f"[{cfg.name}] nested CV")
-    mae = _mae(Y, pred)
+    mae, mse = _mae(Y, pred), _mse(Y, pred)
     prior = _mae(Y, ds.prior.to_numpy())
     return {"folds": ev["nested_folds"], "seed": ev["nested_seed"], "n_rows": len(Y),
             "model_mae": mae.tolist(), "model_mae_avg": _avg(mae),
+            "model_mse": mse.tolist(), "model_mse_avg": _avg(mse),
             "prior_mae": prior.tolist(), "prior_mae_avg": _avg(prior)}
 
 
@@ -136,15 +141,27 @@ def fit_and_score(cfg: ExperimentConfig, ds: Dataset, model):
     if cfg.family == "hamiltonian":
         result = _hamiltonian_result(cfg, ds, model, pred, prior_test, y_test, y_train)
     else:
-        result = _eigenvalue_result(cfg, ds, model, pred, prior_test, y_test, len(X_train))
+        result = _eigenvalue_result(cfg, ds, model, pred, prior_test, y_test, y_train)
     for part in ("prior", "model"):
-        for key in ("test_mae", "test_mse", "cv_mae"):
+        for key in ("test_mae", "test_mse", "cv_mae", "cv_mse"):
             result[part][f"{key}_avg"] = _avg(result[part][key])
     return result, model
 
 
-def _eigenvalue_result(cfg, ds, model, pred, prior_test, y_test, n_train) -> dict[str, Any]:
+def _cv_mse(y, predictions) -> float:
+    """MSE of out-of-fold predictions (rows without one, e.g. failed folds, left out)."""
+    y, p = np.asarray(y, dtype=float), np.asarray(predictions, dtype=float)
+    ok = np.isfinite(p)
+    return float(np.mean((y[ok] - p[ok]) ** 2)) if ok.any() else float("nan")
+
+
+def _eigenvalue_result(cfg, ds, model, pred, prior_test, y_test, y_train) -> dict[str, Any]:
+    """Result of family eigenvalue: CV figures are BaseBoostCV's own (its folds of the
+    training rows): ``cv_mae`` the mean fold score, ``cv_mse`` from the out-of-fold
+    predictions."""
     cvs = model.estimators_
+    Y = y_train.to_numpy(dtype=float)
+    n_train = len(Y)
     return {
         "name": cfg.name,
         "config": str(cfg.path) if cfg.path else None,
@@ -156,11 +173,13 @@ def _eigenvalue_result(cfg, ds, model, pred, prior_test, y_test, n_train) -> dic
             "test_mae": _mae(y_test, prior_test).tolist(),
             "test_mse": _mse(y_test, prior_test).tolist(),
             "cv_mae": [float(-np.mean(e.cv_scores_prior_)) for e in cvs],
+            "cv_mse": [_cv_mse(Y[:, j], e.cv_predictions_prior_) for j, e in enumerate(cvs)],
         },
         "model": {
             "test_mae": _mae(y_test, pred).tolist(),
             "test_mse": _mse(y_test, pred).tolist(),
             "cv_mae": [-e.cv_score_ for e in cvs],
+            "cv_mse": [_cv_mse(Y[:, j], e.cv_predictions_) for j, e in enumerate(cvs)],
             "cv_mae_boosted": [float(-np.mean(e.cv_scores_boosted_)) for e in cvs],
             "selected": model.selected_,
             "coefs": [e.best_estimator_.coefs_.tolist() if e.selected_ == "boosted" else []
@@ -202,8 +221,9 @@ def _hamiltonian_result(cfg, ds, model: FittedPriorBoost, pred, prior_test, y_te
                             "seconds": sel.seconds}
     boosted = model.boost_stage
     cvs = model.boost_.estimators_ if boosted else []
-    stage_cv = ([float(-np.mean(e.cv_scores_prior_)) for e in cvs] if boosted
-                else [float("nan")] * len(ds.target_names))
+    Y = y_train.to_numpy(dtype=float)
+    nan = [float("nan")] * len(ds.target_names)
+    stage_cv = [float(-np.mean(e.cv_scores_prior_)) for e in cvs] if boosted else nan
     return {
         "name": cfg.name,
         "config": str(cfg.path) if cfg.path else None,
@@ -215,11 +235,14 @@ def _hamiltonian_result(cfg, ds, model: FittedPriorBoost, pred, prior_test, y_te
             "test_mae": _mae(y_test, prior_test).tolist(),
             "test_mse": _mse(y_test, prior_test).tolist(),
             "cv_mae": _mae(y_train, prior_train).tolist(),  # no fit: CV MAE = training MAE
+            "cv_mse": _mse(y_train, prior_train).tolist(),
         },
         "model": {
             "test_mae": _mae(y_test, pred).tolist(),
             "test_mse": _mse(y_test, pred).tolist(),
             "cv_mae": [-e.cv_score_ for e in cvs] if boosted else stage_cv,
+            "cv_mse": ([_cv_mse(Y[:, j], e.cv_predictions_) for j, e in enumerate(cvs)]
+                       if boosted else nan),
             "cv_mae_hamiltonian": stage_cv,
             "selected": ["hamiltonian+boosted" if s == "boosted" else "hamiltonian"
                          for s in model.selected_],

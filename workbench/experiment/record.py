@@ -52,7 +52,7 @@ def _flat(prefix: str, settings: dict[str, Any]) -> dict[str, Any]:
 def _metrics(result: dict[str, Any]) -> dict[str, float]:
     m: dict[str, float] = {"wall_s": result["wall_s"]}
     for part, prefix in (("model", ""), ("prior", "prior_")):
-        for key in ("test_mae", "test_mse", "cv_mae"):
+        for key in ("test_mae", "test_mse", "cv_mae", "cv_mse"):
             m[f"{prefix}{key}_avg"] = result[part][f"{key}_avg"]
             for t, v in zip(result["targets"], result[part][key]):
                 m[f"{prefix}{key}.{t}"] = v

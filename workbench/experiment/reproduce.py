@@ -231,7 +231,7 @@ def _hamiltonian(settings: dict[str, Any], seed: int, quick: bool, progress):
     hamiltonian = dict(cfg.hamiltonian)
     if quick:
         evaluation.update(cv_repeats=1, nested_folds=0)
-        hamiltonian.update(candidates="local", max_steps=3)
+        hamiltonian.update(candidates="local", max_steps=2, selection_cv=3)
     cfg = replace(cfg, random_state=seed, evaluation=evaluation, hamiltonian=hamiltonian)
     nested = f", then a nested CV over all rows ({evaluation['nested_folds']} outer folds)" \
         if evaluation["nested_folds"] else ""
@@ -364,7 +364,10 @@ are scored once per setting.
 {chr(10).join(rows)}
 
 The first three rows are the control program and the reference implementation as measured on
-this kind of machine (not recomputed here). "Paper settings": the paper's stacking basis,
+this kind of machine (not recomputed here). The paper's claim is that base boosting with its
+settings beats the control program on every eigenenergy, at about 1.08 MHz on average; its
+own per-target table is not part of this project's material, so the reference
+implementation's measured rows stand in for it. "Paper settings": the paper's stacking basis,
 K = 1, squared-error residuals, absolute-error line search with penalty 0.1, inbuilt model
 selection by 5-fold CV. "Improved settings": Huber losses, ridge basis for Y3. The search row
 is the configuration chosen per target by nested cross-validation on the training rows
