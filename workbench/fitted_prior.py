@@ -21,7 +21,7 @@ from sklearn.base import BaseEstimator, MetaEstimatorMixin, RegressorMixin, clon
 from sklearn.model_selection import check_cv
 from sklearn.utils.validation import check_is_fitted
 
-from .multitarget import MultiTargetBaseBoost
+from .multitarget import MultiTargetBaseBoost, check_targets
 
 __all__ = ["FittedPriorBoost"]
 
@@ -80,17 +80,7 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
             raise ValueError("physics must be a multi-output regressor, got None")
         if not isinstance(X, pd.DataFrame):
             raise ValueError(f"X must be a pandas DataFrame, got {type(X).__name__}")
-        if isinstance(Y, pd.DataFrame):
-            names = [str(c) for c in Y.columns]
-            Y_arr = Y.to_numpy(dtype=float)
-        else:
-            Y_arr = np.asarray(Y, dtype=float)
-            if Y_arr.ndim != 2:
-                raise ValueError(f"Y must be 2-D (n_samples, n_targets), got shape "
-                                 f"{Y_arr.shape}")
-            names = [f"y{j}" for j in range(Y_arr.shape[1])]
-        if len(X) != len(Y_arr):
-            raise ValueError(f"X has {len(X)} rows but Y has {len(Y_arr)}")
+        Y_arr, names = check_targets(X, Y)
         self.target_names_ = names
         self.prior_columns_ = [f"{self.prior_prefix}{t}" for t in names]
         self.physics_ = clone(self.physics).fit(X, Y_arr)

@@ -12,7 +12,23 @@ from sklearn.utils.validation import check_is_fitted
 from .boosting import seed_estimator
 from .selection import BaseBoostCV
 
-__all__ = ["MultiTargetBaseBoost"]
+__all__ = ["MultiTargetBaseBoost", "check_targets"]
+
+
+def check_targets(X, Y) -> tuple[np.ndarray, list[str]]:
+    """``Y`` (a DataFrame, or a 2-D array whose targets are named ``y0, y1, ...``) as a float
+    array with ``len(X)`` rows, and the target names."""
+    if isinstance(Y, pd.DataFrame):
+        names = [str(c) for c in Y.columns]
+        Y = Y.to_numpy(dtype=float)
+    else:
+        Y = np.asarray(Y, dtype=float)
+        if Y.ndim != 2:
+            raise ValueError(f"Y must be 2-D (n_samples, n_targets), got shape {Y.shape}")
+        names = [f"y{j}" for j in range(Y.shape[1])]
+    if len(X) != len(Y):
+        raise ValueError(f"X has {len(X)} rows but Y has {len(Y)}")
+    return Y, names
 
 
 def _set_prior(estimator, prior):
@@ -84,16 +100,7 @@ class MultiTargetBaseBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
 
     def fit(self, X, Y):
         """Fit each target's estimator on ``(X, Y[:, j])``; returns ``self``."""
-        if isinstance(Y, pd.DataFrame):
-            names = [str(c) for c in Y.columns]
-            Y = Y.to_numpy(dtype=float)
-        else:
-            Y = np.asarray(Y, dtype=float)
-            if Y.ndim != 2:
-                raise ValueError(f"Y must be 2-D (n_samples, n_targets), got shape {Y.shape}")
-            names = [f"y{j}" for j in range(Y.shape[1])]
-        if len(X) != len(Y):
-            raise ValueError(f"X has {len(X)} rows but Y has {len(Y)}")
+        Y, names = check_targets(X, Y)
         ests = self._estimators_for(names)
         self.estimators_ = Parallel(n_jobs=self.n_jobs)(
             delayed(_fit_one)(est, X, Y[:, j]) for j, est in enumerate(ests))
