@@ -52,6 +52,7 @@ def test_report_and_numbers(quick_run):
     assert ham["model"]["test_mae_avg"] < ham["prior"]["test_mae_avg"]
     assert f"**{ham['model']['test_mae_avg']:.3f}**" in text  # the report's table row
     assert "Repeated CV of the chosen model" in text
+    assert "`workbench evaluate experiments/hamiltonian.toml` computes it" in text
     for name, path in res["hamiltonian_tables"].items():
         assert (out / path).is_file() and f"[{name}]({path})" in text
     # learning-curve sizes are rows actually used, never more than 5-fold CV can train on

@@ -217,6 +217,7 @@ def _hamiltonian_result(cfg, ds, model: FittedPriorBoost, pred, prior_test, y_te
     if isinstance(physics, HamiltonianSelectionCV):
         sel = physics.selection_
         ham["selection"] = {"cv_mae": sel.cv_mae, "steps": len(sel.path) - 1,
+                            "folds": physics.cv, "repeats": physics.n_repeats,
                             "path": _records(sel.path),
                             "seconds": sel.seconds}
     boosted = model.boost_stage
