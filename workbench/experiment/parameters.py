@@ -23,11 +23,14 @@ from ..fitted_prior import FittedPriorBoost
 from .evaluate import physics_regressor
 from .figures import parameter_corrections, save_figure, selection_path_figure
 
-__all__ = ["hamiltonian_figures", "hamiltonian_tables", "write_hamiltonian_outputs"]
+__all__ = ["hamiltonian_outputs", "write_hamiltonian_outputs", "write_tables"]
 
 
-def hamiltonian_tables(model: FittedPriorBoost, ds: Dataset) -> dict[str, pd.DataFrame]:
-    """The coefficient, corrected-parameter and selection-path tables of a fitted model."""
+def hamiltonian_outputs(model: FittedPriorBoost, ds: Dataset, setting: str | None = None
+                        ) -> tuple[dict[str, pd.DataFrame], dict[str, Figure]]:
+    """The tables and figures of a fitted model, from one computation of the corrected
+    parameters of every experiment. Every table is written without its index (the
+    corrected parameters carry the experiment label in the column ``experiment``)."""
     regressor = physics_regressor(model)
     X = ds.X_physics
     names = regressor.parameter_names_
@@ -35,47 +38,41 @@ def hamiltonian_tables(model: FittedPriorBoost, ds: Dataset) -> dict[str, pd.Dat
     corrected = regressor.corrected_parameters(X)
     split = pd.Series("test", index=X.index, name="split")
     split.loc[ds.train_index] = "train"
-    columns = {"split": split}
+    columns = {"experiment": pd.Series(X.index, index=X.index), "split": split}
     for p in names:
         columns[f"{p}_control"] = control[p]
         columns[f"{p}_corrected"] = corrected[p]
         columns[f"{p}_correction"] = corrected[p] - control[p]
     tables = {"coefficients": regressor.coefficient_table(),
               "corrected_parameters": pd.DataFrame(columns)}
+    figures = {"parameter_corrections": parameter_corrections(
+        control, corrected, groups={"training rows": ds.train_index, "test rows": ds.test_index},
+        setting=setting)}
     selection = getattr(model.physics_, "selection_", None)
     if selection is not None:
         tables["selection_path"] = selection.path
-    return tables
-
-
-def hamiltonian_figures(model: FittedPriorBoost, ds: Dataset, setting: str | None = None
-                        ) -> dict[str, Figure]:
-    """``parameter_corrections`` (every experiment, training and test rows marked) and, when
-    the covariates were selected, ``selection_path``."""
-    regressor = physics_regressor(model)
-    X = ds.X_physics
-    names = regressor.parameter_names_
-    figs = {"parameter_corrections": parameter_corrections(
-        X[names], regressor.corrected_parameters(X),
-        groups={"training rows": ds.train_index, "test rows": ds.test_index}, setting=setting)}
-    selection = getattr(model.physics_, "selection_", None)
-    if selection is not None:
-        figs["selection_path"] = selection_path_figure(
+        figures["selection_path"] = selection_path_figure(
             selection.path, title=f"Forward covariate selection ({selection.n_rows} training "
                                   "rows, CV MAE over all targets)", setting=setting)
-    return figs
+    return tables, figures
+
+
+def write_tables(directory: str | Path, tables: dict[str, pd.DataFrame]) -> dict[str, Path]:
+    """Each table as ``<directory>/<name>.csv`` (no index column); returns name -> path."""
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    written = {}
+    for name, table in tables.items():
+        written[name] = directory / f"{name}.csv"
+        table.to_csv(written[name], index=False)
+    return written
 
 
 def write_hamiltonian_outputs(out: str | Path, model: FittedPriorBoost, ds: Dataset,
                               setting: str | None = None) -> dict[str, Path]:
     """Write the tables as CSV and the figures as PNG under ``out``; returns name -> path."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    written = {}
-    for name, table in hamiltonian_tables(model, ds).items():
-        path = out / f"{name}.csv"
-        table.to_csv(path, index=name == "corrected_parameters")
-        written[name] = path
-    for name, fig in hamiltonian_figures(model, ds, setting).items():
-        written[name] = save_figure(fig, out / f"{name}.png")
+    tables, figures = hamiltonian_outputs(model, ds, setting)
+    written = write_tables(out, tables)
+    for name, fig in figures.items():
+        written[name] = save_figure(fig, Path(out) / f"{name}.png")
     return written

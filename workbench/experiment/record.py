@@ -74,13 +74,13 @@ def _metrics(result: dict[str, Any]) -> dict[str, float]:
 
 def _hamiltonian_artifacts(tracker: Tracker, run_id: str, model, ds: Dataset,
                            setting: str) -> None:
-    from .parameters import hamiltonian_figures, hamiltonian_tables
+    from .parameters import hamiltonian_outputs
 
-    for name, fig in hamiltonian_figures(model, ds, setting).items():
+    tables, figures = hamiltonian_outputs(model, ds, setting)
+    for name, fig in figures.items():
         tracker.log_figure(run_id, fig, f"plots/{name}.png")
-    for name, table in hamiltonian_tables(model, ds).items():
-        tracker.log_text(run_id, table.to_csv(index=name == "corrected_parameters"),
-                         f"hamiltonian/{name}.csv")
+    for name, table in tables.items():
+        tracker.log_text(run_id, table.to_csv(index=False), f"hamiltonian/{name}.csv")
 
 
 def _figures(tracker: Tracker, run_id: str, cfg: ExperimentConfig, result, model, ds: Dataset,

@@ -113,7 +113,7 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
                   setting="paper settings"))
 
     # -- beyond the paper: the parameter-space model -------------------------------------
-    from .parameters import hamiltonian_figures, hamiltonian_tables
+    from .parameters import hamiltonian_outputs, write_tables
 
     ham = settings["hamiltonian"]
     save("figH1_hamiltonian_mae_bars", "hamiltonian",
@@ -121,15 +121,12 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
                   labels=("control program", "parameter-space model"),
                   title="Test MAE per eigenenergy: corrected Hamiltonian",
                   setting="experiments/hamiltonian.toml"))
-    ham_figs = hamiltonian_figures(hamiltonian_model, ds, setting="experiments/hamiltonian.toml")
+    ham_tables, ham_figs = hamiltonian_outputs(hamiltonian_model, ds,
+                                               setting="experiments/hamiltonian.toml")
     save("figH2_parameter_corrections", "hamiltonian", ham_figs["parameter_corrections"])
     save("figH3_selection_path", "hamiltonian", ham_figs["selection_path"])
-    tables = {}
-    (out / "hamiltonian").mkdir(exist_ok=True)
-    for name, table in hamiltonian_tables(hamiltonian_model, ds).items():
-        path = out / "hamiltonian" / f"{name}.csv"
-        table.to_csv(path, index=name == "corrected_parameters")
-        tables[name] = str(path.relative_to(out))
+    tables = {name: str(path.relative_to(out))
+              for name, path in write_tables(out / "hamiltonian", ham_tables).items()}
 
     # -- the data --------------------------------------------------------------------------
     _say(progress, "data figures")
