@@ -2,30 +2,40 @@
 
 The core (this package's top-level modules and :mod:`workbench.datasets`) imports only
 numpy, scipy, pandas, scikit-learn and LightGBM. The experiment layer
-(:mod:`workbench.experiment`: configs, evaluation, CLI, later search/tracking/figures)
+(:mod:`workbench.experiment`: configs, model families, search, tracking, figures, CLI)
 depends on the core, never the reverse.
+
+The names below are imported on first use (PEP 562), so ``import workbench`` and the
+``workbench`` command start without loading scikit-learn or LightGBM.
 """
 
-from .bases import BASES, TRANSFORMS, make_basis, make_transform, paper_basis
-from .boosting import BaseBoostRegressor, PriorModel
-from .line_search import line_search
-from .losses import LOSSES, get_loss
-from .multitarget import MultiTargetBaseBoost
-from .selection import BaseBoostCV
+from __future__ import annotations
+
+import importlib
 
 __version__ = "0.1.0"
 
-__all__ = [
-    "BASES",
-    "LOSSES",
-    "TRANSFORMS",
-    "BaseBoostCV",
-    "BaseBoostRegressor",
-    "MultiTargetBaseBoost",
-    "PriorModel",
-    "get_loss",
-    "line_search",
-    "make_basis",
-    "make_transform",
-    "paper_basis",
-]
+#: Public name -> the core module that defines it.
+_EXPORTS = {
+    "BASES": "bases", "TRANSFORMS": "bases", "make_basis": "bases",
+    "make_transform": "bases", "paper_basis": "bases",
+    "BaseBoostRegressor": "boosting", "PriorModel": "boosting",
+    "line_search": "line_search",
+    "LOSSES": "losses", "get_loss": "losses",
+    "MultiTargetBaseBoost": "multitarget",
+    "BaseBoostCV": "selection",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str):
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(f".{_EXPORTS[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *_EXPORTS])

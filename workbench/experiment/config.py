@@ -1,145 +1,381 @@
-"""Experiment configs (TOML files under ``experiments/``): read, check, and turn into models.
+"""Experiment configs (TOML files under ``experiments/``): a typed schema, read and checked.
 
-A config has these sections (see ``experiments/paper_main_body.toml`` for an annotated one)::
+Each section of a config is a pydantic model below: the schema *is* the documentation of
+the config (see ``experiments/paper_main_body.toml`` for an annotated file)::
 
-    name, description, random_state, n_jobs     # top level
-    [data]        source = "google_5q" (data_dir optional), or a CSV of your own:
-                  csv, prior, targets, features, test_fraction | split_column, split_seed
-    [data.hamiltonian]  onsite, couplings, sign (optional, for physics-aware models)
-    [model]       family ("eigenvalue" | "hamiltonian"), basis, basis_params, n_stages, loss,
-                  line_search_loss, line_search_penalty, alpha,
-                  basis_inputs ("prior" | "prior+features"), input_transform
-    [model.targets.<target>]  the same keys but family, overriding [model] for one target
-    [model.hamiltonian]  the parameter-space model of family = "hamiltonian" (its eigenvalue-
-                  space boosting stage on top uses the [model] keys above)
-    [evaluation]  extra estimates of evaluate: repeated CV on the training rows, nested CV
-                  over all rows
-    [selection]   cv (folds, contiguous unless shuffle = true), shuffle, scoring
-    [search]      the space a sweep searches (see workbench.experiment.space)
-    [search.hamiltonian]  family hamiltonian: the [model.hamiltonian] settings a sweep varies
-    [cv]          outer_folds, inner_folds, repeats, seed (nested CV of a sweep)
-    [study]       trials, timeout, sampler, pruner, storage, study_name, workers
-    [tracking]    tracking_uri, experiment (MLflow)
+    name, description, random_state, n_jobs     # top level (ExperimentConfig)
+    [data]         DataConfig       the benchmark, or a CSV of your own
+    [data.hamiltonian]  HamiltonianData  the Hamiltonian's columns (physics-aware families)
+    [model]        ModelConfig      family + the eigenvalue-space boosting settings
+    [model.targets.<target>]  BoostSettings  per-target overrides
+    [model.<family>]  the family's own settings (``ModelFamily.settings``)
+    [selection]    SelectionConfig  BaseBoostCV's folds and scoring
+    [evaluation]   EvaluationConfig extra estimates of ``evaluate``
+    [search]       the space a sweep searches (:class:`~workbench.experiment.space.SearchSpace`;
+                   ``[search.<family>]`` varies the family's settings)
+    [cv]           CVConfig         nested CV of a sweep
+    [study]        StudyConfig      the Optuna studies
+    [tracking]     TrackingConfig   MLflow
 
-Unknown sections, keys, names and targets are errors that list what is valid.
+Loading validates every value before anything is fitted: a bad one raises
+:class:`ConfigError` with one line naming the file, ``section.key``, the value (shortened)
+and what is allowed. Basis hyperparameters are checked against the basis estimator's own
+parameter constraints (scikit-learn's ``_parameter_constraints``).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
-import pandas as pd
-from sklearn.metrics import get_scorer
-from sklearn.model_selection import KFold
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from ..bases import make_basis, make_transform
-from ..boosting import BaseBoostRegressor
-from ..datasets import Dataset, DatasetError, load_csv_dataset, load_google_5q
-from ..fitted_prior import FittedPriorBoost
-from ..multitarget import MultiTargetBaseBoost
-from ..param_boost import PARAM_LOSSES, HamiltonianParameterRegressor, default_library
-from ..param_select import HamiltonianSelectionCV, candidate_pool
-from ..selection import BaseBoostCV
+from .errors import ConfigError, shorten
 from .space import SearchSpace, SpaceError
 
-__all__ = ["ConfigError", "ExperimentConfig", "build_model", "load_config", "load_dataset",
-           "make_booster", "make_hamiltonian", "model_inputs", "parse_config", "target_inputs"]
+__all__ = ["BoostSettings", "CVConfig", "ConfigError", "DataConfig", "EvaluationConfig",
+           "ExperimentConfig", "HamiltonianData", "ModelConfig", "SelectionConfig",
+           "StudyConfig", "TrackingConfig", "load_config", "load_dataset", "parse_config"]
 
-TOP_KEYS = {"name", "description", "random_state", "n_jobs", "data", "model", "selection",
-            "search", "cv", "study", "tracking", "evaluation"}
-DATA_KEYS = {"source", "data_dir", "csv", "prior", "targets", "features", "test_fraction",
-             "split_column", "split_seed", "hamiltonian"}
-HAMILTONIAN_KEYS = {"onsite", "couplings", "sign", "qubit_features", "coupler_features"}
-MODEL_KEYS = {"basis", "basis_params", "n_stages", "loss", "line_search_loss",
-              "line_search_penalty", "alpha", "basis_inputs", "input_transform",
-              "input_transform_params"}
-FAMILIES = ("eigenvalue", "hamiltonian")
-#: ``[model.hamiltonian]``: the parameter-space model (``family = "hamiltonian"``).
-#: ``start``: covariates every model has ("default": the default library, "none": intercepts);
-#: ``candidates``: the pool ("physical": candidate_pool with neighbours, "local": without,
-#: "none"); ``selection``: "forward" (forward selection by CV from start over the pool) or
-#: "none" (start and pool together, regularised by alpha / alpha_l1).
-HAMILTONIAN_DEFAULTS: dict[str, Any] = dict(
-    loss="huber", huber_delta=0.5, alpha=1.0, alpha_l1=0.0, max_iter=20, start="default",
-    candidates="physical", selection="forward", selection_cv=5, selection_repeats=1,
-    max_steps=20, min_improvement=1e-3, boost_stage=True, prior_cv=5)
-HAMILTONIAN_CHOICES: dict[str, tuple[str, ...]] = {
-    "loss": tuple(PARAM_LOSSES), "start": ("default", "none"),
-    "candidates": ("physical", "local", "none"), "selection": ("forward", "none")}
-#: ``[search.hamiltonian]``: the keys a sweep may vary, with the valid values of the
-#: categorical ones (every value a search can take is also checked like ``[model.hamiltonian]``).
-HAMILTONIAN_SEARCH: dict[str, tuple[Any, ...] | None] = {
-    key: HAMILTONIAN_CHOICES.get(key, (True, False) if key == "boost_stage" else None)
-    for key in HAMILTONIAN_DEFAULTS}
-#: ``[evaluation]``: ``cv_repeats`` > 0 adds a repeated ``cv_folds``-fold CV of the chosen
-#: model on the training rows (seeds ``cv_seed``...); ``nested_folds`` > 0 adds a nested CV
-#: over all rows (training and test), every choice remade inside each outer fold.
-EVALUATION_DEFAULTS: dict[str, Any] = dict(cv_folds=5, cv_repeats=0, cv_seed=1000,
-                                           nested_folds=0, nested_seed=0)
-SELECTION_KEYS = {"cv", "shuffle", "scoring"}
-BASIS_INPUTS = ("prior", "prior+features")
-SOURCES = ("google_5q", "csv")
+#: The largest seed or count a config may give (numpy seeds are 32-bit).
+MAX_INT = 2**32 - 1
+#: Most characters of a config error line.
+MAX_MESSAGE = 299
 
+
+class Section(BaseModel):
+    """A config table: strict types (TOML's), unknown keys an error listing the valid ones."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _known_keys(cls, data: Any) -> Any:
+        if isinstance(data, dict):
+            unknown = sorted(set(data) - set(cls.model_fields))
+            if unknown:
+                raise ValueError(f"unknown key(s) {unknown}; valid keys are "
+                                 f"{sorted(cls.model_fields)}")
+        return data
+
+
+def Seed():  # noqa: N802  (a field, like pydantic's Field)
+    return Field(default=0, ge=0, le=MAX_INT)
+
+
+# --------------------------------------------------------------------------- [data]
+
+class HamiltonianData(Section):
+    """``[data.hamiltonian]``: the Hamiltonian's columns. ``sign``: the prior is the sorted
+    eigenvalues of ``sign * H``. ``qubit_features``/``coupler_features``: the features acting
+    on each site and on each coupling, in chain order."""
+
+    onsite: list[str]
+    couplings: list[str]
+    sign: Literal[-1, 1] = -1
+    qubit_features: list[str] | None = None
+    coupler_features: list[str] | None = None
+
+
+class DataConfig(Section):
+    """``[data]``: ``source = "google_5q"`` (optional ``data_dir``), or a CSV of your own
+    (``csv``, one ``prior`` column per ``targets`` column, ``features``, and either
+    ``test_fraction`` or ``split_column``)."""
+
+    source: Literal["google_5q", "csv"] = "google_5q"
+    data_dir: str | None = None
+    csv: str | None = None
+    prior: list[str] | None = None
+    targets: list[str] | None = None
+    features: list[str] = []
+    test_fraction: float | None = Field(default=None, gt=0, lt=1)
+    split_column: str | None = None
+    split_seed: int = Seed()
+    hamiltonian: HamiltonianData | None = None
+
+    @model_validator(mode="before")
+    @classmethod
+    def _csv_source(cls, data: Any) -> Any:
+        if isinstance(data, dict) and "csv" in data and "source" not in data:
+            data = {**data, "source": "csv"}
+        return data
+
+    @model_validator(mode="after")
+    def _consistent(self) -> DataConfig:
+        csv_keys = sorted(k for k in ("csv", "prior", "targets", "test_fraction",
+                                      "split_column", "hamiltonian")
+                          if getattr(self, k) is not None) + (["features"] if self.features
+                                                              else [])
+        if self.source == "google_5q":
+            if csv_keys:
+                raise ValueError(f"{csv_keys} apply to source = \"csv\" only")
+            return self
+        for key in ("csv", "prior", "targets"):
+            if getattr(self, key) is None:
+                raise ValueError(f"source = \"csv\" needs {key!r}")
+        if len(self.prior) != len(self.targets):
+            raise ValueError(f"{len(self.prior)} prior column(s) for {len(self.targets)} "
+                             f"target(s): give one prior column per target")
+        if (self.test_fraction is None) == (self.split_column is None):
+            raise ValueError("give exactly one of test_fraction or split_column")
+        return self
+
+
+# --------------------------------------------------------------------------- [model]
+
+LOSS_NAMES = Literal["squared_error", "absolute_error", "huber", "quantile"]
+
+
+class BoostSettings(Section):
+    """The eigenvalue-space boosting settings of one target (``[model]``, or a
+    ``[model.targets.<target>]`` override, where every key is optional)."""
+
+    basis: str | None = None
+    basis_params: dict[str, Any] | None = None
+    n_stages: int | None = Field(default=None, ge=1, le=10_000)
+    loss: LOSS_NAMES | None = None
+    line_search_loss: LOSS_NAMES | None = None
+    line_search_penalty: float | None = Field(default=None, ge=0)
+    alpha: float | None = Field(default=None, gt=0, lt=1)
+    basis_inputs: Literal["prior", "prior+features"] | None = None
+    input_transform: str | None = None
+    input_transform_params: dict[str, Any] | None = None
+
+
+#: ``[model]`` defaults (the paper's settings).
 MODEL_DEFAULTS: dict[str, Any] = dict(
     basis="paper_stacking", basis_params={}, n_stages=1, loss="squared_error",
     line_search_loss="absolute_error", line_search_penalty=0.1, alpha=0.9,
     basis_inputs="prior", input_transform="quantile_normal", input_transform_params={},
 )
-SELECTION_DEFAULTS: dict[str, Any] = dict(cv=5, shuffle=False, scoring="neg_mean_absolute_error")
-#: Nested cross-validation of a sweep (``workbench sweep``).
-CV_DEFAULTS: dict[str, Any] = dict(outer_folds=5, inner_folds=5, repeats=1, seed=0)
-#: The Optuna studies of a sweep. ``storage``: a journal file path (one machine, several
-#: processes) or an RDB URL such as ``postgresql://...`` (several machines).
-STUDY_DEFAULTS: dict[str, Any] = dict(trials=20, timeout=None, sampler="tpe", pruner="median",
-                                      storage="mlruns/optuna.journal", study_name=None,
-                                      workers=1, stale_after_s=600)
-SAMPLERS = ("tpe", "random")
-PRUNERS = ("none", "median", "wilcoxon")
-#: MLflow tracking; ``tracking_uri`` None means $MLFLOW_TRACKING_URI or mlruns/mlflow.db.
-TRACKING_DEFAULTS: dict[str, Any] = dict(tracking_uri=None, experiment=None)
 
 
-class ConfigError(ValueError):
-    """A config file that cannot be used; the message names the file and the problem."""
+class ModelConfig(BoostSettings):
+    """``[model]``: the family (a name in :data:`~workbench.experiment.families.FAMILIES`),
+    the boosting settings shared by every target, and per-target overrides."""
+
+    family: str = "eigenvalue"
+    targets: dict[str, BoostSettings] = {}
 
 
-def _check_keys(where: str, table: dict, valid: set[str]) -> None:
-    unknown = sorted(set(table) - valid)
-    if unknown:
-        raise ConfigError(f"{where}: unknown key(s) {unknown}; valid keys are {sorted(valid)}")
+def check_boost_settings(settings: dict[str, Any]) -> None:
+    """Resolve a target's merged settings the way a fit will (basis and transform names,
+    their parameters against the estimators' own constraints, losses): ``ValueError`` with
+    the offending key first."""
+    from ..bases import BASES, TRANSFORMS, make_basis, make_transform
 
+    if settings["basis"] not in BASES:
+        raise ValueError(f"basis = {shorten(settings['basis'])}: unknown basis; valid: "
+                         f"{sorted(BASES)}")
+    if settings["input_transform"] not in ("none", *TRANSFORMS):
+        raise ValueError(f"input_transform = {shorten(settings['input_transform'])}: unknown "
+                         f"transform; valid: {['none', *sorted(TRANSFORMS)]}")
+    try:
+        basis = make_basis(settings["basis"], **settings["basis_params"])
+        _validate_estimator(basis)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"basis_params ({settings['basis']}): {exc}") from None
+    try:
+        transform = make_transform(settings["input_transform"],
+                                   **settings["input_transform_params"])
+        if transform is not None:
+            _validate_estimator(transform)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"input_transform_params ({settings['input_transform']}): {exc}"
+                         ) from None
+
+
+#: LightGBM's scikit-learn estimator declares no constraints; these are its documented ranges.
+def _lightgbm_constraints() -> dict[str, list]:
+    from numbers import Integral, Real
+
+    from sklearn.utils._param_validation import Interval, StrOptions
+
+    positive = [Interval(Real, 0, None, closed="neither")]
+    nonneg = [Interval(Real, 0, None, closed="left")]
+    fraction = [Interval(Real, 0, 1, closed="right")]
+    return {
+        "boosting_type": [StrOptions({"gbdt", "dart", "rf"})],
+        "num_leaves": [Interval(Integral, 2, 131072, closed="both")],
+        "max_depth": [Interval(Integral, -1, None, closed="left")],
+        "learning_rate": positive, "n_estimators": [Interval(Integral, 1, None, closed="left")],
+        "subsample_for_bin": [Interval(Integral, 1, None, closed="left")],
+        "objective": [str, None], "min_split_gain": nonneg, "min_child_weight": nonneg,
+        "min_child_samples": [Interval(Integral, 0, None, closed="left")],
+        "subsample": fraction, "subsample_freq": [Interval(Integral, 0, None, closed="left")],
+        "colsample_bytree": fraction, "reg_alpha": nonneg, "reg_lambda": nonneg,
+        "random_state": ["random_state"], "n_jobs": [Integral, None],
+        "importance_type": [StrOptions({"split", "gain"})], "verbose": [Integral],
+        "max_bin": [Interval(Integral, 2, None, closed="left")],
+        "data_sample_strategy": [StrOptions({"bagging", "goss"})],
+    }
+
+
+def _validate_estimator(estimator) -> None:
+    """Check an estimator's (and its nested estimators') parameters against their declared
+    constraints, without fitting."""
+    from sklearn.base import BaseEstimator
+    from sklearn.utils._param_validation import validate_parameter_constraints
+
+    nested = [estimator] + [v for v in estimator.get_params(deep=True).values()
+                            if isinstance(v, BaseEstimator)]
+    for est in nested:
+        params = est.get_params(deep=False)
+        if type(est).__module__.startswith("lightgbm"):
+            constraints = _lightgbm_constraints()
+            unknown = sorted(set(params) - set(constraints) - {"class_weight"})
+            extra = sorted(k for k in unknown if params[k] is not None)
+            if extra:
+                raise ValueError(f"unknown LightGBM parameter(s) {extra}; valid: "
+                                 f"{sorted(constraints)}")
+            params = {k: v for k, v in params.items() if k in constraints}
+        else:
+            constraints = getattr(est, "_parameter_constraints", None)
+            if constraints is None:
+                continue
+        validate_parameter_constraints(constraints, params, caller_name=type(est).__name__)
+
+
+# --------------------------------------------------------------------------- other sections
+
+class SelectionConfig(Section):
+    """``[selection]``: BaseBoostCV's folds (contiguous unless ``shuffle``) and scoring."""
+
+    cv: int = Field(default=5, ge=2, le=10_000)
+    shuffle: bool = False
+    scoring: str = "neg_mean_absolute_error"
+
+    @model_validator(mode="after")
+    def _scorer(self) -> SelectionConfig:
+        from sklearn.metrics import get_scorer_names
+
+        if self.scoring not in get_scorer_names():
+            raise ValueError(f"scoring = {shorten(self.scoring)}: unknown scorer; see "
+                             "sklearn.metrics.get_scorer_names(), e.g. "
+                             "'neg_mean_absolute_error'")
+        return self
+
+
+class EvaluationConfig(Section):
+    """``[evaluation]``: ``cv_repeats`` > 0 adds a repeated ``cv_folds``-fold CV of the chosen
+    model on the training rows (``RepeatedKFold`` seeded by ``cv_seed``); ``nested_folds`` > 0
+    adds a nested CV over all rows, every choice remade inside each outer fold."""
+
+    cv_folds: int = Field(default=5, ge=2, le=10_000)
+    cv_repeats: int = Field(default=0, ge=0, le=10_000)
+    cv_seed: int = Field(default=1000, ge=0, le=MAX_INT)
+    nested_folds: int = Field(default=0, ge=0, le=10_000)
+    nested_seed: int = Seed()
+
+    @model_validator(mode="after")
+    def _nested(self) -> EvaluationConfig:
+        if self.nested_folds == 1:
+            raise ValueError("nested_folds = 1: give 0 (off) or >= 2 folds")
+        return self
+
+
+class CVConfig(Section):
+    """``[cv]``: the nested cross-validation of a sweep (``repeats``: ``RepeatedKFold``)."""
+
+    outer_folds: int = Field(default=5, ge=2, le=10_000)
+    inner_folds: int = Field(default=5, ge=2, le=10_000)
+    repeats: int = Field(default=1, ge=1, le=1000)
+    seed: int = Seed()
+
+
+class StudyConfig(Section):
+    """``[study]``: the Optuna studies of a sweep. ``storage``: a journal file path (one
+    machine, several processes) or an RDB URL such as ``postgresql://...`` (machines)."""
+
+    trials: int = Field(default=20, ge=1, le=1_000_000)
+    timeout: float | None = Field(default=None, gt=0)
+    sampler: Literal["tpe", "random"] = "tpe"
+    pruner: Literal["none", "median", "wilcoxon"] = "median"
+    storage: str = "mlruns/optuna.journal"
+    study_name: str | None = None
+    workers: int = Field(default=1, ge=1, le=1024)
+    stale_after_s: float = Field(default=600, gt=0)
+
+
+class TrackingConfig(Section):
+    """``[tracking]``: MLflow; ``tracking_uri`` None means $MLFLOW_TRACKING_URI or
+    ``sqlite:///mlruns/mlflow.db``; ``experiment`` None means the config's name."""
+
+    tracking_uri: str | None = None
+    experiment: str | None = None
+
+
+class _Top(Section):
+    """The top level of a config file (sections validated on their own)."""
+
+    name: str | None = None
+    description: str = ""
+    random_state: int | None = Field(default=None, ge=0, le=MAX_INT)
+    n_jobs: int | None = Field(default=None, ge=-1, le=1024)
+    data: dict[str, Any] = {}
+    model: dict[str, Any] = {}
+    selection: SelectionConfig = SelectionConfig()
+    evaluation: EvaluationConfig = EvaluationConfig()
+    search: dict[str, Any] = {}
+    cv: CVConfig = CVConfig()
+    study: StudyConfig = StudyConfig()
+    tracking: TrackingConfig = TrackingConfig()
+
+    @model_validator(mode="after")
+    def _jobs(self) -> _Top:
+        if self.n_jobs == 0:
+            raise ValueError("n_jobs = 0: give a number of processes >= 1, or -1 for all cores")
+        return self
+
+
+# --------------------------------------------------------------------------- the config
 
 @dataclass(frozen=True)
 class ExperimentConfig:
-    """A checked config: the raw tables plus where the file lives (for relative paths)."""
+    """A checked config. Sections are typed (frozen pydantic models); ``family_settings``
+    is the family's ``[model.<family>]`` (its own schema), ``search`` the ``[search]`` space."""
 
     path: Path | None
     name: str
     random_state: int | None
     n_jobs: int | None
-    data: dict[str, Any]
-    model: dict[str, Any]
-    targets: dict[str, dict[str, Any]]
-    selection: dict[str, Any]
+    data: DataConfig
+    model: ModelConfig
+    selection: SelectionConfig = SelectionConfig()
+    evaluation: EvaluationConfig = EvaluationConfig()
     search: SearchSpace = field(default_factory=SearchSpace)
-    cv: dict[str, Any] = field(default_factory=lambda: dict(CV_DEFAULTS))
-    study: dict[str, Any] = field(default_factory=lambda: dict(STUDY_DEFAULTS))
-    tracking: dict[str, Any] = field(default_factory=lambda: dict(TRACKING_DEFAULTS))
-    family: str = "eigenvalue"
-    hamiltonian: dict[str, Any] = field(default_factory=lambda: dict(HAMILTONIAN_DEFAULTS))
-    evaluation: dict[str, Any] = field(default_factory=lambda: dict(EVALUATION_DEFAULTS))
+    cv: CVConfig = CVConfig()
+    study: StudyConfig = StudyConfig()
+    tracking: TrackingConfig = TrackingConfig()
+    family_settings: BaseModel | None = None
+    description: str = ""
+    #: Per-target settings chosen by a search (target -> full settings), over ``[model]``.
+    chosen: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+    @property
+    def family(self):
+        """The :class:`~workbench.experiment.families.ModelFamily` of ``[model] family``."""
+        from .families import get_family
+
+        return get_family(self.model.family)
+
+    @property
+    def label(self) -> str:
+        return str(self.path) if self.path else "config"
 
     def model_for(self, target: str | None) -> dict[str, Any]:
-        """The model settings of one target: ``[model]`` overridden by its target table.
+        """The boosting settings of one target: defaults < ``[model]`` < its
+        ``[model.targets.<target>]`` table (< a search's choice for it).
 
         ``basis_params`` (``input_transform_params``) merge over the parent's while the target
-        keeps the parent's basis (transform), and start afresh when it names another one.
-        """
-        merged = {**MODEL_DEFAULTS, **self.model}
-        override = self.targets.get(target, {}) if target is not None else {}
+        keeps the parent's basis (transform), and start afresh when it names another one."""
+        if target in self.chosen:
+            return dict(self.chosen[target])
+        merged = {**MODEL_DEFAULTS, **_set(self.model)}
+        override = _set(self.model.targets[target]) if target in self.model.targets else {}
         for key, params in (("basis", "basis_params"),
                             ("input_transform", "input_transform_params")):
             if key in override and override[key] != merged[key]:
@@ -148,221 +384,91 @@ class ExperimentConfig:
         merged.update({k: v for k, v in override.items() if not k.endswith("_params")})
         return merged
 
-
-def _table(where: str, value: Any) -> dict[str, Any]:
-    if not isinstance(value, dict):
-        raise ConfigError(f"{where} must be a table, got {type(value).__name__} {value!r}")
-    return dict(value)
-
-
-def _check_data(where: str, data: dict[str, Any]) -> None:
-    csv_keys = sorted((DATA_KEYS - {"source", "data_dir"}) & set(data))
-    if data["source"] == "google_5q":
-        if csv_keys:
-            raise ConfigError(f"{where}: {csv_keys} apply to source = \"csv\" only")
-        return
-    for key in ("csv", "prior", "targets"):
-        if key not in data:
-            raise ConfigError(f"{where}: source = \"csv\" needs {key!r}")
-    for key in ("prior", "targets", "features"):
-        value = data.get(key, [])
-        if not (isinstance(value, list) and all(isinstance(v, str) for v in value)):
-            raise ConfigError(f"{where}: {key} must be a list of column names, got {value!r}")
-    if len(data["prior"]) != len(data["targets"]):
-        raise ConfigError(f"{where}: {len(data['prior'])} prior column(s) for "
-                          f"{len(data['targets'])} target(s): give one prior column per target")
-    if ("test_fraction" in data) == ("split_column" in data):
-        raise ConfigError(f"{where}: give exactly one of test_fraction or split_column")
-    ham = _table(f"{where}.hamiltonian", data.get("hamiltonian", {}))
-    _check_keys(f"{where}.hamiltonian", ham, HAMILTONIAN_KEYS)
-    if ham and not {"onsite", "couplings"} <= set(ham):
-        raise ConfigError(f"{where}.hamiltonian: needs both onsite and couplings")
+    def with_study(self, **updates) -> ExperimentConfig:
+        """This config with ``[study]`` values replaced (``None`` values ignored)."""
+        updates = {k: v for k, v in updates.items() if v is not None}
+        return dataclasses.replace(self, study=self.study.model_copy(update=updates))
 
 
-def _positive_int(where: str, key: str, value: Any, minimum: int) -> None:
-    if not isinstance(value, int) or isinstance(value, bool) or value < minimum:
-        raise ConfigError(f"{where}: {key} must be an integer >= {minimum}, got {value!r}")
+def _set(section: BaseModel) -> dict[str, Any]:
+    """The boosting keys a section sets (``None``: not given)."""
+    return {k: v for k, v in section.model_dump(exclude={"family", "targets"}).items()
+            if v is not None}
 
 
-def _check_sweep_sections(where: str, raw: dict[str, Any], family: str = "eigenvalue"):
-    table = _table(f"{where} [search]", raw.get("search", {}))
-    hamiltonian = family == "hamiltonian"
-    if "hamiltonian" in table and not hamiltonian:
-        raise ConfigError(f"{where} [search.hamiltonian]: applies to family = \"hamiltonian\" "
-                          f"only (family is {family!r})")
-    try:
-        search = SearchSpace.from_table(table, HAMILTONIAN_SEARCH if hamiltonian else None)
-    except SpaceError as exc:
-        raise ConfigError(f"{where} [search]: {exc}") from None
-    for key, values in search.hamiltonian_values().items():
-        for value in values:
-            _check_hamiltonian(where, {key: value}, family, section="search.hamiltonian")
-    cv = {**CV_DEFAULTS, **_table(f"{where} [cv]", raw.get("cv", {}))}
-    _check_keys(f"{where} [cv]", cv, set(CV_DEFAULTS))
-    for key, minimum in (("outer_folds", 2), ("inner_folds", 2), ("repeats", 1), ("seed", 0)):
-        _positive_int(f"{where} [cv]", key, cv[key], minimum)
-    study = {**STUDY_DEFAULTS, **_table(f"{where} [study]", raw.get("study", {}))}
-    _check_keys(f"{where} [study]", study, set(STUDY_DEFAULTS))
-    _positive_int(f"{where} [study]", "trials", study["trials"], 1)
-    _positive_int(f"{where} [study]", "workers", study["workers"], 1)
-    if study["sampler"] not in SAMPLERS:
-        raise ConfigError(f"{where} [study]: unknown sampler {study['sampler']!r}; valid: "
-                          f"{list(SAMPLERS)}")
-    if study["pruner"] not in PRUNERS:
-        raise ConfigError(f"{where} [study]: unknown pruner {study['pruner']!r}; valid: "
-                          f"{list(PRUNERS)}")
-    if study["timeout"] is not None and not (isinstance(study["timeout"], (int, float))
-                                             and study["timeout"] > 0):
-        raise ConfigError(f"{where} [study]: timeout must be a number of seconds > 0, got "
-                          f"{study['timeout']!r}")
-    tracking = {**TRACKING_DEFAULTS, **_table(f"{where} [tracking]", raw.get("tracking", {}))}
-    _check_keys(f"{where} [tracking]", tracking, set(TRACKING_DEFAULTS))
-    return search, cv, study, tracking
-
-
-def _check_hamiltonian(where: str, table, family: str,
-                       section: str = "model.hamiltonian") -> dict[str, Any]:
-    label = f"{where} [{section}]"
-    if table is not None and family != "hamiltonian":
-        raise ConfigError(f"{label}: applies to family = \"hamiltonian\" only (family is "
-                          f"{family!r})")
-    settings = {**HAMILTONIAN_DEFAULTS, **_table(label, table or {})}
-    _check_keys(label, settings, set(HAMILTONIAN_DEFAULTS))
-    for key, valid in HAMILTONIAN_CHOICES.items():
-        if settings[key] not in valid:
-            raise ConfigError(f"{label}: unknown {key} {settings[key]!r}; valid: {list(valid)}")
-    for key, minimum in (("selection_cv", 2), ("selection_repeats", 1), ("max_steps", 0),
-                         ("max_iter", 0), ("prior_cv", 2)):
-        _positive_int(label, key, settings[key], minimum)
-    if not isinstance(settings["boost_stage"], bool):
-        raise ConfigError(f"{label}: boost_stage must be true or false, got "
-                          f"{settings['boost_stage']!r}")
-    for key in ("huber_delta", "alpha", "alpha_l1", "min_improvement"):
-        value = settings[key]
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or value < 0:
-            raise ConfigError(f"{label}: {key} must be a number >= 0, got {value!r}")
-    if settings["huber_delta"] <= 0:
-        raise ConfigError(f"{label}: huber_delta must be > 0, got {settings['huber_delta']!r}")
-    return settings
-
-
-def make_hamiltonian(settings: dict[str, Any], dataset: Dataset, *, random_state=None,
-                     n_jobs=None):
-    """The parameter-space model that ``[model.hamiltonian]`` settings describe: a
-    :class:`HamiltonianSelectionCV` (``selection = "forward"``) or a
-    :class:`HamiltonianParameterRegressor` with the start and pool covariates together."""
-    ham = dataset.hamiltonian
-    if ham is None:
-        raise ConfigError(f"family = \"hamiltonian\" needs a dataset with Hamiltonian "
-                          f"parameters; {dataset.name!r} has none")
-    on, co = list(ham.onsite.columns), list(ham.couplings.columns)
-    common = dict(onsite=on, couplings=co, sign=ham.sign, loss=settings["loss"],
-                  huber_delta=float(settings["huber_delta"]), alpha=float(settings["alpha"]),
-                  alpha_l1=float(settings["alpha_l1"]), max_iter=settings["max_iter"])
-    start = default_library(on, co) if settings["start"] == "default" else {}
-    if settings["candidates"] == "none":
-        pool = {}
+def _one_line(where: str, exc: ValidationError, prefix: tuple = ()) -> str:
+    """One line for the first error: ``file: section.key = value: what is allowed``."""
+    err = exc.errors(include_url=False)[0]
+    loc = ".".join(str(p) for p in (*prefix, *err["loc"]))
+    msg = err["msg"].removeprefix("Value error, ")
+    if err["type"] in ("value_error", "assertion_error") or not err["loc"]:
+        text = f"{where}: [{loc}]: {msg}" if loc else f"{where}: {msg}"
     else:
-        pool = candidate_pool(on, co, ham.qubit_features, ham.coupler_features, base=None,
-                              neighbours=settings["candidates"] == "physical")
-    if settings["selection"] == "none":
-        merged = {p: list(dict.fromkeys(start.get(p, []) + pool.get(p, [])))
-                  for p in on + co}
-        return HamiltonianParameterRegressor(covariates=merged, **common)
-    return HamiltonianSelectionCV(candidates=pool, start=start or None,
-                                  cv=settings["selection_cv"],
-                                  n_repeats=settings["selection_repeats"],
-                                  max_steps=settings["max_steps"],
-                                  min_improvement=float(settings["min_improvement"]),
-                                  random_state=random_state, n_jobs=n_jobs, **common)
+        text = f"{where}: {loc} = {shorten(err.get('input'))}: {msg}"
+    return text if len(text) <= MAX_MESSAGE else text[:MAX_MESSAGE - 3] + "..."
 
 
-def make_booster(settings: dict[str, Any], prior, inputs: list[str]) -> BaseBoostRegressor:
-    """The :class:`BaseBoostRegressor` that one target's settings describe."""
-    return BaseBoostRegressor(
-        prior=prior, basis=make_basis(settings["basis"], **settings["basis_params"]),
-        n_stages=settings["n_stages"], loss=settings["loss"],
-        line_search_loss=settings["line_search_loss"],
-        line_search_penalty=settings["line_search_penalty"], alpha=settings["alpha"],
-        basis_features=inputs,
-        input_transform=make_transform(settings["input_transform"],
-                                       **settings["input_transform_params"]))
+def _error(where: str, text: str) -> ConfigError:
+    line = f"{where}: {text}"
+    return ConfigError(line if len(line) <= MAX_MESSAGE else line[:MAX_MESSAGE - 3] + "...")
 
 
 def parse_config(raw: dict[str, Any], path: Path | None = None) -> ExperimentConfig:
-    """Check a config's tables and return an :class:`ExperimentConfig`.
+    """Validate a config's tables (every value, name and basis parameter) and return an
+    :class:`ExperimentConfig`; :class:`ConfigError` (one line) for the first bad value."""
+    from .families import FAMILIES
 
-    Every name and value is resolved here (bases, losses, transforms, scoring, n_stages...),
-    so a bad config fails at load time, never halfway through a run.
-    """
     where = str(path) if path else "config"
-    _check_keys(where, raw, TOP_KEYS)
-    data = _table(f"{where} [data]", raw.get("data", {}))
-    _check_keys(f"{where} [data]", data, DATA_KEYS)
-    if "csv" in data:
-        data.setdefault("source", "csv")
-    if data.get("source") not in SOURCES:
-        raise ConfigError(f"{where} [data]: source must be one of {list(SOURCES)}, got "
-                          f"{data.get('source')!r}")
-    _check_data(f"{where} [data]", data)
-    model = _table(f"{where} [model]", raw.get("model", {}))
-    targets = _table(f"{where} [model.targets]", model.pop("targets", {}))
-    family = model.pop("family", "eigenvalue")
-    if family not in FAMILIES:
-        raise ConfigError(f"{where} [model]: unknown family {family!r}; valid: {list(FAMILIES)}")
-    hamiltonian = _check_hamiltonian(where, model.pop("hamiltonian", None), family)
-    _check_keys(f"{where} [model]", model, MODEL_KEYS)
-    tables = {None: model}
-    for name, table in targets.items():
-        tables[name] = _table(f"{where} [model.targets.{name}]", table)
-        _check_keys(f"{where} [model.targets.{name}]", table, MODEL_KEYS)
-    for name, table in tables.items():
-        label = f"{where} [model{'' if name is None else '.targets.' + name}]"
-        for key in ("basis_params", "input_transform_params"):
-            _table(f"{label} {key}", table.get(key, {}))
-    selection = {**SELECTION_DEFAULTS, **_table(f"{where} [selection]", raw.get("selection", {}))}
-    _check_keys(f"{where} [selection]", selection, SELECTION_KEYS)
-    cv = selection["cv"]
-    if not isinstance(cv, int) or isinstance(cv, bool) or cv < 2:
-        raise ConfigError(f"{where} [selection]: cv must be an integer >= 2, got {cv!r}")
-    if not isinstance(selection["shuffle"], bool):
-        raise ConfigError(f"{where} [selection]: shuffle must be true or false, got "
-                          f"{selection['shuffle']!r}")
-    for key in ("random_state", "n_jobs"):
-        value = raw.get(key)
-        if value is not None and (not isinstance(value, int) or isinstance(value, bool)):
-            raise ConfigError(f"{where}: {key} must be an integer, got {value!r}")
     try:
-        get_scorer(selection["scoring"])
+        top = _Top.model_validate(raw)
+    except ValidationError as exc:
+        raise ConfigError(_one_line(where, exc)) from None
+    try:
+        data = DataConfig.model_validate(top.data)
+    except ValidationError as exc:
+        raise ConfigError(_one_line(where, exc, ("data",))) from None
+    model_table = dict(top.model)
+    family_name = model_table.get("family", "eigenvalue")
+    if family_name not in FAMILIES:
+        raise _error(where, f"model.family = {shorten(family_name)}: unknown family; valid: "
+                            f"{sorted(FAMILIES)}")
+    family = FAMILIES[family_name]
+    family_tables = {name: model_table.pop(name) for name in list(model_table)
+                     if name in FAMILIES and name != "family"}
+    for name in family_tables:
+        if name != family_name:
+            raise _error(where, f"[model.{name}]: applies to family = \"{name}\" only "
+                                f"(family is {family_name!r})")
+    try:
+        model = ModelConfig.model_validate(model_table)
+    except ValidationError as exc:
+        raise ConfigError(_one_line(where, exc, ("model",))) from None
+    try:
+        settings = family.parse_settings(family_tables.get(family_name))
+    except ValidationError as exc:
+        raise ConfigError(_one_line(where, exc, ("model", family_name))) from None
     except ValueError as exc:
-        raise ConfigError(f"{where} [selection]: scoring: {exc}") from None
-    search, cv, study, tracking = _check_sweep_sections(where, raw, family)
-    evaluation = {**EVALUATION_DEFAULTS,
-                  **_table(f"{where} [evaluation]", raw.get("evaluation", {}))}
-    _check_keys(f"{where} [evaluation]", evaluation, set(EVALUATION_DEFAULTS))
-    for key, minimum in (("cv_folds", 2), ("cv_repeats", 0), ("cv_seed", 0),
-                         ("nested_folds", 0), ("nested_seed", 0)):
-        _positive_int(f"{where} [evaluation]", key, evaluation[key], minimum)
-    if evaluation["nested_folds"] == 1:
-        raise ConfigError(f"{where} [evaluation]: nested_folds must be 0 (off) or >= 2, got 1")
-    if family == "hamiltonian" and data["source"] == "csv" and not data.get("hamiltonian"):
-        raise ConfigError(f"{where}: family = \"hamiltonian\" needs the Hamiltonian's columns "
-                          "in [data.hamiltonian] (onsite, couplings)")
-    cfg = ExperimentConfig(path=path, name=str(raw.get("name", path.stem if path else "config")),
-                           random_state=raw.get("random_state"), n_jobs=raw.get("n_jobs"),
-                           data=data, model=model, targets=targets, selection=selection,
-                           search=search, cv=cv, study=study, tracking=tracking, family=family,
-                           hamiltonian=hamiltonian, evaluation=evaluation)
-    for target in tables:
-        settings = cfg.model_for(target)
-        label = f"{where} [model{'' if target is None else '.targets.' + target}]"
-        if settings["basis_inputs"] not in BASIS_INPUTS:
-            raise ConfigError(f"{label}: basis_inputs must be one of {list(BASIS_INPUTS)}, got "
-                              f"{settings['basis_inputs']!r}")
+        raise _error(where, f"[model.{family_name}]: {exc}") from None
+    try:
+        search = family.parse_search(top.search)
+    except (SpaceError, ValueError) as exc:
+        raise _error(where, f"[search]: {exc}") from None
+    try:
+        family.check_data(data)
+    except ValueError as exc:
+        raise _error(where, str(exc)) from None
+    name = top.name if top.name is not None else (path.stem if path else "config")
+    cfg = ExperimentConfig(path=path, name=name, description=top.description,
+                           random_state=top.random_state, n_jobs=top.n_jobs, data=data,
+                           model=model, selection=top.selection, evaluation=top.evaluation,
+                           search=search, cv=top.cv, study=top.study, tracking=top.tracking,
+                           family_settings=settings)
+    for target in [None, *model.targets]:
+        label = "model" if target is None else f"model.targets.{target}"
         try:
-            make_booster(settings, prior=None, inputs=None)._check_params()
-        except (ValueError, TypeError) as exc:
-            raise ConfigError(f"{label}: {exc}") from None
+            check_boost_settings(cfg.model_for(target))
+        except ValueError as exc:
+            raise _error(where, f"{label}.{exc}") from None
     return cfg
 
 
@@ -373,92 +479,41 @@ def load_config(path: str | Path) -> ExperimentConfig:
         raw = tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise ConfigError(f"config file not found: {path}") from None
+    except IsADirectoryError:
+        raise ConfigError(f"config file {path} is a directory") from None
     except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"cannot read config file {path}: {exc}") from None
+        raise _error(str(path), f"cannot read the file: {exc}") from None
     except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path}: not valid TOML: {exc}") from None
+        raise _error(str(path), f"not valid TOML: {exc}") from None
+    except ValueError as exc:  # e.g. an integer beyond Python's str-conversion limit
+        raise _error(str(path), f"a value cannot be read: {exc}") from None
     return parse_config(raw, path)
 
 
-def load_dataset(cfg: ExperimentConfig) -> Dataset:
+def load_dataset(cfg: ExperimentConfig):
     """The dataset named by the config's ``[data]`` section (paths relative to the config).
 
     Raises :class:`~workbench.datasets.DatasetError` for unusable data, including a training
     split too small for the configured CV folds.
     """
+    from ..datasets import DatasetError, load_csv_dataset, load_google_5q
+
     data = cfg.data
     base = cfg.path.parent if cfg.path is not None else Path.cwd()
-    if data["source"] == "google_5q":
-        data_dir = data.get("data_dir")
-        ds = load_google_5q((base / data_dir).resolve() if data_dir is not None else None)
+    if data.source == "google_5q":
+        ds = load_google_5q((base / data.data_dir).resolve() if data.data_dir else None)
     else:
-        ham = data.get("hamiltonian", {})
+        ham = data.hamiltonian
         ds = load_csv_dataset(
-            (base / data["csv"]).resolve(), prior=data["prior"], targets=data["targets"],
-            features=data.get("features", []), test_fraction=data.get("test_fraction"),
-            split_column=data.get("split_column"), split_seed=data.get("split_seed", 0),
-            onsite=ham.get("onsite"), couplings=ham.get("couplings"), sign=ham.get("sign", -1),
-            qubit_features=ham.get("qubit_features"), coupler_features=ham.get("coupler_features"),
-            name=cfg.name)
-    folds = cfg.selection["cv"]
+            (base / data.csv).resolve(), prior=data.prior, targets=data.targets,
+            features=data.features, test_fraction=data.test_fraction,
+            split_column=data.split_column, split_seed=data.split_seed,
+            onsite=ham.onsite if ham else None, couplings=ham.couplings if ham else None,
+            sign=ham.sign if ham else -1, qubit_features=ham.qubit_features if ham else None,
+            coupler_features=ham.coupler_features if ham else None, name=cfg.name)
+    folds = cfg.selection.cv
     if len(ds.train_index) < 2 * folds:
         raise DatasetError(f"the training split has {len(ds.train_index)} rows, too few for "
                            f"[selection] cv = {folds} (each fold needs at least 2 rows: "
                            f"at least {2 * folds} training rows)")
     return ds
-
-
-#: Prefix of the columns holding the parameter-space model's prediction (family hamiltonian).
-PRIOR_PREFIX = "prior_"
-
-
-def target_inputs(settings: dict[str, Any], dataset: Dataset,
-                  family: str = "eigenvalue") -> list[str]:
-    """The basis input columns that ``settings["basis_inputs"]`` names: the prior columns
-    (for family hamiltonian, the parameter-space model's predictions), optionally with the
-    features."""
-    extra = dataset.feature_names if settings["basis_inputs"] == "prior+features" else []
-    if family == "hamiltonian":
-        return [f"{PRIOR_PREFIX}{t}" for t in dataset.target_names] + extra
-    return dataset.prior_names + extra
-
-
-def model_inputs(cfg: ExperimentConfig, dataset: Dataset) -> pd.DataFrame:
-    """The frame a config's model reads: :attr:`Dataset.X`, plus the Hamiltonian's
-    parameter columns for family hamiltonian."""
-    return dataset.X_physics if cfg.family == "hamiltonian" else dataset.X
-
-
-def build_model(cfg: ExperimentConfig, dataset: Dataset):
-    """The config's unfitted model.
-
-    Family eigenvalue: one :class:`BaseBoostCV` per target, target ``j`` boosting from prior
-    column ``j`` (a :class:`MultiTargetBaseBoost`). Family hamiltonian: a
-    :class:`FittedPriorBoost` whose physics model is :func:`make_hamiltonian` and whose
-    per-target stage is the same BaseBoostCV, boosting from the physics model's prediction.
-    """
-    names = dataset.target_names
-    unknown = sorted(set(cfg.targets) - set(names))
-    if unknown:
-        raise ConfigError(f"[model.targets]: unknown target(s) {unknown}; the dataset's "
-                          f"targets are {names}")
-    selection = cfg.selection
-    cv = KFold(selection["cv"], shuffle=selection["shuffle"],
-               random_state=cfg.random_state if selection["shuffle"] else None)
-    hamiltonian = cfg.family == "hamiltonian"
-    per_target = {}
-    for target, prior in zip(names, dataset.prior_names):
-        s = cfg.model_for(target)
-        booster = make_booster(s, prior=None if hamiltonian else prior,
-                               inputs=target_inputs(s, dataset, cfg.family))
-        per_target[target] = BaseBoostCV(booster, cv=cv, scoring=selection["scoring"])
-    boost = MultiTargetBaseBoost(target_estimators=per_target, n_jobs=cfg.n_jobs,
-                                 random_state=cfg.random_state)
-    if not hamiltonian:
-        return boost
-    h = cfg.hamiltonian
-    physics = make_hamiltonian(h, dataset, random_state=cfg.random_state, n_jobs=cfg.n_jobs)
-    return FittedPriorBoost(physics, boost, prior_prefix=PRIOR_PREFIX,
-                            cv=KFold(h["prior_cv"], shuffle=True,
-                                     random_state=cfg.random_state or 0),
-                            boost_stage=h["boost_stage"])

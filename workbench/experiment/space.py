@@ -3,10 +3,8 @@
 Each entry is a choice list (categorical), a range table ``{ low, high, log?, step? }`` (int
 when both ends are ints, else float) or a plain value (fixed). Basis hyperparameters are
 conditional: ``[search.basis_params.<basis>]`` is sampled only in trials that pick that basis,
-as parameters named ``<basis>.<name>``. For ``[model] family = "hamiltonian"``,
-``[search.hamiltonian]`` varies the parameter-space model's ``[model.hamiltonian]`` settings,
-as parameters named ``hamiltonian.<key>`` (the other entries then search the eigenvalue-space
-boosting stage on top, shared by all targets). Sampling goes through any object with Optuna's
+as parameters named ``<basis>.<name>``. ``[search.<family>]`` varies the model family's own
+``[model.<family>]`` settings, as parameters named ``<family>.<key>``. Sampling goes through any object with Optuna's
 ``suggest_categorical``/``suggest_int``/``suggest_float`` (an Optuna trial, or
 ``optuna.trial.FixedTrial`` to rebuild the settings of a finished trial).
 """
@@ -14,7 +12,7 @@ boosting stage on top, shared by all targets). Sampling goes through any object 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from typing import Any, Callable
 
 from ..bases import BASES, TRANSFORMS
 from ..losses import LOSSES
@@ -31,8 +29,6 @@ NAMED_CHOICES: dict[str, tuple[str, ...]] = {
 }
 NUMERIC = ("n_stages", "line_search_penalty", "alpha")
 SEARCH_KEYS = {*NAMED_CHOICES, *NUMERIC, "basis_params"}
-#: The ``[search]`` sub-table of the parameter-space model (family hamiltonian).
-HAMILTONIAN = "hamiltonian"
 
 
 class SpaceError(ValueError):
@@ -77,24 +73,25 @@ def _suggest(trial, name: str, spec: Any) -> Any:
 
 @dataclass(frozen=True)
 class SearchSpace:
-    """The ``[search]`` table, checked; ``hamiltonian`` is its ``[search.hamiltonian]``."""
+    """The ``[search]`` table, checked; ``family_table`` is its ``[search.<family>]``, which
+    varies the model family's own settings (parameters named ``<family>.<key>``)."""
 
     table: dict[str, Any] = field(default_factory=dict)
-    hamiltonian: dict[str, Any] = field(default_factory=dict)
+    family: str | None = None
+    family_table: dict[str, Any] = field(default_factory=dict)
 
     @classmethod
-    def from_table(cls, table: dict[str, Any],
-                   hamiltonian: Mapping[str, tuple[Any, ...] | None] | None = None
-                   ) -> SearchSpace:
-        """Check ``table``. ``hamiltonian``: the keys ``[search.hamiltonian]`` may vary, each
-        with its valid values (``None``: any); ``None`` when the model has no parameter-space
-        part, so that ``[search.hamiltonian]`` is an error."""
+    def from_table(cls, table: dict[str, Any], family: str | None = None,
+                   check: Callable[[str, Any], None] | None = None) -> SearchSpace:
+        """Check ``table``. ``family``: the model family whose settings ``[search.<family>]``
+        may vary (``None``: it has none, so such a table is an error); ``check(key, value)``
+        raises :class:`SpaceError` for a value the family's settings do not allow."""
+        if not isinstance(table, dict):
+            raise SpaceError(f"[search] must be a table, got {table!r}")
         table = dict(table)
-        ham = table.pop(HAMILTONIAN, None)
-        valid_keys = SEARCH_KEYS | ({HAMILTONIAN} if hamiltonian is not None else set())
+        sub = table.pop(family, None) if family else None
+        valid_keys = SEARCH_KEYS | ({family} if family else set())
         unknown = sorted(set(table) - SEARCH_KEYS)
-        if ham is not None and hamiltonian is None:
-            unknown = sorted([*unknown, HAMILTONIAN])
         if unknown:
             raise SpaceError(f"unknown key(s) {unknown}; valid keys are {sorted(valid_keys)}")
         for name, spec in table.items():
@@ -110,27 +107,19 @@ class SearchSpace:
                 raise SpaceError(f"basis_params.{basis} must be a table, got {specs!r}")
             for pname, spec in specs.items():
                 _check_spec(f"basis_params.{basis}.{pname}", spec)
-        ham = {} if ham is None else ham
-        if not isinstance(ham, dict):
-            raise SpaceError(f"{HAMILTONIAN} must be a table, got {ham!r}")
-        unknown = sorted(set(ham) - set(hamiltonian or {}))
-        if unknown:
-            raise SpaceError(f"{HAMILTONIAN}: unknown key(s) {unknown}; valid keys are "
-                             f"{sorted(hamiltonian or {})}")
-        for name, spec in ham.items():
-            _check_spec(f"{HAMILTONIAN}.{name}", spec, hamiltonian[name])
+        sub = {} if sub is None else sub
+        if not isinstance(sub, dict):
+            raise SpaceError(f"{family} must be a table, got {sub!r}")
+        for name, spec in sub.items():
+            _check_spec(f"{family}.{name}", spec)
             if isinstance(spec, dict) and not all(
                     isinstance(spec[end], (int, float)) and not isinstance(spec[end], bool)
                     for end in ("low", "high")):
-                raise SpaceError(f"{HAMILTONIAN}.{name}: a range needs numbers, got {spec!r}")
-        return cls(table=table, hamiltonian=dict(ham))
-
-    def hamiltonian_values(self) -> dict[str, list[Any]]:
-        """Per ``[search.hamiltonian]`` key, the values to check: every choice, a range's
-        ends, or the fixed value."""
-        return {name: (list(spec) if isinstance(spec, list) else
-                       [spec["low"], spec["high"]] if isinstance(spec, dict) else [spec])
-                for name, spec in self.hamiltonian.items()}
+                raise SpaceError(f"{family}.{name}: a range needs numbers, got {spec!r}")
+            for value in _values(spec):
+                if check is not None:
+                    check(name, value)
+        return cls(table=table, family=family, family_table=dict(sub))
 
     def sample(self, trial, base: dict[str, Any]) -> dict[str, Any]:
         """Model settings: ``base`` (a target's ``[model]`` settings) with searched entries
@@ -150,8 +139,20 @@ class SearchSpace:
                 **{k: _suggest(trial, f"{settings['basis']}.{k}", v) for k, v in specs.items()}}
         return settings
 
-    def sample_hamiltonian(self, trial, base: dict[str, Any]) -> dict[str, Any]:
-        """Parameter-space model settings: ``base`` (``[model.hamiltonian]``) with the entries
-        of ``[search.hamiltonian]`` replaced by the trial's values (``hamiltonian.<key>``)."""
-        return {**base, **{name: _suggest(trial, f"{HAMILTONIAN}.{name}", spec)
-                           for name, spec in self.hamiltonian.items()}}
+    def sample_family(self, trial, base):
+        """The family's settings (a pydantic model): ``base`` with the entries of
+        ``[search.<family>]`` replaced by the trial's values (``<family>.<key>``)."""
+        if not self.family_table:
+            return base
+        values = {name: _suggest(trial, f"{self.family}.{name}", spec)
+                  for name, spec in self.family_table.items()}
+        return type(base).model_validate({**base.model_dump(), **values})
+
+
+def _values(spec: Any) -> list[Any]:
+    """The values of a spec to check: every choice, a range's ends, or the fixed value."""
+    if isinstance(spec, list):
+        return list(spec)
+    if isinstance(spec, dict):
+        return [spec["low"], spec["high"]]
+    return [spec]

@@ -151,8 +151,7 @@ def _describe_store(uri: str) -> str:
 # --------------------------------------------------------------------------- errors
 
 
-class TrackingError(RuntimeError):
-    """The tracking store cannot be used (locked, corrupt, unreachable, ...)."""
+from .errors import TrackingError  # noqa: E402  (kept importable from here)
 
 
 def _translate(exc: BaseException, uri: str) -> TrackingError | None:

@@ -1,0 +1,234 @@
+"""Family ``eigenvalue``: base boosting per target from the control program's eigenvalues.
+
+Target ``j`` boosts from prior column ``j`` with a :class:`~workbench.BaseBoostCV` (which keeps
+the prior unless CV on the training rows says boosting helps); the targets together form a
+:class:`~workbench.MultiTargetBaseBoost`. A sweep searches each target on its own (the study
+unit is the target), a trial's value read from BaseBoostCV's own fold scores.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pandas as pd
+
+from ..results import ModelScores, Scores, mae, mse
+from .base import Artifacts, ModelFamily, quiet_fit
+
+if TYPE_CHECKING:
+    from ...datasets import Dataset
+    from ..config import ExperimentConfig
+
+__all__ = ["EigenvalueFamily", "booster_cv", "curve_sizes", "make_booster", "per_target_boost",
+           "target_inputs"]
+
+
+def make_booster(settings: dict[str, Any], prior, inputs: list[str] | None):
+    """The :class:`~workbench.BaseBoostRegressor` that one target's settings describe."""
+    from ...bases import make_basis, make_transform
+    from ...boosting import BaseBoostRegressor
+
+    return BaseBoostRegressor(
+        prior=prior, basis=make_basis(settings["basis"], **settings["basis_params"]),
+        n_stages=settings["n_stages"], loss=settings["loss"],
+        line_search_loss=settings["line_search_loss"],
+        line_search_penalty=settings["line_search_penalty"], alpha=settings["alpha"],
+        basis_features=inputs,
+        input_transform=make_transform(settings["input_transform"],
+                                       **settings["input_transform_params"]))
+
+
+def target_inputs(settings: dict[str, Any], ds: Dataset, priors: list[str]) -> list[str]:
+    """The basis input columns ``settings["basis_inputs"]`` names: the prior columns
+    ``priors``, optionally with the dataset's features."""
+    extra = ds.feature_names if settings["basis_inputs"] == "prior+features" else []
+    return list(priors) + extra
+
+
+def selection_cv(cfg: ExperimentConfig):
+    """BaseBoostCV's folds (``[selection]``): contiguous unless ``shuffle``."""
+    from sklearn.model_selection import KFold
+
+    s = cfg.selection
+    return KFold(s.cv, shuffle=s.shuffle, random_state=cfg.random_state if s.shuffle else None)
+
+
+def per_target_boost(cfg: ExperimentConfig, ds: Dataset, priors: list[str], *,
+                     boost_from_prior: bool = True):
+    """One :class:`BaseBoostCV` per target (target ``j`` boosting from ``priors[j]``, or from
+    an outside prior when ``boost_from_prior`` is false), as a MultiTargetBaseBoost."""
+    from ...multitarget import MultiTargetBaseBoost
+    from ...selection import BaseBoostCV
+
+    names = ds.target_names
+    unknown = sorted(set(cfg.model.targets) - set(names))
+    if unknown:
+        from ..errors import ConfigError
+
+        raise ConfigError(f"[model.targets]: unknown target(s) {unknown}; the dataset's "
+                          f"targets are {names}")
+    per_target = {}
+    for target, prior in zip(names, priors):
+        s = cfg.model_for(target)
+        booster = make_booster(s, prior=prior if boost_from_prior else None,
+                               inputs=target_inputs(s, ds, priors))
+        per_target[target] = BaseBoostCV(booster, cv=selection_cv(cfg),
+                                         scoring=cfg.selection.scoring)
+    return MultiTargetBaseBoost(target_estimators=per_target, n_jobs=cfg.n_jobs,
+                                random_state=cfg.random_state)
+
+
+def booster_cv(cfg: ExperimentConfig, ds: Dataset, target: str, settings: dict[str, Any], cv,
+               **kwargs):
+    """One target's BaseBoostCV of a sweep (inner folds ``cv``)."""
+    from ...selection import BaseBoostCV
+
+    prior = ds.prior_names[ds.target_names.index(target)]
+    booster = make_booster(settings, prior=prior, inputs=target_inputs(settings, ds,
+                                                                        ds.prior_names))
+    return BaseBoostCV(booster, cv=cv, scoring=cfg.selection.scoring,
+                       random_state=cfg.random_state, **kwargs)
+
+
+def cv_mse(y, predictions) -> float:
+    """MSE of out-of-fold predictions (rows without one, e.g. failed folds, left out)."""
+    y, p = np.asarray(y, dtype=float), np.asarray(predictions, dtype=float)
+    ok = np.isfinite(p)
+    return float(np.mean((y[ok] - p[ok]) ** 2)) if ok.any() else float("nan")
+
+
+def stage_scores(cvs, Y: np.ndarray) -> dict[str, list]:
+    """The per-target CV figures of fitted BaseBoostCVs: ``cv_mae`` their CV score (of what
+    they selected), ``cv_mse`` from out-of-fold predictions, the prior's and the boosted
+    candidate's own CV MAE, the stage coefficients."""
+    return {
+        "cv_mae": [-e.cv_score_ for e in cvs],
+        "cv_mse": [cv_mse(Y[:, j], e.cv_predictions_) for j, e in enumerate(cvs)],
+        "prior_cv_mae": [float(-np.mean(e.cv_scores_prior_)) for e in cvs],
+        "prior_cv_mse": [cv_mse(Y[:, j], e.cv_predictions_prior_) for j, e in enumerate(cvs)],
+        "boosted_cv_mae": [float(-np.mean(e.cv_scores_boosted_)) for e in cvs],
+        "coefs": [e.best_estimator_.coefs_.tolist() if e.selected_ == "boosted" else []
+                  for e in cvs],
+    }
+
+
+def curve_sizes(n_rows: int, folds: int, points: int = 5) -> list[int]:
+    """Training sizes from a quarter of the fold-training size up to all of it."""
+    largest = n_rows - -(-n_rows // folds)  # rows left for training in the largest fold
+    return sorted({int(s) for s in np.linspace(max(5, largest // 4), largest, points)})
+
+
+def _columns(fitted, X: pd.DataFrame) -> list[str]:
+    """The columns a fitted per-target model reads: its basis inputs and its prior column."""
+    names = list(X.columns)
+    prior = getattr(fitted, "prior", None)
+    cols = [names[i] for i in getattr(fitted, "basis_columns_", [])]
+    if isinstance(prior, str) and prior not in cols:
+        cols.append(prior)
+    return cols or names
+
+
+class EigenvalueFamily(ModelFamily):
+    """Base boosting in eigenvalue space, one BaseBoostCV per target."""
+
+    name = "eigenvalue"
+    cv_from_repeats = False  # BaseBoostCV's own folds give the CV figures
+
+    def build(self, cfg: ExperimentConfig, ds: Dataset):
+        return per_target_boost(cfg, ds, ds.prior_names)
+
+    def units(self, cfg: ExperimentConfig, targets: list[str]) -> dict[str, list[str]]:
+        return {t: [t] for t in targets}
+
+    def objective(self, cfg, ds, targets, X, Y, trial, cv, report) -> None:
+        (target,) = targets
+        settings = self.with_trial(cfg, trial, targets).model_for(target)
+        model = booster_cv(cfg, ds, target, settings, cv, refit=False)
+        quiet_fit_callback(model, X, Y[target].to_numpy(), report)
+
+    def refit_predict(self, cfg, ds, targets, params, X, Y, train, val):
+        from optuna.trial import FixedTrial
+
+        (target,) = targets
+        settings = self.with_trial(cfg, FixedTrial(params), targets).model_for(target)
+        model = booster_cv(cfg, ds, target, settings, cfg_inner_cv(cfg))
+        quiet_fit(model, X.iloc[train], Y[target].to_numpy()[train])
+        return np.asarray(model.predict(X.iloc[val])).reshape(-1, 1), model.selected_
+
+    def final_model(self, cfg: ExperimentConfig, ds: Dataset):
+        """The final model of a sweep: the chosen settings, each target's BaseBoostCV on the
+        sweep's inner folds (as in the search)."""
+        from ...multitarget import MultiTargetBaseBoost
+
+        return MultiTargetBaseBoost(target_estimators={
+            t: booster_cv(cfg, ds, t, cfg.model_for(t), cfg_inner_cv(cfg))
+            for t in ds.target_names}, random_state=cfg.random_state, n_jobs=cfg.n_jobs)
+
+    def scores(self, cfg, ds, model, Y_train, prior_test, y_test, pred):
+        s = stage_scores(model.estimators_, Y_train.to_numpy(dtype=float))
+        prior = Scores(test_mae=mae(y_test, prior_test), test_mse=mse(y_test, prior_test),
+                       cv_mae=s["prior_cv_mae"], cv_mse=s["prior_cv_mse"])
+        scores = ModelScores(test_mae=mae(y_test, pred), test_mse=mse(y_test, pred),
+                             cv_mae=s["cv_mae"], cv_mse=s["cv_mse"],
+                             selected=list(model.selected_), coefs=s["coefs"],
+                             extra={"cv_mae_boosted": s["boosted_cv_mae"]})
+        return prior, scores, {}
+
+    def artifacts(self, cfg, ds, model, setting, quick=False) -> Artifacts:
+        """An augmented learning curve and a SHAP summary per target."""
+        import logging
+
+        from ...curves import augmented_learning_curve
+        from ..figures import learning_curve_figure, shap_summary
+
+        log = logging.getLogger("workbench")
+        X_train, _, y_train, _ = ds.split()
+        folds = cfg.selection.cv
+        sizes = curve_sizes(len(X_train), folds)
+        out = Artifacts()
+        curves = {}
+        for target, est in zip(ds.target_names, model.estimators_):
+            log.info("[%s] figures for %s: learning curve at sizes %s, SHAP", cfg.name, target,
+                     sizes)
+            curve = augmented_learning_curve(est.estimator, X_train, y_train[target].to_numpy(),
+                                             train_sizes=sizes, cv=folds,
+                                             random_state=cfg.random_state)
+            curves[target] = curve.to_dict()
+            out.figures[f"learning_curve_{target}"] = learning_curve_figure(
+                curve, target=target, setting=setting)
+            used = est.best_estimator_
+            cols = _columns(used, X_train)
+            Xs = X_train[cols]
+            base = X_train.iloc[[0]].to_numpy()  # columns the model does not read stay fixed
+
+            def predict(a, used=used, cols=cols, base=base):
+                frame = pd.DataFrame(np.repeat(base, len(a), axis=0), columns=X_train.columns)
+                frame[cols] = a
+                return used.predict(frame)
+
+            fig, _ = shap_summary(predict, Xs, target=target, setting=setting,
+                                  nsamples="auto" if len(cols) <= 10 else 256,
+                                  background_size=min(30, len(Xs)))
+            out.figures[f"shap_{target}"] = fig
+        out.data["learning_curves"] = curves
+        return out
+
+
+def cfg_inner_cv(cfg: ExperimentConfig):
+    """A sweep's inner folds (``[cv]``)."""
+    from sklearn.model_selection import KFold
+
+    return KFold(cfg.cv.inner_folds, shuffle=True, random_state=cfg.cv.seed)
+
+
+def quiet_fit_callback(model, X, y, report) -> None:
+    """Fit a BaseBoostCV, reporting each fold's boosted and prior MAE as it finishes."""
+    import warnings
+
+    from sklearn.exceptions import ConvergenceWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        model.fit(X, y, fold_callback=lambda i, prior_score, boosted_score:
+                  report(i, -boosted_score, -prior_score))

@@ -1,0 +1,226 @@
+"""Family ``hamiltonian``: boosting in the Hamiltonian's parameter space.
+
+One model predicts every target: the parameter-space model
+(:class:`~workbench.param_boost.HamiltonianParameterRegressor`, with covariates chosen by
+:class:`~workbench.param_select.HamiltonianSelectionCV`) corrects the control model's qubit
+frequencies and couplings and re-diagonalises; an eigenvalue-space boosting stage on top
+(``[model]`` keys, one BaseBoostCV per target, trained on out-of-fold priors) is kept per target
+only where CV says it helps (:class:`~workbench.fitted_prior.FittedPriorBoost`). Its settings
+are ``[model.hamiltonian]`` (:class:`HamiltonianSettings`); a sweep varies them through
+``[search.hamiltonian]``, one study over all targets.
+
+What the model learned is written as tables and figures:
+
+* ``coefficients``: the selected covariates and coefficients per Hamiltonian parameter
+  (MHz per standard deviation of the covariate, and that standard deviation);
+* ``corrected_parameters``: per experiment, each parameter's control-model value, corrected
+  value and correction, and whether the row is a training or a test row;
+* ``selection_path``: the forward selection's CV MAE after each added covariate;
+
+with the figures :func:`~workbench.experiment.figures.parameter_corrections` and
+:func:`~workbench.experiment.figures.selection_path_figure` (``evaluate --out DIR``, and the
+MLflow run's artifacts).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any, ClassVar, Literal
+
+import pandas as pd
+from pydantic import Field
+
+from ..config import Section
+from ..results import ModelScores, Scores, mae, mse
+from .base import Artifacts, ModelFamily
+from .eigenvalue import per_target_boost, stage_scores
+
+if TYPE_CHECKING:
+    from ...datasets import Dataset
+    from ..config import DataConfig, ExperimentConfig
+
+__all__ = ["PRIOR_PREFIX", "HamiltonianFamily", "HamiltonianSettings", "make_hamiltonian",
+           "physics_regressor"]
+
+#: Prefix of the columns holding the parameter-space model's prediction (the boosting stage's
+#: prior and basis inputs).
+PRIOR_PREFIX = "prior_"
+
+
+class HamiltonianSettings(Section):
+    """``[model.hamiltonian]``. ``start``: covariates every model has ("default": the default
+    library, "none": intercepts only); ``candidates``: the pool ("physical": with neighbours,
+    "local": without, "none"); ``selection``: "forward" (forward selection by CV from start
+    over the pool) or "none" (start and pool together, regularised by alpha / alpha_l1)."""
+
+    loss: Literal["squared_error", "absolute_error", "huber"] = "huber"
+    huber_delta: float = Field(default=0.5, gt=0)
+    alpha: float = Field(default=1.0, ge=0)
+    alpha_l1: float = Field(default=0.0, ge=0)
+    max_iter: int = Field(default=20, ge=0, le=100_000)
+    start: Literal["default", "none"] = "default"
+    candidates: Literal["physical", "local", "none"] = "physical"
+    selection: Literal["forward", "none"] = "forward"
+    selection_cv: int = Field(default=5, ge=2, le=10_000)
+    selection_repeats: int = Field(default=1, ge=1, le=1000)
+    max_steps: int = Field(default=20, ge=0, le=100_000)
+    min_improvement: float = Field(default=1e-3, ge=0)
+    boost_stage: bool = True
+    prior_cv: int = Field(default=5, ge=2, le=10_000)
+
+
+def make_hamiltonian(settings: HamiltonianSettings, ds: Dataset, *, random_state=None,
+                     n_jobs=None):
+    """The parameter-space model that ``[model.hamiltonian]`` describes: a
+    :class:`HamiltonianSelectionCV` (``selection = "forward"``) or a
+    :class:`HamiltonianParameterRegressor` with the start and pool covariates together."""
+    from ...param_boost import HamiltonianParameterRegressor, default_library
+    from ...param_select import HamiltonianSelectionCV, candidate_pool
+    from ..errors import ConfigError
+
+    ham = ds.hamiltonian
+    if ham is None:
+        raise ConfigError(f"family = \"hamiltonian\" needs a dataset with Hamiltonian "
+                          f"parameters; {ds.name!r} has none")
+    s = settings
+    on, co = list(ham.onsite.columns), list(ham.couplings.columns)
+    common = dict(onsite=on, couplings=co, sign=ham.sign, loss=s.loss,
+                  huber_delta=float(s.huber_delta), alpha=float(s.alpha),
+                  alpha_l1=float(s.alpha_l1), max_iter=s.max_iter)
+    start = default_library(on, co) if s.start == "default" else {}
+    if s.candidates == "none":
+        pool = {}
+    else:
+        pool = candidate_pool(on, co, ham.qubit_features, ham.coupler_features, base=None,
+                              neighbours=s.candidates == "physical")
+    if s.selection == "none":
+        merged = {p: list(dict.fromkeys(start.get(p, []) + pool.get(p, []))) for p in on + co}
+        return HamiltonianParameterRegressor(covariates=merged, **common)
+    return HamiltonianSelectionCV(candidates=pool, start=start or None, cv=s.selection_cv,
+                                  n_repeats=s.selection_repeats, max_steps=s.max_steps,
+                                  min_improvement=float(s.min_improvement),
+                                  random_state=random_state, n_jobs=n_jobs, **common)
+
+
+def physics_regressor(model):
+    """The fitted :class:`~workbench.param_boost.HamiltonianParameterRegressor` inside a
+    fitted family-hamiltonian model (after its covariate selection, if any)."""
+    physics = model.physics_
+    return getattr(physics, "estimator_", physics)
+
+
+def _records(table: pd.DataFrame) -> list[dict[str, Any]]:
+    """Rows as JSON-ready dicts (NaN -> None)."""
+    return table.astype(object).where(table.notna(), None).to_dict(orient="records")
+
+
+class HamiltonianFamily(ModelFamily):
+    """The parameter-space model, with an eigenvalue-space boosting stage on top."""
+
+    name = "hamiltonian"
+    settings: ClassVar = HamiltonianSettings
+
+    def check_data(self, data: DataConfig) -> None:
+        if data.source == "csv" and data.hamiltonian is None:
+            raise ValueError("family = \"hamiltonian\" needs the Hamiltonian's columns in "
+                             "[data.hamiltonian] (onsite, couplings)")
+
+    def inputs(self, cfg, ds) -> pd.DataFrame:
+        return ds.X_physics
+
+    def build(self, cfg: ExperimentConfig, ds: Dataset):
+        """A :class:`FittedPriorBoost` whose physics model is :func:`make_hamiltonian` and
+        whose per-target stage is BaseBoostCV, boosting from the physics model's
+        prediction (columns ``prior_<target>``)."""
+        from sklearn.model_selection import KFold
+
+        from ...fitted_prior import FittedPriorBoost
+
+        h = cfg.family_settings
+        priors = [f"{PRIOR_PREFIX}{t}" for t in ds.target_names]
+        boost = per_target_boost(cfg, ds, priors, boost_from_prior=False)
+        physics = make_hamiltonian(h, ds, random_state=cfg.random_state, n_jobs=cfg.n_jobs)
+        return FittedPriorBoost(physics, boost, prior_prefix=PRIOR_PREFIX,
+                                cv=KFold(h.prior_cv, shuffle=True,
+                                         random_state=cfg.random_state or 0),
+                                boost_stage=h.boost_stage)
+
+    def fixed_choices(self, model):
+        """Keep the selected covariates (refitting the selection would remake it)."""
+        from sklearn.base import clone
+
+        selection = getattr(model.physics_, "selection_", None)
+        if selection is not None:
+            return clone(model).set_params(physics=selection.estimator())
+        return clone(model)
+
+    def selected(self, model, targets):
+        return ["hamiltonian+boosted" if s == "boosted" else "hamiltonian"
+                for s in model.selected_]
+
+    def scores(self, cfg, ds, model, Y_train, prior_test, y_test, pred):
+        """``model.cv_mae``: the boosting stage's CV (NaN without a stage; the repeated CV of
+        ``[evaluation]`` replaces it when asked); ``cv_mae_hamiltonian``: the parameter-space
+        model's out-of-fold CV MAE."""
+        prior_train = ds.prior.loc[Y_train.index].to_numpy()
+        nan = [float("nan")] * len(ds.target_names)
+        Y = Y_train.to_numpy(dtype=float)
+        staged = model.boost_stage
+        s = stage_scores(model.boost_.estimators_, Y) if staged else {}
+        prior = Scores(test_mae=mae(y_test, prior_test), test_mse=mse(y_test, prior_test),
+                       cv_mae=mae(Y_train, prior_train),  # no fit: CV MAE = training MAE
+                       cv_mse=mse(Y_train, prior_train))
+        stage_cv = s["prior_cv_mae"] if staged else nan
+        scores = ModelScores(test_mae=mae(y_test, pred), test_mse=mse(y_test, pred),
+                             cv_mae=s["cv_mae"] if staged else stage_cv,
+                             cv_mse=s["cv_mse"] if staged else nan,
+                             selected=self.selected(model, ds.target_names),
+                             coefs=s["coefs"] if staged else [[] for _ in nan],
+                             extra={"cv_mae_hamiltonian": stage_cv})
+        regressor = physics_regressor(model)
+        ham: dict[str, Any] = {"covariates": regressor.covariate_names_,
+                               "coefficients": _records(regressor.coefficient_table()),
+                               "n_iter": regressor.n_iter_}
+        physics = model.physics_
+        selection = getattr(physics, "selection_", None)
+        if selection is not None:
+            ham["selection"] = {"cv_mae": selection.cv_mae, "steps": len(selection.path) - 1,
+                                "folds": physics.cv, "repeats": physics.n_repeats,
+                                "path": _records(selection.path),
+                                "seconds": selection.seconds}
+        return prior, scores, {"hamiltonian": ham}
+
+    def outputs(self, model, ds: Dataset, setting: str | None = None) -> Artifacts:
+        """The tables and figures of a fitted model, from one computation of the corrected
+        parameters of every experiment. Every table is written without its index (the
+        corrected parameters carry the experiment label in the column ``experiment``)."""
+        from ..figures import parameter_corrections, selection_path_figure
+
+        regressor = physics_regressor(model)
+        X = ds.X_physics
+        names = regressor.parameter_names_
+        control = X[names]
+        corrected = regressor.corrected_parameters(X)
+        split = pd.Series("test", index=X.index, name="split")
+        split.loc[ds.train_index] = "train"
+        columns = {"experiment": pd.Series(X.index, index=X.index), "split": split}
+        for p in names:
+            columns[f"{p}_control"] = control[p]
+            columns[f"{p}_corrected"] = corrected[p]
+            columns[f"{p}_correction"] = corrected[p] - control[p]
+        out = Artifacts(tables={"coefficients": regressor.coefficient_table(),
+                                "corrected_parameters": pd.DataFrame(columns)})
+        out.figures["parameter_corrections"] = parameter_corrections(
+            control, corrected, groups={"training rows": ds.train_index,
+                                        "test rows": ds.test_index}, setting=setting)
+        selection = getattr(model.physics_, "selection_", None)
+        if selection is not None:
+            out.tables["selection_path"] = selection.path
+            out.figures["selection_path"] = selection_path_figure(
+                selection.path, title=f"Forward covariate selection ({selection.n_rows} "
+                                      "training rows, CV MAE over all targets)", setting=setting)
+        return out
+
+    def artifacts(self, cfg, ds, model, setting, quick=False) -> Artifacts:
+        """The parameter-space model's own tables and figures (the per-target learning curves
+        and SHAP summaries need single-target models, which this family does not have)."""
+        return self.outputs(model, ds, setting)

@@ -1,0 +1,185 @@
+"""What ``evaluate``, ``sweep`` and ``reproduce`` produce: dataclasses with one ``to_json``.
+
+Modules read fields, never string keys. :meth:`Result.to_json` keeps the JSON that
+``--json`` has always written (``targets``, ``prior.test_mae[_avg]``, ``model.test_mae[_avg]``,
+``model.test_mse``, ``model.cv_mae[_avg]``, ``model.cv_mse``, ``model.selected``,
+``nested_cv_mae[_avg]``, ``best_params``, ``wall_s``, ...), so scripts that read it keep working.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field, fields
+from typing import Any
+
+import numpy as np
+
+__all__ = ["CVEstimate", "ModelScores", "OuterFold", "Result", "Scores", "SweepSummary",
+           "mae", "mse"]
+
+
+def mae(y, pred) -> list[float]:
+    """Per-column mean absolute error."""
+    return np.mean(np.abs(np.asarray(y, float) - np.asarray(pred, float)), axis=0).tolist()
+
+
+def mse(y, pred) -> list[float]:
+    """Per-column mean squared error."""
+    return np.mean((np.asarray(y, float) - np.asarray(pred, float)) ** 2, axis=0).tolist()
+
+
+def _avg(values: list[float]) -> float:
+    return float(np.mean(values)) if len(values) else math.nan
+
+
+@dataclass
+class Scores:
+    """Per-target test and CV errors of one system (the prior, or the model)."""
+
+    test_mae: list[float]
+    test_mse: list[float]
+    cv_mae: list[float]
+    cv_mse: list[float]
+
+    def avg(self, key: str) -> float:
+        """The average over targets of ``key`` (``"test_mae"``, ``"cv_mse"``, ...)."""
+        return _avg(getattr(self, key))
+
+    def to_json(self) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        for f in fields(self):
+            value = getattr(self, f.name)
+            out[f.name] = value
+            if f.name in ("test_mae", "test_mse", "cv_mae", "cv_mse"):
+                out[f"{f.name}_avg"] = _avg(value)
+        return out
+
+
+@dataclass
+class ModelScores(Scores):
+    """The model's scores plus what it chose per target; ``extra``: family-specific per-target
+    figures (e.g. ``cv_mae_boosted``)."""
+
+    selected: list[str] = field(default_factory=list)
+    coefs: list[list[float]] = field(default_factory=list)
+    extra: dict[str, list[float]] = field(default_factory=dict)
+
+    def to_json(self) -> dict[str, Any]:
+        out = super().to_json()
+        out.update(out.pop("extra"))
+        return out
+
+
+@dataclass
+class CVEstimate:
+    """A cross-validated estimate of the chosen model: repeated K-fold CV on the training rows
+    (``repeats`` > 0) or nested CV over all rows (``n_rows``)."""
+
+    folds: int
+    seed: int
+    model_mae: list[float]
+    model_mse: list[float]
+    prior_mae: list[float]
+    repeats: int | None = None
+    n_rows: int | None = None
+    model_mae_avg_per_repeat: list[float] | None = None
+
+    @property
+    def model_mae_avg(self) -> float:
+        return _avg(self.model_mae)
+
+    @property
+    def prior_mae_avg(self) -> float:
+        return _avg(self.prior_mae)
+
+    def to_json(self) -> dict[str, Any]:
+        out = {k: v for k, v in asdict(self).items() if v is not None}
+        out.update(model_mae_avg=self.model_mae_avg, model_mse_avg=_avg(self.model_mse),
+                   prior_mae_avg=self.prior_mae_avg)
+        return out
+
+
+@dataclass
+class OuterFold:
+    """One outer fold of a sweep: its study's best settings refitted and scored."""
+
+    unit: str
+    fold: int
+    study: str
+    mae: float
+    prior_mae: float
+    selected: str
+    n_train: int
+    n_val: int
+    params: dict[str, Any] | None
+    target_mae: dict[str, float]
+    target_prior_mae: dict[str, float]
+
+
+@dataclass
+class SweepSummary:
+    """What a sweep adds to a result: nested-CV estimates, the chosen parameters per target
+    (a unit's choice repeated for each of its targets), the trial counts."""
+
+    nested_cv_mae: list[float]
+    nested_cv_prior_mae: list[float]
+    best_params: list[dict[str, Any] | None]
+    trials_per_study: int
+    trials_counted: int
+    studies: int
+    outer_folds: list[OuterFold] = field(default_factory=list)
+
+    @property
+    def nested_cv_mae_avg(self) -> float:
+        return _avg(self.nested_cv_mae)
+
+    @property
+    def nested_cv_prior_mae_avg(self) -> float:
+        return _avg(self.nested_cv_prior_mae)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"nested_cv_mae": self.nested_cv_mae, "nested_cv_mae_avg": self.nested_cv_mae_avg,
+                "nested_cv_prior_mae": self.nested_cv_prior_mae,
+                "nested_cv_prior_mae_avg": self.nested_cv_prior_mae_avg,
+                "best_params": self.best_params,
+                "trials": {"per_study": self.trials_per_study, "counted": self.trials_counted,
+                           "studies": self.studies}}
+
+
+@dataclass
+class Result:
+    """One ``evaluate`` (or a sweep's final evaluation): the model fitted on the training rows
+    and scored once on the test rows. ``details``: the family's own JSON-ready section (e.g.
+    ``{"hamiltonian": {...}}``); ``wall_s``: the whole command's wall time."""
+
+    name: str
+    config: str | None
+    family: str
+    targets: list[str]
+    n_train: int
+    n_test: int
+    prior: Scores
+    model: ModelScores
+    details: dict[str, Any] = field(default_factory=dict)
+    repeated_cv: CVEstimate | None = None
+    nested_cv_all: CVEstimate | None = None
+    sweep: SweepSummary | None = None
+    outputs: dict[str, str] = field(default_factory=dict)
+    mlflow: dict[str, str] = field(default_factory=dict)
+    wall_s: float = math.nan
+
+    def to_json(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "name": self.name, "config": self.config, "family": self.family,
+            "targets": self.targets, "n_train": self.n_train, "n_test": self.n_test,
+            "prior": self.prior.to_json(), "model": self.model.to_json(), **self.details}
+        for key in ("repeated_cv", "nested_cv_all", "sweep"):
+            part = getattr(self, key)
+            if part is not None:
+                out.update(part.to_json() if key == "sweep" else {key: part.to_json()})
+        if self.outputs:
+            out["outputs"] = self.outputs
+        if self.mlflow:
+            out["mlflow"] = self.mlflow
+        out["wall_s"] = self.wall_s
+        return out
