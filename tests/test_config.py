@@ -14,12 +14,7 @@ from sklearn.model_selection import KFold
 
 from workbench.bases import BASES, PAPER_PARAMS, TRANSFORMS, NormalQuantileTransformer
 from workbench.boosting import BaseBoostRegressor
-from workbench.experiment.config import (
-    ConfigError,
-    build_model,
-    load_config,
-    load_dataset,
-)
+from workbench.experiment.config import ConfigError, load_config, load_dataset
 from workbench.losses import LOSSES
 from workbench.multitarget import MultiTargetBaseBoost
 from workbench.selection import BaseBoostCV
@@ -45,6 +40,10 @@ def write_config(tmp_path: Path, model: str = 'basis = "ridge"', *, extra: str =
     return path
 
 
+def build_model(cfg, ds):
+    return cfg.family.build(cfg, ds)
+
+
 def _tuples(params: dict) -> dict:
     return {k: tuple(v) if isinstance(v, list) else v for k, v in params.items()}
 
@@ -59,9 +58,9 @@ def test_paper_config_loads_with_expected_settings():
     cfg = load_config(PAPER_TOML)
     assert cfg.name == "paper_main_body"
     assert cfg.random_state == 0
-    assert cfg.data["source"] == "google_5q"
-    assert set(cfg.targets) == set(TARGETS)
-    assert cfg.selection["cv"] == 5 and cfg.selection["shuffle"] is False
+    assert cfg.data.source == "google_5q"
+    assert set(cfg.model.targets) == set(TARGETS)
+    assert cfg.selection.cv == 5 and cfg.selection.shuffle is False
     for target in TARGETS:
         s = cfg.model_for(target)
         assert s["basis"] == "paper_stacking"
@@ -122,14 +121,14 @@ def test_unknown_keys(tmp_path, where, kwargs, section):
 
 def test_unknown_basis_lists_valid_names(tmp_path):
     path = write_config(tmp_path, 'basis = "bogus_basis"')
-    with pytest.raises(ConfigError, match=r"\[model\].*unknown basis 'bogus_basis'") as info:
+    with pytest.raises(ConfigError, match=r"model\.basis = 'bogus_basis': unknown basis") as info:
         load_config(path)
     assert _valid_names_listed(str(info.value), BASES), str(info.value)
 
 
 def test_unknown_basis_in_target_names_the_target(tmp_path):
     path = write_config(tmp_path, extra='[model.targets.eeig4]\nbasis = "bogus_basis"')
-    with pytest.raises(ConfigError, match=r"\[model\.targets\.eeig4\].*'bogus_basis'") as info:
+    with pytest.raises(ConfigError, match=r"model\.targets\.eeig4\.basis = 'bogus_basis'") as info:
         load_config(path)
     assert _valid_names_listed(str(info.value), BASES)
 
@@ -137,42 +136,44 @@ def test_unknown_basis_in_target_names_the_target(tmp_path):
 @pytest.mark.parametrize("key", ["loss", "line_search_loss"])
 def test_unknown_loss_lists_valid_names(tmp_path, key):
     path = write_config(tmp_path, f'basis = "ridge"\n{key} = "bogus_loss"')
-    with pytest.raises(ConfigError, match=r"\[model\].*unknown loss 'bogus_loss'") as info:
+    with pytest.raises(ConfigError, match=rf"model\.{key} = 'bogus_loss'") as info:
         load_config(path)
     assert _valid_names_listed(str(info.value), LOSSES), str(info.value)
 
 
 def test_unknown_input_transform_lists_valid_names(tmp_path):
     path = write_config(tmp_path, 'basis = "ridge"\ninput_transform = "bogus_transform"')
-    with pytest.raises(ConfigError, match=r"\[model\].*'bogus_transform'") as info:
+    with pytest.raises(ConfigError, match=r"model\.input_transform = 'bogus_transform'") as info:
         load_config(path)
     assert _valid_names_listed(str(info.value), ["none", *TRANSFORMS]), str(info.value)
 
 
 def test_bad_basis_inputs(tmp_path):
     path = write_config(tmp_path, 'basis = "ridge"\nbasis_inputs = "everything"')
-    with pytest.raises(ConfigError, match=r"\[model\].*basis_inputs.*'everything'") as info:
+    with pytest.raises(ConfigError, match=r"model\.basis_inputs = 'everything'") as info:
         load_config(path)
     assert "'prior'" in str(info.value) and "'prior+features'" in str(info.value)
 
 
-@pytest.mark.parametrize("data", ['source = "bogus_source"', 'data_dir = "x"'],
-                         ids=["unknown_source", "missing_source"])
-def test_unknown_or_missing_data_source(tmp_path, data):
-    path = write_config(tmp_path, data=data)
-    with pytest.raises(ConfigError, match=r"\[data\].*source must be one of \['google_5q', 'csv'\]"):
+def test_unknown_data_source(tmp_path):
+    path = write_config(tmp_path, data='source = "bogus_source"')
+    with pytest.raises(ConfigError, match=r"data\.source = 'bogus_source': .*'google_5q' or 'csv'"):
         load_config(path)
+
+
+def test_data_source_defaults_to_the_benchmark(tmp_path):
+    assert load_config(write_config(tmp_path, data='data_dir = "x"')).data.source == "google_5q"
 
 
 def test_bad_basis_params_names_the_section(tmp_path):
     path = write_config(tmp_path, 'basis = "ridge"\nbasis_params = { nonsense = 1 }')
-    with pytest.raises(ConfigError, match=r"\[model\].*nonsense"):
+    with pytest.raises(ConfigError, match=r"model\.basis_params \(ridge\).*nonsense"):
         load_config(path)
 
 
 def test_bad_basis_params_in_target_names_the_target(tmp_path):
     path = write_config(tmp_path, extra="[model.targets.eeig3.basis_params]\nnonsense = 1")
-    with pytest.raises(ConfigError, match=r"\[model\.targets\.eeig3\].*nonsense"):
+    with pytest.raises(ConfigError, match=r"model\.targets\.eeig3\.basis_params.*nonsense"):
         load_config(path)
 
 
@@ -197,7 +198,7 @@ def test_unknown_scoring_rejected_at_load(tmp_path):
                          ids=["quantile_alpha_1.5", "n_stages_0"])
 def test_invalid_model_values_rejected_at_load(tmp_path, model):
     path = write_config(tmp_path, model)
-    with pytest.raises(ConfigError, match=r"\[model\]"):
+    with pytest.raises(ConfigError, match=r"model\.(alpha|n_stages) = "):
         load_config(path)
 
 
@@ -208,9 +209,9 @@ def test_non_table_target_basis_params_is_config_error(tmp_path):
 
 
 @pytest.mark.parametrize("selection, match", [
-    ("cv = 1", "cv must be an integer >= 2, got 1"),
-    ('cv = "five"', "cv must be an integer >= 2"),
-    ('shuffle = "yes"', "shuffle must be true or false"),
+    ("cv = 1", r"selection\.cv = 1: Input should be greater than or equal to 2"),
+    ('cv = "five"', r"selection\.cv = 'five': Input should be a valid integer"),
+    ('shuffle = "yes"', r"selection\.shuffle = 'yes': Input should be a valid boolean"),
 ])
 def test_bad_selection_values(tmp_path, selection, match):
     path = write_config(tmp_path, extra=f"[selection]\n{selection}")

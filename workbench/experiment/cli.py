@@ -1,4 +1,8 @@
-"""The ``workbench`` command: a thin shell over functions the tests call directly."""
+"""The ``workbench`` command: a thin shell over functions the tests call directly.
+
+Each command imports what it needs when it runs: ``workbench --help`` and ``workbench
+simulate`` never load MLflow, Optuna or SHAP (nor, for ``--help``, scikit-learn). Progress
+and messages go through :mod:`logging` (logger ``workbench``, to standard error)."""
 
 from __future__ import annotations
 
@@ -10,11 +14,9 @@ import subprocess
 import sys
 from pathlib import Path
 
-from ..datasets import DatasetError, DataUnavailableError
-from ..simulate import Mismatch, simulate, write_simulation
-from .config import ConfigError, load_config, load_dataset
-from .evaluate import evaluate, format_table
-from .tracking import TrackingError
+from .errors import ConfigError, TrackingError, UsageError
+
+log = logging.getLogger("workbench")
 
 
 def _write_json(path: str, payload: dict) -> None:
@@ -27,6 +29,8 @@ def _write_json(path: str, payload: dict) -> None:
 
 def _check_before_work(cfg, args) -> None:
     """Fail on bad data or an unusable MLflow store before any fitting or searching."""
+    from .config import load_dataset
+
     load_dataset(cfg)
     if not args.no_track:
         from .record import tracker_for
@@ -74,68 +78,80 @@ def _cmd_reproduce(args) -> int:
 
 
 def _cmd_sweep(args) -> int:
-    from .search import run_sweep, with_overrides  # imports Optuna only for sweeps
+    from .config import load_config
+    from .evaluate import format_table
+    from .search import run_sweep  # imports Optuna only for sweeps
 
-    from .search import settings_for
-
-    cfg = with_overrides(load_config(args.config), trials=args.trials, workers=args.workers,
-                         storage=args.storage)
+    cfg = load_config(args.config).with_study(trials=args.trials, workers=args.workers,
+                                              storage=args.storage)
     _check_before_work(cfg, args)
-    result, details = run_sweep(cfg)
+    sweep = run_sweep(cfg)
+    result = sweep.result
     if not args.no_track:
         from .record import record
 
-        best = {t: settings_for(cfg, t, p) for t, p in zip(result["targets"],
-                                                          result["best_params"]) if p}
-        # the chosen configuration (family hamiltonian: its [model.hamiltonian] settings too)
-        result["mlflow"] = record(details["config"], result, details["model"],
-                                  details["dataset"], kind="sweep",
-                                  tracking_uri=args.tracking_uri, details=details, settings=best)
+        # logged with the chosen configuration (the family's chosen settings too)
+        result.mlflow = record(sweep.config, result, sweep.model, sweep.dataset, kind="sweep",
+                               tracking_uri=args.tracking_uri, sweep=sweep)
+    result.wall_s = _wall()
     print(format_table(result))
-    print(f"nested-CV MAE: model {result['nested_cv_mae_avg']:.3f}, prior "
-          f"{result['nested_cv_prior_mae_avg']:.3f} (average over targets)")
     if args.json:
-        _write_json(args.json, result)
+        _write_json(args.json, result.to_json())
         print(f"wrote {args.json}")
     return 0
 
 
 def _cmd_evaluate(args) -> int:
+    from .config import load_config
+    from .evaluate import evaluate, format_table
+
     cfg = load_config(args.config)
     if args.jobs is not None:
         cfg = dataclasses.replace(cfg, n_jobs=args.jobs)
     _check_before_work(cfg, args)
-    if args.out is not None and cfg.family != "hamiltonian":
-        raise UsageError("--out writes the parameter-space model's tables and figures: it "
-                         f"needs a config with [model] family = \"hamiltonian\" ({args.config} "
-                         f"has family {cfg.family!r})")
-    result, model, ds = evaluate(cfg, return_model=True)
+    if args.out is not None and cfg.family.outputs.__func__ is _no_outputs():
+        raise UsageError(f"--out writes a model family's tables and figures; family "
+                         f"{cfg.family.name!r} ({args.config}) has none")
+    run = evaluate(cfg, return_model=True)
+    result = run.result
     if args.out is not None:
-        from .parameters import write_hamiltonian_outputs
-
-        written = write_hamiltonian_outputs(args.out, model, ds, setting=f"evaluate of "
-                                                                        f"{cfg.name}")
-        result["outputs"] = {k: str(v) for k, v in written.items()}
+        extra = cfg.family.outputs(run.model, run.dataset, f"evaluate of {cfg.name}")
+        result.outputs = {k: str(v) for k, v in extra.write(args.out).items()}
     if not args.no_track:
         from .record import record
 
-        result["mlflow"] = record(cfg, result, model, ds, kind="evaluate",
-                                  tracking_uri=args.tracking_uri)
+        result.mlflow = record(cfg, result, run.model, run.dataset, kind="evaluate",
+                               tracking_uri=args.tracking_uri)
+    result.wall_s = _wall()
     print(format_table(result))
     if args.out is not None:
-        print(f"wrote {', '.join(sorted(Path(p).name for p in result['outputs'].values()))} "
+        print(f"wrote {', '.join(sorted(Path(p).name for p in result.outputs.values()))} "
               f"to {args.out}")
     if args.json:
-        _write_json(args.json, result)
+        _write_json(args.json, result.to_json())
         print(f"wrote {args.json}")
     return 0
 
 
-class UsageError(ValueError):
-    """Bad command-line values: reported as one line, exit code 2."""
+def _no_outputs():
+    from .families.base import ModelFamily
+
+    return ModelFamily.outputs
+
+
+_START = [0.0]
+
+
+def _wall() -> float:
+    """The whole command's wall time so far."""
+    import time
+
+    return time.perf_counter() - _START[0]
 
 
 def _cmd_simulate(args) -> int:
+    from ..simulate import Mismatch, simulate, write_simulation
+
     try:
         if args.mismatch is None:
             mismatch = Mismatch.default()
@@ -168,19 +184,19 @@ def build_parser() -> argparse.ArgumentParser:
                         "prior and model on the test rows")
     ev.add_argument("config", help="experiment config (TOML), e.g. experiments/paper_main_body.toml")
     ev.add_argument("--json", metavar="PATH", help="also write the results as JSON")
-    ev.add_argument("--jobs", type=int, default=None, metavar="N",
+    ev.add_argument("--jobs", type=_count, default=None, metavar="N",
                     help="targets fitted in parallel (overrides the config's n_jobs)")
     ev.add_argument("--out", metavar="DIR", default=None,
-                    help="family hamiltonian: write the coefficient, corrected-parameter and "
-                    "selection tables (CSV) and figures (PNG) to DIR")
+                    help="write the model family's tables (CSV) and figures (PNG) to DIR "
+                    "(family hamiltonian: coefficients, corrected parameters, selection)")
     _tracking_args(ev)
     ev.set_defaults(func=_cmd_evaluate)
 
     sw = sub.add_parser("sweep", help="nested-CV hyperparameter search (Optuna), then one "
                         "evaluation of the chosen configuration on the test rows")
     sw.add_argument("config", help="experiment config (TOML) with [search], [cv], [study]")
-    sw.add_argument("--trials", type=int, default=None, help="trials per study")
-    sw.add_argument("--workers", type=int, default=None,
+    sw.add_argument("--trials", type=_count, default=None, help="trials per study")
+    sw.add_argument("--workers", type=_count, default=None,
                     help="processes working on the shared storage")
     sw.add_argument("--storage", default=None,
                     help="Optuna storage: a journal file path or an RDB URL")
@@ -218,9 +234,38 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+def _count(value: str) -> int:
+    """A command-line count: an integer >= 1."""
+    try:
+        number = int(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {value[:40]!r}") from None
+    if number < 1:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {number}")
+    return number
+
+
+def _logging() -> None:
+    """Progress lines of the ``workbench`` logger to standard error (once per process)."""
+    logger = logging.getLogger("workbench")
+    if not any(getattr(h, "_workbench", False) for h in logger.handlers):
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter("%(message)s"))
+        handler._workbench = True
+        logger.addHandler(handler)
+    logger.setLevel(logging.INFO)
+    logger.propagate = False
     logging.getLogger("mlflow").setLevel(logging.WARNING)  # keep the per-trial lines readable
+
+
+def main(argv: list[str] | None = None) -> int:
+    import time
+
+    _START[0] = time.perf_counter()
+    args = build_parser().parse_args(argv)
+    _logging()
+    from ..datasets import DatasetError, DataUnavailableError
+
     try:
         return args.func(args)
     except (ConfigError, DatasetError, DataUnavailableError, TrackingError, UsageError) as exc:

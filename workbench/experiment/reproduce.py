@@ -87,18 +87,19 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
     for key, toml in (("paper", "paper_main_body.toml"), ("improved", "paper_improved.toml")):
         _say(progress, f"evaluating the {key} settings ({toml})")
         cfg = replace(load_config(EXPERIMENTS / toml), random_state=seed)
-        settings[key], _, ds = evaluate(cfg, progress=None, return_model=True)
+        run = evaluate(cfg, return_model=True)
+        settings[key], ds = run.result.to_json(), run.dataset
     _say(progress, "nested-CV search for the workbench's own best configuration "
                    "(experiments/paper_search.toml)")
-    from .search import run_sweep, with_overrides  # Optuna only here
+    from .search import run_sweep  # Optuna only here
 
     search_cfg = load_config(EXPERIMENTS / "paper_search.toml")
-    search_cfg = replace(search_cfg, random_state=seed, cv={**search_cfg.cv, "seed": seed},
-                         study={**search_cfg.study,  # another seed must not resume these
-                                "study_name": f"{search_cfg.name}-seed{seed}"})
-    if quick:
-        search_cfg = with_overrides(search_cfg, trials=2)
-    settings["search"], _ = run_sweep(search_cfg, storage=storage, progress=None)
+    search_cfg = replace(search_cfg, random_state=seed,
+                         cv=search_cfg.cv.model_copy(update={"seed": seed}))
+    # another seed must not resume these studies
+    search_cfg = search_cfg.with_study(study_name=f"{search_cfg.name}-seed{seed}",
+                                       trials=2 if quick else None, storage=storage)
+    settings["search"] = run_sweep(search_cfg, progress=False).result.to_json()
     hamiltonian_model = _hamiltonian(settings, seed, quick, progress)
     X_train, X_test, y_train, y_test = ds.split()
     targets = ds.target_names
@@ -113,20 +114,19 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
                   setting="paper settings"))
 
     # -- beyond the paper: the parameter-space model -------------------------------------
-    from .parameters import hamiltonian_outputs, write_tables
-
     ham = settings["hamiltonian"]
     save("figH1_hamiltonian_mae_bars", "hamiltonian",
          mae_bars(SHORT, ham["prior"]["test_mae"], ham["model"]["test_mae"],
                   labels=("control program", "parameter-space model"),
                   title="Test MAE per eigenenergy: corrected Hamiltonian",
                   setting="experiments/hamiltonian.toml"))
-    ham_tables, ham_figs = hamiltonian_outputs(hamiltonian_model, ds,
-                                               setting="experiments/hamiltonian.toml")
-    save("figH2_parameter_corrections", "hamiltonian", ham_figs["parameter_corrections"])
-    save("figH3_selection_path", "hamiltonian", ham_figs["selection_path"])
+    ham_cfg, hamiltonian_model = hamiltonian_model
+    ham_out = ham_cfg.family.outputs(hamiltonian_model, ds,
+                                     setting="experiments/hamiltonian.toml")
+    save("figH2_parameter_corrections", "hamiltonian", ham_out.figures["parameter_corrections"])
+    save("figH3_selection_path", "hamiltonian", ham_out.figures["selection_path"])
     tables = {name: str(path.relative_to(out))
-              for name, path in write_tables(out / "hamiltonian", ham_tables).items()}
+              for name, path in ham_out.write(out / "hamiltonian", figures=False).items()}
 
     # -- the data --------------------------------------------------------------------------
     _say(progress, "data figures")
@@ -226,23 +226,24 @@ def _hamiltonian(settings: dict[str, Any], seed: int, quick: bool, progress):
     job near 10) is left to ``workbench evaluate experiments/hamiltonian.toml``; quick mode
     also uses a smaller pool and one CV repeat."""
     cfg = load_config(EXPERIMENTS / "hamiltonian.toml")
-    evaluation = {**cfg.evaluation, "nested_folds": 0}
-    hamiltonian = dict(cfg.hamiltonian)
+    evaluation = {"nested_folds": 0}
+    hamiltonian = {}
     if quick:
         evaluation.update(cv_repeats=1)
         hamiltonian.update(candidates="local", max_steps=2, selection_cv=3)
-    cfg = replace(cfg, random_state=seed, evaluation=evaluation, hamiltonian=hamiltonian)
+    cfg = replace(cfg, random_state=seed, evaluation=cfg.evaluation.model_copy(update=evaluation),
+                  family_settings=cfg.family_settings.model_copy(update=hamiltonian))
     _say(progress, "the parameter-space model (experiments/hamiltonian.toml): covariate "
                    "selection by CV on the training rows")
-    settings["hamiltonian"], model, _ = evaluate(cfg, progress=None, return_model=True)
-    return model
+    run = evaluate(cfg, return_model=True)
+    settings["hamiltonian"] = run.result.to_json()
+    return cfg, run.model
 
 
 def _paper_candidates(ds):
     """The paper-settings candidate (an unfitted BaseBoostRegressor) of each target."""
-    from .config import build_model
-
-    model = build_model(load_config(EXPERIMENTS / "paper_main_body.toml"), ds)
+    cfg = load_config(EXPERIMENTS / "paper_main_body.toml")
+    model = cfg.family.build(cfg, ds)
     return [model.target_estimators[t].estimator for t in ds.target_names]
 
 

@@ -45,14 +45,14 @@ def open_storage(storage: str, root: Path):
 def _sampler(cfg, name: str, worker: int = 0):
     """Seeded per study and per worker (workers with one seed would propose the same
     configurations)."""
-    seed = (cfg.cv["seed"] + zlib.crc32(name.encode()) + 7919 * worker) % 2**31
-    if cfg.study["sampler"] == "random":
+    seed = (cfg.cv.seed + zlib.crc32(name.encode()) + 7919 * worker) % 2**31
+    if cfg.study.sampler == "random":
         return optuna.samplers.RandomSampler(seed=seed)
     return optuna.samplers.TPESampler(seed=seed)
 
 
 def _pruner(cfg):
-    name = cfg.study["pruner"]
+    name = cfg.study.pruner
     if name == "median":  # reported values: running mean of the inner folds' MAE
         return optuna.pruners.MedianPruner(n_startup_trials=3)
     if name == "wilcoxon":  # reported values: each inner fold's MAE
@@ -155,8 +155,8 @@ def run_studies(cfg, studies: list[tuple[optuna.Study, Callable]], *,
     # finishes a study's last trials; second pass: make sure every study is complete.
     for wait in (False, True):
         for study, objective in studies:
-            run_study(study, objective, cfg.study["trials"], timeout=cfg.study["timeout"],
-                      stale_after_s=cfg.study["stale_after_s"], progress=progress, wait=wait)
+            run_study(study, objective, cfg.study.trials, timeout=cfg.study.timeout,
+                      stale_after_s=cfg.study.stale_after_s, progress=progress, wait=wait)
 
 
 def _worker(search: Callable, cfg, storage_url: str, index: int, show: bool) -> None:

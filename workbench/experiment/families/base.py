@@ -37,6 +37,23 @@ class Artifacts:
     tables: dict[str, pd.DataFrame] = field(default_factory=dict)
     data: dict[str, Any] = field(default_factory=dict)
 
+    def write(self, directory, *, tables: bool = True, figures: bool = True) -> dict[str, Any]:
+        """Tables as ``<directory>/<name>.csv`` (no index column), figures as PNG; returns
+        name -> path."""
+        from pathlib import Path
+
+        from ..figures import save_figure
+
+        directory = Path(directory)
+        directory.mkdir(parents=True, exist_ok=True)
+        written: dict[str, Any] = {}
+        for name, table in (self.tables.items() if tables else ()):
+            written[name] = directory / f"{name}.csv"
+            table.to_csv(written[name], index=False)
+        for name, fig in (self.figures.items() if figures else ()):
+            written[name] = save_figure(fig, directory / f"{name}.png")
+        return written
+
 
 def quiet_fit(model, X, y):
     """``model.fit(X, y)`` without scikit-learn's convergence warnings (an MLP's max_iter is

@@ -1,0 +1,196 @@
+"""Table-driven: every numeric key of every config section, given a wrong type or a value out
+of its range, and every choice key given an unknown name, ends at load time with one short
+line naming ``section.key`` (and, through the command, exit code 2 before any fit)."""
+
+from __future__ import annotations
+
+import re
+import typing
+from pathlib import Path
+
+import annotated_types as at
+import pytest
+
+from workbench.experiment import config as C
+from workbench.experiment.cli import main
+from workbench.experiment.config import ConfigError, load_config
+from workbench.experiment.families import FAMILIES
+
+#: section path in the file -> (its schema, the config lines it needs besides itself)
+SECTIONS = {
+    "": (C._Top, ""),
+    "data": (C.DataConfig, ""),
+    "model": (C.ModelConfig, ""),
+    "model.targets.eeig1": (C.BoostSettings, ""),
+    "model.hamiltonian": (FAMILIES["hamiltonian"].settings, 'family = "hamiltonian"'),
+    "selection": (C.SelectionConfig, ""),
+    "evaluation": (C.EvaluationConfig, ""),
+    "cv": (C.CVConfig, ""),
+    "study": (C.StudyConfig, ""),
+    "tracking": (C.TrackingConfig, ""),
+}
+
+
+def _base_type(annotation):
+    """int / float / bool / str / 'literal' of a field's annotation (optional unwrapped)."""
+    args = [a for a in typing.get_args(annotation) if a is not type(None)]
+    if typing.get_origin(annotation) is typing.Literal:
+        return "literal"
+    if args and typing.get_origin(annotation) in (typing.Union, getattr(__import__("types"), "UnionType")):
+        return _base_type(args[0])
+    return annotation
+
+
+def _bad_values():
+    """(section, key, TOML value, why) for every numeric, boolean and choice key."""
+    cases = []
+    for section, (schema, _) in SECTIONS.items():
+        for key, field in schema.model_fields.items():
+            kind = _base_type(field.annotation)
+            if kind in (int, float):
+                cases.append((section, key, '"abc"', "type"))
+                cases.append((section, key, "[1, 2]", "type"))
+                for meta in field.metadata:
+                    if isinstance(meta, (at.Ge, at.Gt)):
+                        low = meta.ge if isinstance(meta, at.Ge) else meta.gt
+                        below = low - 1 if isinstance(meta, at.Ge) else low
+                        cases.append((section, key, repr(below) if kind is int else
+                                      f"{float(below)}", "low"))
+                    if isinstance(meta, (at.Le, at.Lt)):
+                        high = meta.le if isinstance(meta, at.Le) else meta.lt
+                        above = high + 1 if isinstance(meta, at.Le) else high
+                        cases.append((section, key, repr(above) if kind is int else
+                                      f"{float(above)}", "high"))
+                if kind is int:
+                    cases.append((section, key, "1.5", "type"))
+                    cases.append((section, key, "9" * 5000, "huge"))  # beyond Python's limit
+            elif kind is bool:
+                cases.append((section, key, '"yes"', "type"))
+            elif kind == "literal":
+                cases.append((section, key, '"bogus_choice"', "choice"))
+            elif kind is str:
+                cases.append((section, key, "5", "type"))
+    return cases
+
+
+CASES = _bad_values()
+
+
+def _config_text(section: str, key: str, value: str) -> str:
+    needs = SECTIONS[section][1]
+    model = [] if (section == "model" and key == "basis") else ['basis = "ridge"']
+    tables = {"": [], "data": [], "model": model, "selection": []}
+    if needs:
+        tables["model"].append(needs)
+    if section in tables:
+        tables[section].append(f"{key} = {value}")
+    else:
+        tables[section] = [f"{key} = {value}"]
+    top = "\n".join(tables.pop(""))
+    body = "\n\n".join(f"[{name}]\n" + "\n".join(lines) for name, lines in tables.items())
+    head = "" if (section == "" and key == "name") else 'name = "t"\n'
+    return f'{head}{top}\n\n{body}\n'
+
+
+def test_every_section_and_kind_is_covered():
+    covered = {(s, why) for s, _, _, why in CASES}
+    for section in SECTIONS:
+        assert any(s == section for s, _ in covered), section
+    assert {"type", "low", "high", "choice", "huge"} <= {why for _, why in covered}
+    assert len(CASES) > 80
+
+
+@pytest.mark.parametrize("section, key, value, why", CASES,
+                         ids=[f"{s or 'top'}.{k}-{w}" for s, k, _, w in CASES])
+def test_bad_value_is_one_line_naming_the_key(tmp_path, section, key, value, why):
+    path = tmp_path / "bad.toml"
+    path.write_text(_config_text(section, key, value))
+    with pytest.raises(ConfigError) as info:
+        load_config(path)
+    msg = str(info.value)
+    assert "\n" not in msg and len(msg) < 300, msg
+    assert str(path) in msg
+    if why != "huge":  # tomllib itself cannot read the number; the line says so
+        dotted = f"{section}.{key}" if section else key
+        assert dotted in msg, msg
+    else:
+        assert "cannot be read" in msg or key in msg, msg
+
+
+@pytest.mark.parametrize("section, key, value, why",
+                         [c for c in CASES if c[3] in ("type", "choice")][::7])
+def test_command_exits_2_before_any_fit(tmp_path, capsys, section, key, value, why):
+    path = tmp_path / "bad.toml"
+    path.write_text(_config_text(section, key, value))
+    assert main(["evaluate", str(path), "--no-track"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("workbench: error: ") and len(err[0]) < 320
+
+
+@pytest.mark.parametrize("params, pattern", [
+    ('{ alpha = "x" }', r"model\.basis_params \(ridge\).*'alpha' parameter of Ridge"),
+    ("{ alpha = -5 }", r"model\.basis_params \(ridge\).*'alpha' parameter of Ridge"),
+    ("{ nonsense = 1 }", r"nonsense"),
+])
+def test_basis_params_checked_against_the_estimators_constraints(tmp_path, params, pattern):
+    path = tmp_path / "c.toml"
+    path.write_text(f'[model]\nbasis = "ridge"\nbasis_params = {params}\n')
+    with pytest.raises(ConfigError, match=pattern):
+        load_config(path)
+
+
+@pytest.mark.parametrize("basis, params, pattern", [
+    ("lightgbm", '{ n_estimators = 0 }', "n_estimators"),
+    ("lightgbm", '{ learning_rate = "fast" }', "learning_rate"),
+    ("lightgbm", '{ bogus_lgbm = 1 }', "bogus_lgbm"),
+    ("paper_stacking", '{ mlp_alpha = -1.0 }', "alpha"),
+    ("mlp", '{ solver = "bogus" }', "solver"),
+    ("kernel_ridge", '{ alpha = "x" }', "alpha"),
+])
+def test_nested_and_lightgbm_parameters_are_checked(tmp_path, basis, params, pattern):
+    path = tmp_path / "c.toml"
+    path.write_text(f'[model]\nbasis = "{basis}"\nbasis_params = {params}\n')
+    with pytest.raises(ConfigError, match=pattern):
+        load_config(path)
+
+
+@pytest.mark.parametrize("argv", [["--trials", "0"], ["--trials", "-3"], ["--workers", "0"],
+                                  ["--trials", "x"]])
+def test_command_line_counts_must_be_positive(argv, capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["sweep", "experiments/smoke.toml", *argv])
+    assert info.value.code == 2
+    assert re.search(r"expected an integer >= 1", capsys.readouterr().err)
+
+
+def test_jobs_must_be_positive(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["evaluate", "experiments/smoke.toml", "--jobs", "0"])
+    assert info.value.code == 2
+
+
+def test_search_family_values_checked_against_the_family_schema(tmp_path):
+    path = tmp_path / "c.toml"
+    path.write_text('[model]\nfamily = "hamiltonian"\n[search.hamiltonian]\n'
+                    'loss = ["huber", "bogus_loss"]\n')
+    with pytest.raises(ConfigError, match=r"hamiltonian\.loss = 'bogus_loss'"):
+        load_config(path)
+
+
+def test_family_table_for_another_family_is_an_error(tmp_path):
+    path = tmp_path / "c.toml"
+    path.write_text('[model]\nbasis = "ridge"\n[model.hamiltonian]\nalpha = 1.0\n')
+    with pytest.raises(ConfigError, match=r"\[model\.hamiltonian\]: applies to family"):
+        load_config(path)
+
+
+def test_unknown_family_lists_the_valid_ones(tmp_path):
+    path = tmp_path / "c.toml"
+    path.write_text('[model]\nfamily = "bogus_family"\n')
+    with pytest.raises(ConfigError, match=r"model\.family = 'bogus_family'.*eigenvalue.*hamiltonian"):
+        load_config(path)
+
+
+def test_every_shipped_config_loads():
+    for path in sorted(Path(__file__).resolve().parents[1].glob("experiments/*.toml")):
+        load_config(path)
