@@ -19,7 +19,7 @@ def main() -> None:
     base = load_config(args.config)
     avgs, walls = [], []
     for seed in args.seeds:
-        res = evaluate(dataclasses.replace(base, random_state=seed), progress=None)
+        res = evaluate(dataclasses.replace(base, random_state=seed)).to_json()
         maes = " ".join(f"{m:.3f}" for m in res["model"]["test_mae"])
         print(f"seed {seed}: per-target test MAE {maes}  avg {res['model']['test_mae_avg']:.4f}"
               f"  cv avg {res['model']['cv_mae_avg']:.4f}  {res['wall_s']:.1f} s", flush=True)

@@ -14,7 +14,8 @@ import time
 from pathlib import Path
 
 from workbench.experiment.config import load_config
-from workbench.experiment.search import _search_in_workers, study_names, with_overrides
+from workbench.experiment import studies
+from workbench.experiment.search import run_search, study_names
 
 
 def main() -> None:
@@ -23,15 +24,17 @@ def main() -> None:
     parser.add_argument("--trials", type=int, default=10)
     parser.add_argument("--repeats", type=int, default=3)
     args = parser.parse_args()
-    cfg = with_overrides(load_config(args.config), trials=args.trials)
-    n_trials = len(study_names(cfg, [f"t{j}" for j in range(5)])) * args.trials
+    cfg = load_config(args.config).with_study(trials=args.trials)
+    specs = study_names(cfg, [f"eeig{j}" for j in range(1, 6)])
+    n_trials = len(specs) * args.trials
     rates: dict[int, list[float]] = {1: [], 2: []}
     for rep in range(args.repeats):
         for workers in (1, 2):
             with tempfile.TemporaryDirectory() as tmp:
                 storage = str(Path(tmp) / "bench.journal")
                 start = time.perf_counter()
-                _search_in_workers(cfg, storage, workers, progress=None)
+                studies._search_in_workers(run_search, cfg, storage, workers, None,
+                                           [s.name for s in specs], Path.cwd())
                 wall = time.perf_counter() - start
             rates[workers].append(n_trials / wall * 60)
             print(f"repeat {rep}: {workers} worker(s): {n_trials} trials in {wall:.1f} s "

@@ -151,7 +151,7 @@ def test_simulated_csv_evaluates_through_a_config(tmp_path, capsys):
 
 @pytest.mark.parametrize("extra, cv, match", [
     ("test_fraction = 0.3", 50, r"training split has 14 rows, too few for \[selection\] cv = 50"),
-    ("test_fraction = 0.0", 5, "the test split is empty"),
+    ("test_fraction = 0.0", 5, r"data\.test_fraction = 0\.0: Input should be greater than 0"),
     ('split_column = "nope"', 5, r"missing column\(s\) \['nope'\]"),
 ])
 def test_bad_data_from_the_command_line_is_one_line(tmp_path, capsys, extra, cv, match):

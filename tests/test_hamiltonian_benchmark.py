@@ -16,7 +16,7 @@ def test_hamiltonian_config_meets_the_issue_criterion(google_5q_dir, monkeypatch
     """Every choice on the 95 training rows; repeated 5-fold CV there <= 0.40 MHz; the test
     rows scored once; a nested CV over all 136 experiments reported."""
     monkeypatch.setenv("WORKBENCH_DATA_DIR", str(google_5q_dir))
-    res = evaluate(load_config(EXPERIMENTS / "hamiltonian.toml"), progress=None)
+    res = evaluate(load_config(EXPERIMENTS / "hamiltonian.toml")).to_json()
     rep, nested = res["repeated_cv"], res["nested_cv_all"]
     assert rep["folds"] == 5 and rep["repeats"] >= 3
     assert rep["model_mae_avg"] <= 0.40, rep

@@ -11,7 +11,7 @@ import pytest
 from PIL import Image
 
 from workbench.experiment.cli import main
-from workbench.experiment.config import (ConfigError, build_model, load_config, load_dataset,
+from workbench.experiment.config import (ConfigError, load_config, load_dataset,
                                          parse_config)
 from workbench.experiment.evaluate import evaluate
 from workbench.experiment.tracking import Tracker
@@ -73,9 +73,13 @@ def _toml(path: Path, raw: dict) -> Path:
     return path
 
 
+def build_model(cfg, ds):
+    return cfg.family.build(cfg, ds)
+
+
 def test_config_builds_the_parameter_space_model(device):
     cfg = parse_config(_raw(), device / "config.toml")
-    assert cfg.family == "hamiltonian" and cfg.hamiltonian["candidates"] == "local"
+    assert cfg.family.name == "hamiltonian" and cfg.family_settings.candidates == "local"
     ds = load_dataset(cfg)
     assert ds.hamiltonian.qubit_features == tuple(DATA["hamiltonian"]["qubit_features"])
     model = build_model(cfg, ds)
@@ -90,18 +94,22 @@ def test_config_builds_the_parameter_space_model(device):
 
 
 @pytest.mark.parametrize("change, match", [
-    (lambda r: r["model"].update(family="hamiltonain"), r"unknown family 'hamiltonain'"),
+    (lambda r: r["model"].update(family="hamiltonain"), r"model\.family = 'hamiltonain': unknown family"),
     (lambda r: r["model"].update(family="eigenvalue"),
      r"\[model.hamiltonian\]: applies to family = \"hamiltonian\" only"),
     (lambda r: r["model"]["hamiltonian"].update(candidate="local"),
      r"unknown key\(s\) \['candidate'\]"),
     (lambda r: r["model"]["hamiltonian"].update(loss="quantile"),
-     r"unknown loss 'quantile'; valid: \['squared_error', 'absolute_error', 'huber'\]"),
-    (lambda r: r["model"]["hamiltonian"].update(selection_cv=1), "selection_cv must be"),
-    (lambda r: r["model"]["hamiltonian"].update(huber_delta=0), "huber_delta must be > 0"),
-    (lambda r: r["model"]["hamiltonian"].update(boost_stage="yes"), "boost_stage must be"),
+     r"model\.hamiltonian\.loss = 'quantile': Input should be 'squared_error', 'absolute_error'"
+     r" or 'huber'"),
+    (lambda r: r["model"]["hamiltonian"].update(selection_cv=1),
+     r"model\.hamiltonian\.selection_cv = 1"),
+    (lambda r: r["model"]["hamiltonian"].update(huber_delta=0),
+     r"model\.hamiltonian\.huber_delta = 0: Input should be greater than 0"),
+    (lambda r: r["model"]["hamiltonian"].update(boost_stage="yes"),
+     r"model\.hamiltonian\.boost_stage = 'yes'"),
     (lambda r: r["data"].pop("hamiltonian"), r"needs the Hamiltonian's columns"),
-    (lambda r: r.update(evaluation={"nested_folds": 1}), "nested_folds must be 0"),
+    (lambda r: r.update(evaluation={"nested_folds": 1}), "nested_folds = 1: give 0"),
     (lambda r: r.update(evaluation={"cv_repeat": 1}), r"unknown key\(s\) \['cv_repeat'\]"),
 ])
 def test_bad_hamiltonian_configs_raise(device, change, match):
@@ -181,7 +189,8 @@ def test_evaluate_is_tracked_and_the_model_serves(cli_run):
     assert {"plots/parameter_corrections.png", "plots/selection_path.png",
             "plots/mae_bars.png"} <= plots
     served = tracker.load_model(result["mlflow"]["model_uri"])
-    _, model, ds = evaluate(parse_config_from(cfg), progress=None, return_model=True)
+    run = evaluate(parse_config_from(cfg), return_model=True)
+    model, ds = run.model, run.dataset
     X = ds.X_physics.loc[ds.test_index]
     assert np.allclose(np.asarray(served.predict(X)), model.predict(X).to_numpy())
 
@@ -189,8 +198,8 @@ def test_evaluate_is_tracked_and_the_model_serves(cli_run):
 def parse_config_from(path: Path):
     """The config of ``path`` without its extra CV estimates (the same fitted model)."""
     cfg = load_config(path)
-    return dataclasses.replace(cfg, evaluation={**cfg.evaluation, "cv_repeats": 0,
-                                                "nested_folds": 0})
+    return dataclasses.replace(cfg, evaluation=cfg.evaluation.model_copy(
+        update={"cv_repeats": 0, "nested_folds": 0}))
 
 
 def test_out_needs_family_hamiltonian(device, capsys):
@@ -198,14 +207,15 @@ def test_out_needs_family_hamiltonian(device, capsys):
     raw["model"] = {"basis": "ridge"}
     cfg = _toml(device / "eigen.toml", raw)
     assert main(["evaluate", str(cfg), "--no-track", "--out", str(device / "x")]) == 2
-    assert "--out writes the parameter-space model's tables" in capsys.readouterr().err
+    assert "--out writes a model family's tables and figures; family 'eigenvalue'" in (
+        capsys.readouterr().err)
     assert not (device / "x").exists()
 
 
 def test_same_seed_same_numbers(device):
     cfg = parse_config(_raw(), device / "config.toml")
-    first = evaluate(cfg, progress=None)
-    second = evaluate(cfg, progress=None)
+    first = evaluate(cfg).to_json()
+    second = evaluate(cfg).to_json()
     for key in ("test_mae", "cv_mae"):
         assert first["model"][key] == second["model"][key]
     assert first["hamiltonian"]["coefficients"] == second["hamiltonian"]["coefficients"]

@@ -7,7 +7,8 @@ import pytest
 from optuna.trial import FixedTrial
 
 from workbench.bases import BASES
-from workbench.experiment.config import load_config, make_booster
+from workbench.experiment.config import load_config
+from workbench.experiment.families.eigenvalue import make_booster
 from workbench.experiment.reproduce import EXPERIMENTS
 from workbench.experiment.space import SearchSpace, SpaceError
 

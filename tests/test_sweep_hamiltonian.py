@@ -11,12 +11,14 @@ import optuna
 import pytest
 from optuna.trial import TrialState
 
-from workbench.experiment import search
 from workbench.experiment.cli import main
 from workbench.experiment.config import ConfigError, load_config, load_dataset
 from workbench.experiment.evaluate import evaluate
-from workbench.experiment.search import (_counted, _study_objective, open_storage, run_study,
-                                         run_sweep, settings_for, study_names)
+from optuna.trial import FixedTrial
+
+from workbench.experiment.families import FAMILIES
+from workbench.experiment.search import (StudySpec, _counted, open_storage, run_study,
+                                         run_sweep, study_names, study_objective)
 from workbench.simulate import Mismatch, simulate
 
 N = 5
@@ -103,45 +105,50 @@ def _counts(storage, names):
 
 def test_study_names_have_one_unit_for_all_targets(project):
     cfg = load_config(write(project))
-    assert study_names(cfg, TARGETS) == [("hsweep.hamiltonian.outer0", "hamiltonian", 0),
-                                         ("hsweep.hamiltonian.outer1", "hamiltonian", 1),
-                                         ("hsweep.hamiltonian.final", "hamiltonian", None)]
+    assert [(s.name, s.unit, s.fold) for s in study_names(cfg, TARGETS)] == [
+        ("hsweep.all.outer0", "all", 0), ("hsweep.all.outer1", "all", 1),
+        ("hsweep.all.final", "all", None)]
+    assert all(s.targets == TARGETS for s in study_names(cfg, TARGETS))
     eig = load_config(write(project, model='[model]\nbasis = "ridge"', search_="",
                             name="e.toml"))
     assert len(study_names(eig, TARGETS)) == 3 * N  # eigenvalue: per target, as before
-    assert study_names(eig, TARGETS)[0] == ("hsweep.measured_E1.outer0", "measured_E1", 0)
+    first = study_names(eig, TARGETS)[0]
+    assert (first.name, first.unit, first.targets, first.fold) == (
+        "hsweep.measured_E1.outer0", "measured_E1", ["measured_E1"], 0)
 
 
 def test_sampled_names_and_settings(project):
     cfg = load_config(write(project, search_=SEARCH + '\n[search]\nline_search_penalty = '
                             '{ low = 0.0, high = 0.5 }\n'))
     trial = optuna.create_study(sampler=optuna.samplers.RandomSampler(seed=1)).ask()
-    ham = cfg.search.sample_hamiltonian(trial, cfg.hamiltonian)
+    ham = cfg.search.sample_family(trial, cfg.family_settings)
     assert set(trial.params) == {"hamiltonian.alpha", "hamiltonian.loss",
                                  "hamiltonian.huber_delta", "hamiltonian.candidates",
                                  "hamiltonian.selection"}
-    assert ham["alpha"] == trial.params["hamiltonian.alpha"] and ham["selection"] == "none"
-    assert ham["prior_cv"] == 2 and ham["boost_stage"] is False  # unsearched: the config's
+    assert ham.alpha == trial.params["hamiltonian.alpha"] and ham.selection == "none"
+    assert ham.prior_cv == 2 and ham.boost_stage is False  # unsearched: the config's
     params = {**trial.params, "line_search_penalty": 0.25}
-    s = settings_for(cfg, "measured_E2", params)
+    chosen = cfg.family.with_trial(cfg, FixedTrial(params), TARGETS)
+    s = chosen.model_for("measured_E2")
     assert s["line_search_penalty"] == 0.25 and s["basis"] == "ridge"
-    assert s["hamiltonian"] == ham
+    assert chosen.family_settings == ham
 
 
 @pytest.mark.parametrize("entry, match", [
-    ("bogus = [1, 2]", r"\[search\].*hamiltonian: unknown key\(s\) \['bogus'\]; valid keys "
+    ("bogus = [1, 2]", r"\[search\]: hamiltonian\.bogus: unknown key; valid keys "
                        r"are .*'alpha'.*'boost_stage'"),
-    ('loss = ["huber", "cauchy"]', r"hamiltonian\.loss: unknown value\(s\) \['cauchy'\].*"
+    ('loss = ["huber", "cauchy"]', r"hamiltonian\.loss = 'cauchy': Input should be .*"
                                    r"'squared_error'"),
-    ('candidates = ["physical", "everything"]', r"hamiltonian\.candidates.*'everything'"),
-    ('selection = "backward"', r"hamiltonian\.selection.*'backward'"),
-    ('boost_stage = ["yes"]', r"hamiltonian\.boost_stage.*'yes'"),
+    ('candidates = ["physical", "everything"]', r"hamiltonian\.candidates = 'everything'"),
+    ('selection = "backward"', r"hamiltonian\.selection = 'backward'"),
+    ('boost_stage = ["yes"]', r"hamiltonian\.boost_stage = 'yes'"),
     ("boost_stage = { low = 0, high = 1 }", r"hamiltonian\.boost_stage"),
-    ("alpha = { low = -1.0, high = 1.0 }", r"\[search\.hamiltonian\]: alpha must be a number "
-                                           r">= 0, got -1\.0"),
-    ("huber_delta = [0.0, 1.0]", r"\[search\.hamiltonian\]: huber_delta must be > 0"),
-    ("selection_cv = { low = 1, high = 3 }", r"\[search\.hamiltonian\]: selection_cv must be "
-                                             r"an integer >= 2, got 1"),
+    ("alpha = { low = -1.0, high = 1.0 }", r"\[search\]: hamiltonian\.alpha = -1\.0: Input "
+                                           r"should be greater than or equal to 0"),
+    ("huber_delta = [0.0, 1.0]", r"hamiltonian\.huber_delta = 0\.0: Input should be greater "
+                                 r"than 0"),
+    ("selection_cv = { low = 1, high = 3 }", r"hamiltonian\.selection_cv = 1: Input should be "
+                                             r"greater than or equal to 2"),
     ('max_steps = { low = "a", high = "b" }', r"hamiltonian\.max_steps: a range needs numbers"),
     ("alpha = { low = 10.0, high = 1.0 }", r"hamiltonian\.alpha: low 10\.0 is above high"),
 ])
@@ -152,8 +159,7 @@ def test_bad_hamiltonian_search_is_a_config_error(project, entry, match):
 
 def test_hamiltonian_search_needs_family_hamiltonian(project):
     path = write(project, model='[model]\nbasis = "ridge"', search_=SEARCH)
-    with pytest.raises(ConfigError, match=r"\[search\.hamiltonian\]: applies to family = "
-                                          r"\"hamiltonian\" only \(family is 'eigenvalue'\)"):
+    with pytest.raises(ConfigError, match=r"\[search\]: unknown key\(s\) \['hamiltonian'\]"):
         load_config(path)
 
 
@@ -161,7 +167,7 @@ def test_eigenvalue_keys_in_search_are_allowed_for_family_hamiltonian(project):
     stage = '[search]\nbasis = ["ridge", "kernel_ridge"]\nn_stages = { low = 1, high = 2 }\n'
     cfg = load_config(write(project, search_=f"{SEARCH}\n{stage}"))
     assert cfg.search.table["basis"] == ["ridge", "kernel_ridge"]
-    assert "hamiltonian" not in cfg.search.table and "alpha" in cfg.search.hamiltonian
+    assert "hamiltonian" not in cfg.search.table and "alpha" in cfg.search.family_table
 
 
 # --- the sweep ----------------------------------------------------------------------------
@@ -184,7 +190,7 @@ def test_sweep_nested_cv_results_and_resume(project, capsys):
     assert best[0] and all(k.startswith("hamiltonian.") for k in best[0])
 
     storage = open_storage("optuna.journal", project)
-    names = [n for n, _, _ in study_names(load_config(cfg_path), TARGETS)]
+    names = [s.name for s in study_names(load_config(cfg_path), TARGETS)]
     assert sorted(optuna.get_all_study_names(storage)) == sorted(names)
     assert _counts(storage, names) == {n: 3 for n in names}
     for name in names:
@@ -199,24 +205,24 @@ def test_sweep_nested_cv_results_and_resume(project, capsys):
             assert [t.intermediate_values[i] for i in range(3)] == pytest.approx(running)
 
     # a second run resumes: no new trials, the same choice and the same numbers
-    res2, details = run_sweep(load_config(cfg_path), progress=None)
+    sweep = run_sweep(load_config(cfg_path), progress=None)
+    res2 = sweep.result.to_json()
     assert _counts(storage, names) == {n: 3 for n in names}
     assert res2["best_params"] == best
     assert res2["nested_cv_mae"] == pytest.approx(res["nested_cv_mae"])
     assert res2["model"]["test_mae"] == pytest.approx(res["model"]["test_mae"])
-    folds = details["outer_folds"]
-    assert [(f["target"], f["fold"], f["study"]) for f in folds] == [
-        ("hamiltonian", 0, "hsweep.hamiltonian.outer0"),
-        ("hamiltonian", 1, "hsweep.hamiltonian.outer1")]
+    folds = sweep.outer_folds
+    assert [(f.unit, f.fold, f.study) for f in folds] == [
+        ("all", 0, "hsweep.all.outer0"), ("all", 1, "hsweep.all.outer1")]
     for f in folds:
-        assert f["selected"] == ",".join(["hamiltonian"] * N)
-        assert f["n_train"] + f["n_val"] == res["n_train"]
-        assert f["mae"] < f["prior_mae"] and f["params"]["hamiltonian.selection"] == "none"
-    assert np.mean([f["mae"] for f in folds]) == pytest.approx(res["nested_cv_mae_avg"])
+        assert f.selected == ",".join(["hamiltonian"] * N)
+        assert f.n_train + f.n_val == res["n_train"]
+        assert f.mae < f.prior_mae and f.params["hamiltonian.selection"] == "none"
+    assert np.mean([f.mae for f in folds]) == pytest.approx(res["nested_cv_mae_avg"])
     # the final model is the final study's choice
-    chosen = details["config"].hamiltonian
-    assert chosen["alpha"] == best[0]["hamiltonian.alpha"]
-    assert chosen["candidates"] == best[0]["hamiltonian.candidates"]
+    chosen = sweep.config.family_settings
+    assert chosen.alpha == best[0]["hamiltonian.alpha"]
+    assert chosen.candidates == best[0]["hamiltonian.candidates"]
 
 
 def test_sweep_with_the_boosting_stage_searched_too(project):
@@ -227,12 +233,13 @@ def test_sweep_with_the_boosting_stage_searched_too(project):
     sweep = SWEEP.replace("trials = 3", "trials = 2").replace("inner_folds = 3",
                                                               "inner_folds = 2")
     cfg = load_config(write(project, search_=search_ + stage, sweep=sweep))
-    res, details = run_sweep(cfg, progress=None)
+    sweep = run_sweep(cfg, progress=None)
+    res = sweep.result.to_json()
     best = res["best_params"][0]
     assert set(best) == {"hamiltonian.alpha", "hamiltonian.loss", "hamiltonian.huber_delta",
                          "hamiltonian.candidates", "hamiltonian.boost_stage",
                          "line_search_penalty"}
-    model = details["model"]
+    model = sweep.model
     assert model.boost_stage is True
     penalties = {e.estimator.line_search_penalty for e in model.boost_.estimators_}
     assert penalties == {best["line_search_penalty"]}  # one setting shared by all targets
@@ -241,24 +248,25 @@ def test_sweep_with_the_boosting_stage_searched_too(project):
 
 
 def test_no_completed_trial_keeps_the_prior_then_the_config_settings(project, monkeypatch):
-    def broken(cfg, ds, X, Y, trial):
+    def broken(self, cfg, ds, targets, X, Y, trial, cv, report):
         raise RuntimeError("every configuration fails")
 
-    monkeypatch.setattr(search, "_hamiltonian_objective", broken)
+    monkeypatch.setattr(type(FAMILIES["hamiltonian"]), "objective", broken)
     cfg = load_config(write(project, sweep=SWEEP.replace("trials = 3", "trials = 1")))
-    res, details = run_sweep(cfg, progress=None)
+    sweep = run_sweep(cfg, progress=None)
+    res = sweep.result.to_json()
     assert res["best_params"] == [None] * N
     assert res["nested_cv_mae"] == res["nested_cv_prior_mae"]  # outer folds: the prior stands
-    assert all(f["selected"] == "prior" for f in details["outer_folds"])
-    own = evaluate(cfg, progress=None)  # final: the config's own settings
-    assert res["model"]["test_mae"] == pytest.approx(own["model"]["test_mae"])
+    assert all(f.selected == "prior" for f in sweep.outer_folds)
+    own = evaluate(cfg)  # final: the config's own settings
+    assert res["model"]["test_mae"] == pytest.approx(own.model.test_mae)
 
 
 def test_wilcoxon_pruner_reads_each_inner_fold(project):
     cfg = load_config(write(project, sweep=SWEEP + 'pruner = "wilcoxon"\n'))
     ds = load_dataset(cfg)
     study = optuna.create_study(pruner=optuna.pruners.NopPruner())
-    run_study(study, _study_objective(cfg, ds, "hamiltonian", None), 2)
+    run_study(study, study_objective(cfg, ds, StudySpec("w", "all", TARGETS, None)), 2)
     for t in study.get_trials():
         assert [t.intermediate_values[i] for i in range(3)] == t.user_attrs["fold_mae"]
 
@@ -267,15 +275,15 @@ def test_two_worker_processes_run_the_sweep(project):
     """``--workers 2``: spawned processes share the journal; every study still ends with
     exactly ``trials`` counted trials and no trial number twice."""
     cfg = load_config(write(project))
-    result, details = run_sweep(cfg, workers=2, progress=None)
-    storage = open_storage(cfg.study["storage"], project)
-    names = [n for n, _, _ in study_names(cfg, TARGETS)]
+    sweep = run_sweep(cfg.with_study(workers=2), progress=None)
+    storage = open_storage(cfg.study.storage, project)
+    names = [s.name for s in study_names(cfg, TARGETS)]
     assert _counts(storage, names) == {n: 3 for n in names}
     for n in names:
         numbers = [t.number for t in optuna.load_study(study_name=n, storage=storage)
                    .get_trials()]
         assert len(numbers) == len(set(numbers))
-    workers = {t.user_attrs.get("worker") for s in details["studies"].values()
+    workers = {t.user_attrs.get("worker") for s in sweep.studies.values()
                for t in s.get_trials() if _counted(t)}
     assert len(workers) == 2  # both processes took trials
-    assert result["trials"]["counted"] == 3 * len(names)
+    assert sweep.result.sweep.trials_counted == 3 * len(names)

@@ -109,7 +109,7 @@ def _cmd_evaluate(args) -> int:
     if args.jobs is not None:
         cfg = dataclasses.replace(cfg, n_jobs=args.jobs)
     _check_before_work(cfg, args)
-    if args.out is not None and cfg.family.outputs.__func__ is _no_outputs():
+    if args.out is not None and not cfg.family.writes_outputs:
         raise UsageError(f"--out writes a model family's tables and figures; family "
                          f"{cfg.family.name!r} ({args.config}) has none")
     run = evaluate(cfg, return_model=True)
@@ -131,12 +131,6 @@ def _cmd_evaluate(args) -> int:
         _write_json(args.json, result.to_json())
         print(f"wrote {args.json}")
     return 0
-
-
-def _no_outputs():
-    from .families.base import ModelFamily
-
-    return ModelFamily.outputs
 
 
 _START = [0.0]

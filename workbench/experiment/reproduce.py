@@ -9,12 +9,12 @@ Every number in a figure comes from the same dictionaries that are written to JS
 from __future__ import annotations
 
 import json
-import sys
+import logging
 import time
 import warnings
 from dataclasses import replace
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any
 
 import numpy as np
 from sklearn.exceptions import ConvergenceWarning
@@ -59,18 +59,16 @@ def _tabula_rasa(j: int, seed: int) -> MLPRegressor:
 _T0 = [time.perf_counter()]
 
 
-def _say(progress, text: str) -> None:
-    if progress:
-        print(f"[reproduce {time.perf_counter() - _T0[0]:5.0f} s] {text}", file=progress,
-              flush=True)
+def _say(text: str) -> None:
+    logging.getLogger("workbench").info("[reproduce %5.0f s] %s", time.perf_counter() - _T0[0],
+                                        text)
 
 
 def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
-              storage: str | None = None, quick: bool = False, track: bool = True, seed: int = 0,
-              progress: TextIO | None | bool = True) -> dict[str, Any]:
+              storage: str | None = None, quick: bool = False, track: bool = True, seed: int = 0
+              ) -> dict[str, Any]:
     """Compute the paper's results and figures; returns the results dictionary."""
     start = _T0[0] = time.perf_counter()
-    progress = sys.stderr if progress is True else progress
     out = Path(out)
     figdir = out / "figures"
     figdir.mkdir(parents=True, exist_ok=True)
@@ -85,11 +83,11 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
     # -- the benchmark under three settings --------------------------------------------
     settings = {}
     for key, toml in (("paper", "paper_main_body.toml"), ("improved", "paper_improved.toml")):
-        _say(progress, f"evaluating the {key} settings ({toml})")
+        _say(f"evaluating the {key} settings ({toml})")
         cfg = replace(load_config(EXPERIMENTS / toml), random_state=seed)
         run = evaluate(cfg, return_model=True)
         settings[key], ds = run.result.to_json(), run.dataset
-    _say(progress, "nested-CV search for the workbench's own best configuration "
+    _say("nested-CV search for the workbench's own best configuration "
                    "(experiments/paper_search.toml)")
     from .search import run_sweep  # Optuna only here
 
@@ -100,7 +98,7 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
     search_cfg = search_cfg.with_study(study_name=f"{search_cfg.name}-seed{seed}",
                                        trials=2 if quick else None, storage=storage)
     settings["search"] = run_sweep(search_cfg, progress=False).result.to_json()
-    hamiltonian_model = _hamiltonian(settings, seed, quick, progress)
+    hamiltonian_model = _hamiltonian(settings, seed, quick)
     X_train, X_test, y_train, y_test = ds.split()
     targets = ds.target_names
     paper = settings["paper"]
@@ -129,7 +127,7 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
               for name, path in ham_out.write(out / "hamiltonian", figures=False).items()}
 
     # -- the data --------------------------------------------------------------------------
-    _say(progress, "data figures")
+    _say("data figures")
     train = ds.X.loc[ds.train_index]
     frame = train[ds.prior_names].set_axis([f"X{j}" for j in range(1, 6)], axis=1)
     frame = frame.join(y_train.set_axis(SHORT, axis=1))
@@ -149,7 +147,7 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
     sizes = sorted(set(sizes + [largest]))
     if quick:
         sizes = [sizes[0], sizes[len(sizes) // 2], sizes[-1]]
-    _say(progress, f"augmented learning curves at training sizes {sizes} "
+    _say(f"augmented learning curves at training sizes {sizes} "
                    f"(5-fold CV on the training rows: at most {largest} rows)")
     curves = {}
     for j, (target, est) in enumerate(zip(targets, _paper_candidates(ds))):
@@ -166,7 +164,7 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
                                        setting="paper settings"))
 
     # -- tabula rasa and SHAP ------------------------------------------------------------
-    _say(progress, "tabula rasa MLPs on the 9 voltages, SHAP summaries")
+    _say("tabula rasa MLPs on the 9 voltages, SHAP summaries")
     V_train, V_test = X_train[ds.feature_names], X_test[ds.feature_names]
     tabula = {"test_mae": [], "test_mse": []}
     shap_rows = V_train.iloc[:30] if quick else V_train
@@ -216,11 +214,11 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
         results["mlflow"] = _log(results, files, groups, out, tracking_uri, ds)
         _write(out / "results.json", results)
     (out / "README.md").write_text(report(results))
-    _say(progress, f"done in {results['wall_s']:.0f} s: {out / 'README.md'}")
+    _say(f"done in {results['wall_s']:.0f} s: {out / 'README.md'}")
     return results
 
 
-def _hamiltonian(settings: dict[str, Any], seed: int, quick: bool, progress):
+def _hamiltonian(settings: dict[str, Any], seed: int, quick: bool):
     """Evaluate ``experiments/hamiltonian.toml`` into ``settings["hamiltonian"]``; returns
     the fitted model. Its nested CV over all rows (about 4 minutes, which would take the main
     job near 10) is left to ``workbench evaluate experiments/hamiltonian.toml``; quick mode
@@ -233,7 +231,7 @@ def _hamiltonian(settings: dict[str, Any], seed: int, quick: bool, progress):
         hamiltonian.update(candidates="local", max_steps=2, selection_cv=3)
     cfg = replace(cfg, random_state=seed, evaluation=cfg.evaluation.model_copy(update=evaluation),
                   family_settings=cfg.family_settings.model_copy(update=hamiltonian))
-    _say(progress, "the parameter-space model (experiments/hamiltonian.toml): covariate "
+    _say("the parameter-space model (experiments/hamiltonian.toml): covariate "
                    "selection by CV on the training rows")
     run = evaluate(cfg, return_model=True)
     settings["hamiltonian"] = run.result.to_json()

@@ -31,7 +31,7 @@ from optuna.trial import TrialState
 from .config import ExperimentConfig, load_dataset
 from .evaluate import fit_and_score
 from .results import OuterFold, Result, SweepSummary
-from .studies import _counted, _pruner, _sampler, open_storage, run_studies  # noqa: F401
+from .studies import _counted, _pruner, _sampler, open_storage, run_studies, run_study  # noqa: F401
 from . import studies as _studies
 
 __all__ = ["Sweep", "run_search", "run_sweep", "study_names"]

@@ -76,6 +76,8 @@ class ModelFamily:
     #: Whether ``[evaluation]``'s repeated CV gives the model's CV figures in the result
     #: (false when the model cross-validates itself).
     cv_from_repeats: ClassVar[bool] = True
+    #: Whether :meth:`outputs` has tables and figures for ``evaluate --out``.
+    writes_outputs: ClassVar[bool] = False
 
     # ------------------------------------------------------------------ config
     def parse_settings(self, table: dict[str, Any] | None) -> BaseModel | None:

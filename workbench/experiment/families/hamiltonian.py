@@ -118,6 +118,7 @@ class HamiltonianFamily(ModelFamily):
 
     name = "hamiltonian"
     settings: ClassVar = HamiltonianSettings
+    writes_outputs = True
 
     def check_data(self, data: DataConfig) -> None:
         if data.source == "csv" and data.hamiltonian is None:
