@@ -21,6 +21,7 @@ import numbers
 
 import numpy as np
 import pandas as pd
+from scipy.linalg.blas import dsyrk as _dsyrk
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils.validation import check_is_fitted
 
@@ -184,29 +185,36 @@ def _lasso_quadratic(H, b, l1, x0, max_iter=20000, tol=1e-9):
     return x
 
 
-def _normal_equations(jac, w, r, Phi, sel, chunk_elements=20_000_000):
-    """Gauss-Newton normal equations ``A^T W A`` and ``A^T W r`` without forming ``A``.
+def _normal_equations(jac, w, r, Phi, sel, chunk_elements=8_000_000):
+    """Gauss-Newton normal equations ``A^T W A`` and ``A^T W r``.
 
     ``A[(j, k), (p, c)] = jac[j, k, p] * Phi[j, p, c]`` (``Phi`` padded to (n, P, K), ``sel``
-    the flat (p, c) positions of the real coefficients), so
-    ``(A^T W A)[(p, c), (q, d)] = sum_j Phi[j, p, c] M_j[p, q] Phi[j, q, d]`` with
-    ``M_j = J_j^T W_j J_j``: O(n P^2 (N + K^2)) work instead of O(n N D^2).
+    the flat (p, c) positions of the real coefficients), built a chunk of rows at a time
+    (about ``chunk_elements`` entries) and accumulated with a symmetric rank-k update.
     """
     n, N, P = jac.shape
     K = Phi.shape[2]
-    s = np.matmul((w * r)[:, None, :], jac)[:, 0, :]  # (n, P)
-    g = np.einsum("jpc,jp->pc", Phi, s).ravel()
-    H = np.zeros((P, K, P * K))
-    step = max(1, chunk_elements // (P * P * max(K, N)))
+    sel = np.asarray(sel)
+    pidx = sel // K
+    flat = Phi.reshape(n, P * K)
+    D = len(sel)
+    s = np.matmul((w * r)[:, None, :], jac)[:, 0, :]  # (n, P): sum_k J w r
+    g = (flat[:, sel] * s[:, pidx]).sum(axis=0)
+    H = np.zeros((D, D), order="F")
+    root = np.sqrt(w)
+    step = max(1, chunk_elements // (N * D))
     for a in range(0, n, step):
         sl = slice(a, min(n, a + step))
-        J = jac[sl]
-        M = np.matmul(np.swapaxes(J * w[sl, :, None], 1, 2), J)  # (m, P, P)
-        T = M[:, :, :, None] * Phi[sl, None, :, :]  # [j, p, q, d]
-        H += np.matmul(Phi[sl].transpose(1, 2, 0),
-                       T.transpose(1, 0, 2, 3).reshape(P, -1, P * K))
-    H = H.reshape(P * K, P * K)
-    return H[np.ix_(sel, sel)], g[sel]
+        A = (jac[sl][:, :, pidx] * root[sl, :, None]) * flat[sl, None, sel]
+        A = np.asfortranarray(A.reshape(-1, D))
+        H = _syrk(A, H)
+    H = np.triu(H) + np.triu(H, 1).T
+    return H, g
+
+
+def _syrk(A, C):
+    """``C + A^T A`` (upper triangle; BLAS dsyrk)."""
+    return _dsyrk(1.0, A, beta=1.0, c=C, trans=1, lower=0, overwrite_c=1)
 
 
 class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
