@@ -1,14 +1,17 @@
-"""Nearest-neighbour chain Hamiltonians: batched construction, spectrum and its Jacobian.
+"""Single-excitation Hamiltonians on a coupling graph: batched construction, spectrum, Jacobian.
 
-A chain of N sites has parameters ``theta = (f_1..f_N, g_1..g_{N-1})``: onsite energies on
-the diagonal of ``H`` and couplings ``g_i = H[i, i+1] = H[i+1, i]``. The spectrum of interest
-is the ascending eigenvalues of ``sign * H`` (``sign = -1`` for the project's data).
+A device of N sites with a :class:`CouplingGraph` of E edges ``(i, j)`` has parameters
+``theta = (f_1..f_N, g_1..g_E)``: onsite energies on the diagonal of ``H`` and couplings
+``g_e = H[i, j] = H[j, i]`` for edge ``e = (i, j)``. The nearest-neighbour chain
+(:meth:`CouplingGraph.chain`, edges ``(i, i+1)``) is the default; rings, 2-D grids and
+explicit edge lists work the same way. The spectrum of interest is the ascending eigenvalues
+of ``sign * H`` (``sign = -1`` for the project's data).
 
 Derivatives follow from Hellmann-Feynman. With ``M = sign * H`` and unit eigenvector ``u_k``
 (the same for ``M`` and ``H``), ``d lambda_k / d theta = u_k^T (dM / d theta) u_k``, so::
 
     d lambda_k / d f_i = sign * u_ik^2
-    d lambda_k / d g_i = sign * 2 u_ik u_{i+1,k}
+    d lambda_k / d g_e = sign * 2 u_ik u_jk       (e = (i, j))
 
 At an exact degeneracy the eigenvalues are not differentiable; the values returned are the
 derivatives of the sorted eigenvalue branch whose eigenvectors ``numpy.linalg.eigh`` chose.
@@ -18,31 +21,215 @@ They are always finite (eigh never returns NaN for finite input).
 from __future__ import annotations
 
 import numbers
+from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["chain_hamiltonian", "chain_spectrum"]
+__all__ = ["TOPOLOGIES", "CouplingGraph", "chain_hamiltonian", "chain_spectrum",
+           "graph_hamiltonian", "graph_spectrum", "make_graph"]
+
+#: Named topologies of :func:`make_graph`.
+TOPOLOGIES = ("chain", "ring", "grid")
+#: Kinds of parasitic (model-less) edges of :meth:`CouplingGraph.parasitic_edges`.
+PARASITIC_KINDS = ("none", "next_nearest", "diagonal")
 
 
-def _check_chain(onsite, couplings) -> tuple[np.ndarray, np.ndarray]:
+def _int(value, what: str, low: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < low:
+        raise ValueError(f"{what} must be an integer >= {low}, got {value!r}")
+    return int(value)
+
+
+@dataclass(frozen=True)
+class CouplingGraph:
+    """Sites ``0..n_sites-1`` and the couplings between them (edges, in parameter order).
+
+    Build one with :meth:`chain`, :meth:`ring`, :meth:`grid` or :meth:`from_edges` (which
+    check it). ``shape`` is ``(rows, cols)`` for a grid (site ``r * cols + c``), else None.
+    """
+
+    n_sites: int
+    edges: tuple[tuple[int, int], ...]
+    topology: str = "edges"
+    shape: tuple[int, int] | None = None
+
+    # ------------------------------------------------------------------ constructors
+    @classmethod
+    def chain(cls, n: int) -> CouplingGraph:
+        """Nearest-neighbour chain: edges ``(0, 1), (1, 2), ..., (n-2, n-1)``."""
+        n = _int(n, "a chain's number of sites", 2)
+        return cls(n, tuple((i, i + 1) for i in range(n - 1)), "chain")
+
+    @classmethod
+    def ring(cls, n: int) -> CouplingGraph:
+        """Ring: the chain's edges and ``(n-1, 0)``."""
+        n = _int(n, "a ring's number of sites", 3)
+        return cls(n, tuple((i, (i + 1) % n) for i in range(n)), "ring")
+
+    @classmethod
+    def grid(cls, rows: int, cols: int) -> CouplingGraph:
+        """``rows x cols`` square lattice, site ``r * cols + c``; the horizontal edges row by
+        row, then the vertical edges row by row."""
+        rows, cols = _int(rows, "grid rows", 1), _int(cols, "grid cols", 1)
+        if rows * cols < 2:
+            raise ValueError(f"a grid needs at least 2 sites, got shape {rows}x{cols}")
+        horizontal = [(r * cols + c, r * cols + c + 1) for r in range(rows) for c in range(cols - 1)]
+        vertical = [(r * cols + c, (r + 1) * cols + c) for r in range(rows - 1) for c in range(cols)]
+        return cls(rows * cols, tuple(horizontal + vertical), "grid", (rows, cols))
+
+    @classmethod
+    def from_edges(cls, n_sites: int, edges) -> CouplingGraph:
+        """Any graph: ``edges`` a list of site pairs ``[i, j]`` (0-based)."""
+        n = _int(n_sites, "n_sites", 2)
+        graph = cls(n, _check_edges(n, edges), "edges")
+        return graph
+
+    # ------------------------------------------------------------------ structure
+    @property
+    def n_edges(self) -> int:
+        return len(self.edges)
+
+    def site_edges(self, i: int) -> list[int]:
+        """Indices of the edges touching site ``i``."""
+        return [e for e, (a, b) in enumerate(self.edges) if i in (a, b)]
+
+    def neighbours(self, i: int) -> list[int]:
+        """Sites coupled to site ``i``, ascending."""
+        return sorted({b if a == i else a for a, b in self.edges if i in (a, b)})
+
+    def edge_neighbours(self, e: int) -> list[int]:
+        """Indices of the other edges sharing a site with edge ``e``."""
+        a, b = self.edges[e]
+        return [k for k, (c, d) in enumerate(self.edges) if k != e and {a, b} & {c, d}]
+
+    def edge_index(self, i: int, j: int) -> int | None:
+        """Index of the edge between ``i`` and ``j`` (either order), or None."""
+        for e, pair in enumerate(self.edges):
+            if set(pair) == {i, j}:
+                return e
+        return None
+
+    def paths2(self, i: int, j: int) -> list[tuple[int, int]]:
+        """Pairs of edge indices ``(e1, e2)`` forming a path ``i - m - j`` of two edges."""
+        out = []
+        for m in self.neighbours(i):
+            if m != j and j in self.neighbours(m):
+                out.append((self.edge_index(i, m), self.edge_index(m, j)))
+        return out
+
+    def parasitic_edges(self, kind: str) -> list[tuple[int, int]]:
+        """Site pairs the graph lacks, coupled only through a shared neighbour.
+
+        ``"next_nearest"``: every pair at graph distance 2 (chain: ``(i, i+2)``; grid:
+        diagonals and straight two-steps). ``"diagonal"``: pairs joined by two different
+        two-edge paths (the grid's diagonals). ``"none"``: no pair.
+        """
+        if kind not in PARASITIC_KINDS:
+            raise ValueError(f"unknown parasitic coupling kind {kind!r}; valid: "
+                             f"{', '.join(PARASITIC_KINDS)}")
+        if kind == "none":
+            return []
+        out = []
+        for i in range(self.n_sites):
+            for j in range(i + 1, self.n_sites):
+                if self.edge_index(i, j) is not None:
+                    continue
+                paths = self.paths2(i, j)
+                if (kind == "next_nearest" and paths) or (kind == "diagonal" and len(paths) >= 2):
+                    out.append((i, j))
+        return out
+
+    def with_edges(self, extra) -> CouplingGraph:
+        """This graph plus the ``extra`` edges (appended, in order)."""
+        return CouplingGraph(self.n_sites, _check_edges(self.n_sites, [*self.edges, *extra]),
+                             "edges")
+
+    def to_dict(self) -> dict:
+        return {"topology": self.topology, "n_sites": self.n_sites,
+                "shape": list(self.shape) if self.shape else None,
+                "edges": [list(e) for e in self.edges]}
+
+
+def _check_edges(n: int, edges) -> tuple[tuple[int, int], ...]:
+    if isinstance(edges, (str, bytes)) or not hasattr(edges, "__iter__"):
+        raise ValueError(f"edges must be a list of site pairs [i, j], got {edges!r}")
+    out, seen = [], set()
+    for k, pair in enumerate(edges):
+        pair = list(pair) if hasattr(pair, "__iter__") and not isinstance(pair, str) else pair
+        if (not isinstance(pair, list) or len(pair) != 2
+                or not all(isinstance(v, numbers.Integral) and not isinstance(v, bool)
+                           for v in pair)):
+            raise ValueError(f"edge {k} must be a pair of site indices [i, j], got {pair!r}")
+        i, j = int(pair[0]), int(pair[1])
+        if not (0 <= i < n and 0 <= j < n):
+            raise ValueError(f"edge {k} [{i}, {j}] is out of range: sites are 0..{n - 1}")
+        if i == j:
+            raise ValueError(f"edge {k} [{i}, {j}] is a self-loop (onsite terms are not edges)")
+        key = frozenset((i, j))
+        if key in seen:
+            raise ValueError(f"edge {k} [{i}, {j}] is a duplicate")
+        seen.add(key)
+        out.append((i, j))
+    return tuple(out)
+
+
+def make_graph(n_sites: int | None = None, topology: str = "chain", shape=None,
+               edges=None) -> CouplingGraph:
+    """A graph from config-style settings: ``topology`` ("chain", "ring", "grid" with
+    ``shape = (rows, cols)``) or an explicit ``edges`` list; ``n_sites`` (if given) must match."""
+    if edges is not None:
+        if n_sites is None:
+            flat = [v for e in edges for v in e]
+            n_sites = max(flat) + 1 if flat else 0
+        return CouplingGraph.from_edges(n_sites, edges)
+    if topology not in TOPOLOGIES:
+        raise ValueError(f"unknown topology {topology!r}; valid: {', '.join(TOPOLOGIES)}")
+    if topology == "grid":
+        if shape is None or len(shape) != 2:
+            raise ValueError(f"topology grid needs shape = [rows, cols], got {shape!r}")
+        graph = CouplingGraph.grid(*shape)
+    else:
+        if shape is not None:
+            raise ValueError(f"shape is only for topology grid, got shape {shape!r} with "
+                             f"topology {topology}")
+        if n_sites is None:
+            raise ValueError(f"topology {topology} needs the number of sites")
+        graph = getattr(CouplingGraph, topology)(n_sites)
+    if n_sites is not None and graph.n_sites != n_sites:
+        raise ValueError(f"grid shape {shape[0]}x{shape[1]} has {graph.n_sites} sites, but "
+                         f"there are {n_sites} onsite columns")
+    return graph
+
+
+def _check(onsite, couplings, graph) -> tuple[np.ndarray, np.ndarray, CouplingGraph]:
     f = np.asarray(onsite, dtype=float)
     g = np.asarray(couplings, dtype=float)
     if f.ndim != 2:
         raise ValueError(f"onsite must be 2-D (n_examples, n_sites), got shape {f.shape}")
     if g.ndim != 2:
-        raise ValueError("couplings must be 2-D (n_examples, n_sites - 1), got shape "
+        raise ValueError("couplings must be 2-D (n_examples, n_edges), got shape "
                          f"{g.shape}")
     n, N = f.shape
-    if N < 2:
-        raise ValueError(f"a chain needs at least 2 sites; onsite has {N} column(s)")
-    if g.shape != (n, N - 1):
-        raise ValueError(f"couplings must have shape (n_examples, n_sites - 1) = ({n}, {N - 1})"
-                         f" to match onsite {f.shape}, got {g.shape}")
+    if graph is None:
+        if N < 2:
+            raise ValueError(f"a chain needs at least 2 sites; onsite has {N} column(s)")
+        graph = CouplingGraph.chain(N)
+        if g.shape != (n, N - 1):
+            raise ValueError(f"couplings must have shape (n_examples, n_sites - 1) = "
+                             f"({n}, {N - 1}) to match onsite {f.shape}, got {g.shape}")
+    elif not isinstance(graph, CouplingGraph):
+        raise ValueError(f"graph must be a CouplingGraph, got {type(graph).__name__}")
+    elif graph.n_sites != N:
+        raise ValueError(f"the graph has {graph.n_sites} sites but onsite has {N} columns")
+    elif g.shape != (n, graph.n_edges):
+        raise ValueError(f"couplings must have shape (n_examples, n_edges) = "
+                         f"({n}, {graph.n_edges}) to match onsite {f.shape} and the graph, "
+                         f"got {g.shape}")
     for name, a in (("onsite", f), ("couplings", g)):
         if not np.all(np.isfinite(a)):
             rows = np.flatnonzero(~np.isfinite(a).all(axis=1))[:10].tolist()
             raise ValueError(f"{name} contains NaN or infinite values (rows {rows})")
-    return f, g
+    return f, g, graph
 
 
 def _check_sign(sign) -> int:
@@ -51,34 +238,69 @@ def _check_sign(sign) -> int:
     return int(sign)
 
 
-def chain_hamiltonian(onsite, couplings) -> np.ndarray:
-    """Tridiagonal Hamiltonians, shape ``(n, N, N)``, from onsite ``(n, N)`` and couplings
-    ``(n, N - 1)`` (arrays or DataFrames)."""
-    f, g = _check_chain(onsite, couplings)
+def _build(f, g, graph, out=None) -> np.ndarray:
     n, N = f.shape
-    h = np.zeros((n, N, N))
-    d, u = np.arange(N), np.arange(N - 1)
+    h = np.zeros((n, N, N)) if out is None else out
+    d = np.arange(N)
     h[:, d, d] = f
-    h[:, u, u + 1] = g
-    h[:, u + 1, u] = g
+    if graph.n_edges:
+        a = np.fromiter((e[0] for e in graph.edges), int, graph.n_edges)
+        b = np.fromiter((e[1] for e in graph.edges), int, graph.n_edges)
+        h[:, a, b] = g
+        h[:, b, a] = g
     return h
 
 
-def chain_spectrum(onsite, couplings, sign=-1) -> tuple[np.ndarray, np.ndarray]:
-    """Ascending eigenvalues of ``sign * H`` and their Jacobian.
+def graph_hamiltonian(onsite, couplings, graph: CouplingGraph | None = None) -> np.ndarray:
+    """Hamiltonians, shape ``(n, N, N)``, from onsite ``(n, N)`` and couplings ``(n, E)``
+    on ``graph`` (None: the chain)."""
+    f, g, graph = _check(onsite, couplings, graph)
+    return _build(f, g, graph)
+
+
+def graph_spectrum(onsite, couplings, graph: CouplingGraph | None = None, sign=-1, *,
+                   jacobian: bool = True, chunk_elements: int = 8_000_000):
+    """Ascending eigenvalues of ``sign * H`` and (``jacobian=True``) their Jacobian.
 
     Returns
     -------
     eigenvalues : ndarray of shape (n, N)
-    jacobian : ndarray of shape (n, N, 2N - 1)
+    jacobian : ndarray of shape (n, N, N + E)
         ``jacobian[j, k, p] = d lambda_k / d theta_p`` for example ``j``, with
-        ``theta = (onsite_1..onsite_N, coupling_1..coupling_{N-1})``.
+        ``theta = (onsite_1..onsite_N, coupling_1..coupling_E)``. Only when ``jacobian``.
+
+    The examples are diagonalised in chunks of about ``chunk_elements`` matrix entries.
     """
     sign = _check_sign(sign)
-    h = chain_hamiltonian(onsite, couplings)
-    N = h.shape[1]
-    lam, vec = np.linalg.eigh(sign * h)  # vec[j, i, k] = u_ik of example j, ascending lam
-    jac = np.empty((h.shape[0], N, 2 * N - 1))
-    jac[:, :, :N] = sign * np.swapaxes(vec**2, 1, 2)
-    jac[:, :, N:] = sign * 2.0 * np.swapaxes(vec[:, :-1, :] * vec[:, 1:, :], 1, 2)
-    return lam, jac
+    f, g, graph = _check(onsite, couplings, graph)
+    n, N = f.shape
+    E = graph.n_edges
+    a = np.fromiter((e[0] for e in graph.edges), int, E)
+    b = np.fromiter((e[1] for e in graph.edges), int, E)
+    lam = np.empty((n, N))
+    jac = np.empty((n, N, N + E)) if jacobian else None
+    step = max(1, chunk_elements // (N * N))
+    for s in range(0, n, step):
+        sl = slice(s, min(n, s + step))
+        h = _build(f[sl], g[sl], graph)
+        if sign == -1:
+            np.negative(h, out=h)
+        if not jacobian:
+            lam[sl] = np.linalg.eigvalsh(h)
+            continue
+        lam[sl], vec = np.linalg.eigh(h)  # vec[j, i, k] = u_ik, ascending lam
+        jac[sl, :, :N] = sign * np.swapaxes(vec**2, 1, 2)
+        jac[sl, :, N:] = sign * 2.0 * np.swapaxes(vec[:, a, :] * vec[:, b, :], 1, 2)
+    return (lam, jac) if jacobian else lam
+
+
+def chain_hamiltonian(onsite, couplings) -> np.ndarray:
+    """Tridiagonal Hamiltonians, shape ``(n, N, N)``, from onsite ``(n, N)`` and couplings
+    ``(n, N - 1)`` (arrays or DataFrames)."""
+    return graph_hamiltonian(onsite, couplings, None)
+
+
+def chain_spectrum(onsite, couplings, sign=-1) -> tuple[np.ndarray, np.ndarray]:
+    """Ascending eigenvalues of ``sign * H`` of a chain and their Jacobian, shape
+    ``(n, N, 2N - 1)`` (see :func:`graph_spectrum`)."""
+    return graph_spectrum(onsite, couplings, None, sign)

@@ -6,7 +6,13 @@ model's onsite frequencies and couplings (columns of ``X``) and the correction o
 parameter ``p`` is linear in a small covariate library, ``delta_p(x) = phi_p(x) . c_p``.
 The coefficients are fitted by (robust, regularised) Gauss-Newton with an exact
 re-diagonalisation at every iteration; the Jacobian comes from Hellmann-Feynman
-(:func:`workbench.hamiltonian.chain_spectrum`).
+(:func:`workbench.hamiltonian.graph_spectrum`).
+
+The device is any :class:`~workbench.hamiltonian.CouplingGraph` (``edges``; default the
+nearest-neighbour chain), optionally with *parasitic* couplings the control model lacks
+(``parasitic``): extra edges whose control value is 0 and whose coupling is, like every other
+parameter's correction, linear in covariates (by default the geometric means
+``sqrt|g_a g_b|`` of the pairs of couplings that bridge them).
 """
 
 from __future__ import annotations
@@ -15,28 +21,34 @@ import numbers
 
 import numpy as np
 import pandas as pd
+from scipy.linalg.blas import dsyrk as _dsyrk
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils.validation import check_is_fitted
 
-from .hamiltonian import chain_spectrum
+from .hamiltonian import PARASITIC_KINDS, CouplingGraph, graph_spectrum
+from .losses import AbsoluteError, Huber, SquaredError
 
-__all__ = ["HamiltonianParameterRegressor", "PARAM_LOSSES", "default_library"]
+__all__ = ["HamiltonianParameterRegressor", "PARAM_LOSSES", "default_library",
+           "parasitic_names", "resolve_graph"]
 
 
 def _squared(r, delta):
-    return 0.5 * r * r, np.ones_like(r)
+    return 0.5 * SquaredError().elementwise(r), np.ones_like(r)
 
 
 def _absolute(r, delta):
-    a = np.abs(r)
+    a = AbsoluteError().elementwise(r)
     floor = 1e-4 * max(float(np.median(a)), 1e-12)  # IRLS weights 1/|r|, bounded
     return a, 1.0 / np.maximum(a, floor)
 
 
 def _huber(r, delta):
-    a = np.abs(r)
-    return (np.where(a <= delta, 0.5 * r * r, delta * (a - 0.5 * delta)),
-            np.minimum(1.0, delta / np.maximum(a, 1e-12)))
+    """:class:`workbench.losses.Huber` with a fixed ``delta``; IRLS weight ``psi(r) / r``."""
+    h = Huber(delta=float(delta))
+    big = np.abs(r) > 1e-12
+    weight = np.ones_like(r)
+    np.divide(h.psi(r), r, out=weight, where=big)
+    return h.elementwise(r), weight
 
 
 #: Losses of the parameter-space fit by name (the names of :data:`workbench.LOSSES`):
@@ -77,23 +89,67 @@ def _columns(X: pd.DataFrame, names: list[str], what: str) -> np.ndarray:
     return values
 
 
-def _detunings(onsite: list[str]) -> list[str]:
-    return [f"{a}-{b}" for a, b in zip(onsite, onsite[1:])]
+def resolve_graph(n_sites: int, edges=None, parasitic=None
+                  ) -> tuple[CouplingGraph, list[tuple[int, int]]]:
+    """The control model's graph (``edges`` None: the chain) and the parasitic site pairs
+    (``parasitic``: None/"none", "next_nearest", "diagonal" or a list of pairs)."""
+    graph = CouplingGraph.chain(n_sites) if edges is None else \
+        CouplingGraph.from_edges(n_sites, edges)
+    if parasitic is None:
+        return graph, []
+    if isinstance(parasitic, str):
+        if parasitic not in PARASITIC_KINDS:
+            raise ValueError(f"unknown parasitic {parasitic!r}; valid: a list of site pairs "
+                             f"or one of {', '.join(PARASITIC_KINDS)}")
+        pairs = graph.parasitic_edges(parasitic)
+    else:
+        pairs = [tuple(int(v) for v in e) for e in graph.with_edges(parasitic).edges[
+            graph.n_edges:]]
+    return graph, pairs
 
 
-def default_library(onsite, couplings) -> dict[str, list[str]]:
+def parasitic_names(onsite, pairs) -> list[str]:
+    """Names of parasitic couplings between sites ``(i, j)``: ``"<onsite_i>~<onsite_j>"``."""
+    on = list(onsite)
+    return [f"{on[i]}~{on[j]}" for i, j in pairs]
+
+
+def _detuning(on, i, j) -> str:
+    return f"{on[min(i, j)]}-{on[max(i, j)]}"
+
+
+def _geomean(a: str, b: str) -> str:
+    return f"sqrt|{a}*{b}|"
+
+
+def _bridges(graph, couplings, i, j) -> list[str]:
+    """``sqrt|g_a*g_b|`` of each two-edge path ``i - m - j`` of the control graph."""
+    co = list(couplings)
+    return [_geomean(co[a], co[b]) for a, b in graph.paths2(i, j)]
+
+
+def default_library(onsite, couplings, edges=None, parasitic=None) -> dict[str, list[str]]:
     """The default covariates of each parameter (besides the intercept).
 
-    Onsite ``f_i``: ``f_i``, ``f_i^2`` and each adjacent coupling with its square. Coupling
-    ``g_i``: ``g_i``, ``g_i^2`` and the adjacent detuning ``f_i-f_{i+1}``.
+    Onsite ``f_i``: ``f_i``, ``f_i^2`` and each coupling touching site ``i`` with its square.
+    Coupling ``g_e`` (``e = (i, j)``): ``g_e``, ``g_e^2`` and the detuning ``f_i-f_j``.
+    Parasitic coupling ``(i, j)``: the geometric mean ``sqrt|g_a*g_b|`` of each pair of
+    couplings bridging it. ``edges`` None: the chain.
     """
     on, co = list(onsite), list(couplings)
+    graph, pairs = resolve_graph(len(on), edges, parasitic)
+    if len(co) != graph.n_edges:
+        raise ValueError(f"couplings must name {graph.n_edges} columns, one per edge, got "
+                         f"{len(co)}")
     lib = {}
     for i, p in enumerate(on):
-        nb = [co[j] for j in (i - 1, i) if 0 <= j < len(co)]
+        nb = [co[e] for e in graph.site_edges(i)]
         lib[p] = [p, f"{p}^2"] + [n for g in nb for n in (g, f"{g}^2")]
-    for i, p in enumerate(co):
-        lib[p] = [p, f"{p}^2", f"{on[i]}-{on[i + 1]}"]
+    for e, p in enumerate(co):
+        i, j = graph.edges[e]
+        lib[p] = [p, f"{p}^2", _detuning(on, i, j)]
+    for (i, j), p in zip(pairs, parasitic_names(on, pairs)):
+        lib[p] = _bridges(graph, co, i, j)
     return lib
 
 
@@ -104,8 +160,9 @@ def _parse(name: str, variables) -> tuple[str, int]:
     base, sep, power = name.rpartition("^")
     if sep and base in variables and power.isdigit() and int(power) >= 1:
         return base, int(power)
-    raise ValueError(f"unknown covariate {name!r}: a covariate is a parameter, an adjacent "
-                     "detuning 'f_i-f_j', or a column of X, optionally followed by '^k'; "
+    raise ValueError(f"unknown covariate {name!r}: a covariate is a parameter, a detuning "
+                     "'f_i-f_j', a geometric mean 'sqrt|g_a*g_b|', or a column of X, "
+                     "optionally followed by '^k'; "
                      f"X's columns are {sorted(v for v in variables)}")
 
 
@@ -128,18 +185,51 @@ def _lasso_quadratic(H, b, l1, x0, max_iter=20000, tol=1e-9):
     return x
 
 
+def _normal_equations(jac, w, r, Phi, sel, chunk_elements=8_000_000):
+    """Gauss-Newton normal equations ``A^T W A`` and ``A^T W r``.
+
+    ``A[(j, k), (p, c)] = jac[j, k, p] * Phi[j, p, c]`` (``Phi`` padded to (n, P, K), ``sel``
+    the flat (p, c) positions of the real coefficients), built a chunk of rows at a time
+    (about ``chunk_elements`` entries) and accumulated with a symmetric rank-k update.
+    """
+    n, N, P = jac.shape
+    K = Phi.shape[2]
+    sel = np.asarray(sel)
+    pidx = sel // K
+    flat = Phi.reshape(n, P * K)
+    D = len(sel)
+    s = np.matmul((w * r)[:, None, :], jac)[:, 0, :]  # (n, P): sum_k J w r
+    g = (flat[:, sel] * s[:, pidx]).sum(axis=0)
+    H = np.zeros((D, D), order="F")
+    root = np.sqrt(w)
+    step = max(1, chunk_elements // (N * D))
+    for a in range(0, n, step):
+        sl = slice(a, min(n, a + step))
+        A = (jac[sl][:, :, pidx] * root[sl, :, None]) * flat[sl, None, sel]
+        A = np.asfortranarray(A.reshape(-1, D))
+        H = _syrk(A, H)
+    H = np.triu(H) + np.triu(H, 1).T
+    return H, g
+
+
+def _syrk(A, C):
+    """``C + A^T A`` (upper triangle; BLAS dsyrk)."""
+    return _dsyrk(1.0, A, beta=1.0, c=C, trans=1, lower=0, overwrite_c=1)
+
+
 class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
-    """Multi-output regressor of a chain's N eigenvalues via corrections of its Hamiltonian.
+    """Multi-output regressor of a device's N eigenvalues via corrections of its Hamiltonian.
 
     ``predict(X)`` = ascending eigenvalues of ``sign * H(theta(X) + delta(X))`` with
-    ``theta = X[onsite + couplings]`` and ``delta_p(x) = phi_p(x) . c_p`` for each of the
-    ``2N - 1`` parameters.
+    ``theta = X[onsite + couplings]`` (and 0 for each active parasitic coupling) and
+    ``delta_p(x) = phi_p(x) . c_p`` for each parameter ``p``.
 
     The covariates ``phi_p`` of parameter ``p`` are an intercept (never penalised) and the
     covariates that ``covariates`` names for ``p``. A covariate is a *variable* optionally
-    raised to a power (``"f1^2"``); variables are the parameters themselves, the adjacent
-    detunings ``"f_i-f_{i+1}"`` (named from the onsite columns) and any column of ``X``
-    (e.g. voltages). Every variable is centred by its training mean before the power is
+    raised to a power (``"f1^2"``); variables are the parameters themselves, the detunings
+    ``"f_i-f_j"`` (named from the onsite columns, lower site first), the geometric means
+    ``"sqrt|g_a*g_b|"`` of two couplings sharing a site, and any column of ``X`` (e.g.
+    voltages). Every variable is centred by its training mean before the power is
     taken; every covariate is then standardised with its training mean and sd (sd 0 -> 1),
     so a coefficient is in the targets' units (MHz) per standard deviation of its covariate.
 
@@ -155,16 +245,25 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
     Parameters
     ----------
     onsite : list of str
-        Columns of ``X`` with the N control-model onsite frequencies (MHz), in chain order.
+        Columns of ``X`` with the N control-model onsite frequencies (MHz), in site order.
     couplings : list of str
-        Columns of ``X`` with the N - 1 nearest-neighbour couplings, in chain order.
+        Columns of ``X`` with the control model's couplings, one per edge, in edge order.
+    edges : list of [i, j], default=None
+        The coupling graph (0-based site pairs, one per coupling column); None: the
+        nearest-neighbour chain ``[[0, 1], [1, 2], ...]``.
+    parasitic : None, "none", "next_nearest", "diagonal" or list of [i, j], default=None
+        Site pairs with a parasitic coupling the control model lacks (control value 0); see
+        :meth:`~workbench.hamiltonian.CouplingGraph.parasitic_edges`. A parasitic coupling
+        named ``"<onsite_i>~<onsite_j>"`` is in the model only if ``covariates`` gives it at
+        least one covariate (``"default"``: the geometric means of the couplings bridging it).
     sign : {-1, 1}, default=-1
         The targets are eigenvalues of ``sign * H``.
     covariates : "default" or dict of str -> list of str, default="default"
         ``"default"``: :func:`default_library`. A dict maps parameter names to their
-        covariate names; parameters it does not list get only an intercept.
+        covariate names; control parameters it does not list get only an intercept,
+        parasitic ones are left out.
     features : list of str, default=None
-        Columns of ``X`` added, with their squares, to *every* parameter's covariates.
+        Columns of ``X`` added, with their squares, to every control parameter's covariates.
     alpha : float, default=1.0
         Ridge penalty on the non-intercept coefficients.
     alpha_l1 : float, default=0.0
@@ -180,7 +279,9 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
     Attributes
     ----------
     parameter_names_ : list of str
-        ``onsite + couplings``.
+        ``onsite + couplings`` and the active parasitic couplings.
+    graph_ : CouplingGraph
+        The model's graph: the control edges, then the active parasitic ones.
     covariate_names_ : dict of str -> list of str
         Covariates of each parameter (starting with ``"intercept"``).
     coef_ : pandas.DataFrame
@@ -193,11 +294,13 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
     n_features_in_, feature_names_in_
     """
 
-    def __init__(self, *, onsite=None, couplings=None, sign=-1, covariates="default",
-                 features=None, alpha=1.0, alpha_l1=0.0, loss="squared_error",
-                 huber_delta=1.0, max_iter=20, tol=1e-6):
+    def __init__(self, *, onsite=None, couplings=None, edges=None, parasitic=None, sign=-1,
+                 covariates="default", features=None, alpha=1.0, alpha_l1=0.0,
+                 loss="squared_error", huber_delta=1.0, max_iter=20, tol=1e-6):
         self.onsite = onsite
         self.couplings = couplings
+        self.edges = edges
+        self.parasitic = parasitic
         self.sign = sign
         self.covariates = covariates
         self.features = features
@@ -214,30 +317,34 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         couplings = _names(self.couplings, "couplings")
         if len(onsite) < 2:
             raise ValueError(f"onsite must name at least 2 columns, got {onsite!r}")
-        if len(couplings) != len(onsite) - 1:
-            raise ValueError(f"couplings must name len(onsite) - 1 = {len(onsite) - 1} "
+        graph, pairs = resolve_graph(len(onsite), self.edges, self.parasitic)
+        if len(couplings) != graph.n_edges:
+            what = "len(onsite) - 1" if self.edges is None else "len(edges)"
+            raise ValueError(f"couplings must name {what} = {graph.n_edges} "
                              f"columns, got {len(couplings)}: {couplings!r}")
         features = _names(self.features, "features")
         if set(onsite) & set(couplings) or set(features) & set(onsite + couplings):
             raise ValueError("onsite, couplings and features must name distinct columns")
         if isinstance(self.sign, bool) or self.sign not in (-1, 1):
             raise ValueError(f"sign must be -1 or 1, got {self.sign!r}")
+        extra = parasitic_names(onsite, pairs)
         params = onsite + couplings
         if isinstance(self.covariates, str):
             if self.covariates != "default":
                 raise ValueError('covariates must be "default" or a dict parameter -> list of '
                                  f"covariate names, got {self.covariates!r}")
-            library = default_library(onsite, couplings)
+            library = default_library(onsite, couplings, self.edges, pairs)
         elif isinstance(self.covariates, dict):
-            unknown = [p for p in self.covariates if p not in params]
+            unknown = [p for p in self.covariates if p not in params + extra]
             if unknown:
                 raise ValueError(f"covariates names unknown parameter(s) {unknown}; "
-                                 f"parameters are {params}")
+                                 f"parameters are {params + extra}")
             library = {p: _names(self.covariates.get(p, []), f"covariates[{p!r}]")
-                       for p in params}
+                       for p in params + extra}
         else:
             raise ValueError('covariates must be "default" or a dict parameter -> list of '
                              f"covariate names, got {type(self.covariates).__name__}")
+        active = [(pair, p) for pair, p in zip(pairs, extra) if library.get(p)]
         for name, value, low in (("alpha", self.alpha, 0), ("alpha_l1", self.alpha_l1, 0)):
             if not (isinstance(value, numbers.Real) and np.isfinite(value) and value >= low):
                 raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
@@ -253,25 +360,50 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
             raise ValueError(f"max_iter must be an integer >= 0, got {self.max_iter!r}")
         if not (isinstance(self.tol, numbers.Real) and self.tol >= 0):
             raise ValueError(f"tol must be a number >= 0, got {self.tol!r}")
-        return onsite, couplings, features, library
+        graph = graph.with_edges([pair for pair, _ in active])
+        return onsite, couplings, features, library, graph, [p for _, p in active]
 
     # ------------------------------------------------------------------ covariates
-    def _resolve_library(self, X, onsite, couplings, features, library):
+    def _derived(self, onsite, couplings, graph) -> dict[str, tuple]:
+        """Derived variables: detunings of every site pair and geometric means of every two
+        couplings sharing a site -> how to compute them from theta."""
+        out = {}
+        N = len(onsite)
+        for i in range(N):
+            for j in range(i + 1, N):
+                out[_detuning(onsite, i, j)] = ("-", i, j)
+            touching = [e for e in graph.site_edges(i) if e < len(couplings)]
+            for a in touching:
+                for b in touching:
+                    if a != b:
+                        out[_geomean(couplings[a], couplings[b])] = ("gm", N + a, N + b)
+        return out
+
+    def _resolve_library(self, X, onsite, couplings, features, library, extra):
         """(variable, power) terms of each parameter and the X columns they read."""
-        params = onsite + couplings
-        internal = set(params) | set(_detunings(onsite))
+        params = onsite + couplings + extra
+        internal = set(onsite + couplings) | set(self._derived_)
         variables = internal | {str(c) for c in X.columns}
         every = [(v, k) for v in features for k in (1, 2)]
-        terms = {p: [_parse(name, variables) for name in library[p]] + every for p in params}
+        terms = {p: [_parse(name, variables) for name in library[p]]
+                 + (every if p not in extra else []) for p in params}
         columns = list(dict.fromkeys(v for ts in terms.values() for v, _ in ts
                                      if v not in internal))
         return terms, columns
 
     def _variables(self, X) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        theta = _columns(X, self.parameter_names_, "parameter")
-        out = {name: theta[:, j] for j, name in enumerate(self.parameter_names_)}
-        for i, name in enumerate(_detunings(self.onsite_)):
-            out[name] = theta[:, i] - theta[:, i + 1]
+        """Control parameters ``theta0`` (n, N + E) and the variables the terms use."""
+        control = self.onsite_ + self.couplings_
+        theta = _columns(X, control, "parameter")
+        out = {name: theta[:, j] for j, name in enumerate(control)}
+        used = {v for ts in self.terms_.values() for v, _ in ts}
+        for name in used:
+            how = self._derived_.get(name)
+            if how is None or name in out:
+                continue
+            kind, a, b = how
+            out[name] = (theta[:, a] - theta[:, b] if kind == "-"
+                         else np.sqrt(np.abs(theta[:, a] * theta[:, b])))
         if self.columns_:
             V = _columns(X, self.columns_, "covariate")
             out.update({name: V[:, j] for j, name in enumerate(self.columns_)})
@@ -290,6 +422,17 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
             phis.append(np.column_stack([np.ones(n), z]))
         return phis
 
+    def _padded(self, phis) -> tuple[np.ndarray, np.ndarray]:
+        """``phis`` as one (n, P, K) array (zero-padded) and the flat positions of the
+        coefficients in it."""
+        n, K = len(phis[0]), max(phi.shape[1] for phi in phis)
+        Phi = np.zeros((n, len(phis), K))
+        sel = []
+        for p, phi in enumerate(phis):
+            Phi[:, p, :phi.shape[1]] = phi
+            sel.extend(p * K + np.arange(phi.shape[1]))
+        return Phi, np.asarray(sel)
+
     # ------------------------------------------------------------------ model
     def _objective(self, r, c, penalty):
         data = PARAM_LOSSES[self.loss](r, self.huber_delta)[0].sum()
@@ -299,9 +442,16 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
     def _delta(self, phis, c):
         return np.column_stack([phi @ c[sl] for phi, sl in zip(phis, self._slices)])
 
-    def _spectrum(self, theta):
+    def _theta(self, theta0, phis, c):
+        """Corrected parameters: control values (0 for parasitic couplings) plus corrections."""
+        delta = self._delta(phis, c)
+        delta[:, :theta0.shape[1]] += theta0
+        return delta
+
+    def _spectrum(self, theta, jacobian=True):
         N = len(self.onsite_)
-        return chain_spectrum(theta[:, :N], theta[:, N:], self.sign)
+        return graph_spectrum(theta[:, :N], theta[:, N:], self.graph_, self.sign,
+                              jacobian=jacobian)
 
     def _initial(self, coef_init, index) -> np.ndarray:
         c = np.zeros(len(index))
@@ -323,24 +473,21 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
                 c[j] = value
         return c
 
-    def fit(self, X, y, coef_init=None):
-        """Fit the coefficients on ``X`` (DataFrame) and ``y`` (n, N ascending eigenvalues).
-
-        ``coef_init``: starting coefficients, e.g. another fit's ``coef_`` (or
-        ``coef_dict()``); entries are
-        matched by (parameter, covariate), missing ones start at 0 and ones this model's
-        covariates lack are ignored (a warm start when covariates are added or removed).
-        """
-        onsite, couplings, features, library = self._check_params()
+    def _setup(self, X, y):
+        """Validate, resolve the covariates and build the design of the training rows."""
+        onsite, couplings, features, library, graph, extra = self._check_params()
         if not isinstance(X, pd.DataFrame):
             raise ValueError("X must be a pandas DataFrame holding the onsite, coupling and "
                              f"covariate columns by name, got {type(X).__name__}")
         if len(X) == 0:
             raise ValueError("X has no rows")
         self.onsite_, self.couplings_, self.features_ = onsite, couplings, features
-        self.parameter_names_ = onsite + couplings
+        self.parasitic_ = extra
+        self.graph_ = graph
+        self.parameter_names_ = onsite + couplings + extra
+        self._derived_ = self._derived(onsite, couplings, graph)
         self.terms_, self.columns_ = self._resolve_library(X, onsite, couplings, features,
-                                                           library)
+                                                           library, extra)
         theta0, variables = self._variables(X)
         n, N = len(theta0), len(onsite)
         y = np.asarray(y, dtype=float)
@@ -363,19 +510,29 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         self._slices = [slice(e - s, e) for s, e in zip(sizes, ends)]
         penalty = np.ones(ends[-1])
         penalty[ends - np.asarray(sizes)] = 0.0  # intercepts are not penalised
+        return theta0, y, phis, index, penalty
 
+    def fit(self, X, y, coef_init=None):
+        """Fit the coefficients on ``X`` (DataFrame) and ``y`` (n, N ascending eigenvalues).
+
+        ``coef_init``: starting coefficients, e.g. another fit's ``coef_`` (or
+        ``coef_dict()``); entries are
+        matched by (parameter, covariate), missing ones start at 0 and ones this model's
+        covariates lack are ignored (a warm start when covariates are added or removed).
+        """
+        theta0, y, phis, index, penalty = self._setup(X, y)
+        Phi, sel = self._padded(phis)
         c = self._initial(coef_init, index)
-        lam, jac = self._spectrum(theta0 + self._delta(phis, c))
+        lam, jac = self._spectrum(self._theta(theta0, phis, c))
         r = y - lam
         obj = self._objective(r, c, penalty)
         history, n_iter = [obj], 0
         loss = PARAM_LOSSES[self.loss]
         for n_iter in range(1, self.max_iter + 1):
-            w = loss(r, self.huber_delta)[1].ravel()
-            A = np.hstack([(jac[:, :, j, None] * phi[:, None, :]).reshape(n * N, -1)
-                           for j, phi in enumerate(phis)])
-            H = A.T @ (w[:, None] * A) + self.alpha * np.diag(penalty)
-            g = A.T @ (w * r.ravel()) - self.alpha * penalty * c
+            w = loss(r, self.huber_delta)[1]
+            AtWA, AtWr = _normal_equations(jac, w, r, Phi, sel)
+            H = AtWA + self.alpha * np.diag(penalty)
+            g = AtWr - self.alpha * penalty * c
             if self.alpha_l1 > 0:
                 dc = _lasso_quadratic(H, g + H @ c, self.alpha_l1 * penalty, c) - c
             else:
@@ -386,7 +543,7 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
             step, accepted = 1.0, False
             for _ in range(30):
                 c_new = c + step * dc
-                lam_new, jac_new = self._spectrum(theta0 + self._delta(phis, c_new))
+                lam_new, jac_new = self._spectrum(self._theta(theta0, phis, c_new))
                 r_new = y - lam_new
                 obj_new = self._objective(r_new, c_new, penalty)
                 if obj_new <= obj:
@@ -417,18 +574,31 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         check_is_fitted(self)
         return dict(zip(self._index, self._coef.tolist()))
 
-    def _corrected(self, X) -> np.ndarray:
+    def _check_X(self, X):
         check_is_fitted(self)
         if not isinstance(X, pd.DataFrame):
             raise ValueError("X must be a pandas DataFrame holding the onsite, coupling and "
                              f"covariate columns by name, got {type(X).__name__}")
+
+    def _corrected(self, X) -> np.ndarray:
+        self._check_X(X)
         theta0, variables = self._variables(X)
-        return theta0 + self._delta(self._design(variables, len(theta0), fitting=False),
-                                    self._coef)
+        return self._theta(theta0, self._design(variables, len(theta0), fitting=False),
+                           self._coef)
 
     def corrected_parameters(self, X) -> pd.DataFrame:
-        """``theta(X) + delta(X)``, columns named like the onsite and coupling inputs."""
+        """``theta(X) + delta(X)``, columns named like the onsite and coupling inputs (and
+        the active parasitic couplings)."""
         return pd.DataFrame(self._corrected(X), columns=self.parameter_names_, index=X.index)
+
+    def control_parameters(self, X) -> pd.DataFrame:
+        """The control model's parameters ``theta(X)`` in :attr:`parameter_names_` order
+        (0 for the parasitic couplings it lacks)."""
+        self._check_X(X)
+        theta0 = _columns(X, self.onsite_ + self.couplings_, "parameter")
+        full = np.zeros((len(X), len(self.parameter_names_)))
+        full[:, :theta0.shape[1]] = theta0
+        return pd.DataFrame(full, columns=self.parameter_names_, index=X.index)
 
     def coefficient_table(self) -> pd.DataFrame:
         """The non-zero coefficients: parameter, covariate, coefficient in MHz per covariate sd
@@ -449,7 +619,7 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
 
     def predict(self, X) -> np.ndarray:
         """Ascending eigenvalues of ``sign * H(theta(X) + delta(X))``, shape (n, N)."""
-        return self._spectrum(self._corrected(X))[0]
+        return self._spectrum(self._corrected(X), jacobian=False)
 
     def __sklearn_is_fitted__(self):
         return hasattr(self, "_coef")

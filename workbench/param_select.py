@@ -23,7 +23,8 @@ from sklearn.utils import check_random_state
 from sklearn.utils.parallel import Parallel, delayed
 from sklearn.utils.validation import check_is_fitted
 
-from .param_boost import HamiltonianParameterRegressor, default_library
+from .param_boost import (HamiltonianParameterRegressor, default_library, parasitic_names,
+                          resolve_graph)
 
 __all__ = ["HamiltonianSelectionCV", "SelectionResult", "candidate_pool", "cv_mae",
            "forward_select"]
@@ -32,24 +33,36 @@ __all__ = ["HamiltonianSelectionCV", "SelectionResult", "candidate_pool", "cv_ma
 # ---------------------------------------------------------------------- candidate pools
 
 def candidate_pool(onsite, couplings, qubit_features=None, coupler_features=None, *,
-                   squares=True, base="default", neighbours=True) -> dict[str, list[str]]:
+                   squares=True, base="default", neighbours=True, edges=None,
+                   parasitic=None) -> dict[str, list[str]]:
     """Physically meaningful candidate covariates of each Hamiltonian parameter.
 
-    ``base="default"`` starts from :func:`~workbench.param_boost.default_library` (the
-    parameter and its square; for onsite ``f_i`` the adjacent couplings and their squares;
-    for ``g_i`` the adjacent detuning); ``base=None`` from nothing. Then, each with its
-    square when ``squares``:
+    "Adjacent" and "neighbouring" are read from the coupling graph (``edges``; None: the
+    chain). ``base="default"`` starts from :func:`~workbench.param_boost.default_library`
+    (the parameter and its square; for onsite ``f_i`` the couplings touching site ``i`` and
+    their squares; for ``g_e`` the detuning across it; for a parasitic coupling the
+    geometric means of the couplings bridging it); ``base=None`` from nothing. Then, each
+    with its square when ``squares``:
 
-    * onsite ``f_i``: its qubit's feature and the adjacent couplers' features; with
-      ``neighbours``, also the neighbouring onsite frequencies ``f_{i+-1}``, the detunings
+    * onsite ``f_i``: its qubit's feature and the features of the couplers touching it;
+      with ``neighbours``, also the neighbouring onsite frequencies ``f_j``, the detunings
       to them and the neighbouring qubits' features;
-    * coupling ``g_i``: its coupler's feature; with ``neighbours``, also the two coupled
-      frequencies, the squared detuning and the two qubits' features.
+    * coupling ``g_e``, ``e = (i, j)``: its coupler's feature; with ``neighbours``, also the
+      two coupled frequencies, the squared detuning and the two qubits' features;
+    * parasitic coupling ``(i, j)`` (``parasitic``: "next_nearest", "diagonal" or a list of
+      site pairs; see :func:`~workbench.param_boost.resolve_graph`): the geometric means
+      ``sqrt|g_a*g_b|`` of the bridging couplings (not squared); with ``neighbours``, also
+      the bridging couplers' features and the two qubits' features. A parasitic coupling
+      enters the model only once a covariate of it is selected.
 
-    ``qubit_features`` (N names) and ``coupler_features`` (N - 1 names) are in chain order,
-    e.g. ``qvolt5..qvolt9`` and ``cvolt5..cvolt8`` on the benchmark. Duplicates are dropped.
+    ``qubit_features`` (N names) and ``coupler_features`` (one per coupling) are in site and
+    edge order, e.g. ``qvolt5..qvolt9`` and ``cvolt5..cvolt8`` on the benchmark. Duplicates
+    are dropped.
     """
     on, co = list(onsite), list(couplings)
+    graph, pairs = resolve_graph(len(on), edges, parasitic)
+    if len(co) != graph.n_edges:
+        raise ValueError(f"couplings needs {graph.n_edges} names (one per edge), got {len(co)}")
     qf = list(qubit_features) if qubit_features is not None else []
     cf = list(coupler_features) if coupler_features is not None else []
     if qf and len(qf) != len(on):
@@ -59,27 +72,36 @@ def candidate_pool(onsite, couplings, qubit_features=None, coupler_features=None
                          f"{len(cf)}")
     if base not in ("default", None):
         raise ValueError(f'base must be "default" or None, got {base!r}')
-    pool = default_library(on, co) if base == "default" else {p: [] for p in on + co}
+    extra_names = parasitic_names(on, pairs)
+    pool = (default_library(on, co, edges, pairs) if base == "default"
+            else {p: [] for p in on + co + extra_names})
     pw = (1, 2) if squares else (1,)
 
     def terms(*variables):
         return [v if k == 1 else f"{v}^{k}" for v in variables for k in pw]
 
-    N = len(on)
     for i, p in enumerate(on):
-        adjacent = [j for j in (i - 1, i) if 0 <= j < N - 1]  # couplings touching site i
+        adjacent = graph.site_edges(i)  # couplings touching site i
         extra = terms(*(qf[i:i + 1] if qf else []), *([cf[j] for j in adjacent] if cf else []))
         if neighbours:
-            sites = [j for j in (i - 1, i + 1) if 0 <= j < N]
+            sites = graph.neighbours(i)
             extra += [on[j] for j in sites]
             extra += terms(*(f"{on[min(i, j)]}-{on[max(i, j)]}" for j in sites))
             extra += terms(*([qf[j] for j in sites] if qf else []))
         pool[p] = list(dict.fromkeys(pool[p] + extra))
-    for i, p in enumerate(co):
-        extra = terms(*(cf[i:i + 1] if cf else []))
+    for e, p in enumerate(co):
+        a, b = graph.edges[e]
+        extra = terms(*(cf[e:e + 1] if cf else []))
         if neighbours:
-            extra += [on[i], on[i + 1], f"{on[i]}-{on[i + 1]}^2"]
-            extra += terms(*(qf[i:i + 2] if qf else []))
+            extra += [on[a], on[b], f"{on[min(a, b)]}-{on[max(a, b)]}^2"]
+            extra += terms(*([qf[a], qf[b]] if qf else []))
+        pool[p] = list(dict.fromkeys(pool[p] + extra))
+    for (i, j), p in zip(pairs, extra_names):
+        paths = graph.paths2(i, j)
+        extra = [f"sqrt|{co[a]}*{co[b]}|" for a, b in paths]
+        if neighbours:
+            extra += terms(*([cf[e] for path in paths for e in path] if cf else []))
+            extra += terms(*([qf[i], qf[j]] if qf else []))
         pool[p] = list(dict.fromkeys(pool[p] + extra))
     return pool
 
@@ -195,7 +217,9 @@ def forward_select(X, y, *, candidates, cv=5, n_repeats=1, random_state=0, max_s
     y = np.asarray(y, dtype=float)
     base = HamiltonianParameterRegressor(**regressor_params)
     base._check_params()
-    params = list(base.onsite) + list(base.couplings)
+    _, pairs = resolve_graph(len(base.onsite), base.edges, base.parasitic)
+    params = (list(base.onsite) + list(base.couplings)
+              + parasitic_names(base.onsite, pairs))
     for what, table in (("candidates", candidates), ("start", start or {})):
         unknown = [p for p in table if p not in params]
         if unknown:
@@ -258,7 +282,7 @@ class HamiltonianSelectionCV(RegressorMixin, BaseEstimator):
 
     Parameters
     ----------
-    onsite, couplings, sign, alpha, alpha_l1, loss, huber_delta, max_iter, tol
+    onsite, couplings, edges, parasitic, sign, alpha, alpha_l1, loss, huber_delta, max_iter, tol
         As in :class:`~workbench.param_boost.HamiltonianParameterRegressor`.
     candidates : dict parameter -> list of covariate names, default=None
         The pool (:func:`candidate_pool`); ``None``: the default library.
@@ -281,12 +305,15 @@ class HamiltonianSelectionCV(RegressorMixin, BaseEstimator):
     estimator_ : HamiltonianParameterRegressor (fitted on all rows)
     """
 
-    def __init__(self, *, onsite=None, couplings=None, sign=-1, candidates=None, start=None,
+    def __init__(self, *, onsite=None, couplings=None, edges=None, parasitic=None, sign=-1,
+                 candidates=None, start=None,
                  cv=5, n_repeats=1, max_steps=30, min_improvement=1e-3, alpha=1.0,
                  alpha_l1=0.0, loss="squared_error", huber_delta=1.0, max_iter=20, tol=1e-6,
                  random_state=None, n_jobs=None, verbose=False):
         self.onsite = onsite
         self.couplings = couplings
+        self.edges = edges
+        self.parasitic = parasitic
         self.sign = sign
         self.candidates = candidates
         self.start = start
@@ -305,7 +332,8 @@ class HamiltonianSelectionCV(RegressorMixin, BaseEstimator):
         self.verbose = verbose
 
     def _regressor_params(self):
-        return dict(onsite=self.onsite, couplings=self.couplings, sign=self.sign,
+        return dict(onsite=self.onsite, couplings=self.couplings, edges=self.edges,
+                    parasitic=self.parasitic, sign=self.sign,
                     alpha=self.alpha, alpha_l1=self.alpha_l1, loss=self.loss,
                     huber_delta=self.huber_delta, max_iter=self.max_iter, tol=self.tol)
 
@@ -318,7 +346,8 @@ class HamiltonianSelectionCV(RegressorMixin, BaseEstimator):
                              f"{self.min_improvement!r}")
         candidates = self.candidates
         if candidates is None:
-            candidates = default_library(self.onsite or [], self.couplings or [])
+            candidates = default_library(self.onsite or [], self.couplings or [], self.edges,
+                                         self.parasitic)
         if isinstance(self.random_state, numbers.Integral):
             seed = int(self.random_state)
         else:

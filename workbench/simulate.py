@@ -1,8 +1,10 @@
-"""Simulated calibration data for a chain of coupled flux-tunable qubits (units: MHz, volts).
+"""Simulated calibration data for coupled flux-tunable qubits (units: MHz, volts).
 
-A *control model* maps qubit biases ``V_q`` (N) and coupler biases ``V_c`` (N - 1) to a
-tight-binding Hamiltonian: transmon frequencies ``f_i`` on the diagonal, couplings ``g_i``
-between qubits i and i+1 off it. The prior is ``eigvalsh(sign * H_model)`` (sign = -1). The
+The device is a :class:`~workbench.hamiltonian.CouplingGraph`: a chain (default), a ring or a
+2-D grid. A *control model* maps qubit biases ``V_q`` (N) and coupler biases ``V_c`` (one per
+edge) to a tight-binding Hamiltonian: transmon frequencies ``f_i`` on the diagonal, couplings
+``g_e`` between the qubits of each edge off it (built by :mod:`workbench.hamiltonian`, the
+model's own builder). The prior is ``eigvalsh(sign * H_model)`` (sign = -1). The
 *true device* departs from the model in named, switchable ways (:class:`Mismatch`); its
 eigenvalues, plus noise and occasional misidentified peaks, are the measured targets.
 """
@@ -18,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+
+from .hamiltonian import CouplingGraph, graph_spectrum, make_graph
 
 __all__ = ["MECHANISMS", "Mismatch", "Simulation", "simulate", "write_simulation"]
 
@@ -42,7 +46,10 @@ class Mismatch:
     coupler_nonlinearity: MHz; true g gains kappa * ((V_c - 0.16) / 0.06)^2, |kappa| ~ this.
     coupler_frequency_shift: dimensionless; each coupler pulls its two qubits down by
         this * g^2 / Delta_c (Delta_c ~ 1 GHz, a dispersive shift).
-    next_nearest_coupling: H[i, i+2] = -this * eta_i * sqrt(|g_i g_{i+1}|), eta_i ~ U(0.5, 1.5).
+    next_nearest_coupling: parasitic couplings the control model lacks, between the sites of
+        each parasitic pair (i, j) (chain/ring: next-nearest, grid: diagonal):
+        H[i, j] = -this * eta_ij * mean over paths i-m-j of sqrt(|g_im g_mj|),
+        eta_ij ~ U(0.5, 1.5).
     noise_sd: Gaussian measurement noise on each measured eigenvalue (MHz).
     misidentified_rate: per-experiment probability that one eigenvalue is a wrong peak
         (shifted by ±3-10 MHz).
@@ -108,53 +115,66 @@ def coupler_coupling(v, g_max, v_half, width):
     return -g_max / (1.0 + np.exp(-(v - v_half) / width))
 
 
-def _eigenvalues(f, g, nnn=None, chunk_elements=4_000_000) -> np.ndarray:
-    """Ascending eigenvalues of sign * H per row, built and diagonalised chunk by chunk."""
-    m, n = f.shape
-    out = np.empty((m, n))
-    step = max(1, min(20_000, chunk_elements // (n * n)))
-    d, u = np.arange(n), np.arange(n - 1)
-    for s in range(0, m, step):
-        sl = slice(s, s + step)
-        h = np.zeros((len(out[sl]), n, n))
-        h[:, d, d] = f[sl]
-        h[:, u, u + 1] = h[:, u + 1, u] = g[sl]
-        if nnn is not None and n > 2:
-            h[:, u[:-1], u[:-1] + 2] = h[:, u[:-1] + 2, u[:-1]] = nnn[sl]
-        out[sl] = np.linalg.eigvalsh(np.multiply(h, SIGN, out=h))
-    return out
+def _eigenvalues(f, g, graph: CouplingGraph, extra=None, pairs=()) -> np.ndarray:
+    """Ascending eigenvalues of sign * H per row (the model's builder), with the couplings
+    ``extra`` on the parasitic ``pairs`` added to the graph's edges."""
+    if extra is not None and len(pairs):
+        return graph_spectrum(f, np.hstack([g, extra]), graph.with_edges(pairs), SIGN,
+                              jacobian=False)
+    return graph_spectrum(f, g, graph, SIGN, jacobian=False)
 
 
-def _device(rng, n):
+def _device(rng, n, n_edges):
     """Control-model constants of one device (so f ~ 5880-6025 MHz, g ~ -1..-70 MHz)."""
     return dict(f_max=rng.uniform(5995, 6025, n), v0=rng.uniform(-0.004, 0.004, n),
-                period=rng.uniform(0.22, 0.26, n), g_max=rng.uniform(62, 75, n - 1),
-                v_half=rng.uniform(0.165, 0.175, n - 1), width=rng.uniform(0.018, 0.022, n - 1))
+                period=rng.uniform(0.22, 0.26, n), g_max=rng.uniform(62, 75, n_edges),
+                v_half=rng.uniform(0.165, 0.175, n_edges),
+                width=rng.uniform(0.018, 0.022, n_edges))
 
 
-def simulate(n_sites: int = 5, n_experiments: int = 136, *, seed: int | None = 0,
-             mismatch: Mismatch | None = None) -> Simulation:
-    """Simulate ``n_experiments`` random bias settings of an ``n_sites`` chain.
+def default_parasitic(graph: CouplingGraph) -> str:
+    """The parasitic pairs the simulator injects by default: grid diagonals, else
+    next-nearest neighbours."""
+    return "diagonal" if graph.topology == "grid" else "next_nearest"
+
+
+def simulate(n_sites: int | None = 5, n_experiments: int = 136, *, seed: int | None = 0,
+             mismatch: Mismatch | None = None, topology: str = "chain", shape=None,
+             edges=None, parasitic=None) -> Simulation:
+    """Simulate ``n_experiments`` random bias settings of a device of ``n_sites`` sites.
+
+    ``topology`` "chain" (default), "ring" or "grid" (``shape = (rows, cols)``; ``n_sites``
+    may be None or must equal rows * cols), or an explicit ``edges`` list. ``parasitic``
+    (None: :func:`default_parasitic`; "next_nearest", "diagonal", "none" or a list of site
+    pairs) chooses where the next_nearest_coupling mismatch puts its parasitic couplings.
 
     All random draws are made in a fixed order whatever the mismatch, so the same seed gives
     the same device and voltages and only the switched-on mechanisms change the targets.
     """
-    if int(n_sites) != n_sites or n_sites < 2:
+    if n_sites is not None and (int(n_sites) != n_sites or n_sites < 2):
         raise ValueError(f"n_sites must be an integer >= 2, got {n_sites!r}")
     if int(n_experiments) != n_experiments or n_experiments < 1:
         raise ValueError(f"n_experiments must be an integer >= 1, got {n_experiments!r}")
-    n, m = int(n_sites), int(n_experiments)
+    graph = make_graph(None if n_sites is None else int(n_sites), topology, shape, edges)
+    if isinstance(parasitic, str) or parasitic is None:
+        pairs = graph.parasitic_edges(default_parasitic(graph) if parasitic is None
+                                      else parasitic)
+    else:
+        pairs = list(graph.with_edges(parasitic).edges[graph.n_edges:])
+    n, m, E = graph.n_sites, int(n_experiments), graph.n_edges
+    ea = np.array([e[0] for e in graph.edges], dtype=int)
+    eb = np.array([e[1] for e in graph.edges], dtype=int)
     mm = Mismatch.default() if mismatch is None else mismatch
     rng = np.random.default_rng(seed)
-    ctrl = _device(rng, n)
+    ctrl = _device(rng, n, E)
     # unit-size draws of every mechanism, scaled by the mismatch strengths below
     z = {k: rng.standard_normal(v.shape) for k, v in ctrl.items()}
-    xt = rng.uniform(0.5, 1.5, (4, n - 1)) * rng.choice([-1.0, 1.0], (4, n - 1))
-    kappa = rng.uniform(0.5, 1.5, n - 1) * rng.choice([-1.0, 1.0], n - 1)
-    delta_c = rng.uniform(800, 1200, n - 1)
-    eta = rng.uniform(0.5, 1.5, max(n - 2, 0))
+    xt = rng.uniform(0.5, 1.5, (4, E)) * rng.choice([-1.0, 1.0], (4, E))
+    kappa = rng.uniform(0.5, 1.5, E) * rng.choice([-1.0, 1.0], E)
+    delta_c = rng.uniform(800, 1200, E)
+    eta = rng.uniform(0.5, 1.5, len(pairs))
     vq = rng.uniform(*Q_RANGE, (m, n))
-    vc = rng.uniform(*C_RANGE, (m, n - 1))
+    vc = rng.uniform(*C_RANGE, (m, E))
     noise = rng.standard_normal((m, n))
     bad_u, bad_level = rng.random(m), rng.integers(0, n, m)
     bad_shift = rng.uniform(3, 10, m) * rng.choice([-1.0, 1.0], m)
@@ -162,40 +182,53 @@ def simulate(n_sites: int = 5, n_experiments: int = 136, *, seed: int | None = 0
     # control model and its prior
     f_model = transmon_frequency(vq, ctrl["f_max"], ctrl["v0"], ctrl["period"])
     g_model = coupler_coupling(vc, ctrl["g_max"], ctrl["v_half"], ctrl["width"])
-    e_model = _eigenvalues(f_model, g_model)
+    e_model = _eigenvalues(f_model, g_model, graph)
 
     # true device
     sd = dict(f_max=1.5, v0=2e-4, period=0.003, g_max=0.03, v_half=1e-3, width=0.02)
     rel = {"period", "g_max", "width"}
     true = {k: v * (1 + mm.drift * sd[k] * z[k]) if k in rel else v + mm.drift * sd[k] * z[k]
             for k, v in ctrl.items()}
-    xt = mm.crosstalk * xt  # rows: q_k+1 <- q_k, q_k <- q_k+1, q_k <- c_k, q_k+1 <- c_k
+    xt = mm.crosstalk * xt  # rows, edge e = (a, b): q_b <- q_a, q_a <- q_b, q_a <- c_e, q_b <- c_e
     v_eff = vq.copy()
-    v_eff[:, 1:] += xt[0] * vq[:, :-1] + xt[3] * (vc - V_CAL)
-    v_eff[:, :-1] += xt[1] * vq[:, 1:] + xt[2] * (vc - V_CAL)
+    v_eff_b = np.zeros_like(vq)
+    np.add.at(v_eff_b.T, eb, (xt[0] * vq[:, ea] + xt[3] * (vc - V_CAL)).T)
+    v_eff += v_eff_b
+    v_eff_a = np.zeros_like(vq)
+    np.add.at(v_eff_a.T, ea, (xt[1] * vq[:, eb] + xt[2] * (vc - V_CAL)).T)
+    v_eff += v_eff_a
     f_true = transmon_frequency(v_eff, true["f_max"], true["v0"], true["period"])
     g_true = coupler_coupling(vc, true["g_max"], true["v_half"], true["width"])
     g_true = g_true + mm.coupler_nonlinearity * kappa * ((vc - V_CAL) / 0.06) ** 2
     shift_coef = mm.coupler_frequency_shift / delta_c  # per MHz, frequencies pulled down
     pull = g_true**2 * shift_coef
-    f_true[:, :-1] -= pull  # coupler i pulls qubits i and i+1
-    f_true[:, 1:] -= pull
-    nnn = -mm.next_nearest_coupling * eta * np.sqrt(np.abs(g_true[:, :-1] * g_true[:, 1:]))
-    e_true = _eigenvalues(f_true, g_true, nnn)
+    pull_a, pull_b = np.zeros_like(f_true), np.zeros_like(f_true)
+    np.add.at(pull_a.T, ea, pull.T)  # coupler e = (a, b) pulls qubits a and b
+    np.add.at(pull_b.T, eb, pull.T)
+    f_true -= pull_a
+    f_true -= pull_b
+    bridge = np.zeros((m, len(pairs)))
+    for k, (i, j) in enumerate(pairs):
+        paths = graph.paths2(i, j)
+        bridge[:, k] = np.mean([np.sqrt(np.abs(g_true[:, a] * g_true[:, b])) for a, b in paths],
+                               axis=0) if paths else 0.0
+    nnn = -mm.next_nearest_coupling * eta * bridge
+    e_true = _eigenvalues(f_true, g_true, graph, nnn, pairs)
     measured = e_true + mm.noise_sd * noise
     bad = np.flatnonzero(bad_u < mm.misidentified_rate)  # one wrong peak in these rows
     measured[bad, bad_level[bad]] += bad_shift[bad]
     measured.sort(axis=1)
 
-    names = ([f"v_q{k}" for k in range(1, n + 1)] + [f"v_c{k}" for k in range(1, n)]
-             + [f"model_f{k}" for k in range(1, n + 1)] + [f"model_g{k}" for k in range(1, n)]
+    names = ([f"v_q{k}" for k in range(1, n + 1)] + [f"v_c{k}" for k in range(1, E + 1)]
+             + [f"model_f{k}" for k in range(1, n + 1)] + [f"model_g{k}" for k in range(1, E + 1)]
              + [f"model_E{k}" for k in range(1, n + 1)]
              + [f"measured_E{k}" for k in range(1, n + 1)])
     data = pd.DataFrame(np.hstack([vq, vc, f_model, g_model, e_model, measured]), columns=names)
 
-    pairs = range(n - 1)
+    edge_ab = list(zip(ea.tolist(), eb.tolist()))
     truth = {
         "n_sites": n, "n_experiments": m, "seed": None if seed is None else int(seed),
+        "graph": graph.to_dict(),
         "sign": SIGN, "units": "MHz, V", "mismatch": mm.to_dict(),
         "voltage_ranges": {"qubit": list(Q_RANGE), "coupler": list(C_RANGE)},
         "device": {"control": {k: v.tolist() for k, v in ctrl.items()},
@@ -203,19 +236,21 @@ def simulate(n_sites: int = 5, n_experiments: int = 136, *, seed: int | None = 0
         "mechanisms": {
             "drift": {k: (np.asarray(true[k]) - ctrl[k]).tolist() for k in ctrl},
             "crosstalk": {  # [qubit row, qubit/coupler column (0-based), value]
-                "qubit_from_qubit": [[a + 1, a, float(xt[0, a])] for a in pairs]
-                + [[a, a + 1, float(xt[1, a])] for a in pairs],
-                "qubit_from_coupler": [[a, a, float(xt[2, a])] for a in pairs]
-                + [[a + 1, a, float(xt[3, a])] for a in pairs],
+                "qubit_from_qubit": [[b, a, float(xt[0, e])] for e, (a, b) in enumerate(edge_ab)]
+                + [[a, b, float(xt[1, e])] for e, (a, b) in enumerate(edge_ab)],
+                "qubit_from_coupler": [[a, e, float(xt[2, e])] for e, (a, b) in enumerate(edge_ab)]
+                + [[b, e, float(xt[3, e])] for e, (a, b) in enumerate(edge_ab)],
                 "formula": "V_eff = V_q + C_qq V_q + C_qc (V_c - 0.16)"},
             "coupler_nonlinearity": {"kappa_MHz": (mm.coupler_nonlinearity * kappa).tolist(),
                                      "formula": "g += kappa ((V_c - 0.16) / 0.06)^2"},
             "coupler_frequency_shift": {
                 "sign": -1, "coef_per_MHz": shift_coef.tolist(), "delta_c_MHz": delta_c.tolist(),
-                "formula": "f_i and f_i+1 += sign * coef_i * g_i^2 (true g)"},
+                "formula": "f_a and f_b += sign * coef_e * g_e^2 (true g, edge e = (a, b))"},
             "next_nearest_coupling": {
+                "pairs": [list(p) for p in pairs],
                 "eta": (mm.next_nearest_coupling * eta).tolist(),
-                "formula": "H[i, i+2] = -eta_i sqrt(|g_i g_i+1|) (true g)"},
+                "formula": "H[i, j] = -eta_ij mean over paths i-m-j of sqrt(|g_im g_mj|) "
+                           "(true g; pairs are 0-based sites)"},
             "noise": {"sd_MHz": mm.noise_sd},
             "misidentified_peaks": {
                 "rate": mm.misidentified_rate, "rows": bad.tolist(),

@@ -7,16 +7,20 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from ..hamiltonian import CouplingGraph
+
 
 @dataclass(frozen=True)
 class Hamiltonian:
-    """Per-example parameters of a chain's control-model Hamiltonian.
+    """Per-example parameters of a device's control-model Hamiltonian.
 
-    ``onsite`` holds the N diagonal entries (qubit frequencies, MHz) and ``couplings`` the
-    N - 1 nearest-neighbour couplings, one row per example, aligned with the dataset's rows.
-    The prior is the ascending eigenvalues of ``sign * H``. ``qubit_features`` (N names) and
-    ``coupler_features`` (N - 1 names) optionally name the dataset features that act on each
-    site and coupling (e.g. bias voltages), in chain order, for physics-aware covariates.
+    ``onsite`` holds the N diagonal entries (qubit frequencies, MHz) and ``couplings`` one
+    coupling per edge of the coupling graph, one row per example, aligned with the dataset's
+    rows. ``edges`` are the graph's site pairs (0-based, one per coupling column, in order);
+    None means the nearest-neighbour chain. The prior is the ascending eigenvalues of
+    ``sign * H``. ``qubit_features`` (N names) and ``coupler_features`` (one per edge)
+    optionally name the dataset features that act on each site and coupling (e.g. bias
+    voltages), in site and edge order, for physics-aware covariates.
     """
 
     onsite: pd.DataFrame
@@ -24,6 +28,19 @@ class Hamiltonian:
     sign: int = -1
     qubit_features: tuple[str, ...] | None = None
     coupler_features: tuple[str, ...] | None = None
+    edges: tuple[tuple[int, int], ...] | None = None
+
+    @property
+    def graph(self) -> CouplingGraph:
+        """The coupling graph (the chain when ``edges`` is None)."""
+        n = self.onsite.shape[1]
+        return CouplingGraph.chain(n) if self.edges is None else \
+            CouplingGraph.from_edges(n, self.edges)
+
+    @property
+    def edge_list(self) -> list[list[int]] | None:
+        """``edges`` as a list of [i, j] (the estimators' ``edges`` parameter), or None."""
+        return None if self.edges is None else [list(e) for e in self.edges]
 
 
 @dataclass(frozen=True)

@@ -17,6 +17,7 @@ from typing import Sequence
 import numpy as np
 import pandas as pd
 
+from ..hamiltonian import make_graph
 from .base import Dataset, Hamiltonian
 
 __all__ = ["DatasetError", "load_csv_dataset"]
@@ -109,14 +110,19 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
                      onsite: Sequence[str] | None = None, couplings: Sequence[str] | None = None,
                      sign: int = -1, qubit_features: Sequence[str] | None = None,
                      coupler_features: Sequence[str] | None = None,
+                     topology: str = "chain", shape: Sequence[int] | None = None,
+                     edges: Sequence[Sequence[int]] | None = None,
                      name: str | None = None) -> Dataset:
     """Read a CSV of experiments into a :class:`Dataset`.
 
     ``prior[j]`` is the scientific model's prediction of ``targets[j]``. ``onsite`` (N
-    columns) and ``couplings`` (N - 1 columns) optionally give the control model's chain
-    Hamiltonian per row; its prior is the ascending eigenvalues of ``sign * H``.
-    ``qubit_features`` (N) and ``coupler_features`` (N - 1), columns among ``features``,
-    name what acts on each site and coupling (e.g. bias voltages), in chain order.
+    columns) and ``couplings`` (one column per edge) optionally give the control model's
+    Hamiltonian per row; its prior is the ascending eigenvalues of ``sign * H``. The coupling
+    graph is ``topology`` ("chain": N - 1 couplings ``(i, i+1)``; "ring"; "grid" with
+    ``shape = (rows, cols)``, see :class:`~workbench.hamiltonian.CouplingGraph`) or an
+    explicit ``edges`` list of 0-based site pairs, one per coupling column.
+    ``qubit_features`` (N) and ``coupler_features`` (one per edge), columns among
+    ``features``, name what acts on each site and coupling (e.g. bias voltages).
     """
     path = Path(path)
     prior, targets, features = list(prior), list(targets), list(features)
@@ -128,9 +134,23 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
     if (onsite is None) != (couplings is None):
         raise DatasetError("give both onsite and couplings columns for the Hamiltonian, or neither")
     ham_cols = [*(onsite or []), *(couplings or [])]
-    if onsite is not None and len(couplings) != len(onsite) - 1:
-        raise DatasetError(f"a chain of {len(onsite)} sites has {len(onsite) - 1} couplings, "
-                           f"got {len(couplings)}: {list(couplings)}")
+    graph = None
+    if onsite is not None:
+        if len(onsite) < 2:
+            raise DatasetError(f"the Hamiltonian needs at least 2 onsite columns, got "
+                               f"{list(onsite)}")
+        try:
+            graph = make_graph(len(onsite), topology, None if shape is None else tuple(shape),
+                               edges)
+        except (ValueError, TypeError) as exc:
+            raise DatasetError(f"hamiltonian graph: {exc}") from None
+        if len(couplings) != graph.n_edges:
+            what = "edges" if edges is not None else f"{graph.topology}"
+            raise DatasetError(f"a {what} of {len(onsite)} sites has {graph.n_edges} "
+                               f"couplings, got {len(couplings)}: {list(couplings)}")
+    elif edges is not None or shape is not None or topology != "chain":
+        raise DatasetError("topology, shape and edges need the Hamiltonian's onsite and "
+                           "couplings columns")
     if sign not in (-1, 1):
         raise DatasetError(f"sign must be -1 or 1, got {sign!r}")
     for what, names, size in (("qubit_features", qubit_features, len(onsite or [])),
@@ -164,7 +184,8 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
         hamiltonian = Hamiltonian(
             onsite=data[list(onsite)], couplings=data[list(couplings)], sign=int(sign),
             qubit_features=tuple(qubit_features) if qubit_features is not None else None,
-            coupler_features=tuple(coupler_features) if coupler_features is not None else None)
+            coupler_features=tuple(coupler_features) if coupler_features is not None else None,
+            edges=None if graph.topology == "chain" else graph.edges)
     return Dataset(name=name or path.stem, features=data[features], prior=data[prior],
                    targets=data[targets], train_index=train, test_index=test,
                    hamiltonian=hamiltonian)

@@ -153,13 +153,22 @@ def _cmd_simulate(args) -> int:
             mismatch = Mismatch.none()
         else:
             mismatch = Mismatch.only(*args.mismatch)
-        sim = simulate(args.sites, args.experiments, seed=args.seed, mismatch=mismatch)
+        shape = None
+        if args.shape is not None:
+            rows, sep, cols = args.shape.lower().partition("x")
+            if not (sep and rows.isdigit() and cols.isdigit()):
+                raise ValueError(f"--shape must be RxC (e.g. 3x3), got {args.shape!r}")
+            shape = (int(rows), int(cols))
+        sites = args.sites if args.sites is not None or args.topology == "grid" else 5
+        sim = simulate(sites, args.experiments, seed=args.seed, mismatch=mismatch,
+                       topology=args.topology, shape=shape, parasitic=args.parasitic)
         csv_path, truth_path = write_simulation(sim, args.out)
     except (ValueError, OSError) as exc:
         raise UsageError(str(exc)) from None
     prior = sim.data.filter(like="model_E").to_numpy()
     measured = sim.data.filter(like="measured_E").to_numpy()
-    print(f"wrote {csv_path} ({len(sim.data)} experiments, {args.sites} sites; prior MAE "
+    print(f"wrote {csv_path} ({len(sim.data)} experiments, {sim.truth['n_sites']} sites, "
+          f"{sim.truth['graph']['topology']}; prior MAE "
           f"{abs(prior - measured).mean():.3f} MHz) and {truth_path}")
     return 0
 
@@ -215,9 +224,15 @@ def build_parser() -> argparse.ArgumentParser:
     ui.add_argument("--port", type=int, default=5000)
     ui.set_defaults(func=_cmd_ui)
 
-    sim = sub.add_parser("simulate", help="simulate a chain of coupled qubits and write a CSV "
-                         "(plus a .truth.json sidecar with the injected mismatches)")
-    sim.add_argument("--sites", type=int, default=5, help="qubits in the chain (>= 2)")
+    sim = sub.add_parser("simulate", help="simulate a device of coupled qubits and write a CSV "
+                         "(plus a .truth.json sidecar with the graph and injected mismatches)")
+    sim.add_argument("--sites", type=int, default=None,
+                     help="qubits in the chain or ring (>= 2; default 5; grid: rows x cols)")
+    sim.add_argument("--topology", choices=("chain", "ring", "grid"), default="chain")
+    sim.add_argument("--shape", default=None, metavar="RxC", help="grid rows x columns")
+    sim.add_argument("--parasitic", choices=("next_nearest", "diagonal", "none"), default=None,
+                     help="where parasitic couplings go (default: grid diagonal, else "
+                     "next-nearest)")
     sim.add_argument("--experiments", type=int, default=136, help="rows to simulate")
     sim.add_argument("--seed", type=int, default=0)
     sim.add_argument("--mismatch", nargs="+", metavar="NAME", default=None,
