@@ -194,3 +194,32 @@ def test_unknown_family_lists_the_valid_ones(tmp_path):
 def test_every_shipped_config_loads():
     for path in sorted(Path(__file__).resolve().parents[1].glob("experiments/*.toml")):
         load_config(path)
+
+
+GRAPH_DATA = ('[data]\ncsv = "d.csv"\nprior = ["p1", "p2", "p3", "p4"]\n'
+              'targets = ["y1", "y2", "y3", "y4"]\ntest_fraction = 0.3\n'
+              '[data.hamiltonian]\nonsite = ["f1", "f2", "f3", "f4"]\n')
+
+
+@pytest.mark.parametrize("graph, pattern", [
+    ('couplings = ["g1", "g2", "g3"]\ntopology = "grid"\nshape = [3, 3]', r"coupling graph:"),
+    ('couplings = ["g1", "g2", "g3"]\nedges = [[0, 1], [1, 2], [2, 7]]', r"coupling graph:"),
+    ('couplings = ["g1", "g2"]\ntopology = "ring"', r"couplings: the ring graph of 4 sites has 4"),
+    ('couplings = ["g1", "g2", "g3"]\nshape = [2, 2]', r"shape applies to topology = \"grid\""),
+    ('couplings = ["g1", "g2", "g3"]\ntopology = "star"', r"data\.hamiltonian\.topology = 'star'"),
+])
+def test_bad_coupling_graphs_are_one_line(tmp_path, graph, pattern):
+    path = tmp_path / "g.toml"
+    path.write_text(f"{GRAPH_DATA}{graph}\n[model]\nfamily = \"hamiltonian\"\n")
+    with pytest.raises(ConfigError, match=pattern) as info:
+        load_config(path)
+    assert "\n" not in str(info.value) and len(str(info.value)) < 300
+
+
+def test_a_grid_and_parasitic_couplings_load(tmp_path):
+    path = tmp_path / "g.toml"
+    path.write_text(f'{GRAPH_DATA}couplings = ["g1", "g2", "g3", "g4"]\ntopology = "grid"\n'
+                    'shape = [2, 2]\n[model]\nfamily = "hamiltonian"\n[model.hamiltonian]\n'
+                    'parasitic = "diagonal"\n')
+    cfg = load_config(path)
+    assert cfg.data.hamiltonian.shape == [2, 2] and cfg.family_settings.parasitic == "diagonal"

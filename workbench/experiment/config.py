@@ -70,14 +70,40 @@ def Seed():  # noqa: N802  (a field, like pydantic's Field)
 
 class HamiltonianData(Section):
     """``[data.hamiltonian]``: the Hamiltonian's columns. ``sign``: the prior is the sorted
-    eigenvalues of ``sign * H``. ``qubit_features``/``coupler_features``: the features acting
-    on each site and on each coupling, in chain order."""
+    eigenvalues of ``sign * H``. The coupling graph: ``topology`` "chain" (N - 1 couplings
+    ``(i, i+1)``), "ring", "grid" with ``shape = [rows, cols]``, or an explicit ``edges``
+    list of 0-based site pairs, one per coupling column.
+    ``qubit_features``/``coupler_features``: the features acting on each site and on each
+    coupling, in site and edge order."""
 
     onsite: list[str]
     couplings: list[str]
     sign: Literal[-1, 1] = -1
+    topology: Literal["chain", "ring", "grid"] = "chain"
+    shape: list[int] | None = None
+    edges: list[list[int]] | None = None
     qubit_features: list[str] | None = None
     coupler_features: list[str] | None = None
+
+    @model_validator(mode="after")
+    def _graph(self) -> HamiltonianData:
+        from ..hamiltonian import make_graph
+
+        if self.shape is not None and self.topology != "grid":
+            raise ValueError(f"shape applies to topology = \"grid\" only (topology is "
+                             f"{self.topology!r})")
+        if self.edges is not None and self.topology != "chain":
+            raise ValueError("give either topology (with shape) or edges, not both")
+        try:
+            graph = make_graph(len(self.onsite), self.topology,
+                               None if self.shape is None else tuple(self.shape), self.edges)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"coupling graph: {exc}") from None
+        if len(self.couplings) != graph.n_edges:
+            raise ValueError(f"couplings: the {graph.topology} graph of {len(self.onsite)} "
+                             f"sites has {graph.n_edges} edges, got {len(self.couplings)} "
+                             f"column(s)")
+        return self
 
 
 class DataConfig(Section):
@@ -509,7 +535,9 @@ def load_dataset(cfg: ExperimentConfig):
             features=data.features, test_fraction=data.test_fraction,
             split_column=data.split_column, split_seed=data.split_seed,
             onsite=ham.onsite if ham else None, couplings=ham.couplings if ham else None,
-            sign=ham.sign if ham else -1, qubit_features=ham.qubit_features if ham else None,
+            sign=ham.sign if ham else -1, topology=ham.topology if ham else "chain",
+            shape=ham.shape if ham else None, edges=ham.edges if ham else None,
+            qubit_features=ham.qubit_features if ham else None,
             coupler_features=ham.coupler_features if ham else None, name=cfg.name)
     folds = cfg.selection.cv
     if len(ds.train_index) < 2 * folds:

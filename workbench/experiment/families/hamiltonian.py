@@ -66,6 +66,9 @@ class HamiltonianSettings(Section):
     min_improvement: float = Field(default=1e-3, ge=0)
     boost_stage: bool = True
     prior_cv: int = Field(default=5, ge=2, le=10_000)
+    #: Couplings the control model lacks, offered to the selection (starting at zero):
+    #: "next_nearest" (along a chain or ring), "diagonal" (a grid's), or site pairs.
+    parasitic: Literal["none", "next_nearest", "diagonal"] | list[list[int]] = "none"
 
 
 def make_hamiltonian(settings: HamiltonianSettings, ds: Dataset, *, random_state=None,
@@ -83,17 +86,21 @@ def make_hamiltonian(settings: HamiltonianSettings, ds: Dataset, *, random_state
                           f"parameters; {ds.name!r} has none")
     s = settings
     on, co = list(ham.onsite.columns), list(ham.couplings.columns)
+    edges = None if ham.edges is None else [list(e) for e in ham.edges]
+    parasitic = None if s.parasitic == "none" else s.parasitic
+    graph = dict(edges=edges, parasitic=parasitic)
     common = dict(onsite=on, couplings=co, sign=ham.sign, loss=s.loss,
                   huber_delta=float(s.huber_delta), alpha=float(s.alpha),
-                  alpha_l1=float(s.alpha_l1), max_iter=s.max_iter)
-    start = default_library(on, co) if s.start == "default" else {}
+                  alpha_l1=float(s.alpha_l1), max_iter=s.max_iter, **graph)
+    start = default_library(on, co, **graph) if s.start == "default" else {}
     if s.candidates == "none":
         pool = {}
     else:
         pool = candidate_pool(on, co, ham.qubit_features, ham.coupler_features, base=None,
-                              neighbours=s.candidates == "physical")
+                              neighbours=s.candidates == "physical", **graph)
     if s.selection == "none":
-        merged = {p: list(dict.fromkeys(start.get(p, []) + pool.get(p, []))) for p in on + co}
+        names = list(dict.fromkeys([*on, *co, *start, *pool]))
+        merged = {p: list(dict.fromkeys(start.get(p, []) + pool.get(p, []))) for p in names}
         return HamiltonianParameterRegressor(covariates=merged, **common)
     return HamiltonianSelectionCV(candidates=pool, start=start or None, cv=s.selection_cv,
                                   n_repeats=s.selection_repeats, max_steps=s.max_steps,
