@@ -41,3 +41,44 @@ def test_core_sources_do_not_import_the_experiment_layer():
             for name in names:
                 assert "experiment" not in name, f"{path} imports {name}"
                 assert name.split(".")[0] not in FORBIDDEN, f"{path} imports {name}"
+
+
+_LOADED = """
+import sys
+from workbench.experiment.cli import main
+try:
+    main(sys.argv[1:])
+except SystemExit:
+    pass
+heavy = {"mlflow", "optuna", "shap", "sklearn", "lightgbm"}
+print("LOADED:" + ",".join(sorted({m.split(".")[0] for m in sys.modules} & heavy)))
+"""
+
+
+def _loaded(*argv: str) -> set[str]:
+    out = subprocess.run([sys.executable, "-c", _LOADED, *argv], capture_output=True,
+                         text=True, check=True)
+    line = [x for x in out.stdout.splitlines() if x.startswith("LOADED:")][-1]
+    return {m for m in line.removeprefix("LOADED:").split(",") if m}
+
+
+def test_the_command_imports_heavy_libraries_only_where_needed(tmp_path):
+    """``workbench --help`` loads none of the heavy libraries; ``workbench simulate`` none of
+    the experiment layer's (MLflow, Optuna, SHAP)."""
+    assert _loaded("--help") == set()
+    assert _loaded("sweep", "--help") == set()
+    simulated = _loaded("simulate", "--experiments", "10", "--out", str(tmp_path / "s.csv"))
+    assert not simulated & {"mlflow", "optuna", "shap"}, simulated
+    assert (tmp_path / "s.csv").is_file()  # the command did run
+    # the guard can fail: a command that fits loads the estimators
+    config = tmp_path / "c.toml"
+    config.write_text('[data]\ndata_dir = "/nonexistent"\n[model]\nbasis = "ridge"\n')
+    assert "sklearn" in _loaded("evaluate", str(config), "--no-track")
+
+
+def test_import_workbench_is_light():
+    out = subprocess.run([sys.executable, "-c", "import sys, workbench; print(sorted("
+                          "{m.split('.')[0] for m in sys.modules} & {'sklearn', 'lightgbm', "
+                          "'pandas', 'mlflow'}))"], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
+    assert workbench.BaseBoostCV.__name__ == "BaseBoostCV"  # names still load on first use

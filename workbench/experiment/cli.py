@@ -68,12 +68,13 @@ def _cmd_reproduce(args) -> int:
     res = reproduce(args.out, tracking_uri=args.tracking_uri, storage=args.storage,
                     quick=args.quick,
                     track=not args.no_track, seed=args.seed)
-    print(f"paper settings: average test MAE {res['settings']['paper']['model']['test_mae_avg']:.3f}"
-          f" MHz (control program {res['settings']['paper']['prior']['test_mae_avg']:.3f}); "
-          f"improved {res['settings']['improved']['model']['test_mae_avg']:.3f}; nested-CV "
-          f"search {res['settings']['search']['model']['test_mae_avg']:.3f}")
-    print(f"wrote {Path(args.out) / 'README.md'} and {len(res['figures'])} figure entries "
-          f"in {res['wall_s']:.0f} s")
+    s = res.settings
+    print(f"paper settings: average test MAE {s['paper'].model.avg('test_mae'):.3f} MHz "
+          f"(control program {s['paper'].prior.avg('test_mae'):.3f}); improved "
+          f"{s['improved'].model.avg('test_mae'):.3f}; nested-CV search "
+          f"{s['search'].model.avg('test_mae'):.3f}")
+    print(f"wrote {Path(args.out) / 'README.md'} and {len(res.figures)} figure entries "
+          f"in {res.wall_s:.0f} s")
     return 0
 
 

@@ -12,7 +12,7 @@ import json
 import logging
 import time
 import warnings
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -23,12 +23,13 @@ from sklearn.neural_network import MLPRegressor
 from ..curves import augmented_learning_curve
 from .config import load_config
 from .evaluate import evaluate
+from .results import Result
 from .figures import (correlation_heatmap, learning_curve_figure, mae_bars,
                       model_comparison_bars, prior_target_boxplots, save_figure, shap_summary,
                       voltage_boxplots)
 from .tracking import Tracker, dataset_hash, git_commit, resolve_tracking_uri
 
-__all__ = ["PAPER_SIZES", "REFERENCE", "TABULA_RASA", "reproduce"]
+__all__ = ["PAPER_SIZES", "REFERENCE", "TABULA_RASA", "Reproduction", "report", "reproduce"]
 
 EXPERIMENTS = Path(__file__).resolve().parents[2] / "experiments"
 SHORT = ["Y1", "Y2", "Y3", "Y4", "Y5"]
@@ -56,6 +57,40 @@ def _tabula_rasa(j: int, seed: int) -> MLPRegressor:
                         alpha=alpha, max_iter=max_iter, random_state=seed)
 
 
+@dataclass
+class Reproduction:
+    """What ``workbench reproduce`` computed: a :class:`Result` per setting ("paper",
+    "improved", "search", "hamiltonian"), the tabula-rasa MLPs' test errors, the training
+    rows' correlation, the learning curves, the figures (id -> files, relative to the report
+    folder) and the parameter-space model's tables."""
+
+    targets: list[str]
+    seed: int
+    quick: bool
+    settings: dict[str, Result]
+    tabula_rasa: dict[str, list[float]]
+    correlation: dict[str, Any]
+    learning_curves: dict[str, Any]
+    figures: dict[str, list[str]]
+    hamiltonian_tables: dict[str, str] = field(default_factory=dict)
+    mlflow: dict[str, str] = field(default_factory=dict)
+    wall_s: float = float("nan")
+
+    def to_json(self) -> dict[str, Any]:
+        out = {"targets": self.targets, "short": SHORT, "seed": self.seed, "quick": self.quick,
+               "settings": {k: r.to_json() for k, r in self.settings.items()},
+               "reference": REFERENCE,
+               "tabula_rasa": {**self.tabula_rasa,
+                               "test_mae_avg": float(np.mean(self.tabula_rasa["test_mae"])),
+                               "test_mse_avg": float(np.mean(self.tabula_rasa["test_mse"]))},
+               "correlation": self.correlation, "learning_curves": self.learning_curves,
+               "figures": self.figures, "hamiltonian_tables": self.hamiltonian_tables,
+               "wall_s": self.wall_s}
+        if self.mlflow:
+            out["mlflow"] = self.mlflow
+        return out
+
+
 _T0 = [time.perf_counter()]
 
 
@@ -66,8 +101,9 @@ def _say(text: str) -> None:
 
 def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
               storage: str | None = None, quick: bool = False, track: bool = True, seed: int = 0
-              ) -> dict[str, Any]:
-    """Compute the paper's results and figures; returns the results dictionary."""
+              ) -> Reproduction:
+    """Compute the paper's results and figures; returns them (also written as
+    ``results.json``)."""
     start = _T0[0] = time.perf_counter()
     out = Path(out)
     figdir = out / "figures"
@@ -86,7 +122,7 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
         _say(f"evaluating the {key} settings ({toml})")
         cfg = replace(load_config(EXPERIMENTS / toml), random_state=seed)
         run = evaluate(cfg, return_model=True)
-        settings[key], ds = run.result.to_json(), run.dataset
+        settings[key], ds = run.result, run.dataset
     _say("nested-CV search for the workbench's own best configuration "
                    "(experiments/paper_search.toml)")
     from .search import run_sweep  # Optuna only here
@@ -97,24 +133,24 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
     # another seed must not resume these studies
     search_cfg = search_cfg.with_study(study_name=f"{search_cfg.name}-seed{seed}",
                                        trials=2 if quick else None, storage=storage)
-    settings["search"] = run_sweep(search_cfg, progress=False).result.to_json()
+    settings["search"] = run_sweep(search_cfg, progress=False).result
     hamiltonian_model = _hamiltonian(settings, seed, quick)
     X_train, X_test, y_train, y_test = ds.split()
     targets = ds.target_names
     paper = settings["paper"]
 
     save("fig2_mae_bars", "benchmark",
-         mae_bars(SHORT, paper["prior"]["test_mae"], paper["model"]["test_mae"],
+         mae_bars(SHORT, paper.prior.test_mae, paper.model.test_mae,
                   title="Test MAE per eigenenergy (Fig. 2)", setting="paper settings"))
     save("figS4_mse_bars", "benchmark",
-         mae_bars(SHORT, paper["prior"]["test_mse"], paper["model"]["test_mse"], metric="MSE",
+         mae_bars(SHORT, paper.prior.test_mse, paper.model.test_mse, metric="MSE",
                   unit="MHz²", title="Test MSE per eigenenergy (Fig. S4)",
                   setting="paper settings"))
 
     # -- beyond the paper: the parameter-space model -------------------------------------
     ham = settings["hamiltonian"]
     save("figH1_hamiltonian_mae_bars", "hamiltonian",
-         mae_bars(SHORT, ham["prior"]["test_mae"], ham["model"]["test_mae"],
+         mae_bars(SHORT, ham.prior.test_mae, ham.model.test_mae,
                   labels=("control program", "parameter-space model"),
                   title="Test MAE per eigenenergy: corrected Hamiltonian",
                   setting="experiments/hamiltonian.toml"))
@@ -166,7 +202,7 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
     # -- tabula rasa and SHAP ------------------------------------------------------------
     _say("tabula rasa MLPs on the 9 voltages, SHAP summaries")
     V_train, V_test = X_train[ds.feature_names], X_test[ds.feature_names]
-    tabula = {"test_mae": [], "test_mse": []}
+    tabula: dict[str, list[float]] = {"test_mae": [], "test_mse": []}
     shap_rows = V_train.iloc[:30] if quick else V_train
     for j, target in enumerate(targets):
         with warnings.catch_warnings():  # the paper's max_iter, kept as published
@@ -189,33 +225,29 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
     for metric, fig_id, unit in (("mae", "figS6_tabula_rasa_mae", "MHz"),
                                  ("mse", "figS7_tabula_rasa_mse", "MHz²")):
         values = {"tabula rasa MLP (voltages only)": tabula[f"test_{metric}"],
-                  "control program": paper["prior"][f"test_{metric}"],
-                  "base boosting (paper settings)": paper["model"][f"test_{metric}"]}
+                  "control program": getattr(paper.prior, f"test_{metric}"),
+                  "base boosting (paper settings)": getattr(paper.model, f"test_{metric}")}
         save(fig_id, "tabula_rasa", model_comparison_bars(
             SHORT, values, metric=metric.upper(), unit=unit, log=True,
             title=f"Tabula rasa vs base boosting, test {metric.upper()} (Fig. "
                   f"{'S6' if metric == 'mae' else 'S7'})"))
 
-    results = {
-        "targets": targets, "short": SHORT, "seed": seed, "quick": quick,
-        "settings": settings, "reference": REFERENCE,
-        "tabula_rasa": {**tabula, "test_mae_avg": float(np.mean(tabula["test_mae"])),
-                        "test_mse_avg": float(np.mean(tabula["test_mse"]))},
-        "correlation": correlation.round(6).to_dict(),
-        "learning_curves": {"train_sizes": sizes, "folds": folds, "curves": curves},
-        "figures": {k: [str(p.relative_to(out)) for p in v] for k, v in files.items()},
-        "hamiltonian_tables": tables,
-    }
-    results["wall_s"] = time.perf_counter() - start
-    _write(out / "results.json", results)
+    rep = Reproduction(
+        targets=targets, seed=seed, quick=quick, settings=settings,
+        tabula_rasa=tabula, correlation=correlation.round(6).to_dict(),
+        learning_curves={"train_sizes": sizes, "folds": folds, "curves": curves},
+        figures={k: [str(p.relative_to(out)) for p in v] for k, v in files.items()},
+        hamiltonian_tables=tables)
+    rep.wall_s = time.perf_counter() - start
+    _write(out / "results.json", rep.to_json())
     _write(out / "manifest.json", {k: (v[0] if len(v) == 1 else v)
-                                   for k, v in results["figures"].items()})
+                                   for k, v in rep.figures.items()})
     if track:
-        results["mlflow"] = _log(results, files, groups, out, tracking_uri, ds)
-        _write(out / "results.json", results)
-    (out / "README.md").write_text(report(results))
-    _say(f"done in {results['wall_s']:.0f} s: {out / 'README.md'}")
-    return results
+        rep.mlflow = _log(rep, files, groups, out, tracking_uri, ds)
+        _write(out / "results.json", rep.to_json())
+    (out / "README.md").write_text(report(rep))
+    _say(f"done in {rep.wall_s:.0f} s: {out / 'README.md'}")
+    return rep
 
 
 def _hamiltonian(settings: dict[str, Any], seed: int, quick: bool):
@@ -234,7 +266,7 @@ def _hamiltonian(settings: dict[str, Any], seed: int, quick: bool):
     _say("the parameter-space model (experiments/hamiltonian.toml): covariate "
                    "selection by CV on the training rows")
     run = evaluate(cfg, return_model=True)
-    settings["hamiltonian"] = run.result.to_json()
+    settings["hamiltonian"] = run.result
     return cfg, run.model
 
 
@@ -251,27 +283,28 @@ def _write(path: Path, obj) -> None:
     tmp.replace(path)
 
 
-def _log(results, files, groups, out: Path, tracking_uri, ds) -> dict[str, str]:
+def _log(rep: Reproduction, files, groups, out: Path, tracking_uri, ds) -> dict[str, str]:
     uri = resolve_tracking_uri(tracking_uri, None, Path.cwd())
     tracker = Tracker(uri, "paper-reproduction")
     tags = {"workbench.kind": "reproduce", "dataset_hash": dataset_hash(ds.X, ds.targets),
             "git_commit": git_commit(Path(__file__).resolve().parents[2]) or "unknown"}
     with tracker.run("paper reproduction", tags=tags,
-                     params={"seed": results["seed"], "quick": results["quick"]}) as parent:
+                     params={"seed": rep.seed, "quick": rep.quick}) as parent:
         metrics = {}
-        for key, res in results["settings"].items():
-            metrics[f"{key}.test_mae_avg"] = res["model"]["test_mae_avg"]
-            for s, v in zip(SHORT, res["model"]["test_mae"]):
+        for key, res in rep.settings.items():
+            metrics[f"{key}.test_mae_avg"] = res.model.avg("test_mae")
+            for s, v in zip(SHORT, res.model.test_mae):
                 metrics[f"{key}.test_mae.{s}"] = v
-        metrics["prior.test_mae_avg"] = results["settings"]["paper"]["prior"]["test_mae_avg"]
-        metrics["search.nested_cv_mae_avg"] = results["settings"]["search"]["nested_cv_mae_avg"]
-        metrics["tabula_rasa.test_mae_avg"] = results["tabula_rasa"]["test_mae_avg"]
+        metrics["prior.test_mae_avg"] = rep.settings["paper"].prior.avg("test_mae")
+        metrics["search.nested_cv_mae_avg"] = rep.settings["search"].sweep.nested_cv_mae_avg
+        metrics["tabula_rasa.test_mae_avg"] = float(np.mean(rep.tabula_rasa["test_mae"]))
+        ham = rep.settings["hamiltonian"]
         for key in ("repeated_cv", "nested_cv_all"):
-            if key in results["settings"]["hamiltonian"]:
-                value = results["settings"]["hamiltonian"][key]["model_mae_avg"]
-                metrics[f"hamiltonian.{key}_mae_avg"] = value
+            if getattr(ham, key) is not None:
+                metrics[f"hamiltonian.{key}_mae_avg"] = getattr(ham, key).model_mae_avg
         tracker.log_metrics(parent, metrics)
-        tracker.log_dict(parent, json.loads(json.dumps(results, default=str)), "results.json")
+        tracker.log_dict(parent, json.loads(json.dumps(rep.to_json(), default=str)),
+                         "results.json")
         for group, fig_ids in groups.items():
             with tracker.run(group, parent_run_id=parent,
                              tags={"workbench.kind": "figure_group"}) as child:
@@ -286,11 +319,11 @@ def _row(name: str, values, avg=None) -> str:
     return f"| {name} | " + " | ".join(f"{v:.3f}" for v in values) + f" | **{avg:.3f}** |"
 
 
-def _hamiltonian_section(ham: dict[str, Any], results: dict[str, Any]) -> str:
+def _hamiltonian_section(ham: Result, tables: dict[str, str]) -> str:
     """The report's paragraph on the parameter-space model, from its evaluate result."""
-    sel = ham["hamiltonian"].get("selection", {})
-    rep = ham.get("repeated_cv")
-    nested = ham.get("nested_cv_all")
+    sel = ham.details["hamiltonian"].get("selection", {})
+    rep = ham.repeated_cv
+    nested = ham.nested_cv_all
     lines = [
         "The control program's prediction is the spectrum of a chain Hamiltonian (5 qubit "
         "frequencies, 4 couplings). The parameter-space model (`experiments/hamiltonian.toml`) "
@@ -299,30 +332,29 @@ def _hamiltonian_section(ham: dict[str, Any], results: dict[str, Any]) -> str:
         "coupler and its neighbours) and re-diagonalises, fitting all five eigenenergies at "
         "once by robust Gauss-Newton through the Hellmann-Feynman Jacobian. Covariates are "
         f"chosen by forward selection with {sel.get('folds', '?')}-fold CV on the "
-        f"{ham['n_train']} training rows ({sel.get('steps', 0)}"
+        f"{ham.n_train} training rows ({sel.get('steps', 0)}"
         f" added to the default library, selection CV MAE {sel.get('cv_mae', float('nan')):.3f}"
         " MHz); an eigenvalue-space boosting stage on top is kept per target only where "
         f"BaseBoostCV says it helps (kept for: "
-        f"{', '.join(t for t, x in zip(SHORT, ham['model']['selected']) if '+' in x) or 'none'}).",
+        f"{', '.join(t for t, x in zip(SHORT, ham.model.selected) if '+' in x) or 'none'}).",
         "",
-        f"- Test MAE (41 rows, scored once): **{ham['model']['test_mae_avg']:.3f} MHz** against "
-        f"{ham['prior']['test_mae_avg']:.3f} for the control program.",
+        f"- Test MAE (41 rows, scored once): **{ham.model.avg('test_mae'):.3f} MHz** against "
+        f"{ham.prior.avg('test_mae'):.3f} for the control program.",
     ]
     if rep:
-        lines.append(f"- Repeated CV of the chosen model on the training rows ({rep['repeats']} x "
-                     f"{rep['folds']} folds, seeds other than the selection's): "
-                     f"{rep['model_mae_avg']:.3f} MHz (control program {rep['prior_mae_avg']:.3f})."
+        lines.append(f"- Repeated CV of the chosen model on the training rows ({rep.repeats} x "
+                     f"{rep.folds} folds, seeds other than the selection's): "
+                     f"{rep.model_mae_avg:.3f} MHz (control program {rep.prior_mae_avg:.3f})."
                      " The covariates were chosen on these rows, so this is optimistic.")
     if nested:
-        lines.append(f"- Nested CV over all {nested['n_rows']} experiments ({nested['folds']} outer "
-                     f"folds, the selection redone inside each): {nested['model_mae_avg']:.3f} MHz"
-                     f" (control program {nested['prior_mae_avg']:.3f}), the least noisy "
+        lines.append(f"- Nested CV over all {nested.n_rows} experiments ({nested.folds} outer "
+                     f"folds, the selection redone inside each): {nested.model_mae_avg:.3f} MHz"
+                     f" (control program {nested.prior_mae_avg:.3f}), the least noisy "
                      "estimate.")
     else:
         lines.append("- The least noisy estimate, a nested CV over all 136 experiments with the "
                      "selection redone inside each outer fold, takes about 4 minutes more: "
                      "`workbench evaluate experiments/hamiltonian.toml` computes it.")
-    tables = results.get("hamiltonian_tables", {})
     if tables:
         lines.append("- Tables: " + ", ".join(f"[{n}]({p})" for n, p in tables.items())
                      + " (coefficients in MHz per covariate standard deviation; corrected "
@@ -330,30 +362,29 @@ def _hamiltonian_section(ham: dict[str, Any], results: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def report(results: dict[str, Any]) -> str:
-    """The Markdown report (``reports/README.md``), from the results dictionary only."""
-    s = results["settings"]
+def report(rep: Reproduction) -> str:
+    """The Markdown report (``reports/README.md``), from the reproduction's results only."""
+    s = rep.settings
     head = "| system | " + " | ".join(SHORT) + " | average |\n|---|" + "---|" * 6
     rows = [_row(k, v, avg) for k, (v, avg) in REFERENCE.items()]
-    rows += [_row("workbench, paper settings (this run)", s["paper"]["model"]["test_mae"]),
-             _row("workbench, improved settings (this run)", s["improved"]["model"]["test_mae"]),
+    rows += [_row("workbench, paper settings (this run)", s["paper"].model.test_mae),
+             _row("workbench, improved settings (this run)", s["improved"].model.test_mae),
              _row("workbench, best configuration of its nested-CV search (this run)",
-                  s["search"]["model"]["test_mae"]),
+                  s["search"].model.test_mae),
              _row("workbench, Hamiltonian parameter-space model (this run)",
-                  s["hamiltonian"]["model"]["test_mae"]),
-             _row("tabula rasa MLP on the 9 voltages (this run)",
-                  results["tabula_rasa"]["test_mae"])]
-    figs = results["figures"]
-    lc = results["learning_curves"]
+                  s["hamiltonian"].model.test_mae),
+             _row("tabula rasa MLP on the 9 voltages (this run)", rep.tabula_rasa["test_mae"])]
+    figs = rep.figures
+    lc = rep.learning_curves
 
     def img(fig_id, caption):
         return "\n".join(f"![{caption}]({p})" for p in figs[fig_id])
 
-    nested = s["search"]
-    quick = " (quick mode: reduced curves, SHAP rows and search)" if results["quick"] else ""
+    nested = s["search"].sweep
+    quick = " (quick mode: reduced curves, SHAP rows and search)" if rep.quick else ""
     return f"""# Reproducing "Boosting on the shoulders of giants in quantum device calibration"
 
-Generated by `workbench reproduce`{quick} (seed {results['seed']}, {results['wall_s']:.0f} s).
+Generated by `workbench reproduce`{quick} (seed {rep.seed}, {rep.wall_s:.0f} s).
 Data: the Google 5-qubit calibration benchmark, the paper's split (95 training / 41 test
 experiments). Targets Y1..Y5 are the measured eigenenergies (ascending); the prior X1..X5 is
 the control program's prediction. Every choice is made on the training rows; the 41 test rows
@@ -373,7 +404,7 @@ K = 1, squared-error residuals, absolute-error line search with penalty 0.1, inb
 selection by 5-fold CV. "Improved settings": Huber losses, ridge basis for Y3. The search row
 is the configuration chosen per target by nested cross-validation on the training rows
 (`experiments/paper_search.toml`); its nested-CV estimate on the training rows is
-{nested['nested_cv_mae_avg']:.3f} MHz against {nested['nested_cv_prior_mae_avg']:.3f} for the
+{nested.nested_cv_mae_avg:.3f} MHz against {nested.nested_cv_prior_mae_avg:.3f} for the
 control program.
 
 {img('fig2_mae_bars', 'Fig. 2')}
@@ -382,7 +413,7 @@ control program.
 
 ## Beyond the paper: correcting the Hamiltonian
 
-{_hamiltonian_section(s["hamiltonian"], results)}
+{_hamiltonian_section(s["hamiltonian"], rep.hamiltonian_tables)}
 
 {img('figH1_hamiltonian_mae_bars', 'Parameter-space model, test MAE')}
 
@@ -413,7 +444,7 @@ training on fewer rows).
 ## Tabula rasa and SHAP
 
 A ReLU MLP on the 9 voltages alone (no prior, the paper's per-target settings) reaches
-{results['tabula_rasa']['test_mae_avg']:.1f} MHz average test MAE in this run (its result
+{float(np.mean(rep.tabula_rasa['test_mae'])):.1f} MHz average test MAE in this run (its result
 depends strongly on the random initialisation; about 11 MHz was measured for the reference):
 either way the physics prior is worth an order of magnitude.
 
