@@ -64,8 +64,6 @@ DEFAULT_STORE = "mlruns"
 #: MLflow's limit on a param value (``mlflow.utils.validation.MAX_PARAM_VAL_LENGTH``).
 MAX_PARAM_LENGTH = 6000
 _MAX_TAG_LENGTH = 8000
-_MAX_PARAMS_TAGS_PER_BATCH = 100
-_MAX_METRICS_PER_BATCH = 1000
 PARENT_TAG = "mlflow.parentRunId"
 SKIPPED_METRICS_TAG = "workbench.skipped_metrics"
 TRUNCATED_PARAMS_TAG = "workbench.truncated_params"
@@ -251,11 +249,6 @@ def dataset_hash(*frames: pd.DataFrame | pd.Series) -> str:
 
 def _now_ms() -> int:
     return int(time.time() * 1000)
-
-
-def _chunks(items: list, size: int) -> Iterator[list]:
-    for i in range(0, len(items), size):
-        yield items[i:i + size]
 
 
 def _param_value(key: str, value: Any) -> tuple[str, bool]:
@@ -453,30 +446,13 @@ class Tracker:
         else:
             self.end_run(run_id, "FINISHED")
 
-    def children(self, parent_run_id: str) -> list:
-        """The child runs of ``parent_run_id`` (:class:`mlflow.entities.Run`), oldest first."""
-        with self._errors():
-            experiment_id = self.client.get_run(parent_run_id).info.experiment_id
-            runs, token = [], None
-            while True:
-                page = self.client.search_runs(
-                    [experiment_id], filter_string=f"tags.`{PARENT_TAG}` = '{parent_run_id}'",
-                    order_by=["attributes.start_time ASC"], max_results=1000, page_token=token)
-                runs.extend(page)
-                token = page.token
-                if not token:
-                    return runs
-
     # ----------------------------------------------------------------- params, metrics, tags
 
     def _log_batch(self, run_id: str, *, metrics=(), params=(), tags=()) -> None:
+        # MlflowClient.log_batch splits into the store's batch limits itself
         with self._errors():
-            for chunk in _chunks(list(params), _MAX_PARAMS_TAGS_PER_BATCH):
-                self.client.log_batch(run_id, params=chunk)
-            for chunk in _chunks(list(tags), _MAX_PARAMS_TAGS_PER_BATCH):
-                self.client.log_batch(run_id, tags=chunk)
-            for chunk in _chunks(list(metrics), _MAX_METRICS_PER_BATCH):
-                self.client.log_batch(run_id, metrics=chunk)
+            self.client.log_batch(run_id, metrics=list(metrics), params=list(params),
+                                  tags=list(tags))
 
     def log_params(self, run_id: str, params: Mapping[str, Any]) -> None:
         """Log params (values as strings; longer than 6000 characters: truncated, with a note
@@ -537,11 +513,6 @@ class Tracker:
         """A matplotlib figure, saved in the format of ``artifact_file``'s suffix (PNG)."""
         with self._errors():
             self.client.log_figure(run_id, fig, artifact_file)
-
-    def log_table(self, run_id: str, table: pd.DataFrame, artifact_file: str) -> None:
-        """A DataFrame as an MLflow table (``artifact_file`` ends with ``.json``)."""
-        with self._errors():
-            self.client.log_table(run_id, table, artifact_file)
 
     # ----------------------------------------------------------------- models
 
