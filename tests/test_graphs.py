@@ -240,3 +240,44 @@ def test_regressor_on_a_ring_and_bad_parasitic():
             HamiltonianParameterRegressor(onsite=c["onsite"], couplings=c["couplings"],
                                           **{"edges": edges, **kwargs}).fit(d, d[c["targets"]])
     assert isinstance(model.coef_, pd.DataFrame)
+
+
+def test_config_keys_for_graphs_and_parasitic_couplings(tmp_path):
+    from workbench.experiment.config import (ConfigError, load_dataset, make_hamiltonian,
+                                             parse_config)
+    sim = simulate(None, 60, seed=6, topology="grid", shape=(2, 3))
+    write_simulation(sim, tmp_path / "grid.csv")
+    c = _names(sim)
+    data = {"csv": "grid.csv", "prior": c["prior"], "targets": c["targets"],
+            "features": c["qubit"] + c["coupler"], "test_fraction": 0.3,
+            "hamiltonian": {"onsite": c["onsite"], "couplings": c["couplings"],
+                            "qubit_features": c["qubit"], "coupler_features": c["coupler"],
+                            "topology": "grid", "shape": [2, 3]}}
+    raw = {"name": "grid", "random_state": 0, "data": data,
+           "model": {"family": "hamiltonian", "basis": "ridge",
+                     "hamiltonian": {"parasitic": "diagonal", "selection": "linearised",
+                                     "max_steps": 1, "selection_cv": 3}},
+           "selection": {"cv": 3}}
+    cfg = parse_config(raw, tmp_path / "grid.toml")
+    ds = load_dataset(cfg)
+    model = make_hamiltonian(cfg.hamiltonian, ds, random_state=0)
+    assert model.method == "linearised" and model.parasitic == "diagonal"
+    assert model.edges == sim.truth["graph"]["edges"]
+    assert "model_f1~model_f5" in model.candidates
+    for ham, match in [({"shape": [3, 3]}, "grid shape 3x3 has 9 sites"),
+                       ({"topology": "ring", "shape": None}, None),
+                       ({"topology": "chain", "shape": None, "edges": [[0, 7]]}, "out of range"),
+                       ({"topology": "star"}, "unknown topology 'star'")]:
+        bad = {**raw, "data": {**data, "hamiltonian": {**data["hamiltonian"], **ham}}}
+        bad["data"]["hamiltonian"] = {k: v for k, v in bad["data"]["hamiltonian"].items()
+                                      if v is not None}
+        if match is None:  # a valid graph whose coupling count does not match the columns
+            with pytest.raises(DatasetError, match="a ring of 6 sites has 6 couplings"):
+                load_dataset(parse_config(bad, tmp_path / "grid.toml"))
+            continue
+        with pytest.raises(ConfigError, match=match) as err:
+            parse_config(bad, tmp_path / "grid.toml")
+        assert "\n" not in str(err.value)
+    with pytest.raises(ConfigError, match="unknown parasitic 'third'"):
+        parse_config({**raw, "model": {**raw["model"], "hamiltonian": {"parasitic": "third"}}},
+                     tmp_path / "grid.toml")

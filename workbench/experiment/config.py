@@ -40,6 +40,7 @@ from ..boosting import BaseBoostRegressor
 from ..datasets import Dataset, DatasetError, load_csv_dataset, load_google_5q
 from ..fitted_prior import FittedPriorBoost
 from ..multitarget import MultiTargetBaseBoost
+from ..hamiltonian import PARASITIC_KINDS, make_graph
 from ..param_boost import PARAM_LOSSES, HamiltonianParameterRegressor, default_library
 from ..param_select import HamiltonianSelectionCV, candidate_pool
 from ..selection import BaseBoostCV
@@ -52,7 +53,8 @@ TOP_KEYS = {"name", "description", "random_state", "n_jobs", "data", "model", "s
             "search", "cv", "study", "tracking", "evaluation"}
 DATA_KEYS = {"source", "data_dir", "csv", "prior", "targets", "features", "test_fraction",
              "split_column", "split_seed", "hamiltonian"}
-HAMILTONIAN_KEYS = {"onsite", "couplings", "sign", "qubit_features", "coupler_features"}
+HAMILTONIAN_KEYS = {"onsite", "couplings", "sign", "qubit_features", "coupler_features",
+                    "topology", "shape", "edges"}
 MODEL_KEYS = {"basis", "basis_params", "n_stages", "loss", "line_search_loss",
               "line_search_penalty", "alpha", "basis_inputs", "input_transform",
               "input_transform_params"}
@@ -65,10 +67,12 @@ FAMILIES = ("eigenvalue", "hamiltonian")
 HAMILTONIAN_DEFAULTS: dict[str, Any] = dict(
     loss="huber", huber_delta=0.5, alpha=1.0, alpha_l1=0.0, max_iter=20, start="default",
     candidates="physical", selection="forward", selection_cv=5, selection_repeats=1,
-    max_steps=20, min_improvement=1e-3, boost_stage=True, prior_cv=5)
+    max_steps=20, min_improvement=1e-3, boost_stage=True, prior_cv=5, parasitic="none")
 HAMILTONIAN_CHOICES: dict[str, tuple[str, ...]] = {
     "loss": tuple(PARAM_LOSSES), "start": ("default", "none"),
-    "candidates": ("physical", "local", "none"), "selection": ("forward", "none")}
+    "candidates": ("physical", "local", "none"),
+    "selection": ("forward", "linearised", "none"),
+    "parasitic": PARASITIC_KINDS}
 #: ``[search.hamiltonian]``: the keys a sweep may vary, with the valid values of the
 #: categorical ones (every value a search can take is also checked like ``[model.hamiltonian]``).
 HAMILTONIAN_SEARCH: dict[str, tuple[Any, ...] | None] = {
@@ -177,6 +181,12 @@ def _check_data(where: str, data: dict[str, Any]) -> None:
     _check_keys(f"{where}.hamiltonian", ham, HAMILTONIAN_KEYS)
     if ham and not {"onsite", "couplings"} <= set(ham):
         raise ConfigError(f"{where}.hamiltonian: needs both onsite and couplings")
+    if ham and {"topology", "shape", "edges"} & set(ham):
+        try:
+            make_graph(len(ham["onsite"]), ham.get("topology", "chain"), ham.get("shape"),
+                       ham.get("edges"))
+        except (ValueError, TypeError) as exc:
+            raise ConfigError(f"{where}.hamiltonian: {exc}") from None
 
 
 def _positive_int(where: str, key: str, value: Any, minimum: int) -> None:
@@ -256,15 +266,19 @@ def make_hamiltonian(settings: dict[str, Any], dataset: Dataset, *, random_state
         raise ConfigError(f"family = \"hamiltonian\" needs a dataset with Hamiltonian "
                           f"parameters; {dataset.name!r} has none")
     on, co = list(ham.onsite.columns), list(ham.couplings.columns)
-    common = dict(onsite=on, couplings=co, sign=ham.sign, loss=settings["loss"],
+    edges = ham.edge_list
+    parasitic = None if settings["parasitic"] == "none" else settings["parasitic"]
+    common = dict(onsite=on, couplings=co, edges=edges, parasitic=parasitic,
+                  sign=ham.sign, loss=settings["loss"],
                   huber_delta=float(settings["huber_delta"]), alpha=float(settings["alpha"]),
                   alpha_l1=float(settings["alpha_l1"]), max_iter=settings["max_iter"])
-    start = default_library(on, co) if settings["start"] == "default" else {}
+    start = default_library(on, co, edges) if settings["start"] == "default" else {}
     if settings["candidates"] == "none":
         pool = {}
     else:
         pool = candidate_pool(on, co, ham.qubit_features, ham.coupler_features, base=None,
-                              neighbours=settings["candidates"] == "physical")
+                              neighbours=settings["candidates"] == "physical", edges=edges,
+                              parasitic=parasitic)
     if settings["selection"] == "none":
         merged = {p: list(dict.fromkeys(start.get(p, []) + pool.get(p, [])))
                   for p in on + co}
@@ -274,7 +288,9 @@ def make_hamiltonian(settings: dict[str, Any], dataset: Dataset, *, random_state
                                   n_repeats=settings["selection_repeats"],
                                   max_steps=settings["max_steps"],
                                   min_improvement=float(settings["min_improvement"]),
-                                  random_state=random_state, n_jobs=n_jobs, **common)
+                                  random_state=random_state, n_jobs=n_jobs,
+                                  method="linearised" if settings["selection"] == "linearised"
+                                  else "refit", **common)
 
 
 def make_booster(settings: dict[str, Any], prior, inputs: list[str]) -> BaseBoostRegressor:
@@ -399,6 +415,7 @@ def load_dataset(cfg: ExperimentConfig) -> Dataset:
             split_column=data.get("split_column"), split_seed=data.get("split_seed", 0),
             onsite=ham.get("onsite"), couplings=ham.get("couplings"), sign=ham.get("sign", -1),
             qubit_features=ham.get("qubit_features"), coupler_features=ham.get("coupler_features"),
+            topology=ham.get("topology", "chain"), shape=ham.get("shape"), edges=ham.get("edges"),
             name=cfg.name)
     folds = cfg.selection["cv"]
     if len(ds.train_index) < 2 * folds:

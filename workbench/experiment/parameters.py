@@ -34,7 +34,7 @@ def hamiltonian_outputs(model: FittedPriorBoost, ds: Dataset, setting: str | Non
     regressor = physics_regressor(model)
     X = ds.X_physics
     names = regressor.parameter_names_
-    control = X[names]
+    control = regressor.control_parameters(X)
     corrected = regressor.corrected_parameters(X)
     split = pd.Series("test", index=X.index, name="split")
     split.loc[ds.train_index] = "train"
