@@ -23,6 +23,7 @@ from sklearn.utils import check_random_state
 from sklearn.utils.parallel import Parallel, delayed
 from sklearn.utils.validation import check_is_fitted
 
+from .param_linear import linear_scores
 from .param_boost import (HamiltonianParameterRegressor, default_library, parasitic_names,
                           resolve_graph)
 
@@ -130,17 +131,23 @@ def cv_mae(estimator, X, y, *, cv=5, n_repeats=1, random_state=0) -> float:
     return float(abs_sum / count)
 
 
-def _fit_splits(base, covariates, folds, warm) -> tuple[float, list]:
+def _fit_splits(base, covariates, folds, warm, models=False):
     """CV MAE of ``base`` with ``covariates`` over the sliced ``folds``, and each fold's
-    coefficients (to warm-start the next fits)."""
+    coefficients (to warm-start the next fits); with ``models``, also the fitted models."""
     est = clone(base).set_params(covariates=covariates)
-    abs_sum, count, coefs = 0.0, 0, []
+    abs_sum, count, coefs, fits = 0.0, 0, [], []
     for (X_fit, y_fit, X_val, y_val), init in zip(folds, warm):
         fitted = clone(est).fit(X_fit, y_fit, coef_init=init)
         abs_sum += np.abs(fitted.predict(X_val) - y_val).sum()
         count += y_val.size
         coefs.append(fitted.coef_dict())
-    return abs_sum / count, coefs
+        fits.append(fitted)
+    return (abs_sum / count, coefs, fits) if models else (abs_sum / count, coefs)
+
+
+def _linear_fold(est, fold, pool):
+    X_fit, y_fit, X_val, y_val = fold
+    return linear_scores(est, X_fit, y_fit, X_val, y_val, pool)
 
 
 def _score_many(base, libraries, folds, warm) -> list[float]:
@@ -180,8 +187,12 @@ class SelectionResult:
                                              **{**self.regressor_params, **params})
 
 
+SELECTION_METHODS = ("refit", "linearised")
+
+
 def forward_select(X, y, *, candidates, cv=5, n_repeats=1, random_state=0, max_steps=30,
-                   min_improvement=1e-3, start=None, n_jobs=None,
+                   min_improvement=1e-3, start=None, n_jobs=None, method="refit",
+                   shortlist=5, batch="auto",
                    progress: Callable[[str], None] | None = None,
                    **regressor_params) -> SelectionResult:
     """Greedy forward stepwise selection of (parameter, covariate) pairs by K-fold CV MAE.
@@ -193,6 +204,16 @@ def forward_select(X, y, *, candidates, cv=5, n_repeats=1, random_state=0, max_s
     ``min_improvement`` (targets' units) or after ``max_steps`` additions. Each candidate's
     fit on a split starts from the current selection's coefficients on that split (a warm
     start). Only ``X`` and ``y`` are used: pass the training rows alone.
+
+    ``method="linearised"`` scales to large devices: each step scores every candidate on
+    every split by one Gauss-Newton step of the enlarged model from the current fit
+    (:func:`~workbench.param_linear.linear_scores`, a bordered least-squares update instead
+    of a refit), then refits exactly: either a *batch* of the best-scored candidates of up
+    to ``batch`` different parameters at once (``"auto"``: one per ten parameters in the
+    model), kept if the refit's CV MAE improves by more than ``min_improvement`` (else the
+    batch is halved), or, once the batch is 1, the ``shortlist`` best-scored single
+    candidates, keeping the best by exact CV MAE as ``"refit"`` does. ``max_steps`` counts
+    steps (a batch step adds several pairs).
 
     Parameters
     ----------
@@ -228,8 +249,19 @@ def forward_select(X, y, *, candidates, cv=5, n_repeats=1, random_state=0, max_s
     current = {p: list((start or {}).get(p, [])) for p in params}
     pool = [(p, c) for p in params for c in dict.fromkeys(candidates.get(p, []))
             if c not in current[p]]
+    if method not in SELECTION_METHODS:
+        raise ValueError(f"unknown selection method {method!r}; valid: "
+                         f"{', '.join(SELECTION_METHODS)}")
+    if not (isinstance(shortlist, numbers.Integral) and shortlist >= 1):
+        raise ValueError(f"shortlist must be an integer >= 1, got {shortlist!r}")
+    if batch != "auto" and not (isinstance(batch, numbers.Integral) and batch >= 1):
+        raise ValueError(f'batch must be "auto" or an integer >= 1, got {batch!r}')
     folds = _sliced(X, y, _splits(len(X), cv, n_repeats, random_state))
     jobs = 1 if n_jobs is None else int(n_jobs)
+    if method == "linearised":
+        return _linearised_select(X, base, current, pool, folds, jobs, max_steps,
+                                  min_improvement, shortlist, batch, progress, t0,
+                                  regressor_params)
 
     def score(libraries, warm):
         if jobs > 1 and len(libraries) > 1:
@@ -268,6 +300,73 @@ def forward_select(X, y, *, candidates, cv=5, n_repeats=1, random_state=0, max_s
                            seconds=time.perf_counter() - t0)
 
 
+def _linearised_select(X, base, current, pool, folds, jobs, max_steps, min_improvement,
+                       shortlist, batch, progress, t0, regressor_params) -> SelectionResult:
+    """Forward selection with linearised candidate scores (see :func:`forward_select`)."""
+    def parallel(func, items):
+        if jobs > 1 and len(items) > 1:
+            return Parallel(n_jobs=jobs)(delayed(func)(*it) for it in items)
+        return [func(*it) for it in items]
+
+    best, warm, models = _fit_splits(base, current, folds, [None] * len(folds), models=True)
+    rows = [dict(step=0, parameter=None, covariate=None, cv_mae=best)]
+    if progress:
+        progress(f"start: cv_mae={best:.4f} ({len(pool)} candidate terms, linearised)")
+    n_params = sum(1 for v in current.values() if v) or 1
+    size = max(1, n_params // 10) if batch == "auto" else int(batch)
+    step = 0
+    while step < max_steps and pool:
+        step += 1
+        count = sum(f[3].size for f in folds)
+        lin = np.sum(parallel(_linear_fold, [(m, f, pool) for m, f in zip(models, folds)]),
+                     axis=0) / count
+        hopeful = [int(k) for k in np.argsort(lin, kind="stable") if lin[k] < best]
+        accepted = None
+        while hopeful:
+            if size > 1:
+                chosen, seen = [], set()
+                for k in hopeful:
+                    if pool[k][0] not in seen:
+                        chosen.append(k)
+                        seen.add(pool[k][0])
+                    if len(chosen) == size:
+                        break
+                trials = [chosen]
+            else:
+                trials = [[k] for k in hopeful[:shortlist]]
+            libs = []
+            for ks in trials:
+                lib = {p: list(v) for p, v in current.items()}
+                for k in ks:
+                    lib[pool[k][0]].append(pool[k][1])
+                libs.append(lib)
+            results = parallel(_fit_splits, [(base, lib, folds, warm, True) for lib in libs])
+            i = int(np.argmin([r[0] for r in results]))
+            if best - results[i][0] > min_improvement:
+                accepted = (trials[i], libs[i], results[i])
+                break
+            if size == 1 or len(trials[0]) == 1:
+                break
+            size = max(1, size // 2)
+        if accepted is None:
+            break
+        ks, lib, (best, warm, models) = accepted
+        for k in ks:
+            rows.append(dict(step=step, parameter=pool[k][0], covariate=pool[k][1],
+                             cv_mae=best))
+        if progress:
+            added = ", ".join(f"{pool[k][0]} <- {pool[k][1]}" for k in ks)
+            progress(f"step {step}: {added}  cv_mae={best:.4f} "
+                     f"({time.perf_counter() - t0:.0f} s)")
+        current = lib
+        pool = [pc for k, pc in enumerate(pool) if k not in set(ks)]
+    path = pd.DataFrame(rows, columns=["step", "parameter", "covariate", "cv_mae"])
+    return SelectionResult(covariates={p: v for p, v in current.items() if v}, path=path,
+                           cv_mae=float(best), n_rows=len(X), index=X.index.copy(),
+                           regressor_params=dict(regressor_params),
+                           seconds=time.perf_counter() - t0)
+
+
 def _print_progress(line: str) -> None:
     print(f"[selection] {line}", file=sys.stderr, flush=True)
 
@@ -296,6 +395,8 @@ class HamiltonianSelectionCV(RegressorMixin, BaseEstimator):
         Seeds the selection's fold shuffling.
     n_jobs : int, default=None
         Candidates scored in parallel.
+    method, shortlist, batch : default="refit", 5, "auto"
+        As in :func:`forward_select` (``"linearised"`` for large devices).
     verbose : bool, default=False
         Print one line per selection step (to stderr).
 
@@ -309,7 +410,8 @@ class HamiltonianSelectionCV(RegressorMixin, BaseEstimator):
                  candidates=None, start=None,
                  cv=5, n_repeats=1, max_steps=30, min_improvement=1e-3, alpha=1.0,
                  alpha_l1=0.0, loss="squared_error", huber_delta=1.0, max_iter=20, tol=1e-6,
-                 random_state=None, n_jobs=None, verbose=False):
+                 random_state=None, n_jobs=None, method="refit", shortlist=5, batch="auto",
+                 verbose=False):
         self.onsite = onsite
         self.couplings = couplings
         self.edges = edges
@@ -329,6 +431,9 @@ class HamiltonianSelectionCV(RegressorMixin, BaseEstimator):
         self.tol = tol
         self.random_state = random_state
         self.n_jobs = n_jobs
+        self.method = method
+        self.shortlist = shortlist
+        self.batch = batch
         self.verbose = verbose
 
     def _regressor_params(self):
@@ -356,7 +461,8 @@ class HamiltonianSelectionCV(RegressorMixin, BaseEstimator):
         self.selection_ = forward_select(
             X, y, candidates=candidates, cv=self.cv, n_repeats=self.n_repeats,
             random_state=seed, max_steps=self.max_steps, min_improvement=self.min_improvement,
-            start=self.start, n_jobs=self.n_jobs, progress=progress, **self._regressor_params())
+            start=self.start, n_jobs=self.n_jobs, method=self.method, shortlist=self.shortlist,
+            batch=self.batch, progress=progress, **self._regressor_params())
         self.estimator_ = self.selection_.estimator().fit(X, y)
         self.n_features_in_ = X.shape[1]
         self.feature_names_in_ = self.estimator_.feature_names_in_

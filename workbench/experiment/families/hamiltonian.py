@@ -50,7 +50,9 @@ class HamiltonianSettings(Section):
     """``[model.hamiltonian]``. ``start``: covariates every model has ("default": the default
     library, "none": intercepts only); ``candidates``: the pool ("physical": with neighbours,
     "local": without, "none"); ``selection``: "forward" (forward selection by CV from start
-    over the pool) or "none" (start and pool together, regularised by alpha / alpha_l1)."""
+    over the pool, every candidate refitted), "linearised" (the same, candidates scored by one
+    Gauss-Newton step: scales to large devices) or "none" (start and pool together,
+    regularised by alpha / alpha_l1)."""
 
     loss: Literal["squared_error", "absolute_error", "huber"] = "huber"
     huber_delta: float = Field(default=0.5, gt=0)
@@ -59,7 +61,7 @@ class HamiltonianSettings(Section):
     max_iter: int = Field(default=20, ge=0, le=100_000)
     start: Literal["default", "none"] = "default"
     candidates: Literal["physical", "local", "none"] = "physical"
-    selection: Literal["forward", "none"] = "forward"
+    selection: Literal["forward", "linearised", "none"] = "forward"
     selection_cv: int = Field(default=5, ge=2, le=10_000)
     selection_repeats: int = Field(default=1, ge=1, le=1000)
     max_steps: int = Field(default=20, ge=0, le=100_000)
@@ -86,13 +88,14 @@ def make_hamiltonian(settings: HamiltonianSettings, ds: Dataset, *, random_state
                           f"parameters; {ds.name!r} has none")
     s = settings
     on, co = list(ham.onsite.columns), list(ham.couplings.columns)
-    edges = None if ham.edges is None else [list(e) for e in ham.edges]
+    edges = ham.edge_list
     parasitic = None if s.parasitic == "none" else s.parasitic
     graph = dict(edges=edges, parasitic=parasitic)
     common = dict(onsite=on, couplings=co, sign=ham.sign, loss=s.loss,
                   huber_delta=float(s.huber_delta), alpha=float(s.alpha),
                   alpha_l1=float(s.alpha_l1), max_iter=s.max_iter, **graph)
-    start = default_library(on, co, **graph) if s.start == "default" else {}
+    # parasitic couplings enter through the pool only, so CV decides whether they are kept
+    start = default_library(on, co, edges) if s.start == "default" else {}
     if s.candidates == "none":
         pool = {}
     else:
@@ -105,6 +108,7 @@ def make_hamiltonian(settings: HamiltonianSettings, ds: Dataset, *, random_state
     return HamiltonianSelectionCV(candidates=pool, start=start or None, cv=s.selection_cv,
                                   n_repeats=s.selection_repeats, max_steps=s.max_steps,
                                   min_improvement=float(s.min_improvement),
+                                  method="linearised" if s.selection == "linearised" else "refit",
                                   random_state=random_state, n_jobs=n_jobs, **common)
 
 
@@ -206,7 +210,7 @@ class HamiltonianFamily(ModelFamily):
         regressor = physics_regressor(model)
         X = ds.X_physics
         names = regressor.parameter_names_
-        control = X[names]
+        control = regressor.control_parameters(X)  # parasitic couplings: 0 in the control
         corrected = regressor.corrected_parameters(X)
         split = pd.Series("test", index=X.index, name="split")
         split.loc[ds.train_index] = "train"
