@@ -425,7 +425,8 @@ def _set(section: BaseModel) -> dict[str, Any]:
 def _one_line(where: str, exc: ValidationError, prefix: tuple = ()) -> str:
     """One line for the first error: ``file: section.key = value: what is allowed``."""
     err = exc.errors(include_url=False)[0]
-    loc = ".".join(str(p) for p in (*prefix, *err["loc"]))
+    # drop the union-branch labels pydantic adds to a location ("literal['a','b']", ...)
+    loc = ".".join(str(p) for p in (*prefix, *err["loc"]) if not any(c in str(p) for c in "[("))
     msg = err["msg"].removeprefix("Value error, ")
     if err["type"] in ("value_error", "assertion_error") or not err["loc"]:
         text = f"{where}: [{loc}]: {msg}" if loc else f"{where}: {msg}"
