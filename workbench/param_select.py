@@ -18,7 +18,7 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 from sklearn.base import BaseEstimator, RegressorMixin, clone
-from sklearn.model_selection import KFold
+from sklearn.model_selection import RepeatedKFold
 from sklearn.utils import check_random_state
 from sklearn.utils.parallel import Parallel, delayed
 from sklearn.utils.validation import check_is_fitted
@@ -110,8 +110,10 @@ def candidate_pool(onsite, couplings, qubit_features=None, coupler_features=None
 # ---------------------------------------------------------------------- CV scoring
 
 def _splits(n: int, cv: int, n_repeats: int, random_state: int):
-    return [split for r in range(n_repeats)
-            for split in KFold(cv, shuffle=True, random_state=random_state + r).split(np.arange(n))]
+    """Repeated K-fold splits (``RepeatedKFold``: the first repeat is
+    ``KFold(cv, shuffle=True, random_state=random_state)``)."""
+    return list(RepeatedKFold(n_splits=cv, n_repeats=n_repeats,
+                              random_state=random_state).split(np.arange(n)))
 
 
 def _sliced(X, y, splits):
@@ -121,7 +123,7 @@ def _sliced(X, y, splits):
 
 def cv_mae(estimator, X, y, *, cv=5, n_repeats=1, random_state=0) -> float:
     """Repeated K-fold CV MAE of ``estimator`` on ``(X, y)`` (mean over all held-out
-    values; KFold shuffled with seeds ``random_state .. random_state + n_repeats - 1``)."""
+    values; RepeatedKFold seeded by ``random_state``)."""
     y = np.asarray(y, dtype=float)
     abs_sum, count = 0.0, 0
     for fit_rows, val_rows in _splits(len(X), cv, n_repeats, random_state):
@@ -198,8 +200,8 @@ def forward_select(X, y, *, candidates, cv=5, n_repeats=1, random_state=0, max_s
     """Greedy forward stepwise selection of (parameter, covariate) pairs by K-fold CV MAE.
 
     Starts from ``start`` (default: intercepts only); at each step tries adding every
-    remaining candidate pair, keeps the one with the lowest repeated K-fold CV MAE (KFold
-    shuffled with seeds ``random_state .. random_state + n_repeats - 1``, the same splits for
+    remaining candidate pair, keeps the one with the lowest repeated K-fold CV MAE (RepeatedKFold
+    seeded by ``random_state``, the same splits for
     every candidate) and stops when it improves the current CV MAE by less than
     ``min_improvement`` (targets' units) or after ``max_steps`` additions. Each candidate's
     fit on a split starts from the current selection's coefficients on that split (a warm
