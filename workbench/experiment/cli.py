@@ -25,13 +25,18 @@ def _write_json(path: str, payload: dict) -> None:
     tmp.replace(out)  # never leave a half-written result
 
 
-def _check_before_work(cfg, args) -> None:
-    """Fail on bad data or an unusable MLflow store before any fitting or searching."""
+def _check_before_work(cfg, args):
+    """Fail on bad data or an unusable MLflow store before any fitting or searching; returns
+    the tracker (``None`` with ``--no-track``)."""
     load_dataset(cfg)
     if not args.no_track:
+        from .lifecycle import prepare_store
         from .record import tracker_for
 
-        tracker_for(cfg, args.tracking_uri).experiment_id
+        tracker = tracker_for(cfg, args.tracking_uri)
+        prepare_store(tracker)  # one process at a time creates a new store
+        return tracker
+    return None
 
 
 def _cmd_ui(args) -> int:
@@ -80,17 +85,21 @@ def _cmd_sweep(args) -> int:
 
     cfg = with_overrides(load_config(args.config), trials=args.trials, workers=args.workers,
                          storage=args.storage)
-    _check_before_work(cfg, args)
-    result, details = run_sweep(cfg)
-    if not args.no_track:
-        from .record import record
+    tracker = _check_before_work(cfg, args)
+    from .lifecycle import TrialRecorder, command_run
 
-        best = {t: settings_for(cfg, t, p) for t, p in zip(result["targets"],
-                                                          result["best_params"]) if p}
-        # the chosen configuration (family hamiltonian: its [model.hamiltonian] settings too)
-        result["mlflow"] = record(details["config"], result, details["model"],
-                                  details["dataset"], kind="sweep",
-                                  tracking_uri=args.tracking_uri, details=details, settings=best)
+    with command_run(tracker, "sweep", cfg.name) as run_id:  # visible while it searches
+        result, details = run_sweep(cfg, on_trial=run_id and TrialRecorder(tracker, run_id))
+        if not args.no_track:
+            from .record import record
+
+            best = {t: settings_for(cfg, t, p) for t, p in zip(result["targets"],
+                                                              result["best_params"]) if p}
+            # the chosen configuration (family hamiltonian: its [model.hamiltonian] settings)
+            result["mlflow"] = record(details["config"], result, details["model"],
+                                      details["dataset"], kind="sweep", run_id=run_id,
+                                      tracking_uri=args.tracking_uri, details=details,
+                                      settings=best)
     print(format_table(result))
     print(f"nested-CV MAE: model {result['nested_cv_mae_avg']:.3f}, prior "
           f"{result['nested_cv_prior_mae_avg']:.3f} (average over targets)")
@@ -104,23 +113,26 @@ def _cmd_evaluate(args) -> int:
     cfg = load_config(args.config)
     if args.jobs is not None:
         cfg = dataclasses.replace(cfg, n_jobs=args.jobs)
-    _check_before_work(cfg, args)
+    tracker = _check_before_work(cfg, args)
     if args.out is not None and cfg.family != "hamiltonian":
         raise UsageError("--out writes the parameter-space model's tables and figures: it "
                          f"needs a config with [model] family = \"hamiltonian\" ({args.config} "
                          f"has family {cfg.family!r})")
-    result, model, ds = evaluate(cfg, return_model=True)
-    if args.out is not None:
-        from .parameters import write_hamiltonian_outputs
+    from .lifecycle import command_run
 
-        written = write_hamiltonian_outputs(args.out, model, ds, setting=f"evaluate of "
-                                                                        f"{cfg.name}")
-        result["outputs"] = {k: str(v) for k, v in written.items()}
-    if not args.no_track:
-        from .record import record
+    with command_run(tracker, "evaluate", cfg.name) as run_id:
+        result, model, ds = evaluate(cfg, return_model=True)
+        if args.out is not None:
+            from .parameters import write_hamiltonian_outputs
 
-        result["mlflow"] = record(cfg, result, model, ds, kind="evaluate",
-                                  tracking_uri=args.tracking_uri)
+            written = write_hamiltonian_outputs(args.out, model, ds, setting=f"evaluate of "
+                                                                            f"{cfg.name}")
+            result["outputs"] = {k: str(v) for k, v in written.items()}
+        if not args.no_track:
+            from .record import record
+
+            result["mlflow"] = record(cfg, result, model, ds, kind="evaluate", run_id=run_id,
+                                      tracking_uri=args.tracking_uri)
     print(format_table(result))
     if args.out is not None:
         print(f"wrote {', '.join(sorted(Path(p).name for p in result['outputs'].values()))} "
@@ -221,11 +233,25 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     logging.getLogger("mlflow").setLevel(logging.WARNING)  # keep the per-trial lines readable
+    from .lifecycle import MESSAGE, handle_signals
+
     try:
-        return args.func(args)
-    except (ConfigError, DatasetError, DataUnavailableError, TrackingError, UsageError) as exc:
+        with handle_signals():  # SIGINT/SIGTERM: runs end KILLED, one line, exit 130/143
+            return args.func(args)
+    except (ConfigError, DatasetError, DataUnavailableError, TrackingError, UsageError,
+            _storage_error()) as exc:
         print(f"workbench: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt as exc:
+        print(f"workbench: {MESSAGE}", file=sys.stderr)
+        return getattr(exc, "code", 130)
+
+
+def _storage_error() -> type:
+    """The Optuna storage's error class, once the storage module is loaded (no Optuna import
+    for commands that do not use it)."""
+    studies = sys.modules.get("workbench.experiment.studies")
+    return studies.StorageError if studies else UsageError
 
 
 if __name__ == "__main__":

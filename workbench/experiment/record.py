@@ -9,6 +9,7 @@ and selection-path tables (CSV) of :mod:`workbench.experiment.parameters`."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import sys
 from pathlib import Path
@@ -21,7 +22,7 @@ from ..curves import augmented_learning_curve
 from ..datasets import Dataset
 from .config import ExperimentConfig, model_inputs
 from .figures import learning_curve_figure, mae_bars, shap_summary
-from .tracking import Tracker, dataset_hash, git_commit, resolve_tracking_uri
+from .tracking import Tracker, _redact, dataset_hash, git_commit, resolve_tracking_uri
 
 __all__ = ["curve_sizes", "record", "tracker_for"]
 
@@ -135,8 +136,9 @@ def _columns(fitted, X: pd.DataFrame) -> list[str]:
     return cols or names
 
 
-def _record_sweep_children(tracker: Tracker, parent: str, details: dict[str, Any]) -> None:
-    for name, study in details["studies"].items():
+def _record_sweep_children(tracker: Tracker, parent: str, details: dict[str, Any],
+                           trials: bool = True) -> None:
+    for name, study in (details["studies"].items() if trials else ()):
         for t in study.get_trials(deepcopy=False):
             if t.user_attrs.get("surplus"):
                 continue
@@ -166,8 +168,10 @@ def _record_sweep_children(tracker: Tracker, parent: str, details: dict[str, Any
 def record(cfg: ExperimentConfig, result: dict[str, Any], model, ds: Dataset, *, kind: str,
            tracking_uri: str | None = None, details: dict[str, Any] | None = None,
            settings: dict[str, dict[str, Any]] | None = None,
-           progress: TextIO | None | bool = True) -> dict[str, str]:
-    """Log one evaluate/sweep as a parent run; returns ids and URIs to add to the result."""
+           progress: TextIO | None | bool = True, run_id: str | None = None) -> dict[str, str]:
+    """Log one evaluate/sweep as a parent run; returns ids and URIs to add to the result.
+    ``run_id``: log into this live run (see :func:`.lifecycle.command_run`; a sweep's trials
+    are its children already) instead of a new one."""
     if progress is True:
         progress = sys.stderr
     tracker = tracker_for(cfg, tracking_uri)
@@ -184,9 +188,14 @@ def record(cfg: ExperimentConfig, result: dict[str, Any], model, ds: Dataset, *,
         params["family"] = "hamiltonian"
         params.update(_flat("hamiltonian.", cfg.hamiltonian))
     setting = f"{kind} of {cfg.name}"
-    with tracker.run(f"{kind} {cfg.name}", tags=tags, params=params) as run_id:
+    live = run_id is not None
+    if live:
+        tracker.set_tags(run_id, tags)
+        tracker.log_params(run_id, params)
+    with (contextlib.nullcontext(run_id) if live
+          else tracker.run(f"{kind} {cfg.name}", tags=tags, params=params)) as run_id:
         if progress:
-            print(f"[{cfg.name}] tracking in {tracker.tracking_uri} (run {run_id})",
+            print(f"[{cfg.name}] tracking in {_redact(tracker.tracking_uri)} (run {run_id})",
                   file=progress, flush=True)
         tracker.log_metrics(run_id, _metrics(result))
         if cfg.path is not None:
@@ -196,6 +205,6 @@ def record(cfg: ExperimentConfig, result: dict[str, Any], model, ds: Dataset, *,
         model_uri = tracker.log_model(run_id, model, X_test.head(5))
         tracker.set_tags(run_id, {"model_uri": model_uri, "selected": ",".join(model.selected_)})
         if details is not None:
-            _record_sweep_children(tracker, run_id, details)
+            _record_sweep_children(tracker, run_id, details, trials=not live)
     return {"tracking_uri": tracker.tracking_uri, "experiment_id": tracker.experiment_id,
             "run_id": run_id, "model_uri": model_uri}

@@ -49,7 +49,7 @@ from .config import (ExperimentConfig, build_model, load_dataset, make_booster, 
 from .evaluate import fit_and_score
 from . import studies as _studies
 from .studies import (_counted, _pruner, _sampler, open_storage,  # noqa: F401
-                      run_studies, run_study)
+                      redact, run_studies, run_study)
 
 __all__ = ["open_storage", "run_search", "run_sweep", "settings_for", "study_names"]
 
@@ -205,23 +205,25 @@ def _study_objective(cfg: ExperimentConfig, ds: Dataset, unit: str,
 
 
 def run_search(cfg: ExperimentConfig, storage_url: str, *, progress: TextIO | None = None,
-               worker: int = 0) -> None:
-    """Run (or resume) every study of the sweep in this process (``worker``: its index)."""
+               worker: int = 0, on_trial: Callable | None = None) -> None:
+    """Run (or resume) every study of the sweep in this process (``worker``: its index;
+    ``on_trial(study, trial)`` after each trial it finishes)."""
     ds = load_dataset(cfg)
-    storage = open_storage(storage_url, _root())
+    storage = open_storage(storage_url, _root(), stale_after_s=cfg.study["stale_after_s"])
     studies = []
     for name, unit, fold in study_names(cfg, ds.target_names):
         study = optuna.create_study(study_name=name, storage=storage, direction="minimize",
                                     sampler=_sampler(cfg, name, worker),
                                     pruner=_pruner(cfg), load_if_exists=True)
         studies.append((study, _study_objective(cfg, ds, unit, fold)))
-    run_studies(cfg, studies, progress=progress)
+    run_studies(cfg, studies, progress=progress, on_trial=on_trial)
 
 
 def _search_in_workers(cfg: ExperimentConfig, storage_url: str, workers: int,
-                       progress: TextIO | None) -> None:
+                       progress: TextIO | None, on_trial: Callable | None = None) -> None:
     names = [name for name, _, _ in study_names(cfg, load_dataset(cfg).target_names)]
-    _studies._search_in_workers(run_search, cfg, storage_url, workers, progress, names, _root())
+    _studies._search_in_workers(run_search, cfg, storage_url, workers, progress, names, _root(),
+                                on_trial=on_trial)
 
 
 def _load(cfg: ExperimentConfig, storage_url: str, name: str) -> optuna.Study:
@@ -265,7 +267,8 @@ def _final_model(cfg: ExperimentConfig, ds: Dataset, best: dict[str, dict[str, A
 
 
 def run_sweep(cfg: ExperimentConfig, *, storage: str | None = None, workers: int | None = None,
-              progress: TextIO | None | bool = True) -> tuple[dict[str, Any], dict[str, Any]]:
+              progress: TextIO | None | bool = True,
+              on_trial: Callable | None = None) -> tuple[dict[str, Any], dict[str, Any]]:
     """Search, then evaluate. Returns ``(result, details)``: the JSON-ready result (the
     ``evaluate`` fields plus ``nested_cv_mae``, ``nested_cv_mae_avg``, ``best_params``) and
     in-process details (the fitted final model, dataset, studies, outer-fold results)."""
@@ -278,8 +281,8 @@ def run_sweep(cfg: ExperimentConfig, *, storage: str | None = None, workers: int
     names = study_names(cfg, ds.target_names)
     if progress:
         print(f"[{cfg.name}] sweep: {len(names)} studies x {cfg.study['trials']} trials, "
-              f"{workers} worker(s), storage {storage_url}", file=progress, flush=True)
-    _search_in_workers(cfg, storage_url, workers, progress)
+              f"{workers} worker(s), storage {redact(storage_url)}", file=progress, flush=True)
+    _search_in_workers(cfg, storage_url, workers, progress, on_trial)
 
     studies = {name: _load(cfg, storage_url, name) for name, _, _ in names}
     X_all = model_inputs(cfg, ds).loc[ds.train_index]
