@@ -25,7 +25,10 @@ import time
 from collections.abc import Iterator, Mapping
 from typing import Any
 
-from .tracking import Tracker, _sqlite_path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # mlflow is imported only where a run is touched
+    from .tracking import Tracker
 
 __all__ = ["Interrupted", "MESSAGE", "TrialRecorder", "command_run", "handle_signals",
            "prepare_store", "reap_stale_runs"]
@@ -45,22 +48,53 @@ class Interrupted(KeyboardInterrupt):
         self.code = 128 + signum
 
 
+#: Code that must not be interrupted half-way (a storage's file lock, a database transaction,
+#: a tracking request): a signal that arrives there is raised as soon as the code is left.
+_STORAGE_CODE = tuple(os.sep + p + os.sep for p in (
+    os.path.join("optuna", "storages"), "sqlalchemy", os.path.join("mlflow", "store"),
+    "alembic", "sqlite3", "psycopg2", "urllib3", "fasteners"))
+
+
+def _in_storage_code(frame) -> bool:
+    while frame is not None:
+        name = frame.f_code.co_filename
+        if any(p in name for p in _STORAGE_CODE):
+            return True
+        frame = frame.f_back
+    return False
+
+
 @contextlib.contextmanager
 def handle_signals() -> Iterator[None]:
-    """SIGINT and SIGTERM raise :class:`Interrupted` (once: further signals are ignored while
-    the command cleans up). Main thread only."""
-    fired = []
+    """SIGINT and SIGTERM raise :class:`Interrupted` in the main thread (once: further
+    signals are ignored while the command cleans up). A signal that arrives inside storage
+    code (e.g. Optuna's journal-file lock, which would turn the interrupt into a
+    ``FileNotFoundError`` and leave its lock behind) is raised 50 ms later, once that code is
+    left."""
+    fired: list[int] = []
+    pending: list[int] = []
 
     def handler(signum, frame):
         if fired:
             return
+        if _in_storage_code(frame):
+            pending[:] = [signum]
+            signal.setitimer(signal.ITIMER_REAL, 0.05)
+            return
+        pending.clear()
         fired.append(signum)
         raise Interrupted(signum)
 
-    old = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    def retry(signum, frame):
+        if pending:
+            handler(pending[0], frame)
+
+    signals = (signal.SIGINT, signal.SIGTERM, signal.SIGALRM)
+    old = {s: signal.signal(s, retry if s == signal.SIGALRM else handler) for s in signals}
     try:
         yield
     finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
         for s, h in old.items():
             signal.signal(s, h)
 
@@ -71,6 +105,8 @@ def handle_signals() -> Iterator[None]:
 @contextlib.contextmanager
 def _first_use_lock(uri: str) -> Iterator[None]:
     """An exclusive lock on ``<db>.lock`` beside a SQLite store (no-op for other stores)."""
+    from .tracking import _sqlite_path
+
     path = _sqlite_path(uri)
     if path is None or path.is_dir():
         yield

@@ -33,7 +33,6 @@ import socket
 import sys
 import threading
 import time
-import uuid
 import warnings
 import zlib
 from pathlib import Path
@@ -168,21 +167,19 @@ def _sampler(cfg, name: str, worker: int = 0):
     return optuna.samplers.TPESampler(seed=seed, constant_liar=True)
 
 
-def claim_stream(study: optuna.Study) -> int:
-    """A stream number no other process on this study holds: the count of earlier claims.
+STREAMS = ".streams"
 
-    Claims are study user attributes ``stream.<n>.<uuid>``. Two processes that read the same
-    count at once both write ``n``; after writing, the claim with the larger uuid moves on to
-    the next free number, so the numbers end distinct without relying on clocks."""
-    me = uuid.uuid4().hex
-    while True:
-        taken = [k.split(".") for k in study.user_attrs if k.startswith("stream.")]
-        n = 1 + max((int(k[1]) for k in taken), default=-1)
-        study.set_user_attr(f"stream.{n}.{me}", f"{socket.gethostname()}:{os.getpid()}")
-        rivals = [k[2] for k in (k.split(".") for k in study.user_attrs
-                                 if k.startswith(f"stream.{n}."))]
-        if min(rivals) == me:
-            return n
+
+def claim_stream(study: optuna.Study) -> int:
+    """A stream number no other process on this study holds: the number of a trial in the
+    study ``<name>.streams`` (trial numbers are assigned atomically by every storage, so the
+    first process gets 0 and concurrent ones never share a number)."""
+    streams = optuna.create_study(study_name=study.study_name + STREAMS,
+                                  storage=study._storage, load_if_exists=True,
+                                  sampler=optuna.samplers.RandomSampler(seed=0))
+    claim = streams.ask()
+    streams.tell(claim, 0.0, skip_if_finished=True)  # holds nothing: the number is the claim
+    return claim.number
 
 
 def _pruner(cfg):
@@ -281,7 +278,9 @@ class _Heartbeat:
 
 
 def _start_trial(study: optuna.Study, worker: str) -> optuna.Trial:
-    trial = study.ask()
+    with warnings.catch_warnings():  # "heartbeat ... supposed to be used with optimize":
+        warnings.simplefilter("ignore", UserWarning)  # run_study beats it (see _Heartbeat)
+        trial = study.ask()
     trial.set_user_attr("worker", worker)
     trial.set_user_attr("heartbeat", time.time())
     if _heartbeat_enabled(study._storage):
@@ -364,11 +363,6 @@ def run_studies(cfg, studies: list[tuple[optuna.Study, Callable]], *,
                       on_trial=on_trial)
 
 
-class _Exit(BaseException):
-    """A worker process's SIGTERM: unwinds like ``KeyboardInterrupt`` (failing and queueing
-    its running trial), then the worker exits 143."""
-
-
 def _watch_parent(parent: int) -> None:
     """Ends this worker (SIGTERM to itself) when its parent process is gone, e.g. SIGKILLed."""
     def watch():
@@ -383,17 +377,15 @@ def _watch_parent(parent: int) -> None:
 
 def _worker(search: Callable, cfg, storage_url: str, index: int, show: bool, parent: int,
             on_trial) -> None:
-    def on_term(signum, frame):
-        raise _Exit()
+    from .lifecycle import handle_signals
 
-    signal.signal(signal.SIGTERM, on_term)
-    signal.signal(signal.SIGINT, on_term)  # Ctrl-C reaches the whole group: the parent reports
     _watch_parent(parent)
     try:
-        search(cfg, storage_url, progress=sys.stderr if show else None, worker=index,
-               on_trial=on_trial)
-    except _Exit:
-        sys.exit(EXIT_SIGTERM)
+        with handle_signals():  # Ctrl-C reaches the whole group: the parent reports it
+            search(cfg, storage_url, progress=sys.stderr if show else None, worker=index,
+                   on_trial=on_trial)
+    except KeyboardInterrupt as exc:  # its running trial is failed and queued again
+        sys.exit(getattr(exc, "code", EXIT_SIGINT))
 
 
 def _search_in_workers(search: Callable, cfg, storage_url: str, workers: int,
