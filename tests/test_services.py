@@ -140,3 +140,35 @@ def test_two_sweep_processes_share_postgres_and_mlflow_server(services, tmp_path
     missing = set(counted) - set(children)
     assert len(missing) <= 1
     assert all(counted[k].user_attrs["finished_by"].endswith(f":{a.pid}") for k in missing)
+
+
+def test_dashboard_serves_the_studies_on_loopback(tmp_path):
+    """``workbench ui``'s second server: optuna-dashboard on the sweep's storage."""
+    import json
+    import urllib.request
+
+    from services import free_port
+
+    from workbench.experiment.studies import dashboard_command, open_storage
+
+    study = optuna.create_study(study_name="tiny.measured_E1.final",
+                                storage=open_storage("s.journal", tmp_path))
+    study.optimize(lambda t: t.suggest_float("x", 0, 1), n_trials=2)
+    port = free_port()
+    cmd = dashboard_command("s.journal", port, tmp_path)
+    assert cmd[cmd.index("--host") + 1] == "127.0.0.1"
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline, body = time.monotonic() + 60, None
+        while body is None and time.monotonic() < deadline:
+            try:
+                with urllib.request.urlopen(f"http://127.0.0.1:{port}/api/studies",
+                                            timeout=2) as r:
+                    body = json.loads(r.read())
+            except OSError:
+                assert proc.poll() is None
+                time.sleep(0.3)
+        assert [s["study_name"] for s in body["study_summaries"]] == ["tiny.measured_E1.final"]
+    finally:
+        proc.terminate()
+        proc.wait(timeout=10)

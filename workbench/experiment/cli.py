@@ -8,6 +8,7 @@ import json
 import logging
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 from ..datasets import DatasetError, DataUnavailableError
@@ -40,15 +41,35 @@ def _check_before_work(cfg, args):
 
 
 def _cmd_ui(args) -> int:
-    from .tracking import resolve_tracking_uri
+    from .tracking import _redact, resolve_tracking_uri
 
     uri = resolve_tracking_uri(args.tracking_uri, None, Path.cwd())
-    cmd = ui_command(uri, args.port)
-    print(f"MLflow UI for {uri} at http://127.0.0.1:{args.port} (Ctrl-C stops it)", flush=True)
+    cmds = [ui_command(uri, args.port)]
+    print(f"MLflow UI for {_redact(uri)} at http://127.0.0.1:{args.port}", flush=True)
+    storage = args.storage or "mlruns/optuna.journal"
+    if args.storage or (Path.cwd() / storage).is_file():  # the studies beside the runs
+        from .studies import dashboard_command, redact
+
+        cmds.append(dashboard_command(storage, args.dashboard_port, Path.cwd()))
+        print(f"Optuna dashboard for {redact(storage)} at "
+              f"http://127.0.0.1:{args.dashboard_port}", flush=True)
+    print("Ctrl-C stops", "them" if len(cmds) > 1 else "it", flush=True)
+    procs = [subprocess.Popen(cmd) for cmd in cmds]
     try:
-        return subprocess.call(cmd)
+        while all(p.poll() is None for p in procs):
+            time.sleep(0.5)
+        return max(p.returncode or 0 for p in procs)
     except KeyboardInterrupt:
         return 0
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.terminate()
+        for p in procs:
+            try:
+                p.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                p.kill()
 
 
 def ui_command(tracking_uri: str, port: int) -> list[str]:
@@ -211,10 +232,15 @@ def build_parser() -> argparse.ArgumentParser:
     _tracking_args(rep)
     rep.set_defaults(func=_cmd_reproduce)
 
-    ui = sub.add_parser("ui", help="start the MLflow UI on the local store at 127.0.0.1")
+    ui = sub.add_parser("ui", help="start the MLflow UI (and optuna-dashboard on the studies) "
+                        "at 127.0.0.1")
     ui.add_argument("--tracking-uri", default=None,
                     help="store to serve (default: $MLFLOW_TRACKING_URI or mlruns/mlflow.db)")
     ui.add_argument("--port", type=int, default=5000)
+    ui.add_argument("--storage", default=None,
+                    help="also serve the Optuna studies of this storage (journal file or RDB "
+                    "URL) with optuna-dashboard (default: mlruns/optuna.journal if present)")
+    ui.add_argument("--dashboard-port", type=int, default=8080)
     ui.set_defaults(func=_cmd_ui)
 
     sim = sub.add_parser("simulate", help="simulate a chain of coupled qubits and write a CSV "

@@ -432,3 +432,15 @@ def _search_in_workers(search: Callable, cfg, storage_url: str, workers: int,
     failed = [p.exitcode for p in procs if p.exitcode != 0]
     if failed:
         raise RuntimeError(f"{len(failed)} of {workers} sweep workers exited with codes {failed}")
+
+
+def dashboard_command(storage: str, port: int, root: Path) -> list[str]:
+    """The ``optuna-dashboard`` command line serving the studies of ``storage`` (a journal
+    file, relative to ``root``, or an RDB URL) on 127.0.0.1."""
+    cmd = [sys.executable, "-c", "from optuna_dashboard._cli import main; main()",
+           "--host", "127.0.0.1", "--port", str(port)]  # the package has no __main__
+    if "://" in storage:
+        return cmd + [storage]
+    path = Path(storage)
+    path = path if path.is_absolute() else root / path
+    return cmd + ["--storage-class", "JournalFileStorage", str(path)]
