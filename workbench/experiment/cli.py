@@ -12,6 +12,7 @@ import json
 import logging
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 from .errors import ConfigError, TrackingError, UsageError
@@ -27,27 +28,52 @@ def _write_json(path: str, payload: dict) -> None:
     tmp.replace(out)  # never leave a half-written result
 
 
-def _check_before_work(cfg, args) -> None:
-    """Fail on bad data or an unusable MLflow store before any fitting or searching."""
+def _check_before_work(cfg, args):
+    """Fail on bad data or an unusable MLflow store before any fitting or searching; returns
+    the tracker (``None`` with ``--no-track``)."""
     from .config import load_dataset
 
     load_dataset(cfg)
     if not args.no_track:
+        from .lifecycle import prepare_store
         from .record import tracker_for
 
-        tracker_for(cfg, args.tracking_uri).experiment_id
+        tracker = tracker_for(cfg, args.tracking_uri)
+        prepare_store(tracker)  # one process at a time creates a new store
+        return tracker
+    return None
 
 
 def _cmd_ui(args) -> int:
-    from .tracking import resolve_tracking_uri
+    from .tracking import _redact, resolve_tracking_uri
 
     uri = resolve_tracking_uri(args.tracking_uri, None, Path.cwd())
-    cmd = ui_command(uri, args.port)
-    print(f"MLflow UI for {uri} at http://127.0.0.1:{args.port} (Ctrl-C stops it)", flush=True)
+    cmds = [ui_command(uri, args.port)]
+    print(f"MLflow UI for {_redact(uri)} at http://127.0.0.1:{args.port}", flush=True)
+    storage = args.storage or "mlruns/optuna.journal"
+    if args.storage or (Path.cwd() / storage).is_file():  # the studies beside the runs
+        from .studies import dashboard_command, redact
+
+        cmds.append(dashboard_command(storage, args.dashboard_port, Path.cwd()))
+        print(f"Optuna dashboard for {redact(storage)} at "
+              f"http://127.0.0.1:{args.dashboard_port}", flush=True)
+    print("Ctrl-C stops", "them" if len(cmds) > 1 else "it", flush=True)
+    procs = [subprocess.Popen(cmd) for cmd in cmds]
     try:
-        return subprocess.call(cmd)
+        while all(p.poll() is None for p in procs):
+            time.sleep(0.5)
+        return max(p.returncode or 0 for p in procs)
     except KeyboardInterrupt:
         return 0
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.terminate()
+        for p in procs:
+            try:
+                p.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                p.kill()
 
 
 def ui_command(tracking_uri: str, port: int) -> list[str]:
@@ -85,15 +111,19 @@ def _cmd_sweep(args) -> int:
 
     cfg = load_config(args.config).with_study(trials=args.trials, workers=args.workers,
                                               storage=args.storage)
-    _check_before_work(cfg, args)
-    sweep = run_sweep(cfg)
-    result = sweep.result
-    if not args.no_track:
-        from .record import record
+    tracker = _check_before_work(cfg, args)
+    from .lifecycle import TrialRecorder, command_run
 
-        # logged with the chosen configuration (the family's chosen settings too)
-        result.mlflow = record(sweep.config, result, sweep.model, sweep.dataset, kind="sweep",
-                               tracking_uri=args.tracking_uri, sweep=sweep)
+    with command_run(tracker, "sweep", cfg.name) as run_id:  # visible while it searches
+        sweep = run_sweep(cfg, on_trial=run_id and TrialRecorder(tracker, run_id))
+        result = sweep.result
+        if not args.no_track:
+            from .record import record
+
+            # logged with the chosen configuration (the family's chosen settings too)
+            result.mlflow = record(sweep.config, result, sweep.model, sweep.dataset,
+                                   kind="sweep", tracking_uri=args.tracking_uri, sweep=sweep,
+                                   run_id=run_id)
     result.wall_s = _wall()
     print(format_table(result))
     if args.json:
@@ -109,20 +139,23 @@ def _cmd_evaluate(args) -> int:
     cfg = load_config(args.config)
     if args.jobs is not None:
         cfg = dataclasses.replace(cfg, n_jobs=args.jobs)
-    _check_before_work(cfg, args)
     if args.out is not None and not cfg.family.writes_outputs:
         raise UsageError(f"--out writes a model family's tables and figures; family "
                          f"{cfg.family.name!r} ({args.config}) has none")
-    run = evaluate(cfg, return_model=True)
-    result = run.result
-    if args.out is not None:
-        extra = cfg.family.outputs(run.model, run.dataset, f"evaluate of {cfg.name}")
-        result.outputs = {k: str(v) for k, v in extra.write(args.out).items()}
-    if not args.no_track:
-        from .record import record
+    tracker = _check_before_work(cfg, args)
+    from .lifecycle import command_run
 
-        result.mlflow = record(cfg, result, run.model, run.dataset, kind="evaluate",
-                               tracking_uri=args.tracking_uri)
+    with command_run(tracker, "evaluate", cfg.name) as run_id:
+        run = evaluate(cfg, return_model=True)
+        result = run.result
+        if args.out is not None:
+            extra = cfg.family.outputs(run.model, run.dataset, f"evaluate of {cfg.name}")
+            result.outputs = {k: str(v) for k, v in extra.write(args.out).items()}
+        if not args.no_track:
+            from .record import record
+
+            result.mlflow = record(cfg, result, run.model, run.dataset, kind="evaluate",
+                                   tracking_uri=args.tracking_uri, run_id=run_id)
     result.wall_s = _wall()
     print(format_table(result))
     if args.out is not None:
@@ -219,10 +252,15 @@ def build_parser() -> argparse.ArgumentParser:
     _tracking_args(rep)
     rep.set_defaults(func=_cmd_reproduce)
 
-    ui = sub.add_parser("ui", help="start the MLflow UI on the local store at 127.0.0.1")
+    ui = sub.add_parser("ui", help="start the MLflow UI (and optuna-dashboard on the studies) "
+                        "at 127.0.0.1")
     ui.add_argument("--tracking-uri", default=None,
                     help="store to serve (default: $MLFLOW_TRACKING_URI or mlruns/mlflow.db)")
     ui.add_argument("--port", type=int, default=5000)
+    ui.add_argument("--storage", default=None,
+                    help="also serve the Optuna studies of this storage (journal file or RDB "
+                    "URL) with optuna-dashboard (default: mlruns/optuna.journal if present)")
+    ui.add_argument("--dashboard-port", type=int, default=8080)
     ui.set_defaults(func=_cmd_ui)
 
     sim = sub.add_parser("simulate", help="simulate a device of coupled qubits and write a CSV "
@@ -255,13 +293,27 @@ def _count(value: str) -> int:
     return number
 
 
+class _Stderr(logging.StreamHandler):
+    """A handler writing to the *current* ``sys.stderr`` (which callers may replace)."""
+
+    def __init__(self):
+        super().__init__(sys.stderr)
+
+    @property
+    def stream(self):
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, value) -> None:
+        pass
+
+
 def _logging() -> None:
     """Progress lines of the ``workbench`` logger to standard error (once per process)."""
     logger = logging.getLogger("workbench")
-    if not any(getattr(h, "_workbench", False) for h in logger.handlers):
-        handler = logging.StreamHandler(sys.stderr)
+    if not any(isinstance(h, _Stderr) for h in logger.handlers):
+        handler = _Stderr()
         handler.setFormatter(logging.Formatter("%(message)s"))
-        handler._workbench = True
         logger.addHandler(handler)
     logger.setLevel(logging.INFO)
     logger.propagate = False
@@ -275,12 +327,25 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     _logging()
     from ..datasets import DatasetError, DataUnavailableError
+    from .lifecycle import MESSAGE, handle_signals
 
     try:
-        return args.func(args)
-    except (ConfigError, DatasetError, DataUnavailableError, TrackingError, UsageError) as exc:
+        with handle_signals():  # SIGINT/SIGTERM: runs end KILLED, one line, exit 130/143
+            return args.func(args)
+    except (ConfigError, DatasetError, DataUnavailableError, TrackingError, UsageError,
+            _storage_error()) as exc:
         print(f"workbench: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt as exc:
+        print(f"workbench: {MESSAGE}", file=sys.stderr)
+        return getattr(exc, "code", 130)
+
+
+def _storage_error() -> type:
+    """The Optuna storage's error class, once the storage module is loaded (no Optuna import
+    for commands that do not use it)."""
+    studies = sys.modules.get("workbench.experiment.studies")
+    return studies.StorageError if studies else UsageError
 
 
 if __name__ == "__main__":

@@ -9,6 +9,7 @@ figures for family hamiltonian)."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 from pathlib import Path
@@ -17,7 +18,7 @@ from typing import Any
 from .config import ExperimentConfig
 from .figures import mae_bars
 from .results import Result
-from .tracking import Tracker, dataset_hash, git_commit, resolve_tracking_uri
+from .tracking import Tracker, _redact, dataset_hash, git_commit, resolve_tracking_uri
 
 __all__ = ["record", "tracker_for"]
 
@@ -65,8 +66,8 @@ def _metrics(result: Result) -> dict[str, float]:
     return m
 
 
-def _record_sweep_children(tracker: Tracker, parent: str, sweep) -> None:
-    for name, study in sweep.studies.items():
+def _record_sweep_children(tracker: Tracker, parent: str, sweep, trials: bool = True) -> None:
+    for name, study in (sweep.studies.items() if trials else ()):
         for t in study.get_trials(deepcopy=False):
             if t.user_attrs.get("surplus"):
                 continue
@@ -93,10 +94,13 @@ def _record_sweep_children(tracker: Tracker, parent: str, sweep) -> None:
 
 
 def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
-           tracking_uri: str | None = None, sweep=None) -> dict[str, str]:
+           tracking_uri: str | None = None, sweep=None, run_id: str | None = None
+           ) -> dict[str, str]:
     """Log one evaluate/sweep as a parent run (metrics, the chosen settings, the config file,
     the result, MAE/MSE bars, the family's artifacts, the model; for a sweep a child run per
-    trial and per outer fold). Returns ids and URIs to add to the result."""
+    trial and per outer fold). Returns ids and URIs to add to the result. ``run_id``: log into
+    this live run (see :func:`.lifecycle.command_run`; a sweep's trials are its children
+    already) instead of a new one."""
     tracker = tracker_for(cfg, tracking_uri)
     family = cfg.family
     X_train, X_test, _, _ = ds.split(family.inputs(cfg, ds))
@@ -110,8 +114,14 @@ def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
     if cfg.family_settings is not None:
         params.update(_flat(f"{family.name}.", cfg.family_settings.model_dump()))
     setting = f"{kind} of {cfg.name}"
-    with tracker.run(f"{kind} {cfg.name}", tags=tags, params=params) as run_id:
-        log.info("[%s] tracking in %s (run %s)", cfg.name, tracker.tracking_uri, run_id)
+    live = run_id is not None
+    if live:
+        tracker.set_tags(run_id, tags)
+        tracker.log_params(run_id, params)
+    with (contextlib.nullcontext(run_id) if live
+          else tracker.run(f"{kind} {cfg.name}", tags=tags, params=params)) as run_id:
+        log.info("[%s] tracking in %s (run %s)", cfg.name, _redact(tracker.tracking_uri),
+                 run_id)
         tracker.log_metrics(run_id, _metrics(result))
         if cfg.path is not None:
             tracker.log_file(run_id, cfg.path)
@@ -135,6 +145,6 @@ def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
         tracker.set_tags(run_id, {"model_uri": model_uri,
                                   "selected": ",".join(result.model.selected)})
         if sweep is not None:
-            _record_sweep_children(tracker, run_id, sweep)
+            _record_sweep_children(tracker, run_id, sweep, trials=not live)
     return {"tracking_uri": tracker.tracking_uri, "experiment_id": tracker.experiment_id,
             "run_id": run_id, "model_uri": model_uri}

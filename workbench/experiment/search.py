@@ -31,7 +31,8 @@ from optuna.trial import TrialState
 from .config import ExperimentConfig, load_dataset
 from .evaluate import fit_and_score
 from .results import OuterFold, Result, SweepSummary
-from .studies import _counted, _pruner, _sampler, open_storage, run_studies, run_study  # noqa: F401
+from .studies import (_counted, _pruner, _sampler, open_storage, redact,  # noqa: F401
+                      run_studies, run_study)
 from . import studies as _studies
 
 __all__ = ["Sweep", "run_search", "run_sweep", "study_names"]
@@ -147,17 +148,18 @@ def study_objective(cfg: ExperimentConfig, ds, spec: StudySpec) -> Callable:
 
 
 def run_search(cfg: ExperimentConfig, storage_url: str, *, progress=None,
-               worker: int = 0) -> None:
-    """Run (or resume) every study of the sweep in this process (``worker``: its index)."""
+               worker: int = 0, on_trial: Callable | None = None) -> None:
+    """Run (or resume) every study of the sweep in this process (``worker``: its index;
+    ``on_trial(study, trial)`` after each trial it finishes)."""
     ds = load_dataset(cfg)
-    storage = open_storage(storage_url, _root())
+    storage = open_storage(storage_url, _root(), stale_after_s=cfg.study.stale_after_s)
     studies = []
     for spec in study_names(cfg, ds.target_names):
         study = optuna.create_study(study_name=spec.name, storage=storage, direction="minimize",
                                     sampler=_sampler(cfg, spec.name, worker),
                                     pruner=_pruner(cfg), load_if_exists=True)
         studies.append((study, study_objective(cfg, ds, spec)))
-    run_studies(cfg, studies, progress=progress)
+    run_studies(cfg, studies, progress=progress, on_trial=on_trial)
 
 
 def _best_params(study: optuna.Study) -> dict[str, Any] | None:
@@ -165,8 +167,10 @@ def _best_params(study: optuna.Study) -> dict[str, Any] | None:
     return min(done, key=lambda t: (t.value, t.number)).params if done else None
 
 
-def run_sweep(cfg: ExperimentConfig, *, progress=True) -> Sweep:
-    """Search, then evaluate the chosen configuration once on the test rows."""
+def run_sweep(cfg: ExperimentConfig, *, progress=True,
+              on_trial: Callable | None = None) -> Sweep:
+    """Search, then evaluate the chosen configuration once on the test rows
+    (``on_trial(study, trial)`` after each trial this process finishes, e.g. to log it)."""
     import sys
 
     start = time.perf_counter()
@@ -176,13 +180,13 @@ def run_sweep(cfg: ExperimentConfig, *, progress=True) -> Sweep:
     ds = load_dataset(cfg)
     specs = study_names(cfg, ds.target_names)
     log.info("[%s] sweep: %d studies x %d trials, %d worker(s), storage %s", cfg.name,
-             len(specs), cfg.study.trials, workers, storage_url)
+             len(specs), cfg.study.trials, workers, redact(storage_url))
     _studies._search_in_workers(run_search, cfg, storage_url, workers, stream,
-                                [s.name for s in specs], _root())
+                                [s.name for s in specs], _root(), on_trial=on_trial)
 
     family = cfg.family
-    studies = {s.name: optuna.load_study(study_name=s.name,
-                                         storage=open_storage(storage_url, _root()),
+    storage = open_storage(storage_url, _root(), stale_after_s=cfg.study.stale_after_s)
+    studies = {s.name: optuna.load_study(study_name=s.name, storage=storage,
                                          sampler=_sampler(cfg, s.name), pruner=_pruner(cfg))
                for s in specs}
     X_all = family.inputs(cfg, ds).loc[ds.train_index]

@@ -4,51 +4,182 @@ The storage/scheduling half of ``workbench sweep`` (:mod:`workbench.experiment.s
 the family-specific objectives): storages, samplers and pruners, the trial scheduler that
 leaves every study with exactly its budget of counted trials, and worker processes.
 
-Each trial records its worker and a heartbeat; a running trial whose process is gone (same
-host) or whose heartbeat is older than ``stale_after_s`` is marked failed and not counted, and
-a trial started beyond the budget is marked ``surplus`` and not run. So every study finishes
-exactly ``trials`` counted trials, none lost or repeated.
+Several processes (or machines) may work on one storage at once:
+
+* **Distinct proposals.** Each process claims a *stream* number on the study (the first
+  process 0, so a lone sweep draws the same numbers as before) and seeds its sampler with it;
+  TPE runs with ``constant_liar`` so running trials repel proposals.
+* **Exact budgets.** A trial started beyond the budget is marked ``surplus`` and not run; a
+  trial counts unless it is surplus or failed by someone other than its own worker.
+* **Dead workers.** While a trial runs, a background thread beats its heartbeat (so a long
+  inner fold never looks dead). RDB storages use Optuna's own heartbeat
+  (``RDBStorage(heartbeat_interval, grace_period, heartbeat_stale_trial_callback)`` and
+  :func:`optuna.storages.fail_stale_trials`); Optuna 5's ``JournalStorage`` has no heartbeat
+  (it does not implement ``BaseHeartbeat``), so for the journal file the heartbeat is a user
+  attribute checked here. A trial whose heartbeat is older than the grace period
+  (``stale_after_s``), or whose worker process on this host is gone (checked at once, no
+  wait), is failed, not counted, and re-run once with the same parameters through Optuna's
+  ``RetryFailedTrialCallback``.
+* **Workers die with their parent**: each watches its parent process.
 """
 
 from __future__ import annotations
 
+import copy
 import multiprocessing
 import os
+import signal
 import socket
 import sys
+import threading
 import time
+import warnings
 import zlib
 from pathlib import Path
 from typing import Callable, TextIO
 
 import optuna
+from optuna.exceptions import ExperimentalWarning, UpdateFinishedTrialError
 from optuna.trial import FrozenTrial, TrialState
 
-__all__ = ["open_storage", "run_studies", "run_study"]
+__all__ = ["StorageError", "open_storage", "redact", "run_studies", "run_study"]
 
 THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+#: User attributes that belong to one attempt at a trial, not to its configuration.
+_ATTEMPT_ATTRS = ("worker", "heartbeat", "finished_by", "error", "surplus")
+#: Exit codes of a process ended by SIGINT / SIGTERM (128 + the signal number).
+EXIT_SIGINT, EXIT_SIGTERM = 130, 143
 
 
-def open_storage(storage: str, root: Path):
-    """An Optuna storage: an RDB URL as is, else a journal file (relative to ``root``)."""
+class StorageError(ValueError):
+    """The Optuna storage cannot be used (bad path, missing driver, unreachable server)."""
+
+
+def redact(url: str) -> str:
+    """``url`` with any password replaced by ``***`` (safe to print or log)."""
+    if "://" not in url:
+        return url
+    try:
+        from sqlalchemy.engine import make_url
+
+        return make_url(url).render_as_string(hide_password=True)
+    except Exception:  # not an SQLAlchemy URL (e.g. http): plain URL parsing
+        from urllib.parse import urlsplit, urlunsplit
+
+        try:
+            parts = urlsplit(url)
+            if parts.password is None:
+                return url
+            host = parts.hostname or ""
+            netloc = f"{parts.username}:***@{host}" + (f":{parts.port}" if parts.port else "")
+            return urlunsplit(parts._replace(netloc=netloc))
+        except ValueError:
+            return url
+
+
+def heartbeat_interval(stale_after_s: float) -> int:
+    """Seconds between heartbeats: a quarter of the grace period, 1 to 10 s."""
+    return int(max(1, min(10, stale_after_s // 4)))
+
+
+class _Retry(optuna.storages.RetryFailedTrialCallback):
+    """Optuna's retry of a failed trial (same parameters, ``retry_history`` in its system
+    attributes), without the dead attempt's own user attributes: its ``worker`` (host:pid of
+    a dead process) would get the retry failed again the moment another process looks."""
+
+    def __call__(self, study: optuna.Study, trial: FrozenTrial) -> None:
+        trial = copy.deepcopy(trial)
+        trial.user_attrs = {k: v for k, v in trial.user_attrs.items()
+                            if k not in _ATTEMPT_ATTRS}
+        super().__call__(study, trial)
+
+
+def _retry() -> _Retry:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # experimental / renamed in 4.9: same behaviour
+        return _Retry(max_retry=1)
+
+
+def open_storage(storage: str, root: Path, *, stale_after_s: float = 600):
+    """An Optuna storage: an RDB URL (with Optuna's heartbeat, grace period ``stale_after_s``
+    and one retry of a stale trial), else a journal file (relative to ``root``). Problems end
+    in a :class:`StorageError` of one line (without the URL's password)."""
     if "://" in storage:
-        return storage
+        return _rdb_storage(storage, stale_after_s)
     path = Path(storage)
     path = path if path.is_absolute() else root / path
-    path.parent.mkdir(parents=True, exist_ok=True)
-    backend = optuna.storages.journal.JournalFileBackend(str(path))
+    if path.is_dir():
+        raise StorageError(f"Optuna storage {path} is a directory; give a journal file path "
+                           "(e.g. mlruns/optuna.journal) or a database URL")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        backend = optuna.storages.journal.JournalFileBackend(str(path))
+    except OSError as exc:
+        raise StorageError(f"cannot use Optuna journal file {path}: {exc}") from None
     return optuna.storages.JournalStorage(backend)
 
 
+def _rdb_storage(url: str, stale_after_s: float):
+    import sqlalchemy.exc
+
+    shown = redact(url)
+    kwargs = {}
+    if url.startswith("postgresql"):  # an unreachable host fails in seconds, not minutes
+        kwargs["connect_args"] = {"connect_timeout": 10}
+    if url.startswith("sqlite:///"):
+        db = Path(url[len("sqlite:///"):])
+        if db.is_dir():
+            raise StorageError(f"Optuna storage {shown} is a directory, not a database file")
+        db.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ExperimentalWarning)  # heartbeat_interval
+            return optuna.storages.RDBStorage(
+                url, engine_kwargs=kwargs or None,
+                heartbeat_interval=heartbeat_interval(stale_after_s),
+                grace_period=max(1, int(stale_after_s)),
+                heartbeat_stale_trial_callback=_retry())
+    except ImportError as exc:  # missing driver (psycopg2, pymysql, ...)
+        raise StorageError(f"Optuna storage {shown}: its database driver is not installed "
+                           f"({exc}); install it, e.g. pip install psycopg2-binary") from None
+    except sqlalchemy.exc.NoSuchModuleError as exc:
+        raise StorageError(f"Optuna storage {shown}: unknown database kind ({exc})") from None
+    except sqlalchemy.exc.ArgumentError as exc:
+        raise StorageError(f"Optuna storage {shown} is not a valid database URL "
+                           f"({exc})") from None
+    except sqlalchemy.exc.OperationalError as exc:
+        reason = str(getattr(exc, "orig", exc)).strip().splitlines()
+        raise StorageError(f"cannot connect to Optuna storage {shown}: "
+                           f"{reason[0] if reason else type(exc).__name__}") from None
+
+
+def _heartbeat_enabled(storage) -> bool:
+    return isinstance(storage, optuna.storages.RDBStorage) \
+        and storage.get_heartbeat_interval() is not None
 
 
 def _sampler(cfg, name: str, worker: int = 0):
-    """Seeded per study and per worker (workers with one seed would propose the same
-    configurations)."""
+    """Seeded per study and per stream (processes with one seed would propose the same
+    configurations); stream 0 is the first process of a sweep."""
     seed = (cfg.cv.seed + zlib.crc32(name.encode()) + 7919 * worker) % 2**31
     if cfg.study.sampler == "random":
         return optuna.samplers.RandomSampler(seed=seed)
-    return optuna.samplers.TPESampler(seed=seed)
+    return optuna.samplers.TPESampler(seed=seed, constant_liar=True)
+
+
+STREAMS = ".streams"
+
+
+def claim_stream(study: optuna.Study) -> int:
+    """A stream number no other process on this study holds: the number of a trial in the
+    study ``<name>.streams`` (trial numbers are assigned atomically by every storage, so the
+    first process gets 0 and concurrent ones never share a number)."""
+    streams = optuna.create_study(study_name=study.study_name + STREAMS,
+                                  storage=study._storage, load_if_exists=True,
+                                  sampler=optuna.samplers.RandomSampler(seed=0))
+    claim = streams.ask()
+    streams.tell(claim, 0.0, skip_if_finished=True)  # holds nothing: the number is the claim
+    return claim.number
 
 
 def _pruner(cfg):
@@ -58,8 +189,6 @@ def _pruner(cfg):
     if name == "wilcoxon":  # reported values: each inner fold's MAE
         return optuna.pruners.WilcoxonPruner(p_threshold=0.1)
     return optuna.pruners.NopPruner()
-
-
 
 
 def _counted(t: FrozenTrial) -> bool:
@@ -72,19 +201,34 @@ def _counted(t: FrozenTrial) -> bool:
     return True
 
 
+def _fail_and_retry(study: optuna.Study, number: int) -> None:
+    """Fail a running trial that no process works on, then queue it once more (only the
+    process whose FAIL lands first queues it: the storage refuses the others')."""
+    try:
+        study.tell(number, state=TrialState.FAIL)
+    except (RuntimeError, ValueError, UpdateFinishedTrialError):  # finished meanwhile
+        return
+    _retry()(study, study.get_trials(deepcopy=False)[number])
+
+
 def _fail_stale(study: optuna.Study, stale_after_s: float) -> None:
+    """Fail (and queue once more) running trials whose worker is gone: at once when it was a
+    process on this host; after ``stale_after_s`` without a heartbeat otherwise (RDB: by
+    Optuna's heartbeat; journal: by the ``heartbeat`` user attribute)."""
+    if _heartbeat_enabled(study._storage):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ExperimentalWarning)
+            optuna.storages.fail_stale_trials(study)
     host, now = socket.gethostname(), time.time()
     for t in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
         worker = t.user_attrs.get("worker", "")
         w_host, _, w_pid = worker.rpartition(":")
         dead = w_host == host and w_pid.isdigit() and not _alive(int(w_pid))
         started = t.datetime_start.timestamp() if t.datetime_start else now
-        old = now - t.user_attrs.get("heartbeat", started) > stale_after_s
+        old = (not _heartbeat_enabled(study._storage)
+               and now - t.user_attrs.get("heartbeat", started) > stale_after_s)
         if dead or old:
-            try:
-                study.tell(t.number, state=TrialState.FAIL)
-            except (RuntimeError, ValueError):  # finished meanwhile
-                pass
+            _fail_and_retry(study, t.number)
 
 
 def _alive(pid: int) -> bool:
@@ -104,26 +248,70 @@ def _best_value(study: optuna.Study) -> float | None:
         return None
 
 
+class _Heartbeat:
+    """Beats a running trial's heartbeat from a background thread every ``interval`` s, so a
+    fold that runs longer than the grace period is not taken for dead."""
+
+    def __init__(self, study: optuna.Study, trial: optuna.Trial, interval: float):
+        self._storage, self._trial, self._interval = study._storage, trial, interval
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._beat, daemon=True,
+                                        name=f"heartbeat-{trial.number}")
+
+    def _beat(self) -> None:
+        while not self._stop.wait(self._interval):
+            try:
+                if _heartbeat_enabled(self._storage):
+                    self._storage.record_heartbeat(self._trial._trial_id)
+                else:
+                    self._trial.set_user_attr("heartbeat", time.time())
+            except Exception:  # a missed beat is retried; the grace period covers several
+                pass
+
+    def __enter__(self):
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        self._thread.join(timeout=5)
+
+
+def _start_trial(study: optuna.Study, worker: str) -> optuna.Trial:
+    with warnings.catch_warnings():  # "heartbeat ... supposed to be used with optimize":
+        warnings.simplefilter("ignore", UserWarning)  # run_study beats it (see _Heartbeat)
+        trial = study.ask()
+    trial.set_user_attr("worker", worker)
+    trial.set_user_attr("heartbeat", time.time())
+    if _heartbeat_enabled(study._storage):
+        study._storage.record_heartbeat(trial._trial_id)
+    return trial
+
+
 def run_study(study: optuna.Study, objective: Callable, n_trials: int, *,
               timeout: float | None = None, stale_after_s: float = 600,
-              progress: TextIO | None = None, wait: bool = True) -> None:
+              progress: TextIO | None = None, wait: bool = True,
+              on_trial: Callable[[optuna.Study, FrozenTrial], None] | None = None) -> None:
     """Run trials until the study holds ``n_trials`` counted trials (or ``timeout`` s pass).
 
     With ``wait``, return only once no counted trial is still running elsewhere (so the study
-    is complete); without, return as soon as the budget is taken."""
+    is complete); without, return as soon as the budget is taken. ``on_trial(study, trial)``
+    is called after each trial this process finishes (e.g. to log it). An interrupt
+    (``KeyboardInterrupt``, SIGTERM raised as one) fails the running trial, queues it to be
+    re-run, and propagates."""
     worker = f"{socket.gethostname()}:{os.getpid()}"
+    beat = heartbeat_interval(stale_after_s)
     start = time.perf_counter()
     while timeout is None or time.perf_counter() - start < timeout:
         _fail_stale(study, stale_after_s)
         counted = [t for t in study.get_trials(deepcopy=False) if _counted(t)]
-        if len(counted) >= n_trials:
+        queued = any(t.state == TrialState.WAITING for t in counted)
+        if len(counted) >= n_trials and not queued:
             if wait and any(t.state == TrialState.RUNNING for t in counted):
-                time.sleep(0.2)  # another worker's last trials: leave the study complete
+                time.sleep(0.5)  # another worker's last trials: leave the study complete
                 continue
             return
-        trial = study.ask()
-        trial.set_user_attr("worker", worker)
-        trial.set_user_attr("heartbeat", time.time())
+        trial = _start_trial(study, worker)
         earlier = [t for t in study.get_trials(deepcopy=False) if t.number < trial.number]
         if sum(_counted(t) for t in earlier) >= n_trials:  # another worker filled the budget
             trial.set_user_attr("surplus", True)
@@ -131,14 +319,23 @@ def run_study(study: optuna.Study, objective: Callable, n_trials: int, *,
             continue
         state, value, note = TrialState.COMPLETE, None, ""
         try:
-            value = objective(trial)
+            with _Heartbeat(study, trial, beat):
+                value = objective(trial)
         except optuna.TrialPruned as exc:
             state, note = TrialState.PRUNED, str(exc)
         except Exception as exc:  # a failed configuration is recorded, never chosen
             state, note = TrialState.FAIL, f"{type(exc).__name__}: {exc}"
             trial.set_user_attr("error", note[:2000])
+        except BaseException:  # interrupted: not the configuration's fault, run it again
+            _fail_and_retry(study, trial.number)
+            raise
         trial.set_user_attr("finished_by", worker)
-        study.tell(trial, value if state == TrialState.COMPLETE else None, state=state)
+        try:
+            study.tell(trial, value if state == TrialState.COMPLETE else None, state=state)
+        except (RuntimeError, ValueError, UpdateFinishedTrialError):
+            continue  # taken for dead meanwhile (and queued again): the retry counts instead
+        if on_trial is not None:
+            on_trial(study, study.get_trials(deepcopy=False)[trial.number])
         if progress:
             best = _best_value(study)
             shown = f"MAE {value:.4f}" if value is not None else note[:60]
@@ -147,44 +344,85 @@ def run_study(study: optuna.Study, objective: Callable, n_trials: int, *,
                   file=progress, flush=True)
 
 
-
 def run_studies(cfg, studies: list[tuple[optuna.Study, Callable]], *,
-                progress: TextIO | None = None) -> None:
-    """Run (or resume) ``(study, objective)`` pairs to their budgets in this process."""
+                progress: TextIO | None = None,
+                on_trial: Callable[[optuna.Study, FrozenTrial], None] | None = None) -> None:
+    """Run (or resume) ``(study, objective)`` pairs to their budgets in this process, with a
+    sampler stream of its own (see :func:`claim_stream`)."""
+    if not studies:
+        return
+    stream = claim_stream(studies[0][0])
+    for study, _ in studies:
+        study.sampler = _sampler(cfg, study.study_name, stream)
     # First pass: take trials wherever budget is left, never idling while another worker
     # finishes a study's last trials; second pass: make sure every study is complete.
     for wait in (False, True):
         for study, objective in studies:
             run_study(study, objective, cfg.study.trials, timeout=cfg.study.timeout,
-                      stale_after_s=cfg.study.stale_after_s, progress=progress, wait=wait)
+                      stale_after_s=cfg.study.stale_after_s, progress=progress, wait=wait,
+                      on_trial=on_trial)
 
 
-def _worker(search: Callable, cfg, storage_url: str, index: int, show: bool) -> None:
-    search(cfg, storage_url, progress=sys.stderr if show else None, worker=index)
+def _watch_parent(parent: int) -> None:
+    """Ends this worker (SIGTERM to itself) when its parent process is gone, e.g. SIGKILLed."""
+    def watch():
+        while os.getppid() == parent:
+            time.sleep(1.0)
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(60)  # the main thread is stuck in native code: do not linger
+        os._exit(EXIT_SIGTERM)
+
+    threading.Thread(target=watch, daemon=True, name="watch-parent").start()
+
+
+def _worker(search: Callable, cfg, storage_url: str, index: int, show: bool, parent: int,
+            on_trial) -> None:
+    from .lifecycle import handle_signals
+
+    _watch_parent(parent)
+    try:
+        with handle_signals():  # Ctrl-C reaches the whole group: the parent reports it
+            search(cfg, storage_url, progress=sys.stderr if show else None, worker=index,
+                   on_trial=on_trial)
+    except KeyboardInterrupt as exc:  # its running trial is failed and queued again
+        sys.exit(getattr(exc, "code", EXIT_SIGINT))
 
 
 def _search_in_workers(search: Callable, cfg, storage_url: str, workers: int,
-                       progress: TextIO | None, names: list[str], root: Path) -> None:
-    """``search(cfg, storage_url, progress=, worker=)`` (a module-level function: workers are
-    spawned) in ``workers`` processes, after creating the studies ``names`` once."""
+                       progress: TextIO | None, names: list[str], root: Path,
+                       on_trial=None) -> None:
+    """``search(cfg, storage_url, progress=, worker=, on_trial=)`` (a module-level function:
+    workers are spawned) in ``workers`` processes, after creating the studies ``names`` once.
+    An interrupt of this process ends the workers (their running trials are queued again)."""
     if workers == 1:
-        search(cfg, storage_url, progress=progress)
+        search(cfg, storage_url, progress=progress, on_trial=on_trial)
         return
     # Create the storage and studies once, before workers race to do it.
-    storage = open_storage(storage_url, root)
+    storage = open_storage(storage_url, root, stale_after_s=cfg.study.stale_after_s)
     for name in names:
         optuna.create_study(study_name=name, storage=storage, direction="minimize",
                             load_if_exists=True)
     saved = {k: os.environ.get(k) for k in THREAD_ENV}
     os.environ.update({k: "1" for k in THREAD_ENV})  # one BLAS/OpenMP thread per worker
+    procs = []
     try:
         ctx = multiprocessing.get_context("spawn")
-        procs = [ctx.Process(target=_worker, args=(search, cfg, storage_url, i, bool(progress)))
+        procs = [ctx.Process(target=_worker, args=(search, cfg, storage_url, i, bool(progress),
+                                                   os.getpid(), on_trial))
                  for i in range(workers)]
         for p in procs:
             p.start()
         for p in procs:
             p.join()
+    except BaseException:
+        for p in procs:  # interrupted: the workers fail and queue their trials, then exit
+            if p.is_alive():
+                p.terminate()
+        for p in procs:
+            p.join(timeout=30)
+            if p.is_alive():
+                p.kill()
+        raise
     finally:
         for k, v in saved.items():
             if v is None:
@@ -194,3 +432,15 @@ def _search_in_workers(search: Callable, cfg, storage_url: str, workers: int,
     failed = [p.exitcode for p in procs if p.exitcode != 0]
     if failed:
         raise RuntimeError(f"{len(failed)} of {workers} sweep workers exited with codes {failed}")
+
+
+def dashboard_command(storage: str, port: int, root: Path) -> list[str]:
+    """The ``optuna-dashboard`` command line serving the studies of ``storage`` (a journal
+    file, relative to ``root``, or an RDB URL) on 127.0.0.1."""
+    cmd = [sys.executable, "-c", "from optuna_dashboard._cli import main; main()",
+           "--host", "127.0.0.1", "--port", str(port)]  # the package has no __main__
+    if "://" in storage:
+        return cmd + [storage]
+    path = Path(storage)
+    path = path if path.is_absolute() else root / path
+    return cmd + ["--storage-class", "JournalFileStorage", str(path)]

@@ -1,0 +1,255 @@
+"""Runs never left RUNNING (signals, silent deaths), safe first use of a SQLite store, storage
+errors of one line, heartbeats while a trial runs, distinct sampler streams."""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import threading
+import time
+
+import optuna
+import pytest
+from mlflow import MlflowClient
+from optuna.trial import TrialState
+
+from services import command_env, free_port, tiny_sweep, workbench_cmd
+
+from workbench.experiment import lifecycle
+from workbench.experiment.cli import main
+from workbench.experiment.studies import (STREAMS, _counted, _fail_stale, claim_stream,
+                                          open_storage, redact, run_study)
+from workbench.experiment.tracking import Tracker
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    return tiny_sweep(tmp_path_factory.mktemp("tiny"), trials=4)
+
+
+def _sweep_studies(storage) -> list[str]:
+    names = [n for n in optuna.get_all_study_names(storage) if not n.endswith(STREAMS)]
+    assert len(names) == 3
+    return names
+
+
+def _runs(uri):
+    client = MlflowClient(uri)
+    exp = client.get_experiment_by_name("tiny")
+    return client.search_runs([exp.experiment_id]) if exp else []
+
+
+def _sweep_until_a_trial(cmd, cwd, err):
+    """Start ``cmd``; return it once its search runs (its parent run exists then)."""
+    fh = open(err, "w")
+    proc = subprocess.Popen(cmd, cwd=cwd, env=command_env(), stdout=subprocess.DEVNULL,
+                            stderr=fh)
+    deadline = time.monotonic() + 120
+    while "] trial " not in err.read_text() and time.monotonic() < deadline:
+        assert proc.poll() is None, err.read_text()[-3000:]
+        time.sleep(0.05)
+    return proc
+
+
+def test_runs_never_left_running(tiny, tmp_path):
+    """SIGKILL leaves a RUNNING run that the next command marks FAILED at its start (its
+    process is gone); SIGINT and SIGTERM end the run KILLED, print one line and exit 130 /
+    143; every interrupted trial is failed and queued again."""
+    uri = f"sqlite:///{tmp_path / 'mlflow.db'}"
+    journal = tmp_path / "s.journal"
+    cmd = workbench_cmd("sweep", tiny, "--storage", journal, "--tracking-uri", uri)
+
+    def status(proc):
+        return {r.data.tags.get("workbench.pid"): r.info.status for r in _runs(uri)}[
+            str(proc.pid)]
+
+    silent = _sweep_until_a_trial(cmd, tmp_path, tmp_path / "kill.log")
+    silent.send_signal(signal.SIGKILL)
+    silent.wait(timeout=30)
+    assert status(silent) == "RUNNING"
+    for signum, code in ((signal.SIGINT, 130), (signal.SIGTERM, 143)):
+        err = tmp_path / f"{signum}.log"
+        proc = _sweep_until_a_trial(cmd, tmp_path, err)
+        assert status(silent) == "FAILED"  # found dead when this command started
+        assert status(proc) == "RUNNING"  # the sweep's run exists during the search
+        proc.send_signal(signum)
+        assert proc.wait(timeout=60) == code
+        text = err.read_text()
+        assert "Traceback" not in text and text.count("interrupted") == 1
+        assert text.splitlines()[-1] == "workbench: interrupted; run the same command to resume"
+        assert status(proc) == "KILLED"
+    runs = _runs(uri)
+    assert not [r for r in runs if r.info.status == "RUNNING"]
+    dead = [r for r in runs if r.data.tags.get("workbench.pid") == str(silent.pid)]
+    assert dead[0].data.tags["workbench.failed"] == "its process is gone"
+    storage = open_storage(str(journal), tmp_path)
+    for name in _sweep_studies(storage):
+        trials = optuna.load_study(study_name=name, storage=storage).get_trials()
+        interrupted = [t for t in trials if t.state == TrialState.FAIL and not _counted(t)]
+        retried = [t for t in trials if "failed_trial" in t.system_attrs]
+        assert len(retried) == len(interrupted)  # each queued once more
+        assert not [t for t in trials if t.state == TrialState.RUNNING]
+
+
+def test_reaper_uses_heartbeats_for_other_hosts(tmp_path):
+    tracker = Tracker(f"sqlite:///{tmp_path / 'mlflow.db'}", "reap")
+    now = time.time()
+    tags = {lifecycle.HOST_TAG: "another-host", lifecycle.PID_TAG: "4242"}
+    silent = tracker.start_run("silent", tags={**tags, lifecycle.HEARTBEAT_TAG: now - 600})
+    beating = tracker.start_run("beating", tags={**tags, lifecycle.HEARTBEAT_TAG: now})
+    child = tracker.start_run("child", parent_run_id=silent)
+    with lifecycle.live_run(tracker, "mine") as mine:  # this process: alive
+        assert sorted(lifecycle.reap_stale_runs(tracker, grace_s=60)) == sorted([silent, child])
+        status = {r: tracker.client.get_run(r).info.status for r in (silent, beating, mine)}
+    assert status == {silent: "FAILED", beating: "RUNNING", mine: "RUNNING"}
+    assert tracker.client.get_run(mine).info.status == "FINISHED"
+
+
+def test_two_concurrent_evaluates_on_a_new_sqlite_store(tiny, tmp_path):
+    uri = f"sqlite:///{tmp_path / 'new' / 'mlflow.db'}"
+    cmd = workbench_cmd("evaluate", tiny, "--tracking-uri", uri)
+    procs = [subprocess.Popen(cmd, cwd=tmp_path, env=command_env(), stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    outs = [p.communicate(timeout=240) for p in procs]
+    assert [p.returncode for p in procs] == [0, 0], [o[1][-2000:] for o in outs]
+    assert [r.info.status for r in _runs(uri)] == ["FINISHED", "FINISHED"]
+
+
+@pytest.mark.parametrize("storage, problem", [
+    ("{dir}", "is a directory"),
+    ("mysql+mysqldb://user:s3cret@127.0.0.1/db", "driver is not installed"),
+    ("postgresql+psycopg2://user:s3cret@127.0.0.1:{port}/db", "cannot connect"),
+])
+def test_storage_problems_end_in_one_line(tiny, tmp_path, capsys, storage, problem):
+    storage = storage.format(dir=tmp_path, port=free_port())
+    assert main(["sweep", str(tiny), "--storage", storage, "--no-track"]) == 2
+    err = capsys.readouterr().err
+    errors = [line for line in err.splitlines() if line.startswith("workbench: error:")]
+    assert len(errors) == 1 and problem in errors[0], err
+    assert "Traceback" not in err and "s3cret" not in err
+
+
+def test_redact_hides_passwords():
+    assert redact("postgresql://u:pw@h:5432/db") == "postgresql://u:***@h:5432/db"
+    assert redact("http://u:pw@h:5000") == "http://u:***@h:5000"
+    assert redact("mlruns/optuna.journal") == "mlruns/optuna.journal"
+
+
+@pytest.mark.parametrize("kind", ["journal", "sqlite"])
+def test_heartbeat_beats_while_a_long_trial_runs(tmp_path, kind):
+    """A trial longer than the grace period is not failed by another worker's check: its
+    heartbeat beats from a background thread (Optuna's table for RDB, a user attribute for
+    the journal)."""
+    url = str(tmp_path / "h.journal") if kind == "journal" else f"sqlite:///{tmp_path}/h.db"
+    storage = open_storage(url, tmp_path, stale_after_s=2)
+    study = optuna.create_study(study_name="h", storage=storage)
+    checks, stop = [], threading.Event()
+
+    def other_worker():  # another machine's view: same study, checking for stale trials
+        other = optuna.load_study(study_name="h", storage=open_storage(url, tmp_path,
+                                                                       stale_after_s=2))
+        while not stop.wait(0.5):
+            _fail_stale(other, 2)
+            checks.append(1)
+
+    def objective(trial):
+        time.sleep(5)  # one long fold
+        return trial.suggest_float("x", 0, 1)
+
+    watcher = threading.Thread(target=other_worker)
+    watcher.start()
+    try:
+        run_study(study, objective, 1, stale_after_s=2)
+    finally:
+        stop.set()
+        watcher.join()
+    assert len(checks) >= 5
+    assert [t.state for t in study.get_trials()] == [TrialState.COMPLETE]
+
+
+def test_dead_worker_on_this_host_is_failed_at_once_and_rerun_once(tmp_path):
+    study = optuna.create_study(study_name="d", storage=open_storage(str(tmp_path / "d.j"),
+                                                                      tmp_path))
+    gone = subprocess.Popen(["true"])
+    gone.wait()
+    ghost = study.ask({"x": optuna.distributions.FloatDistribution(0, 1)})
+    ghost.set_user_attr("worker", f"{socket.gethostname()}:{gone.pid}")
+    ghost.set_user_attr("heartbeat", time.time())  # fresh: only the dead pid tells
+    seen = []
+    run_study(study, lambda t: seen.append(t.params["x"]) or t.suggest_float("x", 0, 1), 3,
+              stale_after_s=600)
+    trials = study.get_trials()
+    assert trials[0].state == TrialState.FAIL and not _counted(trials[0])
+    assert seen[0] == trials[0].params["x"]  # re-run with the same parameters
+    assert trials[1].system_attrs["failed_trial"] == 0
+    assert sum(_counted(t) for t in trials) == 3
+
+
+def test_processes_claim_distinct_streams(tmp_path):
+    storage = open_storage(str(tmp_path / "c.journal"), tmp_path)
+    study = optuna.create_study(study_name="c", storage=storage)
+    claims = []
+    threads = [threading.Thread(target=lambda: claims.append(claim_stream(
+        optuna.load_study(study_name="c", storage=storage)))) for _ in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert sorted(claims) == [0, 1, 2, 3]
+    assert claim_stream(study) == 4
+
+
+def test_rerun_after_killing_a_sweep_and_its_workers(tiny, tmp_path):
+    """SIGKILL on the parent of ``--workers 2``: the workers end with it (their trials are
+    queued again); the rerun does not wait for ``stale_after_s`` (600 s here)."""
+    uri = f"sqlite:///{tmp_path / 'mlflow.db'}"
+    storage = str(tmp_path / "w.journal")
+    cmd = workbench_cmd("sweep", tiny, "--storage", storage, "--tracking-uri", uri,
+                        "--workers", "2")
+    log = tmp_path / "parent.log"
+    parent = subprocess.Popen(cmd, cwd=tmp_path, env=command_env(), stdout=subprocess.DEVNULL,
+                              stderr=open(log, "w"))
+    try:
+        rdb = open_storage(storage, tmp_path)
+        deadline = time.monotonic() + 120
+        workers: set[int] = set()
+        while len(workers) < 2 and time.monotonic() < deadline:
+            workers = {int(t.user_attrs["worker"].rpartition(":")[2])
+                       for s in optuna.get_all_study_summaries(rdb)
+                       for t in optuna.load_study(study_name=s.study_name, storage=rdb)
+                       .get_trials(deepcopy=False) if "worker" in t.user_attrs}
+            time.sleep(0.1)
+        assert len(workers) == 2, log.read_text()[-3000:]
+        parent.send_signal(signal.SIGKILL)
+        parent.wait(timeout=30)
+    finally:
+        if parent.poll() is None:
+            parent.kill()
+    deadline = time.monotonic() + 90  # a worker in a fold notices at the fold's end
+    while time.monotonic() < deadline and any(_alive(p) for p in workers):
+        time.sleep(0.2)
+    assert not any(_alive(p) for p in workers), "workers outlived their parent"
+
+    rerun = subprocess.run(cmd[:-2] + ["--no-track"], cwd=tmp_path, env=command_env(),
+                           capture_output=True, text=True,
+                           timeout=240)  # << stale_after_s: no wait for the dead workers
+    assert rerun.returncode == 0, rerun.stderr[-3000:]
+    for name in _sweep_studies(rdb):
+        trials = optuna.load_study(study_name=name, storage=rdb).get_trials()
+        assert sum(_counted(t) for t in trials) == 4
+        assert not [t for t in trials if t.state in (TrialState.RUNNING, TrialState.WAITING)]
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    # a zombie (exited, not yet reaped by init) counts as gone
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            return fh.read().split(")")[-1].split()[0] != "Z"
+    except OSError:
+        return False

@@ -1,0 +1,288 @@
+"""Lifecycle of the MLflow runs of ``evaluate`` and ``sweep``: never left RUNNING.
+
+* :func:`handle_signals`: SIGINT and SIGTERM raise :class:`Interrupted` (a
+  ``KeyboardInterrupt``) in the main thread, so the command unwinds, ends its run ``KILLED``
+  and exits 130 / 143 with the one line :data:`MESSAGE` (no traceback).
+* :func:`command_run`: the command's parent run, created before any work (a sweep's search is
+  visible in MLflow while it runs), with a heartbeat tag that a background thread refreshes;
+  ``FINISHED``, ``KILLED`` (interrupt) or ``FAILED`` (error) at the end.
+* :func:`reap_stale_runs`: a run whose process died without a word (SIGKILL, power loss) is
+  marked ``FAILED`` by the next command on the store: at once if its process was on this host
+  and is gone, else once its heartbeat is older than :data:`RUN_GRACE_S`.
+* :func:`prepare_store`: a new SQLite store is created and migrated by one process at a time
+  (a file lock beside the database), so concurrent first commands do not race in alembic.
+* :class:`TrialRecorder`: a sweep's trials become child runs as they finish.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import socket
+import threading
+import time
+from collections.abc import Iterator, Mapping
+from typing import Any
+
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # mlflow is imported only where a run is touched
+    from .tracking import Tracker
+
+__all__ = ["Interrupted", "MESSAGE", "TrialRecorder", "command_run", "handle_signals",
+           "prepare_store", "reap_stale_runs"]
+
+MESSAGE = "interrupted; run the same command to resume"
+#: Seconds between a live run's heartbeats, and after which a silent run counts as dead.
+RUN_HEARTBEAT_S = float(os.environ.get("WORKBENCH_RUN_HEARTBEAT_S", 30))
+RUN_GRACE_S = 4 * RUN_HEARTBEAT_S
+HOST_TAG, PID_TAG, HEARTBEAT_TAG = "workbench.host", "workbench.pid", "workbench.heartbeat"
+
+
+class Interrupted(KeyboardInterrupt):
+    """SIGINT or SIGTERM; ``code`` is the exit code (128 + signal number)."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.code = 128 + signum
+
+
+#: Code that must not be interrupted half-way (a storage's file lock, a database transaction,
+#: a tracking request): a signal that arrives there is raised as soon as the code is left.
+_STORAGE_CODE = tuple(os.sep + p + os.sep for p in (
+    os.path.join("optuna", "storages"), "sqlalchemy", os.path.join("mlflow", "store"),
+    "alembic", "sqlite3", "psycopg2", "urllib3", "fasteners"))
+
+
+def _in_storage_code(frame) -> bool:
+    while frame is not None:
+        name = frame.f_code.co_filename
+        if any(p in name for p in _STORAGE_CODE):
+            return True
+        frame = frame.f_back
+    return False
+
+
+@contextlib.contextmanager
+def handle_signals() -> Iterator[None]:
+    """SIGINT and SIGTERM raise :class:`Interrupted` in the main thread (once: further
+    signals are ignored while the command cleans up). A signal that arrives inside storage
+    code (e.g. Optuna's journal-file lock, which would turn the interrupt into a
+    ``FileNotFoundError`` and leave its lock behind) is raised 50 ms later, once that code is
+    left."""
+    fired: list[int] = []
+    pending: list[int] = []
+
+    def handler(signum, frame):
+        if fired:
+            return
+        if _in_storage_code(frame):
+            pending[:] = [signum]
+            signal.setitimer(signal.ITIMER_REAL, 0.05)
+            return
+        pending.clear()
+        fired.append(signum)
+        raise Interrupted(signum)
+
+    def retry(signum, frame):
+        if pending:
+            handler(pending[0], frame)
+
+    signals = (signal.SIGINT, signal.SIGTERM, signal.SIGALRM)
+    old = {s: signal.signal(s, retry if s == signal.SIGALRM else handler) for s in signals}
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        for s, h in old.items():
+            signal.signal(s, h)
+
+
+# --------------------------------------------------------------------------- stores
+
+
+@contextlib.contextmanager
+def _first_use_lock(uri: str) -> Iterator[None]:
+    """An exclusive lock on ``<db>.lock`` beside a SQLite store (no-op for other stores)."""
+    from .tracking import _sqlite_path
+
+    path = _sqlite_path(uri)
+    if path is None or path.is_dir():
+        yield
+        return
+    import fcntl
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path.with_name(path.name + ".lock"), "a") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+def prepare_store(tracker: Tracker) -> str:
+    """Create (and migrate) the tracking store and the experiment, one process at a time;
+    returns the experiment id. Raises :class:`~workbench.experiment.tracking.TrackingError`."""
+    with _first_use_lock(tracker.tracking_uri):
+        return tracker.experiment_id
+
+
+# --------------------------------------------------------------------------- runs
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def reap_stale_runs(tracker: Tracker, grace_s: float | None = None) -> list[str]:
+    """Mark ``FAILED`` the RUNNING runs of the tracker's experiment whose process is gone:
+    same host and dead pid, or a heartbeat older than ``grace_s`` (default
+    :data:`RUN_GRACE_S`); and RUNNING children of runs that are no longer running. Returns
+    the run ids marked."""
+    grace = RUN_GRACE_S if grace_s is None else grace_s
+    client, host, now = tracker.client, socket.gethostname(), time.time()
+    with tracker._errors():
+        running = client.search_runs([tracker.experiment_id],
+                                     filter_string="attributes.status = 'RUNNING'",
+                                     max_results=5000)
+    reaped = []
+    for run in running:
+        tags = run.data.tags
+        if HEARTBEAT_TAG not in tags:
+            continue
+        pid = tags.get(PID_TAG, "")
+        dead = (tags.get(HOST_TAG) == host and pid.isdigit() and int(pid) != os.getpid()
+                and not _alive(int(pid)))
+        silent = now - float(tags[HEARTBEAT_TAG]) > grace
+        if dead or silent:
+            why = "its process is gone" if dead else f"no heartbeat for {grace:.0f} s"
+            tracker.set_tags(run.info.run_id, {"workbench.failed": why})
+            tracker.end_run(run.info.run_id, "FAILED")
+            reaped.append(run.info.run_id)
+    live = {r.info.run_id for r in running} - set(reaped)
+    for run in running:  # children started just before their parent's process died
+        parent = run.data.tags.get("mlflow.parentRunId")
+        if parent and parent not in live and run.info.run_id not in reaped:
+            tracker.end_run(run.info.run_id, "FAILED")
+            reaped.append(run.info.run_id)
+    return reaped
+
+
+class _RunHeartbeat:
+    def __init__(self, tracker: Tracker, run_id: str, interval: float):
+        self._tracker, self._run_id, self._interval = tracker, run_id, interval
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._beat, daemon=True, name="run-heartbeat")
+
+    def _beat(self) -> None:
+        while not self._stop.wait(self._interval):
+            try:
+                self._tracker.set_tags(self._run_id, {HEARTBEAT_TAG: f"{time.time():.0f}"})
+            except Exception:  # a missed beat: the grace period covers several
+                pass
+
+    def __enter__(self):
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        self._thread.join(timeout=10)
+
+
+@contextlib.contextmanager
+def live_run(tracker: Tracker, name: str, *, tags: Mapping[str, Any] | None = None,
+             interval: float | None = None) -> Iterator[str]:
+    """A run that exists while the block runs, with a heartbeat; ended ``FINISHED``,
+    ``KILLED`` on ``KeyboardInterrupt`` (:class:`Interrupted`), ``FAILED`` otherwise."""
+    all_tags = dict(tags or {})
+    all_tags.update({HOST_TAG: socket.gethostname(), PID_TAG: str(os.getpid()),
+                     HEARTBEAT_TAG: f"{time.time():.0f}"})
+    run_id = tracker.start_run(name, tags=all_tags)
+    status = "FINISHED"
+    try:
+        with _RunHeartbeat(tracker, run_id, interval or RUN_HEARTBEAT_S):
+            yield run_id
+    except KeyboardInterrupt:
+        status = "KILLED"
+        raise
+    except BaseException:
+        status = "FAILED"
+        raise
+    finally:
+        with _ignoring_signals():
+            try:
+                tracker.end_run(run_id, status)
+            except Exception as exc:  # never mask the original error
+                import logging
+
+                logging.getLogger(__name__).warning("could not mark run %s %s: %s", run_id,
+                                                    status, exc)
+
+
+@contextlib.contextmanager
+def _ignoring_signals() -> Iterator[None]:
+    """Let the run's end be written even if a second Ctrl-C arrives."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = {s: signal.signal(s, signal.SIG_IGN) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+
+
+@contextlib.contextmanager
+def command_run(tracker: Tracker | None, kind: str, name: str,
+                tags: Mapping[str, Any] | None = None) -> Iterator[str | None]:
+    """The parent run of one ``evaluate``/``sweep`` (``None`` without tracking): the store is
+    prepared, stale runs are reaped, then the run lives while the block runs."""
+    if tracker is None:
+        yield None
+        return
+    prepare_store(tracker)
+    reap_stale_runs(tracker)
+    with live_run(tracker, f"{kind} {name}",
+                  tags={"workbench.kind": kind, **dict(tags or {})}) as run_id:
+        yield run_id
+
+
+class TrialRecorder:
+    """``recorder(study, trial)``: one finished trial as a child run of ``parent_run_id``
+    (picklable, for worker processes)."""
+
+    def __init__(self, tracker: Tracker, parent_run_id: str):
+        self.tracker, self.parent_run_id = tracker, parent_run_id
+
+    def __call__(self, study, trial) -> None:
+        """Three requests per trial (create, one batch, end): it runs between trials."""
+        from mlflow.entities import Metric, Param
+
+        t, now = trial, int(time.time() * 1000)
+        run = self.tracker.start_run(
+            f"{study.study_name} #{t.number}", parent_run_id=self.parent_run_id,
+            tags={"workbench.kind": "trial", "study": study.study_name, "trial": t.number,
+                  "state": t.state.name, "worker": t.user_attrs.get("worker", "")})
+        metrics = [Metric("fold_mae", float(m), now, step)
+                   for step, m in enumerate(t.user_attrs.get("fold_mae", []))]
+        if t.value is not None:
+            metrics.append(Metric("inner_cv_mae", float(t.value), now, 0))
+        if "prior_cv_mae" in t.user_attrs:
+            metrics.append(Metric("prior_inner_cv_mae", float(t.user_attrs["prior_cv_mae"]),
+                                  now, 0))
+        metrics = [m for m in metrics if m.value == m.value and abs(m.value) != float("inf")]
+        params = [Param(str(k), str(v)) for k, v in t.params.items()]
+        with self.tracker._errors():
+            self.tracker.client.log_batch(run, metrics=metrics, params=params)
+        self.tracker.end_run(run, "FINISHED" if t.state.name in ("COMPLETE", "PRUNED")
+                             else "FAILED")
