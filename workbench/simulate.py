@@ -13,8 +13,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -22,6 +20,7 @@ import numpy as np
 import pandas as pd
 
 from .hamiltonian import CouplingGraph, graph_spectrum, make_graph
+from ._io import atomic_write
 
 __all__ = ["MECHANISMS", "Mismatch", "Simulation", "simulate", "write_simulation"]
 
@@ -261,24 +260,12 @@ def simulate(n_sites: int | None = 5, n_experiments: int = 136, *, seed: int | N
     return Simulation(data=data, truth=json.loads(json.dumps(truth)))
 
 
-def _atomic_write(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        os.chmod(tmp, 0o644)
-        with os.fdopen(fd, "w", newline="") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def write_simulation(sim: Simulation, out: str | Path) -> tuple[Path, Path]:
     """Write ``out`` (CSV, no index) and ``<out without .csv>.truth.json``, each atomically."""
     out = Path(out)
     stem = out.with_suffix("") if out.suffix.lower() == ".csv" else out
     truth_path = stem.parent / f"{stem.name}.truth.json"
     out.parent.mkdir(parents=True, exist_ok=True)
-    _atomic_write(out, sim.data.to_csv(index=False))
-    _atomic_write(truth_path, json.dumps(sim.truth, indent=1) + "\n")
+    atomic_write(out, sim.data.to_csv(index=False))
+    atomic_write(truth_path, json.dumps(sim.truth, indent=1) + "\n")
     return out, truth_path

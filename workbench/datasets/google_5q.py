@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .._io import atomic_write
 from .base import Dataset, Hamiltonian
 
 __all__ = ["DataUnavailableError", "load_google_5q", "google_5q_csv_path", "default_cache_dir"]
@@ -152,22 +153,10 @@ def _write_atomic(directory: Path, name: str, data: bytes) -> None:
     expected = FILES[name][1]
     if (actual := _sha256(data)) != expected:
         raise _fail(f"sha256 mismatch for downloaded {name}: expected {expected}, got {actual}")
-    tmp_name: str | None = None
     try:
-        directory.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=directory, prefix=f".{name}.", suffix=".part",
-                                         delete=False) as fh:
-            tmp_name = fh.name
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp_name, directory / name)
-        tmp_name = None
+        atomic_write(directory / name, data)
     except OSError as exc:
         raise _fail(f"cannot write {directory / name}: {exc}") from exc
-    finally:
-        if tmp_name is not None:
-            Path(tmp_name).unlink(missing_ok=True)
 
 
 def _ensure_files(data_dir: str | os.PathLike[str] | None, download: bool) -> Path:

@@ -21,11 +21,9 @@ log = logging.getLogger("workbench")
 
 
 def _write_json(path: str, payload: dict) -> None:
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(out.name + ".tmp")
-    tmp.write_text(json.dumps(payload, indent=2) + "\n")
-    tmp.replace(out)  # never leave a half-written result
+    from .._io import atomic_write
+
+    atomic_write(path, json.dumps(payload, indent=2) + "\n")  # never a half-written result
 
 
 def _check_before_work(cfg, args):

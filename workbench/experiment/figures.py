@@ -18,6 +18,7 @@ The same data give the same figure.
 
 from __future__ import annotations
 
+import io
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
@@ -25,6 +26,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
+from .._io import atomic_write
 from ..boosting import check_predictions
 from ..curves import LearningCurve
 
@@ -584,8 +586,9 @@ def save_figure(fig: Figure, path: str | Path, *, dpi: int = 120) -> Path:
         path = path.with_suffix(".png")
     if path.suffix.lower() != ".png":
         raise ValueError(f"save_figure writes PNG files; got the suffix {path.suffix!r} in {path}")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=dpi, format="png")
+    buffer = io.BytesIO()
+    fig.savefig(buffer, dpi=dpi, format="png")
+    atomic_write(path, buffer.getvalue())
     if getattr(fig.canvas, "manager", None) is not None:  # a pyplot figure: drop its reference
         import matplotlib.pyplot as plt
 

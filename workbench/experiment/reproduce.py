@@ -20,6 +20,7 @@ import numpy as np
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.neural_network import MLPRegressor
 
+from .._io import atomic_write
 from ..curves import augmented_learning_curve
 from .config import load_config
 from .evaluate import evaluate
@@ -245,7 +246,7 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
     if track:
         rep.mlflow = _log(rep, files, groups, out, tracking_uri, ds)
         _write(out / "results.json", rep.to_json())
-    (out / "README.md").write_text(report(rep))
+    atomic_write(out / "README.md", report(rep))
     _say(f"done in {rep.wall_s:.0f} s: {out / 'README.md'}")
     return rep
 
@@ -278,9 +279,7 @@ def _paper_candidates(ds):
 
 
 def _write(path: Path, obj) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(obj, indent=2, default=str) + "\n")
-    tmp.replace(path)
+    atomic_write(path, json.dumps(obj, indent=2, default=str) + "\n")
 
 
 def _log(rep: Reproduction, files, groups, out: Path, tracking_uri, ds) -> dict[str, str]:

@@ -42,14 +42,14 @@ class Artifacts:
         name -> path."""
         from pathlib import Path
 
+        from ..._io import atomic_write
         from ..figures import save_figure
 
         directory = Path(directory)
         directory.mkdir(parents=True, exist_ok=True)
         written: dict[str, Any] = {}
         for name, table in (self.tables.items() if tables else ()):
-            written[name] = directory / f"{name}.csv"
-            table.to_csv(written[name], index=False)
+            written[name] = atomic_write(directory / f"{name}.csv", table.to_csv(index=False))
         for name, fig in (self.figures.items() if figures else ()):
             written[name] = save_figure(fig, directory / f"{name}.png")
         return written
