@@ -40,9 +40,10 @@ def _numbers(result: dict) -> dict:
 
 
 def _assert_clean_error(err: str, *needles: str) -> None:
+    """No traceback; one error line (progress lines, e.g. "downloading ...", may precede it)."""
     assert "Traceback" not in err
-    first, *rest = err.strip().splitlines()
-    assert first.startswith("workbench: error:"), err
+    errors = [line for line in err.strip().splitlines() if line.startswith("workbench: error:")]
+    assert len(errors) == 1, err
     for needle in needles:
         assert needle in err, (needle, err)
 

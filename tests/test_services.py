@@ -70,7 +70,8 @@ def _check_studies(url, trials: int) -> dict:
         all_trials = study.get_trials()
         counted = [t for t in all_trials if _counted(t)]
         assert len(counted) == trials, name
-        assert all(t.state == TrialState.COMPLETE for t in counted), name
+        assert all(t.state == TrialState.COMPLETE for t in counted), (
+            name, [(t.number, t.state.name, t.user_attrs.get("error")) for t in all_trials])
         assert not any(t.state in (TrialState.RUNNING, TrialState.WAITING) for t in all_trials)
         params = Counter(tuple(sorted(t.params.items())) for t in counted)
         repeats = sum(n - 1 for n in params.values())
