@@ -15,7 +15,7 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .boosting import BaseBoostRegressor, PriorModel, seed_estimator
 
-__all__ = ["BaseBoostCV", "find_prior"]
+__all__ = ["BaseBoostCV", "BasisChoiceCV", "find_prior"]
 
 
 def find_prior(estimator):
@@ -178,3 +178,95 @@ class BaseBoostCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
 
     def __sklearn_is_fitted__(self):
         return hasattr(self, "selected_")
+
+
+class BasisChoiceCV(BaseBoostCV):
+    """The prior alone against several boosted candidates (e.g. one per basis family), all
+    scored on the same CV folds of the training rows: the candidate with the best mean score
+    is selected if it beats the prior (ties and failed candidates go to the prior).
+
+    A flexible stage for a physics model: which basis (ridge, kernel ridge, LightGBM, the
+    paper's stacking, ...) captures what the physics misses is decided by CV per target,
+    and boosting is kept only where it helps.
+
+    Parameters
+    ----------
+    candidates : dict of str -> regressor
+        The boosted candidates by name (each with the same ``prior``).
+    incumbent, cv, scoring, refit, n_jobs, random_state :
+        As in :class:`BaseBoostCV` (one seed reaches every candidate).
+
+    Attributes
+    ----------
+    selected_ : {"prior", "boosted"}
+    selected_candidate_ : str or None
+        The winning candidate's name (``None`` when the prior is selected).
+    candidate_scores_ : dict of str -> ndarray of shape (n_splits,)
+        Every candidate's fold scores.
+    estimator_ : regressor
+        The winning candidate (the first one when the prior is selected), unfitted.
+    cv_scores_prior_, cv_scores_boosted_, cv_predictions_prior_, cv_predictions_boosted_,
+    fit_errors_, best_estimator_ :
+        As in :class:`BaseBoostCV`, the boosted ones of the winning candidate.
+    """
+
+    def __init__(self, candidates=None, *, incumbent=None, cv=5,
+                 scoring="neg_mean_absolute_error", refit=True, n_jobs=None, random_state=None):
+        self.candidates = candidates
+        self.incumbent = incumbent
+        self.cv = cv
+        self.scoring = scoring
+        self.refit = refit
+        self.n_jobs = n_jobs
+        self.random_state = random_state
+
+    def fit(self, X, y, fold_callback=None):
+        """Score the prior and every candidate on the same folds, then (if ``refit``) refit
+        the selected model; returns ``self``. ``fold_callback`` is not supported (it would be
+        called once per candidate and fold)."""
+        if fold_callback is not None:
+            raise TypeError("BasisChoiceCV takes no fold_callback")
+        if not isinstance(self.candidates, dict) or not self.candidates:
+            raise ValueError(f"candidates must be a non-empty dict of name -> regressor, got "
+                             f"{self.candidates!r}")
+        runs = {}
+        for name, candidate in self.candidates.items():
+            with warnings.catch_warnings():  # a failing candidate is simply not chosen
+                warnings.simplefilter("ignore", FitFailedWarning)
+                runs[name] = BaseBoostCV(candidate, incumbent=self.incumbent, cv=self.cv,
+                                         scoring=self.scoring, refit=False, n_jobs=self.n_jobs,
+                                         random_state=self.random_state).fit(X, y)
+        self.candidate_scores_ = {n: r.cv_scores_boosted_ for n, r in runs.items()}
+        ok = {n: r for n, r in runs.items()
+              if not r.fit_errors_ and np.all(np.isfinite(r.cv_scores_boosted_))}
+        first = next(iter(runs.values()))
+        best = max(ok, key=lambda n: ok[n].cv_scores_boosted_.mean()) if ok else None
+        chosen = runs[best] if best is not None else first
+        for attr in ("cv_scores_prior_", "cv_scores_boosted_", "cv_predictions_prior_",
+                     "cv_predictions_boosted_", "fit_errors_", "n_features_in_"):
+            if hasattr(chosen, attr):
+                setattr(self, attr, getattr(chosen, attr))
+        if hasattr(chosen, "feature_names_in_"):
+            self.feature_names_in_ = chosen.feature_names_in_
+        wins = best is not None and chosen.cv_scores_boosted_.mean() > \
+            chosen.cv_scores_prior_.mean()
+        self.selected_ = "boosted" if wins else "prior"
+        self.selected_candidate_ = best if wins else None
+        self.estimator_ = self.candidates[best if best is not None else next(iter(runs))]
+        if self.refit:
+            refit = BaseBoostCV(self.estimator_, incumbent=self.incumbent, cv=self.cv,
+                                scoring=self.scoring, random_state=self.random_state)
+            incumbent = (PriorModel(prior=find_prior(refit._candidate()))
+                         if self.incumbent is None else self.incumbent)
+            if wins:
+                try:
+                    self.best_estimator_ = refit._candidate().fit(
+                        X if hasattr(X, "iloc") else np.asarray(X), np.ravel(y))
+                except Exception as exc:
+                    warnings.warn(f"refitting {best} on all rows failed ({exc}); selecting "
+                                  "the prior", FitFailedWarning, stacklevel=2)
+                    self.selected_, self.selected_candidate_ = "prior", None
+            if self.selected_ == "prior":
+                self.best_estimator_ = clone(incumbent).fit(
+                    X if hasattr(X, "iloc") else np.asarray(X), np.ravel(y))
+        return self

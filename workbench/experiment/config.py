@@ -159,7 +159,7 @@ class BoostSettings(Section):
     """The eigenvalue-space boosting settings of one target (``[model]``, or a
     ``[model.targets.<target>]`` override, where every key is optional)."""
 
-    basis: str | None = None
+    basis: str | list[str] | None = None
     basis_params: dict[str, Any] | None = None
     n_stages: int | None = Field(default=None, ge=1, le=10_000)
     loss: LOSS_NAMES | None = None
@@ -193,6 +193,19 @@ def check_boost_settings(settings: dict[str, Any]) -> None:
     the offending key first."""
     from ..bases import BASES, TRANSFORMS, make_basis, make_transform
 
+    if isinstance(settings["basis"], list):  # candidates chosen by CV per target
+        names = settings["basis"]
+        if not names or len(set(names)) != len(names):
+            raise ValueError(f"basis = {shorten(names)}: give distinct basis names")
+        params = settings["basis_params"]
+        extra = sorted(set(params) - set(names))
+        if extra or not all(isinstance(v, dict) for v in params.values()):
+            raise ValueError(f"basis_params = {shorten(params)}: with a list of bases, give "
+                             f"one table per basis of the list ({names})")
+        for name in names:
+            check_boost_settings({**settings, "basis": name,
+                                  "basis_params": params.get(name, {})})
+        return
     if settings["basis"] not in BASES:
         raise ValueError(f"basis = {shorten(settings['basis'])}: unknown basis; valid: "
                          f"{sorted(BASES)}")

@@ -71,10 +71,20 @@ def per_target_boost(cfg: ExperimentConfig, ds: Dataset, priors: list[str], *,
     per_target = {}
     for target, prior in zip(names, priors):
         s = cfg.model_for(target)
-        booster = make_booster(s, prior=prior if boost_from_prior else None,
-                               inputs=target_inputs(s, ds, priors))
-        per_target[target] = BaseBoostCV(booster, cv=selection_cv(cfg),
-                                         scoring=cfg.selection.scoring)
+        start = prior if boost_from_prior else None
+        inputs = target_inputs(s, ds, priors)
+        if isinstance(s["basis"], list):  # the basis family too is chosen by CV
+            from ...selection import BasisChoiceCV
+
+            candidates = {name: make_booster({**s, "basis": name,
+                                              "basis_params": s["basis_params"].get(name, {})},
+                                             prior=start, inputs=inputs)
+                          for name in s["basis"]}
+            per_target[target] = BasisChoiceCV(candidates, cv=selection_cv(cfg),
+                                               scoring=cfg.selection.scoring)
+            continue
+        per_target[target] = BaseBoostCV(make_booster(s, prior=start, inputs=inputs),
+                                         cv=selection_cv(cfg), scoring=cfg.selection.scoring)
     return MultiTargetBaseBoost(target_estimators=per_target, n_jobs=cfg.n_jobs,
                                 random_state=cfg.random_state)
 
@@ -191,7 +201,8 @@ class EigenvalueFamily(ModelFamily):
         for target, est in zip(ds.target_names, model.estimators_):
             log.info("[%s] figures for %s: learning curve at sizes %s, SHAP", cfg.name, target,
                      sizes)
-            curve = augmented_learning_curve(est.estimator, X_train, y_train[target].to_numpy(),
+            candidate = getattr(est, "estimator_", None) or est.estimator  # BasisChoiceCV's
+            curve = augmented_learning_curve(candidate, X_train, y_train[target].to_numpy(),
                                              train_sizes=sizes, cv=folds,
                                              random_state=cfg.random_state)
             curves[target] = curve.to_dict()

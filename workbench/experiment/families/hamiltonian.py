@@ -166,8 +166,11 @@ class HamiltonianFamily(ModelFamily):
         return clone(model)
 
     def selected(self, model, targets):
-        return ["hamiltonian+boosted" if s == "boosted" else "hamiltonian"
-                for s in model.selected_]
+        """Per target "hamiltonian", or "hamiltonian+boosted" ("hamiltonian+<basis>" when the
+        stage chose its basis among several by CV) where the stage on top was kept."""
+        stages = model.boost_.estimators_ if model.boost_stage else [None] * len(targets)
+        return [f"hamiltonian+{getattr(e, 'selected_candidate_', None) or 'boosted'}"
+                if s == "boosted" else "hamiltonian" for s, e in zip(model.selected_, stages)]
 
     def scores(self, cfg, ds, model, Y_train, prior_test, y_test, pred):
         """``model.cv_mae``: the boosting stage's CV (NaN without a stage; the repeated CV of

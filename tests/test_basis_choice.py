@@ -1,0 +1,103 @@
+"""BasisChoiceCV: the basis family of a boosting stage chosen by CV, the prior kept unless a
+candidate beats it; wired through ``[model] basis = [...]``."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+from sklearn.base import clone
+
+from workbench.bases import make_basis
+from workbench.boosting import BaseBoostRegressor
+from workbench.selection import BaseBoostCV, BasisChoiceCV
+
+
+def _data(kind: str, n: int = 240, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    x = rng.uniform(-2, 2, size=(n, 2))
+    prior = 3 * x[:, 0]
+    if kind == "linear":
+        missed = 0.8 * x[:, 1]
+    elif kind == "step":
+        missed = 1.5 * (x[:, 1] > 0.3)
+    else:
+        missed = np.zeros(n)
+    y = prior + missed + 0.05 * rng.standard_normal(n)
+    X = pd.DataFrame({"prior": prior, "x0": x[:, 0], "x1": x[:, 1]})
+    return X, y
+
+
+def _candidates():
+    def booster(name, **params):
+        return BaseBoostRegressor(prior="prior", basis=make_basis(name, **params),
+                                  basis_features=["x0", "x1"], n_stages=1,
+                                  line_search_penalty=0.0)
+    return {"ridge": booster("ridge", alpha=1e-3),
+            "lightgbm": booster("lightgbm", n_estimators=60, min_child_samples=5)}
+
+
+@pytest.mark.parametrize("kind, expected", [("linear", "ridge"), ("step", "lightgbm"),
+                                            ("none", None)])
+def test_the_basis_that_captures_what_the_prior_misses_wins(kind, expected):
+    X, y = _data(kind)
+    model = BasisChoiceCV(_candidates(), cv=5, random_state=0).fit(X, y)
+    assert model.selected_candidate_ == expected
+    assert model.selected_ == ("prior" if expected is None else "boosted")
+    assert set(model.candidate_scores_) == {"ridge", "lightgbm"}
+    if expected is not None:  # the winner's scores are the ones reported
+        best = model.candidate_scores_[expected].mean()
+        assert best == max(s.mean() for s in model.candidate_scores_.values())
+        assert model.cv_score_ == pytest.approx(best)
+        assert np.isfinite(model.cv_predictions_).all()
+    assert model.predict(X).shape == (len(X),)
+
+
+def test_same_as_basebooostcv_with_one_candidate_and_seeded():
+    X, y = _data("step", seed=1)
+    cand = _candidates()["lightgbm"]
+    one = BasisChoiceCV({"lightgbm": cand}, cv=4, random_state=3).fit(X, y)
+    ref = BaseBoostCV(cand, cv=4, random_state=3).fit(X, y)
+    np.testing.assert_array_equal(one.cv_scores_boosted_, ref.cv_scores_boosted_)
+    np.testing.assert_array_equal(one.predict(X), ref.predict(X))
+    again = clone(one).fit(X, y)
+    np.testing.assert_array_equal(again.predict(X), one.predict(X))
+
+
+def test_a_failing_candidate_is_never_chosen():
+    X, y = _data("linear")
+    broken = BaseBoostRegressor(prior="prior", basis=make_basis("ridge"),
+                                basis_features=["no_such_column"])
+    model = BasisChoiceCV({"broken": broken, **_candidates()}, cv=3).fit(X, y)
+    assert model.selected_candidate_ == "ridge"
+    with pytest.raises(ValueError, match="non-empty dict"):
+        BasisChoiceCV({}).fit(X, y)
+
+
+def test_config_list_of_bases(tmp_path):
+    from workbench.experiment.config import ConfigError, load_config
+
+    path = tmp_path / "c.toml"
+    path.write_text('[model]\nbasis = ["ridge", "lightgbm"]\n'
+                    '[model.basis_params.lightgbm]\nn_estimators = 50\n')
+    cfg = load_config(path)
+    assert cfg.model_for("eeig1")["basis"] == ["ridge", "lightgbm"]
+    path.write_text('[model]\nbasis = ["ridge", "lightgbm"]\n'
+                    '[model.basis_params.lightgbm]\nn_estimators = 0\n')
+    with pytest.raises(ConfigError, match="n_estimators"):
+        load_config(path)
+    path.write_text('[model]\nbasis = ["ridge", "bogus"]\n')
+    with pytest.raises(ConfigError, match="bogus"):
+        load_config(path)
+
+
+def test_config_builds_a_basis_choice_per_target(tmp_path, google_5q):
+    from workbench.experiment.config import load_config
+
+    path = tmp_path / "c.toml"
+    path.write_text('[model]\nbasis = ["ridge", "kernel_ridge"]\ninput_transform = "standard"\n')
+    cfg = load_config(path)
+    model = cfg.family.build(cfg, google_5q)
+    est = model.target_estimators["eeig1"]
+    assert isinstance(est, BasisChoiceCV) and list(est.candidates) == ["ridge", "kernel_ridge"]
+    assert est.candidates["ridge"].prior == "peig1"
