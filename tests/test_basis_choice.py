@@ -33,8 +33,8 @@ def _candidates():
         return BaseBoostRegressor(prior="prior", basis=make_basis(name, **params),
                                   basis_features=["x0", "x1"], n_stages=1,
                                   line_search_penalty=0.0)
-    return {"ridge": booster("ridge", alpha=1e-3),
-            "lightgbm": booster("lightgbm", n_estimators=60, min_child_samples=5)}
+    return [("ridge", booster("ridge", alpha=1e-3)),
+            ("lightgbm", booster("lightgbm", n_estimators=60, min_child_samples=5))]
 
 
 @pytest.mark.parametrize("kind, expected", [("linear", "ridge"), ("step", "lightgbm"),
@@ -55,8 +55,8 @@ def test_the_basis_that_captures_what_the_prior_misses_wins(kind, expected):
 
 def test_same_as_basebooostcv_with_one_candidate_and_seeded():
     X, y = _data("step", seed=1)
-    cand = _candidates()["lightgbm"]
-    one = BasisChoiceCV({"lightgbm": cand}, cv=4, random_state=3).fit(X, y)
+    cand = dict(_candidates())["lightgbm"]
+    one = BasisChoiceCV([("lightgbm", cand)], cv=4, random_state=3).fit(X, y)
     ref = BaseBoostCV(cand, cv=4, random_state=3).fit(X, y)
     np.testing.assert_array_equal(one.cv_scores_boosted_, ref.cv_scores_boosted_)
     np.testing.assert_array_equal(one.predict(X), ref.predict(X))
@@ -68,10 +68,19 @@ def test_a_failing_candidate_is_never_chosen():
     X, y = _data("linear")
     broken = BaseBoostRegressor(prior="prior", basis=make_basis("ridge"),
                                 basis_features=["no_such_column"])
-    model = BasisChoiceCV({"broken": broken, **_candidates()}, cv=3).fit(X, y)
+    model = BasisChoiceCV([("broken", broken), *_candidates()], cv=3).fit(X, y)
     assert model.selected_candidate_ == "ridge"
-    with pytest.raises(ValueError, match="non-empty dict"):
-        BasisChoiceCV({}).fit(X, y)
+    with pytest.raises(ValueError, match="non-empty list"):
+        BasisChoiceCV([]).fit(X, y)
+
+
+def test_nested_params_like_a_pipeline():
+    model = BasisChoiceCV(_candidates())
+    params = model.get_params(deep=True)
+    assert params["ridge__prior"] == "prior" and "lightgbm__basis__n_estimators" in params
+    model.set_params(ridge__prior="x0", lightgbm__prior="x0")
+    assert all(c.prior == "x0" for _, c in model.candidates)
+    assert clone(model).get_params()["ridge__prior"] == "x0"
 
 
 def test_config_list_of_bases(tmp_path):
@@ -99,5 +108,6 @@ def test_config_builds_a_basis_choice_per_target(tmp_path, google_5q):
     cfg = load_config(path)
     model = cfg.family.build(cfg, google_5q)
     est = model.target_estimators["eeig1"]
-    assert isinstance(est, BasisChoiceCV) and list(est.candidates) == ["ridge", "kernel_ridge"]
-    assert est.candidates["ridge"].prior == "peig1"
+    assert isinstance(est, BasisChoiceCV)
+    assert [n for n, _ in est.candidates] == ["ridge", "kernel_ridge"]
+    assert dict(est.candidates)["ridge"].prior == "peig1"

@@ -11,6 +11,7 @@ from sklearn.exceptions import FitFailedWarning
 from sklearn.metrics import check_scoring
 from sklearn.model_selection import check_cv
 from sklearn.utils import _safe_indexing, check_random_state
+from sklearn.utils.metaestimators import _BaseComposition
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .boosting import BaseBoostRegressor, PriorModel, seed_estimator
@@ -180,7 +181,7 @@ class BaseBoostCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         return hasattr(self, "selected_")
 
 
-class BasisChoiceCV(BaseBoostCV):
+class BasisChoiceCV(_BaseComposition, BaseBoostCV):
     """The prior alone against several boosted candidates (e.g. one per basis family), all
     scored on the same CV folds of the training rows: the candidate with the best mean score
     is selected if it beats the prior (ties and failed candidates go to the prior).
@@ -191,8 +192,9 @@ class BasisChoiceCV(BaseBoostCV):
 
     Parameters
     ----------
-    candidates : dict of str -> regressor
-        The boosted candidates by name (each with the same ``prior``).
+    candidates : list of (str, regressor) tuples
+        The boosted candidates by name (each with the same ``prior``); their parameters are
+        nested as ``<name>__<param>``, as in a Pipeline.
     incumbent, cv, scoring, refit, n_jobs, random_state :
         As in :class:`BaseBoostCV` (one seed reaches every candidate).
 
@@ -220,17 +222,27 @@ class BasisChoiceCV(BaseBoostCV):
         self.n_jobs = n_jobs
         self.random_state = random_state
 
+    def get_params(self, deep=True):
+        return self._get_params("candidates", deep=deep)
+
+    def set_params(self, **params):
+        self._set_params("candidates", **params)
+        return self
+
     def fit(self, X, y, fold_callback=None):
         """Score the prior and every candidate on the same folds, then (if ``refit``) refit
         the selected model; returns ``self``. ``fold_callback`` is not supported (it would be
         called once per candidate and fold)."""
         if fold_callback is not None:
             raise TypeError("BasisChoiceCV takes no fold_callback")
-        if not isinstance(self.candidates, dict) or not self.candidates:
-            raise ValueError(f"candidates must be a non-empty dict of name -> regressor, got "
-                             f"{self.candidates!r}")
+        if not isinstance(self.candidates, list) or not self.candidates or not all(
+                isinstance(c, tuple) and len(c) == 2 for c in self.candidates):
+            raise ValueError(f"candidates must be a non-empty list of (name, regressor) "
+                             f"tuples, got {self.candidates!r}")
+        self._validate_names([name for name, _ in self.candidates])
+        candidates = dict(self.candidates)
         runs = {}
-        for name, candidate in self.candidates.items():
+        for name, candidate in candidates.items():
             with warnings.catch_warnings():  # a failing candidate is simply not chosen
                 warnings.simplefilter("ignore", FitFailedWarning)
                 runs[name] = BaseBoostCV(candidate, incumbent=self.incumbent, cv=self.cv,
@@ -252,7 +264,7 @@ class BasisChoiceCV(BaseBoostCV):
             chosen.cv_scores_prior_.mean()
         self.selected_ = "boosted" if wins else "prior"
         self.selected_candidate_ = best if wins else None
-        self.estimator_ = self.candidates[best if best is not None else next(iter(runs))]
+        self.estimator_ = candidates[best if best is not None else next(iter(runs))]
         if self.refit:
             refit = BaseBoostCV(self.estimator_, incumbent=self.incumbent, cv=self.cv,
                                 scoring=self.scoring, random_state=self.random_state)

@@ -76,10 +76,10 @@ def per_target_boost(cfg: ExperimentConfig, ds: Dataset, priors: list[str], *,
         if isinstance(s["basis"], list):  # the basis family too is chosen by CV
             from ...selection import BasisChoiceCV
 
-            candidates = {name: make_booster({**s, "basis": name,
-                                              "basis_params": s["basis_params"].get(name, {})},
-                                             prior=start, inputs=inputs)
-                          for name in s["basis"]}
+            candidates = [(name, make_booster({**s, "basis": name,
+                                               "basis_params": s["basis_params"].get(name, {})},
+                                              prior=start, inputs=inputs))
+                          for name in s["basis"]]
             per_target[target] = BasisChoiceCV(candidates, cv=selection_cv(cfg),
                                                scoring=cfg.selection.scoring)
             continue
