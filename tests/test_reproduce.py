@@ -88,6 +88,8 @@ def test_figures_show_the_json_numbers_and_mlflow_has_them(quick_run, tmp_path):
     assert client.get_experiment(run.info.experiment_id).name == "paper-reproduction"
 
 
+@pytest.mark.slow  # a second whole reproduction; determinism is also unit-tested (figures,
+# configs, the parameter-space model) in the default suite
 def test_same_seed_same_numbers_and_figures(quick_run, tmp_path, google_5q_dir, monkeypatch):
     out, _ = quick_run
     monkeypatch.setenv("WORKBENCH_DATA_DIR", str(google_5q_dir))

@@ -243,7 +243,7 @@ def build_parser() -> argparse.ArgumentParser:
                          "report folder and the MLflow experiment paper-reproduction")
     rep.add_argument("--out", default="reports", help="output folder (default: reports)")
     rep.add_argument("--quick", action="store_true",
-                     help="fewer curve points, SHAP rows and search trials (for tests)")
+                     help="fewer curve points, SHAP rows, search trials and folds (for tests)")
     rep.add_argument("--seed", type=int, default=0)
     rep.add_argument("--storage", default=None,
                      help="Optuna storage of the search (a journal file path or an RDB URL)")

@@ -129,8 +129,8 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
     from .search import run_sweep  # Optuna only here
 
     search_cfg = load_config(EXPERIMENTS / "paper_search.toml")
-    search_cfg = replace(search_cfg, random_state=seed,
-                         cv=search_cfg.cv.model_copy(update={"seed": seed}))
+    cv = {"seed": seed, **({"outer_folds": 2, "inner_folds": 3} if quick else {})}
+    search_cfg = replace(search_cfg, random_state=seed, cv=search_cfg.cv.model_copy(update=cv))
     # another seed must not resume these studies
     search_cfg = search_cfg.with_study(study_name=f"{search_cfg.name}-seed{seed}",
                                        trials=2 if quick else None, storage=storage)
