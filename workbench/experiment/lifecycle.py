@@ -176,26 +176,27 @@ def reap_stale_runs(tracker: Tracker, grace_s: float | None = None) -> list[str]
     return reaped
 
 
-class _RunHeartbeat:
-    def __init__(self, tracker: Tracker, run_id: str, interval: float):
-        self._tracker, self._run_id, self._interval = tracker, run_id, interval
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._beat, daemon=True, name="run-heartbeat")
+@contextlib.contextmanager
+def every(interval: float, beat, name: str = "heartbeat") -> Iterator[None]:
+    """Call ``beat()`` every ``interval`` seconds from a daemon thread while the block runs
+    (a heartbeat that beats while the work goes on). A failed beat is skipped: the grace
+    periods that read heartbeats cover several."""
+    stop = threading.Event()
 
-    def _beat(self) -> None:
-        while not self._stop.wait(self._interval):
+    def loop() -> None:
+        while not stop.wait(interval):
             try:
-                self._tracker.set_tags(self._run_id, {HEARTBEAT_TAG: f"{time.time():.0f}"})
-            except Exception:  # a missed beat: the grace period covers several
+                beat()
+            except Exception:
                 pass
 
-    def __enter__(self):
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc):
-        self._stop.set()
-        self._thread.join(timeout=10)
+    thread = threading.Thread(target=loop, daemon=True, name=name)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join(timeout=10)
 
 
 @contextlib.contextmanager
@@ -209,7 +210,8 @@ def live_run(tracker: Tracker, name: str, *, tags: Mapping[str, Any] | None = No
     run_id = tracker.start_run(name, tags=all_tags)
     status = "FINISHED"
     try:
-        with _RunHeartbeat(tracker, run_id, interval or RUN_HEARTBEAT_S):
+        with every(interval or RUN_HEARTBEAT_S, name="run-heartbeat",
+                   beat=lambda: tracker.set_tags(run_id, {HEARTBEAT_TAG: f"{time.time():.0f}"})):
             yield run_id
     except KeyboardInterrupt:
         status = "KILLED"

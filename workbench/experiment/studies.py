@@ -42,6 +42,8 @@ import optuna
 from optuna.exceptions import ExperimentalWarning, UpdateFinishedTrialError
 from optuna.trial import FrozenTrial, TrialState
 
+from .lifecycle import every
+
 __all__ = ["StorageError", "open_storage", "redact", "run_studies", "run_study"]
 
 THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
@@ -248,38 +250,18 @@ def _best_value(study: optuna.Study) -> float | None:
         return None
 
 
-class _Heartbeat:
-    """Beats a running trial's heartbeat from a background thread every ``interval`` s, so a
-    fold that runs longer than the grace period is not taken for dead."""
-
-    def __init__(self, study: optuna.Study, trial: optuna.Trial, interval: float):
-        self._storage, self._trial, self._interval = study._storage, trial, interval
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._beat, daemon=True,
-                                        name=f"heartbeat-{trial.number}")
-
-    def _beat(self) -> None:
-        while not self._stop.wait(self._interval):
-            try:
-                if _heartbeat_enabled(self._storage):
-                    self._storage.record_heartbeat(self._trial._trial_id)
-                else:
-                    self._trial.set_user_attr("heartbeat", time.time())
-            except Exception:  # a missed beat is retried; the grace period covers several
-                pass
-
-    def __enter__(self):
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc):
-        self._stop.set()
-        self._thread.join(timeout=5)
+def _beat(study: optuna.Study, trial: optuna.Trial) -> None:
+    """One heartbeat of a running trial: Optuna's own on an RDB storage, a user attribute on
+    the journal file (which has none)."""
+    if _heartbeat_enabled(study._storage):
+        study._storage.record_heartbeat(trial._trial_id)
+    else:
+        trial.set_user_attr("heartbeat", time.time())
 
 
 def _start_trial(study: optuna.Study, worker: str) -> optuna.Trial:
     with warnings.catch_warnings():  # "heartbeat ... supposed to be used with optimize":
-        warnings.simplefilter("ignore", UserWarning)  # run_study beats it (see _Heartbeat)
+        warnings.simplefilter("ignore", UserWarning)  # run_study beats it (see _beat)
         trial = study.ask()
     trial.set_user_attr("worker", worker)
     trial.set_user_attr("heartbeat", time.time())
@@ -319,7 +301,8 @@ def run_study(study: optuna.Study, objective: Callable, n_trials: int, *,
             continue
         state, value, note = TrialState.COMPLETE, None, ""
         try:
-            with _Heartbeat(study, trial, beat):
+            # beats while the folds run, so a long fold is not taken for dead
+            with every(beat, lambda: _beat(study, trial), name=f"heartbeat-{trial.number}"):
                 value = objective(trial)
         except optuna.TrialPruned as exc:
             state, note = TrialState.PRUNED, str(exc)
