@@ -112,3 +112,34 @@ def test_bad_setups_raise(crosstalk, change, match):
     Y = train[MEASURED].set_axis([f"q{i}" for i in range(1, N + 1)], axis=1)
     with pytest.raises(ValueError, match=match):
         model.fit(train, Y)
+
+
+def test_fallback_keeps_the_control_prediction_where_the_physics_model_does_not_help():
+    """Per target: the physics model where its out-of-fold MAE beats the control column's,
+    the control column elsewhere (predictions and the stage's prior alike)."""
+    from sklearn.linear_model import LinearRegression
+
+    rng = np.random.default_rng(0)
+    n = 200
+    x = rng.uniform(-1, 1, n)
+    control = np.column_stack([3 * x, 2 * np.sin(3 * x)])
+    # target 0: the control misses 0.5 * x**2 (a physics model in x and x**2 captures it);
+    # target 1: the control is exact but for noise, and the physics model cannot represent it
+    Y = control + np.column_stack([0.5 * x ** 2, np.zeros(n)]) + 0.05 * rng.standard_normal((n, 2))
+    X = pd.DataFrame({"x": x, "x2": x ** 2, "c0": control[:, 0], "c1": control[:, 1]})
+
+    class Physics(LinearRegression):  # a multi-output model fitted on all columns but c*
+        def fit(self, X, Y):
+            return super().fit(X[["x", "x2"]], Y)
+
+        def predict(self, X):
+            return super().predict(X[["x", "x2"]])
+
+    model = FittedPriorBoost(Physics(), boost_stage=False, fallback=["c0", "c1"], cv=5)
+    model.fit(X, Y)
+    assert model.physics_selected_.tolist() == [True, False]
+    pred = model.predict(X).to_numpy()
+    np.testing.assert_allclose(pred[:, 1], X["c1"])
+    assert np.abs(pred[:, 0] - Y[:, 0]).mean() < np.abs(control[:, 0] - Y[:, 0]).mean()
+    without = FittedPriorBoost(Physics(), boost_stage=False).fit(X, Y)
+    assert without.physics_selected_.all()

@@ -50,10 +50,18 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         Folds of the out-of-fold prior on the training rows.
     boost_stage : bool, default=True
         ``False`` fits the physics model alone (``predict`` is its prediction).
+    fallback : list of str, default=None
+        Columns of ``X`` holding the control model's own prediction of each target. If given,
+        a target keeps the physics model only where its out-of-fold MAE on the training rows
+        is below the control prediction's MAE there; elsewhere the control prediction is the
+        prior (so where the control model is already right, fitting corrections that only
+        chase noise is not kept).
 
     Attributes
     ----------
     physics_ : the fitted physics model
+    physics_selected_ : ndarray of bool, per target whether the physics model is the prior
+        (all true without ``fallback``)
     boost_ : the fitted MultiTargetBaseBoost (``boost_stage=True``)
     prior_columns_ : list of str
     oof_prior_ : DataFrame, the out-of-fold prior on the training rows
@@ -61,12 +69,13 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
     """
 
     def __init__(self, physics=None, boost=None, *, prior_prefix="prior_", cv=5,
-                 boost_stage=True):
+                 boost_stage=True, fallback=None):
         self.physics = physics
         self.boost = boost
         self.prior_prefix = prior_prefix
         self.cv = cv
         self.boost_stage = boost_stage
+        self.fallback = fallback
 
     def _with_prior(self, X: pd.DataFrame, prior: np.ndarray) -> pd.DataFrame:
         clash = [c for c in self.prior_columns_ if c in X.columns]
@@ -86,13 +95,24 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         self.physics_ = clone(self.physics).fit(X, Y_arr)
         self.n_features_in_ = X.shape[1]
         self.feature_names_in_ = np.asarray([str(c) for c in X.columns], dtype=object)
-        if not self.boost_stage:
+        self.physics_selected_ = np.ones(len(names), dtype=bool)
+        if self.fallback is not None and len(self.fallback) != len(names):
+            raise ValueError(f"fallback names {len(self.fallback)} column(s) for "
+                             f"{len(names)} targets")
+        if not self.boost_stage and self.fallback is None:
             return self
         oof = np.empty_like(Y_arr)
         for train, val in check_cv(self.cv).split(X):
             model = _refittable(self.physics_).fit(X.iloc[train], Y_arr[train])
             oof[val] = model.predict(X.iloc[val])
+        if self.fallback is not None:
+            control = X[list(self.fallback)].to_numpy(dtype=float)
+            self.physics_selected_ = (np.mean(np.abs(Y_arr - oof), axis=0)
+                                      < np.mean(np.abs(Y_arr - control), axis=0))
+            oof = np.where(self.physics_selected_, oof, control)
         self.oof_prior_ = pd.DataFrame(oof, columns=self.prior_columns_, index=X.index)
+        if not self.boost_stage:
+            return self
         boost = MultiTargetBaseBoost() if self.boost is None else clone(self.boost)
         boost.set_params(priors=self.prior_columns_)
         Y_frame = pd.DataFrame(Y_arr, columns=names, index=X.index)
@@ -100,9 +120,14 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         return self
 
     def predict_prior(self, X) -> np.ndarray:
-        """The physics model's prediction, shape ``(n, n_targets)``."""
+        """The prior of the stage: the physics model's prediction (the control prediction for
+        targets where it fell back), shape ``(n, n_targets)``."""
         check_is_fitted(self)
-        return np.asarray(self.physics_.predict(X), dtype=float)
+        prior = np.asarray(self.physics_.predict(X), dtype=float)
+        if self.fallback is not None and not self.physics_selected_.all():
+            prior = np.where(self.physics_selected_, prior,
+                             X[list(self.fallback)].to_numpy(dtype=float))
+        return prior
 
     def predict(self, X) -> pd.DataFrame:
         """Predictions as a DataFrame with one column per target."""

@@ -68,6 +68,9 @@ class HamiltonianSettings(Section):
     min_improvement: float = Field(default=1e-3, ge=0)
     boost_stage: bool = True
     prior_cv: int = Field(default=5, ge=2, le=10_000)
+    #: Keep, per target, the control model's prediction where the corrected Hamiltonian does
+    #: not beat it in out-of-fold CV on the training rows.
+    fallback: bool = False
     #: Couplings the control model lacks, offered to the selection (starting at zero):
     #: "next_nearest" (along a chain or ring), "diagonal" (a grid's), or site pairs.
     parasitic: Literal["none", "next_nearest", "diagonal"] | list[list[int]] = "none"
@@ -154,7 +157,8 @@ class HamiltonianFamily(ModelFamily):
         return FittedPriorBoost(physics, boost, prior_prefix=PRIOR_PREFIX,
                                 cv=KFold(h.prior_cv, shuffle=True,
                                          random_state=cfg.random_state or 0),
-                                boost_stage=h.boost_stage)
+                                boost_stage=h.boost_stage,
+                                fallback=list(ds.prior_names) if h.fallback else None)
 
     def fixed_choices(self, model):
         """Keep the selected covariates (refitting the selection would remake it)."""
@@ -169,8 +173,9 @@ class HamiltonianFamily(ModelFamily):
         """Per target "hamiltonian", or "hamiltonian+boosted" ("hamiltonian+<basis>" when the
         stage chose its basis among several by CV) where the stage on top was kept."""
         stages = model.boost_.estimators_ if model.boost_stage else [None] * len(targets)
-        return [f"hamiltonian+{getattr(e, 'selected_candidate_', None) or 'boosted'}"
-                if s == "boosted" else "hamiltonian" for s, e in zip(model.selected_, stages)]
+        base = ["hamiltonian" if p else "control" for p in model.physics_selected_]
+        return [f"{b}+{getattr(e, 'selected_candidate_', None) or 'boosted'}"
+                if s == "boosted" else b for b, s, e in zip(base, model.selected_, stages)]
 
     def scores(self, cfg, ds, model, Y_train, prior_test, y_test, pred):
         """``model.cv_mae``: the boosting stage's CV (NaN without a stage; the repeated CV of
