@@ -35,7 +35,6 @@ import tomllib
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 ROOT = Path(__file__).resolve().parents[1]
 DATASETS = {"chain": dict(sites=5, experiments=400, topology="chain", shape=None),

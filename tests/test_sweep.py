@@ -10,7 +10,7 @@ import pytest
 from optuna.trial import TrialState
 
 from workbench.experiment.cli import main
-from workbench.experiment.search import _counted, open_storage, run_study
+from workbench.experiment.studies import _counted, open_storage, run_study
 
 SMOKE = "experiments/smoke.toml"
 
@@ -88,7 +88,7 @@ def test_smoke_sweep_json_and_tracking(smoke_run, tmp_path):
 
 INTERRUPTED = textwrap.dedent("""
     import os, sys, optuna
-    from workbench.experiment.search import open_storage, run_study
+    from workbench.experiment.studies import open_storage, run_study
     from pathlib import Path
     study = optuna.create_study(study_name="s", storage=open_storage(sys.argv[1], Path(".")),
                                 load_if_exists=True)
@@ -124,7 +124,7 @@ def test_interrupted_study_resumes_without_losing_or_repeating_trials(tmp_path):
 WORKER = textwrap.dedent("""
     import sys, time, optuna
     from pathlib import Path
-    from workbench.experiment.search import open_storage, run_study
+    from workbench.experiment.studies import open_storage, run_study
     study = optuna.load_study(study_name="w", storage=open_storage(sys.argv[1], Path(".")))
     def objective(trial):
         time.sleep(0.05)
@@ -192,7 +192,7 @@ def test_trial_of_a_vanished_machine_is_failed_and_rerun(tmp_path):
 
 def test_workers_propose_different_configurations():
     from workbench.experiment.config import load_config
-    from workbench.experiment.search import _sampler
+    from workbench.experiment.studies import _sampler
 
     from pathlib import Path
 

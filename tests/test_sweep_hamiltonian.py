@@ -17,8 +17,8 @@ from workbench.experiment.evaluate import evaluate
 from optuna.trial import FixedTrial
 
 from workbench.experiment.families import FAMILIES
-from workbench.experiment.search import (StudySpec, _counted, open_storage, run_study,
-                                         run_sweep, study_names, study_objective)
+from workbench.experiment.search import StudySpec, run_sweep, study_names, study_objective
+from workbench.experiment.studies import _counted, open_storage, run_study
 from workbench.simulate import Mismatch, simulate
 
 N = 5
@@ -206,7 +206,7 @@ def test_sweep_nested_cv_results_and_resume(project, capsys):
             assert [t.intermediate_values[i] for i in range(3)] == pytest.approx(running)
 
     # a second run resumes: no new trials, the same choice and the same numbers
-    sweep = run_sweep(load_config(cfg_path), progress=None)
+    sweep = run_sweep(load_config(cfg_path), progress=False)
     res2 = sweep.result.to_json()
     assert _counts(storage, names) == {n: 3 for n in names}
     assert res2["best_params"] == best
@@ -234,7 +234,7 @@ def test_sweep_with_the_boosting_stage_searched_too(project):
     sweep = SWEEP.replace("trials = 3", "trials = 2").replace("inner_folds = 3",
                                                               "inner_folds = 2")
     cfg = load_config(write(project, search_=search_ + stage, sweep=sweep))
-    sweep = run_sweep(cfg, progress=None)
+    sweep = run_sweep(cfg, progress=False)
     res = sweep.result.to_json()
     best = res["best_params"][0]
     assert set(best) == {"hamiltonian.alpha", "hamiltonian.loss", "hamiltonian.huber_delta",
@@ -254,7 +254,7 @@ def test_no_completed_trial_keeps_the_prior_then_the_config_settings(project, mo
 
     monkeypatch.setattr(type(FAMILIES["hamiltonian"]), "objective", broken)
     cfg = load_config(write(project, sweep=SWEEP.replace("trials = 3", "trials = 1")))
-    sweep = run_sweep(cfg, progress=None)
+    sweep = run_sweep(cfg, progress=False)
     res = sweep.result.to_json()
     assert res["best_params"] == [None] * N
     assert res["nested_cv_mae"] == res["nested_cv_prior_mae"]  # outer folds: the prior stands
@@ -276,7 +276,7 @@ def test_two_worker_processes_run_the_sweep(project):
     """``--workers 2``: spawned processes share the journal; every study still ends with
     exactly ``trials`` counted trials and no trial number twice."""
     cfg = load_config(write(project))
-    sweep = run_sweep(cfg.with_study(workers=2), progress=None)
+    sweep = run_sweep(cfg.with_study(workers=2), progress=False)
     storage = open_storage(cfg.study.storage, project)
     names = [s.name for s in study_names(cfg, TARGETS)]
     assert _counts(storage, names) == {n: 3 for n in names}

@@ -31,8 +31,7 @@ from optuna.trial import TrialState
 from .config import ExperimentConfig, load_dataset
 from .evaluate import fit_and_score
 from .results import OuterFold, Result, SweepSummary
-from .studies import (_counted, _pruner, _sampler, open_storage, redact,  # noqa: F401
-                      run_studies, run_study)
+from .studies import _counted, _pruner, _sampler, open_storage, redact, run_studies
 from . import studies as _studies
 
 __all__ = ["Sweep", "run_search", "run_sweep", "study_names"]
@@ -147,7 +146,7 @@ def study_objective(cfg: ExperimentConfig, ds, spec: StudySpec) -> Callable:
     return objective
 
 
-def run_search(cfg: ExperimentConfig, storage_url: str, *, progress=None,
+def run_search(cfg: ExperimentConfig, storage_url: str, *, progress: bool = False,
                worker: int = 0, on_trial: Callable | None = None) -> None:
     """Run (or resume) every study of the sweep in this process (``worker``: its index;
     ``on_trial(study, trial)`` after each trial it finishes)."""
@@ -167,21 +166,19 @@ def _best_params(study: optuna.Study) -> dict[str, Any] | None:
     return min(done, key=lambda t: (t.value, t.number)).params if done else None
 
 
-def run_sweep(cfg: ExperimentConfig, *, progress=True,
+def run_sweep(cfg: ExperimentConfig, *, progress: bool = True,
               on_trial: Callable | None = None) -> Sweep:
     """Search, then evaluate the chosen configuration once on the test rows
-    (``on_trial(study, trial)`` after each trial this process finishes, e.g. to log it)."""
-    import sys
-
+    (``on_trial(study, trial)`` after each trial this process finishes, e.g. to log it;
+    ``progress``: a line per trial through the ``workbench`` logger)."""
     start = time.perf_counter()
-    stream = sys.stderr if progress else None
     storage_url = cfg.study.storage
     workers = cfg.study.workers
     ds = load_dataset(cfg)
     specs = study_names(cfg, ds.target_names)
     log.info("[%s] sweep: %d studies x %d trials, %d worker(s), storage %s", cfg.name,
              len(specs), cfg.study.trials, workers, redact(storage_url))
-    _studies._search_in_workers(run_search, cfg, storage_url, workers, stream,
+    _studies._search_in_workers(run_search, cfg, storage_url, workers, bool(progress),
                                 [s.name for s in specs], _root(), on_trial=on_trial)
 
     family = cfg.family

@@ -26,6 +26,7 @@ Several processes (or machines) may work on one storage at once:
 from __future__ import annotations
 
 import copy
+import logging
 import multiprocessing
 import os
 import signal
@@ -36,13 +37,15 @@ import time
 import warnings
 import zlib
 from pathlib import Path
-from typing import Callable, TextIO
+from typing import Callable
 
 import optuna
 from optuna.exceptions import ExperimentalWarning, UpdateFinishedTrialError
 from optuna.trial import FrozenTrial, TrialState
 
 from .lifecycle import every
+
+log = logging.getLogger("workbench")
 
 __all__ = ["StorageError", "open_storage", "redact", "run_studies", "run_study"]
 
@@ -272,7 +275,7 @@ def _start_trial(study: optuna.Study, worker: str) -> optuna.Trial:
 
 def run_study(study: optuna.Study, objective: Callable, n_trials: int, *,
               timeout: float | None = None, stale_after_s: float = 600,
-              progress: TextIO | None = None, wait: bool = True,
+              progress: bool = False, wait: bool = True,
               on_trial: Callable[[optuna.Study, FrozenTrial], None] | None = None) -> None:
     """Run trials until the study holds ``n_trials`` counted trials (or ``timeout`` s pass).
 
@@ -322,13 +325,12 @@ def run_study(study: optuna.Study, objective: Callable, n_trials: int, *,
         if progress:
             best = _best_value(study)
             shown = f"MAE {value:.4f}" if value is not None else note[:60]
-            print(f"[{study.study_name}] trial {trial.number:>3} {state.name.lower():<8} "
-                  f"{shown}  best {best if best is None else round(best, 4)}",
-                  file=progress, flush=True)
+            log.info("[%s] trial %3d %-8s %s  best %s", study.study_name, trial.number,
+                     state.name.lower(), shown, best if best is None else round(best, 4))
 
 
 def run_studies(cfg, studies: list[tuple[optuna.Study, Callable]], *,
-                progress: TextIO | None = None,
+                progress: bool = False,
                 on_trial: Callable[[optuna.Study, FrozenTrial], None] | None = None) -> None:
     """Run (or resume) ``(study, objective)`` pairs to their budgets in this process, with a
     sampler stream of its own (see :func:`claim_stream`)."""
@@ -365,14 +367,17 @@ def _worker(search: Callable, cfg, storage_url: str, index: int, show: bool, par
     _watch_parent(parent)
     try:
         with handle_signals():  # Ctrl-C reaches the whole group: the parent reports it
-            search(cfg, storage_url, progress=sys.stderr if show else None, worker=index,
-                   on_trial=on_trial)
+            if show:  # this process's per-trial lines to its standard error
+                from .cli import _logging
+
+                _logging()
+            search(cfg, storage_url, progress=show, worker=index, on_trial=on_trial)
     except KeyboardInterrupt as exc:  # its running trial is failed and queued again
         sys.exit(getattr(exc, "code", EXIT_SIGINT))
 
 
 def _search_in_workers(search: Callable, cfg, storage_url: str, workers: int,
-                       progress: TextIO | None, names: list[str], root: Path,
+                       progress: bool, names: list[str], root: Path,
                        on_trial=None) -> None:
     """``search(cfg, storage_url, progress=, worker=, on_trial=)`` (a module-level function:
     workers are spawned) in ``workers`` processes, after creating the studies ``names`` once.
