@@ -189,8 +189,11 @@ def _normal_equations(jac, w, r, Phi, sel, chunk_elements=8_000_000):
     """Gauss-Newton normal equations ``A^T W A`` and ``A^T W r``.
 
     ``A[(j, k), (p, c)] = jac[j, k, p] * Phi[j, p, c]`` (``Phi`` padded to (n, P, K), ``sel``
-    the flat (p, c) positions of the real coefficients), built a chunk of rows at a time
-    (about ``chunk_elements`` entries) and accumulated with a symmetric rank-k update.
+    the flat (p, c) positions of the real coefficients). ``A`` is never formed: with
+    ``M[j, p, q] = sum_k jac[j, k, p] w[j, k] jac[j, k, q]`` (P x P per row),
+    ``(A^T W A)[(p, c), (q, d)] = sum_j Phi[j, p, c] M[j, p, q] Phi[j, q, d]``, built one
+    parameter's block row at a time over chunks of about ``chunk_elements`` entries of ``M``:
+    O(n D^2 + n N P^2) instead of O(n N D^2) for D coefficients.
     """
     n, N, P = jac.shape
     K = Phi.shape[2]
@@ -200,14 +203,18 @@ def _normal_equations(jac, w, r, Phi, sel, chunk_elements=8_000_000):
     D = len(sel)
     s = np.matmul((w * r)[:, None, :], jac)[:, 0, :]  # (n, P): sum_k J w r
     g = (flat[:, sel] * s[:, pidx]).sum(axis=0)
-    H = np.zeros((D, D), order="F")
-    root = np.sqrt(w)
-    step = max(1, chunk_elements // (N * D))
+    H = np.zeros((D, D))
+    bounds = np.r_[0, np.flatnonzero(np.diff(pidx)) + 1, D]  # block of each active param
+    params = pidx[bounds[:-1]]
+    step = max(1, chunk_elements // max(1, P * P, N * P))
     for a in range(0, n, step):
         sl = slice(a, min(n, a + step))
-        A = (jac[sl][:, :, pidx] * root[sl, :, None]) * flat[sl, None, sel]
-        A = np.asfortranarray(A.reshape(-1, D))
-        H = _syrk(A, H)
+        Jw = np.swapaxes(jac[sl] * w[sl, :, None], 1, 2)  # (m, P, N)
+        M = np.matmul(Jw, jac[sl])  # (m, P, P)
+        F = flat[sl][:, sel]  # (m, D)
+        for b, p in enumerate(params):
+            lo, hi = bounds[b], bounds[b + 1]
+            H[lo:hi, lo:] += F[:, lo:hi].T @ (M[:, p, pidx[lo:]] * F[:, lo:])
     H = np.triu(H) + np.triu(H, 1).T
     return H, g
 
