@@ -1,15 +1,29 @@
-"""Trials per minute of a fixed sweep with 1 and 2 workers (prints a table; no assertions).
+"""Sweep throughput: the smoke sweep with 1 and 2 workers, and trials per minute of 1, 2 and
+4 sweep processes on one storage (journal file, SQLite, PostgreSQL) with the per-run cost of an
+MLflow tracking server (prints tables; no assertions).
 
     python benchmarks/sweep_workers.py [--config experiments/smoke.toml] [--trials 10] [--repeats 3]
+    python benchmarks/sweep_workers.py --storages [--trials 32] [--fold-s 0.05] [--runs 20]
 
-Each run searches into a fresh temporary journal storage (no MLflow tracking), so every run
-does the same number of trials. Reports the median over repeats and the 2-vs-1 ratio, all
+Workers: each run searches into a fresh temporary journal storage (no MLflow tracking), so every
+run does the same number of trials. Reports the median over repeats and the 2-vs-1 ratio, all
 measured in this one run.
+
+Storages: each process runs :func:`workbench.experiment.studies.run_study` (the sweep's
+scheduler: heartbeats, stale checks, exact budgets) on one shared study; a trial is three
+"inner folds" of ``--fold-s`` seconds of sleep, reporting after each as the sweep does, so the
+numbers show the scheduler and the storage rather than the 2 cores. PostgreSQL (pgserver) and
+``mlflow server`` are started as the tests start them (tests/services.py). The tracking cost is
+the median time to log one finished trial as a child run (create, one batch, end) against a
+local SQLite store and against the server.
 """
 
 import argparse
 import statistics
+import subprocess
+import sys
 import tempfile
+import textwrap
 import time
 from pathlib import Path
 
@@ -18,12 +32,121 @@ from workbench.experiment import studies
 from workbench.experiment.search import run_search, study_names
 
 
+ROOT = Path(__file__).resolve().parents[1]
+
+STORAGE_WORKER = textwrap.dedent("""
+    import sys, time
+    from pathlib import Path
+    import optuna
+    from workbench.experiment.studies import open_storage, run_study
+    url, trials, fold_s, go = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), Path(sys.argv[4])
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    study = optuna.load_study(study_name="bench", sampler=optuna.samplers.RandomSampler(),
+                              storage=open_storage(url, Path("."), stale_after_s=60))
+    def objective(trial):
+        x = trial.suggest_float("x", 0, 1)
+        for i in range(3):
+            time.sleep(fold_s)
+            trial.report(x, i)
+        return x
+    while not go.exists():
+        time.sleep(0.01)
+    run_study(study, objective, trials, stale_after_s=60)
+""")
+
+
+def trials_per_minute(url: str, processes: int, trials: int, fold_s: float, tmp: Path) -> float:
+    import optuna
+
+    optuna.create_study(study_name="bench", storage=studies.open_storage(url, tmp))
+    go = tmp / f"go-{processes}-{time.monotonic_ns()}"
+    procs = [subprocess.Popen([sys.executable, "-c", STORAGE_WORKER, url, str(trials),
+                               str(fold_s), str(go)], cwd=tmp) for _ in range(processes)]
+    time.sleep(5)  # every process has imported and connected
+    start = time.perf_counter()
+    go.touch()
+    codes = [p.wait() for p in procs]
+    wall = time.perf_counter() - start
+    if codes != [0] * processes:
+        raise SystemExit(f"a benchmark process failed: exit codes {codes}")
+    return 60 * trials / wall
+
+
+def run_overhead(uri: str, runs: int) -> float:
+    """Median seconds to log one finished trial as a child run (create, one batch, end)."""
+    import optuna
+
+    from workbench.experiment.lifecycle import TrialRecorder
+    from workbench.experiment.tracking import Tracker
+
+    tracker = Tracker(uri, "bench")
+    parent = tracker.start_run("parent")
+    study = optuna.create_study(study_name="r")
+    study.optimize(lambda t: t.suggest_float("x", 0, 1), n_trials=1)
+    record = TrialRecorder(tracker, parent)
+    record(study, study.trials[0])  # warm up the client
+    times = []
+    for _ in range(runs):
+        t0 = time.perf_counter()
+        record(study, study.trials[0])
+        times.append(time.perf_counter() - t0)
+    tracker.end_run(parent)
+    return statistics.median(times)
+
+
+def storages(args) -> None:
+    import logging
+
+    import optuna
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    logging.getLogger("mlflow").setLevel(logging.WARNING)
+    sys.path.insert(0, str(ROOT / "tests"))
+    from services import MlflowServer, Postgres
+
+    with tempfile.TemporaryDirectory() as d:
+        tmp = Path(d)
+        pg = Postgres(tmp / "pg")
+        try:
+            n = iter(range(100))
+            urls = {"journal": lambda: str(tmp / f"s{next(n)}.journal"),
+                    "sqlite": lambda: f"sqlite:///{tmp}/s{next(n)}.db",
+                    "postgresql": lambda: pg.database(f"s{next(n)}")}
+            print(f"trials per minute, {args.trials} trials of 3 x {args.fold_s} s "
+                  f"(one process without any overhead: {60 / (3 * args.fold_s):.0f})")
+            print(f"{'storage':<12}" + "".join(f"{p:>4} proc" for p in (1, 2, 4)))
+            for name, make in urls.items():
+                rates = [trials_per_minute(make(), p, args.trials, args.fold_s, tmp)
+                         for p in (1, 2, 4)]
+                print(f"{name:<12}" + "".join(f"{r:>9.0f}" for r in rates), flush=True)
+            server = MlflowServer(pg.database("mlflow"), tmp / "artifacts", tmp / "mlflow.log")
+            try:
+                local = run_overhead(f"sqlite:///{tmp}/mlflow.db", args.runs)
+                remote = run_overhead(server.uri, args.runs)
+            finally:
+                server.stop()
+        finally:
+            pg.stop()
+    print(f"logging one trial as a child run (median of {args.runs}): local sqlite "
+          f"{1000 * local:.0f} ms, tracking server on PostgreSQL {1000 * remote:.0f} ms "
+          f"({remote / local:.1f}x)")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--config", default="experiments/smoke.toml")
-    parser.add_argument("--trials", type=int, default=10)
+    parser.add_argument("--trials", type=int, default=None,
+                        help="trials per study (default 10), or per storage run (default 32)")
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--storages", action="store_true",
+                        help="journal/sqlite/PostgreSQL throughput and tracking-server cost")
+    parser.add_argument("--fold-s", type=float, default=0.05)
+    parser.add_argument("--runs", type=int, default=20)
     args = parser.parse_args()
+    if args.storages:
+        args.trials = args.trials or 32
+        return storages(args)
+    args.trials = args.trials or 10
     cfg = load_config(args.config).with_study(trials=args.trials)
     specs = study_names(cfg, [f"eeig{j}" for j in range(1, 6)])
     n_trials = len(specs) * args.trials

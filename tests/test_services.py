@@ -40,20 +40,29 @@ def _start(cmd, cwd, name):
                             stderr=subprocess.STDOUT), cwd / f"{name}.log"
 
 
-def _wait_for_running_trial(storage, pid: int, timeout: float = 120) -> None:
-    """Until process ``pid`` runs a trial, after some trials are complete."""
+def _running_trials(storage, pid: int) -> tuple[int, list]:
+    trials = [t for s in optuna.get_all_study_summaries(storage)
+              for t in optuna.load_study(study_name=s.study_name,
+                                         storage=storage).get_trials(deepcopy=False)]
+    done = sum(t.state == TrialState.COMPLETE for t in trials)
+    return done, [t for t in trials if t.state == TrialState.RUNNING
+                  and t.user_attrs.get("worker", "").endswith(f":{pid}")]
+
+
+def _kill_mid_trial(storage, proc, timeout: float = 120) -> None:
+    """SIGKILL ``proc`` while it runs a trial, after some trials are complete. The process is
+    stopped (SIGSTOP) before the last look, so the trial seen running is the one killed."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
-        trials = [t for s in optuna.get_all_study_summaries(storage)
-                  for t in optuna.load_study(study_name=s.study_name,
-                                             storage=storage).get_trials(deepcopy=False)]
-        done = sum(t.state == TrialState.COMPLETE for t in trials)
-        mine = [t for t in trials if t.state == TrialState.RUNNING
-                and t.user_attrs.get("worker", "").endswith(f":{pid}")]
+        done, mine = _running_trials(storage, proc.pid)
         if done >= 3 and mine:
-            return
+            proc.send_signal(signal.SIGSTOP)
+            if _running_trials(storage, proc.pid)[1]:
+                proc.send_signal(signal.SIGKILL)
+                return
+            proc.send_signal(signal.SIGCONT)  # it finished that trial meanwhile: look again
         time.sleep(0.05)
-    raise AssertionError(f"process {pid} never ran a trial")
+    raise AssertionError(f"process {proc.pid} never ran a trial")
 
 
 def _studies(url):
@@ -94,8 +103,7 @@ def test_two_sweep_processes_share_postgres_and_mlflow_server(services, tmp_path
     cmd = workbench_cmd("sweep", cfg, "--storage", storage, "--tracking-uri", server.uri)
     (a, a_log), (b, b_log) = _start(cmd, tmp_path, "a"), _start(cmd, tmp_path, "b")
     try:
-        _wait_for_running_trial(optuna.storages.RDBStorage(storage), a.pid)
-        a.send_signal(signal.SIGKILL)  # one machine goes away mid-trial
+        _kill_mid_trial(optuna.storages.RDBStorage(storage), a)  # a machine goes away
         assert a.wait(timeout=30) == -signal.SIGKILL
         assert b.wait(timeout=240) == 0, b_log.read_text()[-3000:]
     finally:

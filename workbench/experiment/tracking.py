@@ -42,6 +42,10 @@ from urllib.parse import urlsplit, urlunsplit
 import mlflow
 import pandas as pd
 from mlflow import MlflowClient
+
+# MLflow prints "View run ... at <url>" to stdout whenever a run ends against a tracking server:
+# one line per trial in a sweep. The workbench reports runs itself.
+os.environ.setdefault("MLFLOW_SUPPRESS_PRINTING_URL_TO_STDOUT", "true")
 from mlflow.entities import LoggedModelOutput, Metric, Param, RunTag
 from mlflow.exceptions import MlflowException
 
