@@ -45,7 +45,10 @@ class InputError(ValueError):
 
 
 def _default_row(labels) -> Callable[[int], str]:
-    return lambda pos: f"row {labels[pos]!r}"
+    """``row <index label>`` (a text label quoted)."""
+    values = list(labels.tolist() if hasattr(labels, "tolist") else labels)
+    return lambda pos: (f"row {values[pos]!r}" if isinstance(values[pos], str)
+                        else f"row {values[pos]}")
 
 
 def _as_float(value) -> float:
@@ -80,7 +83,7 @@ def check_inputs(frame: pd.DataFrame, columns: Sequence[str], *, where: str = "i
         raise InputError(f"{where}: duplicated column(s) {dups}")
     missing = [c for c in columns if c not in names]
     if missing:
-        raise InputError(f"{where}: missing column(s) {missing} (the model reads "
+        raise InputError(f"{where}: missing column(s) {_listing(missing)} (the model reads "
                          f"{len(columns)} columns: {_listing(columns)})")
     frame = frame.set_axis(names, axis=1)
     row_name = row_name or _default_row(frame.index)
