@@ -94,11 +94,9 @@ def write_artifacts(artifacts, directory: str | os.PathLike, flag: str = "--out"
         directory.mkdir(parents=True, exist_ok=True)
         stage = Path(tempfile.mkdtemp(dir=directory, prefix=".workbench-out-"))
         staged = artifacts.write(stage)
-        final = {}
-        for name, path in staged.items():
-            final[name] = directory / Path(path).name
-            os.replace(path, final[name])
-        return final
+        for path in sorted(stage.iterdir()):  # every file (a table and a figure may share a name)
+            os.replace(path, directory / path.name)
+        return {name: directory / Path(path).name for name, path in staged.items()}
     except OSError as exc:
         if stage is not None:
             shutil.rmtree(stage, ignore_errors=True)
