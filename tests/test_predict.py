@@ -342,6 +342,63 @@ def test_runs_record_dataset_inputs_source_and_a_model_training_experiment(bench
     assert run.info.status == "FINISHED"
 
 
+def test_sweep_register_then_predict_the_test_rows(tmp_path, monkeypatch):
+    """``sweep --register``: the chosen model is the champion, and ``predict`` on the CSV's
+    test rows gives the sweep's test predictions exactly (a CSV dataset, a small sweep)."""
+    from mlflow import MlflowClient
+
+    from services import tiny_sweep
+
+    config = tiny_sweep(tmp_path, trials=2)
+    monkeypatch.chdir(tmp_path)
+    uri = f"sqlite:///{tmp_path}/mlflow.db"
+    monkeypatch.setattr(EigenvalueFamily, "artifacts", _no_figures)
+    res = run_main("sweep", config, "--tracking-uri", uri, "--register", "tiny")
+    assert res.rc == 0, res.err
+    assert "registered tiny version 1 (models:/tiny@champion)" in res.out
+    client = MlflowClient(uri)
+    version = client.get_model_version_by_alias("tiny", "champion")
+    assert version.tags["workbench.kind"] == "sweep"
+    logged = read_text_csv(client.download_artifacts(version.run_id, "predictions/test.csv",
+                                                     str(tmp_path)))
+    rows = read_text_csv(tmp_path / "sim.csv").iloc[logged["row"].astype(int)]
+    rows.to_csv(tmp_path / "test_rows.csv", index=False)
+    res = run_main("predict", "models:/tiny@champion", tmp_path / "test_rows.csv", "--out",
+                   tmp_path / "p.csv", "--tracking-uri", uri)
+    assert res.rc == 0, res.err
+    got = read_text_csv(tmp_path / "p.csv")
+    np.testing.assert_array_equal(floats(got[["measured_E1"]]), floats(logged[["measured_E1"]]))
+    assert got["measured_E1_input"].tolist() == rows["measured_E1"].tolist()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("config", ["paper_main_body.toml", "hamiltonian.toml"])
+def test_shipped_configs_predict_reproduces_evaluate(config, google_5q_dir, tmp_path,
+                                                     monkeypatch):
+    """The paper's settings and the parameter-space model (its own, wider inputs): register,
+    then ``predict`` on the benchmark's test rows gives evaluate's test predictions."""
+    from mlflow import MlflowClient
+
+    from workbench.datasets import load_google_5q
+
+    monkeypatch.setenv("WORKBENCH_DATA_DIR", str(google_5q_dir))
+    uri = f"sqlite:///{tmp_path}/mlflow.db"
+    res = run_main("evaluate", ROOT / "experiments" / config, "--tracking-uri", uri,
+                   "--register", "shipped", "--json", tmp_path / "r.json")
+    assert res.rc == 0, res.err
+    run_id = json.loads((tmp_path / "r.json").read_text())["mlflow"]["run_id"]
+    logged = read_text_csv(MlflowClient(uri).download_artifacts(run_id, "predictions/test.csv",
+                                                                str(tmp_path)))
+    ds = load_google_5q(google_5q_dir)
+    X = pd.concat([ds.X_physics, ds.targets], axis=1).loc[ds.test_index]
+    X.to_csv(tmp_path / "test_rows.csv", index=False)
+    res = run_main("predict", "models:/shipped@champion", tmp_path / "test_rows.csv", "--out",
+                   tmp_path / "p.csv", "--tracking-uri", uri)
+    assert res.rc == 0, res.err
+    got = read_text_csv(tmp_path / "p.csv")
+    np.testing.assert_array_equal(floats(got[TARGETS]), floats(logged[TARGETS]))
+
+
 # --------------------------------------------------------------------------- bad input
 
 
