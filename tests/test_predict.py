@@ -342,7 +342,7 @@ def test_runs_record_dataset_inputs_source_and_a_model_training_experiment(bench
     assert run.info.status == "FINISHED"
 
 
-def test_sweep_register_then_predict_the_test_rows(tmp_path, monkeypatch):
+def test_sweep_register_then_predict_the_test_rows(bench, tmp_path, monkeypatch):
     """``sweep --register``: the chosen model is the champion, and ``predict`` on the CSV's
     test rows gives the sweep's test predictions exactly (a CSV dataset, a small sweep)."""
     from mlflow import MlflowClient
@@ -351,7 +351,7 @@ def test_sweep_register_then_predict_the_test_rows(tmp_path, monkeypatch):
 
     config = tiny_sweep(tmp_path, trials=2)
     monkeypatch.chdir(tmp_path)
-    uri = f"sqlite:///{tmp_path}/mlflow.db"
+    uri = bench.uri  # the module's store (created once)
     monkeypatch.setattr(EigenvalueFamily, "artifacts", _no_figures)
     res = run_main("sweep", config, "--tracking-uri", uri, "--register", "tiny")
     assert res.rc == 0, res.err
@@ -397,6 +397,29 @@ def test_shipped_configs_predict_reproduces_evaluate(config, google_5q_dir, tmp_
     assert res.rc == 0, res.err
     got = read_text_csv(tmp_path / "p.csv")
     np.testing.assert_array_equal(floats(got[TARGETS]), floats(logged[TARGETS]))
+
+
+def test_an_existing_experiment_becomes_a_model_training_one(bench):
+    from mlflow import MlflowClient
+
+    from workbench.experiment.tracking import Tracker
+
+    uri = bench.uri  # the module's store (created once)
+    client = MlflowClient(uri)
+    old = client.create_experiment("made elsewhere")
+    assert "mlflow.experimentKind" not in client.get_experiment(old).tags
+    assert Tracker(uri, "made elsewhere").experiment_id == old
+    assert client.get_experiment(old).tags["mlflow.experimentKind"] == "custom_model_development"
+    client.set_experiment_tag(old, "mlflow.experimentKind", "genai_development")
+    Tracker(uri, "made elsewhere").experiment_id  # noqa: B018 - a user's choice is kept
+    assert client.get_experiment(old).tags["mlflow.experimentKind"] == "genai_development"
+
+
+def test_register_without_tracking_is_one_line(google_5q_dir, tmp_path):
+    res = run_main("evaluate", write_config(tmp_path, google_5q_dir), "--no-track",
+                   "--register", "x")
+    assert_one_line_error(res, "--register needs the tracking store")
+    assert "fitting" not in res.err
 
 
 # --------------------------------------------------------------------------- bad input
