@@ -415,11 +415,16 @@ def test_an_existing_experiment_becomes_a_model_training_one(bench):
     assert client.get_experiment(old).tags["mlflow.experimentKind"] == "genai_development"
 
 
-def test_register_without_tracking_is_one_line(google_5q_dir, tmp_path):
-    res = run_main("evaluate", write_config(tmp_path, google_5q_dir), "--no-track",
-                   "--register", "x")
+def test_register_without_tracking_or_with_a_bad_name_is_one_line(google_5q_dir, tmp_path):
+    config = write_config(tmp_path, google_5q_dir)
+    res = run_main("evaluate", config, "--no-track", "--register", "x")
     assert_one_line_error(res, "--register needs the tracking store")
     assert "fitting" not in res.err
+    for bad in ("a/b", "dev@champion", " x", ""):
+        res = run_main("evaluate", config, "--tracking-uri", f"sqlite:///{tmp_path}/m.db",
+                       "--register", bad)
+        assert_one_line_error(res, f"--register {bad!r}: a registered model's name cannot")
+        assert "fitting" not in res.err and not (tmp_path / "m.db").exists()
 
 
 # --------------------------------------------------------------------------- bad input

@@ -31,8 +31,14 @@ def _check_outputs(args) -> None:
     store to register in, before anything is loaded or fitted."""
     from .outputs import check_dir, check_file
 
-    if getattr(args, "register", None) and args.no_track:
-        raise UsageError("--register needs the tracking store; drop --no-track")
+    name = getattr(args, "register", None)
+    if name is not None:
+        if args.no_track:
+            raise UsageError("--register needs the tracking store; drop --no-track")
+        if not name.strip() or name != name.strip() or any(c in name for c in "/:@") \
+                or name in (".", ".."):
+            raise UsageError(f"--register {name!r}: a registered model's name cannot be "
+                             "empty, start or end with a space, or contain '/', ':' or '@'")
     if args.json:
         check_file(args.json, "--json")
     if getattr(args, "out", None) is not None:
