@@ -308,7 +308,8 @@ def _quiet(logger_name: str, *texts: str) -> Iterator[None]:
 
 class _PyfuncModel(mlflow.pyfunc.PythonModel):
     """An MLflow pyfunc wrapper holding a fitted model (pickled with cloudpickle by MLflow;
-    the ``workbench`` package travels with it as ``code_paths``)."""
+    the ``workbench`` package travels with it as ``code_paths``). Kept so that models logged
+    before :class:`~.serving.WorkbenchModel` still load; new models use the latter."""
 
     def __init__(self, model):
         self.model = model
@@ -544,8 +545,8 @@ class Tracker:
         signature names ``input_example``'s columns and the outputs; the first 5 rows are
         the input example (the REST request's template). ``targets``: the target names
         (default: the columns of ``model.predict``). ``files``: name -> local file stored
-        in the model directory as ``<name><suffix>`` (e.g. ``config.toml``). Requirements are pinned from
-        the installed versions (no inference subprocess)."""
+        in the model directory as ``<name><suffix>`` (e.g. ``config.toml``). Requirements
+        are pinned from the installed versions (no inference subprocess)."""
         import workbench
 
         from .serving import WorkbenchModel, model_signature
