@@ -67,6 +67,7 @@ def test_the_command_imports_heavy_libraries_only_where_needed(tmp_path):
     the experiment layer's (MLflow, Optuna, SHAP)."""
     assert _loaded("--help") == set()
     assert _loaded("sweep", "--help") == set()
+    assert _loaded("predict", "--help") == set()
     simulated = _loaded("simulate", "--experiments", "10", "--out", str(tmp_path / "s.csv"))
     assert not simulated & {"mlflow", "optuna", "shap"}, simulated
     assert (tmp_path / "s.csv").is_file()  # the command did run

@@ -21,9 +21,28 @@ log = logging.getLogger("workbench")
 
 
 def _write_json(path: str, payload: dict) -> None:
-    from .._io import atomic_write
+    from .outputs import write_file
 
-    atomic_write(path, json.dumps(payload, indent=2) + "\n")  # never a half-written result
+    write_file(path, json.dumps(payload, indent=2) + "\n", "--json")  # never half-written
+
+
+def _check_outputs(args) -> None:
+    """Every output location (``--json``, ``--out``) is writable, and ``--register`` has a
+    store to register in, before anything is loaded or fitted."""
+    from .outputs import check_dir, check_file
+
+    name = getattr(args, "register", None)
+    if name is not None:
+        if args.no_track:
+            raise UsageError("--register needs the tracking store; drop --no-track")
+        if not name.strip() or name != name.strip() or any(c in name for c in "/:@") \
+                or name in (".", ".."):
+            raise UsageError(f"--register {name!r}: a registered model's name cannot be "
+                             "empty, start or end with a space, or contain '/', ':' or '@'")
+    if args.json:
+        check_file(args.json, "--json")
+    if getattr(args, "out", None) is not None:
+        check_dir(args.out, "--out")
 
 
 def _check_before_work(cfg, args):
@@ -109,9 +128,11 @@ def _cmd_sweep(args) -> int:
 
     cfg = load_config(args.config).with_study(trials=args.trials, workers=args.workers,
                                               storage=args.storage)
+    _check_outputs(args)
     tracker = _check_before_work(cfg, args)
     from .lifecycle import TrialRecorder, command_run
 
+    # the run ends FINISHED only once every output is written
     with command_run(tracker, "sweep", cfg.name) as run_id:  # visible while it searches
         sweep = run_sweep(cfg, on_trial=run_id and TrialRecorder(tracker, run_id))
         result = sweep.result
@@ -121,13 +142,22 @@ def _cmd_sweep(args) -> int:
             # logged with the chosen configuration (the family's chosen settings too)
             result.mlflow = record(sweep.config, result, sweep.model, sweep.dataset,
                                    kind="sweep", tracking_uri=args.tracking_uri, sweep=sweep,
-                                   run_id=run_id)
-    result.wall_s = _wall()
+                                   run_id=run_id, register=args.register)
+        result.wall_s = _wall()
+        if args.json:
+            _write_json(args.json, result.to_json())
     print(format_table(result))
+    _print_registered(result)
     if args.json:
-        _write_json(args.json, result.to_json())
         print(f"wrote {args.json}")
     return 0
+
+
+def _print_registered(result) -> None:
+    if "registered_model" in result.mlflow:
+        m = result.mlflow
+        print(f"registered {m['registered_model']} version {m['registered_version']} "
+              f"({m['registered_uri']})")
 
 
 def _cmd_evaluate(args) -> int:
@@ -140,28 +170,46 @@ def _cmd_evaluate(args) -> int:
     if args.out is not None and not cfg.family.writes_outputs:
         raise UsageError(f"--out writes a model family's tables and figures; family "
                          f"{cfg.family.name!r} ({args.config}) has none")
+    _check_outputs(args)
     tracker = _check_before_work(cfg, args)
     from .lifecycle import command_run
 
+    # the run ends FINISHED only once every output is written
     with command_run(tracker, "evaluate", cfg.name) as run_id:
         run = evaluate(cfg, return_model=True)
         result = run.result
         if args.out is not None:
+            from .outputs import write_artifacts
+
             extra = cfg.family.outputs(run.model, run.dataset, f"evaluate of {cfg.name}")
-            result.outputs = {k: str(v) for k, v in extra.write(args.out).items()}
+            result.outputs = {k: str(v) for k, v in write_artifacts(extra, args.out).items()}
         if not args.no_track:
             from .record import record
 
             result.mlflow = record(cfg, result, run.model, run.dataset, kind="evaluate",
-                                   tracking_uri=args.tracking_uri, run_id=run_id)
-    result.wall_s = _wall()
+                                   tracking_uri=args.tracking_uri, run_id=run_id,
+                                   register=args.register)
+        result.wall_s = _wall()
+        if args.json:
+            _write_json(args.json, result.to_json())
     print(format_table(result))
+    _print_registered(result)
     if args.out is not None:
         print(f"wrote {', '.join(sorted(Path(p).name for p in result.outputs.values()))} "
               f"to {args.out}")
     if args.json:
-        _write_json(args.json, result.to_json())
         print(f"wrote {args.json}")
+    return 0
+
+
+def _cmd_predict(args) -> int:
+    from .predict import predict_csv
+    from .tracking import resolve_tracking_uri
+
+    uri = resolve_tracking_uri(args.tracking_uri, None, Path.cwd())
+    done = predict_csv(args.model, args.data, args.out, tracking_uri=uri)
+    print(f"wrote {done.path} ({done.rows} rows: {', '.join(done.targets)}"
+          f"{' with intervals' if done.intervals else ''})")
     return 0
 
 
@@ -205,11 +253,16 @@ def _cmd_simulate(args) -> int:
     return 0
 
 
-def _tracking_args(parser: argparse.ArgumentParser) -> None:
+def _tracking_args(parser: argparse.ArgumentParser, register: bool = False) -> None:
     parser.add_argument("--tracking-uri", default=None,
                         help="MLflow store (default: $MLFLOW_TRACKING_URI, then the config's "
                         "[tracking], then sqlite:///mlruns/mlflow.db)")
     parser.add_argument("--no-track", action="store_true", help="do not log to MLflow")
+    if register:
+        parser.add_argument("--register", metavar="NAME", default=None,
+                            help="register the model in the store's Model Registry as NAME; "
+                            "the new version gets the alias 'champion' "
+                            "(then: workbench predict models:/NAME@champion ...)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -224,7 +277,7 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--out", metavar="DIR", default=None,
                     help="write the model family's tables (CSV) and figures (PNG) to DIR "
                     "(family hamiltonian: coefficients, corrected parameters, selection)")
-    _tracking_args(ev)
+    _tracking_args(ev, register=True)
     ev.set_defaults(func=_cmd_evaluate)
 
     sw = sub.add_parser("sweep", help="nested-CV hyperparameter search (Optuna), then one "
@@ -236,8 +289,20 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--storage", default=None,
                     help="Optuna storage: a journal file path or an RDB URL")
     sw.add_argument("--json", metavar="PATH", help="also write the results as JSON")
-    _tracking_args(sw)
+    _tracking_args(sw, register=True)
     sw.set_defaults(func=_cmd_sweep)
+
+    pr = sub.add_parser("predict", help="predict the rows of a CSV with a logged or "
+                        "registered model (targets, and intervals when the model has them)")
+    pr.add_argument("model", help="a run id, runs:/<run_id>/model, models:/NAME/VERSION, "
+                    "models:/NAME@ALIAS (e.g. models:/device@champion) or models:/<model_id>")
+    pr.add_argument("data", help="CSV with the model's input columns by name (other columns "
+                    "are copied to the output)")
+    pr.add_argument("--out", required=True, metavar="PATH", help="CSV file to write")
+    pr.add_argument("--tracking-uri", default=None,
+                    help="MLflow store holding the model (default: $MLFLOW_TRACKING_URI, "
+                    "then sqlite:///mlruns/mlflow.db)")
+    pr.set_defaults(func=_cmd_predict)
 
     rep = sub.add_parser("reproduce", help="compute the paper's results and figures into a "
                          "report folder and the MLflow experiment paper-reproduction")

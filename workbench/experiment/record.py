@@ -15,10 +15,14 @@ import logging
 from pathlib import Path
 from typing import Any
 
+import pandas as pd
+
 from .config import ExperimentConfig
 from .figures import mae_bars
 from .results import Result
-from .tracking import Tracker, _redact, dataset_hash, git_commit, resolve_tracking_uri
+from .serving import prediction_frame
+from .tracking import (CHAMPION, Tracker, _redact, dataset_hash, git_commit,
+                       resolve_tracking_uri)
 
 __all__ = ["record", "tracker_for"]
 
@@ -93,20 +97,47 @@ def _record_sweep_children(tracker: Tracker, parent: str, sweep, trials: bool = 
         tracker.end_run(run)
 
 
+def _data_source(cfg: ExperimentConfig) -> str | None:
+    """The file the dataset was read from (``None`` if unknown)."""
+    base = cfg.path.parent if cfg.path is not None else Path.cwd()
+    if cfg.data.csv:
+        return str((base / cfg.data.csv).resolve())
+    try:
+        from ..datasets.google_5q import google_5q_csv_path
+
+        data_dir = (base / cfg.data.data_dir).resolve() if cfg.data.data_dir else None
+        return str(google_5q_csv_path(data_dir, download=False))
+    except Exception:  # the source is a label only
+        return None
+
+
+def source_tags(cfg: ExperimentConfig, kind: str, commit: str | None) -> dict[str, str]:
+    """MLflow's source tags (the UI's "Source" column): the command and the git commit."""
+    tags = {"mlflow.source.type": "LOCAL",
+            "mlflow.source.name": f"workbench {kind} {cfg.path or cfg.name}"}
+    if commit:
+        tags["mlflow.source.git.commit"] = commit
+    return tags
+
+
 def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
-           tracking_uri: str | None = None, sweep=None, run_id: str | None = None
-           ) -> dict[str, str]:
+           tracking_uri: str | None = None, sweep=None, run_id: str | None = None,
+           register: str | None = None) -> dict[str, str]:
     """Log one evaluate/sweep as a parent run (metrics, the chosen settings, the config file,
-    the result, MAE/MSE bars, the family's artifacts, the model; for a sweep a child run per
-    trial and per outer fold). Returns ids and URIs to add to the result. ``run_id``: log into
-    this live run (see :func:`.lifecycle.command_run`; a sweep's trials are its children
-    already) instead of a new one."""
+    the result, the training and test rows as MLflow datasets, MAE/MSE bars, the family's
+    artifacts, the test rows' predictions, the model; for a sweep a child run per trial and
+    per outer fold). Returns ids and URIs to add to the result. ``run_id``: log into this
+    live run (see :func:`.lifecycle.command_run`; a sweep's trials are its children already)
+    instead of a new one. ``register``: also register the model under this name in the
+    store's Model Registry (the new version gets the alias ``champion``)."""
     tracker = tracker_for(cfg, tracking_uri)
     family = cfg.family
-    X_train, X_test, _, _ = ds.split(family.inputs(cfg, ds))
+    X_train, X_test, y_train, y_test = ds.split(family.inputs(cfg, ds))
+    commit = git_commit(Path(__file__).resolve().parents[2])
+    digest = dataset_hash(ds.X, ds.targets)
     tags = {"workbench.kind": kind, "config": str(cfg.path) if cfg.path else "",
-            "dataset": ds.name, "dataset_hash": dataset_hash(ds.X, ds.targets),
-            "git_commit": git_commit(Path(__file__).resolve().parents[2]) or "unknown"}
+            "dataset": ds.name, "dataset_hash": digest, "git_commit": commit or "unknown",
+            **source_tags(cfg, kind, commit)}
     params: dict[str, Any] = {"random_state": cfg.random_state, "n_train": len(X_train),
                               "n_test": len(X_test), "family": family.name}
     for target in result.targets:
@@ -123,6 +154,10 @@ def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
         log.info("[%s] tracking in %s (run %s)", cfg.name, _redact(tracker.tracking_uri),
                  run_id)
         tracker.log_metrics(run_id, _metrics(result))
+        source = _data_source(cfg)
+        for context, X, Y in (("training", X_train, y_train), ("test", X_test, y_test)):
+            tracker.log_dataset(run_id, pd.concat([X, Y], axis=1), name=ds.name,
+                                context=context, source=source)
         if cfg.path is not None:
             tracker.log_file(run_id, cfg.path)
         tracker.log_dict(run_id, json.loads(json.dumps(result.to_json(), default=str)),
@@ -141,10 +176,30 @@ def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
             tracker.log_text(run_id, table.to_csv(index=False), f"{family.name}/{name}.csv")
         for name, data in extra.data.items():
             tracker.log_dict(run_id, data, f"{name}.json")
-        model_uri = tracker.log_model(run_id, model, X_test.head(5))
+        # the test rows' predictions, as `workbench predict` and a served model give them
+        predictions = prediction_frame(model, X_test, result.targets)
+        tracker.log_text(run_id, predictions.to_csv(index_label="row"), "predictions/test.csv")
+        model_uri = tracker.log_model(run_id, model, X_test.head(5), targets=result.targets,
+                                      files={"config": cfg.path} if cfg.path else None)
         tracker.set_tags(run_id, {"model_uri": model_uri,
                                   "selected": ",".join(result.model.selected)})
+        out = {"tracking_uri": tracker.tracking_uri, "experiment_id": tracker.experiment_id,
+               "run_id": run_id, "model_uri": model_uri}
+        if register:
+            version = tracker.register_model(
+                model_uri, register, run_id=run_id,
+                tags={"workbench.kind": kind, "config": tags["config"],
+                      "config_name": cfg.name, "dataset": ds.name, "dataset_hash": digest,
+                      "git_commit": tags["git_commit"], "family": family.name,
+                      "test_mae_avg": f"{result.model.avg('test_mae'):.6g}",
+                      "cv_mae_avg": f"{result.model.avg('cv_mae'):.6g}",
+                      "prior_test_mae_avg": f"{result.prior.avg('test_mae'):.6g}"},
+                description=f"{kind} of {cfg.name} (run {run_id})")
+            log.info("[%s] registered %s version %s (alias %s)", cfg.name, register, version,
+                     CHAMPION)
+            tracker.set_tags(run_id, {"registered_model": f"{register}/{version}"})
+            out.update(registered_model=register, registered_version=version,
+                       registered_uri=f"models:/{register}@{CHAMPION}")
         if sweep is not None:
             _record_sweep_children(tracker, run_id, sweep, trials=not live)
-    return {"tracking_uri": tracker.tracking_uri, "experiment_id": tracker.experiment_id,
-            "run_id": run_id, "model_uri": model_uri}
+    return out

@@ -34,12 +34,14 @@ import socket
 import subprocess
 import tempfile
 import time
+import warnings
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit, urlunsplit
 
 import mlflow
+import numpy as np
 import pandas as pd
 from mlflow import MlflowClient
 
@@ -72,6 +74,12 @@ PARENT_TAG = "mlflow.parentRunId"
 SKIPPED_METRICS_TAG = "workbench.skipped_metrics"
 TRUNCATED_PARAMS_TAG = "workbench.truncated_params"
 _RUN_STATUSES = ("FINISHED", "FAILED", "KILLED")
+#: MLflow 3's UI opens an experiment without this tag in its GenAI (traces) view; this value
+#: opens it in the model-training view (runs, metrics, charts, models).
+EXPERIMENT_KIND_TAG = "mlflow.experimentKind"
+EXPERIMENT_KIND = "custom_model_development"
+#: The alias the newest registered version gets (aliases, not the deprecated stages).
+CHAMPION = "champion"
 _SQLITE_HEADER = b"SQLite format 3\x00"
 #: Distributions pinned in a logged model's requirements (those installed).
 MODEL_REQUIREMENTS = ("mlflow", "cloudpickle", "numpy", "pandas", "scipy", "scikit-learn",
@@ -304,7 +312,8 @@ def _quiet(logger_name: str, *texts: str) -> Iterator[None]:
 
 class _PyfuncModel(mlflow.pyfunc.PythonModel):
     """An MLflow pyfunc wrapper holding a fitted model (pickled with cloudpickle by MLflow;
-    the ``workbench`` package travels with it as ``code_paths``)."""
+    the ``workbench`` package travels with it as ``code_paths``). Kept so that models logged
+    before :class:`~.serving.WorkbenchModel` still load; new models use the latter."""
 
     def __init__(self, model):
         self.model = model
@@ -386,7 +395,8 @@ class Tracker:
                 if exp is None:
                     try:
                         client.create_experiment(self.experiment_name,
-                                                 artifact_location=self.artifact_root)
+                                                 artifact_location=self.artifact_root,
+                                                 tags={EXPERIMENT_KIND_TAG: EXPERIMENT_KIND})
                     except MlflowException as exc:
                         # Another process may have created it meanwhile: look it up again.
                         if _translate(exc, self.tracking_uri) is not None:
@@ -404,6 +414,10 @@ class Tracker:
                     f"{_describe_store(self.tracking_uri)} is deleted; restore it "
                     f"('mlflow experiments restore --experiment-id {exp.experiment_id}') or use "
                     "another name")
+            if EXPERIMENT_KIND_TAG not in exp.tags:  # an experiment from before the tag
+                with self._errors():
+                    client.set_experiment_tag(exp.experiment_id, EXPERIMENT_KIND_TAG,
+                                              EXPERIMENT_KIND)
             self._experiment_id = exp.experiment_id
         return self._experiment_id
 
@@ -521,20 +535,33 @@ class Tracker:
     # ----------------------------------------------------------------- models
 
     def log_model(self, run_id: str, model, input_example: pd.DataFrame,
-                  name: str = "model") -> str:
-        """Log a fitted model (``predict(DataFrame)`` -> DataFrame or array) as an MLflow
-        pyfunc model linked to ``run_id``; returns its URI ``models:/<model_id>``.
+                  name: str = "model", *, targets: list[str] | None = None,
+                  files: Mapping[str, str | os.PathLike] | None = None) -> str:
+        """Log a fitted model (``predict(DataFrame)`` -> DataFrame or array; optionally
+        ``predict_interval``) as an MLflow pyfunc model linked to ``run_id``; returns its URI
+        ``models:/<model_id>``.
 
-        The model is cloudpickled inside a small :class:`mlflow.pyfunc.PythonModel`; the
-        ``workbench`` package is stored with it (``code_paths``), so it loads with
-        ``mlflow.pyfunc.load_model`` where only the pinned requirements are installed. The
-        signature is inferred from ``input_example`` and the model's prediction on it; the
-        first 5 rows are stored as the input example. Requirements are pinned from the
-        installed versions (no inference subprocess)."""
+        The model is cloudpickled inside :class:`~.serving.WorkbenchModel` (checks the input
+        table by column name, returns one column per target and ``<target>_lower/_upper``
+        when the model has intervals); the ``workbench`` package is stored with it
+        (``code_paths``), so it loads with ``mlflow.pyfunc.load_model`` (and serves with
+        ``mlflow models serve``) where only the pinned requirements are installed. The
+        signature names ``input_example``'s columns and the outputs; the first 5 rows are
+        the input example (the REST request's template). ``targets``: the target names
+        (default: the columns of ``model.predict``). ``files``: name -> local file stored
+        in the model directory as ``<name><suffix>`` (e.g. ``config.toml``). Requirements
+        are pinned from the installed versions (no inference subprocess)."""
         import workbench
 
+        from .serving import WorkbenchModel, model_signature
+
         example = pd.DataFrame(input_example)
-        signature = mlflow.models.infer_signature(example, model.predict(example))
+        if targets is None:
+            pred = model.predict(example.head(2))
+            targets = ([str(c) for c in pred.columns] if isinstance(pred, pd.DataFrame)
+                       else [f"y{j}" for j in range(np.asarray(pred).reshape(2, -1).shape[1])])
+        wrapped = WorkbenchModel(model, list(example.columns), targets)
+        signature = model_signature(wrapped.columns, wrapped.outputs)
         experiment_id = self.experiment_id
         with self._errors():
             logged = self.client.create_logged_model(experiment_id, name=name,
@@ -549,11 +576,17 @@ class Tracker:
                 # need a script per model): silence MLflow's notice about it for this call.
                 meta = mlflow.models.Model(artifact_path=logged.artifact_location, run_id=run_id,
                                            model_uuid=logged.model_id, model_id=logged.model_id)
-                with _quiet("mlflow.pyfunc", "serialized using CloudPickle"):
+                with _quiet("mlflow.pyfunc", "serialized using CloudPickle",
+                            "Validating input example"):
                     mlflow.pyfunc.save_model(
-                        str(local), python_model=_PyfuncModel(model), mlflow_model=meta,
+                        str(local), python_model=wrapped, mlflow_model=meta,
                         signature=signature, input_example=example.head(5),
+                        metadata={"workbench": {"inputs": wrapped.columns,
+                                                "targets": wrapped.targets,
+                                                "outputs": wrapped.outputs}},
                         pip_requirements=_requirements(), code_paths=[str(code)])
+                for key, path in (files or {}).items():  # e.g. config.toml beside MLmodel
+                    shutil.copyfile(path, local / f"{key}{Path(path).suffix}")
                 with self._errors():
                     self.client.log_model_artifacts(logged.model_id, str(local))
             with self._errors():
@@ -564,6 +597,49 @@ class Tracker:
                 self.client.finalize_logged_model(logged.model_id, "FAILED")
             raise
         return f"models:/{logged.model_id}"
+
+    def register_model(self, model_uri: str, name: str, *, run_id: str | None = None,
+                       tags: Mapping[str, Any] | None = None, description: str | None = None,
+                       alias: str = CHAMPION) -> str:
+        """Register ``models:/<model_id>`` (from :meth:`log_model`) as a new version of the
+        registered model ``name`` (created if missing) in this store's Model Registry, with
+        ``tags``, and point ``alias`` at it; returns the version."""
+        model_id = model_uri.removeprefix("models:/")
+        with self._errors():
+            try:
+                self.client.create_registered_model(
+                    name, description="Registered by workbench evaluate/sweep --register")
+            except MlflowException as exc:
+                if exc.error_code not in ("RESOURCE_ALREADY_EXISTS", "ALREADY_EXISTS"):
+                    raise TrackingError(f"cannot register model {name!r}: {exc.message}") \
+                        from None
+            # the artifact location as source: MLflow's SQL registry would resolve a
+            # models:/ source through the *global* tracking URI, not this client's store
+            source = self.client.get_logged_model(model_id).artifact_location
+            version = self.client.create_model_version(
+                name, source=source, run_id=run_id, model_id=model_id,
+                tags={"model_id": model_id,
+                      **{str(k): _tag_value(v) for k, v in (tags or {}).items()}},
+                description=description)
+            self.client.set_registered_model_alias(name, alias, version.version)
+        return str(version.version)
+
+    def log_dataset(self, run_id: str, frame: pd.DataFrame, *, name: str, context: str,
+                    source: str | None = None, targets: str | None = None) -> str:
+        """Record ``frame`` as an input dataset of the run (MLflow's name, digest and schema;
+        the runs table's "Dataset" column), with ``mlflow.data.context`` = ``context``;
+        returns MLflow's digest."""
+        import mlflow.data
+        from mlflow.entities import DatasetInput, InputTag
+
+        with warnings.catch_warnings():  # a local path "can be interpreted in multiple ways"
+            warnings.simplefilter("ignore", UserWarning)
+            dataset = mlflow.data.from_pandas(frame, source=source, name=name, targets=targets)
+        entity = dataset._to_mlflow_entity()
+        with self._errors():
+            self.client.log_inputs(run_id, [DatasetInput(
+                entity, tags=[InputTag("mlflow.data.context", context)])])
+        return dataset.digest
 
     def model_artifact_uri(self, model_uri: str) -> str:
         """The artifact location of ``models:/<model_id>`` (loadable without a tracking
