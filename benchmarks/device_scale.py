@@ -11,12 +11,13 @@ peak RSS (resource.getrusage), plus test MAE against the prior (30 % test rows):
   of a batch or shortlist), the 3x3 grid with 600 experiments and the 6x6 grid with 2,000
   experiments (linearised).
 
-    python benchmarks/device_scale.py                 # fits only (~3 min)
-    python benchmarks/device_scale.py --selection     # + selections (~15 min)
+    python benchmarks/device_scale.py                 # fits only (~2 min)
+    python benchmarks/device_scale.py --selection     # + selections (~12 min)
     python benchmarks/device_scale.py --only chain5   # one case
 
-One BLAS thread per process unless OMP_NUM_THREADS says otherwise; selection scores folds
-or candidates in 2 worker processes.
+One BLAS thread unless OMP_NUM_THREADS says otherwise; the "refit" selection scores
+candidates in 2 worker processes, the "linearised" one folds and fits in 2 threads of this
+process. Each line ends with the 1-minute load average (the machine is shared) at its end.
 """
 
 from __future__ import annotations
@@ -63,6 +64,10 @@ def measure(func):
     return out, seconds, peak / 2**20, rss
 
 
+def load() -> str:
+    return f"load {os.getloadavg()[0]:.1f}"
+
+
 def maes(est, d, c, test):
     y = d.iloc[test][c["targets"]].to_numpy()
     return (np.abs(est.predict(d.iloc[test]) - y).mean(),
@@ -79,7 +84,7 @@ def fit_case(label, topology, shape, n_sites, m):
     n_coef = len(est.coef_)
     print(f"fit   {label:<22} {len(train):>5} train rows  {n_coef:>5} coefficients  "
           f"{est.n_iter_:>2} GN iterations  {sec:7.1f} s  traced peak {peak:7.0f} MB  "
-          f"max RSS {rss:6.0f} MB  test MAE {mae:.3f} (prior {prior:.3f})", flush=True)
+          f"max RSS {rss:6.0f} MB  test MAE {mae:.3f} (prior {prior:.3f})  {load()}", flush=True)
 
 
 def selection_case(label, topology, shape, n_sites, m, method, max_steps=20):
@@ -99,7 +104,7 @@ def selection_case(label, topology, shape, n_sites, m, method, max_steps=20):
     print(f"select {label:<21} {method:<10} {len(train):>5} train rows  {steps:>2} steps  "
           f"{len(res.selected):>3} pairs added  {sec:7.1f} s  traced peak {peak:7.0f} MB  "
           f"max RSS {rss:6.0f} MB  CV MAE {res.cv_mae:.3f}  test MAE {mae:.3f} "
-          f"(prior {prior:.3f})", flush=True)
+          f"(prior {prior:.3f})  {load()}", flush=True)
 
 
 CASES = {
