@@ -9,7 +9,9 @@ peak RSS (resource.getrusage), plus test MAE against the prior (30 % test rows):
   ``--selection`` cases: the 5-site chain with 300 experiments by both methods ("refit":
   a full refit per candidate, "linearised": one Gauss-Newton step per candidate, exact refit
   of a batch or shortlist), the 3x3 grid with 600 experiments and the 6x6 grid with 2,000
-  experiments (linearised).
+  experiments (linearised);
+* ``--only chain5acc``: accuracy of the linearised against the refit selection, 5-site
+  chain with 300 and 400 experiments, seeds 0-2 (test MAE of each, ~6 min).
 
     python benchmarks/device_scale.py                 # fits only (~2 min)
     python benchmarks/device_scale.py --selection     # + selections (~12 min)
@@ -87,8 +89,8 @@ def fit_case(label, topology, shape, n_sites, m):
           f"max RSS {rss:6.0f} MB  test MAE {mae:.3f} (prior {prior:.3f})  {load()}", flush=True)
 
 
-def selection_case(label, topology, shape, n_sites, m, method, max_steps=20):
-    d, c, train, test = device(topology, shape, n_sites, m)
+def selection_case(label, topology, shape, n_sites, m, method, max_steps=20, seed=0):
+    d, c, train, test = device(topology, shape, n_sites, m, seed=seed)
     common = dict(onsite=c["onsite"], couplings=c["couplings"], edges=c["edges"],
                   loss="huber", huber_delta=0.5)
     pool = candidate_pool(c["onsite"], c["couplings"], c["qubit"], c["coupler"], base=None,
@@ -105,6 +107,22 @@ def selection_case(label, topology, shape, n_sites, m, method, max_steps=20):
           f"{len(res.selected):>3} pairs added  {sec:7.1f} s  traced peak {peak:7.0f} MB  "
           f"max RSS {rss:6.0f} MB  CV MAE {res.cv_mae:.3f}  test MAE {mae:.3f} "
           f"(prior {prior:.3f})  {load()}", flush=True)
+    return mae, sec
+
+
+def accuracy_case(sizes=(300, 400), seeds=(0, 1, 2)):
+    """Linearised against refit selection on the simulated 5-site chain, several data sets."""
+    out = {"refit": [], "linearised": []}
+    for m in sizes:
+        for seed in seeds:
+            for method in out:
+                out[method].append(selection_case(f"chain 5, {m} exp, seed {seed}", "chain",
+                                                  None, 5, m, method, seed=seed))
+    (ref, ref_s), (lin, lin_s) = (np.asarray(out[k]).T for k in ("refit", "linearised"))
+    print(f"chain 5, {len(ref)} data sets: median test MAE refit {np.median(ref):.3f}, "
+          f"linearised {np.median(lin):.3f}; linearised - refit: mean {np.mean(lin - ref):+.4f}, "
+          f"worst {np.max(lin - ref):+.4f}; median time refit {np.median(ref_s):.1f} s, "
+          f"linearised {np.median(lin_s):.1f} s", flush=True)
 
 
 CASES = {
@@ -116,6 +134,7 @@ CASES = {
                                       "linearised"),
     "grid6x6": lambda: selection_case("grid 6x6, 2000 exp", "grid", (6, 6), None, 2000,
                                       "linearised"),
+    "chain5acc": accuracy_case,
 }
 
 
