@@ -289,9 +289,22 @@ def graph_spectrum(onsite, couplings, graph: CouplingGraph | None = None, sign=-
             lam[sl] = np.linalg.eigvalsh(h)
             continue
         lam[sl], vec = np.linalg.eigh(h)  # vec[j, i, k] = u_ik, ascending lam
-        jac[sl, :, :N] = sign * np.swapaxes(vec**2, 1, 2)
-        jac[sl, :, N:] = sign * 2.0 * np.swapaxes(vec[:, a, :] * vec[:, b, :], 1, 2)
+        _hellmann_feynman(vec, sign, a, b, jac[sl])
     return (lam, jac) if jacobian else lam
+
+
+def _hellmann_feynman(vec, sign, a, b, out) -> np.ndarray:
+    """``out[j, k, :] = d lambda_k / d theta`` from eigenvectors ``vec[j, i, k] = u_ik``:
+    ``sign * u_ik^2`` for the onsite terms, ``2 sign u_ak u_bk`` for the couplings (a, b).
+    Written through the transposed eigenvectors ``u[j, k, i]`` (contiguous in the site), so
+    both products are contiguous in ``out``."""
+    N = vec.shape[1]
+    vt = np.ascontiguousarray(np.swapaxes(vec, 1, 2))
+    np.multiply(vt, sign * vt, out=out[:, :, :N])
+    if len(a):
+        np.multiply(np.take(vt, a, axis=2), (2.0 * sign) * np.take(vt, b, axis=2),
+                    out=out[:, :, N:])
+    return out
 
 
 def chain_hamiltonian(onsite, couplings) -> np.ndarray:

@@ -234,7 +234,12 @@ def _normal_equations(jac, w, r, Phi, sel, chunk_elements=8_000_000, wr=None):
     for a in range(0, n, step):
         sl = slice(a, min(n, a + step))
         Jw = np.swapaxes(jac[sl] * w[sl, :, None], 1, 2)  # (m, P, N)
-        M = np.matmul(Jw, jac[sl])  # (m, P, P)
+        if P < 64:
+            M = np.matmul(Jw, jac[sl])  # (m, P, P)
+        else:  # large blocks: one BLAS product per row beats numpy's stacked matmul
+            M = np.empty((len(Jw), P, P))
+            for i, (left, right) in enumerate(zip(Jw, jac[sl])):
+                np.matmul(left, right, out=M[i])
         F = flat[sl][:, sel]  # (m, D)
         for b, p in enumerate(params):
             lo, hi = bounds[b], bounds[b + 1]

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .hamiltonian import _hellmann_feynman
 from .param_boost import (HamiltonianParameterRegressor, _columns, _normal_equations, _parse,
                           _weights, parasitic_names, resolve_graph)
 
@@ -38,10 +39,7 @@ def _jacobian(vec, sign, N, pairs) -> np.ndarray:
     """``d lambda_k / d theta_p`` for the onsite terms and the couplings of ``pairs``."""
     a = np.array([i for i, _ in pairs], dtype=int)
     b = np.array([j for _, j in pairs], dtype=int)
-    jac = np.empty((vec.shape[0], N, N + len(pairs)))
-    jac[:, :, :N] = sign * np.swapaxes(vec**2, 1, 2)
-    jac[:, :, N:] = sign * 2.0 * np.swapaxes(vec[:, a, :] * vec[:, b, :], 1, 2)
-    return jac
+    return _hellmann_feynman(vec, sign, a, b, np.empty((vec.shape[0], N, N + len(pairs))))
 
 
 class _Variables:
