@@ -231,13 +231,14 @@ def _normal_equations(jac, w, r, Phi, sel, chunk_elements=8_000_000, wr=None):
     bounds = np.r_[0, np.flatnonzero(np.diff(pidx)) + 1, D]  # block of each active param
     params = pidx[bounds[:-1]]
     step = max(1, chunk_elements // max(1, P * P, N * P))
+    buffer = np.empty((min(n, step), P, P)) if P >= 64 else None
     for a in range(0, n, step):
         sl = slice(a, min(n, a + step))
         Jw = np.swapaxes(jac[sl] * w[sl, :, None], 1, 2)  # (m, P, N)
-        if P < 64:
+        if buffer is None:
             M = np.matmul(Jw, jac[sl])  # (m, P, P)
         else:  # large blocks: one BLAS product per row beats numpy's stacked matmul
-            M = np.empty((len(Jw), P, P))
+            M = buffer[:len(Jw)]
             for i, (left, right) in enumerate(zip(Jw, jac[sl])):
                 np.matmul(left, right, out=M[i])
         F = flat[sl][:, sel]  # (m, D)
@@ -496,10 +497,10 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         delta[:, :theta0.shape[1]] += theta0
         return delta
 
-    def _spectrum(self, theta, jacobian=True):
+    def _spectrum(self, theta, jacobian=True, out=None):
         N = len(self.onsite_)
         return graph_spectrum(theta[:, :N], theta[:, N:], self.graph_, self.sign,
-                              jacobian=jacobian)
+                              jacobian=jacobian, out=out)
 
     def _initial(self, coef_init, index) -> np.ndarray:
         c = np.zeros(len(index))
@@ -576,7 +577,7 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         obj = self._objective(r, c, penalty)
         history, n_iter = [obj], 0
         newton = self.solver == "newton" and self.loss in _CURVATURE
-        improvement = np.inf
+        improvement, spare = np.inf, None
         while n_iter < self.max_iter:
             n_iter += 1
             near = improvement < _NEWTON_SWITCH  # Newton steps once close to the optimum
@@ -594,12 +595,13 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
             step, accepted = 1.0, False
             for _ in range(30):
                 c_new = c + step * dc
-                lam_new, jac_new = self._spectrum(self._theta(theta0, phis, c_new))
+                lam_new, jac_new = self._spectrum(self._theta(theta0, phis, c_new), out=spare)
                 r_new = y - lam_new
                 obj_new = self._objective(r_new, c_new, penalty)
                 if obj_new <= obj:
                     accepted = True
                     break
+                spare = jac_new
                 step *= 0.5
             if not accepted:
                 if newton and near:  # the curvature model failed here: IRLS from now on
@@ -607,6 +609,7 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
                     continue
                 break
             improvement = (obj - obj_new) / max(obj, np.finfo(float).tiny)
+            spare = jac  # the Jacobians alternate between two arrays (no fresh pages)
             c, r, jac, obj = c_new, r_new, jac_new, obj_new
             history.append(obj)
             if improvement < self.tol:
