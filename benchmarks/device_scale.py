@@ -4,7 +4,7 @@ Prints, per case, wall time, peak traced memory (tracemalloc: numpy arrays) and 
 peak RSS (resource.getrusage), plus test MAE against the prior (30 % test rows):
 
 * fit with fixed covariates (the default library): 6x6 grid, 2,000 experiments; 10x10 grid,
-  1,000 experiments;
+  1,000 experiments; with the default IRLS solver and with ``solver="newton"``;
 * covariate selection (forward, 5-fold CV, huber loss, candidate pool with neighbours):
   ``--selection`` cases: the 5-site chain with 300 experiments by both methods ("refit":
   a full refit per candidate, "linearised": one Gauss-Newton step per candidate, exact refit
@@ -76,17 +76,20 @@ def maes(est, d, c, test):
             np.abs(d.iloc[test][c["prior"]].to_numpy() - y).mean())
 
 
-def fit_case(label, topology, shape, n_sites, m):
+def fit_case(label, topology, shape, n_sites, m, solvers=("irls", "newton")):
     d, c, train, test = device(topology, shape, n_sites, m)
-    est = HamiltonianParameterRegressor(onsite=c["onsite"], couplings=c["couplings"],
-                                        edges=c["edges"], loss="huber", huber_delta=0.5)
     y = d.iloc[train][c["targets"]].to_numpy()
-    _, sec, peak, rss = measure(lambda: est.fit(d.iloc[train], y))
-    mae, prior = maes(est, d, c, test)
-    n_coef = len(est.coef_)
-    print(f"fit   {label:<22} {len(train):>5} train rows  {n_coef:>5} coefficients  "
-          f"{est.n_iter_:>2} GN iterations  {sec:7.1f} s  traced peak {peak:7.0f} MB  "
-          f"max RSS {rss:6.0f} MB  test MAE {mae:.3f} (prior {prior:.3f})  {load()}", flush=True)
+    for solver in solvers:
+        est = HamiltonianParameterRegressor(onsite=c["onsite"], couplings=c["couplings"],
+                                            edges=c["edges"], loss="huber", huber_delta=0.5,
+                                            solver=solver)
+        _, sec, peak, rss = measure(lambda: est.fit(d.iloc[train], y))
+        mae, prior = maes(est, d, c, test)
+        n_coef = len(est.coef_)
+        print(f"fit   {label:<22} {solver:<6} {len(train):>5} train rows  {n_coef:>5} "
+              f"coefficients  {est.n_iter_:>2} GN iterations  {sec:7.1f} s  traced peak "
+              f"{peak:7.0f} MB  max RSS {rss:6.0f} MB  test MAE {mae:.3f} (prior {prior:.3f})  "
+              f"{load()}", flush=True)
 
 
 def selection_case(label, topology, shape, n_sites, m, method, max_steps=20, seed=0):
