@@ -55,15 +55,24 @@ def device(topology, shape, n_sites, m, seed=0):
     return d, cols, np.sort(perm[n_test:]), np.sort(perm[:n_test])
 
 
+def cpu_seconds() -> float:
+    """User + system CPU time of this process and its finished children (all threads)."""
+    own, kids = (resource.getrusage(w) for w in (resource.RUSAGE_SELF,
+                                                  resource.RUSAGE_CHILDREN))
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+
 def measure(func):
+    """``func()``, wall seconds, traced peak MB, max RSS MB and CPU seconds (the CPU time
+    is less sensitive than the wall time to other work on a shared machine)."""
     tracemalloc.start()
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), cpu_seconds()
     out = func()
-    seconds = time.perf_counter() - t0
+    seconds, cpu = time.perf_counter() - t0, cpu_seconds() - c0
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # kB -> MB on Linux
-    return out, seconds, peak / 2**20, rss
+    return out, seconds, peak / 2**20, rss, cpu
 
 
 def load() -> str:
@@ -83,11 +92,12 @@ def fit_case(label, topology, shape, n_sites, m, solvers=("irls", "newton")):
         est = HamiltonianParameterRegressor(onsite=c["onsite"], couplings=c["couplings"],
                                             edges=c["edges"], loss="huber", huber_delta=0.5,
                                             solver=solver)
-        _, sec, peak, rss = measure(lambda: est.fit(d.iloc[train], y))
+        _, sec, peak, rss, cpu = measure(lambda: est.fit(d.iloc[train], y))
         mae, prior = maes(est, d, c, test)
         n_coef = len(est.coef_)
         print(f"fit   {label:<22} {solver:<6} {len(train):>5} train rows  {n_coef:>5} "
-              f"coefficients  {est.n_iter_:>2} GN iterations  {sec:7.1f} s  traced peak "
+              f"coefficients  {est.n_iter_:>2} GN iterations  {sec:7.1f} s (cpu {cpu:6.1f} s)  "
+              f"traced peak "
               f"{peak:7.0f} MB  max RSS {rss:6.0f} MB  test MAE {mae:.3f} (prior {prior:.3f})  "
               f"{load()}", flush=True)
 
@@ -100,14 +110,15 @@ def selection_case(label, topology, shape, n_sites, m, method, max_steps=20, see
                           edges=c["edges"])
     start = default_library(c["onsite"], c["couplings"], c["edges"])
     y = d.iloc[train][c["targets"]].to_numpy()
-    res, sec, peak, rss = measure(lambda: forward_select(
+    res, sec, peak, rss, cpu = measure(lambda: forward_select(
         d.iloc[train], y, candidates=pool, start=start, cv=5, max_steps=max_steps,
         random_state=0, n_jobs=2, method=method, **common))
     est = res.estimator().fit(d.iloc[train], y)
     mae, prior = maes(est, d, c, test)
     steps = int(res.path["step"].max())
     print(f"select {label:<21} {method:<10} {len(train):>5} train rows  {steps:>2} steps  "
-          f"{len(res.selected):>3} pairs added  {sec:7.1f} s  traced peak {peak:7.0f} MB  "
+          f"{len(res.selected):>3} pairs added  {sec:7.1f} s (cpu {cpu:6.1f} s)  "
+          f"traced peak {peak:7.0f} MB  "
           f"max RSS {rss:6.0f} MB  CV MAE {res.cv_mae:.3f}  test MAE {mae:.3f} "
           f"(prior {prior:.3f})  {load()}", flush=True)
     return mae, sec
