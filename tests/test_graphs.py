@@ -9,7 +9,8 @@ import pytest
 
 from workbench.datasets import DatasetError, load_csv_dataset
 from workbench.experiment.cli import main
-from workbench.hamiltonian import CouplingGraph, graph_hamiltonian, graph_spectrum, make_graph
+from workbench.hamiltonian import (CouplingGraph, _hellmann_feynman, graph_hamiltonian,
+                                  graph_spectrum, make_graph)
 from workbench.param_boost import HamiltonianParameterRegressor, default_library
 from workbench.param_select import HamiltonianSelectionCV, candidate_pool, forward_select
 from workbench.simulate import Mismatch, simulate, write_simulation
@@ -60,6 +61,15 @@ def test_spectrum_and_jacobian_on_any_graph(name, sign):
                                                                      graph))) / (2 * eps)
     assert np.abs(jac - fd).max() <= 1e-5 * max(1.0, np.abs(fd).max())
     assert np.allclose(jac[:, :, :N].sum(axis=2), sign)
+    # written into a given array; the Hellmann-Feynman products over any row blocks
+    buffer = np.full_like(jac, np.nan)
+    again = graph_spectrum(f, g, graph, sign, out=buffer)[1]
+    assert again is buffer and np.array_equal(again, graph_spectrum(f, g, graph, sign)[1])
+    vec = np.linalg.eigh(sign * h)[1]
+    a, b = (np.array([e[k] for e in graph.edges]) for k in (0, 1))
+    blocks = _hellmann_feynman(vec, sign, a, b, np.empty_like(jac), block_elements=1)
+    assert np.array_equal(blocks, _hellmann_feynman(vec, sign, a, b, np.empty_like(jac)))
+    assert np.allclose(blocks, jac, atol=1e-9)
 
 
 @pytest.mark.parametrize("build, match", [

@@ -194,6 +194,29 @@ def test_regressor_warm_start_reaches_the_same_fit(coupler_shift):
         clone(cold).fit(train, train[MEASURED], coef_init=np.zeros(3))
 
 
+def test_regressor_newton_solver_reaches_the_irls_optimum(coupler_shift):
+    """The Newton weighting (Huber's curvature) minimises the same objective as IRLS; with
+    squared error the two are the same algorithm, with absolute error Newton keeps IRLS."""
+    train, test, _ = coupler_shift
+    d = simulate(N_SIM, 200, seed=1, mismatch=Mismatch.only("crosstalk", "noise")).data
+    base = dict(onsite=ONSITE, couplings=COUPLINGS, features=["v_q1", "v_c2"], tol=1e-12,
+                max_iter=200)
+    for frame in (train, d):
+        irls = HamiltonianParameterRegressor(**base, loss="huber", huber_delta=0.5).fit(
+            frame, frame[MEASURED])
+        newton = clone(irls).set_params(solver="newton").fit(frame, frame[MEASURED])
+        assert newton.train_loss_[-1] <= irls.train_loss_[-1] * (1 + 1e-9)
+        assert np.allclose(newton.predict(test), irls.predict(test), atol=1e-4)
+        assert np.all(np.diff(newton.train_loss_) <= 0)
+    # with noise, IRLS converges linearly and the Newton steps take far fewer iterations
+    assert newton.n_iter_ < 0.5 * irls.n_iter_, (newton.n_iter_, irls.n_iter_)
+    for loss in ("squared_error", "absolute_error"):
+        irls = HamiltonianParameterRegressor(**base | dict(tol=1e-6), loss=loss).fit(
+            train, train[MEASURED])
+        newton = clone(irls).set_params(solver="newton").fit(train, train[MEASURED])
+        assert np.array_equal(newton.coef_.to_numpy(), irls.coef_.to_numpy())
+
+
 def test_regressor_absolute_loss_and_l1(coupler_shift):
     train, test, _ = coupler_shift
     prior_mae = np.abs(test[PRIOR].to_numpy() - test[MEASURED].to_numpy()).mean()
@@ -236,6 +259,8 @@ def test_regressor_clone_and_params():
     (dict(onsite=ONSITE, couplings=COUPLINGS, covariates={"model_f1": ["v_q1^x"]}),
      "unknown covariate"),
     (dict(onsite=ONSITE, couplings=COUPLINGS, alpha=-1), "alpha"),
+    (dict(onsite=ONSITE, couplings=COUPLINGS, solver="lbfgs"),
+     "unknown solver 'lbfgs'; valid: irls, newton"),
     (dict(onsite=ONSITE, couplings=COUPLINGS, covariates="cubic"), "covariates must be"),
     (dict(onsite=ONSITE, couplings=COUPLINGS, sign=0), "sign"),
     (dict(onsite=ONSITE, couplings=COUPLINGS, features=["nope"]), "not columns of X"),

@@ -259,7 +259,7 @@ def graph_hamiltonian(onsite, couplings, graph: CouplingGraph | None = None) -> 
 
 
 def graph_spectrum(onsite, couplings, graph: CouplingGraph | None = None, sign=-1, *,
-                   jacobian: bool = True, chunk_elements: int = 8_000_000):
+                   jacobian: bool = True, chunk_elements: int = 8_000_000, out=None):
     """Ascending eigenvalues of ``sign * H`` and (``jacobian=True``) their Jacobian.
 
     Returns
@@ -270,6 +270,7 @@ def graph_spectrum(onsite, couplings, graph: CouplingGraph | None = None, sign=-
         ``theta = (onsite_1..onsite_N, coupling_1..coupling_E)``. Only when ``jacobian``.
 
     The examples are diagonalised in chunks of about ``chunk_elements`` matrix entries.
+    ``out``: an array of the Jacobian's shape to write it into (reused memory), or None.
     """
     sign = _check_sign(sign)
     f, g, graph = _check(onsite, couplings, graph)
@@ -278,7 +279,10 @@ def graph_spectrum(onsite, couplings, graph: CouplingGraph | None = None, sign=-
     a = np.fromiter((e[0] for e in graph.edges), int, E)
     b = np.fromiter((e[1] for e in graph.edges), int, E)
     lam = np.empty((n, N))
-    jac = np.empty((n, N, N + E)) if jacobian else None
+    jac = None
+    if jacobian:
+        shape = (n, N, N + E)
+        jac = out if isinstance(out, np.ndarray) and out.shape == shape else np.empty(shape)
     step = max(1, chunk_elements // (N * N))
     for s in range(0, n, step):
         sl = slice(s, min(n, s + step))
@@ -289,9 +293,26 @@ def graph_spectrum(onsite, couplings, graph: CouplingGraph | None = None, sign=-
             lam[sl] = np.linalg.eigvalsh(h)
             continue
         lam[sl], vec = np.linalg.eigh(h)  # vec[j, i, k] = u_ik, ascending lam
-        jac[sl, :, :N] = sign * np.swapaxes(vec**2, 1, 2)
-        jac[sl, :, N:] = sign * 2.0 * np.swapaxes(vec[:, a, :] * vec[:, b, :], 1, 2)
+        _hellmann_feynman(vec, sign, a, b, jac[sl])
     return (lam, jac) if jacobian else lam
+
+
+def _hellmann_feynman(vec, sign, a, b, out, block_elements=1_000_000) -> np.ndarray:
+    """``out[j, k, :] = d lambda_k / d theta`` from eigenvectors ``vec[j, i, k] = u_ik``:
+    ``sign * u_ik^2`` for the onsite terms, ``2 sign u_ak u_bk`` for the couplings (a, b).
+    Written through the transposed eigenvectors ``u[j, k, i]`` (contiguous in the site), so
+    both products are contiguous in ``out``, over blocks of rows whose temporaries hold
+    about ``block_elements`` numbers (large fresh arrays cost page faults)."""
+    n, N = vec.shape[:2]
+    rows = max(1, block_elements // (N * max(N, len(a), 1)))
+    for s in range(0, n, rows):
+        sl = slice(s, min(n, s + rows))
+        vt = np.ascontiguousarray(np.swapaxes(vec[sl], 1, 2))
+        np.multiply(vt, sign * vt, out=out[sl, :, :N])
+        if len(a):
+            np.multiply(np.take(vt, a, axis=2), (2.0 * sign) * np.take(vt, b, axis=2),
+                        out=out[sl, :, N:])
+    return out
 
 
 def chain_hamiltonian(onsite, couplings) -> np.ndarray:

@@ -55,6 +55,28 @@ def _huber(r, delta):
 #: ``f(residual, huber_delta) -> (loss of each residual, IRLS weight of each residual)``.
 PARAM_LOSSES = {"squared_error": _squared, "absolute_error": _absolute, "huber": _huber}
 
+#: Curvature ``rho''(r)`` of the losses that have one (the Newton solver's weights).
+_CURVATURE = {"squared_error": lambda r, delta: np.ones_like(r),
+              "huber": lambda r, delta: (np.abs(r) <= delta).astype(float)}
+
+#: Gauss-Newton weightings of :class:`HamiltonianParameterRegressor` (``solver``).
+SOLVERS = ("irls", "newton")
+#: The Newton solver takes IRLS steps until an iteration improves the objective by less
+#: than this fraction: far from the optimum (most residuals beyond Huber's delta) the
+#: curvature model is poor and IRLS, a majorisation, does better.
+_NEWTON_SWITCH = 0.1
+
+
+def _weights(loss: str, r, delta, newton: bool):
+    """Normal-equation weights and weighted residuals ``(w, w_r)``: ``w_r = psi(r)`` (the
+    loss's negative gradient) always; ``w = psi(r) / r`` (IRLS) or, with ``newton`` and a
+    loss with curvature, ``rho''(r)``."""
+    w = PARAM_LOSSES[loss](r, delta)[1]
+    wr = w * r
+    if newton and loss in _CURVATURE:
+        w = _CURVATURE[loss](r, delta)
+    return w, wr
+
 
 def _names(value, what: str) -> list[str]:
     if value is None:
@@ -185,8 +207,9 @@ def _lasso_quadratic(H, b, l1, x0, max_iter=20000, tol=1e-9):
     return x
 
 
-def _normal_equations(jac, w, r, Phi, sel, chunk_elements=8_000_000):
-    """Gauss-Newton normal equations ``A^T W A`` and ``A^T W r``.
+def _normal_equations(jac, w, r, Phi, sel, chunk_elements=8_000_000, wr=None):
+    """Gauss-Newton normal equations ``A^T W A`` and ``A^T W r`` (``A^T wr`` when ``wr``,
+    the weighted residuals, is given).
 
     ``A[(j, k), (p, c)] = jac[j, k, p] * Phi[j, p, c]`` (``Phi`` padded to (n, P, K), ``sel``
     the flat (p, c) positions of the real coefficients). ``A`` is never formed: with
@@ -201,16 +224,23 @@ def _normal_equations(jac, w, r, Phi, sel, chunk_elements=8_000_000):
     pidx = sel // K
     flat = Phi.reshape(n, P * K)
     D = len(sel)
-    s = np.matmul((w * r)[:, None, :], jac)[:, 0, :]  # (n, P): sum_k J w r
+    wr = w * r if wr is None else wr
+    s = np.matmul(wr[:, None, :], jac)[:, 0, :]  # (n, P): sum_k J w r
     g = (flat[:, sel] * s[:, pidx]).sum(axis=0)
     H = np.zeros((D, D))
     bounds = np.r_[0, np.flatnonzero(np.diff(pidx)) + 1, D]  # block of each active param
     params = pidx[bounds[:-1]]
     step = max(1, chunk_elements // max(1, P * P, N * P))
+    buffer = np.empty((min(n, step), P, P)) if P >= 64 else None
     for a in range(0, n, step):
         sl = slice(a, min(n, a + step))
         Jw = np.swapaxes(jac[sl] * w[sl, :, None], 1, 2)  # (m, P, N)
-        M = np.matmul(Jw, jac[sl])  # (m, P, P)
+        if buffer is None:
+            M = np.matmul(Jw, jac[sl])  # (m, P, P)
+        else:  # large blocks: one BLAS product per row beats numpy's stacked matmul
+            M = buffer[:len(Jw)]
+            for i, (left, right) in enumerate(zip(Jw, jac[sl])):
+                np.matmul(left, right, out=M[i])
         F = flat[sl][:, sel]  # (m, D)
         for b, p in enumerate(params):
             lo, hi = bounds[b], bounds[b + 1]
@@ -247,7 +277,12 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
     ``J[:, k, p] * phi_p(x)``; with ``alpha_l1 > 0`` the step minimises the same quadratic
     model plus the L1 term (FISTA). The step is halved (up to 30 times) until
     the objective does not increase; iteration stops when the relative improvement is below
-    ``tol``, no step improves it, or after ``max_iter`` iterations.
+    ``tol``, no step improves it, or after ``max_iter`` iterations. ``solver="newton"``
+    weights the normal matrix by the loss's curvature ``rho''(r)`` instead of the IRLS
+    weights ``psi(r) / r`` (the same for squared error; Huber: 1 inside ``huber_delta``, 0
+    beyond) once an iteration improves the objective by less than 10 %: near the optimum it
+    converges in fewer iterations (IRLS converges linearly there); if a Newton step finds
+    no decrease, the fit goes on with IRLS steps.
 
     Parameters
     ----------
@@ -282,6 +317,9 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         Maximum Gauss-Newton iterations.
     tol : float, default=1e-6
         Stop when the relative decrease of the objective is below this.
+    solver : {"irls", "newton"}, default="irls"
+        Weights of the Gauss-Newton normal equations: IRLS ``psi(r) / r`` or the loss's
+        curvature (``"newton"``; ``absolute_error`` has none and keeps IRLS).
 
     Attributes
     ----------
@@ -303,7 +341,8 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
 
     def __init__(self, *, onsite=None, couplings=None, edges=None, parasitic=None, sign=-1,
                  covariates="default", features=None, alpha=1.0, alpha_l1=0.0,
-                 loss="squared_error", huber_delta=1.0, max_iter=20, tol=1e-6):
+                 loss="squared_error", huber_delta=1.0, max_iter=20, tol=1e-6,
+                 solver="irls"):
         self.onsite = onsite
         self.couplings = couplings
         self.edges = edges
@@ -317,6 +356,7 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         self.huber_delta = huber_delta
         self.max_iter = max_iter
         self.tol = tol
+        self.solver = solver
 
     # ------------------------------------------------------------------ validation
     def _check_params(self):
@@ -367,6 +407,8 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
             raise ValueError(f"max_iter must be an integer >= 0, got {self.max_iter!r}")
         if not (isinstance(self.tol, numbers.Real) and self.tol >= 0):
             raise ValueError(f"tol must be a number >= 0, got {self.tol!r}")
+        if self.solver not in SOLVERS:
+            raise ValueError(f"unknown solver {self.solver!r}; valid: {', '.join(SOLVERS)}")
         graph = graph.with_edges([pair for pair, _ in active])
         return onsite, couplings, features, library, graph, [p for _, p in active]
 
@@ -455,10 +497,10 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         delta[:, :theta0.shape[1]] += theta0
         return delta
 
-    def _spectrum(self, theta, jacobian=True):
+    def _spectrum(self, theta, jacobian=True, out=None):
         N = len(self.onsite_)
         return graph_spectrum(theta[:, :N], theta[:, N:], self.graph_, self.sign,
-                              jacobian=jacobian)
+                              jacobian=jacobian, out=out)
 
     def _initial(self, coef_init, index) -> np.ndarray:
         c = np.zeros(len(index))
@@ -534,10 +576,13 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         r = y - lam
         obj = self._objective(r, c, penalty)
         history, n_iter = [obj], 0
-        loss = PARAM_LOSSES[self.loss]
-        for n_iter in range(1, self.max_iter + 1):
-            w = loss(r, self.huber_delta)[1]
-            AtWA, AtWr = _normal_equations(jac, w, r, Phi, sel)
+        newton = self.solver == "newton" and self.loss in _CURVATURE
+        improvement, spare = np.inf, None
+        while n_iter < self.max_iter:
+            n_iter += 1
+            near = improvement < _NEWTON_SWITCH  # Newton steps once close to the optimum
+            w, wr = _weights(self.loss, r, self.huber_delta, newton and near)
+            AtWA, AtWr = _normal_equations(jac, w, r, Phi, sel, wr=wr)
             H = AtWA + self.alpha * np.diag(penalty)
             g = AtWr - self.alpha * penalty * c
             if self.alpha_l1 > 0:
@@ -550,16 +595,21 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
             step, accepted = 1.0, False
             for _ in range(30):
                 c_new = c + step * dc
-                lam_new, jac_new = self._spectrum(self._theta(theta0, phis, c_new))
+                lam_new, jac_new = self._spectrum(self._theta(theta0, phis, c_new), out=spare)
                 r_new = y - lam_new
                 obj_new = self._objective(r_new, c_new, penalty)
                 if obj_new <= obj:
                     accepted = True
                     break
+                spare = jac_new
                 step *= 0.5
             if not accepted:
+                if newton and near:  # the curvature model failed here: IRLS from now on
+                    newton, n_iter = False, n_iter - 1
+                    continue
                 break
             improvement = (obj - obj_new) / max(obj, np.finfo(float).tiny)
+            spare = jac  # the Jacobians alternate between two arrays (no fresh pages)
             c, r, jac, obj = c_new, r_new, jac_new, obj_new
             history.append(obj)
             if improvement < self.tol:

@@ -15,8 +15,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .param_boost import (PARAM_LOSSES, HamiltonianParameterRegressor, _columns,
-                          _normal_equations, _parse, resolve_graph, parasitic_names)
+from .hamiltonian import _hellmann_feynman
+from .param_boost import (HamiltonianParameterRegressor, _columns, _normal_equations, _parse,
+                          _weights, parasitic_names, resolve_graph)
 
 __all__ = ["linear_scores"]
 
@@ -38,10 +39,7 @@ def _jacobian(vec, sign, N, pairs) -> np.ndarray:
     """``d lambda_k / d theta_p`` for the onsite terms and the couplings of ``pairs``."""
     a = np.array([i for i, _ in pairs], dtype=int)
     b = np.array([j for _, j in pairs], dtype=int)
-    jac = np.empty((vec.shape[0], N, N + len(pairs)))
-    jac[:, :, :N] = sign * np.swapaxes(vec**2, 1, 2)
-    jac[:, :, N:] = sign * 2.0 * np.swapaxes(vec[:, a, :] * vec[:, b, :], 1, 2)
-    return jac
+    return _hellmann_feynman(vec, sign, a, b, np.empty((vec.shape[0], N, N + len(pairs))))
 
 
 class _Variables:
@@ -68,9 +66,17 @@ class _Variables:
 
 
 def linear_scores(est: HamiltonianParameterRegressor, X_fit, y_fit, X_val, y_val,
-                  candidates: list[tuple[str, str]]) -> np.ndarray:
+                  candidates: list[tuple[str, str]], chunk_elements: int = 4_000_000
+                  ) -> np.ndarray:
     """Held-out absolute-error sums after one Gauss-Newton step of ``est`` (fitted on
-    ``X_fit``) enlarged by each candidate ``(parameter, covariate)``."""
+    ``X_fit``) enlarged by each candidate ``(parameter, covariate)``.
+
+    The step's weights are those of ``est.solver`` (IRLS or the loss's curvature). Cost:
+    O(n D (P + C)) for the candidates' border columns, O(C D^2) for the Schur complements
+    and O(n_val (D_pad + N P) C) for the held-out predictions, C candidates, D coefficients
+    and P parameters; the held-out predictions are made for blocks of candidates of about
+    ``chunk_elements`` entries.
+    """
     y_fit, y_val = np.asarray(y_fit, float), np.asarray(y_val, float)
     N = len(est.onsite_)
     _, all_pairs = resolve_graph(N, est.edges, est.parasitic)
@@ -83,25 +89,26 @@ def linear_scores(est: HamiltonianParameterRegressor, X_fit, y_fit, X_val, y_val
     lam_v, vec_v = _eigvecs(est, X_val)
     J_f = _jacobian(vec_f, est.sign, N, pairs)
     J_v = _jacobian(vec_v, est.sign, N, pairs)
+    del vec_f, vec_v
     r = y_fit - lam_f
     rv = y_val - lam_v
-    w = PARAM_LOSSES[est.loss](r, est.huber_delta)[1]
+    n, nv = len(r), len(rv)
+    newton = getattr(est, "solver", "irls") == "newton"
+    w, wr = _weights(est.loss, r, est.huber_delta, newton)
 
     # current design and normal equations (as in fit, at the solution)
     vf, vv = _Variables(est, X_fit), _Variables(est, X_val)
     var_f = {v: vf(v) for ts in est.terms_.values() for v, _ in ts}
     var_v = {v: vv(v) for ts in est.terms_.values() for v, _ in ts}
-    phis_f = est._design(var_f, len(r), fitting=False)
-    phis_v = est._design(var_v, len(rv), fitting=False)
-    Phi_f, sel = est._padded(phis_f)
-    Phi_v, _ = est._padded(phis_v)
-    K = Phi_f.shape[2]
+    Phi_f, sel = est._padded(est._design(var_f, n, fitting=False))
+    Phi_v, _ = est._padded(est._design(var_v, nv, fitting=False))
+    Pa, K = Phi_f.shape[1], Phi_f.shape[2]
     pidx = sel // K
     Ja_f = np.ascontiguousarray(J_f[:, :, active])
-    AtWA, AtWr = _normal_equations(Ja_f, w, r, Phi_f, sel)
+    Ja_v = np.ascontiguousarray(J_v[:, :, active])
+    AtWA, AtWr = _normal_equations(Ja_f, w, r, Phi_f, sel, wr=wr)
     penalty = np.ones(len(sel))
-    starts = np.r_[0, np.flatnonzero(np.diff(pidx)) + 1]
-    penalty[starts] = 0.0
+    penalty[np.r_[0, np.flatnonzero(np.diff(pidx)) + 1]] = 0.0
     c = est._coef
     H = AtWA + est.alpha * np.diag(penalty)
     g = AtWr - est.alpha * penalty * c
@@ -110,19 +117,21 @@ def linear_scores(est: HamiltonianParameterRegressor, X_fit, y_fit, X_val, y_val
     except np.linalg.LinAlgError:
         Hinv = np.linalg.pinv(H)
     dc0 = Hinv @ g
-    flat_f = Phi_f.reshape(len(r), -1)[:, sel]
-    flat_v = Phi_v.reshape(len(rv), -1)[:, sel]
-    # M[j, q, p] = sum_k J[j, k, q] w J[j, k, p] (q active), s[j, p] = sum_k J w r
-    Jw = np.ascontiguousarray(np.swapaxes(Ja_f * w[:, :, None], 1, 2))
-    M = np.matmul(Jw, J_f)  # (n, P_active, P_all)
-    s = np.matmul((w * r)[:, None, :], J_f)[:, 0, :]
-    Mpp = np.einsum("jkp,jk,jkp->jp", J_f, w, J_f)
-    dv0 = _theta_change(flat_v, dc0, starts, len(active))  # (nv, P_active, 1)
+    flat_f = Phi_f.reshape(n, -1)[:, sel]
+    PhiT_v = np.ascontiguousarray(np.swapaxes(Phi_v, 0, 1))  # (Pa, nv, K)
+    # held-out residuals after the current model's own step
+    base = rv - _predict_change(PhiT_v, Ja_v, sel, dc0[:, None])[:, :, 0]
 
+    # border of each candidate: sum_k J[j, k, p] w J[j, k, q] (p active, q the candidate's)
+    Jw = np.ascontiguousarray(np.swapaxes(Ja_f * w[:, :, None], 1, 2))  # (n, Pa, N)
+    s = np.matmul(wr[:, None, :], J_f)[:, 0, :]  # (n, P_all): sum_k J w r
     by_param: dict[str, list[int]] = {}
     for m, (p, _) in enumerate(candidates):
         by_param.setdefault(p, []).append(m)
-    out = np.empty(len(candidates))
+    C = len(candidates)
+    ddc = np.empty((len(sel), C))  # coefficient change of the current model's terms
+    direct = np.empty((nv, C))  # held-out change of the candidate's parameter itself
+    qs = np.empty(C, dtype=int)
     all_vars = set(est._derived_) | set(est.onsite_ + est.couplings_) | \
         {str(v) for v in X_fit.columns}
     for p, members in by_param.items():
@@ -136,20 +145,23 @@ def linear_scores(est: HamiltonianParameterRegressor, X_fit, y_fit, X_val, y_val
             sd = sd if sd > 0 else 1.0
             Zf.append((raw_f - mu) / sd)
             Zv.append(((vv(v) - vf(v).mean()) ** k - mu) / sd)
-        Zf, Zv = np.stack(Zf, axis=1), np.stack(Zv, axis=1)  # (n, C)
-        C = Zf.shape[1]
+        Zf, Zv = np.stack(Zf, axis=1), np.stack(Zv, axis=1)  # (n, Cq)
+        Cq = Zf.shape[1]
         if is_new:  # the parasitic coupling's intercept enters with its first covariate
             Zf = np.stack([np.ones_like(Zf), Zf], axis=2)
             Zv = np.stack([np.ones_like(Zv), Zv], axis=2)
             pen = np.array([0.0, 1.0])
         else:
             Zf, Zv, pen = Zf[:, :, None], Zv[:, :, None], np.array([1.0])
-        m_ = Zf.shape[2]
-        G = flat_f * M[:, pidx, q]  # (n, D)
-        Bt = (Zf.reshape(len(r), C * m_).T @ G).reshape(C, m_, -1)  # b^T per candidate
-        HinvB = Bt @ Hinv  # (C, m, D)
+        mq = Zf.shape[2]
+        Jq = np.ascontiguousarray(J_f[:, :, q])
+        Mq = np.matmul(Jw, Jq[:, :, None])[:, :, 0]  # (n, Pa)
+        G = flat_f * Mq[:, pidx]  # (n, D)
+        Bt = (Zf.reshape(n, Cq * mq).T @ G).reshape(Cq, mq, -1)  # b^T per candidate
+        HinvB = Bt @ Hinv  # (Cq, m, D)
         bHb = np.einsum("cmd,cnd->cmn", Bt, HinvB)
-        Hc = np.einsum("j,jcm,jcn->cmn", Mpp[:, q], Zf, Zf) + est.alpha * np.diag(pen)
+        Mqq = np.einsum("jk,jk,jk->j", Jq, w, Jq)
+        Hc = np.einsum("j,jcm,jcn->cmn", Mqq, Zf, Zf) + est.alpha * np.diag(pen)
         gc = np.einsum("j,jcm->cm", s[:, q], Zf)
         S = Hc - bHb
         rhs = gc - HinvB @ g
@@ -157,16 +169,26 @@ def linear_scores(est: HamiltonianParameterRegressor, X_fit, y_fit, X_val, y_val
             dca = np.linalg.solve(S, rhs[:, :, None])[:, :, 0]
         except np.linalg.LinAlgError:
             dca = np.einsum("cmn,cn->cm", np.linalg.pinv(S), rhs)
-        ddc = -np.einsum("cmd,cm->cd", HinvB, dca)  # dc = dc0 + ddc
-        dth = dv0 + _theta_change(flat_v, ddc.T, starts, len(active))  # (nv, Pa, C)
-        dlam = np.matmul(J_v[:, :, active], dth)  # (nv, N, C)
-        dlam += J_v[:, :, q, None] * np.einsum("jcm,cm->jc", Zv, dca)[:, None, :]
-        out[members] = np.abs(rv[:, :, None] - dlam).sum(axis=(0, 1))
+        ddc[:, members] = -np.einsum("cmd,cm->dc", HinvB, dca)
+        direct[:, members] = np.einsum("jcm,cm->jc", Zv, dca)
+        qs[members] = q
+    out = np.empty(C)
+    block = max(1, chunk_elements // max(1, nv * (N + Pa)))
+    for a in range(0, C, block):
+        b = min(C, a + block)
+        dlam = _predict_change(PhiT_v, Ja_v, sel, ddc[:, a:b])  # (nv, N, c)
+        dlam += J_v[:, :, qs[a:b]] * direct[:, None, a:b]
+        np.subtract(base[:, :, None], dlam, out=dlam)
+        out[a:b] = np.abs(dlam).sum(axis=(0, 1))
     return out
 
 
-def _theta_change(flat_v, dc, starts, P):
-    """Parameter changes ``phi_p . dc_p`` per row: (nv, P, C) for ``dc`` (D, C) or (D,)."""
-    dc = dc.reshape(len(dc), -1)
-    prod = flat_v[:, :, None] * dc[None, :, :]  # (nv, D, C)
-    return np.add.reduceat(prod, starts, axis=1)
+def _predict_change(PhiT_v, Ja_v, sel, dc):
+    """Linearised held-out eigenvalue changes ``A_v dc``, (nv, N, C) for ``dc`` (D, C):
+    the parameter changes ``T[j, p] = phi_p(x_j) . dc_p`` per parameter (one batched
+    product over the padded design), then ``J_v T`` per row."""
+    Pa, nv, K = PhiT_v.shape
+    pad = np.zeros((Pa * K, dc.shape[1]))
+    pad[sel] = dc
+    T = np.matmul(PhiT_v, pad.reshape(Pa, K, -1))  # (Pa, nv, C)
+    return np.matmul(Ja_v, np.ascontiguousarray(np.swapaxes(T, 0, 1)))  # (nv, N, C)

@@ -12,6 +12,8 @@ from __future__ import annotations
 import numbers
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -215,14 +217,18 @@ def forward_select(X, y, *, candidates, cv=5, n_repeats=1, random_state=0, max_s
     model), kept if the refit's CV MAE improves by more than ``min_improvement`` (else the
     batch is halved), or, once the batch is 1, the ``shortlist`` best-scored single
     candidates, keeping the best by exact CV MAE as ``"refit"`` does. ``max_steps`` counts
-    steps (a batch step adds several pairs).
+    steps (a batch step adds several pairs). Its fold refits use the Newton solver
+    (:data:`SELECTION_SOLVER`) and stop at a relative objective change of
+    :data:`SELECTION_TOL` (or the regressor's ``tol``, if looser).
 
     Parameters
     ----------
     X : DataFrame with the onsite, coupling and candidate-feature columns.
     y : (n, N) ascending eigenvalues.
     candidates : dict parameter -> list of covariate names (see :func:`candidate_pool`).
-    n_jobs : candidates are scored in parallel (joblib processes) when > 1.
+    n_jobs : parallel workers when > 1: joblib processes over candidates for ``"refit"``
+        (arguments pickled, nothing memory-mapped), threads over folds and fits for
+        ``"linearised"``.
     progress : called with one line per step.
     **regressor_params : passed to :class:`~workbench.param_boost.HamiltonianParameterRegressor`
         (``onsite``, ``couplings``, ``sign``, ``alpha``, ``loss``, ...; not ``covariates``).
@@ -268,8 +274,9 @@ def forward_select(X, y, *, candidates, cv=5, n_repeats=1, random_state=0, max_s
     def score(libraries, warm):
         if jobs > 1 and len(libraries) > 1:
             chunks = [libraries[i::jobs] for i in range(jobs)]
-            res = Parallel(n_jobs=jobs)(delayed(_score_many)(base, ch, folds, warm)
-                                        for ch in chunks)
+            # max_nbytes=None: arguments are pickled, never memory-mapped into /dev/shm
+            res = Parallel(n_jobs=jobs, max_nbytes=None)(
+                delayed(_score_many)(base, ch, folds, warm) for ch in chunks)
             out = [None] * len(libraries)
             for i, r in enumerate(res):
                 out[i::jobs] = r
@@ -302,66 +309,101 @@ def forward_select(X, y, *, candidates, cv=5, n_repeats=1, random_state=0, max_s
                            seconds=time.perf_counter() - t0)
 
 
+#: Relative-objective tolerance of the fold refits inside the linearised selection (the
+#: regressor's own ``tol`` when that is looser); the final refit on all rows uses ``tol``.
+SELECTION_TOL = 1e-5
+#: Solver of the linearised selection's fold refits and candidate steps (see
+#: :class:`~workbench.param_boost.HamiltonianParameterRegressor`): Newton steps converge
+#: from a warm start in a few iterations where IRLS needs many, and its one-step candidate
+#: scores are closer to a refit's.
+SELECTION_SOLVER = "newton"
+
+
+def _fit_fold(est, lib, fold, init):
+    """Fit ``est`` with covariates ``lib`` on one fold: held-out absolute-error sum, count,
+    coefficients and the fitted model."""
+    X_fit, y_fit, X_val, y_val = fold
+    fitted = clone(est).set_params(covariates=lib).fit(X_fit, y_fit, coef_init=init)
+    return (float(np.abs(fitted.predict(X_val) - y_val).sum()), y_val.size,
+            fitted.coef_dict(), fitted)
+
+
 def _linearised_select(X, base, current, pool, folds, jobs, max_steps, min_improvement,
                        shortlist, batch, progress, t0, regressor_params) -> SelectionResult:
-    """Forward selection with linearised candidate scores (see :func:`forward_select`)."""
-    def parallel(func, items):
-        if jobs > 1 and len(items) > 1:
-            return Parallel(n_jobs=jobs)(delayed(func)(*it) for it in items)
-        return [func(*it) for it in items]
+    """Forward selection with linearised candidate scores (see :func:`forward_select`).
 
-    best, warm, models = _fit_splits(base, current, folds, [None] * len(folds), models=True)
-    rows = [dict(step=0, parameter=None, covariate=None, cv_mae=best)]
-    if progress:
-        progress(f"start: cv_mae={best:.4f} ({len(pool)} candidate terms, linearised)")
-    n_params = sum(1 for v in current.values() if v) or 1
-    size = max(1, n_params // 10) if batch == "auto" else int(batch)
-    step = 0
-    while step < max_steps and pool:
-        step += 1
-        count = sum(f[3].size for f in folds)
-        lin = np.sum(parallel(_linear_fold, [(m, f, pool) for m, f in zip(models, folds)]),
-                     axis=0) / count
-        hopeful = [int(k) for k in np.argsort(lin, kind="stable") if lin[k] < best]
-        accepted = None
-        while hopeful:
-            if size > 1:
-                chosen, seen = [], set()
-                for k in hopeful:
-                    if pool[k][0] not in seen:
-                        chosen.append(k)
-                        seen.add(pool[k][0])
-                    if len(chosen) == size:
-                        break
-                trials = [chosen]
-            else:
-                trials = [[k] for k in hopeful[:shortlist]]
-            libs = []
-            for ks in trials:
-                lib = {p: list(v) for p, v in current.items()}
-                for k in ks:
-                    lib[pool[k][0]].append(pool[k][1])
-                libs.append(lib)
-            results = parallel(_fit_splits, [(base, lib, folds, warm, True) for lib in libs])
-            i = int(np.argmin([r[0] for r in results]))
-            if best - results[i][0] > min_improvement:
-                accepted = (trials[i], libs[i], results[i])
-                break
-            if size == 1 or len(trials[0]) == 1:
-                break
-            size = max(1, size // 2)
-        if accepted is None:
-            break
-        ks, lib, (best, warm, models) = accepted
-        for k in ks:
-            rows.append(dict(step=step, parameter=pool[k][0], covariate=pool[k][1],
-                             cv_mae=best))
+    Everything runs in this process: the folds' data and fitted models stay in memory from
+    step to step (nothing is pickled), and with ``jobs > 1`` the (library, fold) fits and the
+    folds' linear scores run in a pool of ``jobs`` threads (numpy's linear algebra and large
+    array operations release the GIL)."""
+    est = clone(base).set_params(tol=max(float(base.tol), SELECTION_TOL),
+                                 solver=SELECTION_SOLVER)
+    with ThreadPoolExecutor(max_workers=jobs) if jobs > 1 else nullcontext() as executor:
+        def run(func, items):
+            if executor is None or len(items) < 2:
+                return [func(*it) for it in items]
+            return list(executor.map(lambda it: func(*it), items))
+
+        def fit_libs(libs, warm):
+            out = run(_fit_fold, [(est, lib, fold, init) for lib in libs
+                                  for fold, init in zip(folds, warm)])
+            k = len(folds)
+            return [(sum(o[0] for o in out[i:i + k]) / sum(o[1] for o in out[i:i + k]),
+                     [o[2] for o in out[i:i + k]], [o[3] for o in out[i:i + k]])
+                    for i in range(0, len(out), k)]
+
+        best, warm, models = fit_libs([current], [None] * len(folds))[0]
+        rows = [dict(step=0, parameter=None, covariate=None, cv_mae=best)]
         if progress:
-            added = ", ".join(f"{pool[k][0]} <- {pool[k][1]}" for k in ks)
-            progress(f"step {step}: {added}  cv_mae={best:.4f} "
-                     f"({time.perf_counter() - t0:.0f} s)")
-        current = lib
-        pool = [pc for k, pc in enumerate(pool) if k not in set(ks)]
+            progress(f"start: cv_mae={best:.4f} ({len(pool)} candidate terms, linearised)")
+        n_params = sum(1 for v in current.values() if v) or 1
+        size = max(1, n_params // 10) if batch == "auto" else int(batch)
+        step = 0
+        while step < max_steps and pool:
+            step += 1
+            count = sum(f[3].size for f in folds)
+            lin = np.sum(run(_linear_fold, [(m, f, pool) for m, f in zip(models, folds)]),
+                         axis=0) / count
+            hopeful = [int(k) for k in np.argsort(lin, kind="stable") if lin[k] < best]
+            accepted = None
+            while hopeful:
+                if size > 1:
+                    chosen, seen = [], set()
+                    for k in hopeful:
+                        if pool[k][0] not in seen:
+                            chosen.append(k)
+                            seen.add(pool[k][0])
+                        if len(chosen) == size:
+                            break
+                    trials = [chosen]
+                else:
+                    trials = [[k] for k in hopeful[:shortlist]]
+                libs = []
+                for ks in trials:
+                    lib = {p: list(v) for p, v in current.items()}
+                    for k in ks:
+                        lib[pool[k][0]].append(pool[k][1])
+                    libs.append(lib)
+                results = fit_libs(libs, warm)
+                i = int(np.argmin([r[0] for r in results]))
+                if best - results[i][0] > min_improvement:
+                    accepted = (trials[i], libs[i], results[i])
+                    break
+                if size == 1 or len(trials[0]) == 1:
+                    break
+                size = max(1, size // 2)
+            if accepted is None:
+                break
+            ks, lib, (best, warm, models) = accepted
+            for k in ks:
+                rows.append(dict(step=step, parameter=pool[k][0], covariate=pool[k][1],
+                                 cv_mae=best))
+            if progress:
+                added = ", ".join(f"{pool[k][0]} <- {pool[k][1]}" for k in ks)
+                progress(f"step {step}: {added}  cv_mae={best:.4f} "
+                         f"({time.perf_counter() - t0:.0f} s)")
+            current = lib
+            pool = [pc for k, pc in enumerate(pool) if k not in set(ks)]
     path = pd.DataFrame(rows, columns=["step", "parameter", "covariate", "cv_mae"])
     return SelectionResult(covariates={p: v for p, v in current.items() if v}, path=path,
                            cv_mae=float(best), n_rows=len(X), index=X.index.copy(),
