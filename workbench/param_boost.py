@@ -175,16 +175,29 @@ def default_library(onsite, couplings, edges=None, parasitic=None) -> dict[str, 
     return lib
 
 
-def _parse(name: str, variables) -> tuple[str, int]:
-    """Covariate name -> (variable, power): ``"x"`` -> (x, 1), ``"x^2"`` -> (x, 2)."""
+def product_factors(name: str, variables) -> tuple[str, str] | None:
+    """``"a*b"`` -> ``(a, b)`` when ``a`` and ``b`` are both variables (a product
+    covariate), else None. A name that is itself a variable is not a product."""
     if name in variables:
+        return None
+    for k, char in enumerate(name):
+        if char == "*" and name[:k] in variables and name[k + 1:] in variables:
+            return name[:k], name[k + 1:]
+    return None
+
+
+def _parse(name: str, variables) -> tuple[str, int]:
+    """Covariate name -> (variable, power): ``"x"`` -> (x, 1), ``"x^2"`` -> (x, 2),
+    ``"x*z"`` -> (x*z, 1) (a product of two variables)."""
+    if name in variables or product_factors(name, variables):
         return name, 1
     base, sep, power = name.rpartition("^")
-    if sep and base in variables and power.isdigit() and int(power) >= 1:
+    if (sep and (base in variables or product_factors(base, variables)) and power.isdigit()
+            and int(power) >= 1):
         return base, int(power)
     raise ValueError(f"unknown covariate {name!r}: a covariate is a parameter, a detuning "
                      "'f_i-f_j', a geometric mean 'sqrt|g_a*g_b|', or a column of X, "
-                     "optionally followed by '^k'; "
+                     "or a product 'a*b' of two of these, optionally followed by '^k'; "
                      f"X's columns are {sorted(v for v in variables)}")
 
 
@@ -265,9 +278,11 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
     covariates that ``covariates`` names for ``p``. A covariate is a *variable* optionally
     raised to a power (``"f1^2"``); variables are the parameters themselves, the detunings
     ``"f_i-f_j"`` (named from the onsite columns, lower site first), the geometric means
-    ``"sqrt|g_a*g_b|"`` of two couplings sharing a site, and any column of ``X`` (e.g.
-    voltages). Every variable is centred by its training mean before the power is
-    taken; every covariate is then standardised with its training mean and sd (sd 0 -> 1),
+    ``"sqrt|g_a*g_b|"`` of two couplings sharing a site, any column of ``X`` (e.g.
+    voltages), and the product ``"a*b"`` of two of these (each factor centred by its
+    training mean first; e.g. a qubit's bias times a neighbouring bias line, the first-order
+    frequency change from flux crosstalk). Every variable is centred by its training mean
+    before the power is taken; every covariate is then standardised with its training mean and sd (sd 0 -> 1),
     so a coefficient is in the targets' units (MHz) per standard deviation of its covariate.
 
     Fitting minimises ``sum rho(y - lambda) + alpha / 2 * ||c||^2 + alpha_l1 * ||c||_1``
@@ -332,6 +347,10 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
     coef_ : pandas.DataFrame
         One row per (parameter, covariate), column ``"coef"`` (MHz per covariate sd);
         ``coef_dict()`` gives the same as a dict.
+    products_ : dict of str -> (str, str)
+        The product covariates' variables and their two factors.
+    factor_mean_ : dict of str -> float or None
+        Training means of the product factors (None without products).
     n_iter_ : int
         Gauss-Newton iterations taken.
     train_loss_ : ndarray
@@ -436,8 +455,11 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         every = [(v, k) for v in features for k in (1, 2)]
         terms = {p: [_parse(name, variables) for name in library[p]]
                  + (every if p not in extra else []) for p in params}
-        columns = list(dict.fromkeys(v for ts in terms.values() for v, _ in ts
-                                     if v not in internal))
+        used = list(dict.fromkeys(v for ts in terms.values() for v, _ in ts))
+        self.products_ = {v: product_factors(v, variables) for v in used
+                          if product_factors(v, variables)}
+        plain = [f for v in used for f in self.products_.get(v, (v,))]
+        columns = list(dict.fromkeys(v for v in plain if v not in internal))
         return terms, columns
 
     def _variables(self, X) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -446,7 +468,8 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         theta = _columns(X, control, "parameter")
         out = {name: theta[:, j] for j, name in enumerate(control)}
         used = {v for ts in self.terms_.values() for v, _ in ts}
-        for name in used:
+        factors = {f for v in used for f in self.products_.get(v, ())}
+        for name in (used | factors) - set(self.products_):
             how = self._derived_.get(name)
             if how is None or name in out:
                 continue
@@ -456,6 +479,11 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         if self.columns_:
             V = _columns(X, self.columns_, "covariate")
             out.update({name: V[:, j] for j, name in enumerate(self.columns_)})
+        if self.products_:
+            if self.factor_mean_ is None:  # fitting: the factors' training means
+                self.factor_mean_ = {f: float(out[f].mean()) for f in factors}
+            for name, (a, b) in self.products_.items():
+                out[name] = (out[a] - self.factor_mean_[a]) * (out[b] - self.factor_mean_[b])
         return theta, out
 
     def _design(self, variables: dict[str, np.ndarray], n: int, fitting: bool) -> list:
@@ -537,6 +565,7 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         self._derived_ = self._derived(onsite, couplings, graph)
         self.terms_, self.columns_ = self._resolve_library(X, onsite, couplings, features,
                                                            library, extra)
+        self.factor_mean_ = None
         theta0, variables = self._variables(X)
         n, N = len(theta0), len(onsite)
         y = np.asarray(y, dtype=float)

@@ -17,7 +17,7 @@ import numpy as np
 
 from .hamiltonian import _hellmann_feynman
 from .param_boost import (HamiltonianParameterRegressor, _columns, _normal_equations, _parse,
-                          _weights, parasitic_names, resolve_graph)
+                          _weights, parasitic_names, product_factors, resolve_graph)
 
 __all__ = ["linear_scores"]
 
@@ -43,17 +43,30 @@ def _jacobian(vec, sign, N, pairs) -> np.ndarray:
 
 
 class _Variables:
-    """Raw variable values of a frame, as the regressor computes them."""
+    """Raw variable values of a frame, as the regressor computes them (a product's factors
+    centred by the fitted model's means, or for a new product by those of ``ref``, the
+    fitting rows' variables)."""
 
-    def __init__(self, est, X):
-        self.est, self.X = est, X
+    def __init__(self, est, X, ref=None):
+        self.est, self.X, self.ref = est, X, ref
         self.theta = _columns(X, est.onsite_ + est.couplings_, "parameter")
         self.names = {n: j for j, n in enumerate(est.onsite_ + est.couplings_)}
-        self.cache = {}
+        self.cache, self.variables = {}, None
+
+    def _mean(self, factor):
+        known = self.est.factor_mean_ or {}
+        return known[factor] if factor in known else (self.ref or self)(factor).mean()
 
     def __call__(self, name):
         if name not in self.cache:
-            if name in self.names:
+            if self.variables is None:
+                self.variables = (set(self.names) | set(self.est._derived_)
+                                  | {str(c) for c in self.X.columns})
+            factors = self.est.products_.get(name) or product_factors(name, self.variables)
+            if factors:
+                a, b = factors
+                v = (self(a) - self._mean(a)) * (self(b) - self._mean(b))
+            elif name in self.names:
                 v = self.theta[:, self.names[name]]
             elif name in self.est._derived_:
                 kind, a, b = self.est._derived_[name]
@@ -97,7 +110,8 @@ def linear_scores(est: HamiltonianParameterRegressor, X_fit, y_fit, X_val, y_val
     w, wr = _weights(est.loss, r, est.huber_delta, newton)
 
     # current design and normal equations (as in fit, at the solution)
-    vf, vv = _Variables(est, X_fit), _Variables(est, X_val)
+    vf = _Variables(est, X_fit)
+    vv = _Variables(est, X_val, ref=vf)
     var_f = {v: vf(v) for ts in est.terms_.values() for v, _ in ts}
     var_v = {v: vv(v) for ts in est.terms_.values() for v, _ in ts}
     Phi_f, sel = est._padded(est._design(var_f, n, fitting=False))

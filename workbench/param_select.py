@@ -29,15 +29,15 @@ from .param_linear import linear_scores
 from .param_boost import (HamiltonianParameterRegressor, default_library, parasitic_names,
                           resolve_graph)
 
-__all__ = ["HamiltonianSelectionCV", "SelectionResult", "candidate_pool", "cv_mae",
-           "forward_select"]
+__all__ = ["HamiltonianSelectionCV", "SelectionResult", "candidate_pool", "crosstalk_candidates",
+           "cv_mae", "forward_select"]
 
 
 # ---------------------------------------------------------------------- candidate pools
 
 def candidate_pool(onsite, couplings, qubit_features=None, coupler_features=None, *,
                    squares=True, base="default", neighbours=True, edges=None,
-                   parasitic=None) -> dict[str, list[str]]:
+                   parasitic=None, crosstalk=False) -> dict[str, list[str]]:
     """Physically meaningful candidate covariates of each Hamiltonian parameter.
 
     "Adjacent" and "neighbouring" are read from the coupling graph (``edges``; None: the
@@ -57,6 +57,13 @@ def candidate_pool(onsite, couplings, qubit_features=None, coupler_features=None
       ``sqrt|g_a*g_b|`` of the bridging couplings (not squared); with ``neighbours``, also
       the bridging couplers' features and the two qubits' features. A parasitic coupling
       enters the model only once a covariate of it is selected.
+
+    With ``crosstalk``, bias crosstalk terms (products of centred biases, not squared): a
+    parameter tuned by its own bias line that also feels a neighbouring line ``V'`` changes by
+    about ``(df/dV) C V'``, and near a sweet spot ``df/dV`` is linear in the own bias ``V``,
+    so the candidate is ``V*V'``. Onsite ``f_i``: its qubit's feature times the features of
+    the couplers touching it and (with ``neighbours``) of the neighbouring qubits; coupling
+    ``g_e``: its coupler's feature times its two qubits' features.
 
     ``qubit_features`` (N names) and ``coupler_features`` (one per coupling) are in site and
     edge order, e.g. ``qvolt5..qvolt9`` and ``cvolt5..cvolt8`` on the benchmark. Duplicates
@@ -106,7 +113,30 @@ def candidate_pool(onsite, couplings, qubit_features=None, coupler_features=None
             extra += terms(*([cf[e] for path in paths for e in path] if cf else []))
             extra += terms(*([qf[i], qf[j]] if qf else []))
         pool[p] = list(dict.fromkeys(pool[p] + extra))
+    if crosstalk:
+        for p, terms_ in crosstalk_candidates(on, co, qf, cf, graph, neighbours).items():
+            pool[p] = list(dict.fromkeys(pool[p] + terms_))
     return pool
+
+
+def crosstalk_candidates(onsite, couplings, qubit_features, coupler_features, graph,
+                         neighbours=True) -> dict[str, list[str]]:
+    """The bias-product candidates of :func:`candidate_pool` (``crosstalk=True``) on
+    ``graph`` (a :class:`~workbench.hamiltonian.CouplingGraph`)."""
+    qf, cf = list(qubit_features or []), list(coupler_features or [])
+    out: dict[str, list[str]] = {}
+    for i, p in enumerate(onsite):
+        if not qf:
+            break
+        lines = [cf[e] for e in graph.site_edges(i)] if cf else []
+        if neighbours:
+            lines += [qf[j] for j in graph.neighbours(i)]
+        out[p] = [f"{qf[i]}*{v}" for v in lines]
+    for e, p in enumerate(couplings):
+        if not (qf and cf):
+            break
+        out[p] = [f"{cf[e]}*{qf[k]}" for k in graph.edges[e]]
+    return out
 
 
 # ---------------------------------------------------------------------- CV scoring

@@ -74,6 +74,9 @@ class HamiltonianSettings(Section):
     #: Couplings the control model lacks, offered to the selection (starting at zero):
     #: "next_nearest" (along a chain or ring), "diagonal" (a grid's), or site pairs.
     parasitic: Literal["none", "next_nearest", "diagonal"] | list[list[int]] = "none"
+    #: Offer bias crosstalk terms to the selection (products of a parameter's own bias with
+    #: the neighbouring bias lines; see workbench.param_select.candidate_pool).
+    crosstalk: bool = False
 
 
 def make_hamiltonian(settings: HamiltonianSettings, ds: Dataset, *, random_state=None,
@@ -103,7 +106,8 @@ def make_hamiltonian(settings: HamiltonianSettings, ds: Dataset, *, random_state
         pool = {}
     else:
         pool = candidate_pool(on, co, ham.qubit_features, ham.coupler_features, base=None,
-                              neighbours=s.candidates == "physical", **graph)
+                              neighbours=s.candidates == "physical",
+                              crosstalk=s.crosstalk, **graph)
     if s.selection == "none":
         names = list(dict.fromkeys([*on, *co, *start, *pool]))
         merged = {p: list(dict.fromkeys(start.get(p, []) + pool.get(p, []))) for p in names}
