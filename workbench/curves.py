@@ -34,7 +34,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from joblib import Parallel, delayed
 from sklearn.base import clone
 from sklearn.exceptions import FitFailedWarning
 from sklearn.metrics import check_scoring
@@ -42,6 +41,7 @@ from sklearn.model_selection import KFold, check_cv
 from sklearn.utils import _safe_indexing, check_random_state
 
 from .boosting import PriorModel, seed_estimator
+from .parallel import Task, effective_n_jobs, map_tasks
 from .selection import find_prior
 
 __all__ = ["LearningCurve", "augmented_learning_curve"]
@@ -246,7 +246,8 @@ def augmented_learning_curve(estimator, X, y, *, train_sizes, cv=5, incumbent=No
         every ``random_state`` of the estimator (as :class:`~workbench.BaseBoostCV` does).
         The same value gives identical numbers.
     n_jobs : int, default=None
-        (size, fold) fits run in parallel with joblib.
+        Processes for the (size, fold) fits (``-1``: every core; :mod:`workbench.parallel`).
+        The curve does not depend on it.
 
     Returns
     -------
@@ -289,11 +290,14 @@ def augmented_learning_curve(estimator, X, y, *, train_sizes, cv=5, incumbent=No
              for seed, (tr, _) in zip(rng.randint(_SEED_MAX, size=len(folds)), folds)]
 
     tasks = [(i, j) for i in range(len(sizes)) for j in range(len(folds))]
-    results = Parallel(n_jobs=n_jobs)(
-        delayed(_one)(estimator, incumbent, X, y, perms[j][: sizes[i]], folds[j][1],
-                      int(sizes[i]), j, scorer)
-        for i, j in tasks
-    )
+    # on several processes the largest sizes first (the longest fits start early, short
+    # ones fill the gaps); the results do not depend on the order
+    order = (tasks if effective_n_jobs(n_jobs) == 1
+             else sorted(tasks, key=lambda t: (-sizes[t[0]], t[1])))
+    done = map_tasks([Task(_one, estimator, incumbent, X, y, perms[j][: sizes[i]], folds[j][1],
+                           int(sizes[i]), j, scorer) for i, j in order], n_jobs)
+    by_task = dict(zip(order, done))
+    results = [by_task[t] for t in tasks]
     shape = (len(sizes), len(folds))
     n_rows = np.zeros(shape, dtype=int)
     train_err, cv_err, inc_err = (np.full(shape, np.nan) for _ in range(3))

@@ -87,11 +87,12 @@ def ui_command(tracking_uri: str, port: int) -> list[str]:
 
 
 def _cmd_reproduce(args) -> int:
+    from ..parallel import worker_pool
     from .reproduce import reproduce
 
-    res = reproduce(args.out, tracking_uri=args.tracking_uri, storage=args.storage,
-                    quick=args.quick,
-                    track=not args.no_track, seed=args.seed)
+    with worker_pool(-1):
+        res = reproduce(args.out, tracking_uri=args.tracking_uri, storage=args.storage,
+                        quick=args.quick, track=not args.no_track, seed=args.seed)
     s = res.settings
     print(f"paper settings: average test MAE {s['paper'].model.avg('test_mae'):.3f} MHz "
           f"(control program {s['paper'].prior.avg('test_mae'):.3f}); improved "
@@ -110,9 +111,11 @@ def _cmd_sweep(args) -> int:
     cfg = load_config(args.config).with_study(trials=args.trials, workers=args.workers,
                                               storage=args.storage)
     tracker = _check_before_work(cfg, args)
+    from ..parallel import worker_pool
     from .lifecycle import TrialRecorder, command_run
 
-    with command_run(tracker, "sweep", cfg.name) as run_id:  # visible while it searches
+    # visible while it searches; worker processes for the refits, the curves and the figures
+    with command_run(tracker, "sweep", cfg.name) as run_id, worker_pool(cfg.jobs):
         sweep = run_sweep(cfg, on_trial=run_id and TrialRecorder(tracker, run_id))
         result = sweep.result
         if not args.no_track:
@@ -141,9 +144,11 @@ def _cmd_evaluate(args) -> int:
         raise UsageError(f"--out writes a model family's tables and figures; family "
                          f"{cfg.family.name!r} ({args.config}) has none")
     tracker = _check_before_work(cfg, args)
+    from ..parallel import worker_pool
     from .lifecycle import command_run
 
-    with command_run(tracker, "evaluate", cfg.name) as run_id:
+    # one set of worker processes for the fit, the curves and the figures
+    with command_run(tracker, "evaluate", cfg.name) as run_id, worker_pool(cfg.jobs):
         run = evaluate(cfg, return_model=True)
         result = run.result
         if args.out is not None:
@@ -220,7 +225,9 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("config", help="experiment config (TOML), e.g. experiments/paper_main_body.toml")
     ev.add_argument("--json", metavar="PATH", help="also write the results as JSON")
     ev.add_argument("--jobs", type=_count, default=None, metavar="N",
-                    help="targets fitted in parallel (overrides the config's n_jobs)")
+                    help="processes for independent work: targets, folds, curve points "
+                    "(overrides the config's n_jobs; default: every core; the results do "
+                    "not depend on it)")
     ev.add_argument("--out", metavar="DIR", default=None,
                     help="write the model family's tables (CSV) and figures (PNG) to DIR "
                     "(family hamiltonian: coefficients, corrected parameters, selection)")

@@ -405,6 +405,12 @@ class ExperimentConfig:
     def label(self) -> str:
         return str(self.path) if self.path else "config"
 
+    @property
+    def jobs(self) -> int:
+        """Processes for independent work (``n_jobs``; unset: every core). Results do not
+        depend on it (:mod:`workbench.parallel`)."""
+        return -1 if self.n_jobs is None else self.n_jobs
+
     def model_for(self, target: str | None) -> dict[str, Any]:
         """The boosting settings of one target: defaults < ``[model]`` < its
         ``[model.targets.<target>]`` table (< a search's choice for it).

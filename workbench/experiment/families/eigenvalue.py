@@ -85,7 +85,7 @@ def per_target_boost(cfg: ExperimentConfig, ds: Dataset, priors: list[str], *,
             continue
         per_target[target] = BaseBoostCV(make_booster(s, prior=start, inputs=inputs),
                                          cv=selection_cv(cfg), scoring=cfg.selection.scoring)
-    return MultiTargetBaseBoost(target_estimators=per_target, n_jobs=cfg.n_jobs,
+    return MultiTargetBaseBoost(target_estimators=per_target, n_jobs=cfg.jobs,
                                 random_state=cfg.random_state)
 
 
@@ -173,7 +173,7 @@ class EigenvalueFamily(ModelFamily):
 
         return MultiTargetBaseBoost(target_estimators={
             t: booster_cv(cfg, ds, t, cfg.model_for(t), cfg_inner_cv(cfg))
-            for t in ds.target_names}, random_state=cfg.random_state, n_jobs=cfg.n_jobs)
+            for t in ds.target_names}, random_state=cfg.random_state, n_jobs=cfg.jobs)
 
     def scores(self, cfg, ds, model, Y_train, prior_test, y_test, pred):
         s = stage_scores(model.estimators_, Y_train.to_numpy(dtype=float))
