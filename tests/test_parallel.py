@@ -160,3 +160,24 @@ def test_effective_n_jobs():
         effective_n_jobs(0)
     with pytest.raises(TypeError, match="non-empty list of Task"):
         run_plans([(x for x in [[1]])], 1)
+
+
+def test_lean_lightgbm_predicts_like_lightgbm_and_pickles():
+    import pickle
+
+    from lightgbm import LGBMRegressor
+    from sklearn.base import clone
+
+    from workbench.bases import LeanLGBMRegressor
+
+    X, Y = _data(120)
+    params = dict(n_estimators=80, num_leaves=8, min_child_samples=5, objective="mae",
+                  data_sample_strategy="goss", random_state=0, n_jobs=1, verbose=-1)
+    plain = LGBMRegressor(**params).fit(X, Y["y0"])
+    lean = clone(LeanLGBMRegressor(**params)).fit(X, Y["y0"])
+    np.testing.assert_array_equal(plain.predict(X), lean.predict(X))
+    back = pickle.loads(pickle.dumps(lean))
+    assert not hasattr(back, "_train_set")
+    np.testing.assert_array_equal(back.predict(X), lean.predict(X))
+    plain.fit(X, Y["y1"])  # LightGBM's own class outside a lean fit: unchanged behaviour
+    assert plain.booster_.current_iteration() == 80

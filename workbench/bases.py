@@ -1,15 +1,19 @@
 """Basis regressors by name, and the paper's stacking basis.
 
 Every entry of :data:`BASES` is a small factory ``f(**params) -> regressor``. LightGBM models
-are built with ``n_jobs=1`` (the data are tiny, and on few cores its threads spin under
-contention when folds, trials or targets run in parallel) and ``verbose=-1``.
+are :class:`LeanLGBMRegressor` (LightGBM's own, without its post-training model copy), built
+with ``n_jobs=1`` (the data are tiny, and on few cores its threads spin under contention when
+folds, trials or targets run in parallel) and ``verbose=-1``.
 """
 
 from __future__ import annotations
 
+import threading
 from typing import Any, Callable
 
+import lightgbm.sklearn as _lgb_sklearn
 from lightgbm import LGBMRegressor
+from lightgbm.engine import train as _lgb_train
 from sklearn.base import BaseEstimator, TransformerMixin
 from sklearn.ensemble import StackingRegressor
 from sklearn.gaussian_process import GaussianProcessRegressor
@@ -22,6 +26,7 @@ from sklearn.utils.validation import check_is_fitted
 
 __all__ = [
     "BASES",
+    "LeanLGBMRegressor",
     "PAPER_PARAMS",
     "TRANSFORMS",
     "NormalQuantileTransformer",
@@ -29,6 +34,45 @@ __all__ = [
     "make_transform",
     "paper_basis",
 ]
+
+_KEEP = threading.local()
+_PATCH = threading.Lock()
+
+
+def _train(*args, **kwargs):
+    """``lightgbm.sklearn``'s ``train``: keeps the training booster inside
+    :meth:`LeanLGBMRegressor.fit` (and records its dataset), LightGBM's own elsewhere."""
+    if not getattr(_KEEP, "on", False):
+        return _lgb_train(*args, **kwargs)
+    _KEEP.train_set = kwargs.get("train_set", args[1] if len(args) > 1 else None)
+    return _lgb_train(*args, **{**kwargs, "keep_training_booster": True})
+
+
+class LeanLGBMRegressor(LGBMRegressor):
+    """:class:`lightgbm.LGBMRegressor` without the copy of the model LightGBM makes after
+    training (``keep_training_booster``): it writes the trees to text and parses them back
+    (on this project's small data a third of a 1000-tree fit). The trees, and so every
+    prediction, are the same; pickling still stores the model as LightGBM's text. The fitted
+    model keeps its binned training set (the booster refers to it) until it is pickled."""
+
+    def fit(self, X, y, *args, **kwargs):
+        if _lgb_sklearn.train is not _train:
+            with _PATCH:  # once per process; thread-safe: the flag is per thread
+                _lgb_sklearn.train = _train
+        _KEEP.on, _KEEP.train_set = True, None
+        try:
+            super().fit(X, y, *args, **kwargs)
+        finally:
+            _KEEP.on = False
+        self._train_set = _KEEP.train_set
+        _KEEP.train_set = None
+        return self
+
+    def __getstate__(self):
+        state = super().__getstate__()
+        state.pop("_train_set", None)  # the booster is stored as text without it
+        return state
+
 
 #: The paper's LightGBM settings shared by all targets (GOSS sampling, absolute-error objective).
 PAPER_LGBM = dict(objective="mae", boosting_type="gbdt", data_sample_strategy="goss",
@@ -57,7 +101,7 @@ def paper_stacking(*, mlp_hidden=(10,), mlp_alpha=10.0, mlp_max_iter=4000,
     first = MLPRegressor(hidden_layer_sizes=tuple(mlp_hidden), activation="tanh",
                          solver="lbfgs", alpha=mlp_alpha, max_iter=mlp_max_iter,
                          random_state=random_state)
-    lgbm = LGBMRegressor(n_estimators=lgbm_n_estimators, n_jobs=1, verbose=-1,
+    lgbm = LeanLGBMRegressor(n_estimators=lgbm_n_estimators, n_jobs=1, verbose=-1,
                          random_state=random_state, **PAPER_LGBM)
     final = MLPRegressor(hidden_layer_sizes=tuple(final_hidden), activation="tanh",
                          solver="lbfgs", alpha=final_alpha, max_iter=final_max_iter,
@@ -82,8 +126,8 @@ def kernel_ridge(**params) -> KernelRidge:
     return KernelRidge(**{"kernel": "rbf", **params})
 
 
-def lightgbm(**params) -> LGBMRegressor:
-    return LGBMRegressor(**{"n_jobs": 1, "verbose": -1, **params})
+def lightgbm(**params) -> LeanLGBMRegressor:
+    return LeanLGBMRegressor(**{"n_jobs": 1, "verbose": -1, **params})
 
 
 def mlp(**params) -> MLPRegressor:

@@ -263,7 +263,7 @@ def _validate_estimator(estimator) -> None:
                             if isinstance(v, BaseEstimator)]
     for est in nested:
         params = est.get_params(deep=False)
-        if type(est).__module__.startswith("lightgbm"):
+        if any(c.__module__.startswith("lightgbm") for c in type(est).__mro__[:-1]):
             constraints = _lightgbm_constraints()
             unknown = sorted(set(params) - set(constraints) - {"class_weight"})
             extra = sorted(k for k in unknown if params[k] is not None)
