@@ -181,3 +181,65 @@ def test_lean_lightgbm_predicts_like_lightgbm_and_pickles():
     np.testing.assert_array_equal(back.predict(X), lean.predict(X))
     plain.fit(X, Y["y1"])  # LightGBM's own class outside a lean fit: unchanged behaviour
     assert plain.booster_.current_iteration() == 80
+
+
+def test_selection_learning_curve_reuses_the_selection_folds():
+    from sklearn.base import clone
+    from sklearn.metrics import mean_absolute_error
+
+    from workbench.curves import selection_learning_curve
+
+    X, Y = _data(80)
+    booster = BaseBoostRegressor(prior="p0", basis=make_basis("lightgbm", n_estimators=25,
+                                                              min_child_samples=5),
+                                 basis_features=["p0", "v0"])
+    model = BaseBoostCV(booster, cv=KFold(4), random_state=2).fit(X, Y["y0"])
+    curves = [selection_learning_curve(model, X, Y["y0"], train_sizes=[20, 40, 60],
+                                       random_state=1, n_jobs=n) for n in (1, 2)]
+    for attr in ("train_error", "cv_error", "incumbent_error", "n_train_rows"):
+        np.testing.assert_array_equal(getattr(curves[0], attr), getattr(curves[1], attr))
+    curve = curves[0]
+    y = Y["y0"].to_numpy()
+    for j, (tr, va) in enumerate(KFold(4).split(X)):  # the whole fold: the selection's fit
+        fitted = clone(model._candidate()).fit(X.iloc[tr], y[tr])
+        assert curve.cv_error[2, j] == mean_absolute_error(y[va], fitted.predict(X.iloc[va]))
+        assert curve.train_error[2, j] == mean_absolute_error(y[tr], fitted.predict(X.iloc[tr]))
+        assert curve.incumbent_error[2, j] == mean_absolute_error(y[va], X["p0"].iloc[va])
+    assert np.isfinite(curve.cv_error).all() and curve.n_train_rows[0].tolist() == [20] * 4
+
+
+@pytest.mark.parametrize("params", [
+    dict(objective="mae", data_sample_strategy="goss", num_leaves=32, max_depth=20,
+         learning_rate=0.2, reg_alpha=0.3, reg_lambda=0.3, max_bin=512, n_estimators=300),
+    dict(objective="huber", num_leaves=15, n_estimators=60, min_child_samples=3),
+    dict(objective="regression", n_estimators=40, num_leaves=7)])
+def test_lean_lightgbm_numpy_prediction_is_lightgbm_s(params):
+    from lightgbm import LGBMRegressor
+
+    from workbench.bases import NUMPY_PREDICT_ROWS, LeanLGBMRegressor
+
+    X, Y = _data(90)
+    lean = LeanLGBMRegressor(**params, random_state=0, verbose=-1, n_jobs=1).fit(X, Y["y0"])
+    plain = LGBMRegressor(**params, random_state=0, verbose=-1, n_jobs=1).fit(X, Y["y0"])
+    rng = np.random.default_rng(1)
+    rows = np.vstack([X.to_numpy()[rng.integers(0, len(X), NUMPY_PREDICT_ROWS)],
+                      rng.normal(size=(500, 5)) * 3])
+    trees = lean._numpy_trees()
+    assert trees is not None
+    thresholds = []  # inputs exactly at the split thresholds: the `<=` boundary
+
+    def walk(node):
+        if not isinstance(node, float):
+            thresholds.append(node[:2])
+            walk(node[2]), walk(node[3])
+    for tree in trees:
+        walk(tree)
+    for k, (feature, threshold) in enumerate(thresholds[:500]):
+        rows[k, feature] = threshold
+    rows[500:505] = [[1e-36], [-1e-36], [1e-35], [-1e-35], [0.0]]  # LightGBM reads as zero
+    expected = plain.booster_.predict(rows)
+    np.testing.assert_array_equal(lean.predict(rows), expected)  # numpy trees
+    np.testing.assert_array_equal(lean.predict(pd.DataFrame(rows, columns=X.columns)), expected)
+    np.testing.assert_array_equal(lean.predict(rows[:10]), expected[:10])  # LightGBM's own
+    rows[3, 2] = np.nan  # missing values: LightGBM's own handling
+    np.testing.assert_array_equal(lean.predict(rows), plain.booster_.predict(rows))

@@ -8,7 +8,8 @@
   its refit.
 * :func:`run_plans` runs many plans at once: their tasks go to worker processes as workers
   become free, a plan's later stages first (a target's refit starts as soon as its folds
-  end, while other targets' folds still run), earlier plans first within a stage. With
+  end, while other targets' folds still run), then higher ``Task.priority``, then earlier
+  plans and positions. With
   ``n_jobs=1`` (or inside a worker) every task runs in this process, in order.
 * :func:`map_tasks`: the results of independent tasks, in order.
 * :func:`worker_pool`: ``with worker_pool(n_jobs):`` keeps one set of workers for every call
@@ -50,12 +51,15 @@ _WARNING_REGISTRY: dict = {}  # "default"-action bookkeeping of re-issued warnin
 
 
 class Task:
-    """A picklable call: ``Task(func, *args, **kwargs)()`` is ``func(*args, **kwargs)``."""
+    """A picklable call: ``Task(func, *args, **kwargs)()`` is ``func(*args, **kwargs)``.
+    ``priority`` (default 0): on several processes, among ready tasks of the same stage,
+    higher goes first (e.g. the expected cost, so long tasks do not come last)."""
 
-    __slots__ = ("func", "args", "kwargs")
+    __slots__ = ("func", "args", "kwargs", "priority")
 
     def __init__(self, func: Callable, *args, **kwargs):
         self.func, self.args, self.kwargs = func, args, kwargs
+        self.priority = 0
 
     def __call__(self):
         return self.func(*self.args, **self.kwargs)
@@ -299,14 +303,14 @@ def _drive(plans: list[Plan], executor: ProcessPoolExecutor, jobs: int) -> list:
     results: dict[int, list] = {}
     missing: dict[int, int] = {}
     errors: dict[int, BaseException] = {}
-    ready: list[tuple[int, int, int, Task]] = []  # (-stage, plan, position, task)
+    ready: list[tuple] = []  # (-stage, -priority, plan, position, task)
 
     def push(i: int, batch) -> None:
         batch = _check_batch(batch)
         results[i] = [None] * len(batch)
         missing[i] = len(batch)
         for k, task in enumerate(batch):
-            heapq.heappush(ready, (-stage[i], i, k, task))
+            heapq.heappush(ready, (-stage[i], -task.priority, i, k, task))
 
     def step(i: int, values=None, error=None, first=False) -> None:
         try:
@@ -322,7 +326,7 @@ def _drive(plans: list[Plan], executor: ProcessPoolExecutor, jobs: int) -> list:
     running: dict[Any, tuple[int, int]] = {}
     while ready or running:
         while ready and len(running) < jobs:
-            _, i, k, task = heapq.heappop(ready)
+            *_, i, k, task = heapq.heappop(ready)
             running[executor.submit(_call, task)] = (i, k)
         done, _ = wait(running, return_when=FIRST_COMPLETED)
         for future in sorted(done, key=lambda f: running[f]):

@@ -32,16 +32,20 @@ def find_prior(estimator):
 
 
 def _fold(incumbent, estimator, X, y, train, test, scorer):
-    """Scores of both models on one fold and their predictions on its held-out rows."""
+    """Scores of both models on one fold, their predictions on its held-out rows, and the
+    candidate's score on the fold's own training rows."""
     X_tr, X_te, y_tr, y_te = _safe_indexing(X, train), _safe_indexing(X, test), y[train], y[test]
     prior = clone(incumbent).fit(X_tr, y_tr)
     prior_score, prior_pred = scorer(prior, X_te, y_te), prior.predict(X_te)
     try:
         fitted = clone(estimator).fit(X_tr, y_tr)
         score, pred, error = scorer(fitted, X_te, y_te), fitted.predict(X_te), None
+        train_score = scorer(fitted, X_tr, y_tr)
     except Exception as exc:  # a failed candidate is recorded, never chosen
         score, pred, error = np.nan, np.full(len(test), np.nan), f"{type(exc).__name__}: {exc}"
-    return float(prior_score), float(score), error, np.asarray(prior_pred), np.asarray(pred)
+        train_score = np.nan
+    return (float(prior_score), float(score), error, np.asarray(prior_pred), np.asarray(pred),
+            float(train_score))
 
 
 def _refit(estimator, X, y):
@@ -82,6 +86,11 @@ class BaseBoostCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
     selected_ : {"prior", "boosted"}
     cv_scores_prior_, cv_scores_boosted_ : ndarray of shape (n_splits,)
         Per-fold scores (NaN where the candidate failed).
+    cv_train_scores_boosted_ : ndarray of shape (n_splits,)
+        The candidate's score on each fold's own training rows (a learning curve's training
+        error at the full fold size, :func:`workbench.curves.selection_learning_curve`).
+    cv_splits_ : list of (train, test) index arrays
+        The folds.
     cv_predictions_prior_, cv_predictions_boosted_ : ndarray of shape (n_samples,)
         Out-of-fold predictions of each model (NaN for rows in no held-out fold and where
         the candidate failed; a row held out by several folds keeps the last).
@@ -146,6 +155,8 @@ class BaseBoostCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
                 fold_callback(i, folds[-1][0], folds[-1][1])
         self.cv_scores_prior_ = np.array([f[0] for f in folds])
         self.cv_scores_boosted_ = np.array([f[1] for f in folds])
+        self.cv_train_scores_boosted_ = np.array([f[5] for f in folds])
+        self.cv_splits_ = [(np.asarray(tr), np.asarray(te)) for tr, te in splits]
         self.cv_predictions_prior_ = np.full(len(y), np.nan)
         self.cv_predictions_boosted_ = np.full(len(y), np.nan)
         for (_, test), fold in zip(splits, folds):
