@@ -19,7 +19,8 @@ joblib):
   95 training rows) on both sides: ``workbench.curves.augmented_learning_curve`` and the
   reference's ``LearningCurve._modified_learning_curve(..., return_incumbent_score=True)``.
 
-Prints each run's wall time (and, for the paper job, each side's per-target test MAE once),
+Prints each run's wall time and CPU time (user + system of the process and its children,
+less sensitive to other load on the machine) (and, for the paper job, each side's per-target test MAE once),
 the medians, the reference/workbench ratio, and ``uptime``'s load before and after. The
 reference side runs only when its virtualenv exists (build it with
 ``bash /work/shared/bench/reference/setup.sh [VENV]``).
@@ -30,6 +31,7 @@ from __future__ import annotations
 import argparse
 import os
 import re
+import resource
 import statistics
 import subprocess
 import sys
@@ -94,13 +96,20 @@ def _uptime() -> str:
         return "uptime unavailable"
 
 
-def _run(argv: list[str], env: dict[str, str]) -> tuple[float, str]:
-    start = time.perf_counter()
+def _cpu() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def _run(argv: list[str], env: dict[str, str]) -> tuple[float, float, str]:
+    """Wall time, CPU time (user + system, the process and its waited-for children) and
+    output of one run."""
+    cpu, start = _cpu(), time.perf_counter()
     out = subprocess.run(argv, capture_output=True, text=True, env=env, cwd=ROOT)
     wall = time.perf_counter() - start
     if out.returncode != 0:
         sys.exit(f"failed ({out.returncode}): {' '.join(argv)}\n{out.stderr[-3000:]}")
-    return wall, out.stdout + out.stderr
+    return wall, _cpu() - cpu, out.stdout + out.stderr
 
 
 def _maes(text: str) -> str:
@@ -151,25 +160,29 @@ def main() -> None:
         if args.only and name != args.only:
             continue
         walls: dict[str, list[float]] = {"workbench": [], "reference": []}
+        cpus: dict[str, list[float]] = {"workbench": [], "reference": []}
         shown = set()
         for rep in range(args.repeats):
             order = ["workbench", "reference"] if rep % 2 == 0 else ["reference", "workbench"]
             for side in order:
                 if side == "reference" and not have_ref:
                     continue
-                wall, text = _run(wb_argv if side == "workbench" else ref_argv, env)
+                wall, cpu, text = _run(wb_argv if side == "workbench" else ref_argv, env)
                 walls[side].append(wall)
+                cpus[side].append(cpu)
                 extra = ""
                 if side not in shown:
                     shown.add(side)
                     extra = (f"  test MAE {_maes(text)}" if name == "paper" else
                              f"  {_line(text, 'cv error:')}; {_line(text, 'curve compute')}")
-                print(f"{name} run {rep}: {side:<9} {wall:6.1f} s{extra}", flush=True)
-        w = statistics.median(walls["workbench"])
+                print(f"{name} run {rep}: {side:<9} {wall:6.1f} s wall {cpu:6.1f} s CPU{extra}",
+                      flush=True)
+        w, wc = statistics.median(walls["workbench"]), statistics.median(cpus["workbench"])
         line = f"{name}: median wall workbench {w:.1f} s"
         if walls["reference"]:
-            r = statistics.median(walls["reference"])
-            line += f", reference {r:.1f} s; reference / workbench = {r / w:.2f}"
+            r, rc = statistics.median(walls["reference"]), statistics.median(cpus["reference"])
+            line += (f", reference {r:.1f} s; reference / workbench = {r / w:.2f} "
+                     f"(CPU: {wc:.1f} s vs {rc:.1f} s, {rc / wc:.2f})")
         summary.append(line)
         print(line, flush=True)
     print(f"load after:  {_uptime()}")
