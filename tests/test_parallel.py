@@ -193,7 +193,8 @@ def test_selection_learning_curve_reuses_the_selection_folds():
     booster = BaseBoostRegressor(prior="p0", basis=make_basis("lightgbm", n_estimators=25,
                                                               min_child_samples=5),
                                  basis_features=["p0", "v0"])
-    model = BaseBoostCV(booster, cv=KFold(4), random_state=2).fit(X, Y["y0"])
+    model = BaseBoostCV(booster, cv=KFold(4), random_state=2,
+                        return_train_score=True).fit(X, Y["y0"])
     curves = [selection_learning_curve(model, X, Y["y0"], train_sizes=[20, 40, 60],
                                        random_state=1, n_jobs=n) for n in (1, 2)]
     for attr in ("train_error", "cv_error", "incumbent_error", "n_train_rows"):
@@ -243,3 +244,21 @@ def test_lean_lightgbm_numpy_prediction_is_lightgbm_s(params):
     np.testing.assert_array_equal(lean.predict(rows[:10]), expected[:10])  # LightGBM's own
     rows[3, 2] = np.nan  # missing values: LightGBM's own handling
     np.testing.assert_array_equal(lean.predict(rows), plain.booster_.predict(rows))
+
+
+def test_normal_quantile_transform_is_scikit_learn_s():
+    from sklearn.preprocessing import QuantileTransformer
+
+    from workbench.bases import NormalQuantileTransformer
+
+    rng = np.random.default_rng(0)
+    X = np.column_stack([rng.normal(size=300), rng.integers(0, 5, 300).astype(float),
+                         rng.exponential(size=300)])
+    for n_rows, new in ((300, rng.normal(size=(400, 3)) * 3), (40, X[:500])):
+        ours = NormalQuantileTransformer(random_state=0).fit(X[:n_rows])
+        theirs = QuantileTransformer(n_quantiles=min(1000, n_rows), output_distribution="normal",
+                                     random_state=0).fit(X[:n_rows])
+        new = np.vstack([new, X[:n_rows], [[np.nan, 0.0, -1.0]]])
+        np.testing.assert_array_equal(ours.transform(new), theirs.transform(new))
+        np.testing.assert_array_equal(ours.transformer_.inverse_transform(ours.transform(new)),
+                                      theirs.inverse_transform(theirs.transform(new)))

@@ -258,9 +258,63 @@ def make_basis(name: str, **params):
     return BASES[name](**params)
 
 
+class _NormalQuantiles(QuantileTransformer):
+    """scikit-learn's ``QuantileTransformer`` whose forward normal mapping calls
+    ``scipy.special.ndtri`` itself instead of ``scipy.stats.norm.ppf`` (the same function
+    behind ``stats``' argument checks, which cost ~0.25 ms a call, three calls a column):
+    the same numbers, ``_transform_col`` otherwise as scikit-learn 1.9 writes it (a test
+    compares the two)."""
+
+    def _transform_col(self, X_col, quantiles, inverse):
+        if inverse or self.output_distribution != "normal":
+            return super()._transform_col(X_col, quantiles, inverse)
+        with np.errstate(invalid="ignore"):  # hide NaN comparison warnings
+            lower_bounds_idx = X_col - _BOUNDS < quantiles[0]
+            upper_bounds_idx = X_col + _BOUNDS > quantiles[-1]
+        isfinite_mask = ~np.isnan(X_col)
+        X_col_finite = X_col[isfinite_mask]
+        # both directions, averaged (repeated quantiles), as scikit-learn does
+        X_col[isfinite_mask] = 0.5 * (
+            np.interp(X_col_finite, quantiles, self.references_)
+            - np.interp(-X_col_finite, -quantiles[::-1], -self.references_[::-1]))
+        X_col[upper_bounds_idx] = 1
+        X_col[lower_bounds_idx] = 0
+        with np.errstate(invalid="ignore"):
+            return np.clip(_norm_ppf(X_col), *_CLIP)
+
+
+def _norm_ppf(q: np.ndarray) -> np.ndarray:
+    """``scipy.stats.norm.ppf(q)`` for a float array: ``ndtri`` inside (0, 1), the infinite
+    ends at 0 and 1, NaN elsewhere."""
+    from scipy.special import ndtri
+
+    q = np.asarray(q, dtype=float)
+    out = np.full(q.shape, np.nan)
+    out[q == 0] = -np.inf
+    out[q == 1] = np.inf
+    inside = (0 < q) & (q < 1)
+    out[inside] = ndtri(q[inside]) * 1.0 + 0.0  # scale and loc, as stats applies them
+    return out
+
+
+def _clip_bounds() -> tuple[float, float]:
+    from scipy import stats
+
+    low = _BOUNDS - np.spacing(1)
+    return float(stats.norm.ppf(low)), float(stats.norm.ppf(1 - low))
+
+
+try:  # scikit-learn's margin for the ends of the quantile range
+    from sklearn.preprocessing._data import BOUNDS_THRESHOLD as _BOUNDS
+except ImportError:  # pragma: no cover
+    _BOUNDS = 1e-7
+_CLIP = _clip_bounds()
+
+
 class NormalQuantileTransformer(TransformerMixin, BaseEstimator):
     """``QuantileTransformer(output_distribution="normal")`` with ``n_quantiles`` capped at
-    the number of rows, so small training sets fit without a warning."""
+    the number of rows, so small training sets fit without a warning (and its normal
+    mapping without ``scipy.stats``' per-call overhead; the same numbers)."""
 
     def __init__(self, n_quantiles=1000, subsample=10_000, random_state=None):
         self.n_quantiles = n_quantiles
@@ -269,7 +323,7 @@ class NormalQuantileTransformer(TransformerMixin, BaseEstimator):
 
     def fit(self, X, y=None):
         n_rows = len(X)
-        self.transformer_ = QuantileTransformer(
+        self.transformer_ = _NormalQuantiles(
             n_quantiles=max(1, min(self.n_quantiles, n_rows)), output_distribution="normal",
             subsample=self.subsample, random_state=self.random_state).fit(X)
         self.n_features_in_ = self.transformer_.n_features_in_

@@ -329,7 +329,8 @@ def selection_learning_curve(model, X, y, *, train_sizes, random_state=None,
     """The augmented learning curve of a fitted :class:`~workbench.BaseBoostCV` on its own
     folds (``X``, ``y``: the rows it was fitted on), with its candidate seeded as in its
     selection and its incumbent and scoring: where a size is a fold's whole training set
-    the selection's fold fit is the point (no fit again). ``random_state`` seeds the
+    the selection's fold fit is the point (no fit again; it needs the training scores of
+    ``BaseBoostCV(return_train_score=True)``). ``random_state`` seeds the
     per-fold row permutations."""
     return run_plans([selection_curve_plan(model, X, y, train_sizes=train_sizes,
                                            random_state=random_state)], n_jobs)[0]
@@ -355,7 +356,8 @@ def selection_curve_plan(model, X, y, *, train_sizes, random_state=None):
              for seed, (tr, _) in zip(rng.randint(_SEED_MAX, size=len(folds)), folds)]
     known = {}
     for j, (tr, va) in enumerate(folds):
-        if np.isfinite(model.cv_scores_boosted_[j]):
+        if np.isfinite(model.cv_scores_boosted_[j]) and \
+                np.isfinite(model.cv_train_scores_boosted_[j]):  # else: fitted again
             known[(len(tr), j)] = (len(tr), -float(model.cv_train_scores_boosted_[j]),
                                    -float(model.cv_scores_boosted_[j]),
                                    -float(model.cv_scores_prior_[j]), None)

@@ -31,16 +31,16 @@ def find_prior(estimator):
                      f"{len(nested)} nested 'prior' parameters); pass incumbent=")
 
 
-def _fold(incumbent, estimator, X, y, train, test, scorer):
+def _fold(incumbent, estimator, X, y, train, test, scorer, train_score=False):
     """Scores of both models on one fold, their predictions on its held-out rows, and the
-    candidate's score on the fold's own training rows."""
+    candidate's score on the fold's own training rows (NaN unless ``train_score``)."""
     X_tr, X_te, y_tr, y_te = _safe_indexing(X, train), _safe_indexing(X, test), y[train], y[test]
     prior = clone(incumbent).fit(X_tr, y_tr)
     prior_score, prior_pred = scorer(prior, X_te, y_te), prior.predict(X_te)
     try:
         fitted = clone(estimator).fit(X_tr, y_tr)
         score, pred, error = scorer(fitted, X_te, y_te), fitted.predict(X_te), None
-        train_score = scorer(fitted, X_tr, y_tr)
+        train_score = scorer(fitted, X_tr, y_tr) if train_score else np.nan
     except Exception as exc:  # a failed candidate is recorded, never chosen
         score, pred, error = np.nan, np.full(len(test), np.nan), f"{type(exc).__name__}: {exc}"
         train_score = np.nan
@@ -80,6 +80,9 @@ class BaseBoostCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         Folds fitted in parallel.
     random_state : int, RandomState or None, default=None
         If set, seeds every ``random_state`` of the candidate (and of ``cv`` when it shuffles).
+    return_train_score : bool, default=False
+        Also score the candidate on each fold's own training rows (one more prediction per
+        fold): ``cv_train_scores_boosted_``, the whole-fold point of a learning curve.
 
     Attributes
     ----------
@@ -88,7 +91,8 @@ class BaseBoostCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         Per-fold scores (NaN where the candidate failed).
     cv_train_scores_boosted_ : ndarray of shape (n_splits,)
         The candidate's score on each fold's own training rows (a learning curve's training
-        error at the full fold size, :func:`workbench.curves.selection_learning_curve`).
+        error at the full fold size, :func:`workbench.curves.selection_learning_curve`); NaN
+        unless ``return_train_score``.
     cv_splits_ : list of (train, test) index arrays
         The folds.
     cv_predictions_prior_, cv_predictions_boosted_ : ndarray of shape (n_samples,)
@@ -101,7 +105,8 @@ class BaseBoostCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
     """
 
     def __init__(self, estimator=None, *, incumbent=None, cv=5,
-                 scoring="neg_mean_absolute_error", refit=True, n_jobs=None, random_state=None):
+                 scoring="neg_mean_absolute_error", refit=True, n_jobs=None, random_state=None,
+                 return_train_score=False):
         self.estimator = estimator
         self.incumbent = incumbent
         self.cv = cv
@@ -109,6 +114,7 @@ class BaseBoostCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         self.refit = refit
         self.n_jobs = n_jobs
         self.random_state = random_state
+        self.return_train_score = return_train_score
 
     def _candidate(self):
         est = BaseBoostRegressor() if self.estimator is None else clone(self.estimator)
@@ -144,8 +150,8 @@ class BaseBoostCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         cv = check_cv(self.cv, y, classifier=False)
         scorer = check_scoring(candidate, scoring=self.scoring)
         splits = list(cv.split(X, y))
-        tasks = [Task(_fold, incumbent, candidate, X, y, train, test, scorer)
-                 for train, test in splits]
+        tasks = [Task(_fold, incumbent, candidate, X, y, train, test, scorer,
+                      bool(self.return_train_score)) for train, test in splits]
         if fold_callback is None:
             folds = yield tasks
         else:

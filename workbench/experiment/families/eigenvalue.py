@@ -83,8 +83,10 @@ def per_target_boost(cfg: ExperimentConfig, ds: Dataset, priors: list[str], *,
             per_target[target] = BasisChoiceCV(candidates, cv=selection_cv(cfg),
                                                scoring=cfg.selection.scoring)
             continue
+        # training scores: the learning curves reuse the folds (family artifacts)
         per_target[target] = BaseBoostCV(make_booster(s, prior=start, inputs=inputs),
-                                         cv=selection_cv(cfg), scoring=cfg.selection.scoring)
+                                         cv=selection_cv(cfg), scoring=cfg.selection.scoring,
+                                         return_train_score=True)
     return MultiTargetBaseBoost(target_estimators=per_target, n_jobs=cfg.jobs,
                                 random_state=cfg.random_state)
 
@@ -172,7 +174,8 @@ class EigenvalueFamily(ModelFamily):
         from ...multitarget import MultiTargetBaseBoost
 
         return MultiTargetBaseBoost(target_estimators={
-            t: booster_cv(cfg, ds, t, cfg.model_for(t), cfg_inner_cv(cfg))
+            t: booster_cv(cfg, ds, t, cfg.model_for(t), cfg_inner_cv(cfg),
+                          return_train_score=True)  # the curves reuse its folds
             for t in ds.target_names}, random_state=cfg.random_state, n_jobs=cfg.jobs)
 
     def scores(self, cfg, ds, model, Y_train, prior_test, y_test, pred):
