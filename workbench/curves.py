@@ -11,7 +11,9 @@ Protocol (:func:`augmented_learning_curve`):
 * ``cv`` splits the rows into fold-training and fold-validation rows (an int ``k`` means
   ``KFold(k, shuffle=True, random_state=...)``).
 * Each fold's training rows are shuffled once with a seeded permutation; size ``s`` uses the
-  first ``s`` rows of that permutation, so the subsets of one fold are nested.
+  first ``s`` rows of that permutation, so the subsets of one fold are nested. A size equal
+  to the whole fold-training set uses those rows in the fold's own order: the same fit as
+  a cross-validation on the fold.
 * At each (size, fold) a clone of the estimator and a clone of the incumbent are fitted on
   those ``s`` rows. The training error is the estimator's error on the same ``s`` rows; the
   CV error and the incumbent error are measured on the fold's validation rows.
@@ -20,6 +22,14 @@ Protocol (:func:`augmented_learning_curve`):
   reported); the rows actually used are recorded in ``LearningCurve.n_train_rows``.
 * A failing candidate fit gives NaN at that (size, fold) and one ``FitFailedWarning``;
   the curve is still computed everywhere else.
+
+:func:`selection_learning_curve` draws the curve of a fitted :class:`~workbench.BaseBoostCV`
+on its own folds, with its candidate as seeded there: the points at the whole fold size are
+the selection's own fold fits, taken from it instead of fitted again.
+
+The (size, fold) fits run on ``n_jobs`` processes (:mod:`workbench.parallel`), the largest
+first; :func:`learning_curve_plan` and :func:`selection_curve_plan` give them as plans, so
+the curves of several targets share the workers. The numbers do not depend on ``n_jobs``.
 
 This module belongs to the core: it imports only numpy, pandas and scikit-learn. The
 figure lives in :mod:`workbench.experiment.figures`.
@@ -34,7 +44,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from joblib import Parallel, delayed
 from sklearn.base import clone
 from sklearn.exceptions import FitFailedWarning
 from sklearn.metrics import check_scoring
@@ -42,9 +51,11 @@ from sklearn.model_selection import KFold, check_cv
 from sklearn.utils import _safe_indexing, check_random_state
 
 from .boosting import PriorModel, seed_estimator
+from .parallel import Task, run_plans
 from .selection import find_prior
 
-__all__ = ["LearningCurve", "augmented_learning_curve"]
+__all__ = ["LearningCurve", "augmented_learning_curve", "learning_curve_plan",
+           "selection_curve_plan", "selection_learning_curve"]
 
 _SEED_MAX = np.iinfo(np.int32).max
 
@@ -198,6 +209,12 @@ def _check_cv(cv, y, random_state):
     return check_cv(cv, y, classifier=False)
 
 
+def _rows(perm: np.ndarray, train: np.ndarray, size: int) -> np.ndarray:
+    """The rows of one (size, fold): a prefix of the fold's permutation, or at the whole fold
+    size the fold's rows in their own order."""
+    return train if size == len(train) else perm[:size]
+
+
 def _error_of(scorer, model, X, y) -> float:
     return -float(scorer(model, X, y))
 
@@ -246,12 +263,19 @@ def augmented_learning_curve(estimator, X, y, *, train_sizes, cv=5, incumbent=No
         every ``random_state`` of the estimator (as :class:`~workbench.BaseBoostCV` does).
         The same value gives identical numbers.
     n_jobs : int, default=None
-        (size, fold) fits run in parallel with joblib.
+        Processes for the (size, fold) fits (``-1``: every core; :mod:`workbench.parallel`).
+        The curve does not depend on it.
 
     Returns
     -------
     LearningCurve
     """
+    plan = learning_curve_plan(estimator, X, y, train_sizes=train_sizes, cv=cv,
+                               incumbent=incumbent, scoring=scoring, random_state=random_state)
+    return run_plans([plan], n_jobs)[0]
+
+
+def _inputs(X, y, scoring, train_sizes):
     if isinstance(scoring, str) and not scoring.startswith("neg_"):
         raise ValueError(f"scoring must name an error scorer ('neg_...', reported as a positive "
                          f"error), got {scoring!r}")
@@ -263,7 +287,26 @@ def augmented_learning_curve(estimator, X, y, *, train_sizes, cv=5, incumbent=No
         y = y[:, 0]
     if len(X) != len(y):
         raise ValueError(f"X and y have different numbers of rows: {len(X)} and {len(y)}")
+    return X, y, sizes
 
+
+def _check_sizes(sizes, folds, n_rows):
+    if len(folds) == 0:
+        raise ValueError("cv produced no folds")
+    fold_sizes = [len(tr) for tr, _ in folds]
+    max_size = min(fold_sizes)
+    too_big = sizes[sizes > max_size]
+    if too_big.size:
+        raise ValueError(
+            f"train size {int(too_big[0])} is larger than the smallest fold-training set: at "
+            f"most {max_size} rows can be used ({len(folds)} folds of {n_rows} rows; "
+            f"fold-training sizes {sorted(set(fold_sizes))}). Use train_sizes <= {max_size}.")
+
+
+def learning_curve_plan(estimator, X, y, *, train_sizes, cv=5, incumbent=None,
+                        scoring="neg_mean_absolute_error", random_state=None):
+    """:func:`augmented_learning_curve` as a plan (:mod:`workbench.parallel`)."""
+    X, y, sizes = _inputs(X, y, scoring, train_sizes)
     rng = check_random_state(random_state)
     cv_seed, estimator_seed = (int(s) for s in rng.randint(_SEED_MAX, size=2))
     estimator = clone(estimator)
@@ -273,37 +316,81 @@ def augmented_learning_curve(estimator, X, y, *, train_sizes, cv=5, incumbent=No
         incumbent = PriorModel(prior=find_prior(estimator))
     scorer = check_scoring(estimator, scoring=scoring)
     splitter = _check_cv(cv, y, cv_seed if random_state is not None else None)
-
     folds = [(np.asarray(tr), np.asarray(va)) for tr, va in splitter.split(X, y)]
-    if len(folds) == 0:
-        raise ValueError("cv produced no folds")
-    fold_sizes = [len(tr) for tr, _ in folds]
-    max_size = min(fold_sizes)
-    too_big = sizes[sizes > max_size]
-    if too_big.size:
-        raise ValueError(
-            f"train size {int(too_big[0])} is larger than the smallest fold-training set: at "
-            f"most {max_size} rows can be used ({len(folds)} folds of {len(y)} rows; "
-            f"fold-training sizes {sorted(set(fold_sizes))}). Use train_sizes <= {max_size}.")
+    _check_sizes(sizes, folds, len(y))
     perms = [check_random_state(int(seed)).permutation(tr)
              for seed, (tr, _) in zip(rng.randint(_SEED_MAX, size=len(folds)), folds)]
+    return (yield from _curve(estimator, incumbent, X, y, sizes, folds, perms, scorer,
+                              scoring, {}))
 
-    tasks = [(i, j) for i in range(len(sizes)) for j in range(len(folds))]
-    results = Parallel(n_jobs=n_jobs)(
-        delayed(_one)(estimator, incumbent, X, y, perms[j][: sizes[i]], folds[j][1],
-                      int(sizes[i]), j, scorer)
-        for i, j in tasks
-    )
+
+def selection_learning_curve(model, X, y, *, train_sizes, random_state=None,
+                             n_jobs=None) -> LearningCurve:
+    """The augmented learning curve of a fitted :class:`~workbench.BaseBoostCV` on its own
+    folds (``X``, ``y``: the rows it was fitted on), with its candidate seeded as in its
+    selection and its incumbent and scoring: where a size is a fold's whole training set
+    the selection's fold fit is the point (no fit again; it needs the training scores of
+    ``BaseBoostCV(return_train_score=True)``). ``random_state`` seeds the
+    per-fold row permutations."""
+    return run_plans([selection_curve_plan(model, X, y, train_sizes=train_sizes,
+                                           random_state=random_state)], n_jobs)[0]
+
+
+def selection_curve_plan(model, X, y, *, train_sizes, random_state=None):
+    """:func:`selection_learning_curve` as a plan (:mod:`workbench.parallel`)."""
+    if not hasattr(model, "cv_splits_"):
+        raise ValueError(f"{type(model).__name__} is not a fitted BaseBoostCV (no cv_splits_)")
+    scoring = model.scoring
+    X, y, sizes = _inputs(X, y, scoring, train_sizes)
+    folds = model.cv_splits_
+    if len(y) != len(model.cv_predictions_prior_):
+        raise ValueError(f"X has {len(y)} rows but the model was fitted on "
+                         f"{len(model.cv_predictions_prior_)}")
+    _check_sizes(sizes, folds, len(y))
+    estimator = model._candidate()
+    incumbent = (PriorModel(prior=find_prior(estimator)) if model.incumbent is None
+                 else model.incumbent)
+    scorer = check_scoring(estimator, scoring=scoring)
+    rng = check_random_state(random_state)
+    perms = [check_random_state(int(seed)).permutation(tr)
+             for seed, (tr, _) in zip(rng.randint(_SEED_MAX, size=len(folds)), folds)]
+    known = {}
+    for j, (tr, va) in enumerate(folds):
+        if np.isfinite(model.cv_scores_boosted_[j]) and \
+                np.isfinite(model.cv_train_scores_boosted_[j]):  # else: fitted again
+            known[(len(tr), j)] = (len(tr), -float(model.cv_train_scores_boosted_[j]),
+                                   -float(model.cv_scores_boosted_[j]),
+                                   -float(model.cv_scores_prior_[j]), None)
+    return (yield from _curve(estimator, incumbent, X, y, sizes, folds, perms, scorer,
+                              scoring, known))
+
+
+def _curve(estimator, incumbent, X, y, sizes, folds, perms, scorer, scoring, known):
+    """The (size, fold) fits not in ``known`` ((size, fold) -> point), as one batch of tasks;
+    returns the curve."""
+    points = [(i, j) for i in range(len(sizes)) for j in range(len(folds))]
+    todo, tasks = [], []
+    for i, j in points:
+        size, (tr, va) = int(sizes[i]), folds[j]
+        if (size, j) in known:
+            continue
+        task = Task(_one, estimator, incumbent, X, y, _rows(perms[j], tr, size), va, size, j,
+                    scorer)
+        task.priority = size  # on several processes the largest fits first
+        todo.append((i, j))
+        tasks.append(task)
+    done = dict(zip(todo, (yield tasks) if tasks else []))
     shape = (len(sizes), len(folds))
     n_rows = np.zeros(shape, dtype=int)
     train_err, cv_err, inc_err = (np.full(shape, np.nan) for _ in range(3))
     errors = []
-    for (i, j), (n, tr_e, cv_e, inc_e, err) in zip(tasks, results):
+    for i, j in points:
+        n, tr_e, cv_e, inc_e, err = done.get((i, j)) or known[(int(sizes[i]), j)]
         n_rows[i, j], train_err[i, j], cv_err[i, j], inc_err[i, j] = n, tr_e, cv_e, inc_e
         if err is not None:
             errors.append(err)
     if errors:
-        warnings.warn(f"{len(errors)} of {len(tasks)} candidate fits of the learning curve "
+        warnings.warn(f"{len(errors)} of {len(points)} candidate fits of the learning curve "
                       f"failed and are NaN. First error: {errors[0]}", FitFailedWarning,
                       stacklevel=2)
     return LearningCurve(

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
-from joblib import Parallel, delayed
 from sklearn.base import BaseEstimator, MetaEstimatorMixin, RegressorMixin, clone
 from sklearn.utils import check_random_state
 from sklearn.utils.validation import check_is_fitted
 
 from .boosting import seed_estimator
+from .parallel import Task, run_plans
 from .selection import BaseBoostCV
 
 __all__ = ["MultiTargetBaseBoost", "check_targets"]
@@ -43,6 +43,14 @@ def _fit_one(estimator, X, y):
     return estimator.fit(X, y)
 
 
+def _fit_plan(estimator, X, y):
+    """A target's fit as a plan: the estimator's own (folds, refit) when it has one, else one
+    task."""
+    if hasattr(estimator, "_fit_plan"):
+        return (yield from estimator._fit_plan(X, y))
+    return (yield [Task(_fit_one, estimator, X, y)])[0]
+
+
 class MultiTargetBaseBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
     """Fit one base-boosting model per target column; target ``j`` uses prior ``priors[j]``.
 
@@ -57,7 +65,10 @@ class MultiTargetBaseBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
     target_estimators : dict, default=None
         Per-target overrides of ``estimator``, keyed by target name or position.
     n_jobs : int, default=None
-        Targets fitted in parallel (processes; give LightGBM/BLAS one thread each).
+        Processes (``-1``: every core) for the targets' fits and, for estimators that split
+        their fit into tasks (:class:`BaseBoostCV`, :class:`BasisChoiceCV`), for every
+        target's folds and refit together (:mod:`workbench.parallel`; one BLAS/LightGBM
+        thread per process). The result does not depend on it.
     random_state : int, RandomState or None, default=None
         If set, each target's estimator gets its own seed drawn from it.
 
@@ -102,8 +113,8 @@ class MultiTargetBaseBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         """Fit each target's estimator on ``(X, Y[:, j])``; returns ``self``."""
         Y, names = check_targets(X, Y)
         ests = self._estimators_for(names)
-        self.estimators_ = Parallel(n_jobs=self.n_jobs)(
-            delayed(_fit_one)(est, X, Y[:, j]) for j, est in enumerate(ests))
+        self.estimators_ = run_plans([_fit_plan(est, X, Y[:, j]) for j, est in enumerate(ests)],
+                                     self.n_jobs)
         self.target_names_ = names
         self.n_features_in_ = X.shape[1]
         if hasattr(X, "columns"):

@@ -5,7 +5,6 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
-from joblib import Parallel, delayed
 from sklearn.base import BaseEstimator, MetaEstimatorMixin, RegressorMixin, clone
 from sklearn.exceptions import FitFailedWarning
 from sklearn.metrics import check_scoring
@@ -15,6 +14,7 @@ from sklearn.utils.metaestimators import _BaseComposition
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .boosting import BaseBoostRegressor, PriorModel, seed_estimator
+from .parallel import Task, gather, run_plans
 
 __all__ = ["BaseBoostCV", "BasisChoiceCV", "find_prior"]
 
@@ -31,17 +31,29 @@ def find_prior(estimator):
                      f"{len(nested)} nested 'prior' parameters); pass incumbent=")
 
 
-def _fold(incumbent, estimator, X, y, train, test, scorer):
-    """Scores of both models on one fold and their predictions on its held-out rows."""
+def _fold(incumbent, estimator, X, y, train, test, scorer, train_score=False):
+    """Scores of both models on one fold, their predictions on its held-out rows, and the
+    candidate's score on the fold's own training rows (NaN unless ``train_score``)."""
     X_tr, X_te, y_tr, y_te = _safe_indexing(X, train), _safe_indexing(X, test), y[train], y[test]
     prior = clone(incumbent).fit(X_tr, y_tr)
     prior_score, prior_pred = scorer(prior, X_te, y_te), prior.predict(X_te)
     try:
         fitted = clone(estimator).fit(X_tr, y_tr)
         score, pred, error = scorer(fitted, X_te, y_te), fitted.predict(X_te), None
+        train_score = scorer(fitted, X_tr, y_tr) if train_score else np.nan
     except Exception as exc:  # a failed candidate is recorded, never chosen
         score, pred, error = np.nan, np.full(len(test), np.nan), f"{type(exc).__name__}: {exc}"
-    return float(prior_score), float(score), error, np.asarray(prior_pred), np.asarray(pred)
+        train_score = np.nan
+    return (float(prior_score), float(score), error, np.asarray(prior_pred), np.asarray(pred),
+            float(train_score))
+
+
+def _refit(estimator, X, y):
+    """``(estimator fitted on all rows, None)``, or ``(None, error message)``."""
+    try:
+        return estimator.fit(X, y), None
+    except Exception as exc:
+        return None, f"{type(exc).__name__}: {exc}"
 
 
 class BaseBoostCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
@@ -68,12 +80,21 @@ class BaseBoostCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         Folds fitted in parallel.
     random_state : int, RandomState or None, default=None
         If set, seeds every ``random_state`` of the candidate (and of ``cv`` when it shuffles).
+    return_train_score : bool, default=False
+        Also score the candidate on each fold's own training rows (one more prediction per
+        fold): ``cv_train_scores_boosted_``, the whole-fold point of a learning curve.
 
     Attributes
     ----------
     selected_ : {"prior", "boosted"}
     cv_scores_prior_, cv_scores_boosted_ : ndarray of shape (n_splits,)
         Per-fold scores (NaN where the candidate failed).
+    cv_train_scores_boosted_ : ndarray of shape (n_splits,)
+        The candidate's score on each fold's own training rows (a learning curve's training
+        error at the full fold size, :func:`workbench.curves.selection_learning_curve`); NaN
+        unless ``return_train_score``.
+    cv_splits_ : list of (train, test) index arrays
+        The folds.
     cv_predictions_prior_, cv_predictions_boosted_ : ndarray of shape (n_samples,)
         Out-of-fold predictions of each model (NaN for rows in no held-out fold and where
         the candidate failed; a row held out by several folds keeps the last).
@@ -84,7 +105,8 @@ class BaseBoostCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
     """
 
     def __init__(self, estimator=None, *, incumbent=None, cv=5,
-                 scoring="neg_mean_absolute_error", refit=True, n_jobs=None, random_state=None):
+                 scoring="neg_mean_absolute_error", refit=True, n_jobs=None, random_state=None,
+                 return_train_score=False):
         self.estimator = estimator
         self.incumbent = incumbent
         self.cv = cv
@@ -92,6 +114,7 @@ class BaseBoostCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         self.refit = refit
         self.n_jobs = n_jobs
         self.random_state = random_state
+        self.return_train_score = return_train_score
 
     def _candidate(self):
         est = BaseBoostRegressor() if self.estimator is None else clone(self.estimator)
@@ -107,6 +130,14 @@ class BaseBoostCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         lets a hyperparameter search report per-fold scores to a pruner without the core
         knowing about it.
         """
+        (fitted,) = run_plans([self._fit_plan(X, y, fold_callback)],
+                              1 if fold_callback is not None else self.n_jobs)
+        return fitted
+
+    def _fit_plan(self, X, y, fold_callback=None, warn=True):
+        """:meth:`fit` as a plan (:mod:`workbench.parallel`): the folds, then the refit
+        (``warn=False``: no warning for failed candidate fits, e.g. one of several
+        candidates)."""
         candidate = self._candidate()
         incumbent = (PriorModel(prior=find_prior(candidate)) if self.incumbent is None
                      else self.incumbent)
@@ -119,17 +150,19 @@ class BaseBoostCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         cv = check_cv(self.cv, y, classifier=False)
         scorer = check_scoring(candidate, scoring=self.scoring)
         splits = list(cv.split(X, y))
+        tasks = [Task(_fold, incumbent, candidate, X, y, train, test, scorer,
+                      bool(self.return_train_score)) for train, test in splits]
         if fold_callback is None:
-            folds = Parallel(n_jobs=self.n_jobs)(
-                delayed(_fold)(incumbent, candidate, X, y, train, test, scorer)
-                for train, test in splits)
+            folds = yield tasks
         else:
             folds = []
-            for i, (train, test) in enumerate(splits):
-                folds.append(_fold(incumbent, candidate, X, y, train, test, scorer))
+            for i, task in enumerate(tasks):
+                folds += yield [task]
                 fold_callback(i, folds[-1][0], folds[-1][1])
         self.cv_scores_prior_ = np.array([f[0] for f in folds])
         self.cv_scores_boosted_ = np.array([f[1] for f in folds])
+        self.cv_train_scores_boosted_ = np.array([f[5] for f in folds])
+        self.cv_splits_ = [(np.asarray(tr), np.asarray(te)) for tr, te in splits]
         self.cv_predictions_prior_ = np.full(len(y), np.nan)
         self.cv_predictions_boosted_ = np.full(len(y), np.nan)
         for (_, test), fold in zip(splits, folds):
@@ -137,7 +170,7 @@ class BaseBoostCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
             self.cv_predictions_boosted_[test] = fold[4]
         self.fit_errors_ = [f[2] for f in folds if f[2] is not None]
         boosted_ok = not self.fit_errors_ and np.all(np.isfinite(self.cv_scores_boosted_))
-        if self.fit_errors_:
+        if self.fit_errors_ and warn:
             warnings.warn(f"{len(self.fit_errors_)} of {len(folds)} candidate fits failed; "
                           f"selecting the prior. First error: {self.fit_errors_[0]}",
                           FitFailedWarning, stacklevel=2)
@@ -145,12 +178,13 @@ class BaseBoostCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         self.selected_ = "boosted" if wins else "prior"
         if self.refit:
             if wins:
-                try:
-                    self.best_estimator_ = candidate.fit(X, y)
-                except Exception as exc:
-                    warnings.warn(f"refitting the candidate on all rows failed ({exc}); "
+                fitted, error = (yield [Task(_refit, candidate, X, y)])[0]
+                if error is None:
+                    self.best_estimator_ = fitted
+                else:
+                    warnings.warn(f"refitting the candidate on all rows failed ({error}); "
                                   "selecting the prior", FitFailedWarning, stacklevel=2)
-                    self.fit_errors_.append(f"{type(exc).__name__}: {exc}")
+                    self.fit_errors_.append(error)
                     self.selected_ = "prior"
             if self.selected_ == "prior":
                 self.best_estimator_ = clone(incumbent).fit(X, y)
@@ -235,19 +269,26 @@ class BasisChoiceCV(_BaseComposition, BaseBoostCV):
         called once per candidate and fold)."""
         if fold_callback is not None:
             raise TypeError("BasisChoiceCV takes no fold_callback")
+        (fitted,) = run_plans([self._fit_plan(X, y)], self.n_jobs)
+        return fitted
+
+    def _fit_plan(self, X, y, fold_callback=None):
+        """:meth:`fit` as a plan (:mod:`workbench.parallel`): every candidate's folds side by
+        side, then the refit."""
+        if fold_callback is not None:
+            raise TypeError("BasisChoiceCV takes no fold_callback")
         if not isinstance(self.candidates, list) or not self.candidates or not all(
                 isinstance(c, tuple) and len(c) == 2 for c in self.candidates):
             raise ValueError(f"candidates must be a non-empty list of (name, regressor) "
                              f"tuples, got {self.candidates!r}")
         self._validate_names([name for name, _ in self.candidates])
         candidates = dict(self.candidates)
-        runs = {}
-        for name, candidate in candidates.items():
-            with warnings.catch_warnings():  # a failing candidate is simply not chosen
-                warnings.simplefilter("ignore", FitFailedWarning)
-                runs[name] = BaseBoostCV(candidate, incumbent=self.incumbent, cv=self.cv,
-                                         scoring=self.scoring, refit=False, n_jobs=self.n_jobs,
-                                         random_state=self.random_state).fit(X, y)
+        # a failing candidate is simply not chosen (no warning)
+        runs = dict(zip(candidates, (yield from gather(
+            BaseBoostCV(candidate, incumbent=self.incumbent, cv=self.cv, scoring=self.scoring,
+                        refit=False, n_jobs=self.n_jobs,
+                        random_state=self.random_state)._fit_plan(X, y, warn=False)
+            for candidate in candidates.values()))))
         self.candidate_scores_ = {n: r.cv_scores_boosted_ for n, r in runs.items()}
         ok = {n: r for n, r in runs.items()
               if not r.fit_errors_ and np.all(np.isfinite(r.cv_scores_boosted_))}
@@ -270,15 +311,16 @@ class BasisChoiceCV(_BaseComposition, BaseBoostCV):
                                 scoring=self.scoring, random_state=self.random_state)
             incumbent = (PriorModel(prior=find_prior(refit._candidate()))
                          if self.incumbent is None else self.incumbent)
+            X_all = X if hasattr(X, "iloc") else np.asarray(X)
             if wins:
-                try:
-                    self.best_estimator_ = refit._candidate().fit(
-                        X if hasattr(X, "iloc") else np.asarray(X), np.ravel(y))
-                except Exception as exc:
-                    warnings.warn(f"refitting {best} on all rows failed ({exc}); selecting "
+                fitted, error = (yield [Task(_refit, refit._candidate(), X_all,
+                                             np.ravel(y))])[0]
+                if error is None:
+                    self.best_estimator_ = fitted
+                else:
+                    warnings.warn(f"refitting {best} on all rows failed ({error}); selecting "
                                   "the prior", FitFailedWarning, stacklevel=2)
                     self.selected_, self.selected_candidate_ = "prior", None
             if self.selected_ == "prior":
-                self.best_estimator_ = clone(incumbent).fit(
-                    X if hasattr(X, "iloc") else np.asarray(X), np.ravel(y))
+                self.best_estimator_ = clone(incumbent).fit(X_all, np.ravel(y))
         return self

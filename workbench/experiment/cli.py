@@ -106,11 +106,12 @@ def ui_command(tracking_uri: str, port: int) -> list[str]:
 
 
 def _cmd_reproduce(args) -> int:
+    from ..parallel import worker_pool
     from .reproduce import reproduce
 
-    res = reproduce(args.out, tracking_uri=args.tracking_uri, storage=args.storage,
-                    quick=args.quick,
-                    track=not args.no_track, seed=args.seed)
+    with worker_pool(-1):
+        res = reproduce(args.out, tracking_uri=args.tracking_uri, storage=args.storage,
+                        quick=args.quick, track=not args.no_track, seed=args.seed)
     s = res.settings
     print(f"paper settings: average test MAE {s['paper'].model.avg('test_mae'):.3f} MHz "
           f"(control program {s['paper'].prior.avg('test_mae'):.3f}); improved "
@@ -130,10 +131,12 @@ def _cmd_sweep(args) -> int:
                                               storage=args.storage)
     _check_outputs(args)
     tracker = _check_before_work(cfg, args)
+    from ..parallel import worker_pool
     from .lifecycle import TrialRecorder, command_run
 
+    # visible while it searches; worker processes for the refits, the curves and the figures;
     # the run ends FINISHED only once every output is written
-    with command_run(tracker, "sweep", cfg.name) as run_id:  # visible while it searches
+    with command_run(tracker, "sweep", cfg.name) as run_id, worker_pool(cfg.jobs):
         sweep = run_sweep(cfg, on_trial=run_id and TrialRecorder(tracker, run_id))
         result = sweep.result
         if not args.no_track:
@@ -172,10 +175,12 @@ def _cmd_evaluate(args) -> int:
                          f"{cfg.family.name!r} ({args.config}) has none")
     _check_outputs(args)
     tracker = _check_before_work(cfg, args)
+    from ..parallel import worker_pool
     from .lifecycle import command_run
 
-    # the run ends FINISHED only once every output is written
-    with command_run(tracker, "evaluate", cfg.name) as run_id:
+    # one set of worker processes for the fit, the curves and the figures; the run ends
+    # FINISHED only once every output is written
+    with command_run(tracker, "evaluate", cfg.name) as run_id, worker_pool(cfg.jobs):
         run = evaluate(cfg, return_model=True)
         result = run.result
         if args.out is not None:
@@ -273,7 +278,9 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("config", help="experiment config (TOML), e.g. experiments/paper_main_body.toml")
     ev.add_argument("--json", metavar="PATH", help="also write the results as JSON")
     ev.add_argument("--jobs", type=_count, default=None, metavar="N",
-                    help="targets fitted in parallel (overrides the config's n_jobs)")
+                    help="processes for independent work: targets, folds, curve points "
+                    "(overrides the config's n_jobs; default: every core; the results do "
+                    "not depend on it)")
     ev.add_argument("--out", metavar="DIR", default=None,
                     help="write the model family's tables (CSV) and figures (PNG) to DIR "
                     "(family hamiltonian: coefficients, corrected parameters, selection)")

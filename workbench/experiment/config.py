@@ -263,7 +263,7 @@ def _validate_estimator(estimator) -> None:
                             if isinstance(v, BaseEstimator)]
     for est in nested:
         params = est.get_params(deep=False)
-        if type(est).__module__.startswith("lightgbm"):
+        if any(c.__module__.startswith("lightgbm") for c in type(est).__mro__[:-1]):
             constraints = _lightgbm_constraints()
             unknown = sorted(set(params) - set(constraints) - {"class_weight"})
             extra = sorted(k for k in unknown if params[k] is not None)
@@ -404,6 +404,12 @@ class ExperimentConfig:
     @property
     def label(self) -> str:
         return str(self.path) if self.path else "config"
+
+    @property
+    def jobs(self) -> int:
+        """Processes for independent work (``n_jobs``; unset: every core). Results do not
+        depend on it (:mod:`workbench.parallel`)."""
+        return -1 if self.n_jobs is None else self.n_jobs
 
     def model_for(self, target: str | None) -> dict[str, Any]:
         """The boosting settings of one target: defaults < ``[model]`` < its

@@ -2,7 +2,8 @@
 
 * :func:`mae_bars` -- per-target test error, control program vs learned model (Fig. 2, S4).
 * :func:`learning_curve_figure` -- the augmented learning curve (Fig. 4, S5).
-* :func:`shap_summary` -- SHAP beeswarm summary of a model's predictions (Fig. 5, S8).
+* :func:`shap_summary` -- SHAP beeswarm summary of a model's predictions (Fig. 5, S8);
+  :func:`shap_values` and :func:`shap_figure` are its two halves.
 * :func:`correlation_heatmap` -- pairwise Pearson correlations of the training examples (Fig. 3).
 * :func:`voltage_boxplots` -- boxplots of the qubit and coupler bias voltages (Fig. S2).
 * :func:`prior_target_boxplots` -- paired boxplots of prior and target eigenenergies (Fig. S3).
@@ -29,10 +30,12 @@ from matplotlib.figure import Figure
 from .._io import atomic_write
 from ..boosting import check_predictions
 from ..curves import LearningCurve
+from .explain import check_shap_frame, shap_values
 
 __all__ = ["correlation_heatmap", "learning_curve_figure", "mae_bars", "model_comparison_bars",
            "parameter_corrections", "prior_target_boxplots", "save_figure",
-           "selection_path_figure", "shap_summary", "voltage_boxplots"]
+           "selection_path_figure", "shap_figure", "shap_summary", "shap_values",
+           "voltage_boxplots"]
 
 #: Colours (Okabe-Ito, readable in grey scale and by colour-blind readers).
 PRIOR_COLOR = "#7f7f7f"
@@ -185,35 +188,40 @@ def shap_summary(predict: Callable[[np.ndarray], np.ndarray], X: pd.DataFrame, *
                  setting: str | None = None) -> tuple[Figure, np.ndarray]:
     """SHAP values of ``predict`` on the rows of ``X`` and their beeswarm summary.
 
-    ``predict`` receives plain 2-D float arrays (the columns of ``X``, in order) and is
-    wrapped in a lambda, never passed as a bound method (see the SHAP notes in the docs).
-    The explainer is ``shap.KernelExplainer`` with ``background_size`` rows of ``X`` sampled
-    with ``random_state`` as background: for up to ~11 features its default ``nsamples``
-    enumerates every coalition, giving the same values as ``shap.Explainer`` with an
-    ``Independent`` masker on that background, without the latter's multi-second JIT
-    compile. About a second for 95 rows x 9 features with a small model.
+    ``predict`` receives plain 2-D float arrays (the columns of ``X``, in order). The
+    background is ``background_size`` rows of ``X`` sampled with ``random_state``. With
+    ``nsamples="auto"`` and up to ten features the values are exact: every coalition is
+    enumerated (:func:`workbench.experiment.explain.exact_shap_values`, the values
+    ``shap.KernelExplainer`` estimates at its default ``nsamples``) with the model called on
+    all rows' coalitions at once. Otherwise ``shap.KernelExplainer`` with ``nsamples``
+    (``predict`` wrapped in a lambda, never passed as a bound method: see the SHAP notes in
+    the docs).
 
     Returns the figure and the SHAP values, an array of shape ``(n_rows, n_features)`` in
     the prediction's unit.
     """
+    values, expected = shap_values(predict, X, background_size=background_size,
+                                   nsamples=nsamples, random_state=random_state)
+    fig = shap_figure(values, expected, X, target=target, unit=unit, max_display=max_display,
+                      random_state=random_state, title=title, setting=setting)
+    return fig, values
+
+
+def shap_figure(values: np.ndarray, expected: float, X: pd.DataFrame, *, target: str,
+                unit: str = "MHz", max_display: int = 10, random_state: int = 0,
+                title: str | None = None, setting: str | None = None) -> Figure:
+    """The beeswarm summary of SHAP ``values`` (shape ``(n_rows, n_features)``) of the rows of
+    ``X`` (see :func:`shap_summary`)."""
     import shap  # heavy; imported only when a SHAP figure is asked for
 
-    if not isinstance(X, pd.DataFrame):
-        raise TypeError(f"X must be a pandas DataFrame (its columns name the features); got "
-                        f"{type(X).__name__}")
-    if len(X) == 0 or X.shape[1] == 0:
-        raise ValueError(f"X is empty: shape {X.shape}")
+    check_shap_frame(X)
     names = [str(c) for c in X.columns]
     data = X.to_numpy(dtype=float)
-    background = shap.sample(data, background_size, random_state=random_state)
-    explainer = shap.KernelExplainer(lambda a: check_predictions(predict(a), len(a), "predict"), background,
-                                     seed=random_state)
-    values = np.asarray(explainer.shap_values(data, nsamples=nsamples, silent=True),
-                        dtype=float)
-    explanation = shap.Explanation(values=values,
-                                   base_values=np.full(len(data), explainer.expected_value),
+    values = np.asarray(values, dtype=float)
+    if values.shape != data.shape:
+        raise ValueError(f"values must have the shape of X {data.shape}; got {values.shape}")
+    explanation = shap.Explanation(values=values, base_values=np.full(len(data), expected),
                                    data=data, feature_names=names)
-
     n_shown = min(len(names), max_display)
     fig = _new_figure(7.0, 0.42 * n_shown + 1.9)
     ax = fig.add_subplot()
@@ -229,7 +237,7 @@ def shap_summary(predict: Callable[[np.ndarray], np.ndarray], X: pd.DataFrame, *
     ax.tick_params("y", labelsize=10)
     default = f"SHAP summary: {target}, {len(data)} rows x {len(names)} features"
     ax.set_title(_with_setting(title or default, setting), fontsize=12)
-    return fig, values
+    return fig
 
 
 def _numeric_frame(name: str, frame) -> pd.DataFrame:

@@ -83,9 +83,11 @@ def per_target_boost(cfg: ExperimentConfig, ds: Dataset, priors: list[str], *,
             per_target[target] = BasisChoiceCV(candidates, cv=selection_cv(cfg),
                                                scoring=cfg.selection.scoring)
             continue
+        # training scores: the learning curves reuse the folds (family artifacts)
         per_target[target] = BaseBoostCV(make_booster(s, prior=start, inputs=inputs),
-                                         cv=selection_cv(cfg), scoring=cfg.selection.scoring)
-    return MultiTargetBaseBoost(target_estimators=per_target, n_jobs=cfg.n_jobs,
+                                         cv=selection_cv(cfg), scoring=cfg.selection.scoring,
+                                         return_train_score=True)
+    return MultiTargetBaseBoost(target_estimators=per_target, n_jobs=cfg.jobs,
                                 random_state=cfg.random_state)
 
 
@@ -172,8 +174,9 @@ class EigenvalueFamily(ModelFamily):
         from ...multitarget import MultiTargetBaseBoost
 
         return MultiTargetBaseBoost(target_estimators={
-            t: booster_cv(cfg, ds, t, cfg.model_for(t), cfg_inner_cv(cfg))
-            for t in ds.target_names}, random_state=cfg.random_state, n_jobs=cfg.n_jobs)
+            t: booster_cv(cfg, ds, t, cfg.model_for(t), cfg_inner_cv(cfg),
+                          return_train_score=True)  # the curves reuse its folds
+            for t in ds.target_names}, random_state=cfg.random_state, n_jobs=cfg.jobs)
 
     def scores(self, cfg, ds, model, Y_train, prior_test, y_test, pred):
         s = stage_scores(model.estimators_, Y_train.to_numpy(dtype=float))
@@ -186,44 +189,72 @@ class EigenvalueFamily(ModelFamily):
         return prior, scores, {}
 
     def artifacts(self, cfg, ds, model, setting, quick=False) -> Artifacts:
-        """An augmented learning curve and a SHAP summary per target."""
+        """An augmented learning curve and a SHAP summary per target.
+
+        A BaseBoostCV's curve is drawn on its own selection folds, with its candidate as
+        seeded there: the whole-fold points are the selection's fold fits (not fitted
+        again). The curves' fits and the SHAP values of every target share the command's
+        worker processes (``n_jobs``); SHAP explains the fitted model itself."""
         import logging
 
-        from ...curves import augmented_learning_curve
-        from ..figures import learning_curve_figure, shap_summary
+        from ...curves import learning_curve_plan, selection_curve_plan
+        from ...parallel import Task, effective_n_jobs, run_plans
+        from ...selection import BasisChoiceCV, BaseBoostCV
+        from ..figures import learning_curve_figure, shap_figure
 
         log = logging.getLogger("workbench")
         X_train, _, y_train, _ = ds.split()
-        folds = cfg.selection.cv
-        sizes = curve_sizes(len(X_train), folds)
-        out = Artifacts()
-        curves = {}
+        sizes = curve_sizes(len(X_train), cfg.selection.cv)
+        log.info("[%s] figures: learning curves at sizes %s and SHAP summaries of %d targets "
+                 "(%d processes)", cfg.name, sizes, len(ds.target_names),
+                 effective_n_jobs(cfg.jobs))
+        plans, shap_tasks = [], []
         for target, est in zip(ds.target_names, model.estimators_):
-            log.info("[%s] figures for %s: learning curve at sizes %s, SHAP", cfg.name, target,
-                     sizes)
-            candidate = getattr(est, "estimator_", None) or est.estimator  # BasisChoiceCV's
-            curve = augmented_learning_curve(candidate, X_train, y_train[target].to_numpy(),
-                                             train_sizes=sizes, cv=folds,
-                                             random_state=cfg.random_state)
-            curves[target] = curve.to_dict()
+            y = y_train[target].to_numpy()
+            if isinstance(est, BaseBoostCV) and not isinstance(est, BasisChoiceCV):
+                plans.append(selection_curve_plan(est, X_train, y, train_sizes=sizes,
+                                                  random_state=cfg.random_state))
+            else:  # BasisChoiceCV: its chosen candidate on fresh folds
+                candidate = getattr(est, "estimator_", None) or est.estimator
+                plans.append(learning_curve_plan(candidate, X_train, y, train_sizes=sizes,
+                                                 cv=cfg.selection.cv,
+                                                 random_state=cfg.random_state))
+            cols = _columns(est.best_estimator_, X_train)
+            task = Task(_shap_values, est.best_estimator_, X_train, cols)
+            task.priority = 10 ** 6  # a long task: start it early
+            shap_tasks.append(task)
+        *curves, shap = run_plans([*plans, _all(shap_tasks)], cfg.jobs)
+        out = Artifacts()
+        for target, curve, (values, expected, cols) in zip(ds.target_names, curves, shap):
             out.figures[f"learning_curve_{target}"] = learning_curve_figure(
                 curve, target=target, setting=setting)
-            used = est.best_estimator_
-            cols = _columns(used, X_train)
-            Xs = X_train[cols]
-            base = X_train.iloc[[0]].to_numpy()  # columns the model does not read stay fixed
-
-            def predict(a, used=used, cols=cols, base=base):
-                frame = pd.DataFrame(np.repeat(base, len(a), axis=0), columns=X_train.columns)
-                frame[cols] = a
-                return used.predict(frame)
-
-            fig, _ = shap_summary(predict, Xs, target=target, setting=setting,
-                                  nsamples="auto" if len(cols) <= 10 else 256,
-                                  background_size=min(30, len(Xs)))
-            out.figures[f"shap_{target}"] = fig
-        out.data["learning_curves"] = curves
+            out.figures[f"shap_{target}"] = shap_figure(values, expected, X_train[cols],
+                                                        target=target, setting=setting)
+        out.data["learning_curves"] = {t: c.to_dict() for t, c in zip(ds.target_names, curves)}
         return out
+
+
+def _all(tasks):
+    """A plan of independent tasks (:mod:`workbench.parallel`)."""
+    return (yield tasks)
+
+
+def _shap_values(used, X_train: pd.DataFrame, cols: list[str]):
+    """SHAP values of a fitted per-target model on the training rows, over the columns it
+    reads (the others fixed at the first row's values), with a 30-row background."""
+    from ..explain import shap_values
+
+    base = X_train.iloc[[0]].to_numpy()
+
+    def predict(a):
+        frame = pd.DataFrame(np.repeat(base, len(a), axis=0), columns=X_train.columns)
+        frame[cols] = a
+        return used.predict(frame)
+
+    Xs = X_train[cols]
+    values, expected = shap_values(predict, Xs, nsamples="auto" if len(cols) <= 10 else 256,
+                                   background_size=min(30, len(Xs)))
+    return values, expected, cols
 
 
 def cfg_inner_cv(cfg: ExperimentConfig):

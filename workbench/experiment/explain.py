@@ -1,0 +1,109 @@
+"""Exact SHAP values by enumerating every coalition, in a few batched model calls.
+
+For a model ``f`` of ``M`` features, a row ``x`` and a background set ``B``, the
+interventional value of a coalition ``S`` is ``v(S) = mean_b f(x_S, b_rest)`` and the SHAP
+value of feature ``i`` is its Shapley value
+``phi_i = sum_{S without i} |S|! (M - |S| - 1)! / M! * (v(S + i) - v(S))``. With ``M`` up to
+about ten, all ``2^M`` coalitions are cheap to enumerate: this is what
+``shap.KernelExplainer`` does at its default ``nsamples`` (its weighted regression over every
+coalition has these values as solution), but it calls the model once per explained row and
+solves a regression per row. Here the model sees every row's coalitions at once (in chunks
+of ``chunk_rows`` rows), so a model with a large fixed cost per call (a 1000-tree LightGBM in
+a stacking) is called a handful of times instead of once per row.
+
+:func:`shap_values` picks the method (exact, or the kernel explainer for many features). No
+SHAP or matplotlib import for exact values (they run in worker processes too); the beeswarm
+figure is :func:`workbench.experiment.figures.shap_figure`.
+"""
+
+from __future__ import annotations
+
+from math import factorial
+from typing import Callable
+
+import numpy as np
+import pandas as pd
+
+from ..boosting import check_predictions
+
+__all__ = ["MAX_EXACT_FEATURES", "check_shap_frame", "exact_shap_values", "sample_background",
+           "shap_values"]
+
+#: Up to this many features the values are exact (2^M coalitions per row).
+MAX_EXACT_FEATURES = 10
+
+
+def sample_background(data: np.ndarray, size: int, random_state: int = 0) -> np.ndarray:
+    """``size`` rows of ``data`` without replacement (all of them if there are fewer): the
+    same rows as ``shap.sample(data, size, random_state)``."""
+    from sklearn.utils import shuffle
+
+    if size >= len(data):
+        return data
+    return shuffle(data, n_samples=size, random_state=random_state)
+
+
+def exact_shap_values(predict: Callable[[np.ndarray], np.ndarray], data: np.ndarray,
+                      background: np.ndarray, *, chunk_rows: int = 250_000
+                      ) -> tuple[np.ndarray, float]:
+    """SHAP values of ``predict`` at every row of ``data`` (interventional, over the rows of
+    ``background``): an array of shape ``(n_rows, n_features)``, and the expected value
+    ``mean f(background)``. ``predict`` takes a 2-D float array of the same columns."""
+    data = np.asarray(data, dtype=float)
+    background = np.asarray(background, dtype=float)
+    n, m = data.shape
+    if m > MAX_EXACT_FEATURES:
+        raise ValueError(f"exact SHAP values enumerate 2^{m} coalitions per row; at most "
+                         f"{MAX_EXACT_FEATURES} features")
+    if background.ndim != 2 or background.shape[1] != m or len(background) == 0:
+        raise ValueError(f"background must have shape (k, {m}), got {background.shape}")
+    coalitions = (np.arange(2 ** m)[:, None] >> np.arange(m)) & 1  # (2^m, m) 0/1
+    take = coalitions.astype(bool)[None, :, None, :]  # row x coalition x background x feature
+    per_row = len(coalitions) * len(background)
+    step = max(1, chunk_rows // per_row)
+    values = np.empty((n, len(coalitions)))
+    for start in range(0, n, step):
+        x = data[start:start + step]
+        synth = np.where(take, x[:, None, None, :], background[None, None, :, :])
+        flat = synth.reshape(-1, m)
+        f = check_predictions(predict(flat), len(flat), "predict")
+        values[start:start + step] = f.reshape(len(x), len(coalitions),
+                                               len(background)).mean(axis=2)
+    size = coalitions.sum(axis=1)
+    weight = np.array([factorial(s) * factorial(m - s - 1) / factorial(m) if s < m else 0.0
+                       for s in size])
+    phi = np.empty((n, m))
+    for i in range(m):
+        without = np.flatnonzero(coalitions[:, i] == 0)
+        phi[:, i] = (values[:, without | (1 << i)] - values[:, without]) @ weight[without]
+    return phi, float(values[0, 0])
+
+
+def check_shap_frame(X) -> None:
+    if not isinstance(X, pd.DataFrame):
+        raise TypeError(f"X must be a pandas DataFrame (its columns name the features); got "
+                        f"{type(X).__name__}")
+    if len(X) == 0 or X.shape[1] == 0:
+        raise ValueError(f"X is empty: shape {X.shape}")
+
+
+def shap_values(predict: Callable[[np.ndarray], np.ndarray], X: pd.DataFrame, *,
+                background_size: int = 50, nsamples: int | str = "auto",
+                random_state: int = 0) -> tuple[np.ndarray, float]:
+    """SHAP values of ``predict`` on the rows of ``X`` (shape ``(n_rows, n_features)``) and
+    the expected value, over ``background_size`` rows of ``X`` sampled with
+    ``random_state``: exact for ``nsamples="auto"`` and up to ten features
+    (:func:`exact_shap_values`), else ``shap.KernelExplainer`` with ``nsamples``."""
+    check_shap_frame(X)
+    data = X.to_numpy(dtype=float)
+    background = sample_background(data, background_size, random_state)
+    if nsamples == "auto" and data.shape[1] <= MAX_EXACT_FEATURES:
+        return exact_shap_values(predict, data, background)
+    import shap  # heavy; imported only when sampling coalitions
+
+    # a lambda, never a bound method (shap 0.51 and scikit-learn 1.9 pipelines disagree)
+    explainer = shap.KernelExplainer(lambda a: check_predictions(predict(a), len(a), "predict"),
+                                     background, seed=random_state)
+    values = np.asarray(explainer.shap_values(data, nsamples=nsamples, silent=True),
+                        dtype=float)
+    return values, float(np.ravel(explainer.expected_value)[0])

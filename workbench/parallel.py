@@ -1,0 +1,391 @@
+"""Independent work on several cores, with results identical to one process.
+
+* A :class:`Task` is a picklable call ``Task(func, *args, **kwargs)``. Its result must depend
+  on its arguments only (every random component seeded), so where it runs does not matter.
+* A *plan* is a generator that yields lists of tasks and receives their results (a list in
+  the same order; a task's exception is raised at the ``yield``); what it returns is the
+  plan's result. E.g. :class:`~workbench.BaseBoostCV` yields its folds, decides, then yields
+  its refit.
+* :func:`run_plans` runs many plans at once: their tasks go to worker processes as workers
+  become free, a plan's later stages first (a target's refit starts as soon as its folds
+  end, while other targets' folds still run), then higher ``Task.priority``, then earlier
+  plans and positions. With
+  ``n_jobs=1`` (or inside a worker) every task runs in this process, in order.
+* :func:`map_tasks`: the results of independent tasks, in order.
+* :func:`worker_pool`: ``with worker_pool(n_jobs):`` keeps one set of workers for every call
+  inside the block (a command's fit, learning curves and figures); without it, each parallel
+  call starts its workers and ends them.
+
+Workers are forked from this process when first needed, so they inherit its imported
+modules and data (no re-import); each runs one BLAS/OpenMP thread (threadpoolctl, and
+``OMP_NUM_THREADS=1`` etc. for libraries loaded later), ignores SIGINT (the parent handles
+it and ends them) and dies with its parent. Where ``fork`` is unavailable (Windows; macOS
+by default) joblib's processes run the tasks. Warnings raised in a task are issued again in
+the parent, where its filters apply. The core estimators' ``n_jobs`` follows scikit-learn:
+``None`` is 1, ``-1`` every core.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import heapq
+import multiprocessing
+import os
+import signal
+import sys
+import warnings
+from collections.abc import Callable, Generator, Iterable, Iterator
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from typing import Any
+
+__all__ = ["Task", "effective_n_jobs", "gather", "in_worker", "map_tasks", "run_plans",
+           "worker_pool"]
+
+THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
+              "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
+
+_IN_WORKER = False
+_AMBIENT: list[_Pool] = []  # the pools of the enclosing ``worker_pool`` blocks
+_WARNING_REGISTRY: dict = {}  # "default"-action bookkeeping of re-issued warnings
+
+
+class Task:
+    """A picklable call: ``Task(func, *args, **kwargs)()`` is ``func(*args, **kwargs)``.
+    ``priority`` (default 0): on several processes, among ready tasks of the same stage,
+    higher goes first (e.g. the expected cost, so long tasks do not come last)."""
+
+    __slots__ = ("func", "args", "kwargs", "priority")
+
+    def __init__(self, func: Callable, *args, **kwargs):
+        self.func, self.args, self.kwargs = func, args, kwargs
+        self.priority = 0
+
+    def __call__(self):
+        return self.func(*self.args, **self.kwargs)
+
+    def __repr__(self) -> str:
+        return f"Task({getattr(self.func, '__qualname__', self.func)!r})"
+
+
+Plan = Generator[list, list, Any]
+
+
+def effective_n_jobs(n_jobs: int | None) -> int:
+    """Processes for ``n_jobs`` (``None``: 1; ``-1``: every core this process may use;
+    ``-k``: all but ``k - 1``); 1 inside a worker."""
+    if _IN_WORKER or n_jobs is None:
+        return 1
+    n_jobs = int(n_jobs)
+    if n_jobs == 0:
+        raise ValueError("n_jobs == 0: give a number of processes >= 1, or -1 for every core")
+    if n_jobs < 0:
+        try:
+            cores = len(os.sched_getaffinity(0))
+        except AttributeError:  # not on Linux
+            cores = os.cpu_count() or 1
+        n_jobs = max(1, cores + 1 + n_jobs)
+    return n_jobs
+
+
+def in_worker() -> bool:
+    """Whether this process is one of :func:`run_plans`'s workers."""
+    return _IN_WORKER
+
+
+# --------------------------------------------------------------------------- workers
+
+
+def _die_with_parent(parent: int) -> None:
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+        except (OSError, AttributeError):
+            pass
+    if os.getppid() != parent:  # the parent died before prctl
+        os._exit(1)
+
+
+def _init_worker(parent: int) -> None:
+    global _IN_WORKER
+    _IN_WORKER = True
+    _AMBIENT.clear()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    for sig in (signal.SIGTERM, signal.SIGALRM):
+        signal.signal(sig, signal.SIG_DFL)
+    _die_with_parent(parent)
+    os.environ.update({k: "1" for k in THREAD_ENV})
+    try:
+        from threadpoolctl import threadpool_limits
+
+        threadpool_limits(1)
+    except Exception:  # threadpoolctl missing or a library it cannot drive
+        pass
+
+
+def _call(task: Task):
+    """Run a task in a worker: its result, and the warnings it raised."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = task()
+    return result, [(str(w.message), w.category, w.filename, w.lineno) for w in caught]
+
+
+_MODULES: dict[str, str] = {}
+
+
+def _module_of(filename: str) -> str | None:
+    """The name of the loaded module whose file is ``filename`` (warning filters match it)."""
+    if filename not in _MODULES:
+        for name, mod in list(sys.modules.items()):
+            path = getattr(mod, "__file__", None)
+            if path:
+                _MODULES.setdefault(path, name)
+    return _MODULES.get(filename)
+
+
+def _reissue(caught) -> None:
+    for message, category, filename, lineno in caught:
+        module = _module_of(filename) or os.path.splitext(os.path.basename(filename))[0]
+        warnings.warn_explicit(message, category, filename, lineno, module=module,
+                               registry=_WARNING_REGISTRY)
+
+
+class _Pool:
+    """Forked worker processes (created on first use)."""
+
+    def __init__(self, n_jobs: int):
+        self.n_jobs = n_jobs
+        self._executor: ProcessPoolExecutor | None = None
+
+    @property
+    def executor(self) -> ProcessPoolExecutor:
+        if self._executor is None:
+            ctx = multiprocessing.get_context("fork")
+            self._executor = ProcessPoolExecutor(self.n_jobs, mp_context=ctx,
+                                                 initializer=_init_worker,
+                                                 initargs=(os.getpid(),))
+        return self._executor
+
+    def close(self, *, kill: bool = False) -> None:
+        ex, self._executor = self._executor, None
+        if ex is None:
+            return
+        if kill:  # interrupted or failed: do not wait for running tasks
+            procs = list((getattr(ex, "_processes", None) or {}).values())
+            ex.shutdown(wait=False, cancel_futures=True)
+            for p in procs:
+                with contextlib.suppress(Exception):
+                    p.terminate()
+            for p in procs:
+                with contextlib.suppress(Exception):
+                    p.join(timeout=5)
+        else:
+            ex.shutdown(wait=True)
+
+
+def _fork_available() -> bool:
+    return "fork" in multiprocessing.get_all_start_methods() and sys.platform != "darwin"
+
+
+@contextlib.contextmanager
+def worker_pool(n_jobs: int | None) -> Iterator[int]:
+    """Keep ``n_jobs`` workers for every parallel call inside the block (forked on first
+    use); yields the number of processes. With one process (or inside a worker) it does
+    nothing."""
+    jobs = effective_n_jobs(n_jobs)
+    if jobs <= 1 or not _fork_available():
+        yield jobs
+        return
+    pool = _Pool(jobs)
+    _AMBIENT.append(pool)
+    ok = False
+    try:
+        yield jobs
+        ok = True
+    finally:
+        _AMBIENT.remove(pool)
+        pool.close(kill=not ok)
+
+
+# --------------------------------------------------------------------------- plans
+
+
+def _advance(plan: Plan, results=None, error: BaseException | None = None):
+    """Send results (or throw an error) into a plan: its next batch, or ``StopIteration``."""
+    if error is not None:
+        return plan.throw(error)
+    return plan.send(results)
+
+
+def _check_batch(batch) -> list[Task]:
+    batch = list(batch)
+    if not batch or not all(isinstance(t, Task) for t in batch):
+        raise TypeError(f"a plan must yield a non-empty list of Task objects, got {batch!r}")
+    return batch
+
+
+def _run_serial(plan: Plan):
+    try:
+        batch = _check_batch(next(plan))
+        while True:
+            try:
+                results = [task() for task in batch]
+            except Exception as exc:
+                batch = _check_batch(_advance(plan, error=exc))
+            else:
+                batch = _check_batch(_advance(plan, results))
+    except StopIteration as stop:
+        return stop.value
+
+
+def _run_joblib(plans: list[Plan], jobs: int) -> list:
+    """Plans in rounds through joblib's processes (where fork is unavailable)."""
+    from joblib import Parallel, delayed
+
+    out: list[Any] = [None] * len(plans)
+    batches: dict[int, list[Task]] = {}
+    for i, plan in enumerate(plans):
+        try:
+            batches[i] = _check_batch(next(plan))
+        except StopIteration as stop:
+            out[i] = stop.value
+    with Parallel(n_jobs=jobs) as parallel:
+        while batches:
+            flat = [(i, t) for i, batch in batches.items() for t in batch]
+            results = parallel(delayed(_call)(t) for _, t in flat)
+            grouped: dict[int, list] = {i: [] for i in batches}
+            for (i, _), (value, caught) in zip(flat, results):
+                _reissue(caught)
+                grouped[i].append(value)
+            for i, values in grouped.items():
+                try:
+                    batches[i] = _check_batch(_advance(plans[i], values))
+                except StopIteration as stop:
+                    out[i] = stop.value
+                    del batches[i]
+    return out
+
+
+def run_plans(plans: Iterable[Plan], n_jobs: int | None = None) -> list:
+    """Run plans (see the module doc) on ``n_jobs`` processes; returns their results in
+    order. The result is the same for every ``n_jobs``."""
+    plans = list(plans)
+    jobs = effective_n_jobs(n_jobs)
+    if jobs <= 1 or not plans:
+        return [_run_serial(p) for p in plans]
+    if not _fork_available():
+        return _run_joblib(plans, jobs)
+    ambient = _AMBIENT[-1] if _AMBIENT else None
+    pool = ambient if ambient is not None else _Pool(jobs)
+    jobs = min(jobs, pool.n_jobs)
+    ok = False
+    try:
+        out = _drive(plans, pool.executor, jobs)
+        ok = True
+        return out
+    except BrokenProcessPool as exc:
+        raise RuntimeError(f"a worker process died ({exc}); was it killed or out of "
+                           "memory?") from None
+    finally:
+        if ambient is None:
+            pool.close(kill=not ok)
+        elif not ok:  # interrupted mid-way: do not leave tasks running for the next call
+            pool.close(kill=True)
+
+
+def _drive(plans: list[Plan], executor: ProcessPoolExecutor, jobs: int) -> list:
+    out: list[Any] = [None] * len(plans)
+    stage = [0] * len(plans)
+    results: dict[int, list] = {}
+    missing: dict[int, int] = {}
+    errors: dict[int, BaseException] = {}
+    ready: list[tuple] = []  # (-stage, -priority, plan, position, task)
+
+    def push(i: int, batch) -> None:
+        batch = _check_batch(batch)
+        results[i] = [None] * len(batch)
+        missing[i] = len(batch)
+        for k, task in enumerate(batch):
+            heapq.heappush(ready, (-stage[i], -task.priority, i, k, task))
+
+    def step(i: int, values=None, error=None, first=False) -> None:
+        try:
+            batch = next(plans[i]) if first else _advance(plans[i], values, error)
+        except StopIteration as stop:
+            out[i] = stop.value
+            return
+        stage[i] += 0 if first else 1
+        push(i, batch)
+
+    for i in range(len(plans)):
+        step(i, first=True)
+    running: dict[Any, tuple[int, int]] = {}
+    while ready or running:
+        while ready and len(running) < jobs:
+            *_, i, k, task = heapq.heappop(ready)
+            running[executor.submit(_call, task)] = (i, k)
+        done, _ = wait(running, return_when=FIRST_COMPLETED)
+        for future in sorted(done, key=lambda f: running[f]):
+            i, k = running.pop(future)
+            try:
+                value, caught = future.result()
+            except BrokenProcessPool:
+                raise
+            except Exception as exc:
+                errors.setdefault(i, exc)
+            else:
+                _reissue(caught)
+                results[i][k] = value
+            missing[i] -= 1
+            if missing[i] == 0:
+                step(i, results.pop(i), errors.pop(i, None))
+    return out
+
+
+def gather(plans: Iterable[Plan]) -> Plan:
+    """One plan running several plans side by side (their batches yielded together);
+    returns their results in order."""
+    plans = list(plans)
+    out: list[Any] = [None] * len(plans)
+    batches: dict[int, list[Task]] = {}
+    for i, plan in enumerate(plans):
+        try:
+            batches[i] = _check_batch(next(plan))
+        except StopIteration as stop:
+            out[i] = stop.value
+    while batches:
+        order = list(batches)
+        flat = [t for i in order for t in batches[i]]
+        try:
+            values = yield flat
+        except Exception as exc:  # which task failed is not known here: fail every plan
+            values, error = None, exc
+        else:
+            error = None
+        pos = 0
+        for i in order:
+            n = len(batches[i])
+            try:
+                batches[i] = _check_batch(
+                    _advance(plans[i], None if error else values[pos:pos + n], error))
+            except StopIteration as stop:
+                out[i] = stop.value
+                del batches[i]
+            pos += n
+    return out
+
+
+def _tasks_plan(tasks: list[Task]) -> Plan:
+    return (yield tasks)
+
+
+def map_tasks(tasks: Iterable[Task], n_jobs: int | None = None) -> list:
+    """The results of independent tasks, in order, computed on ``n_jobs`` processes."""
+    tasks = list(tasks)
+    if not tasks:
+        return []
+    return run_plans([_tasks_plan(tasks)], n_jobs)[0]
