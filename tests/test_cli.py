@@ -116,6 +116,28 @@ def test_paper_run_json_schema(paper_run):
     assert isinstance(r["wall_s"], float) and r["wall_s"] > 0
 
 
+def test_paper_run_reports_prediction_intervals(paper_run):
+    """Family eigenvalue with [intervals] absent: 90% CV+ intervals, coverage and width per
+    target on the test rows and in CV in the JSON and as MLflow metrics; the existing keys
+    are unchanged (checked above)."""
+    r = paper_run["result"]
+    assert r["intervals"] == {"method": "cv_plus", "alpha": 0.1, "level": 0.9, "cv": 5}
+    for key in ("test_coverage", "test_width", "cv_coverage", "cv_width"):
+        values = r["model"][key]
+        assert len(values) == 5 and all(np.isfinite(values)), key
+        assert r["model"][f"{key}_avg"] == pytest.approx(np.mean(values))
+        assert key not in r["prior"]
+    # a fraction of the 41 test rows, and the 90% intervals cover most of them
+    assert all(abs(v * 41 - round(v * 41)) < 1e-9 and 0.5 < v <= 1
+               for v in r["model"]["test_coverage"])
+    from mlflow import MlflowClient
+
+    run = MlflowClient(r["mlflow"]["tracking_uri"]).get_run(r["mlflow"]["run_id"])
+    assert run.data.metrics["test_coverage_avg"] == pytest.approx(
+        r["model"]["test_coverage_avg"])
+    assert run.data.metrics["cv_width.eeig3"] == pytest.approx(r["model"]["cv_width"][2])
+
+
 def test_paper_run_meets_acceptance_criterion(paper_run):
     r = paper_run["result"]
     assert r["prior"]["test_mae_avg"] == pytest.approx(1.3411, abs=1e-3)

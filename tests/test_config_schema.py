@@ -25,6 +25,7 @@ SECTIONS = {
     "model.hamiltonian": (FAMILIES["hamiltonian"].settings, 'family = "hamiltonian"'),
     "selection": (C.SelectionConfig, ""),
     "evaluation": (C.EvaluationConfig, ""),
+    "intervals": (C.IntervalsConfig, ""),
     "cv": (C.CVConfig, ""),
     "study": (C.StudyConfig, ""),
     "tracking": (C.TrackingConfig, ""),

@@ -60,8 +60,9 @@ def _toml(path: Path, raw: dict) -> Path:
 
     lines = [f"{k} = {value(v)}" for k, v in raw.items() if not isinstance(v, dict)]
     tables = [("data", raw["data"]), ("model", raw["model"]), ("selection", raw["selection"])]
-    if "evaluation" in raw:
-        tables.append(("evaluation", raw["evaluation"]))
+    for extra in ("evaluation", "intervals"):
+        if extra in raw:
+            tables.append((extra, raw[extra]))
     for name, table in tables:
         lines.append(f"[{name}]")
         lines += [f"{k} = {value(v)}" for k, v in table.items() if not isinstance(v, dict)]
@@ -195,6 +196,44 @@ def test_evaluate_is_tracked_and_the_model_serves(cli_run):
     assert np.allclose(np.asarray(served.predict(X)), model.predict(X).to_numpy())
 
 
+def test_evaluate_reports_and_writes_prediction_intervals(cli_run):
+    """[intervals] absent: 90% CV+ intervals. The JSON has per-target coverage and width on
+    the test rows and in CV (with averages), --out writes the figure and the test rows'
+    intervals, MLflow has them as metrics and artifacts, and the logged model carries
+    predict_interval."""
+    _, result, out, store, _ = cli_run
+    assert result["intervals"] == {"method": "cv_plus", "alpha": 0.1, "level": 0.9, "cv": 5}
+    m = result["model"]
+    for key in ("test_coverage", "test_width", "cv_coverage", "cv_width"):
+        assert len(m[key]) == 5 and m[f"{key}_avg"] == pytest.approx(np.mean(m[key])), key
+    assert all(0 <= c <= 1 for c in m["test_coverage"])
+    assert all(0.75 <= c <= 1 for c in m["cv_coverage"])  # 105 training rows, 90% nominal
+    assert all(w > 0 for w in m["test_width"] + m["cv_width"])
+    table = pd.read_csv(out / "tables" / "test_intervals.csv")
+    assert len(table) == 5 * result["n_test"]
+    assert list(table.columns) == ["experiment", "target", "measured", "predicted", "lower",
+                                   "upper", "covered"]
+    by_target = table.groupby("target", sort=False)
+    assert by_target["covered"].mean().tolist() == pytest.approx(m["test_coverage"])
+    assert (by_target.apply(lambda t: (t["upper"] - t["lower"]).mean()).tolist()
+            == pytest.approx(m["test_width"]))
+    with Image.open(out / "tables" / "intervals.png") as im:
+        assert im.size[0] > 600 and im.size[1] > 300
+    tracker = Tracker(store, "ham")
+    run = tracker.client.get_run(result["mlflow"]["run_id"])
+    assert run.data.metrics["test_coverage_avg"] == pytest.approx(m["test_coverage_avg"])
+    assert run.data.metrics["cv_width.measured_E2"] == pytest.approx(m["cv_width"][1])
+    assert run.data.params["intervals.method"] == "cv_plus"
+    assert "plots/intervals.png" in {a.path for a in
+                                     tracker.client.list_artifacts(run.info.run_id, "plots")}
+    assert {a.path for a in tracker.client.list_artifacts(run.info.run_id, "intervals")} == {
+        "intervals/test_intervals.csv"}
+    logged = tracker.load_model(result["mlflow"]["model_uri"]).unwrap_python_model().model
+    X = load_dataset(load_config(cli_run[4])).X_physics.iloc[:4]
+    assert logged.predict_interval(X).shape == (4, 5, 2)
+    assert logged.target_names_ == result["targets"]
+
+
 def parse_config_from(path: Path):
     """The config of ``path`` without its extra CV estimates (the same fitted model)."""
     cfg = load_config(path)
@@ -202,13 +241,16 @@ def parse_config_from(path: Path):
         update={"cv_repeats": 0, "nested_folds": 0}))
 
 
-def test_out_needs_family_hamiltonian(device, capsys):
+def test_out_needs_family_hamiltonian_or_intervals(device, capsys):
+    """Family eigenvalue has no tables of its own: without prediction intervals --out has
+    nothing to write (exit 2 before any fit)."""
     raw = _raw()
     raw["model"] = {"basis": "ridge"}
+    raw["intervals"] = {"enabled": False}
     cfg = _toml(device / "eigen.toml", raw)
     assert main(["evaluate", str(cfg), "--no-track", "--out", str(device / "x")]) == 2
-    assert "--out writes a model family's tables and figures; family 'eigenvalue'" in (
-        capsys.readouterr().err)
+    assert ("--out writes a model family's tables and figures and the prediction intervals'; "
+            "family 'eigenvalue' has none and [intervals] is off") in capsys.readouterr().err
     assert not (device / "x").exists()
 
 

@@ -14,6 +14,7 @@ from optuna.trial import TrialState
 from workbench.experiment.cli import main
 from workbench.experiment.config import ConfigError, load_config, load_dataset
 from workbench.experiment.evaluate import evaluate
+from workbench.experiment.intervals import family_model
 from optuna.trial import FixedTrial
 
 from workbench.experiment.families import FAMILIES
@@ -240,7 +241,7 @@ def test_sweep_with_the_boosting_stage_searched_too(project):
     assert set(best) == {"hamiltonian.alpha", "hamiltonian.loss", "hamiltonian.huber_delta",
                          "hamiltonian.candidates", "hamiltonian.boost_stage",
                          "line_search_penalty"}
-    model = sweep.model
+    model = family_model(sweep.model)
     assert model.boost_stage is True
     penalties = {e.estimator.line_search_penalty for e in model.boost_.estimators_}
     assert penalties == {best["line_search_penalty"]}  # one setting shared by all targets

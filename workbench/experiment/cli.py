@@ -170,9 +170,12 @@ def _cmd_evaluate(args) -> int:
     cfg = load_config(args.config)
     if args.jobs is not None:
         cfg = dataclasses.replace(cfg, n_jobs=args.jobs)
-    if args.out is not None and not cfg.family.writes_outputs:
-        raise UsageError(f"--out writes a model family's tables and figures; family "
-                         f"{cfg.family.name!r} ({args.config}) has none")
+    from .evaluate import has_outputs, outputs
+
+    if args.out is not None and not has_outputs(cfg):
+        raise UsageError(f"--out writes a model family's tables and figures and the "
+                         f"prediction intervals'; family {cfg.family.name!r} has none and "
+                         f"[intervals] is off ({args.config})")
     _check_outputs(args)
     tracker = _check_before_work(cfg, args)
     from ..parallel import worker_pool
@@ -186,7 +189,7 @@ def _cmd_evaluate(args) -> int:
         if args.out is not None:
             from .outputs import write_artifacts
 
-            extra = cfg.family.outputs(run.model, run.dataset, f"evaluate of {cfg.name}")
+            extra = outputs(cfg, run.model, run.dataset, f"evaluate of {cfg.name}")
             result.outputs = {k: str(v) for k, v in write_artifacts(extra, args.out).items()}
         if not args.no_track:
             from .record import record

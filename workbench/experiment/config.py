@@ -11,6 +11,7 @@ the config (see ``experiments/paper_main_body.toml`` for an annotated file)::
     [model.<family>]  the family's own settings (``ModelFamily.settings``)
     [selection]    SelectionConfig  BaseBoostCV's folds and scoring
     [evaluation]   EvaluationConfig extra estimates of ``evaluate``
+    [intervals]    IntervalsConfig  conformal prediction intervals of the fitted model
     [search]       the space a sweep searches (:class:`~workbench.experiment.space.SearchSpace`;
                    ``[search.<family>]`` varies the family's settings)
     [cv]           CVConfig         nested CV of a sweep
@@ -37,7 +38,8 @@ from .errors import ConfigError, shorten
 from .space import SearchSpace, SpaceError
 
 __all__ = ["BoostSettings", "CVConfig", "ConfigError", "DataConfig", "EvaluationConfig",
-           "ExperimentConfig", "HamiltonianData", "ModelConfig", "SelectionConfig",
+           "ExperimentConfig", "HamiltonianData", "IntervalsConfig", "ModelConfig",
+           "SelectionConfig",
            "StudyConfig", "TrackingConfig", "load_config", "load_dataset", "parse_config"]
 
 #: The largest seed or count a config may give (numpy seeds are 32-bit).
@@ -316,6 +318,19 @@ class EvaluationConfig(Section):
         return self
 
 
+class IntervalsConfig(Section):
+    """``[intervals]``: conformal prediction intervals around the fitted model
+    (:class:`~workbench.conformal.ConformalRegressor`), ``1 - alpha`` per target. ``method``
+    "cv_plus" refits the whole model (every choice remade) once per ``cv`` fold; "split"
+    holds out ``calibration_fraction`` of the training rows. On unless ``enabled = false``."""
+
+    enabled: bool = True
+    alpha: float = Field(default=0.1, gt=0, lt=1)
+    method: Literal["cv_plus", "split"] = "cv_plus"
+    cv: int = Field(default=5, ge=2, le=10_000)
+    calibration_fraction: float = Field(default=0.25, gt=0, lt=1)
+
+
 class CVConfig(Section):
     """``[cv]``: the nested cross-validation of a sweep (``repeats``: ``RepeatedKFold``)."""
 
@@ -358,6 +373,7 @@ class _Top(Section):
     model: dict[str, Any] = {}
     selection: SelectionConfig = SelectionConfig()
     evaluation: EvaluationConfig = EvaluationConfig()
+    intervals: IntervalsConfig = IntervalsConfig()
     search: dict[str, Any] = {}
     cv: CVConfig = CVConfig()
     study: StudyConfig = StudyConfig()
@@ -385,6 +401,7 @@ class ExperimentConfig:
     model: ModelConfig
     selection: SelectionConfig = SelectionConfig()
     evaluation: EvaluationConfig = EvaluationConfig()
+    intervals: IntervalsConfig = IntervalsConfig()
     search: SearchSpace = field(default_factory=SearchSpace)
     cv: CVConfig = CVConfig()
     study: StudyConfig = StudyConfig()
@@ -507,7 +524,7 @@ def parse_config(raw: dict[str, Any], path: Path | None = None) -> ExperimentCon
     cfg = ExperimentConfig(path=path, name=name, description=top.description,
                            random_state=top.random_state, n_jobs=top.n_jobs, data=data,
                            model=model, selection=top.selection, evaluation=top.evaluation,
-                           search=search, cv=top.cv, study=top.study, tracking=top.tracking,
+                           intervals=top.intervals, search=search, cv=top.cv, study=top.study, tracking=top.tracking,
                            family_settings=settings)
     for target in [None, *model.targets]:
         label = "model" if target is None else f"model.targets.{target}"
@@ -564,4 +581,21 @@ def load_dataset(cfg: ExperimentConfig):
         raise DatasetError(f"the training split has {len(ds.train_index)} rows, too few for "
                            f"[selection] cv = {folds} (each fold needs at least 2 rows: "
                            f"at least {2 * folds} training rows)")
+    iv = cfg.intervals
+    if iv.enabled:
+        from ..conformal import min_calibration_rows
+
+        # CV+ calibrates on every training row (each fold needs 2); split on its held-out
+        # share (rounded up, as train_test_split does)
+        need = min_calibration_rows(iv.alpha)
+        if iv.method == "cv_plus":
+            least, how = max(2 * iv.cv, need), f"cv = {iv.cv}"
+        else:
+            least = int((need - 1) / iv.calibration_fraction) + 1  # ceil(frac n) >= need
+            how = f"calibration_fraction = {iv.calibration_fraction}"
+        if len(ds.train_index) < least:
+            raise DatasetError(f"the training split has {len(ds.train_index)} rows, too few "
+                               f"for [intervals] method = {iv.method!r} with {how} and alpha "
+                               f"= {iv.alpha} (at least {least}); set a larger alpha or "
+                               f"[intervals] enabled = false")
     return ds

@@ -2,7 +2,9 @@
 test rows; optional repeated CV on the training rows and nested CV over all rows.
 
 Family-independent: the config's family (:mod:`workbench.experiment.families`) builds the
-model and assembles its scores."""
+model and assembles its scores; with ``[intervals]`` (the default) the model is wrapped in a
+conformal :class:`~workbench.conformal.ConformalRegressor` here, for every family
+(:mod:`workbench.experiment.intervals`)."""
 
 from __future__ import annotations
 
@@ -14,17 +16,19 @@ from typing import Any
 import numpy as np
 
 from .config import ExperimentConfig, load_dataset
+from .intervals import family_model, interval_scores, interval_settings, with_intervals
 from .results import CVEstimate, Result, mae, mse
 
-__all__ = ["Evaluation", "evaluate", "fit_and_score", "format_table", "nested_cv_all",
-           "repeated_cv"]
+__all__ = ["Evaluation", "evaluate", "fit_and_score", "format_table", "has_outputs",
+           "nested_cv_all", "outputs", "repeated_cv"]
 
 log = logging.getLogger("workbench")
 
 
 @dataclass
 class Evaluation:
-    """A result with the fitted model and the dataset it came from."""
+    """A result with the fitted model and the dataset it came from (``model``: with
+    intervals, the fitted ConformalRegressor around the family's model)."""
 
     result: Result
     model: Any
@@ -45,7 +49,7 @@ def evaluate(cfg: ExperimentConfig, return_model: bool = False):
     if ev.cv_repeats > 0:
         log.info("[%s] repeated CV of the chosen model on the training rows (%d x %d folds)",
                  cfg.name, ev.cv_repeats, ev.cv_folds)
-        result.repeated_cv = repeated_cv(cfg, ds, family.fixed_choices(model))
+        result.repeated_cv = repeated_cv(cfg, ds, family.fixed_choices(family_model(model)))
         if family.cv_from_repeats:
             result.model.cv_mae = list(result.repeated_cv.model_mae)
             result.model.cv_mse = list(result.repeated_cv.model_mse)
@@ -100,18 +104,48 @@ def nested_cv_all(cfg: ExperimentConfig, ds) -> CVEstimate:
 
 
 def fit_and_score(cfg: ExperimentConfig, ds, model) -> tuple[Result, Any]:
-    """Fit ``model`` (built by the config's family) on the training rows and score prior and
-    model once on the test rows. Returns ``(result, fitted model)``."""
+    """Fit ``model`` (built by the config's family; inside a conformal wrapper when
+    ``[intervals]`` is on) on the training rows and score prior and model once on the test
+    rows, the intervals' coverage and width too. Returns ``(result, fitted model)``: the
+    fitted wrapper with intervals (the family's fitted model is :func:`family_model` of it)."""
     family = cfg.family
     X_train, X_test, y_train, y_test = ds.split(family.inputs(cfg, ds))
+    model = with_intervals(cfg, model)
+    if cfg.intervals.enabled:
+        log.info("[%s] fitting the model and its %s prediction intervals (%s)", cfg.name,
+                 f"{1 - cfg.intervals.alpha:.0%}", cfg.intervals.method)
     model.fit(X_train, y_train)
     pred = np.asarray(model.predict(X_test), dtype=float)
     prior_test = ds.prior.loc[ds.test_index].to_numpy()
-    prior, scores, details = family.scores(cfg, ds, model, y_train, prior_test, y_test, pred)
+    prior, scores, details = family.scores(cfg, ds, family_model(model), y_train, prior_test,
+                                           y_test, pred)
+    for key, values in interval_scores(model, X_test, y_test).items():
+        setattr(scores, key, values)
     result = Result(name=cfg.name, config=str(cfg.path) if cfg.path else None,
                     family=family.name, targets=list(ds.target_names), n_train=len(y_train),
-                    n_test=len(y_test), prior=prior, model=scores, details=details)
+                    n_test=len(y_test), prior=prior, model=scores, details=details,
+                    intervals=interval_settings(cfg))
     return result, model
+
+
+def has_outputs(cfg: ExperimentConfig) -> bool:
+    """Whether ``evaluate --out`` has anything to write (the family's tables and figures, or
+    the intervals' figure and table)."""
+    return cfg.family.writes_outputs or cfg.intervals.enabled
+
+
+def outputs(cfg: ExperimentConfig, model, ds, setting: str):
+    """What ``evaluate --out DIR`` writes: the family's tables and figures
+    (:meth:`~workbench.experiment.families.base.ModelFamily.outputs`) and the intervals'
+    figure and table (:func:`~workbench.experiment.intervals.interval_artifacts`)."""
+    from .intervals import interval_artifacts
+
+    out = interval_artifacts(cfg, ds, model, setting)
+    if cfg.family.writes_outputs:
+        extra = cfg.family.outputs(family_model(model), ds, setting)
+        out.tables.update(extra.tables)
+        out.figures.update(extra.figures)
+    return out
 
 
 def format_table(result: Result) -> str:
@@ -129,6 +163,14 @@ def format_table(result: Result) -> str:
                  f"{result.model.avg('test_mae'):>11.3f}{result.model.avg('cv_mae'):>14.3f}")
     lines.append(f"test MAE in the targets' units (MHz for the benchmark); "
                  f"wall time {result.wall_s:.1f} s")
+    if result.model.test_coverage:
+        m, iv = result.model, result.intervals
+        level = f"{iv['level']:.0%} " if "level" in iv else ""
+        lines.append(f"{level}prediction intervals ({iv.get('method', 'conformal')}): test "
+                     f"coverage {m.avg('test_coverage'):.1%} (per target "
+                     f"{', '.join(f'{c:.0%}' for c in m.test_coverage)}), mean width "
+                     f"{m.avg('test_width'):.3f}; CV coverage {m.avg('cv_coverage'):.1%}, "
+                     f"width {m.avg('cv_width'):.3f}")
     if result.repeated_cv is not None:
         r = result.repeated_cv
         lines.append(f"repeated CV on the training rows ({r.repeats} x {r.folds} folds): "

@@ -10,6 +10,7 @@
 * :func:`model_comparison_bars` -- per-target error bars of 2 to 4 systems (Fig. S6, S7).
 * :func:`parameter_corrections` -- control-model vs corrected Hamiltonian parameters.
 * :func:`selection_path_figure` -- CV error along a forward covariate selection.
+* :func:`interval_figure` -- measured against predicted with each row's prediction interval.
 * :func:`save_figure` -- write a figure to PNG and close it.
 
 Figures are built on :class:`matplotlib.figure.Figure` directly, never through pyplot, so no
@@ -32,9 +33,9 @@ from ..boosting import check_predictions
 from ..curves import LearningCurve
 from .explain import check_shap_frame, shap_values
 
-__all__ = ["correlation_heatmap", "learning_curve_figure", "mae_bars", "model_comparison_bars",
-           "parameter_corrections", "prior_target_boxplots", "save_figure",
-           "selection_path_figure", "shap_figure", "shap_summary", "shap_values",
+__all__ = ["correlation_heatmap", "interval_figure", "learning_curve_figure", "mae_bars",
+           "model_comparison_bars", "parameter_corrections", "prior_target_boxplots",
+           "save_figure", "selection_path_figure", "shap_figure", "shap_summary", "shap_values",
            "voltage_boxplots"]
 
 #: Colours (Okabe-Ito, readable in grey scale and by colour-blind readers).
@@ -581,6 +582,71 @@ def selection_path_figure(path: pd.DataFrame, *, unit: str = "MHz", title: str |
     ax.set_ylabel(f"CV MAE ({unit})", fontsize=11)
     ax.set_title(_with_setting(title or "Forward covariate selection", setting), fontsize=12)
     _style(ax)
+    return fig
+
+
+#: Colour of the rows whose measured value lies outside their interval.
+MISSED_COLOR = "#D55E00"
+
+
+def interval_figure(table: pd.DataFrame, *, level: float, unit: str = "MHz",
+                    title: str | None = None, setting: str | None = None) -> Figure:
+    """Prediction intervals against measurements, a column of panels per target.
+
+    ``table``: one row per experiment and target with the columns ``target``, ``measured``,
+    ``predicted``, ``lower``, ``upper`` (as
+    :func:`workbench.experiment.intervals.interval_table` writes). Top row: measured against
+    predicted, each experiment's interval as a vertical bar at its prediction (the diagonal is
+    measured = predicted); bottom row: the same relative to the prediction (measured -
+    predicted), where the intervals' widths can be read. Experiments whose measured value
+    lies outside their interval are drawn in another colour; each panel's title gives the
+    coverage and mean width.
+    """
+    need = {"target", "measured", "predicted", "lower", "upper"}
+    missing = sorted(need - set(table.columns))
+    if missing or table.empty:
+        raise ValueError(f"table needs rows and the columns {sorted(need)}; missing {missing}"
+                         if missing else "table has no rows")
+    if not 0 < level < 1:
+        raise ValueError(f"level must be in (0, 1), got {level!r}")
+    targets = list(dict.fromkeys(str(t) for t in table["target"]))
+    fig = _new_figure(2.9 * len(targets) + 0.6, 6.4)
+    axes = fig.subplots(2, len(targets), squeeze=False)
+    for j, target in enumerate(targets):
+        rows = table[table["target"].astype(str) == target]
+        pred = rows["predicted"].to_numpy(dtype=float)
+        meas = rows["measured"].to_numpy(dtype=float)
+        low, up = rows["lower"].to_numpy(dtype=float), rows["upper"].to_numpy(dtype=float)
+        inside = (meas >= low) & (meas <= up)
+        for ax, ref in ((axes[0, j], np.zeros_like(pred)), (axes[1, j], pred)):
+            for mask, color, label in ((inside, MODEL_COLOR, "inside its interval"),
+                                       (~inside, MISSED_COLOR, "outside")):
+                if not mask.any():
+                    continue
+                ax.errorbar(pred[mask], (low[mask] + up[mask]) / 2 - ref[mask],
+                            yerr=(up[mask] - low[mask]) / 2, fmt="none", ecolor=color,
+                            alpha=0.45, lw=1.2)
+                ax.scatter(pred[mask], meas[mask] - ref[mask], s=10, color=color, zorder=3,
+                           label=f"measured, {label}", edgecolors="none")
+            _style(ax)
+            ax.tick_params(labelsize=8)
+            ax.set_xlabel(f"predicted ({unit})", fontsize=9)
+        span = np.array([min(pred.min(), meas.min()), max(pred.max(), meas.max())])
+        axes[0, j].plot(span, span, color=INCUMBENT_COLOR, lw=0.8, ls=":")
+        axes[1, j].axhline(0.0, color=INCUMBENT_COLOR, lw=0.8, ls=":")
+        axes[0, j].set_title(f"{target}: {inside.sum()}/{len(inside)} inside "
+                             f"({inside.mean():.0%}),\nmean width {np.mean(up - low):.2f} "
+                             f"{unit}", fontsize=10)
+        axes[0, j].set_ylabel(f"measured ({unit})", fontsize=9)
+        axes[1, j].set_ylabel(f"measured - predicted ({unit})", fontsize=9)
+    handles = {}
+    for ax in axes[1]:
+        for handle, label in zip(*ax.get_legend_handles_labels()):
+            handles.setdefault(label, handle)
+    fig.legend(list(handles.values()), list(handles), loc="outside lower center", ncols=2,
+               frameon=False, fontsize=8)
+    fig.suptitle(_with_setting(title or f"{level:.0%} prediction intervals", setting),
+                 fontsize=12)
     return fig
 
 

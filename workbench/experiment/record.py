@@ -1,6 +1,8 @@
 """Record an ``evaluate`` or ``sweep`` in MLflow: one parent run with the metrics, the config,
 the figures (MAE/MSE bars, an augmented learning curve and a SHAP summary per target) and the
-fitted multi-target model; for a sweep, a child run per trial and per outer fold.
+fitted multi-target model; with prediction intervals, their coverage and width as metrics,
+their figure and the test rows' intervals; for a sweep, a child run per trial and per outer
+fold.
 
 Beside the MAE/MSE bars every run has, the config's model family supplies its own figures
 and tables (:meth:`~workbench.experiment.families.base.ModelFamily.artifacts`: learning curves
@@ -19,7 +21,8 @@ import pandas as pd
 
 from .config import ExperimentConfig
 from .figures import mae_bars
-from .results import Result
+from .intervals import family_model, interval_artifacts
+from .results import INTERVAL_KEYS, Result
 from .serving import prediction_frame
 from .tracking import (CHAMPION, Tracker, _redact, dataset_hash, git_commit,
                        resolve_tracking_uri)
@@ -53,6 +56,12 @@ def _metrics(result: Result) -> dict[str, float]:
             m[f"{prefix}{key}_avg"] = scores.avg(key)
             for t, v in zip(result.targets, getattr(scores, key)):
                 m[f"{prefix}{key}.{t}"] = v
+    for key in INTERVAL_KEYS:  # prediction intervals (none: empty)
+        values = getattr(result.model, key)
+        if values:
+            m[f"{key}_avg"] = result.model.avg(key)
+            for t, v in zip(result.targets, values):
+                m[f"{key}.{t}"] = v
     for key in ("repeated_cv", "nested_cv_all"):
         est = getattr(result, key)
         if est is not None:
@@ -144,6 +153,7 @@ def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
         params.update(_flat(f"{target}.", cfg.model_for(target)))
     if cfg.family_settings is not None:
         params.update(_flat(f"{family.name}.", cfg.family_settings.model_dump()))
+    params.update(_flat("intervals.", cfg.intervals.model_dump()))
     setting = f"{kind} of {cfg.name}"
     live = run_id is not None
     if live:
@@ -169,11 +179,16 @@ def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
                            unit="MHz" if metric == "MAE" else "MHz²",
                            title=f"Test {metric} per target", setting=setting)
             tracker.log_figure(run_id, fig, f"plots/{name}.png")
-        extra = family.artifacts(cfg, ds, model, setting)
+        extra = family.artifacts(cfg, ds, family_model(model), setting)
         for name, fig in extra.figures.items():
             tracker.log_figure(run_id, fig, f"plots/{name}.png")
         for name, table in extra.tables.items():
             tracker.log_text(run_id, table.to_csv(index=False), f"{family.name}/{name}.csv")
+        intervals = interval_artifacts(cfg, ds, model, setting)
+        for name, fig in intervals.figures.items():
+            tracker.log_figure(run_id, fig, f"plots/{name}.png")
+        for name, table in intervals.tables.items():
+            tracker.log_text(run_id, table.to_csv(index=False), f"intervals/{name}.csv")
         for name, data in extra.data.items():
             tracker.log_dict(run_id, data, f"{name}.json")
         # the test rows' predictions, as `workbench predict` and a served model give them

@@ -24,6 +24,7 @@ from .._io import atomic_write
 from ..curves import augmented_learning_curve
 from .config import load_config
 from .evaluate import evaluate
+from .intervals import family_model
 from .results import Result
 from .figures import (correlation_heatmap, learning_curve_figure, mae_bars,
                       model_comparison_bars, prior_target_boxplots, save_figure, shap_summary,
@@ -156,7 +157,7 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
                   title="Test MAE per eigenenergy: corrected Hamiltonian",
                   setting="experiments/hamiltonian.toml"))
     ham_cfg, hamiltonian_model = hamiltonian_model
-    ham_out = ham_cfg.family.outputs(hamiltonian_model, ds,
+    ham_out = ham_cfg.family.outputs(family_model(hamiltonian_model), ds,
                                      setting="experiments/hamiltonian.toml")
     save("figH2_parameter_corrections", "hamiltonian", ham_out.figures["parameter_corrections"])
     save("figH3_selection_path", "hamiltonian", ham_out.figures["selection_path"])

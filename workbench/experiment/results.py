@@ -4,6 +4,9 @@ Modules read fields, never string keys. :meth:`Result.to_json` keeps the JSON th
 ``--json`` has always written (``targets``, ``prior.test_mae[_avg]``, ``model.test_mae[_avg]``,
 ``model.test_mse``, ``model.cv_mae[_avg]``, ``model.cv_mse``, ``model.selected``,
 ``nested_cv_mae[_avg]``, ``best_params``, ``wall_s``, ...), so scripts that read it keep working.
+With conformal intervals (``[intervals]``) ``model`` adds ``test_coverage[_avg]``,
+``test_width[_avg]``, ``cv_coverage[_avg]`` and ``cv_width[_avg]``, and the result an
+``intervals`` section (method, alpha, level, folds).
 """
 
 from __future__ import annotations
@@ -55,18 +58,33 @@ class Scores:
         return out
 
 
+#: The per-target interval figures of :class:`ModelScores` (empty lists: no intervals).
+INTERVAL_KEYS = ("test_coverage", "test_width", "cv_coverage", "cv_width")
+
+
 @dataclass
 class ModelScores(Scores):
     """The model's scores plus what it chose per target; ``extra``: family-specific per-target
-    figures (e.g. ``cv_mae_boosted``)."""
+    figures (e.g. ``cv_mae_boosted``). With prediction intervals: per target the fraction of
+    test rows inside their interval (``test_coverage``) and the mean width (``test_width``),
+    and the same estimated by CV on the training rows (``cv_coverage``, ``cv_width``)."""
 
     selected: list[str] = field(default_factory=list)
     coefs: list[list[float]] = field(default_factory=list)
     extra: dict[str, list[float]] = field(default_factory=dict)
+    test_coverage: list[float] = field(default_factory=list)
+    test_width: list[float] = field(default_factory=list)
+    cv_coverage: list[float] = field(default_factory=list)
+    cv_width: list[float] = field(default_factory=list)
 
     def to_json(self) -> dict[str, Any]:
         out = super().to_json()
         out.update(out.pop("extra"))
+        for key in INTERVAL_KEYS:
+            if out[key]:
+                out[f"{key}_avg"] = _avg(out[key])
+            else:
+                del out[key]
         return out
 
 
@@ -164,6 +182,8 @@ class Result:
     repeated_cv: CVEstimate | None = None
     nested_cv_all: CVEstimate | None = None
     sweep: SweepSummary | None = None
+    #: The prediction intervals' settings (method, alpha, level, ...); empty: none.
+    intervals: dict[str, Any] = field(default_factory=dict)
     outputs: dict[str, str] = field(default_factory=dict)
     mlflow: dict[str, str] = field(default_factory=dict)
     wall_s: float = math.nan
@@ -177,6 +197,8 @@ class Result:
             part = getattr(self, key)
             if part is not None:
                 out.update(part.to_json() if key == "sweep" else {key: part.to_json()})
+        if self.intervals:
+            out["intervals"] = self.intervals
         if self.outputs:
             out["outputs"] = self.outputs
         if self.mlflow:

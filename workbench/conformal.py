@@ -1,0 +1,348 @@
+"""Conformal prediction intervals for multi-output regressors.
+
+:class:`ConformalRegressor` wraps any scikit-learn regressor whose ``predict`` returns one
+column per target (or a 1-D array for one target) and adds :meth:`~ConformalRegressor.
+predict_interval`, intervals that cover a new row's target with probability about
+``1 - alpha`` per target (marginally over rows, not jointly over targets), under the one
+assumption that training and new rows are exchangeable.
+
+Two methods:
+
+* ``"cv_plus"`` -- CV+ (Barber, Candes, Ramdas and Tibshirani, "Predictive inference with the
+  jackknife+", Ann. Statist. 49(1), 2021; with ``cv`` = leave-one-out it is the jackknife+).
+  The rows are split into K folds; the model is refitted once per fold without the fold's
+  rows, and each training row ``i`` gets its out-of-fold absolute residual
+  ``R_i = |y_i - mu_{-k(i)}(x_i)|``. For a new row ``x`` and ``n`` training rows::
+
+      lower(x) = the floor(alpha (n + 1))-th smallest of  mu_{-k(i)}(x) - R_i
+      upper(x) = the ceil((1 - alpha)(n + 1))-th smallest of  mu_{-k(i)}(x) + R_i
+
+  per target. Guaranteed coverage is ``1 - 2 alpha - O(1/sqrt(n/K))``; in practice it is
+  close to ``1 - alpha``. These are the intervals of MAPIE 1.x's
+  ``CrossConformalRegressor(method="plus")`` (tests/test_conformal.py checks equality).
+* ``"split"`` -- split conformal: the model is fitted on a ``1 - calibration_fraction`` part
+  of the rows, the absolute residuals on the rest give per target ``q`` = the
+  ``ceil((1 - alpha)(m + 1))``-th smallest of the ``m`` calibration residuals, and the
+  interval is ``mu_split(x) +- q``. Exact finite-sample coverage ``>= 1 - alpha``; one extra
+  fit, but fewer rows for both the model and the calibration.
+
+Point predictions (:meth:`~ConformalRegressor.predict`) are always those of ``estimator_``,
+the estimator fitted on all rows, exactly as without the wrapper. The intervals are built from
+the fold (or split) models, as the methods require: an interval need not be centred on the
+point prediction, and in rare cases may not contain it.
+
+Why not MAPIE or crepes: both take one target per estimator (MAPIE 1.x checks
+``y`` with ``_check_y(y, multi_output=False)`` and rejects a 2-D ``y``; multi-output
+regression is an open request, scikit-learn-contrib/MAPIE issues #97 and #437; crepes
+calibrates one residual vector). The workbench's models predict all targets jointly (the
+parameter-space model shares its Hamiltonian parameters across the eigenvalues), so wrapping
+each target would refit the whole joint model once per target and fold (5 targets: 5 times
+the work). Here the K fold models are fitted once and serve every target; the per-target
+formula is MAPIE's.
+"""
+
+from __future__ import annotations
+
+import math
+from numbers import Integral, Real
+
+import numpy as np
+import pandas as pd
+import scipy.sparse as sp
+from sklearn.base import BaseEstimator, MetaEstimatorMixin, RegressorMixin, clone
+from sklearn.model_selection import KFold, check_cv, train_test_split
+from sklearn.utils import _safe_indexing, get_tags
+from sklearn.utils.validation import check_is_fitted
+
+__all__ = ["ConformalRegressor", "conformal_rank", "interval_coverage", "interval_width"]
+
+#: ``method`` values.
+METHODS = ("cv_plus", "split")
+#: Test rows per block when CV+ bounds are computed (bounds the memory to about
+#: ``n_train * block * n_targets`` floats).
+_BLOCK = 256
+
+
+def conformal_rank(n: int, alpha: float) -> int:
+    """The rank ``ceil((1 - alpha)(n + 1))`` of the conformal quantile among ``n``
+    calibration values (1-based); larger than ``n`` when ``n`` is too small for ``alpha``."""
+    # round first so that e.g. (1 - 0.1) * 20 = 18.000000000000004 is not ceiled to 19
+    return int(math.ceil(round((1.0 - alpha) * (n + 1), 9)))
+
+
+def min_calibration_rows(alpha: float) -> int:
+    """The fewest calibration values with a finite conformal quantile at ``alpha``."""
+    # ceil((1 - alpha)(n + 1)) <= n  <=>  alpha (n + 1) >= 1
+    n = max(1, int(math.ceil(round(1.0 / alpha - 1.0, 9))))
+    while conformal_rank(n, alpha) > n:  # floating-point guard
+        n += 1
+    return n
+
+
+def _rows(data, index):
+    """Rows ``index`` (positions) of an array, sparse matrix, DataFrame or Series."""
+    return _safe_indexing(data, index)
+
+
+def _n_rows(data) -> int:
+    shape = getattr(data, "shape", None)
+    return int(shape[0]) if shape is not None else len(np.asarray(data))
+
+
+def _as_2d(values) -> np.ndarray:
+    arr = np.asarray(values, dtype=float)
+    return arr.reshape(-1, 1) if arr.ndim == 1 else arr
+
+
+def _kth_smallest(values: np.ndarray, k: int) -> np.ndarray:
+    """The ``k``-th smallest (1-based) along axis 0."""
+    return np.partition(values, k - 1, axis=0)[k - 1]
+
+
+def interval_coverage(y, intervals) -> list[float]:
+    """Per target, the fraction of rows whose ``y`` lies in ``[lower, upper]`` (``intervals``
+    as returned by :meth:`ConformalRegressor.predict_interval`)."""
+    y = _as_2d(y)
+    iv = np.asarray(intervals, dtype=float)
+    inside = (y >= iv[..., 0]) & (y <= iv[..., 1])
+    return np.mean(inside, axis=0).tolist()
+
+
+def interval_width(intervals) -> list[float]:
+    """Per target, the mean width ``upper - lower``."""
+    iv = np.asarray(intervals, dtype=float)
+    return np.mean(iv[..., 1] - iv[..., 0], axis=0).tolist()
+
+
+class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
+    """Conformal prediction intervals (CV+ or split) around any multi-output regressor.
+
+    Parameters
+    ----------
+    estimator : regressor
+        Cloned and fitted on all rows (``estimator_``, the point predictions) and on each
+        fold's (or the split's) training rows (the intervals). ``predict`` may return a 1-D
+        array (one target), a 2-D array or a DataFrame with one column per target.
+    method : {"cv_plus", "split"}, default="cv_plus"
+    alpha : float in (0, 1), default=0.1
+        Miscoverage: ``1 - alpha`` intervals (0.1: 90%).
+    cv : int or CV splitter, default=5
+        CV+ folds; an int means ``KFold(cv, shuffle=True, random_state=random_state)``.
+    calibration_fraction : float in (0, 1), default=0.25
+        The share of the rows held out for calibration (``method="split"``).
+    random_state : int, RandomState or None
+        The folds' shuffle (an int ``cv``) and the split.
+
+    Attributes
+    ----------
+    estimator_ : the estimator fitted on all rows
+    estimators_ : list, the fold models (``"cv_plus"``) or the one split model (``"split"``)
+    fold_of_row_ : ndarray (n_rows,), per training row the index in ``estimators_`` of the
+        model that did not see it (-1: a row of the split's training part)
+    residuals_ : ndarray (n_rows, n_targets), out-of-fold absolute residuals (NaN for rows
+        of the split's training part)
+    target_names_ : list of str, the targets in the order of the intervals' second axis (the
+        columns of ``y``; ``y0, y1, ...`` for an array, the Series name for a named Series)
+    n_targets_ : int
+    """
+
+    def __init__(self, estimator=None, *, method="cv_plus", alpha=0.1, cv=5,
+                 calibration_fraction=0.25, random_state=None):
+        self.estimator = estimator
+        self.method = method
+        self.alpha = alpha
+        self.cv = cv
+        self.calibration_fraction = calibration_fraction
+        self.random_state = random_state
+
+    # ------------------------------------------------------------------ checks
+    def _check_params(self, n_rows: int) -> None:
+        if self.estimator is None:
+            raise ValueError("estimator must be a regressor, got None")
+        if self.method not in METHODS:
+            raise ValueError(f"method={self.method!r}: valid methods are {list(METHODS)}")
+        if (not isinstance(self.alpha, Real) or isinstance(self.alpha, bool)
+                or not 0 < self.alpha < 1):
+            raise ValueError(f"alpha={self.alpha!r}: give a miscoverage level strictly "
+                             f"between 0 and 1 (0.1 for 90% intervals)")
+        if self.method == "split":
+            frac = self.calibration_fraction
+            if isinstance(frac, bool) or not isinstance(frac, Real) or not 0 < frac < 1:
+                raise ValueError(f"calibration_fraction={frac!r}: give a fraction strictly "
+                                 f"between 0 and 1")
+        elif isinstance(self.cv, Integral) and not isinstance(self.cv, bool):
+            if self.cv < 2:
+                raise ValueError(f"cv={self.cv}: give at least 2 folds")
+            if self.cv > n_rows:
+                raise ValueError(f"cv={self.cv} folds need at least {self.cv} rows; got "
+                                 f"n_samples={n_rows}")
+
+    def _splitter(self):
+        if isinstance(self.cv, Integral) and not isinstance(self.cv, bool):
+            return KFold(int(self.cv), shuffle=True, random_state=self.random_state)
+        return check_cv(self.cv)
+
+    # ------------------------------------------------------------------ fit
+    def fit(self, X, y):
+        """Fit ``estimator_`` on all rows, then the fold (or split) models, and keep the
+        out-of-fold absolute residuals."""
+        if y is None:
+            raise ValueError(f"{type(self).__name__} requires y to be passed, but the target "
+                             "y is None")
+        if sp.issparse(X):
+            X = X.tocsr()  # row-indexable
+        elif not hasattr(X, "__getitem__"):
+            X = np.asarray(X)
+        if not hasattr(y, "__getitem__"):
+            y = np.asarray(y)
+        n = _n_rows(X)
+        self._check_params(n)
+        if _n_rows(y) != n:
+            raise ValueError(f"X has {n} rows but y has {_n_rows(y)}")
+        if np.iscomplexobj(np.asarray(y)):
+            raise ValueError("Complex data not supported (y)")
+        Y = _as_2d(y)
+        if Y.ndim != 2 or not np.all(np.isfinite(Y)):
+            raise ValueError("y must be 1-D or 2-D (n_samples, n_targets) with finite values")
+        if isinstance(y, pd.DataFrame):
+            names = [str(c) for c in y.columns]
+        elif isinstance(y, pd.Series) and y.name is not None:
+            names = [str(y.name)]
+        else:
+            names = [f"y{j}" for j in range(Y.shape[1])]
+        self.target_names_ = names
+        self.n_targets_ = Y.shape[1]
+
+        if self.method == "cv_plus":
+            splits = list(self._splitter().split(X, Y))
+        else:
+            train, cal = train_test_split(np.arange(n), test_size=self.calibration_fraction,
+                                          random_state=self.random_state)
+            splits = [(np.sort(train), np.sort(cal))]
+        fold_of_row = np.full(n, -1, dtype=int)
+        residuals = np.full(Y.shape, np.nan)
+        estimators = []
+        for k, (train, held) in enumerate(splits):
+            if np.any(fold_of_row[held] >= 0):
+                raise ValueError("cv must put every row in at most one validation fold "
+                                 "(e.g. KFold, not ShuffleSplit or RepeatedKFold)")
+            model = clone(self.estimator).fit(_rows(X, train), _rows(y, train))
+            pred = self._predict_2d(model, _rows(X, held))
+            residuals[held] = np.abs(Y[held] - pred)
+            fold_of_row[held] = k
+            estimators.append(model)
+        calibrated = fold_of_row >= 0
+        if self.method == "cv_plus" and not calibrated.all():
+            raise ValueError(f"cv left {int((~calibrated).sum())} row(s) out of every "
+                             "validation fold; CV+ needs each row in exactly one")
+        m = int(calibrated.sum())
+        if conformal_rank(m, self.alpha) > m:
+            raise ValueError(f"alpha={self.alpha}: {m} calibration rows are too few for "
+                             f"{1 - self.alpha:.0%} intervals (at least "
+                             f"{min_calibration_rows(self.alpha)} needed)")
+        self.estimators_ = estimators
+        self.fold_of_row_ = fold_of_row
+        self.residuals_ = residuals
+        self.estimator_ = clone(self.estimator).fit(X, y)
+        for attr in ("n_features_in_", "feature_names_in_"):
+            if hasattr(self.estimator_, attr):
+                setattr(self, attr, getattr(self.estimator_, attr))
+        return self
+
+    def _predict_2d(self, model, X) -> np.ndarray:
+        pred = _as_2d(model.predict(X))
+        if pred.shape != (_n_rows(X), self.n_targets_):
+            raise ValueError(f"the estimator predicted shape {pred.shape}; expected "
+                             f"({_n_rows(X)}, {self.n_targets_}), one column per target")
+        return pred
+
+    # ------------------------------------------------------------------ predict
+    def predict(self, X):
+        """The point predictions of ``estimator_`` (same type and columns as without the
+        wrapper)."""
+        check_is_fitted(self)
+        return self.estimator_.predict(X)
+
+    def predict_interval(self, X) -> np.ndarray:
+        """Lower and upper bounds, shape ``(n_samples, n_targets, 2)``: ``[..., 0]`` the lower
+        and ``[..., 1]`` the upper bound; targets in the order of :attr:`target_names_`
+        (also for a 1-D ``y``: ``n_targets`` = 1)."""
+        check_is_fitted(self)
+        n_new = _n_rows(X)
+        out = np.empty((n_new, self.n_targets_, 2))
+        ok = self.fold_of_row_ >= 0
+        R = self.residuals_[ok]
+        k = conformal_rank(len(R), self.alpha)
+        if self.method == "split":
+            q = _kth_smallest(R, k)
+            mu = self._predict_2d(self.estimators_[0], X)
+            out[..., 0], out[..., 1] = mu - q, mu + q
+            return out
+        preds = np.stack([self._predict_2d(m, X) for m in self.estimators_])  # (K, n, T)
+        folds = self.fold_of_row_
+        for start in range(0, n_new, _BLOCK):
+            block = slice(start, min(start + _BLOCK, n_new))
+            mu = preds[folds, block]                 # (n_train, n_block, T)
+            res = R[:, None, :]
+            out[block, :, 0] = -_kth_smallest(res - mu, k)
+            out[block, :, 1] = _kth_smallest(mu + res, k)
+        return out
+
+    def predict_frame(self, X) -> pd.DataFrame:
+        """Point predictions and intervals as one frame (index of ``X`` when it has one):
+        a column per target (``target_names_``), then ``<target>_lower`` and
+        ``<target>_upper`` for each target."""
+        point = _as_2d(self.predict(X))
+        iv = self.predict_interval(X)
+        index = X.index if isinstance(X, pd.DataFrame) else None
+        columns: dict[str, np.ndarray] = {t: point[:, j] for j, t in
+                                          enumerate(self.target_names_)}
+        for j, t in enumerate(self.target_names_):
+            columns[f"{t}_lower"] = iv[:, j, 0]
+            columns[f"{t}_upper"] = iv[:, j, 1]
+        return pd.DataFrame(columns, index=index)
+
+    # ------------------------------------------------------------------ CV estimate
+    def cv_coverage(self) -> tuple[list[float], list[float]]:
+        """A cross-validated estimate of coverage and mean width per target, from the fit's
+        own out-of-fold residuals (no refit).
+
+        ``"cv_plus"``: each training row is held out with its fold; its interval is its
+        out-of-fold prediction (from the model that did not see it) +- the conformal quantile
+        of the *other* folds' out-of-fold residuals. ``"split"``: leave-one-out over the
+        calibration rows (each row against the conformal quantile of the others). Returns
+        ``(coverage, width)``, lists over targets."""
+        check_is_fitted(self)
+        ok = self.fold_of_row_ >= 0
+        R, folds = self.residuals_[ok], self.fold_of_row_[ok]
+        covered = np.zeros(R.shape, dtype=bool)
+        width = np.zeros(R.shape)
+        if self.method == "split":
+            order = np.sort(R, axis=0)
+            k = conformal_rank(len(R) - 1, self.alpha)
+            for j in range(R.shape[1]):
+                if k > len(R) - 1:  # too few others for a finite quantile
+                    q = np.full(len(R), np.inf)
+                else:  # the k-th smallest of the others: one further where row i is below it
+                    rank = np.searchsorted(order[:, j], R[:, j], side="left")
+                    q = np.where(rank < k, order[k, j], order[k - 1, j])
+                covered[:, j], width[:, j] = R[:, j] <= q, 2 * q
+        else:
+            for f in np.unique(folds):
+                inside, others = folds == f, R[folds != f]
+                k = conformal_rank(len(others), self.alpha)
+                q = (_kth_smallest(others, k) if k <= len(others)
+                     else np.full(R.shape[1], np.inf))
+                covered[inside] = R[inside] <= q
+                width[inside] = 2 * q
+        return np.mean(covered, axis=0).tolist(), np.mean(width, axis=0).tolist()
+
+    def __sklearn_tags__(self):
+        tags = super().__sklearn_tags__()
+        tags.target_tags.multi_output = True
+        if self.estimator is not None:
+            tags.input_tags = get_tags(self.estimator).input_tags
+        return tags
+
+    def __sklearn_is_fitted__(self):
+        return hasattr(self, "estimator_")
