@@ -257,6 +257,7 @@ def bench(google_5q_dir, tmp_path_factory):
     assert logged["row"].astype(int).tolist() == list(rows)
     return SimpleNamespace(root=root, uri=uri, config=config, result=result, run_id=run_id,
                            client=client, expected=floats(logged[TARGETS]), table=table,
+                           logged=logged,
                            csv=csv, dataset=ds)
 
 
@@ -268,10 +269,16 @@ def test_champion_reproduces_evaluate_test_predictions_exactly(bench, tmp_path):
     out = tmp_path / "sub" / "predictions.csv"
     res = predict(bench, f"models:/{NAME}@champion", bench.csv, out)
     assert res.rc == 0, res.err
-    assert f"wrote {out} (41 rows: {', '.join(TARGETS)})" in res.out
+    assert f"wrote {out} (41 rows: {', '.join(TARGETS)} with intervals)" in res.out
     got = read_text_csv(out)
     # passed through first (the id with its row; measured targets renamed), then predictions
-    assert list(got.columns) == ["id", *[f"{t}_input" for t in TARGETS], *TARGETS]
+    # and the conformal intervals ([intervals] is on by default), as evaluate logged them
+    bounds = [f"{t}_{side}" for t in TARGETS for side in ("lower", "upper")]
+    assert list(got.columns[:11]) == ["id", *[f"{t}_input" for t in TARGETS], *TARGETS]
+    assert sorted(got.columns[11:]) == sorted(bounds)
+    np.testing.assert_array_equal(floats(got[bounds]), floats(bench.logged[bounds]))
+    assert (floats(got[[f"{t}_lower" for t in TARGETS]])
+            < floats(got[TARGETS])).all()
     assert got["id"].tolist() == bench.table["id"].tolist()
     np.testing.assert_array_equal(floats(got[TARGETS]), bench.expected)
     # ... which are evaluate's: its test MAE from them, to the last bit
@@ -653,8 +660,10 @@ def test_served_model_gives_the_same_numbers(bench, tmp_path):
         status, reply = _post(f"{base}/invocations", body)
         assert status == 200, reply
         served = pd.DataFrame(reply["predictions"])
-        assert list(served.columns) == TARGETS
-        np.testing.assert_array_equal(served.to_numpy(), bench.expected)
+        bounds = [f"{t}_{side}" for t in TARGETS for side in ("lower", "upper")]
+        assert list(served.columns[:5]) == TARGETS and sorted(served.columns[5:]) == sorted(bounds)
+        np.testing.assert_array_equal(served[TARGETS].to_numpy(), bench.expected)
+        np.testing.assert_array_equal(served[bounds].to_numpy(), floats(bench.logged[bounds]))
         columns = body["dataframe_split"]["columns"]
         columns[columns.index("qvolt5")] = "renamed"
         status, reply = _post(f"{base}/invocations", body)
