@@ -193,7 +193,10 @@ def test_evaluate_is_tracked_and_the_model_serves(cli_run):
     run = evaluate(parse_config_from(cfg), return_model=True)
     model, ds = run.model, run.dataset
     X = ds.X_physics.loc[ds.test_index]
-    assert np.allclose(np.asarray(served.predict(X)), model.predict(X).to_numpy())
+    got = served.predict(X)  # the targets, then their intervals
+    assert np.allclose(got[ds.target_names].to_numpy(), model.predict(X).to_numpy())
+    lower = model.predict_interval(X)[..., 0]
+    assert np.allclose(got[[f"{t}_lower" for t in ds.target_names]].to_numpy(), lower)
 
 
 def test_evaluate_reports_and_writes_prediction_intervals(cli_run):

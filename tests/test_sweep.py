@@ -81,8 +81,11 @@ def test_smoke_sweep_json_and_tracking(smoke_run, tmp_path):
     served = mlflow.pyfunc.load_model(
         client.get_logged_model(res["mlflow"]["model_uri"].split("/")[-1]).artifact_location
     ).predict(X_test)
-    assert list(served.columns) == ds.target_names
-    test_mae = (served.to_numpy() - ds.targets.loc[ds.test_index].to_numpy())
+    # the targets, then their conformal intervals ([intervals] is on by default)
+    assert list(served.columns[:5]) == ds.target_names
+    assert sorted(served.columns[5:]) == sorted(f"{t}_{s}" for t in ds.target_names
+                                                for s in ("lower", "upper"))
+    test_mae = (served[ds.target_names].to_numpy() - ds.targets.loc[ds.test_index].to_numpy())
     assert abs(test_mae).mean(axis=0) == pytest.approx(res["model"]["test_mae"], rel=1e-9)
 
 
