@@ -122,7 +122,7 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
     settings = {}
     for key, toml in (("paper", "paper_main_body.toml"), ("improved", "paper_improved.toml")):
         _say(f"evaluating the {key} settings ({toml})")
-        cfg = replace(load_config(EXPERIMENTS / toml), random_state=seed)
+        cfg = _no_intervals(replace(load_config(EXPERIMENTS / toml), random_state=seed))
         run = evaluate(cfg, return_model=True)
         settings[key], ds = run.result, run.dataset
     _say("nested-CV search for the workbench's own best configuration "
@@ -131,7 +131,8 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
 
     search_cfg = load_config(EXPERIMENTS / "paper_search.toml")
     cv = {"seed": seed, **({"outer_folds": 2, "inner_folds": 3} if quick else {})}
-    search_cfg = replace(search_cfg, random_state=seed, cv=search_cfg.cv.model_copy(update=cv))
+    search_cfg = _no_intervals(replace(search_cfg, random_state=seed,
+                                       cv=search_cfg.cv.model_copy(update=cv)))
     # another seed must not resume these studies
     search_cfg = search_cfg.with_study(study_name=f"{search_cfg.name}-seed{seed}",
                                        trials=2 if quick else None, storage=storage)
@@ -252,6 +253,13 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
     return rep
 
 
+def _no_intervals(cfg):
+    """``cfg`` without prediction intervals: the reproduction reports the paper's errors, and
+    CV+ would refit every model 5 more times (``workbench evaluate`` reports the intervals;
+    ``python benchmarks/intervals.py`` measures them)."""
+    return replace(cfg, intervals=cfg.intervals.model_copy(update={"enabled": False}))
+
+
 def _hamiltonian(settings: dict[str, Any], seed: int, quick: bool):
     """Evaluate ``experiments/hamiltonian.toml`` into ``settings["hamiltonian"]``; returns
     the fitted model. Its nested CV over all rows (about 4 minutes, which would take the main
@@ -265,6 +273,7 @@ def _hamiltonian(settings: dict[str, Any], seed: int, quick: bool):
         hamiltonian.update(candidates="local", max_steps=2, selection_cv=3)
     cfg = replace(cfg, random_state=seed, evaluation=cfg.evaluation.model_copy(update=evaluation),
                   family_settings=cfg.family_settings.model_copy(update=hamiltonian))
+    cfg = _no_intervals(cfg)
     _say("the parameter-space model (experiments/hamiltonian.toml): covariate "
                    "selection by CV on the training rows")
     run = evaluate(cfg, return_model=True)
