@@ -212,7 +212,9 @@ class EigenvalueFamily(ModelFamily):
         for target, est in zip(ds.target_names, model.estimators_):
             y = y_train[target].to_numpy()
             if isinstance(est, BaseBoostCV) and not isinstance(est, BasisChoiceCV):
-                plans.append(selection_curve_plan(est, X_train, y, train_sizes=sizes,
+                # its own folds (a sweep's final model: the inner folds)
+                own = curve_sizes(len(X_train), len(est.cv_splits_))
+                plans.append(selection_curve_plan(est, X_train, y, train_sizes=own,
                                                   random_state=cfg.random_state))
             else:  # BasisChoiceCV: its chosen candidate on fresh folds
                 candidate = getattr(est, "estimator_", None) or est.estimator
