@@ -27,6 +27,8 @@ from sklearn.preprocessing import QuantileTransformer, StandardScaler
 from sklearn.utils._param_validation import Interval
 from sklearn.utils.validation import check_is_fitted
 
+from .boosting import CachedParamNames
+
 __all__ = [
     "BASES",
     "KERNEL_EXACT_ROWS",
@@ -53,7 +55,7 @@ def _train(*args, **kwargs):
     return _lgb_train(*args, **{**kwargs, "keep_training_booster": True})
 
 
-class LeanLGBMRegressor(LGBMRegressor):
+class LeanLGBMRegressor(CachedParamNames, LGBMRegressor):
     """:class:`lightgbm.LGBMRegressor` without the copy of the model LightGBM makes after
     training (``keep_training_booster``): it writes the trees to text and parses them back
     (on this project's small data a third of a 1000-tree fit). The trees, and so every
@@ -230,7 +232,7 @@ KERNEL_EXACT_ROWS = 3000
 GP_WARN_ROWS = 2000
 
 
-class ScalableKernelRidge(RegressorMixin, BaseEstimator):
+class ScalableKernelRidge(CachedParamNames, RegressorMixin, BaseEstimator):
     """Kernel ridge regression that stays linear in rows: the exact
     :class:`~sklearn.kernel_ridge.KernelRidge` up to ``exact_max_rows`` training rows, above
     that ridge regression (same ``alpha``, no intercept, as kernel ridge) on
@@ -337,7 +339,7 @@ def make_basis(name: str, **params):
     return BASES[name](**params)
 
 
-class _NormalQuantiles(QuantileTransformer):
+class _NormalQuantiles(CachedParamNames, QuantileTransformer):
     """scikit-learn's ``QuantileTransformer`` whose forward normal mapping calls
     ``scipy.special.ndtri`` itself instead of ``scipy.stats.norm.ppf`` (the same function
     behind ``stats``' argument checks, which cost ~0.25 ms a call, three calls a column):
@@ -390,7 +392,7 @@ except ImportError:  # pragma: no cover
 _CLIP = _clip_bounds()
 
 
-class NormalQuantileTransformer(TransformerMixin, BaseEstimator):
+class NormalQuantileTransformer(CachedParamNames, TransformerMixin, BaseEstimator):
     """``QuantileTransformer(output_distribution="normal")`` with ``n_quantiles`` capped at
     the number of rows, so small training sets fit without a warning (and its normal
     mapping without ``scipy.stats``' per-call overhead; the same numbers)."""
