@@ -262,3 +262,27 @@ def test_normal_quantile_transform_is_scikit_learn_s():
         np.testing.assert_array_equal(ours.transform(new), theirs.transform(new))
         np.testing.assert_array_equal(ours.transformer_.inverse_transform(ours.transform(new)),
                                       theirs.inverse_transform(theirs.transform(new)))
+
+
+def test_kernel_ridge_basis_is_exact_up_to_a_row_count_then_nystroem():
+    from sklearn.kernel_ridge import KernelRidge
+
+    from workbench.bases import make_basis, quadratic_basis_warning
+
+    rng = np.random.default_rng(0)
+    X = rng.normal(size=(400, 3))
+    y = np.sin(X[:, 0]) + X[:, 1] ** 2 + 0.05 * rng.normal(size=400)
+    exact = make_basis("kernel_ridge", alpha=0.1, gamma=0.5).fit(X, y)
+    assert not exact.approximate_
+    np.testing.assert_array_equal(exact.predict(X), KernelRidge(alpha=0.1, kernel="rbf",
+                                                               gamma=0.5).fit(X, y).predict(X))
+    approx = make_basis("kernel_ridge", alpha=0.1, gamma=0.5, exact_max_rows=100,
+                        n_components=150, random_state=0).fit(X, y)
+    assert approx.approximate_
+    # rank-150 Nystroem features of a smooth kernel: close to the exact fit
+    assert np.mean(np.abs(approx.predict(X) - exact.predict(X))) < 0.05 * np.std(y)
+    with pytest.raises(ValueError, match="alpha"):
+        make_basis("kernel_ridge", alpha=-1.0).fit(X, y)
+    assert "cubic" in quadratic_basis_warning("gaussian_process", 50_000)
+    assert quadratic_basis_warning("gaussian_process", 500) is None
+    assert quadratic_basis_warning("kernel_ridge", 10 ** 6) is None

@@ -9,13 +9,14 @@ folds, trials or targets run in parallel) and ``verbose=-1``.
 from __future__ import annotations
 
 import threading
+from numbers import Integral
 from typing import Any, Callable
 
 import lightgbm.sklearn as _lgb_sklearn
 import numpy as np
 from lightgbm import LGBMRegressor
 from lightgbm.engine import train as _lgb_train
-from sklearn.base import BaseEstimator, TransformerMixin
+from sklearn.base import BaseEstimator, RegressorMixin, TransformerMixin
 from sklearn.ensemble import StackingRegressor
 from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
@@ -23,12 +24,17 @@ from sklearn.kernel_ridge import KernelRidge
 from sklearn.linear_model import Ridge
 from sklearn.neural_network import MLPRegressor
 from sklearn.preprocessing import QuantileTransformer, StandardScaler
+from sklearn.utils._param_validation import Interval
 from sklearn.utils.validation import check_is_fitted
+
+from .boosting import CachedParamNames
 
 __all__ = [
     "BASES",
+    "KERNEL_EXACT_ROWS",
     "LeanLGBMRegressor",
     "PAPER_PARAMS",
+    "ScalableKernelRidge",
     "TRANSFORMS",
     "NormalQuantileTransformer",
     "make_basis",
@@ -49,7 +55,7 @@ def _train(*args, **kwargs):
     return _lgb_train(*args, **{**kwargs, "keep_training_booster": True})
 
 
-class LeanLGBMRegressor(LGBMRegressor):
+class LeanLGBMRegressor(CachedParamNames, LGBMRegressor):
     """:class:`lightgbm.LGBMRegressor` without the copy of the model LightGBM makes after
     training (``keep_training_booster``): it writes the trees to text and parses them back
     (on this project's small data a third of a 1000-tree fit). The trees, and so every
@@ -219,8 +225,83 @@ def ridge(**params) -> Ridge:
     return Ridge(**params)
 
 
-def kernel_ridge(**params) -> KernelRidge:
-    return KernelRidge(**{"kernel": "rbf", **params})
+#: Above this many training rows a ``kernel_ridge`` basis fits Nystroem features instead
+#: of the exact kernel (O(rows^2) memory, O(rows^3) time: 171 s and 1.5 GB at 10,000 rows).
+KERNEL_EXACT_ROWS = 3000
+#: A Gaussian process basis on more training rows than this is warned about before fitting.
+GP_WARN_ROWS = 2000
+
+
+class ScalableKernelRidge(CachedParamNames, RegressorMixin, BaseEstimator):
+    """Kernel ridge regression that stays linear in rows: the exact
+    :class:`~sklearn.kernel_ridge.KernelRidge` up to ``exact_max_rows`` training rows, above
+    that ridge regression (same ``alpha``, no intercept, as kernel ridge) on
+    ``n_components`` :class:`~sklearn.kernel_approximation.Nystroem` features of the same
+    kernel: the kernel matrix is approximated by rank ``n_components``, O(rows x
+    n_components^2) time and O(rows x n_components) memory.
+
+    Attributes: ``estimator_`` (the fitted KernelRidge or Nystroem + Ridge pipeline),
+    ``approximate_`` (whether the Nystroem features were used)."""
+
+    _parameter_constraints = {
+        **KernelRidge._parameter_constraints,
+        "exact_max_rows": [Interval(Integral, 1, None, closed="left")],
+        "n_components": [Interval(Integral, 1, None, closed="left")],
+        "random_state": ["random_state"],
+    }
+
+    def __init__(self, alpha=1.0, *, kernel="rbf", gamma=None, degree=3, coef0=1,
+                 kernel_params=None, exact_max_rows=KERNEL_EXACT_ROWS, n_components=300,
+                 random_state=None):
+        self.alpha = alpha
+        self.kernel = kernel
+        self.gamma = gamma
+        self.degree = degree
+        self.coef0 = coef0
+        self.kernel_params = kernel_params
+        self.exact_max_rows = exact_max_rows
+        self.n_components = n_components
+        self.random_state = random_state
+
+    def fit(self, X, y):
+        from sklearn.kernel_approximation import Nystroem
+        from sklearn.pipeline import make_pipeline
+
+        self._validate_params()
+        kernel = dict(kernel=self.kernel, gamma=self.gamma, degree=self.degree,
+                      coef0=self.coef0, kernel_params=self.kernel_params)
+        self.approximate_ = len(X) > self.exact_max_rows
+        if self.approximate_:
+            self.estimator_ = make_pipeline(
+                Nystroem(**kernel, n_components=min(self.n_components, len(X)),
+                         random_state=self.random_state),
+                Ridge(alpha=self.alpha, fit_intercept=False))
+        else:
+            self.estimator_ = KernelRidge(alpha=self.alpha, **kernel)
+        self.estimator_.fit(X, y)
+        self.n_features_in_ = getattr(self.estimator_, "n_features_in_", np.shape(X)[1])
+        return self
+
+    def predict(self, X):
+        check_is_fitted(self)
+        return self.estimator_.predict(X)
+
+
+def kernel_ridge(**params) -> ScalableKernelRidge:
+    """An RBF kernel ridge basis (:class:`ScalableKernelRidge`: exact up to
+    :data:`KERNEL_EXACT_ROWS` training rows, Nystroem features above)."""
+    return ScalableKernelRidge(**{"kernel": "rbf", **params})
+
+
+def quadratic_basis_warning(name: str, n_rows: int) -> str | None:
+    """A warning for a basis whose cost grows faster than linearly in rows, when it is fitted
+    on ``n_rows`` training rows (``None`` when there is nothing to say)."""
+    if name == "gaussian_process" and n_rows > GP_WARN_ROWS:
+        return (f"basis gaussian_process on {n_rows:,} training rows: its fit is cubic in rows "
+                f"and its memory quadratic (it will be slow above ~{GP_WARN_ROWS:,} rows); "
+                "kernel_ridge (Nystroem features above "
+                f"{KERNEL_EXACT_ROWS:,} rows), ridge or lightgbm scale linearly")
+    return None
 
 
 def lightgbm(**params) -> LeanLGBMRegressor:
@@ -258,7 +339,7 @@ def make_basis(name: str, **params):
     return BASES[name](**params)
 
 
-class _NormalQuantiles(QuantileTransformer):
+class _NormalQuantiles(CachedParamNames, QuantileTransformer):
     """scikit-learn's ``QuantileTransformer`` whose forward normal mapping calls
     ``scipy.special.ndtri`` itself instead of ``scipy.stats.norm.ppf`` (the same function
     behind ``stats``' argument checks, which cost ~0.25 ms a call, three calls a column):
@@ -311,7 +392,7 @@ except ImportError:  # pragma: no cover
 _CLIP = _clip_bounds()
 
 
-class NormalQuantileTransformer(TransformerMixin, BaseEstimator):
+class NormalQuantileTransformer(CachedParamNames, TransformerMixin, BaseEstimator):
     """``QuantileTransformer(output_distribution="normal")`` with ``n_quantiles`` capped at
     the number of rows, so small training sets fit without a warning (and its normal
     mapping without ``scipy.stats``' per-call overhead; the same numbers)."""

@@ -23,7 +23,8 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 from .line_search import line_search
 from .losses import get_loss
 
-__all__ = ["BaseBoostRegressor", "PriorModel", "check_predictions", "seed_estimator"]
+__all__ = ["BaseBoostRegressor", "CachedParamNames", "PriorModel", "check_predictions",
+           "seed_estimator"]
 
 
 def seed_estimator(estimator, seed: int):
@@ -33,6 +34,22 @@ def seed_estimator(estimator, seed: int):
     if keys:
         estimator.set_params(**{k: int(seed) for k in keys})
     return estimator
+
+
+_PARAM_NAMES: dict[type, list[str]] = {}
+
+
+class CachedParamNames:
+    """A mixin: scikit-learn's parameter names of the class (its ``__init__`` signature),
+    introspected once per class instead of at every ``get_params``/``clone`` (on small fits
+    ``inspect.signature`` is a visible share of the time)."""
+
+    @classmethod
+    def _get_param_names(cls):
+        names = _PARAM_NAMES.get(cls)
+        if names is None:
+            names = _PARAM_NAMES[cls] = super(CachedParamNames, cls)._get_param_names()
+        return list(names)
 
 
 def _is_column(prior) -> bool:
@@ -67,7 +84,7 @@ def check_predictions(values, n: int, what: str) -> np.ndarray:
     return arr
 
 
-class PriorModel(RegressorMixin, BaseEstimator):
+class PriorModel(CachedParamNames, RegressorMixin, BaseEstimator):
     """The incumbent: the scientific model alone, as a scikit-learn regressor.
 
     Parameters
@@ -87,6 +104,11 @@ class PriorModel(RegressorMixin, BaseEstimator):
         X_raw = X
         X, y = validate_data(self, X, y, y_numeric=True, dtype=float,
                              ensure_all_finite=not callable(self.prior))
+        return self._fit_validated(X_raw, X, y)
+
+    def _fit_validated(self, X_raw, X, y):
+        """:meth:`fit` after validation (``X``, ``y``: the validated arrays; the
+        ``n_features_in_``/``feature_names_in_`` attributes already set)."""
         prior = self.prior
         if prior is None:
             self.constant_ = float(np.mean(y))
@@ -107,6 +129,10 @@ class PriorModel(RegressorMixin, BaseEstimator):
         X_raw = X
         X = validate_data(self, X, reset=False, dtype=float,
                           ensure_all_finite=not callable(self.prior))
+        return self._predict_validated(X_raw, X)
+
+    def _predict_validated(self, X_raw, X):
+        """:meth:`predict` of an ``X`` already validated (as ``X_raw`` was given)."""
         n = X.shape[0]
         if hasattr(self, "constant_"):
             return np.full(n, self.constant_)
@@ -120,7 +146,7 @@ class PriorModel(RegressorMixin, BaseEstimator):
         return hasattr(self, "n_features_in_")
 
 
-class BaseBoostRegressor(RegressorMixin, BaseEstimator):
+class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
     """Base boosting for one target.
 
     Parameters
@@ -226,8 +252,14 @@ class BaseBoostRegressor(RegressorMixin, BaseEstimator):
         rng = check_random_state(self.random_state)
         seeds = rng.randint(np.iinfo(np.int32).max, size=self.n_stages + 1)
 
-        self.prior_model_ = PriorModel(prior=self.prior).fit(X_raw, y)
-        self.prior_values_ = self.prior_model_.predict(X_raw)
+        # the prior on the rows validated here (validated once: the same as fitting and
+        # predicting it on X_raw)
+        self.prior_model_ = PriorModel(prior=self.prior)
+        self.prior_model_.n_features_in_ = self.n_features_in_
+        if hasattr(self, "feature_names_in_"):
+            self.prior_model_.feature_names_in_ = self.feature_names_in_
+        self.prior_model_._fit_validated(X_raw, X, y)
+        self.prior_values_ = self.prior_model_._predict_validated(X_raw, X)
         self.basis_columns_ = self._basis_columns(X.shape[1])
         self.input_transform_ = None
         if self.input_transform is not None:
@@ -264,8 +296,9 @@ class BaseBoostRegressor(RegressorMixin, BaseEstimator):
     def staged_predict(self, X):
         """Yield the prediction after each stage ``k = 1..n_stages``."""
         check_is_fitted(self)
-        pred = self.prior_model_.predict(X)
-        Z = self._basis_inputs(validate_data(self, X, reset=False, dtype=float))
+        X_raw, X = X, validate_data(self, X, reset=False, dtype=float)
+        pred = self.prior_model_._predict_validated(X_raw, X)
+        Z = self._basis_inputs(X)
         for est, coef in zip(self.estimators_, self.coefs_):
             pred = pred + coef * np.asarray(est.predict(Z), dtype=float).ravel()
             yield pred

@@ -40,7 +40,7 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
 __all__ = ["Task", "effective_n_jobs", "gather", "in_worker", "map_tasks", "run_plans",
-           "worker_pool"]
+           "start_fork_server", "worker_pool"]
 
 THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
               "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
@@ -185,6 +185,30 @@ class _Pool:
                     p.join(timeout=5)
         else:
             ex.shutdown(wait=True)
+
+
+def start_fork_server(modules: Iterable[str]) -> bool:
+    """Start multiprocessing's fork server now (if not running), importing ``modules`` in it
+    with one BLAS/OpenMP thread: it loads them while this process goes on, and processes
+    started later with the ``"forkserver"`` context are forked copies of it (no re-import;
+    no threads, locks or connections of this process). Returns whether there is a fork
+    server (not on Windows)."""
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        return False
+    from multiprocessing import forkserver
+
+    multiprocessing.get_context("forkserver").set_forkserver_preload(list(modules))
+    saved = {k: os.environ.get(k) for k in THREAD_ENV}
+    os.environ.update({k: "1" for k in THREAD_ENV})
+    try:
+        forkserver.ensure_running()
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+    return True
 
 
 def _fork_available() -> bool:

@@ -13,7 +13,7 @@ from sklearn.utils import _safe_indexing, check_random_state
 from sklearn.utils.metaestimators import _BaseComposition
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from .boosting import BaseBoostRegressor, PriorModel, seed_estimator
+from .boosting import BaseBoostRegressor, CachedParamNames, PriorModel, seed_estimator
 from .parallel import Task, gather, run_plans
 
 __all__ = ["BaseBoostCV", "BasisChoiceCV", "find_prior"]
@@ -31,15 +31,40 @@ def find_prior(estimator):
                      f"{len(nested)} nested 'prior' parameters); pass incumbent=")
 
 
-def _fold(incumbent, estimator, X, y, train, test, scorer, train_score=False):
+class _Predicted(RegressorMixin, BaseEstimator):
+    """A regressor whose ``predict`` returns the predictions it holds: a metric scorer's
+    input, so a fold's model predicts its held-out rows once, not once for the score and
+    once for the out-of-fold predictions."""
+
+    def __init__(self, predictions=None):
+        self.predictions = predictions
+
+    def predict(self, X):
+        return self.predictions
+
+
+def _score_and_predict(scorer, model, X, y, by_metric):
+    """``(scorer(model, X, y), model.predict(X))``, predicting once when the scorer is a
+    metric of the predictions (a scoring name)."""
+    if not by_metric:
+        return scorer(model, X, y), model.predict(X)
+    pred = model.predict(X)
+    return scorer(_Predicted(pred), X, y), pred
+
+
+def _fold(incumbent, estimator, X, y, train, test, scorer, train_score=False,
+          by_metric=False):
     """Scores of both models on one fold, their predictions on its held-out rows, and the
-    candidate's score on the fold's own training rows (NaN unless ``train_score``)."""
+    candidate's score on the fold's own training rows (NaN unless ``train_score``).
+    ``by_metric``: the scorer is a metric of the predictions (a scoring name), so each model
+    predicts the held-out rows once."""
     X_tr, X_te, y_tr, y_te = _safe_indexing(X, train), _safe_indexing(X, test), y[train], y[test]
     prior = clone(incumbent).fit(X_tr, y_tr)
-    prior_score, prior_pred = scorer(prior, X_te, y_te), prior.predict(X_te)
+    prior_score, prior_pred = _score_and_predict(scorer, prior, X_te, y_te, by_metric)
     try:
         fitted = clone(estimator).fit(X_tr, y_tr)
-        score, pred, error = scorer(fitted, X_te, y_te), fitted.predict(X_te), None
+        score, pred = _score_and_predict(scorer, fitted, X_te, y_te, by_metric)
+        error = None
         train_score = scorer(fitted, X_tr, y_tr) if train_score else np.nan
     except Exception as exc:  # a failed candidate is recorded, never chosen
         score, pred, error = np.nan, np.full(len(test), np.nan), f"{type(exc).__name__}: {exc}"
@@ -56,7 +81,7 @@ def _refit(estimator, X, y):
         return None, f"{type(exc).__name__}: {exc}"
 
 
-class BaseBoostCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
+class BaseBoostCV(CachedParamNames, MetaEstimatorMixin, RegressorMixin, BaseEstimator):
     """Choose between the prior alone (the incumbent) and a boosted candidate by CV.
 
     Both are scored on the same folds of the training rows. The candidate is selected only
@@ -150,8 +175,9 @@ class BaseBoostCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         cv = check_cv(self.cv, y, classifier=False)
         scorer = check_scoring(candidate, scoring=self.scoring)
         splits = list(cv.split(X, y))
+        by_metric = isinstance(self.scoring, str)
         tasks = [Task(_fold, incumbent, candidate, X, y, train, test, scorer,
-                      bool(self.return_train_score)) for train, test in splits]
+                      bool(self.return_train_score), by_metric) for train, test in splits]
         if fold_callback is None:
             folds = yield tasks
         else:

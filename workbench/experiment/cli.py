@@ -122,7 +122,31 @@ def _cmd_reproduce(args) -> int:
     return 0
 
 
+#: What a sweep's worker processes import (the fork server loads it once for all of them).
+SWEEP_WORKER_MODULES = ("workbench.experiment.search", "workbench.experiment.families",
+                        "workbench.experiment.cli", "workbench.multitarget", "workbench.bases")
+
+
+def _study_workers(args) -> int:
+    """``--workers``, else the config file's ``[study] workers`` (read without loading the
+    config), else 1."""
+    if args.workers is not None:
+        return args.workers
+    try:
+        import tomllib
+
+        with open(args.config, "rb") as fh:
+            workers = tomllib.load(fh).get("study", {}).get("workers", 1)
+        return workers if isinstance(workers, int) else 1
+    except (OSError, ValueError):
+        return 1  # load_config reports the problem
+
+
 def _cmd_sweep(args) -> int:
+    if _study_workers(args) > 1:  # the workers' imports, while this process starts up
+        from ..parallel import start_fork_server
+
+        start_fork_server(SWEEP_WORKER_MODULES)
     from .config import load_config
     from .evaluate import format_table
     from .search import run_sweep  # imports Optuna only for sweeps

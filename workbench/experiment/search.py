@@ -28,6 +28,7 @@ import numpy as np
 import optuna
 from optuna.trial import TrialState
 
+from ..parallel import Task, map_tasks
 from .config import ExperimentConfig, load_dataset
 from .evaluate import fit_and_score
 from .results import OuterFold, Result, SweepSummary
@@ -194,8 +195,14 @@ def run_sweep(cfg: ExperimentConfig, *, progress: bool = True,
     nested_prior: dict[str, list[float]] = {}
     folds: list[OuterFold] = []
     best: dict[str, dict[str, Any] | None] = {}
+    params_of = {spec.name: _best_params(studies[spec.name]) for spec in specs}
+    # the outer folds' refits: independent, on the command's worker processes
+    refits = [spec for spec in specs if spec.fold is not None and params_of[spec.name]]
+    refitted = dict(zip((spec.name for spec in refits), map_tasks(
+        [Task(family.refit_predict, cfg, ds, spec.targets, params_of[spec.name], X_all, Y_all,
+              *outer[spec.fold]) for spec in refits], cfg.jobs)))
     for spec in specs:
-        params = _best_params(studies[spec.name])
+        params = params_of[spec.name]
         if spec.fold is None:
             best[spec.unit] = params
             continue
@@ -206,8 +213,7 @@ def run_sweep(cfg: ExperimentConfig, *, progress: bool = True,
         if params is None:  # no trial completed: the prior stands
             pred, selected = prior_val, "prior"
         else:
-            pred, selected = family.refit_predict(cfg, ds, spec.targets, params, X_all, Y_all,
-                                                  train, val)
+            pred, selected = refitted[spec.name]
         maes = [float(np.mean(np.abs(y_val[:, j] - pred[:, j]))) for j in range(len(cols))]
         prior_maes = [float(np.mean(np.abs(y_val[:, j] - prior_val[:, j])))
                       for j in range(len(cols))]

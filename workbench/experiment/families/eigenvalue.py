@@ -68,6 +68,7 @@ def per_target_boost(cfg: ExperimentConfig, ds: Dataset, priors: list[str], *,
 
         raise ConfigError(f"[model.targets]: unknown target(s) {unknown}; the dataset's "
                           f"targets are {names}")
+    _warn_quadratic_bases(cfg, names, len(ds.train_index))
     per_target = {}
     for target, prior in zip(names, priors):
         s = cfg.model_for(target)
@@ -89,6 +90,23 @@ def per_target_boost(cfg: ExperimentConfig, ds: Dataset, priors: list[str], *,
                                          return_train_score=True)
     return MultiTargetBaseBoost(target_estimators=per_target, n_jobs=cfg.jobs,
                                 random_state=cfg.random_state)
+
+
+def _warn_quadratic_bases(cfg: ExperimentConfig, targets: list[str], n_rows: int) -> None:
+    """Warn (the ``workbench`` logger), before anything is fitted, about a basis that will not
+    scale to ``n_rows``."""
+    import logging
+
+    from ...bases import quadratic_basis_warning
+
+    bases = set()
+    for target in targets:
+        basis = cfg.model_for(target)["basis"]
+        bases.update(basis if isinstance(basis, list) else [basis])
+    for name in sorted(bases):
+        message = quadratic_basis_warning(name, n_rows)
+        if message:
+            logging.getLogger("workbench").warning("[%s] warning: %s", cfg.name, message)
 
 
 def booster_cv(cfg: ExperimentConfig, ds: Dataset, target: str, settings: dict[str, Any], cv,
@@ -212,7 +230,7 @@ class EigenvalueFamily(ModelFamily):
         for target, est in zip(ds.target_names, model.estimators_):
             y = y_train[target].to_numpy()
             if isinstance(est, BaseBoostCV) and not isinstance(est, BasisChoiceCV):
-                # on the model's own folds (a sweep's model may select with other folds)
+                # its own folds (a sweep's final model: the inner folds)
                 own = curve_sizes(len(X_train), len(est.cv_splits_))
                 plans.append(selection_curve_plan(est, X_train, y, train_sizes=own,
                                                   random_state=cfg.random_state))
