@@ -18,7 +18,9 @@ Two methods:
       upper(x) = the ceil((1 - alpha)(n + 1))-th smallest of  mu_{-k(i)}(x) + R_i
 
   per target. Guaranteed coverage is ``1 - 2 alpha - O(1/sqrt(n/K))``; in practice it is
-  close to ``1 - alpha``. These are the intervals of MAPIE 1.x's
+  close to ``1 - alpha`` for a stable model, and above it when the fold models disagree at
+  ``x`` (e.g. a per-fold choice of basis or covariates): their spread widens the interval
+  beyond ``+- q``. These are the intervals of MAPIE 1.x's
   ``CrossConformalRegressor(method="plus")`` (tests/test_conformal.py checks equality).
 * ``"split"`` -- split conformal: the model is fitted on a ``1 - calibration_fraction`` part
   of the rows, the absolute residuals on the rest give per target ``q`` = the
@@ -311,7 +313,11 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         out-of-fold prediction (from the model that did not see it) +- the conformal quantile
         of the *other* folds' out-of-fold residuals. ``"split"``: leave-one-out over the
         calibration rows (each row against the conformal quantile of the others). Returns
-        ``(coverage, width)``, lists over targets."""
+        ``(coverage, width)``, lists over targets.
+
+        For CV+ this describes intervals ``+- q`` around an out-of-fold prediction; CV+'s own
+        intervals on new rows are wider by the fold models' disagreement, so where that is
+        large (unstable inner choices) the estimate is below the coverage on new rows."""
         check_is_fitted(self)
         ok = self.fold_of_row_ >= 0
         R, folds = self.residuals_[ok], self.fold_of_row_[ok]
