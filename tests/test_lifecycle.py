@@ -53,6 +53,25 @@ def _sweep_until_a_trial(cmd, cwd, err):
     return proc
 
 
+def _kill_with_trials_claimed(proc, journal, tmp_path) -> None:
+    """SIGKILL ``proc`` at a moment when every running trial carries its ``worker`` (a trial
+    killed between Optuna's ``ask`` and that attribute has no owner to probe: it waits for
+    ``stale_after_s``, as on another host). The process is stopped while the test looks."""
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        proc.send_signal(signal.SIGSTOP)
+        storage = open_storage(str(journal), tmp_path)
+        running = [t for name in _sweep_studies(storage)
+                   for t in optuna.load_study(study_name=name, storage=storage).get_trials(
+                       deepcopy=False, states=(TrialState.RUNNING,))]
+        if all("worker" in t.user_attrs for t in running):
+            proc.send_signal(signal.SIGKILL)
+            return
+        proc.send_signal(signal.SIGCONT)
+        time.sleep(0.05)
+    raise AssertionError("no moment with every running trial claimed")
+
+
 def test_runs_never_left_running(tiny, tmp_path):
     """SIGKILL leaves a RUNNING run that the next command marks FAILED at its start (its
     process is gone); SIGINT and SIGTERM end the run KILLED, print one line and exit 130 /
@@ -66,7 +85,7 @@ def test_runs_never_left_running(tiny, tmp_path):
             str(proc.pid)]
 
     silent = _sweep_until_a_trial(cmd, tmp_path, tmp_path / "kill.log")
-    silent.send_signal(signal.SIGKILL)
+    _kill_with_trials_claimed(silent, journal, tmp_path)
     silent.wait(timeout=30)
     assert status(silent) == "RUNNING"
     for signum, code in ((signal.SIGINT, 130), (signal.SIGTERM, 143)):
