@@ -188,7 +188,10 @@ def test_heartbeat_beats_while_a_long_trial_runs(tmp_path, kind):
     assert [t.state for t in study.get_trials()] == [TrialState.COMPLETE]
 
 
-def test_dead_worker_on_this_host_is_failed_at_once_and_rerun_once(tmp_path):
+@pytest.mark.parametrize("finished", [False, True], ids=["mid-trial", "before-its-tell"])
+def test_dead_worker_on_this_host_is_failed_at_once_and_rerun_once(tmp_path, finished):
+    """A trial whose process died is failed, not counted, and re-run once: also when the
+    process died between setting ``finished_by`` and its own ``tell`` (seen under load)."""
     study = optuna.create_study(study_name="d", storage=open_storage(str(tmp_path / "d.j"),
                                                                       tmp_path))
     gone = subprocess.Popen(["true"])
@@ -196,6 +199,8 @@ def test_dead_worker_on_this_host_is_failed_at_once_and_rerun_once(tmp_path):
     ghost = study.ask({"x": optuna.distributions.FloatDistribution(0, 1)})
     ghost.set_user_attr("worker", f"{socket.gethostname()}:{gone.pid}")
     ghost.set_user_attr("heartbeat", time.time())  # fresh: only the dead pid tells
+    if finished:
+        ghost.set_user_attr("finished_by", f"{socket.gethostname()}:{gone.pid}")
     seen = []
     run_study(study, lambda t: seen.append(t.params["x"]) or t.suggest_float("x", 0, 1), 3,
               stale_after_s=600)

@@ -39,8 +39,8 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
-__all__ = ["Task", "effective_n_jobs", "gather", "in_worker", "map_tasks", "run_plans",
-           "start_fork_server", "worker_pool"]
+__all__ = ["Task", "effective_n_jobs", "gather", "in_worker", "map_tasks", "one_thread_env",
+           "run_plans", "start_fork_server", "worker_pool"]
 
 THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
               "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
@@ -198,17 +198,25 @@ def start_fork_server(modules: Iterable[str]) -> bool:
     from multiprocessing import forkserver
 
     multiprocessing.get_context("forkserver").set_forkserver_preload(list(modules))
+    with one_thread_env():
+        forkserver.ensure_running()
+    return True
+
+
+@contextlib.contextmanager
+def one_thread_env() -> Iterator[None]:
+    """Inside the block, processes started from this one get one BLAS/OpenMP thread
+    (``THREAD_ENV`` set to 1); the environment is restored afterwards."""
     saved = {k: os.environ.get(k) for k in THREAD_ENV}
     os.environ.update({k: "1" for k in THREAD_ENV})
     try:
-        forkserver.ensure_running()
+        yield
     finally:
         for k, v in saved.items():
             if v is None:
                 os.environ.pop(k, None)
             else:
                 os.environ[k] = v
-    return True
 
 
 def _fork_available() -> bool:
@@ -252,6 +260,19 @@ def _check_batch(batch) -> list[Task]:
     return batch
 
 
+def _first_batches(plans: list[Plan]) -> tuple[list, dict[int, list[Task]]]:
+    """Start every plan: ``out`` (the results of plans that ended at once) and the first
+    batch of each other plan, by position."""
+    out: list[Any] = [None] * len(plans)
+    batches: dict[int, list[Task]] = {}
+    for i, plan in enumerate(plans):
+        try:
+            batches[i] = _check_batch(next(plan))
+        except StopIteration as stop:
+            out[i] = stop.value
+    return out, batches
+
+
 def _run_serial(plan: Plan):
     try:
         batch = _check_batch(next(plan))
@@ -270,13 +291,7 @@ def _run_joblib(plans: list[Plan], jobs: int) -> list:
     """Plans in rounds through joblib's processes (where fork is unavailable)."""
     from joblib import Parallel, delayed
 
-    out: list[Any] = [None] * len(plans)
-    batches: dict[int, list[Task]] = {}
-    for i, plan in enumerate(plans):
-        try:
-            batches[i] = _check_batch(next(plan))
-        except StopIteration as stop:
-            out[i] = stop.value
+    out, batches = _first_batches(plans)
     with Parallel(n_jobs=jobs) as parallel:
         while batches:
             flat = [(i, t) for i, batch in batches.items() for t in batch]
@@ -374,13 +389,7 @@ def gather(plans: Iterable[Plan]) -> Plan:
     """One plan running several plans side by side (their batches yielded together);
     returns their results in order."""
     plans = list(plans)
-    out: list[Any] = [None] * len(plans)
-    batches: dict[int, list[Task]] = {}
-    for i, plan in enumerate(plans):
-        try:
-            batches[i] = _check_batch(next(plan))
-        except StopIteration as stop:
-            out[i] = stop.value
+    out, batches = _first_batches(plans)
     while batches:
         order = list(batches)
         flat = [t for i in order for t in batches[i]]

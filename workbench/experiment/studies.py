@@ -43,15 +43,15 @@ import optuna
 from optuna.exceptions import ExperimentalWarning, UpdateFinishedTrialError
 from optuna.trial import FrozenTrial, TrialState
 
+from ..parallel import one_thread_env
 from .lifecycle import every
 
 log = logging.getLogger("workbench")
 
 __all__ = ["StorageError", "open_storage", "redact", "run_studies", "run_study"]
 
-THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 #: User attributes that belong to one attempt at a trial, not to its configuration.
-_ATTEMPT_ATTRS = ("worker", "heartbeat", "finished_by", "error", "surplus")
+_ATTEMPT_ATTRS = ("worker", "heartbeat", "finished_by", "error", "surplus", "stale")
 #: Exit codes of a process ended by SIGINT / SIGTERM (128 + the signal number).
 EXIT_SIGINT, EXIT_SIGTERM = 130, 143
 
@@ -228,15 +228,19 @@ def _counted(t: FrozenTrial) -> bool:
     attrs = t.user_attrs
     if attrs.get("surplus"):
         return False
-    if t.state == TrialState.FAIL:
-        return "finished_by" in attrs  # failed in the objective, not marked stale by others
+    if t.state == TrialState.FAIL:  # failed in the objective, not failed as stale by others
+        return "finished_by" in attrs and not attrs.get("stale")
     return True
 
 
 def _fail_and_retry(study: optuna.Study, number: int) -> None:
     """Fail a running trial that no process works on, then queue it once more (only the
-    process whose FAIL lands first queues it: the storage refuses the others')."""
+    process whose FAIL lands first queues it: the storage refuses the others'). The trial is
+    marked ``stale`` first, so it is not counted even when its process died after setting
+    ``finished_by`` and before its own ``tell``."""
     try:
+        trial = study.get_trials(deepcopy=False)[number]
+        study._storage.set_trial_user_attr(trial._trial_id, "stale", True)
         study.tell(number, state=TrialState.FAIL)
     except (RuntimeError, ValueError, UpdateFinishedTrialError):  # finished meanwhile
         return
@@ -430,16 +434,15 @@ def _search_in_workers(search: Callable, cfg, storage_url: str, workers: int,
     for name in names:
         optuna.create_study(study_name=name, storage=storage, direction="minimize",
                             load_if_exists=True)
-    saved = {k: os.environ.get(k) for k in THREAD_ENV}
-    os.environ.update({k: "1" for k in THREAD_ENV})  # one BLAS/OpenMP thread per worker
     procs = []
     try:
         ctx = worker_context()
         procs = [ctx.Process(target=_worker, args=(search, cfg, storage_url, i, bool(progress),
                                                    os.getpid(), on_trial))
                  for i in range(workers)]
-        for p in procs:
-            p.start()
+        with one_thread_env():  # one BLAS/OpenMP thread per worker
+            for p in procs:
+                p.start()
         for p in procs:
             p.join()
     except BaseException:
@@ -451,12 +454,6 @@ def _search_in_workers(search: Callable, cfg, storage_url: str, workers: int,
             if p.is_alive():
                 p.kill()
         raise
-    finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
     failed = [p.exitcode for p in procs if p.exitcode != 0]
     if failed:
         raise RuntimeError(f"{len(failed)} of {workers} sweep workers exited with codes {failed}")
