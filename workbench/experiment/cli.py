@@ -151,8 +151,8 @@ def _cmd_sweep(args) -> int:
     from .evaluate import format_table
     from .search import run_sweep  # imports Optuna only for sweeps
 
-    cfg = load_config(args.config).with_study(trials=args.trials, workers=args.workers,
-                                              storage=args.storage)
+    cfg = _without_intervals(load_config(args.config).with_study(
+        trials=args.trials, workers=args.workers, storage=args.storage), args)
     _check_outputs(args)
     tracker = _check_before_work(cfg, args)
     from ..parallel import worker_pool
@@ -191,7 +191,7 @@ def _cmd_evaluate(args) -> int:
     from .config import load_config
     from .evaluate import evaluate, format_table
 
-    cfg = load_config(args.config)
+    cfg = _without_intervals(load_config(args.config), args)
     if args.jobs is not None:
         cfg = dataclasses.replace(cfg, n_jobs=args.jobs)
     from .evaluate import has_outputs, outputs
@@ -285,6 +285,22 @@ def _cmd_simulate(args) -> int:
     return 0
 
 
+def _without_intervals(cfg, args):
+    """``cfg`` with ``[intervals]`` switched off when ``--no-intervals`` was given."""
+    if not args.no_intervals:
+        return cfg
+    return dataclasses.replace(cfg, intervals=cfg.intervals.model_copy(
+        update={"enabled": False}))
+
+
+def _model_args(parser: argparse.ArgumentParser) -> None:
+    """Options of the commands that fit a config's model (evaluate, sweep)."""
+    parser.add_argument("--no-intervals", action="store_true",
+                        help="no prediction intervals (overrides [intervals] enabled; "
+                        "CV+ refits the model once per fold)")
+    _tracking_args(parser, register=True)
+
+
 def _tracking_args(parser: argparse.ArgumentParser, register: bool = False) -> None:
     parser.add_argument("--tracking-uri", default=None,
                         help="MLflow store (default: $MLFLOW_TRACKING_URI, then the config's "
@@ -311,7 +327,7 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--out", metavar="DIR", default=None,
                     help="write the model family's tables (CSV) and figures (PNG) to DIR "
                     "(family hamiltonian: coefficients, corrected parameters, selection)")
-    _tracking_args(ev, register=True)
+    _model_args(ev)
     ev.set_defaults(func=_cmd_evaluate)
 
     sw = sub.add_parser("sweep", help="nested-CV hyperparameter search (Optuna), then one "
@@ -323,7 +339,7 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--storage", default=None,
                     help="Optuna storage: a journal file path or an RDB URL")
     sw.add_argument("--json", metavar="PATH", help="also write the results as JSON")
-    _tracking_args(sw, register=True)
+    _model_args(sw)
     sw.set_defaults(func=_cmd_sweep)
 
     pr = sub.add_parser("predict", help="predict the rows of a CSV with a logged or "
