@@ -197,6 +197,17 @@ def test_jobs_override_gives_same_numbers(tmp_path, google_5q_dir, capsys):
     assert _numbers(serial) == _numbers(parallel)
 
 
+def test_no_intervals_gives_the_same_point_numbers(tmp_path, google_5q_dir, capsys):
+    """``--no-intervals`` switches ``[intervals]`` off: no interval keys, the same fit."""
+    cfg = write_config(tmp_path, google_5q_dir)
+    with_iv = _run_json(tmp_path, cfg, "with")
+    without = _run_json(tmp_path, cfg, "without", "--no-intervals")
+    assert with_iv["intervals"]["method"] == "cv_plus" and not without.get("intervals")
+    assert "test_coverage" in with_iv["model"] and "test_coverage" not in without["model"]
+    for key in ("test_mae", "cv_mae_boosted", "selected"):
+        assert without["model"][key] == with_iv["model"][key]
+
+
 def test_data_dir_from_environment(tmp_path, google_5q_dir, monkeypatch, capsys):
     monkeypatch.setenv(g5.ENV_VAR, str(google_5q_dir))
     cfg = write_config(tmp_path, None)
