@@ -324,7 +324,7 @@ def run_study(study: optuna.Study, objective: Callable, n_trials: int, *,
         queued = any(t.state == TrialState.WAITING for t in counted)
         if len(counted) >= n_trials and not queued:
             if wait and any(t.state == TrialState.RUNNING for t in counted):
-                time.sleep(0.5)  # another worker's last trials: leave the study complete
+                time.sleep(0.1)  # another worker's last trials: leave the study complete
                 continue
             return
         trial = _start_trial(study, worker)
