@@ -17,7 +17,9 @@ default mismatches, 30 % test rows; the data are simulated before the clock star
   ``selection = "none"``, no stage on top), against rows at 5 sites and against sites
   (5 ... 50) at 300 rows.
 
-Each point reports the wall time of ``evaluate`` (fit, CV, scoring; not the imports), the
+Prediction intervals are off (``[intervals] enabled = false``): their CV+ refits the model
+once per fold (5 more fits), the same growth times six. Each point reports the wall time of
+``evaluate`` (fit, CV, scoring; not the imports), the
 time per 1,000 rows, and the peak resident memory of the process and of its worker processes
 (``ru_maxrss``). Every command uses both cores (``n_jobs`` unset). Also prints ``uptime``.
 """
@@ -61,6 +63,8 @@ coupler_features = {c}
 sign = -1
 [selection]
 cv = 5
+[intervals]
+enabled = false
 """
     model = {
         "ridge": '[model]\nbasis = "ridge"\nbasis_params = { alpha = 1.0 }\n',
