@@ -54,7 +54,7 @@ def _sweep_until_a_trial(cmd, cwd, err):
 
 
 def _kill_with_trials_claimed(proc, journal, tmp_path) -> None:
-    """SIGKILL ``proc`` at a moment when every running trial carries its ``worker`` (a trial
+    """SIGKILL ``proc`` at a moment when trials run and each carries its ``worker`` (a trial
     killed between Optuna's ``ask`` and that attribute has no owner to probe: it waits for
     ``stale_after_s``, as on another host). The process is stopped while the test looks."""
     deadline = time.monotonic() + 60
@@ -64,7 +64,7 @@ def _kill_with_trials_claimed(proc, journal, tmp_path) -> None:
         running = [t for name in _sweep_studies(storage)
                    for t in optuna.load_study(study_name=name, storage=storage).get_trials(
                        deepcopy=False, states=(TrialState.RUNNING,))]
-        if all("worker" in t.user_attrs for t in running):
+        if running and all("worker" in t.user_attrs for t in running):
             proc.send_signal(signal.SIGKILL)
             return
         proc.send_signal(signal.SIGCONT)
@@ -78,7 +78,9 @@ def test_runs_never_left_running(tiny, tmp_path):
     143; every interrupted trial is failed and queued again."""
     uri = f"sqlite:///{tmp_path / 'mlflow.db'}"
     journal = tmp_path / "s.journal"
-    cmd = workbench_cmd("sweep", tiny, "--storage", journal, "--tracking-uri", uri)
+    # 30 trials a study: the search lasts seconds, so the kill lands while trials run
+    cmd = workbench_cmd("sweep", tiny, "--storage", journal, "--tracking-uri", uri,
+                        "--trials", "30")
 
     def status(proc):
         return {r.data.tags.get("workbench.pid"): r.info.status for r in _runs(uri)}[
