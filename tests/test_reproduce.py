@@ -114,3 +114,16 @@ def _without_wall(obj):
     if isinstance(obj, list):
         return [_without_wall(v) for v in obj]
     return obj
+
+
+def test_quick_studies_are_not_the_full_runs(quick_run):
+    """--quick searches other folds with another budget: its studies have names of their
+    own, so a later full run (same seed, same storage) does not resume them."""
+    out, _ = quick_run
+    import optuna
+
+    from workbench.experiment.studies import open_storage
+
+    root = out.parent
+    names = optuna.get_all_study_names(open_storage("mlruns/optuna.journal", root))
+    assert names and all("-seed0-quick" in n for n in names if not n.endswith("streams"))

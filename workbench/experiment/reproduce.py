@@ -135,8 +135,9 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
     cv = {"seed": seed, **({"outer_folds": 2, "inner_folds": 3} if quick else {})}
     search_cfg = _no_intervals(replace(search_cfg, random_state=seed,
                                        cv=search_cfg.cv.model_copy(update=cv)))
-    # another seed must not resume these studies
-    search_cfg = search_cfg.with_study(study_name=f"{search_cfg.name}-seed{seed}",
+    # another seed, or --quick (other folds and budgets), must not resume these studies
+    search_cfg = search_cfg.with_study(study_name=f"{search_cfg.name}-seed{seed}"
+                                                  f"{'-quick' if quick else ''}",
                                        trials=2 if quick else None, storage=storage)
     settings["search"] = run_sweep(search_cfg, progress=False).result
     hamiltonian_model = _hamiltonian(settings, seed, quick)
