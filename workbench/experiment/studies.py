@@ -239,8 +239,9 @@ def _fail_and_retry(study: optuna.Study, number: int) -> None:
     marked ``stale`` first, so it is not counted even when its process died after setting
     ``finished_by`` and before its own ``tell``."""
     try:
-        trial = study.get_trials(deepcopy=False)[number]
-        study._storage.set_trial_user_attr(trial._trial_id, "stale", True)
+        storage = study._storage
+        trial_id = storage.get_trial_id_from_study_id_trial_number(study._study_id, number)
+        storage.set_trial_user_attr(trial_id, "stale", True)
         study.tell(number, state=TrialState.FAIL)
     except (RuntimeError, ValueError, UpdateFinishedTrialError):  # finished meanwhile
         return
