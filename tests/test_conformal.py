@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 import pytest
-from sklearn.base import clone
+from sklearn.base import BaseEstimator, RegressorMixin, clone
 from sklearn.linear_model import LinearRegression, Ridge
 from sklearn.model_selection import KFold, ShuffleSplit
 from sklearn.utils.estimator_checks import parametrize_with_checks
@@ -188,3 +188,43 @@ def test_conformal_rank_is_exact_at_integer_levels():
     assert conformal_rank(19, 0.1) == 18  # (0.9 * 20 = 18.000000000000004 in floating point)
     assert conformal_rank(95, 0.1) == 87
     assert conformal_rank(8, 0.1) == 9  # > 8: too few rows
+
+
+class _Opaque(RegressorMixin, BaseEstimator):
+    """``estimator`` behind a plain ``fit``: no ``_fit_plan`` to run as tasks."""
+
+    def __init__(self, estimator=None):
+        self.estimator = estimator
+
+    def fit(self, X, Y):
+        self.model_ = clone(self.estimator).fit(X, Y)
+        return self
+
+    def predict(self, X):
+        return self.model_.predict(X)
+
+
+def test_fold_models_as_plans_give_the_sequential_numbers():
+    """With an estimator that splits its fit into tasks (MultiTargetBaseBoost of
+    BaseBoostCV), the fold models and the model on all rows run as plans on shared worker
+    processes: the same intervals and point predictions as fitting them one by one, for
+    any n_jobs."""
+    from workbench import BaseBoostCV, BaseBoostRegressor, MultiTargetBaseBoost
+
+    X, Y = _data(3, 80)
+    X = np.column_stack([X, X @ np.array([[1.0, 0.5], [2.0, 1.0], [3.0, 0.0]]) * 0.9])
+    booster = BaseBoostCV(BaseBoostRegressor(basis=Ridge(alpha=1.0), n_stages=1), cv=3)
+    multi = MultiTargetBaseBoost(booster, priors=[3, 4], random_state=0)
+
+    opaque = _Opaque(multi)  # the same model without its plan: fitted one by one
+    assert not hasattr(opaque, "_fit_plan")
+    ref = ConformalRegressor(opaque, random_state=1).fit(X, Y)
+    for n_jobs in (1, 2):
+        got = ConformalRegressor(multi, random_state=1, n_jobs=n_jobs).fit(X, Y)
+        np.testing.assert_array_equal(got.predict_interval(X[:10]),
+                                      ref.predict_interval(X[:10]))
+        np.testing.assert_array_equal(got.residuals_, ref.residuals_)
+        np.testing.assert_array_equal(np.asarray(got.predict(X[:10])),
+                                      np.asarray(ref.predict(X[:10])))
+        assert ([m.selected_ for m in got.estimators_]
+                == [m.model_.selected_ for m in ref.estimators_])

@@ -56,6 +56,8 @@ from sklearn.model_selection import KFold, check_cv, train_test_split
 from sklearn.utils import _safe_indexing, get_tags
 from sklearn.utils.validation import check_is_fitted
 
+from .parallel import run_plans
+
 __all__ = ["ConformalRegressor", "conformal_rank", "interval_coverage", "interval_width"]
 
 #: ``method`` values.
@@ -134,6 +136,14 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         The share of the rows held out for calibration (``method="split"``).
     random_state : int, RandomState or None
         The folds' shuffle (an int ``cv``) and the split.
+    n_jobs : int, default=None
+        Processes (``-1``: every core) for the fold models and the model on all rows when
+        the estimator splits its fit into tasks (a ``_fit_plan``, as
+        :class:`~workbench.MultiTargetBaseBoost` and :class:`~workbench.BaseBoostCV`): all
+        of their tasks share the processes (:mod:`workbench.parallel`). Otherwise the
+        models are fitted one after another, each with its own ``n_jobs``. ``None``: the
+        estimator's own ``n_jobs`` parameter, if it has one. The result does not depend on
+        it.
 
     Attributes
     ----------
@@ -149,13 +159,14 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
     """
 
     def __init__(self, estimator=None, *, method="cv_plus", alpha=0.1, cv=5,
-                 calibration_fraction=0.25, random_state=None):
+                 calibration_fraction=0.25, random_state=None, n_jobs=None):
         self.estimator = estimator
         self.method = method
         self.alpha = alpha
         self.cv = cv
         self.calibration_fraction = calibration_fraction
         self.random_state = random_state
+        self.n_jobs = n_jobs
 
     # ------------------------------------------------------------------ checks
     def _check_params(self, n_rows: int) -> None:
@@ -222,17 +233,11 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
                                           random_state=self.random_state)
             splits = [(np.sort(train), np.sort(cal))]
         fold_of_row = np.full(n, -1, dtype=int)
-        residuals = np.full(Y.shape, np.nan)
-        estimators = []
-        for k, (train, held) in enumerate(splits):
+        for k, (_, held) in enumerate(splits):
             if np.any(fold_of_row[held] >= 0):
                 raise ValueError("cv must put every row in at most one validation fold "
                                  "(e.g. KFold, not ShuffleSplit or RepeatedKFold)")
-            model = clone(self.estimator).fit(_rows(X, train), _rows(y, train))
-            pred = self._predict_2d(model, _rows(X, held))
-            residuals[held] = np.abs(Y[held] - pred)
             fold_of_row[held] = k
-            estimators.append(model)
         calibrated = fold_of_row >= 0
         if self.method == "cv_plus" and not calibrated.all():
             raise ValueError(f"cv left {int((~calibrated).sum())} row(s) out of every "
@@ -242,10 +247,23 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
             raise ValueError(f"alpha={self.alpha}: {m} calibration rows are too few for "
                              f"{1 - self.alpha:.0%} intervals (at least "
                              f"{min_calibration_rows(self.alpha)} needed)")
-        self.estimators_ = estimators
+        # the fold models, then the model on all rows
+        data = [(_rows(X, train), _rows(y, train)) for train, _ in splits] + [(X, y)]
+        models = [clone(self.estimator) for _ in data]
+        if all(hasattr(m, "_fit_plan") for m in models):
+            jobs = self.n_jobs if self.n_jobs is not None else getattr(self.estimator,
+                                                                       "n_jobs", None)
+            fitted = run_plans([m._fit_plan(Xp, yp) for m, (Xp, yp) in zip(models, data)],
+                               jobs)
+        else:
+            fitted = [m.fit(Xp, yp) for m, (Xp, yp) in zip(models, data)]
+        residuals = np.full(Y.shape, np.nan)
+        for model, (_, held) in zip(fitted, splits):
+            residuals[held] = np.abs(Y[held] - self._predict_2d(model, _rows(X, held)))
+        self.estimators_ = fitted[:-1]
         self.fold_of_row_ = fold_of_row
         self.residuals_ = residuals
-        self.estimator_ = clone(self.estimator).fit(X, y)
+        self.estimator_ = fitted[-1]
         for attr in ("n_features_in_", "feature_names_in_"):
             if hasattr(self.estimator_, attr):
                 setattr(self, attr, getattr(self.estimator_, attr))

@@ -9,7 +9,7 @@ from sklearn.utils import check_random_state
 from sklearn.utils.validation import check_is_fitted
 
 from .boosting import seed_estimator
-from .parallel import Task, run_plans
+from .parallel import Task, gather, run_plans
 from .selection import BaseBoostCV
 
 __all__ = ["MultiTargetBaseBoost", "check_targets"]
@@ -111,10 +111,16 @@ class MultiTargetBaseBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
 
     def fit(self, X, Y):
         """Fit each target's estimator on ``(X, Y[:, j])``; returns ``self``."""
+        return run_plans([self._fit_plan(X, Y)], self.n_jobs)[0]
+
+    def _fit_plan(self, X, Y):
+        """:meth:`fit` as a plan (:mod:`workbench.parallel`): every target's folds and refit
+        side by side (so several such fits, e.g. conformal fold models, can share the
+        worker processes)."""
         Y, names = check_targets(X, Y)
         ests = self._estimators_for(names)
-        self.estimators_ = run_plans([_fit_plan(est, X, Y[:, j]) for j, est in enumerate(ests)],
-                                     self.n_jobs)
+        self.estimators_ = yield from gather([_fit_plan(est, X, Y[:, j])
+                                              for j, est in enumerate(ests)])
         self.target_names_ = names
         self.n_features_in_ = X.shape[1]
         if hasattr(X, "columns"):

@@ -43,7 +43,7 @@ def with_intervals(cfg: ExperimentConfig, model):
         return model
     return ConformalRegressor(model, method=iv.method, alpha=iv.alpha, cv=iv.cv,
                               calibration_fraction=iv.calibration_fraction,
-                              random_state=cfg.random_state or 0)
+                              random_state=cfg.random_state or 0, n_jobs=cfg.jobs)
 
 
 def family_model(model):
