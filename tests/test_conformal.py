@@ -30,7 +30,7 @@ def test_sklearn_compatible(estimator, check):
     check(estimator)
 
 
-@pytest.mark.parametrize("method", ["cv_plus", "split"])
+@pytest.mark.parametrize("method", ["cv_plus", "cv", "split"])
 def test_coverage_near_nominal_over_seeds(method):
     """90% intervals: over 20 seeds (100 training rows, 1000 new rows each) the average
     coverage of each target is within 0.87-0.95 (the split's exact expected coverage with
@@ -86,6 +86,26 @@ def test_split_cv_coverage_is_leave_one_out_over_the_calibration_rows():
     cover, width = model.cv_coverage()
     assert cover == pytest.approx([np.mean(covered)])
     assert width == pytest.approx([np.mean(widths)])
+
+
+def test_cv_is_the_full_model_plus_minus_the_residual_quantile():
+    """method="cv": the model on all rows +- the ceil((1-alpha)(n+1))-th smallest out-of-fold
+    residual per target (the same folds and residuals as CV+); the CV estimate is CV+'s."""
+    X, Y = _data(4, 70)
+    cv = KFold(5, shuffle=True, random_state=2)
+    model = ConformalRegressor(Ridge(), method="cv", cv=cv, alpha=0.2).fit(X[:50], Y[:50])
+    plus = ConformalRegressor(Ridge(), cv=cv, alpha=0.2).fit(X[:50], Y[:50])
+    np.testing.assert_array_equal(model.residuals_, plus.residuals_)
+    assert model.cv_coverage() == plus.cv_coverage()
+    r = np.zeros((50, 2))
+    for train, val in cv.split(X[:50]):
+        r[val] = np.abs(Y[:50][val] - Ridge().fit(X[:50][train], Y[:50][train]).predict(
+            X[:50][val]))
+    q = np.sort(r, axis=0)[int(np.ceil(0.8 * 51)) - 1]
+    mu = Ridge().fit(X[:50], Y[:50]).predict(X[50:])
+    iv = model.predict_interval(X[50:])
+    np.testing.assert_allclose(iv[..., 0], mu - q, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(iv[..., 1], mu + q, rtol=1e-12, atol=1e-12)
 
 
 def test_cv_plus_matches_the_formula_by_hand():
@@ -170,7 +190,7 @@ def test_clone_and_get_params():
     ({"alpha": -0.1}, "alpha=-0.1"),
     ({"alpha": "0.1"}, "alpha='0.1'"),
     ({"alpha": True}, "alpha=True"),
-    ({"method": "jackknife"}, r"method='jackknife': valid methods are \['cv_plus', 'split'\]"),
+    ({"method": "jackknife"}, r"method='jackknife': valid methods are \['cv_plus', 'cv', 'split'\]"),
     ({"method": "split", "calibration_fraction": 1.5}, "calibration_fraction=1.5"),
     ({"cv": 1}, "cv=1: give at least 2 folds"),
     ({"estimator": None}, "estimator must be a regressor"),

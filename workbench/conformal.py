@@ -6,7 +6,7 @@ predict_interval`, intervals that cover a new row's target with probability abou
 ``1 - alpha`` per target (marginally over rows, not jointly over targets), under the one
 assumption that training and new rows are exchangeable.
 
-Two methods:
+Three methods:
 
 * ``"cv_plus"`` -- CV+ (Barber, Candes, Ramdas and Tibshirani, "Predictive inference with the
   jackknife+", Ann. Statist. 49(1), 2021; with ``cv`` = leave-one-out it is the jackknife+).
@@ -22,6 +22,15 @@ Two methods:
   ``x`` (e.g. a per-fold choice of basis or covariates): their spread widens the interval
   beyond ``+- q``. These are the intervals of MAPIE 1.x's
   ``CrossConformalRegressor(method="plus")`` (tests/test_conformal.py checks equality).
+* ``"cv"`` -- cross-conformal with the model on all rows (Vovk's cross-conformal
+  predictor; MAPIE's ``method="base"``, its "CV" in Barber et al.): the same fold models
+  and out-of-fold residuals as CV+, and the interval ``mu(x) +- q`` per target around the
+  point prediction of ``estimator_``, ``q`` the ``ceil((1 - alpha)(n + 1))``-th smallest
+  ``R_i``. No finite-sample guarantee (the model on all rows is not the one the residuals
+  were measured on: it saw more rows, so ``q`` tends to be pessimistic), but the fold
+  models' disagreement at ``x`` does not widen it: for models whose folds make their own
+  choices (a covariate selection, a basis chosen by CV), CV+ is conservative and this is
+  close to nominal. Centred on the point prediction.
 * ``"split"`` -- split conformal: the model is fitted on a ``1 - calibration_fraction`` part
   of the rows, the absolute residuals on the rest give per target ``q`` = the
   ``ceil((1 - alpha)(m + 1))``-th smallest of the ``m`` calibration residuals, and the
@@ -61,7 +70,7 @@ from .parallel import run_plans
 __all__ = ["ConformalRegressor", "conformal_rank", "interval_coverage", "interval_width"]
 
 #: ``method`` values.
-METHODS = ("cv_plus", "split")
+METHODS = ("cv_plus", "cv", "split")
 #: Test rows per block when CV+ bounds are computed (bounds the memory to about
 #: ``n_train * block * n_targets`` floats).
 _BLOCK = 256
@@ -127,11 +136,12 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         Cloned and fitted on all rows (``estimator_``, the point predictions) and on each
         fold's (or the split's) training rows (the intervals). ``predict`` may return a 1-D
         array (one target), a 2-D array or a DataFrame with one column per target.
-    method : {"cv_plus", "split"}, default="cv_plus"
+    method : {"cv_plus", "cv", "split"}, default="cv_plus"
     alpha : float in (0, 1), default=0.1
         Miscoverage: ``1 - alpha`` intervals (0.1: 90%).
     cv : int or CV splitter, default=5
-        CV+ folds; an int means ``KFold(cv, shuffle=True, random_state=random_state)``.
+        CV+ (and ``"cv"``) folds; an int means ``KFold(cv, shuffle=True,
+        random_state=random_state)``.
     calibration_fraction : float in (0, 1), default=0.25
         The share of the rows held out for calibration (``method="split"``).
     random_state : int, RandomState or None
@@ -226,7 +236,7 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         self.target_names_ = names
         self.n_targets_ = Y.shape[1]
 
-        if self.method == "cv_plus":
+        if self.method != "split":
             splits = list(self._splitter().split(X, Y))
         else:
             train, cal = train_test_split(np.arange(n), test_size=self.calibration_fraction,
@@ -239,9 +249,9 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
                                  "(e.g. KFold, not ShuffleSplit or RepeatedKFold)")
             fold_of_row[held] = k
         calibrated = fold_of_row >= 0
-        if self.method == "cv_plus" and not calibrated.all():
+        if self.method != "split" and not calibrated.all():
             raise ValueError(f"cv left {int((~calibrated).sum())} row(s) out of every "
-                             "validation fold; CV+ needs each row in exactly one")
+                             "validation fold; CV+ and cv need each row in exactly one")
         m = int(calibrated.sum())
         if conformal_rank(m, self.alpha) > m:
             raise ValueError(f"alpha={self.alpha}: {m} calibration rows are too few for "
@@ -293,9 +303,10 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         ok = self.fold_of_row_ >= 0
         R = self.residuals_[ok]
         k = conformal_rank(len(R), self.alpha)
-        if self.method == "split":
+        if self.method in ("split", "cv"):
             q = _kth_smallest(R, k)
-            mu = self._predict_2d(self.estimators_[0], X)
+            model = self.estimators_[0] if self.method == "split" else self.estimator_
+            mu = self._predict_2d(model, X)
             out[..., 0], out[..., 1] = mu - q, mu + q
             return out
         preds = np.stack([self._predict_2d(m, X) for m in self.estimators_])  # (K, n, T)
@@ -327,13 +338,14 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         """A cross-validated estimate of coverage and mean width per target, from the fit's
         own out-of-fold residuals (no refit).
 
-        ``"cv_plus"``: each training row is held out with its fold; its interval is its
+        ``"cv_plus"`` and ``"cv"``: each training row is held out with its fold; its interval is its
         out-of-fold prediction (from the model that did not see it) +- the conformal quantile
         of the *other* folds' out-of-fold residuals. ``"split"``: leave-one-out over the
         calibration rows (each row against the conformal quantile of the others). Returns
         ``(coverage, width)``, lists over targets.
 
-        For CV+ this describes intervals ``+- q`` around an out-of-fold prediction; CV+'s own
+        This describes ``"cv"``'s intervals ``+- q`` (around an out-of-fold prediction, not
+        the model on all rows); CV+'s own
         intervals on new rows are wider by the fold models' disagreement, so where that is
         large (unstable inner choices) the estimate is below the coverage on new rows."""
         check_is_fitted(self)

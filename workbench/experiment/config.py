@@ -321,12 +321,14 @@ class EvaluationConfig(Section):
 class IntervalsConfig(Section):
     """``[intervals]``: conformal prediction intervals around the fitted model
     (:class:`~workbench.conformal.ConformalRegressor`), ``1 - alpha`` per target. ``method``
-    "cv_plus" refits the whole model (every choice remade) once per ``cv`` fold; "split"
-    holds out ``calibration_fraction`` of the training rows. On unless ``enabled = false``."""
+    "cv_plus" refits the whole model (every choice remade) once per ``cv`` fold; "cv" uses the
+    same refits but centres ``+- q`` on the model fitted on all rows (not widened by the fold
+    models' disagreement); "split" holds out ``calibration_fraction`` of the training rows.
+    On unless ``enabled = false``."""
 
     enabled: bool = True
     alpha: float = Field(default=0.1, gt=0, lt=1)
-    method: Literal["cv_plus", "split"] = "cv_plus"
+    method: Literal["cv_plus", "cv", "split"] = "cv_plus"
     cv: int = Field(default=5, ge=2, le=10_000)
     calibration_fraction: float = Field(default=0.25, gt=0, lt=1)
 
@@ -588,7 +590,7 @@ def load_dataset(cfg: ExperimentConfig):
         # CV+ calibrates on every training row (each fold needs 2); split on its held-out
         # share (rounded up, as train_test_split does)
         need = min_calibration_rows(iv.alpha)
-        if iv.method == "cv_plus":
+        if iv.method != "split":
             least, how = max(2 * iv.cv, need), f"cv = {iv.cv}"
         else:
             least = int((need - 1) / iv.calibration_fraction) + 1  # ceil(frac n) >= need

@@ -57,7 +57,7 @@ def interval_settings(cfg: ExperimentConfig) -> dict[str, Any]:
     if not iv.enabled:
         return {}
     out: dict[str, Any] = {"method": iv.method, "alpha": iv.alpha, "level": 1 - iv.alpha}
-    if iv.method == "cv_plus":
+    if iv.method != "split":
         out["cv"] = iv.cv
     else:
         out["calibration_fraction"] = iv.calibration_fraction
