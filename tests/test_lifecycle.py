@@ -158,6 +158,23 @@ def test_redact_hides_passwords():
     assert redact("mlruns/optuna.journal") == "mlruns/optuna.journal"
 
 
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_an_interrupt_inside_bookkeeping_is_raised_after_it(signum):
+    """A signal inside ``interrupts_deferred`` (a trial being asked or told) is raised only
+    once the block is left: no trial is left RUNNING by an interrupt between ``ask`` and its
+    objective (seen on a fresh clone: a SIGINT right after a trial line)."""
+    done = []
+    with pytest.raises(lifecycle.Interrupted):
+        with lifecycle.handle_signals():
+            with lifecycle.interrupts_deferred():
+                os.kill(os.getpid(), signum)
+                time.sleep(0.2)  # the handler ran (and re-checked) meanwhile
+                done.append("block finished")
+            time.sleep(1)  # raised here, within about 50 ms
+            done.append("not reached")
+    assert done == ["block finished"]
+
+
 @pytest.mark.parametrize("kind", ["journal", "sqlite"])
 def test_heartbeat_beats_while_a_long_trial_runs(tmp_path, kind):
     """A trial longer than the grace period is not failed by another worker's check: its

@@ -31,6 +31,7 @@ if TYPE_CHECKING:  # mlflow is imported only where a run is touched
     from .tracking import Tracker
 
 __all__ = ["Interrupted", "MESSAGE", "TrialRecorder", "command_run", "handle_signals",
+           "interrupts_deferred",
            "prepare_store", "reap_stale_runs"]
 
 MESSAGE = "interrupted; run the same command to resume"
@@ -55,6 +56,21 @@ _STORAGE_CODE = tuple(os.sep + p + os.sep for p in (
     "alembic", "sqlite3", "psycopg2", "urllib3", "fasteners"))
 
 
+_DEFERRING = [0]  # depth of the enclosing ``interrupts_deferred`` blocks
+
+
+@contextlib.contextmanager
+def interrupts_deferred() -> Iterator[None]:
+    """Under :func:`handle_signals`, a SIGINT or SIGTERM that arrives inside the block is
+    raised once the block is left (bookkeeping that must not stop half-way, e.g. a trial
+    asked from the storage but not yet running, or run but not yet told)."""
+    _DEFERRING[0] += 1
+    try:
+        yield
+    finally:
+        _DEFERRING[0] -= 1
+
+
 def _in_storage_code(frame) -> bool:
     while frame is not None:
         name = frame.f_code.co_filename
@@ -69,15 +85,15 @@ def handle_signals() -> Iterator[None]:
     """SIGINT and SIGTERM raise :class:`Interrupted` in the main thread (once: further
     signals are ignored while the command cleans up). A signal that arrives inside storage
     code (e.g. Optuna's journal-file lock, which would turn the interrupt into a
-    ``FileNotFoundError`` and leave its lock behind) is raised 50 ms later, once that code is
-    left."""
+    ``FileNotFoundError`` and leave its lock behind) or inside :func:`interrupts_deferred` is
+    raised once that code is left (checked every 50 ms)."""
     fired: list[int] = []
     pending: list[int] = []
 
     def handler(signum, frame):
         if fired:
             return
-        if _in_storage_code(frame):
+        if _DEFERRING[0] or _in_storage_code(frame):
             pending[:] = [signum]
             signal.setitimer(signal.ITIMER_REAL, 0.05)
             return

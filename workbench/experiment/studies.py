@@ -44,7 +44,7 @@ from optuna.exceptions import ExperimentalWarning, UpdateFinishedTrialError
 from optuna.trial import FrozenTrial, TrialState
 
 from ..parallel import one_thread_env
-from .lifecycle import every
+from .lifecycle import every, interrupts_deferred
 
 log = logging.getLogger("workbench")
 
@@ -328,12 +328,13 @@ def run_study(study: optuna.Study, objective: Callable, n_trials: int, *,
                 time.sleep(0.1)  # another worker's last trials: leave the study complete
                 continue
             return
-        trial = _start_trial(study, worker)
-        earlier = [t for t in study.get_trials(deepcopy=False) if t.number < trial.number]
-        if sum(_counted(t) for t in earlier) >= n_trials:  # another worker filled the budget
-            trial.set_user_attr("surplus", True)
-            study.tell(trial, state=TrialState.FAIL)
-            continue
+        with interrupts_deferred():  # an asked trial is running or told, never left behind
+            trial = _start_trial(study, worker)
+            earlier = [t for t in study.get_trials(deepcopy=False) if t.number < trial.number]
+            if sum(_counted(t) for t in earlier) >= n_trials:  # another worker took the budget
+                trial.set_user_attr("surplus", True)
+                study.tell(trial, state=TrialState.FAIL)
+                continue
         state, value, note = TrialState.COMPLETE, None, ""
         try:
             # beats while the folds run, so a long fold is not taken for dead
@@ -347,13 +348,14 @@ def run_study(study: optuna.Study, objective: Callable, n_trials: int, *,
         except BaseException:  # interrupted: not the configuration's fault, run it again
             _fail_and_retry(study, trial.number)
             raise
-        trial.set_user_attr("finished_by", worker)
-        try:
-            study.tell(trial, value if state == TrialState.COMPLETE else None, state=state)
-        except (RuntimeError, ValueError, UpdateFinishedTrialError):
-            continue  # taken for dead meanwhile (and queued again): the retry counts instead
-        if on_trial is not None:
-            on_trial(study, study.get_trials(deepcopy=False)[trial.number])
+        with interrupts_deferred():  # a finished trial is told (and logged) whole
+            trial.set_user_attr("finished_by", worker)
+            try:
+                study.tell(trial, value if state == TrialState.COMPLETE else None, state=state)
+            except (RuntimeError, ValueError, UpdateFinishedTrialError):
+                continue  # taken for dead meanwhile (and queued again): the retry counts
+            if on_trial is not None:
+                on_trial(study, study.get_trials(deepcopy=False)[trial.number])
         if progress:
             best = _best_value(study)
             shown = f"MAE {value:.4f}" if value is not None else note[:60]
@@ -371,6 +373,7 @@ def run_studies(cfg, studies: list[tuple[optuna.Study, Callable]], *,
     stream = claim_stream(studies[0][0])
     for study, _ in studies:
         study.sampler = _sampler(cfg, study.study_name, stream)
+        _fail_stale(study, cfg.study.stale_after_s)  # every dead trial at once, not per study
     # First pass: take trials wherever budget is left, never idling while another worker
     # finishes a study's last trials; second pass: make sure every study is complete.
     for wait in (False, True):
