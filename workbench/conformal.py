@@ -338,16 +338,16 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         """A cross-validated estimate of coverage and mean width per target, from the fit's
         own out-of-fold residuals (no refit).
 
-        ``"cv_plus"`` and ``"cv"``: each training row is held out with its fold; its interval is its
-        out-of-fold prediction (from the model that did not see it) +- the conformal quantile
-        of the *other* folds' out-of-fold residuals. ``"split"``: leave-one-out over the
+        ``"cv_plus"`` and ``"cv"``: each training row is held out with its fold; its interval
+        is its out-of-fold prediction (from the model that did not see it) +- the conformal
+        quantile of the *other* folds' out-of-fold residuals. ``"split"``: leave-one-out over the
         calibration rows (each row against the conformal quantile of the others). Returns
         ``(coverage, width)``, lists over targets.
 
         This describes ``"cv"``'s intervals ``+- q`` (around an out-of-fold prediction, not
-        the model on all rows); CV+'s own
-        intervals on new rows are wider by the fold models' disagreement, so where that is
-        large (unstable inner choices) the estimate is below the coverage on new rows."""
+        the model on all rows); CV+'s own intervals on new rows are wider by the fold models'
+        disagreement, so where that is large (unstable inner choices) the estimate is below
+        the coverage on new rows."""
         check_is_fitted(self)
         ok = self.fold_of_row_ >= 0
         R, folds = self.residuals_[ok], self.fold_of_row_[ok]

@@ -31,8 +31,7 @@ if TYPE_CHECKING:  # mlflow is imported only where a run is touched
     from .tracking import Tracker
 
 __all__ = ["Interrupted", "MESSAGE", "TrialRecorder", "command_run", "handle_signals",
-           "interrupts_deferred",
-           "prepare_store", "reap_stale_runs"]
+           "interrupts_deferred", "prepare_store", "reap_stale_runs"]
 
 MESSAGE = "interrupted; run the same command to resume"
 #: Seconds between a live run's heartbeats, and after which a silent run counts as dead.
