@@ -20,6 +20,24 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
+def wait_until_answering(url: str, proc: subprocess.Popen, log: Path, timeout: float,
+                         poll_s: float = 0.3) -> float:
+    """Poll ``url`` until it answers 200; returns the seconds it took. Raises (with the end
+    of ``log``) if ``proc`` exits first or ``timeout`` seconds pass."""
+    start = time.monotonic()
+    while time.monotonic() - start < timeout:
+        if proc.poll() is not None:
+            raise RuntimeError(f"{proc.args[:4]} exited with {proc.returncode}: "
+                               f"{log.read_text()[-2000:]}")
+        try:
+            with urllib.request.urlopen(url, timeout=2) as r:
+                if r.status == 200:
+                    return time.monotonic() - start
+        except OSError:
+            time.sleep(poll_s)
+    raise RuntimeError(f"{url} did not answer in {timeout} s: {log.read_text()[-2000:]}")
+
+
 class Postgres:
     """A PostgreSQL server in ``root`` (started in about a second); :meth:`database` creates
     a database and returns its SQLAlchemy URL (Unix socket; trust authentication, so any
@@ -57,20 +75,11 @@ class MlflowServer:
              "--artifacts-destination", artifacts.resolve().as_uri(), "--host", "127.0.0.1",
              "--port", str(self.port), "--workers", "1"],
             stdout=self._log, stderr=subprocess.STDOUT, env=env, start_new_session=True)
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            if self.proc.poll() is not None:
-                raise RuntimeError(f"mlflow server exited with {self.proc.returncode}: "
-                                   f"{log.read_text()[-2000:]}")
-            try:
-                with urllib.request.urlopen(f"{self.uri}/health", timeout=2) as r:
-                    if r.status == 200:
-                        return
-            except OSError:
-                time.sleep(0.5)
-        self.stop()
-        raise RuntimeError(f"mlflow server did not answer in {timeout} s: "
-                           f"{log.read_text()[-2000:]}")
+        try:
+            wait_until_answering(f"{self.uri}/health", self.proc, log, timeout, poll_s=0.5)
+        except RuntimeError:
+            self.stop()
+            raise
 
     def stop(self) -> None:
         import signal

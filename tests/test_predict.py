@@ -15,7 +15,6 @@ import shutil
 import signal
 import subprocess
 import sys
-import time
 import urllib.error
 import urllib.request
 from pathlib import Path
@@ -30,7 +29,7 @@ from workbench.experiment.cli import main
 from workbench.experiment.families import Artifacts
 from workbench.experiment.families.eigenvalue import EigenvalueFamily
 
-from services import free_port
+from services import free_port, wait_until_answering
 
 ROOT = Path(__file__).resolve().parents[1]
 TARGETS = [f"eeig{i}" for i in range(1, 6)]
@@ -644,17 +643,8 @@ def test_served_model_gives_the_same_numbers(bench, tmp_path):
                             start_new_session=True)
     base = f"http://127.0.0.1:{port}"
     try:
-        start, deadline = time.monotonic(), time.monotonic() + 180
-        while True:
-            assert proc.poll() is None, (tmp_path / "serve.log").read_text()[-3000:]
-            assert time.monotonic() < deadline, "server did not answer"
-            try:
-                with urllib.request.urlopen(f"{base}/ping", timeout=2) as r:
-                    if r.status == 200:
-                        break
-            except OSError:
-                time.sleep(0.3)
-        print(f"\nmlflow models serve answered after {time.monotonic() - start:.1f} s")
+        took = wait_until_answering(f"{base}/ping", proc, tmp_path / "serve.log", 180)
+        print(f"\nmlflow models serve answered after {took:.1f} s")
         X = bench.table.drop(columns=["id", *TARGETS])
         body = {"dataframe_split": {"columns": list(X.columns), "data": X.to_numpy().tolist()}}
         status, reply = _post(f"{base}/invocations", body)
