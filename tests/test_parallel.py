@@ -2,6 +2,7 @@
 warnings and worker pools behave."""
 
 import os
+import time
 import warnings
 
 import numpy as np
@@ -84,10 +85,15 @@ def test_map_tasks_in_order_in_forked_workers_and_a_kept_pool():
     assert [o[2] for o in out] == [i * i for i in range(6)]
     assert all(o[1] for o in out) and os.getpid() not in {o[0] for o in out}
     assert map_tasks([Task(_pid_and_flag, 3)], n_jobs=1)[0][:2] == (os.getpid(), False)
-    with worker_pool(2):
-        first = {o[0] for o in map_tasks([Task(_pid_and_flag, i) for i in range(4)], 2)}
-        again = {o[0] for o in map_tasks([Task(_pid_and_flag, i) for i in range(4)], 2)}
-    assert first == again  # the same workers served both calls
+    with worker_pool(2):  # tasks of 0.2 s, so both workers take some in each call
+        first = {o[0] for o in map_tasks([Task(_slow_pid, i) for i in range(4)], 2)}
+        again = {o[0] for o in map_tasks([Task(_slow_pid, i) for i in range(4)], 2)}
+    assert len(first) == 2 and first == again  # the same workers served both calls
+
+
+def _slow_pid(i):
+    time.sleep(0.2)
+    return _pid_and_flag(i)
 
 
 def _nested(n):
