@@ -117,11 +117,11 @@ def test_paper_run_json_schema(paper_run):
 
 
 def test_paper_run_reports_prediction_intervals(paper_run):
-    """Family eigenvalue with [intervals] absent: 90% CV+ intervals, coverage and width per
-    target on the test rows and in CV in the JSON and as MLflow metrics; the existing keys
+    """Family eigenvalue with [intervals] absent: 90% intervals from the model's own
+    out-of-fold residuals ("oof"), coverage and width per target on the test rows and in CV in the JSON and as MLflow metrics; the existing keys
     are unchanged (checked above)."""
     r = paper_run["result"]
-    assert r["intervals"] == {"method": "cv_plus", "alpha": 0.1, "level": 0.9, "cv": 5}
+    assert r["intervals"] == {"method": "oof", "alpha": 0.1, "level": 0.9}
     for key in ("test_coverage", "test_width", "cv_coverage", "cv_width"):
         values = r["model"][key]
         assert len(values) == 5 and all(np.isfinite(values)), key
@@ -202,7 +202,7 @@ def test_no_intervals_gives_the_same_point_numbers(tmp_path, google_5q_dir, caps
     cfg = write_config(tmp_path, google_5q_dir)
     with_iv = _run_json(tmp_path, cfg, "with")
     without = _run_json(tmp_path, cfg, "without", "--no-intervals")
-    assert with_iv["intervals"]["method"] == "cv_plus" and not without.get("intervals")
+    assert with_iv["intervals"]["method"] == "oof" and not without.get("intervals")
     assert "test_coverage" in with_iv["model"] and "test_coverage" not in without["model"]
     for key in ("test_mae", "cv_mae_boosted", "selected"):
         assert without["model"][key] == with_iv["model"][key]

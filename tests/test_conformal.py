@@ -190,7 +190,7 @@ def test_clone_and_get_params():
     ({"alpha": -0.1}, "alpha=-0.1"),
     ({"alpha": "0.1"}, "alpha='0.1'"),
     ({"alpha": True}, "alpha=True"),
-    ({"method": "jackknife"}, r"method='jackknife': valid methods are \['cv_plus', 'cv', 'split'\]"),
+    ({"method": "jackknife"}, r"method='jackknife': valid methods are \['cv_plus', 'cv', 'split', 'oof'\]"),
     ({"method": "split", "calibration_fraction": 1.5}, "calibration_fraction=1.5"),
     ({"cv": 1}, "cv=1: give at least 2 folds"),
     ({"estimator": None}, "estimator must be a regressor"),
@@ -248,3 +248,56 @@ def test_fold_models_as_plans_give_the_sequential_numbers():
                                       np.asarray(ref.predict(X[:10])))
         assert ([m.selected_ for m in got.estimators_]
                 == [m.model_.selected_ for m in ref.estimators_])
+
+
+# ---------------------------------------------------------------------- method="oof"
+
+def _boost_cv(cv=5):
+    """A BaseBoostCV from the mean (prior=None) with a ridge basis: it keeps out-of-fold
+    predictions of what it selected."""
+    from workbench import BaseBoostCV, BaseBoostRegressor
+
+    return BaseBoostCV(BaseBoostRegressor(prior=None, basis=Ridge(alpha=1.0), n_stages=1,
+                                          line_search_penalty=0.0), cv=cv)
+
+
+def test_oof_is_the_model_plus_minus_its_own_out_of_fold_residual_quantile():
+    """method="oof": one fit (the model on all rows, whose predictions are unchanged), and
+    per target mu(x) +- the ceil((1-alpha)(n+1))-th smallest |y - cv_predictions_|."""
+    X, Y = _data(3, 80, n_targets=1)
+    y = Y[:, 0]
+    model = ConformalRegressor(_boost_cv(), method="oof", alpha=0.2).fit(X[:60], y[:60])
+    plain = clone(_boost_cv()).fit(X[:60], y[:60])
+    np.testing.assert_array_equal(model.predict(X[60:]), plain.predict(X[60:]))
+    assert model.estimators_ == []
+    R = np.sort(np.abs(y[:60] - plain.cv_predictions_))
+    q = R[conformal_rank(60, 0.2) - 1]
+    iv = model.predict_interval(X[60:])
+    np.testing.assert_allclose(iv[:, 0, 0], plain.predict(X[60:]) - q)
+    np.testing.assert_allclose(iv[:, 0, 1], plain.predict(X[60:]) + q)
+    np.testing.assert_array_equal(model.fold_of_row_[:, 0], plain.cv_folds_)
+
+
+def test_oof_coverage_near_nominal_over_seeds():
+    """90% "oof" intervals of a multi-target BaseBoostCV: over 20 seeds (100 training rows,
+    1000 new rows each) the average coverage of each target is within 0.87-0.95, each target
+    with its own quantile, and the CV estimate is near nominal too."""
+    from workbench import MultiTargetBaseBoost
+
+    cover, cv_cover = [], []
+    for seed in range(20):
+        X, Y = _data(seed, 1100)
+        model = ConformalRegressor(MultiTargetBaseBoost(_boost_cv()), method="oof",
+                                   alpha=0.1).fit(X[:100], Y[:100])
+        cover.append(interval_coverage(Y[100:], model.predict_interval(X[100:])))
+        cv_cover.append(model.cv_coverage()[0])
+    cover, cv_cover = np.mean(cover, axis=0), np.mean(cv_cover, axis=0)
+    assert np.all((cover > 0.87) & (cover < 0.95)), cover
+    assert np.all((cv_cover > 0.85) & (cv_cover < 0.95)), cv_cover
+
+
+def test_oof_needs_a_model_with_its_own_out_of_fold_predictions():
+    X, Y = _data(0, 60)
+    with pytest.raises(ValueError, match=r"method='oof' needs an estimator that keeps its own "
+                                         r"out-of-fold predictions.*Ridge"):
+        ConformalRegressor(Ridge(), method="oof").fit(X, Y)

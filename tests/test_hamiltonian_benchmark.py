@@ -3,6 +3,8 @@
     .venv/bin/python -m pytest -m slow
 """
 
+import dataclasses
+
 import pytest
 
 from workbench.experiment.config import load_config
@@ -16,7 +18,10 @@ def test_hamiltonian_config_meets_the_issue_criterion(google_5q_dir, monkeypatch
     """Every choice on the 95 training rows; repeated 5-fold CV there <= 0.40 MHz; the test
     rows scored once; a nested CV over all 136 experiments reported."""
     monkeypatch.setenv("WORKBENCH_DATA_DIR", str(google_5q_dir))
-    res = evaluate(load_config(EXPERIMENTS / "hamiltonian.toml")).to_json()
+    cfg = load_config(EXPERIMENTS / "hamiltonian.toml")  # what --nested 5 asks for:
+    cfg = dataclasses.replace(cfg, evaluation=cfg.evaluation.model_copy(
+        update={"nested_folds": 5}))
+    res = evaluate(cfg).to_json()
     rep, nested = res["repeated_cv"], res["nested_cv_all"]
     assert rep["folds"] == 5 and rep["repeats"] >= 3
     assert rep["model_mae_avg"] <= 0.40, rep

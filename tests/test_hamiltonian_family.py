@@ -200,12 +200,12 @@ def test_evaluate_is_tracked_and_the_model_serves(cli_run):
 
 
 def test_evaluate_reports_and_writes_prediction_intervals(cli_run):
-    """[intervals] absent: 90% CV+ intervals. The JSON has per-target coverage and width on
+    """[intervals] absent: 90% "oof" intervals (the model's own out-of-fold residuals). The JSON has per-target coverage and width on
     the test rows and in CV (with averages), --out writes the figure and the test rows'
     intervals, MLflow has them as metrics and artifacts, and the logged model carries
     predict_interval."""
     _, result, out, store, _ = cli_run
-    assert result["intervals"] == {"method": "cv_plus", "alpha": 0.1, "level": 0.9, "cv": 5}
+    assert result["intervals"] == {"method": "oof", "alpha": 0.1, "level": 0.9}
     m = result["model"]
     for key in ("test_coverage", "test_width", "cv_coverage", "cv_width"):
         assert len(m[key]) == 5 and m[f"{key}_avg"] == pytest.approx(np.mean(m[key])), key
@@ -226,7 +226,7 @@ def test_evaluate_reports_and_writes_prediction_intervals(cli_run):
     run = tracker.client.get_run(result["mlflow"]["run_id"])
     assert run.data.metrics["test_coverage_avg"] == pytest.approx(m["test_coverage_avg"])
     assert run.data.metrics["cv_width.measured_E2"] == pytest.approx(m["cv_width"][1])
-    assert run.data.params["intervals.method"] == "cv_plus"
+    assert run.data.params["intervals.method"] == "oof"
     assert "plots/intervals.png" in {a.path for a in
                                      tracker.client.list_artifacts(run.info.run_id, "plots")}
     assert {a.path for a in tracker.client.list_artifacts(run.info.run_id, "intervals")} == {

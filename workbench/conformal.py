@@ -6,8 +6,21 @@ predict_interval`, intervals that cover a new row's target with probability abou
 ``1 - alpha`` per target (marginally over rows, not jointly over targets), under the one
 assumption that training and new rows are exchangeable.
 
-Three methods:
+Four methods:
 
+* ``"oof"`` -- the model's own out-of-fold residuals: no extra fit. A model that
+  cross-validates itself to make its choices (:class:`~workbench.BaseBoostCV` and
+  :class:`~workbench.BasisChoiceCV` per target, a :class:`~workbench.MultiTargetBaseBoost` of
+  them, :class:`~workbench.fitted_prior.FittedPriorBoost`) keeps the out-of-fold predictions
+  of what it selected (``cv_predictions_``, with ``cv_folds_``); the interval is
+  ``mu(x) +- q`` around the point prediction of the model on all rows, ``q`` per target the
+  ``ceil((1 - alpha)(n + 1))``-th smallest out-of-fold absolute residual, as ``"cv"`` below
+  but with the residuals the fit already computed. An approximation with no finite-sample
+  guarantee: the choices behind those predictions (prior or boosted, the basis, a physics
+  model's covariates) were made on all rows, the held-out ones included, which makes the
+  residuals slightly optimistic; the fold models saw fewer rows than the model on all rows,
+  which makes them pessimistic. Its coverage is measured on simulated devices
+  (``benchmarks/intervals.py``).
 * ``"cv_plus"`` -- CV+ (Barber, Candes, Ramdas and Tibshirani, "Predictive inference with the
   jackknife+", Ann. Statist. 49(1), 2021; with ``cv`` = leave-one-out it is the jackknife+).
   The rows are split into K folds; the model is refitted once per fold without the fold's
@@ -70,7 +83,7 @@ from .parallel import run_plans
 __all__ = ["ConformalRegressor", "conformal_rank", "interval_coverage", "interval_width"]
 
 #: ``method`` values.
-METHODS = ("cv_plus", "cv", "split")
+METHODS = ("cv_plus", "cv", "split", "oof")
 #: Test rows per block when CV+ bounds are computed (bounds the memory to about
 #: ``n_train * block * n_targets`` floats).
 _BLOCK = 256
@@ -136,7 +149,10 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         Cloned and fitted on all rows (``estimator_``, the point predictions) and on each
         fold's (or the split's) training rows (the intervals). ``predict`` may return a 1-D
         array (one target), a 2-D array or a DataFrame with one column per target.
-    method : {"cv_plus", "cv", "split"}, default="cv_plus"
+    method : {"cv_plus", "cv", "split", "oof"}, default="cv_plus"
+        ``"oof"`` needs an estimator whose fitted form has ``cv_predictions_`` (and
+        ``cv_folds_``), its own out-of-fold predictions; it fits nothing but the model on
+        all rows.
     alpha : float in (0, 1), default=0.1
         Miscoverage: ``1 - alpha`` intervals (0.1: 90%).
     cv : int or CV splitter, default=5
@@ -158,9 +174,11 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
     Attributes
     ----------
     estimator_ : the estimator fitted on all rows
-    estimators_ : list, the fold models (``"cv_plus"``) or the one split model (``"split"``)
+    estimators_ : list, the fold models (``"cv_plus"``, ``"cv"``), the one split model
+        (``"split"``) or none (``"oof"``)
     fold_of_row_ : ndarray (n_rows,), per training row the index in ``estimators_`` of the
-        model that did not see it (-1: a row of the split's training part)
+        model that did not see it (-1: a row of the split's training part); for ``"oof"``
+        the estimator's ``cv_folds_``, shape ``(n_rows, n_targets)``
     residuals_ : ndarray (n_rows, n_targets), out-of-fold absolute residuals (NaN for rows
         of the split's training part)
     target_names_ : list of str, the targets in the order of the intervals' second axis (the
@@ -236,6 +254,8 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         self.target_names_ = names
         self.n_targets_ = Y.shape[1]
 
+        if self.method == "oof":
+            return self._fit_oof(X, y, Y)
         if self.method != "split":
             splits = list(self._splitter().split(X, Y))
         else:
@@ -279,6 +299,58 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
                 setattr(self, attr, getattr(self.estimator_, attr))
         return self
 
+    def _fit_oof(self, X, y, Y):
+        """``method="oof"``: the model on all rows, and its own out-of-fold residuals."""
+        model = clone(self.estimator)
+        if hasattr(model, "_fit_plan"):
+            jobs = self.n_jobs if self.n_jobs is not None else getattr(self.estimator,
+                                                                       "n_jobs", None)
+            (fitted,) = run_plans([model._fit_plan(X, y)], jobs)
+        else:
+            fitted = model.fit(X, y)
+        try:
+            pred, folds = fitted.cv_predictions_, fitted.cv_folds_
+        except AttributeError as exc:
+            raise ValueError(f"method='oof' needs an estimator that keeps its own "
+                             f"out-of-fold predictions (cv_predictions_ and cv_folds_ after "
+                             f"fit, e.g. BaseBoostCV); {type(fitted).__name__}: {exc}; use "
+                             f"'cv_plus', 'cv' or 'split'") from None
+        pred = _as_2d(pred)
+        folds = np.asarray(folds, dtype=int)
+        folds = np.repeat(folds[:, None], Y.shape[1], axis=1) if folds.ndim == 1 else folds
+        if pred.shape != Y.shape or folds.shape != Y.shape:
+            raise ValueError(f"the estimator's out-of-fold predictions have shape "
+                             f"{pred.shape} (folds {folds.shape}); expected {Y.shape}")
+        residuals = np.abs(Y - pred)
+        folds = np.where(np.isfinite(residuals), folds, -1)
+        for j in range(Y.shape[1]):
+            m = int((folds[:, j] >= 0).sum())
+            if conformal_rank(m, self.alpha) > m:
+                raise ValueError(f"alpha={self.alpha}: {m} out-of-fold residuals of target "
+                                 f"{self.target_names_[j]} are too few for "
+                                 f"{1 - self.alpha:.0%} intervals (at least "
+                                 f"{min_calibration_rows(self.alpha)} needed)")
+        self.estimators_ = []
+        self.fold_of_row_ = folds
+        self.residuals_ = residuals
+        self.estimator_ = fitted
+        for attr in ("n_features_in_", "feature_names_in_"):
+            if hasattr(fitted, attr):
+                setattr(self, attr, getattr(fitted, attr))
+        return self
+
+    def _quantiles(self) -> np.ndarray:
+        """Per target, the conformal quantile of the calibrated rows' residuals."""
+        folds = self.fold_of_row_
+        if folds.ndim == 1:
+            R = self.residuals_[folds >= 0]
+            return _kth_smallest(R, conformal_rank(len(R), self.alpha))
+        out = np.empty(self.n_targets_)
+        for j in range(self.n_targets_):
+            R = self.residuals_[folds[:, j] >= 0, j]
+            out[j] = _kth_smallest(R, conformal_rank(len(R), self.alpha))
+        return out
+
     def _predict_2d(self, model, X) -> np.ndarray:
         pred = _as_2d(model.predict(X))
         if pred.shape != (_n_rows(X), self.n_targets_):
@@ -300,15 +372,15 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         check_is_fitted(self)
         n_new = _n_rows(X)
         out = np.empty((n_new, self.n_targets_, 2))
-        ok = self.fold_of_row_ >= 0
-        R = self.residuals_[ok]
-        k = conformal_rank(len(R), self.alpha)
-        if self.method in ("split", "cv"):
-            q = _kth_smallest(R, k)
+        if self.method in ("split", "cv", "oof"):
+            q = self._quantiles()
             model = self.estimators_[0] if self.method == "split" else self.estimator_
             mu = self._predict_2d(model, X)
             out[..., 0], out[..., 1] = mu - q, mu + q
             return out
+        ok = self.fold_of_row_ >= 0
+        R = self.residuals_[ok]
+        k = conformal_rank(len(R), self.alpha)
         preds = np.stack([self._predict_2d(m, X) for m in self.estimators_])  # (K, n, T)
         folds = self.fold_of_row_
         for start in range(0, n_new, _BLOCK):
@@ -338,7 +410,7 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         """A cross-validated estimate of coverage and mean width per target, from the fit's
         own out-of-fold residuals (no refit).
 
-        ``"cv_plus"`` and ``"cv"``: each training row is held out with its fold; its interval
+        ``"cv_plus"``, ``"cv"`` and ``"oof"``: each training row is held out with its fold; its interval
         is its out-of-fold prediction (from the model that did not see it) +- the conformal
         quantile of the *other* folds' out-of-fold residuals. ``"split"``: leave-one-out over the
         calibration rows (each row against the conformal quantile of the others). Returns
@@ -349,8 +421,19 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         disagreement, so where that is large (unstable inner choices) the estimate is below
         the coverage on new rows."""
         check_is_fitted(self)
+        if self.fold_of_row_.ndim == 2:  # "oof": each target's own folds
+            cover, width = [], []
+            for j in range(self.n_targets_):
+                ok = self.fold_of_row_[:, j] >= 0
+                c, w = self._cv_coverage(self.residuals_[ok, j:j + 1],
+                                         self.fold_of_row_[ok, j])
+                cover += c
+                width += w
+            return cover, width
         ok = self.fold_of_row_ >= 0
-        R, folds = self.residuals_[ok], self.fold_of_row_[ok]
+        return self._cv_coverage(self.residuals_[ok], self.fold_of_row_[ok])
+
+    def _cv_coverage(self, R, folds) -> tuple[list[float], list[float]]:
         covered = np.zeros(R.shape, dtype=bool)
         width = np.zeros(R.shape)
         if self.method == "split":

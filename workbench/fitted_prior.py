@@ -65,6 +65,7 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
     boost_ : the fitted MultiTargetBaseBoost (``boost_stage=True``)
     prior_columns_ : list of str
     oof_prior_ : DataFrame, the out-of-fold prior on the training rows
+    prior_folds_ : ndarray (n_samples,), the fold of each row in ``oof_prior_``
     target_names_ : list of str
     """
 
@@ -102,9 +103,12 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         if not self.boost_stage and self.fallback is None:
             return self
         oof = np.empty_like(Y_arr)
-        for train, val in check_cv(self.cv).split(X):
+        folds = np.full(len(X), -1, dtype=int)
+        for k, (train, val) in enumerate(check_cv(self.cv).split(X)):
             model = _refittable(self.physics_).fit(X.iloc[train], Y_arr[train])
             oof[val] = model.predict(X.iloc[val])
+            folds[val] = k
+        self.prior_folds_ = folds
         if self.fallback is not None:
             control = X[list(self.fallback)].to_numpy(dtype=float)
             self.physics_selected_ = (np.mean(np.abs(Y_arr - oof), axis=0)
@@ -136,6 +140,33 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         if not self.boost_stage:
             return pd.DataFrame(prior, columns=self.target_names_, index=X.index)
         return self.boost_.predict(self._with_prior(X, prior))
+
+    @property
+    def cv_predictions_(self) -> np.ndarray:
+        """Out-of-fold predictions on the training rows, ``(n_samples, n_targets)``: the
+        boosting stage's own (:attr:`MultiTargetBaseBoost.cv_predictions_`, from its folds
+        over the out-of-fold prior), or without a stage the out-of-fold prior itself. The
+        physics model's own choices (e.g. its selected covariates) were made on all rows.
+        ``AttributeError`` when neither was computed (no stage and no ``fallback``)."""
+        check_is_fitted(self)
+        if self.boost_stage:
+            return self.boost_.cv_predictions_
+        if not hasattr(self, "oof_prior_"):
+            raise AttributeError("FittedPriorBoost computes out-of-fold predictions only "
+                                 "with boost_stage=True or a fallback")
+        return self.oof_prior_.to_numpy()
+
+    @property
+    def cv_folds_(self) -> np.ndarray:
+        """Per training row (and target), the fold that held it out in
+        :attr:`cv_predictions_`."""
+        check_is_fitted(self)
+        if self.boost_stage:
+            return self.boost_.cv_folds_
+        if not hasattr(self, "prior_folds_"):
+            raise AttributeError("FittedPriorBoost computes out-of-fold predictions only "
+                                 "with boost_stage=True or a fallback")
+        return self.prior_folds_
 
     @property
     def selected_(self) -> list[str]:

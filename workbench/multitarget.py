@@ -138,3 +138,26 @@ class MultiTargetBaseBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         """Per target: ``"prior"`` or ``"boosted"`` where the estimator reports it."""
         check_is_fitted(self)
         return [getattr(est, "selected_", "boosted") for est in self.estimators_]
+
+    @property
+    def cv_predictions_(self) -> np.ndarray:
+        """Out-of-fold predictions of every target's selected model on the training rows,
+        shape ``(n_samples, n_targets)``, from the CV each target's estimator ran to make its
+        choices (:class:`BaseBoostCV`'s ``cv_predictions_``; NaN where a row was held out by
+        no fold). ``AttributeError`` when a target's estimator has none."""
+        check_is_fitted(self)
+        return np.column_stack([_own_cv(est, "cv_predictions_") for est in self.estimators_])
+
+    @property
+    def cv_folds_(self) -> np.ndarray:
+        """Per training row and target, the fold that held the row out in that target's CV
+        (-1: none), shape ``(n_samples, n_targets)``."""
+        check_is_fitted(self)
+        return np.column_stack([_own_cv(est, "cv_folds_") for est in self.estimators_])
+
+
+def _own_cv(estimator, attr: str) -> np.ndarray:
+    if not hasattr(estimator, attr):
+        raise AttributeError(f"{type(estimator).__name__} has no {attr} (it does not "
+                             "cross-validate itself)")
+    return np.asarray(getattr(estimator, attr))

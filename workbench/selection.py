@@ -224,6 +224,15 @@ class BaseBoostCV(CachedParamNames, MetaEstimatorMixin, RegressorMixin, BaseEsti
                 else self.cv_predictions_prior_)
 
     @property
+    def cv_folds_(self) -> np.ndarray:
+        """Per training row, the index of the fold that held it out (-1: none)."""
+        check_is_fitted(self)
+        folds = np.full(len(self.cv_predictions_prior_), -1, dtype=int)
+        for k, (_, test) in enumerate(self.cv_splits_):
+            folds[test] = k
+        return folds
+
+    @property
     def cv_score_(self) -> float:
         """Mean CV score of the selected model."""
         check_is_fitted(self)
@@ -268,7 +277,7 @@ class BasisChoiceCV(_BaseComposition, BaseBoostCV):
     estimator_ : regressor
         The winning candidate (the first one when the prior is selected), unfitted.
     cv_scores_prior_, cv_scores_boosted_, cv_predictions_prior_, cv_predictions_boosted_,
-    fit_errors_, best_estimator_ :
+    cv_splits_, fit_errors_, best_estimator_ :
         As in :class:`BaseBoostCV`, the boosted ones of the winning candidate.
     """
 
@@ -322,7 +331,7 @@ class BasisChoiceCV(_BaseComposition, BaseBoostCV):
         best = max(ok, key=lambda n: ok[n].cv_scores_boosted_.mean()) if ok else None
         chosen = runs[best] if best is not None else first
         for attr in ("cv_scores_prior_", "cv_scores_boosted_", "cv_predictions_prior_",
-                     "cv_predictions_boosted_", "fit_errors_", "n_features_in_"):
+                     "cv_predictions_boosted_", "cv_splits_", "fit_errors_", "n_features_in_"):
             if hasattr(chosen, attr):
                 setattr(self, attr, getattr(chosen, attr))
         if hasattr(chosen, "feature_names_in_"):

@@ -194,6 +194,9 @@ def _cmd_evaluate(args) -> int:
     cfg = _without_intervals(load_config(args.config), args)
     if args.jobs is not None:
         cfg = dataclasses.replace(cfg, n_jobs=args.jobs)
+    if args.nested is not None:
+        cfg = dataclasses.replace(cfg, evaluation=cfg.evaluation.model_copy(
+            update={"nested_folds": args.nested}))
     from .evaluate import has_outputs, outputs
 
     if args.out is not None and not has_outputs(cfg):
@@ -297,7 +300,8 @@ def _model_args(parser: argparse.ArgumentParser) -> None:
     """Options of the commands that fit a config's model (evaluate, sweep)."""
     parser.add_argument("--no-intervals", action="store_true",
                         help="no prediction intervals (overrides [intervals] enabled; "
-                        "CV+ refits the model once per fold)")
+                        "the default method 'oof' fits nothing more, 'cv_plus' refits the "
+                        "model once per fold)")
     _tracking_args(parser, register=True)
 
 
@@ -324,6 +328,10 @@ def build_parser() -> argparse.ArgumentParser:
                     help="processes for independent work: targets, folds, curve points "
                     "(overrides the config's n_jobs; default: every core; the results do "
                     "not depend on it)")
+    ev.add_argument("--nested", type=_nested_folds, default=None, metavar="K",
+                    help="also a nested CV over all rows with K outer folds, every choice "
+                    "remade in each (K more fits of the whole model; overrides [evaluation] "
+                    "nested_folds; 0: none)")
     ev.add_argument("--out", metavar="DIR", default=None,
                     help="write the model family's tables (CSV) and figures (PNG) to DIR "
                     "(family hamiltonian: coefficients, corrected parameters, selection)")
@@ -403,6 +411,19 @@ def _count(value: str) -> int:
         raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {value[:40]!r}") from None
     if number < 1:
         raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {number}")
+    return number
+
+
+def _nested_folds(value: str) -> int:
+    """``--nested``: 0 (none) or a number of outer folds >= 2."""
+    try:
+        number = int(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected 0 or an integer >= 2, got "
+                                         f"{value[:40]!r}") from None
+    if number < 0 or number == 1:
+        raise argparse.ArgumentTypeError(f"expected 0 (none) or an integer >= 2 outer folds, "
+                                         f"got {number}")
     return number
 
 

@@ -321,14 +321,17 @@ class EvaluationConfig(Section):
 class IntervalsConfig(Section):
     """``[intervals]``: conformal prediction intervals around the fitted model
     (:class:`~workbench.conformal.ConformalRegressor`), ``1 - alpha`` per target. ``method``
-    "cv_plus" refits the whole model (every choice remade) once per ``cv`` fold; "cv" uses the
-    same refits but centres ``+- q`` on the model fitted on all rows (not widened by the fold
-    models' disagreement); "split" holds out ``calibration_fraction`` of the training rows.
+    "oof" (the default) takes the out-of-fold residuals of the CV the model already ran to
+    make its choices and centres ``+- q`` on the model fitted on all rows: no extra fit
+    (``cv`` is then unused: the model's own folds count); "cv_plus" refits the whole model
+    (every choice remade) once per ``cv`` fold; "cv" uses the same refits but centres
+    ``+- q`` on the model fitted on all rows (not widened by the fold models'
+    disagreement); "split" holds out ``calibration_fraction`` of the training rows.
     On unless ``enabled = false``."""
 
     enabled: bool = True
     alpha: float = Field(default=0.1, gt=0, lt=1)
-    method: Literal["cv_plus", "cv", "split"] = "cv_plus"
+    method: Literal["oof", "cv_plus", "cv", "split"] = "oof"
     cv: int = Field(default=5, ge=2, le=10_000)
     calibration_fraction: float = Field(default=0.25, gt=0, lt=1)
 
@@ -590,7 +593,9 @@ def load_dataset(cfg: ExperimentConfig):
         # CV+ calibrates on every training row (each fold needs 2); split on its held-out
         # share (rounded up, as train_test_split does)
         need = min_calibration_rows(iv.alpha)
-        if iv.method != "split":
+        if iv.method == "oof":  # every training row is held out once by the model's CV
+            least, how = need, "the model's own folds"
+        elif iv.method != "split":
             least, how = max(2 * iv.cv, need), f"cv = {iv.cv}"
         else:
             least = int((need - 1) / iv.calibration_fraction) + 1  # ceil(frac n) >= need

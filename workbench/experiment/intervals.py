@@ -57,9 +57,9 @@ def interval_settings(cfg: ExperimentConfig) -> dict[str, Any]:
     if not iv.enabled:
         return {}
     out: dict[str, Any] = {"method": iv.method, "alpha": iv.alpha, "level": 1 - iv.alpha}
-    if iv.method != "split":
+    if iv.method in ("cv_plus", "cv"):
         out["cv"] = iv.cv
-    else:
+    elif iv.method == "split":
         out["calibration_fraction"] = iv.calibration_fraction
     return out
 

@@ -240,15 +240,16 @@ class EigenvalueFamily(ModelFamily):
                                                  cv=cfg.selection.cv,
                                                  random_state=cfg.random_state))
             cols = _columns(est.best_estimator_, X_train)
-            task = Task(_shap_values, est.best_estimator_, X_train, cols)
+            task = Task(_shap_values, est.best_estimator_, X_train, cols,
+                        cfg.random_state or 0)
             task.priority = 10 ** 6  # a long task: start it early
             shap_tasks.append(task)
         *curves, shap = run_plans([*plans, _all(shap_tasks)], cfg.jobs)
         out = Artifacts()
-        for target, curve, (values, expected, cols) in zip(ds.target_names, curves, shap):
+        for target, curve, (values, expected, rows) in zip(ds.target_names, curves, shap):
             out.figures[f"learning_curve_{target}"] = learning_curve_figure(
                 curve, target=target, setting=setting)
-            out.figures[f"shap_{target}"] = shap_figure(values, expected, X_train[cols],
+            out.figures[f"shap_{target}"] = shap_figure(values, expected, rows,
                                                         target=target, setting=setting)
         out.data["learning_curves"] = {t: c.to_dict() for t, c in zip(ds.target_names, curves)}
         return out
@@ -259,10 +260,14 @@ def _all(tasks):
     return (yield tasks)
 
 
-def _shap_values(used, X_train: pd.DataFrame, cols: list[str]):
+def _shap_values(used, X_train: pd.DataFrame, cols: list[str], random_state=0):
     """SHAP values of a fitted per-target model on the training rows, over the columns it
-    reads (the others fixed at the first row's values), with a 30-row background."""
-    from ..explain import shap_values
+    reads (the others fixed at the first row's values), with a 30-row background; on a
+    seeded sample of the rows (and a smaller background) where every row would send more
+    than :data:`~workbench.experiment.explain.MAX_MODEL_ROWS` rows through the model
+    (:func:`~workbench.experiment.explain.shap_sample`). Returns the values, the expected
+    value and the explained rows."""
+    from ..explain import sample_background, shap_sample, shap_values
 
     base = X_train.iloc[[0]].to_numpy()
 
@@ -271,10 +276,14 @@ def _shap_values(used, X_train: pd.DataFrame, cols: list[str]):
         frame[cols] = a
         return used.predict(frame)
 
+    rows, background = shap_sample(len(X_train), len(cols))
     Xs = X_train[cols]
+    if rows < len(Xs):
+        keep = sample_background(np.arange(len(Xs)), rows, random_state)
+        Xs = Xs.iloc[np.sort(keep)]
     values, expected = shap_values(predict, Xs, nsamples="auto" if len(cols) <= 10 else 256,
-                                   background_size=min(30, len(Xs)))
-    return values, expected, cols
+                                   background_size=background, random_state=random_state)
+    return values, expected, Xs
 
 
 def cfg_inner_cv(cfg: ExperimentConfig):
