@@ -87,6 +87,16 @@ def test_toy_family_evaluates(toy_family, tmp_path, google_5q_dir, google_5q):
     expected = np.abs(y_test.to_numpy() - pred).mean(axis=0)
     np.testing.assert_allclose(result["model"]["test_mae"], expected, rtol=1e-12)
     assert result["mlflow"]["run_id"]
+    # a model that keeps no out-of-fold predictions of its own: CV+ by default
+    assert result["intervals"]["method"] == "cv_plus"
+
+
+def test_toy_family_refuses_oof_intervals_before_any_fit(toy_family, tmp_path, google_5q_dir,
+                                                         capsys):
+    path = _config(tmp_path, google_5q_dir, extra='[intervals]\nmethod = "oof"\n')
+    assert main(["evaluate", str(path), "--no-track"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "intervals.method = 'oof'" in err[0] and "'cv_plus'" in err[0]
 
 
 def test_toy_family_sweeps(toy_family, tmp_path, google_5q_dir):

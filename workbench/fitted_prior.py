@@ -49,7 +49,8 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
     cv : int or CV splitter, default=5
         Folds of the out-of-fold prior on the training rows.
     boost_stage : bool, default=True
-        ``False`` fits the physics model alone (``predict`` is its prediction).
+        ``False`` fits the physics model alone (``predict`` is its prediction; its
+        out-of-fold prior is still computed: ``cv_predictions_``).
     fallback : list of str, default=None
         Columns of ``X`` holding the control model's own prediction of each target. If given,
         a target keeps the physics model only where its out-of-fold MAE on the training rows
@@ -100,8 +101,8 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         if self.fallback is not None and len(self.fallback) != len(names):
             raise ValueError(f"fallback names {len(self.fallback)} column(s) for "
                              f"{len(names)} targets")
-        if not self.boost_stage and self.fallback is None:
-            return self
+        # the out-of-fold prior: the stage's training prior, the fallback's evidence, and
+        # (without a stage) the model's own out-of-fold predictions (cv_predictions_)
         oof = np.empty_like(Y_arr)
         folds = np.full(len(X), -1, dtype=int)
         for k, (train, val) in enumerate(check_cv(self.cv).split(X)):
@@ -147,13 +148,10 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         boosting stage's own (:attr:`MultiTargetBaseBoost.cv_predictions_`, from its folds
         over the out-of-fold prior), or without a stage the out-of-fold prior itself. The
         physics model's own choices (e.g. its selected covariates) were made on all rows.
-        ``AttributeError`` when neither was computed (no stage and no ``fallback``)."""
+        """
         check_is_fitted(self)
         if self.boost_stage:
             return self.boost_.cv_predictions_
-        if not hasattr(self, "oof_prior_"):
-            raise AttributeError("FittedPriorBoost computes out-of-fold predictions only "
-                                 "with boost_stage=True or a fallback")
         return self.oof_prior_.to_numpy()
 
     @property
@@ -163,9 +161,6 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         check_is_fitted(self)
         if self.boost_stage:
             return self.boost_.cv_folds_
-        if not hasattr(self, "prior_folds_"):
-            raise AttributeError("FittedPriorBoost computes out-of-fold predictions only "
-                                 "with boost_stage=True or a fallback")
         return self.prior_folds_
 
     @property

@@ -321,9 +321,11 @@ class EvaluationConfig(Section):
 class IntervalsConfig(Section):
     """``[intervals]``: conformal prediction intervals around the fitted model
     (:class:`~workbench.conformal.ConformalRegressor`), ``1 - alpha`` per target. ``method``
-    "oof" (the default) takes the out-of-fold residuals of the CV the model already ran to
-    make its choices and centres ``+- q`` on the model fitted on all rows: no extra fit
-    (``cv`` is then unused: the model's own folds count); "cv_plus" refits the whole model
+    "oof" takes the out-of-fold residuals of the CV the model already ran to make its
+    choices and centres ``+- q`` on the model fitted on all rows: no extra fit (``cv`` is
+    then unused: the model's own folds count); absent, the family's default
+    (:attr:`~workbench.experiment.families.base.ModelFamily.interval_method`: "oof" for a
+    family whose model cross-validates itself, else "cv_plus"); "cv_plus" refits the whole model
     (every choice remade) once per ``cv`` fold; "cv" uses the same refits but centres
     ``+- q`` on the model fitted on all rows (not widened by the fold models'
     disagreement); "split" holds out ``calibration_fraction`` of the training rows.
@@ -331,7 +333,7 @@ class IntervalsConfig(Section):
 
     enabled: bool = True
     alpha: float = Field(default=0.1, gt=0, lt=1)
-    method: Literal["oof", "cv_plus", "cv", "split"] = "oof"
+    method: Literal["oof", "cv_plus", "cv", "split"] | None = None
     cv: int = Field(default=5, ge=2, le=10_000)
     calibration_fraction: float = Field(default=0.25, gt=0, lt=1)
 
@@ -525,11 +527,18 @@ def parse_config(raw: dict[str, Any], path: Path | None = None) -> ExperimentCon
         family.check_data(data)
     except ValueError as exc:
         raise _error(where, str(exc)) from None
+    intervals = top.intervals
+    if intervals.method is None:
+        intervals = intervals.model_copy(update={"method": family.interval_method})
+    elif intervals.method == "oof" and family.interval_method != "oof":
+        raise _error(where, f"intervals.method = 'oof': family {family_name!r} keeps no "
+                            f"out-of-fold predictions of its own; use 'cv_plus', 'cv' or "
+                            f"'split'")
     name = top.name if top.name is not None else (path.stem if path else "config")
     cfg = ExperimentConfig(path=path, name=name, description=top.description,
                            random_state=top.random_state, n_jobs=top.n_jobs, data=data,
                            model=model, selection=top.selection, evaluation=top.evaluation,
-                           intervals=top.intervals, search=search, cv=top.cv, study=top.study, tracking=top.tracking,
+                           intervals=intervals, search=search, cv=top.cv, study=top.study, tracking=top.tracking,
                            family_settings=settings)
     for target in [None, *model.targets]:
         label = "model" if target is None else f"model.targets.{target}"

@@ -164,6 +164,8 @@ def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
         log.info("[%s] tracking in %s (run %s)", cfg.name, _redact(tracker.tracking_uri),
                  run_id)
         tracker.log_metrics(run_id, _metrics(result))
+        # the family's figures are computed on the workers while the rest is logged
+        finish_artifacts = family.begin_artifacts(cfg, ds, family_model(model), setting)
         source = _data_source(cfg)
         for context, X, Y in (("training", X_train, y_train), ("test", X_test, y_test)):
             tracker.log_dataset(run_id, pd.concat([X, Y], axis=1), name=ds.name,
@@ -179,23 +181,23 @@ def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
                            unit="MHz" if metric == "MAE" else "MHz²",
                            title=f"Test {metric} per target", setting=setting)
             tracker.log_figure(run_id, fig, f"plots/{name}.png")
-        extra = family.artifacts(cfg, ds, family_model(model), setting)
-        for name, fig in extra.figures.items():
-            tracker.log_figure(run_id, fig, f"plots/{name}.png")
-        for name, table in extra.tables.items():
-            tracker.log_text(run_id, table.to_csv(index=False), f"{family.name}/{name}.csv")
         intervals = interval_artifacts(cfg, ds, model, setting)
         for name, fig in intervals.figures.items():
             tracker.log_figure(run_id, fig, f"plots/{name}.png")
         for name, table in intervals.tables.items():
             tracker.log_text(run_id, table.to_csv(index=False), f"intervals/{name}.csv")
-        for name, data in extra.data.items():
-            tracker.log_dict(run_id, data, f"{name}.json")
         # the test rows' predictions, as `workbench predict` and a served model give them
         predictions = prediction_frame(model, X_test, result.targets)
         tracker.log_text(run_id, predictions.to_csv(index_label="row"), "predictions/test.csv")
         model_uri = tracker.log_model(run_id, model, X_test.head(5), targets=result.targets,
                                       files={"config": cfg.path} if cfg.path else None)
+        extra = finish_artifacts()
+        for name, fig in extra.figures.items():
+            tracker.log_figure(run_id, fig, f"plots/{name}.png")
+        for name, table in extra.tables.items():
+            tracker.log_text(run_id, table.to_csv(index=False), f"{family.name}/{name}.csv")
+        for name, data in extra.data.items():
+            tracker.log_dict(run_id, data, f"{name}.json")
         tracker.set_tags(run_id, {"model_uri": model_uri,
                                   "selected": ",".join(result.model.selected)})
         out = {"tracking_uri": tracker.tracking_uri, "experiment_id": tracker.experiment_id,

@@ -78,6 +78,11 @@ class ModelFamily:
     cv_from_repeats: ClassVar[bool] = True
     #: Whether :meth:`outputs` has tables and figures for ``evaluate --out``.
     writes_outputs: ClassVar[bool] = False
+    #: ``[intervals] method`` when the config gives none: "oof" (no extra fit) where the
+    #: family's fitted model keeps out-of-fold predictions of its own (``cv_predictions_``
+    #: and ``cv_folds_``, see :class:`~workbench.conformal.ConformalRegressor`), else
+    #: "cv_plus" (the model refitted once per fold).
+    interval_method: ClassVar[str] = "cv_plus"
 
     # ------------------------------------------------------------------ config
     def parse_settings(self, table: dict[str, Any] | None) -> BaseModel | None:
@@ -209,6 +214,14 @@ class ModelFamily:
                   quick: bool = False) -> Artifacts:
         """Figures and tables logged with a run (beside the MAE/MSE bars every run has)."""
         return Artifacts()
+
+    def begin_artifacts(self, cfg: ExperimentConfig, ds: Dataset, model, setting: str,
+                        quick: bool = False) -> Callable[[], Artifacts]:
+        """:meth:`artifacts` in two halves: start what can run on the worker processes
+        (e.g. learning-curve fits) and return a function that waits for it and draws the
+        figures, so the run's other records are written meanwhile. Default: nothing
+        started, :meth:`artifacts` called by the function."""
+        return lambda: self.artifacts(cfg, ds, model, setting, quick)
 
     def outputs(self, model, ds: Dataset, setting: str) -> Artifacts | None:
         """What ``evaluate --out DIR`` writes (``None``: the family writes nothing)."""

@@ -143,7 +143,12 @@ def stage_scores(cvs, Y: np.ndarray) -> dict[str, list]:
     }
 
 
-def curve_sizes(n_rows: int, folds: int, points: int = 5) -> list[int]:
+#: Sizes of a run's augmented learning curves: a quarter, half and all of a fold's training
+#: rows (the last point is the selection's own fold fits; two more fits per fold and target).
+CURVE_POINTS = 3
+
+
+def curve_sizes(n_rows: int, folds: int, points: int = CURVE_POINTS) -> list[int]:
     """Training sizes from a quarter of the fold-training size up to all of it."""
     largest = n_rows - -(-n_rows // folds)  # rows left for training in the largest fold
     return sorted({int(s) for s in np.linspace(max(5, largest // 4), largest, points)})
@@ -164,6 +169,7 @@ class EigenvalueFamily(ModelFamily):
 
     name = "eigenvalue"
     cv_from_repeats = False  # BaseBoostCV's own folds give the CV figures
+    interval_method = "oof"  # BaseBoostCV keeps its out-of-fold predictions
 
     def build(self, cfg: ExperimentConfig, ds: Dataset):
         return per_target_boost(cfg, ds, ds.prior_names)
@@ -207,18 +213,24 @@ class EigenvalueFamily(ModelFamily):
         return prior, scores, {}
 
     def artifacts(self, cfg, ds, model, setting, quick=False) -> Artifacts:
+        return self.begin_artifacts(cfg, ds, model, setting, quick)()
+
+    def begin_artifacts(self, cfg, ds, model, setting, quick=False):
         """An augmented learning curve and a SHAP summary per target.
 
         A BaseBoostCV's curve is drawn on its own selection folds, with its candidate as
-        seeded there: the whole-fold points are the selection's fold fits (not fitted
-        again). The curves' fits and the SHAP values of every target share the command's
-        worker processes (``n_jobs``); SHAP explains the fitted model itself."""
+        seeded there, at :data:`CURVE_POINTS` sizes: the whole-fold points are the
+        selection's fold fits (not fitted again). The curves' fits and the SHAP values of
+        every target run on the command's worker processes (``n_jobs``) from a background
+        thread while the caller logs the run's other records; the returned function waits
+        for them and draws the figures (here: matplotlib is not thread-safe). SHAP explains
+        the fitted model itself."""
         import logging
+        import threading
 
         from ...curves import learning_curve_plan, selection_curve_plan
         from ...parallel import Task, effective_n_jobs, run_plans
         from ...selection import BasisChoiceCV, BaseBoostCV
-        from ..figures import learning_curve_figure, shap_figure
 
         log = logging.getLogger("workbench")
         X_train, _, y_train, _ = ds.split()
@@ -244,15 +256,36 @@ class EigenvalueFamily(ModelFamily):
                         cfg.random_state or 0)
             task.priority = 10 ** 6  # a long task: start it early
             shap_tasks.append(task)
-        *curves, shap = run_plans([*plans, _all(shap_tasks)], cfg.jobs)
-        out = Artifacts()
-        for target, curve, (values, expected, rows) in zip(ds.target_names, curves, shap):
-            out.figures[f"learning_curve_{target}"] = learning_curve_figure(
-                curve, target=target, setting=setting)
-            out.figures[f"shap_{target}"] = shap_figure(values, expected, rows,
-                                                        target=target, setting=setting)
-        out.data["learning_curves"] = {t: c.to_dict() for t, c in zip(ds.target_names, curves)}
-        return out
+        done: dict[str, Any] = {}
+
+        def work():
+            try:
+                done["value"] = run_plans([*plans, _all(shap_tasks)], cfg.jobs)
+            except BaseException as exc:  # re-raised by finish()
+                done["error"] = exc
+
+        thread = threading.Thread(target=work, name="workbench-artifacts", daemon=True)
+        thread.start()
+
+        def finish() -> Artifacts:
+            from ..figures import learning_curve_figure, shap_figure
+
+            thread.join()
+            if "error" in done:
+                raise done["error"]
+            *curves, shap = done["value"]
+            out = Artifacts()
+            for target, curve, (values, expected, rows) in zip(ds.target_names, curves,
+                                                               shap):
+                out.figures[f"learning_curve_{target}"] = learning_curve_figure(
+                    curve, target=target, setting=setting)
+                out.figures[f"shap_{target}"] = shap_figure(values, expected, rows,
+                                                            target=target, setting=setting)
+            out.data["learning_curves"] = {t: c.to_dict()
+                                           for t, c in zip(ds.target_names, curves)}
+            return out
+
+        return finish
 
 
 def _all(tasks):

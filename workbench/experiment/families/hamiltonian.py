@@ -137,6 +137,7 @@ class HamiltonianFamily(ModelFamily):
     name = "hamiltonian"
     settings: ClassVar = HamiltonianSettings
     writes_outputs = True
+    interval_method = "oof"  # FittedPriorBoost keeps its out-of-fold predictions
 
     def check_data(self, data: DataConfig) -> None:
         if data.source == "csv" and data.hamiltonian is None:
