@@ -40,6 +40,7 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
 __all__ = ["Task", "effective_n_jobs", "gather", "in_worker", "map_tasks", "one_thread_env",
+           "start_workers",
            "run_plans", "start_fork_server", "worker_pool"]
 
 THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
@@ -241,6 +242,17 @@ def worker_pool(n_jobs: int | None) -> Iterator[int]:
     finally:
         _AMBIENT.remove(pool)
         pool.close(kill=not ok)
+
+
+def start_workers(n_jobs: int | None) -> None:
+    """Fork the enclosing :func:`worker_pool`'s processes now, from this thread (no-op
+    without a pool or when they run already): call it before starting a thread that will
+    run plans, so that no process is forked while another thread of this one holds a lock."""
+    if not _AMBIENT or effective_n_jobs(n_jobs) <= 1 or not _fork_available():
+        return
+    pool = _AMBIENT[-1]
+    if pool._executor is None:
+        pool.executor.submit(int).result()  # ProcessPoolExecutor forks every worker at once
 
 
 # --------------------------------------------------------------------------- plans

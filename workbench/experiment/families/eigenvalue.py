@@ -229,7 +229,7 @@ class EigenvalueFamily(ModelFamily):
         import threading
 
         from ...curves import learning_curve_plan, selection_curve_plan
-        from ...parallel import Task, effective_n_jobs, run_plans
+        from ...parallel import Task, effective_n_jobs, run_plans, start_workers
         from ...selection import BasisChoiceCV, BaseBoostCV
 
         log = logging.getLogger("workbench")
@@ -264,6 +264,7 @@ class EigenvalueFamily(ModelFamily):
             except BaseException as exc:  # re-raised by finish()
                 done["error"] = exc
 
+        start_workers(cfg.jobs)  # never fork from the thread
         thread = threading.Thread(target=work, name="workbench-artifacts", daemon=True)
         thread.start()
 
