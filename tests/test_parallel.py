@@ -91,6 +91,28 @@ def test_map_tasks_in_order_in_forked_workers_and_a_kept_pool():
     assert len(first) == 2 and first == again  # the same workers served both calls
 
 
+def test_start_workers_forks_the_pool_from_the_calling_thread():
+    """start_workers forks every worker of the enclosing pool at once (so a thread started
+    afterwards never forks), and a thread's plans then run on those workers."""
+    import threading
+
+    import workbench.parallel as par
+
+    with worker_pool(2):
+        pool = par._AMBIENT[-1]
+        assert pool._executor is None  # forked on first use
+        par.start_workers(2)
+        pids = set(pool._executor._processes)
+        assert len(pids) == 2
+        out = []
+        thread = threading.Thread(target=lambda: out.extend(
+            map_tasks([Task(_slow_pid, i) for i in range(4)], 2)))
+        thread.start()
+        thread.join()
+        assert {o[0] for o in out} <= pids and [o[2] for o in out] == [0, 1, 4, 9]
+    par.start_workers(2)  # no pool: nothing to do
+
+
 def _slow_pid(i):
     time.sleep(0.2)
     return _pid_and_flag(i)

@@ -40,8 +40,8 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
 __all__ = ["Task", "effective_n_jobs", "gather", "in_worker", "map_tasks", "one_thread_env",
-           "start_workers",
-           "run_plans", "start_fork_server", "worker_pool"]
+           "prioritised", "run_plans", "start_workers", "start_fork_server",
+           "worker_pool"]
 
 THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
               "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
@@ -395,6 +395,24 @@ def _drive(plans: list[Plan], executor: ProcessPoolExecutor, jobs: int) -> list:
             if missing[i] == 0:
                 step(i, results.pop(i), errors.pop(i, None))
     return out
+
+
+def prioritised(plan: Plan, offset: float) -> Plan:
+    """``plan`` with ``offset`` added to the priority of each of its tasks (higher runs
+    first), e.g. to finish one group of plans before the next starts."""
+    try:
+        batch = next(plan)
+        while True:
+            for task in batch:
+                task.priority += offset
+            try:
+                results = yield batch
+            except Exception as exc:  # a task's error, thrown into the plan
+                batch = plan.throw(exc)
+            else:
+                batch = plan.send(results)
+    except StopIteration as stop:
+        return stop.value
 
 
 def gather(plans: Iterable[Plan]) -> Plan:

@@ -180,6 +180,30 @@ def _cmd_sweep(args) -> int:
     return 0
 
 
+#: Modules the MLflow records of a run import (SHAP's plots, MLflow's datasets and models).
+RECORD_MODULES = ("shap", "mlflow.data.pandas_dataset", "mlflow.pyfunc", "mlflow.models",
+                  "workbench.experiment.serving")
+
+
+def _prefetch(n_jobs, modules) -> None:
+    """Import ``modules`` in a background thread (errors ignored: the real import reports
+    them), after the worker processes were forked (no fork while it runs)."""
+    import importlib
+    import threading
+
+    from ..parallel import start_workers
+
+    def load():
+        for name in modules:
+            try:
+                importlib.import_module(name)
+            except Exception:
+                pass
+
+    start_workers(n_jobs)
+    threading.Thread(target=load, name="workbench-prefetch", daemon=True).start()
+
+
 def _print_registered(result) -> None:
     if "registered_model" in result.mlflow:
         m = result.mlflow
@@ -211,6 +235,8 @@ def _cmd_evaluate(args) -> int:
     # one set of worker processes for the fit, the curves and the figures; the run ends
     # FINISHED only once every output is written
     with command_run(tracker, "evaluate", cfg.name) as run_id, worker_pool(cfg.jobs):
+        if tracker is not None:  # what the records need, loaded while the model fits
+            _prefetch(cfg.jobs, RECORD_MODULES)
         run = evaluate(cfg, return_model=True)
         result = run.result
         if args.out is not None:

@@ -191,9 +191,8 @@ def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
         tracker.log_text(run_id, predictions.to_csv(index_label="row"), "predictions/test.csv")
         model_uri = tracker.log_model(run_id, model, X_test.head(5), targets=result.targets,
                                       files={"config": cfg.path} if cfg.path else None)
-        extra = finish_artifacts()
-        for name, fig in extra.figures.items():
-            tracker.log_figure(run_id, fig, f"plots/{name}.png")
+        extra = finish_artifacts(lambda name, fig: tracker.log_figure(run_id, fig,
+                                                                      f"plots/{name}.png"))
         for name, table in extra.tables.items():
             tracker.log_text(run_id, table.to_csv(index=False), f"{family.name}/{name}.csv")
         for name, data in extra.data.items():

@@ -216,12 +216,21 @@ class ModelFamily:
         return Artifacts()
 
     def begin_artifacts(self, cfg: ExperimentConfig, ds: Dataset, model, setting: str,
-                        quick: bool = False) -> Callable[[], Artifacts]:
+                        quick: bool = False) -> Callable[..., Artifacts]:
         """:meth:`artifacts` in two halves: start what can run on the worker processes
-        (e.g. learning-curve fits) and return a function that waits for it and draws the
-        figures, so the run's other records are written meanwhile. Default: nothing
-        started, :meth:`artifacts` called by the function."""
-        return lambda: self.artifacts(cfg, ds, model, setting, quick)
+        (e.g. learning-curve fits) and return a function ``finish(emit=None)`` that waits
+        for it, draws the figures and returns the :class:`Artifacts`, so the run's other
+        records are written meanwhile. ``emit(name, figure)``, if given, receives every
+        figure as soon as it is drawn (e.g. to log it while later ones are computed).
+        Default: nothing started, :meth:`artifacts` called by ``finish``."""
+        def finish(emit=None) -> Artifacts:
+            out = self.artifacts(cfg, ds, model, setting, quick)
+            for name, fig in out.figures.items():
+                if emit is not None:
+                    emit(name, fig)
+            return out
+
+        return finish
 
     def outputs(self, model, ds: Dataset, setting: str) -> Artifacts | None:
         """What ``evaluate --out DIR`` writes (``None``: the family writes nothing)."""

@@ -220,16 +220,20 @@ class EigenvalueFamily(ModelFamily):
 
         A BaseBoostCV's curve is drawn on its own selection folds, with its candidate as
         seeded there, at :data:`CURVE_POINTS` sizes: the whole-fold points are the
-        selection's fold fits (not fitted again). The curves' fits and the SHAP values of
-        every target run on the command's worker processes (``n_jobs``) from a background
-        thread while the caller logs the run's other records; the returned function waits
-        for them and draws the figures (here: matplotlib is not thread-safe). SHAP explains
-        the fitted model itself."""
+        selection's fold fits (not fitted again). The curves' fits and the SHAP values run
+        on the command's worker processes (``n_jobs``), driven from a background thread
+        while the caller logs the run's other records, one target after another (its tasks
+        first in the queue), so the returned function draws (and emits) a target's figures
+        while the workers go on with the next ones; figures are drawn in the calling thread
+        (matplotlib and SHAP's plots are not thread-safe). SHAP explains the fitted model
+        itself."""
         import logging
+        import queue
         import threading
 
         from ...curves import learning_curve_plan, selection_curve_plan
-        from ...parallel import Task, effective_n_jobs, run_plans, start_workers
+        from ...parallel import (Task, effective_n_jobs, gather, prioritised, run_plans,
+                                 start_workers)
         from ...selection import BasisChoiceCV, BaseBoostCV
 
         log = logging.getLogger("workbench")
@@ -238,55 +242,70 @@ class EigenvalueFamily(ModelFamily):
         log.info("[%s] figures: learning curves at sizes %s and SHAP summaries of %d targets "
                  "(%d processes)", cfg.name, sizes, len(ds.target_names),
                  effective_n_jobs(cfg.jobs))
-        plans, shap_tasks = [], []
-        for target, est in zip(ds.target_names, model.estimators_):
+        results: queue.Queue = queue.Queue()
+        plans = []
+        n_targets = len(ds.target_names)
+        for j, (target, est) in enumerate(zip(ds.target_names, model.estimators_)):
             y = y_train[target].to_numpy()
             if isinstance(est, BaseBoostCV) and not isinstance(est, BasisChoiceCV):
                 # its own folds (a sweep's final model: the inner folds)
                 own = curve_sizes(len(X_train), len(est.cv_splits_))
-                plans.append(selection_curve_plan(est, X_train, y, train_sizes=own,
-                                                  random_state=cfg.random_state))
+                curve = selection_curve_plan(est, X_train, y, train_sizes=own,
+                                             random_state=cfg.random_state)
             else:  # BasisChoiceCV: its chosen candidate on fresh folds
                 candidate = getattr(est, "estimator_", None) or est.estimator
-                plans.append(learning_curve_plan(candidate, X_train, y, train_sizes=sizes,
-                                                 cv=cfg.selection.cv,
-                                                 random_state=cfg.random_state))
+                curve = learning_curve_plan(candidate, X_train, y, train_sizes=sizes,
+                                            cv=cfg.selection.cv, random_state=cfg.random_state)
             cols = _columns(est.best_estimator_, X_train)
-            task = Task(_shap_values, est.best_estimator_, X_train, cols,
+            shap = Task(_shap_values, est.best_estimator_, X_train, cols,
                         cfg.random_state or 0)
-            task.priority = 10 ** 6  # a long task: start it early
-            shap_tasks.append(task)
-        done: dict[str, Any] = {}
+            shap.priority = 10 ** 6  # a long task: start it early
+            # target j's tasks before target j + 1's: its figures can be drawn early
+            plans.append(prioritised(_reported(gather([curve, _all([shap])]), j, results),
+                                     (n_targets - j) * 10 ** 7))
 
         def work():
             try:
-                done["value"] = run_plans([*plans, _all(shap_tasks)], cfg.jobs)
+                run_plans(plans, cfg.jobs)
             except BaseException as exc:  # re-raised by finish()
-                done["error"] = exc
+                results.put(exc)
 
         start_workers(cfg.jobs)  # never fork from the thread
-        thread = threading.Thread(target=work, name="workbench-artifacts", daemon=True)
-        thread.start()
+        threading.Thread(target=work, name="workbench-artifacts", daemon=True).start()
 
-        def finish() -> Artifacts:
+        def finish(emit=None) -> Artifacts:
             from ..figures import learning_curve_figure, shap_figure
 
-            thread.join()
-            if "error" in done:
-                raise done["error"]
-            *curves, shap = done["value"]
+            drawn: dict[int, tuple] = {}
+            while len(drawn) < n_targets:
+                item = results.get()
+                if isinstance(item, BaseException):
+                    raise item
+                j, (curve, [(values, expected, rows)]) = item
+                target = ds.target_names[j]
+                figs = {f"learning_curve_{target}": learning_curve_figure(
+                            curve, target=target, setting=setting),
+                        f"shap_{target}": shap_figure(values, expected, rows, target=target,
+                                                      setting=setting)}
+                for name, fig in figs.items():
+                    if emit is not None:
+                        emit(name, fig)
+                drawn[j] = (curve, figs)
             out = Artifacts()
-            for target, curve, (values, expected, rows) in zip(ds.target_names, curves,
-                                                               shap):
-                out.figures[f"learning_curve_{target}"] = learning_curve_figure(
-                    curve, target=target, setting=setting)
-                out.figures[f"shap_{target}"] = shap_figure(values, expected, rows,
-                                                            target=target, setting=setting)
-            out.data["learning_curves"] = {t: c.to_dict()
-                                           for t, c in zip(ds.target_names, curves)}
+            for j in range(n_targets):
+                out.figures.update(drawn[j][1])
+            out.data["learning_curves"] = {t: drawn[j][0].to_dict()
+                                           for j, t in enumerate(ds.target_names)}
             return out
 
         return finish
+
+
+def _reported(plan, key, results):
+    """``plan``, putting ``(key, its result)`` on the queue ``results`` when it ends."""
+    value = yield from plan
+    results.put((key, value))
+    return value
 
 
 def _all(tasks):
