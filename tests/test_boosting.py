@@ -186,11 +186,14 @@ def test_scikit_learn_composition(data):
 
 
 @pytest.mark.parametrize("kwargs, fit_X, match, exc", [
-    (dict(n_stages=0), None, "n_stages must be an integer >= 1, got 0", ValueError),
-    (dict(n_stages=1.5), None, "n_stages must be an integer >= 1", ValueError),
-    (dict(loss="lad"), None, "unknown loss 'lad'; valid names are", ValueError),
-    (dict(line_search_loss="l1"), None, "unknown loss 'l1'", ValueError),
-    (dict(line_search_penalty=-1), None, "line_search_penalty must be a number >= 0", ValueError),
+    (dict(n_stages=0), None, r"'n_stages' parameter of BaseBoostRegressor must be an int "
+     r"in the range \[1, inf\)\. Got 0", ValueError),
+    (dict(n_stages=1.5), None, "'n_stages' parameter .* Got 1.5", ValueError),
+    (dict(loss="lad"), None, r"'loss' parameter .* must be a str among \{.*'absolute_error'.*\} "
+     r"or an instance of 'workbench.losses.Loss'. Got 'lad'", ValueError),
+    (dict(line_search_loss="l1"), None, "'line_search_loss' parameter .* Got 'l1'", ValueError),
+    (dict(line_search_penalty=-1), None, r"'line_search_penalty' parameter .* range \[0(\.0)?, "
+     r"inf\)", ValueError),
     (dict(prior="missing"), "frame", "prior column 'missing' is not a column of X", ValueError),
     (dict(prior="physics"), "array", "is a column name, but X has no column names", ValueError),
     (dict(prior=9), None, "prior column 9 is out of range for X with 4 columns", ValueError),
@@ -198,11 +201,13 @@ def test_scikit_learn_composition(data):
      ValueError),
     (dict(prior=lambda A: np.zeros(3)), None, r"prior callable output must give one value per "
      r"row: expected shape \(120,\), got \(3,\)", ValueError),
-    (dict(prior=object()), None, "prior must be None, a column name or index", TypeError),
-    (dict(basis="ridge"), None, "basis must be a scikit-learn regressor", TypeError),
-    (dict(basis_features=["zz"]), "frame", "basis feature 'zz' is not a column of X", ValueError),
-    (dict(input_transform=Ridge()), None, "input_transform must be a scikit-learn transformer",
+    (dict(prior=object()), None, "'prior' parameter of BaseBoostRegressor must be None, an "
+     "instance of 'str'", TypeError),
+    (dict(basis="ridge"), None, "'basis' parameter .* implementing 'fit' and 'predict'",
      TypeError),
+    (dict(basis_features=["zz"]), "frame", "basis feature 'zz' is not a column of X", ValueError),
+    (dict(input_transform=Ridge()), None, "'input_transform' parameter .* implementing 'fit' "
+     "and 'transform'", TypeError),
     (dict(basis=FailingRegressor()), None, "basis exploded", RuntimeError),
 ])
 def test_bad_parameters_say_what_is_wrong(data, kwargs, fit_X, match, exc):

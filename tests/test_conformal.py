@@ -185,15 +185,18 @@ def test_clone_and_get_params():
 
 
 @pytest.mark.parametrize("params, pattern", [
-    ({"alpha": 0}, "alpha=0: give a miscoverage level strictly between 0 and 1"),
-    ({"alpha": 1.0}, "alpha=1.0"),
-    ({"alpha": -0.1}, "alpha=-0.1"),
-    ({"alpha": "0.1"}, "alpha='0.1'"),
-    ({"alpha": True}, "alpha=True"),
-    ({"method": "jackknife"}, r"method='jackknife': valid methods are \['cv_plus', 'cv', 'split', 'oof'\]"),
-    ({"method": "split", "calibration_fraction": 1.5}, "calibration_fraction=1.5"),
-    ({"cv": 1}, "cv=1: give at least 2 folds"),
-    ({"estimator": None}, "estimator must be a regressor"),
+    ({"alpha": 0}, r"'alpha' parameter of ConformalRegressor must be a float in the range "
+                 r"\(0\.0, 1\.0\)\. Got 0 instead"),
+    ({"alpha": 1.0}, "'alpha' parameter .* Got 1.0"),
+    ({"alpha": -0.1}, "'alpha' parameter .* Got -0.1"),
+    ({"alpha": "0.1"}, "'alpha' parameter .* Got '0.1'"),
+    ({"alpha": True}, "'alpha' parameter .* Got True"),
+    ({"method": "jackknife"}, r"'method' parameter of ConformalRegressor must be a str among "
+                             r"\{('(cv_plus|cv|split|oof)'(, )?){4}\}\. Got 'jackknife'"),
+    ({"method": "split", "calibration_fraction": 1.5},
+     r"'calibration_fraction' parameter .* range \(0\.0, 1\.0\)\. Got 1.5"),
+    ({"cv": 1}, r"'cv' parameter of ConformalRegressor must be an int in the range \[2, inf\)"),
+    ({"estimator": None}, "'estimator' parameter .* implementing 'fit' and 'predict'. Got None"),
     ({"alpha": 0.01}, r"alpha=0.01: 60 calibration rows are too few for 99% intervals "
                       r"\(at least 99 needed\)"),
     ({"cv": ShuffleSplit(3, random_state=0)}, "at most one validation fold"),

@@ -103,7 +103,8 @@ def test_without_boost_stage_and_params(crosstalk):
 
 
 @pytest.mark.parametrize("change, match", [
-    (dict(physics=None), "physics must be"),
+    (dict(physics=None), "'physics' parameter of FittedPriorBoost must be an object "
+     "implementing 'fit' and 'predict'. Got None"),
     (dict(prior_prefix="v_"), r"X already has column\(s\) \['v_q1'"),
 ])
 def test_bad_setups_raise(crosstalk, change, match):

@@ -205,8 +205,9 @@ def test_linearised_selection_on_a_small_grid_keeps_the_parasitic_couplings(para
     chosen = {p for p, _ in res.selected}
     assert any("~" in p for p in chosen)  # CV keeps parasitic couplings
     assert res.path["cv_mae"].iloc[-1] < res.path["cv_mae"].iloc[0]
-    model = HamiltonianSelectionCV(candidates=pool, start=start, cv=3, max_steps=2,
-                                   method="linearised", random_state=0, **common)
+    model = HamiltonianSelectionCV(HamiltonianParameterRegressor(**common), candidates=pool,
+                                   start=start, cv=3, max_steps=2, method="linearised",
+                                   random_state=0)
     model.fit(d, d[c["targets"]])
     assert model.estimator_.parasitic_ and model.predict(d).shape == (len(d), 9)
 
@@ -243,7 +244,7 @@ def test_regressor_on_a_ring_and_bad_parasitic():
     mae = np.abs(model.predict(test) - test[c["targets"]].to_numpy()).mean()
     prior = np.abs(test[c["prior"]].to_numpy() - test[c["targets"]].to_numpy()).mean()
     assert mae < 0.25 * prior
-    for kwargs, match in [(dict(parasitic="third"), "unknown parasitic 'third'"),
+    for kwargs, match in [(dict(parasitic="third"), "'parasitic' parameter .* Got 'third'"),
                           (dict(parasitic=[[0, 1]]), "duplicate"),
                           (dict(edges=edges[:-1]), "couplings must name len\\(edges\\) = 4")]:
         with pytest.raises(ValueError, match=match):
@@ -271,8 +272,8 @@ def test_config_keys_for_graphs_and_parasitic_couplings(tmp_path):
     cfg = parse_config(raw, tmp_path / "grid.toml")
     ds = load_dataset(cfg)
     model = make_hamiltonian(cfg.family_settings, ds, random_state=0)
-    assert model.method == "linearised" and model.parasitic == "diagonal"
-    assert model.edges == sim.truth["graph"]["edges"]
+    assert model.method == "linearised" and model.regressor.parasitic == "diagonal"
+    assert model.regressor.edges == sim.truth["graph"]["edges"]
     assert "model_f1~model_f5" in model.candidates
     for ham, match in [({"shape": [3, 3]}, "grid shape 3x3 has 9 sites"),
                        ({"topology": "ring", "shape": None}, None),

@@ -249,8 +249,8 @@ def test_regressor_clone_and_params():
 @pytest.mark.parametrize("kwargs, match", [
     (dict(couplings=COUPLINGS), "onsite must name at least 2"),
     (dict(onsite=ONSITE, couplings=COUPLINGS[:2]), "couplings must name"),
-    (dict(onsite=ONSITE, couplings=COUPLINGS, loss="quantile"), "unknown loss 'quantile'; "
-     "valid names are: squared_error, absolute_error, huber"),
+    (dict(onsite=ONSITE, couplings=COUPLINGS, loss="quantile"), r"'loss' parameter of HamiltonianParameterRegressor must be a str among "
+     r"\{('(squared_error|absolute_error|huber)'(, )?){3}\}\. Got 'quantile'"),
     (dict(onsite=ONSITE, couplings=COUPLINGS, alpha_l1=-0.1), "alpha_l1"),
     (dict(onsite=ONSITE, couplings=COUPLINGS, covariates={"nope": ["v_q1"]}),
      "unknown parameter"),
@@ -260,8 +260,9 @@ def test_regressor_clone_and_params():
      "unknown covariate"),
     (dict(onsite=ONSITE, couplings=COUPLINGS, alpha=-1), "alpha"),
     (dict(onsite=ONSITE, couplings=COUPLINGS, solver="lbfgs"),
-     "unknown solver 'lbfgs'; valid: irls, newton"),
-    (dict(onsite=ONSITE, couplings=COUPLINGS, covariates="cubic"), "covariates must be"),
+     r"'solver' parameter .* among \{'(irls|newton)', '(irls|newton)'\}\. Got 'lbfgs'"),
+    (dict(onsite=ONSITE, couplings=COUPLINGS, covariates="cubic"),
+     r"'covariates' parameter .* must be a str among \{'default'\} or an instance of 'dict'"),
     (dict(onsite=ONSITE, couplings=COUPLINGS, sign=0), "sign"),
     (dict(onsite=ONSITE, couplings=COUPLINGS, features=["nope"]), "not columns of X"),
 ])

@@ -146,10 +146,13 @@ def test_selection_cv_is_an_estimator_for_nested_cv(crosstalk, monkeypatch):
     train, _ = crosstalk
     pool = candidate_pool(ONSITE, COUPLINGS, QV, CV, squares=False, base=None,
                           neighbours=False)
-    model = HamiltonianSelectionCV(onsite=ONSITE, couplings=COUPLINGS, candidates=pool,
-                                   max_steps=2, cv=3, random_state=0)
+    model = HamiltonianSelectionCV(
+        HamiltonianParameterRegressor(onsite=ONSITE, couplings=COUPLINGS), candidates=pool,
+        max_steps=2, cv=3, random_state=0)
     twin = clone(model)
-    assert twin.get_params() == model.get_params()
+    assert twin.get_params(deep=False).keys() == model.get_params(deep=False).keys()
+    assert twin.regressor is not model.regressor  # cloned, with the same parameters
+    assert twin.regressor.get_params() == model.regressor.get_params()
     outer = list(KFold(3, shuffle=True, random_state=1).split(train))
     seen_per_fold = []
     spy = _Spy(monkeypatch)
@@ -167,7 +170,8 @@ def test_selection_cv_is_an_estimator_for_nested_cv(crosstalk, monkeypatch):
     prior = train[[f"model_E{i}" for i in range(1, N + 1)]].to_numpy()
     y = train[MEASURED].to_numpy()
     assert np.abs(pred - y).mean() < np.abs(prior - y).mean()
-    with pytest.raises(ValueError, match="cv must be an integer >= 2"):
+    with pytest.raises(ValueError, match=r"'cv' parameter of HamiltonianSelectionCV must be "
+                                         r"an int in the range \[2"):
         clone(model).set_params(cv=1).fit(train, train[MEASURED])
 
 

@@ -18,10 +18,11 @@ import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin, clone
 from sklearn.tree import DecisionTreeRegressor
 from sklearn.utils import check_random_state
+from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .line_search import line_search
-from .losses import get_loss
+from .losses import LOSSES, Loss, get_loss
 
 __all__ = ["BaseBoostRegressor", "CachedParamNames", "PriorModel", "check_predictions",
            "seed_estimator"]
@@ -97,10 +98,15 @@ class PriorModel(CachedParamNames, RegressorMixin, BaseEstimator):
         A callable: ``prior(X)`` returns the prediction (``X`` as passed to ``fit``/``predict``).
     """
 
+    _parameter_constraints: dict = {
+        "prior": [None, str, numbers.Integral, HasMethods(["fit", "predict"]), callable],
+    }
+
     def __init__(self, prior=None):
         self.prior = prior
 
     def fit(self, X, y):
+        self._validate_params()
         X_raw = X
         X, y = validate_data(self, X, y, y_numeric=True, dtype=float,
                              ensure_all_finite=not callable(self.prior))
@@ -119,7 +125,7 @@ class PriorModel(CachedParamNames, RegressorMixin, BaseEstimator):
             self.estimator_ = clone(prior).fit(X_raw, y)
         elif callable(prior):
             pass
-        else:
+        else:  # fit validated the parameter; reached by _fit_validated's callers only
             raise TypeError("prior must be None, a column name or index, an estimator or a "
                             f"callable; got {type(prior).__name__}")
         return self
@@ -193,6 +199,19 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
         Training loss (the pseudo-residual loss) of the prior and after each stage.
     """
 
+    _parameter_constraints: dict = {
+        **PriorModel._parameter_constraints,
+        "basis": [None, HasMethods(["fit", "predict"])],
+        "n_stages": [Interval(numbers.Integral, 1, None, closed="left")],
+        "loss": [StrOptions(set(LOSSES)), Loss],
+        "line_search_loss": [StrOptions(set(LOSSES)), Loss],
+        "line_search_penalty": [Interval(numbers.Real, 0, None, closed="left")],
+        "basis_features": [None, str, numbers.Integral, "array-like"],
+        "input_transform": [None, HasMethods(["fit", "transform"])],
+        "alpha": [Interval(numbers.Real, 0, 1, closed="neither")],
+        "random_state": ["random_state"],
+    }
+
     def __init__(self, prior=None, basis=None, n_stages=1, loss="squared_error",
                  line_search_loss="absolute_error", line_search_penalty=0.1,
                  basis_features=None, input_transform=None, alpha=0.9, random_state=None):
@@ -208,23 +227,13 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
         self.random_state = random_state
 
     def _check_params(self):
-        if (not isinstance(self.n_stages, numbers.Integral) or isinstance(self.n_stages, bool)
-                or self.n_stages < 1):
-            raise ValueError(f"n_stages must be an integer >= 1, got {self.n_stages!r}")
-        if not (isinstance(self.line_search_penalty, numbers.Real)
-                and self.line_search_penalty >= 0):
-            raise ValueError("line_search_penalty must be a number >= 0, got "
-                             f"{self.line_search_penalty!r}")
+        """The parameters checked against ``_parameter_constraints`` (scikit-learn's
+        ``InvalidParameterError``, a ValueError and TypeError); returns the losses and the
+        basis."""
+        self._validate_params()
         loss = get_loss(self.loss, alpha=self.alpha)
         line_loss = get_loss(self.line_search_loss, alpha=self.alpha)
         basis = DecisionTreeRegressor(max_depth=3) if self.basis is None else self.basis
-        if not (hasattr(basis, "fit") and hasattr(basis, "predict")):
-            raise TypeError(f"basis must be a scikit-learn regressor, got {type(basis).__name__}")
-        transform = self.input_transform
-        if transform is not None and not (hasattr(transform, "fit")
-                                          and hasattr(transform, "transform")):
-            raise TypeError("input_transform must be a scikit-learn transformer, got "
-                            f"{type(transform).__name__}")
         return loss, line_loss, basis
 
     def _basis_columns(self, n_features: int) -> np.ndarray:

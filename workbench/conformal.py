@@ -76,6 +76,7 @@ import scipy.sparse as sp
 from sklearn.base import BaseEstimator, MetaEstimatorMixin, RegressorMixin, clone
 from sklearn.model_selection import KFold, check_cv, train_test_split
 from sklearn.utils import _safe_indexing, get_tags
+from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted
 
 from .parallel import run_plans
@@ -186,6 +187,16 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
     n_targets_ : int
     """
 
+    _parameter_constraints: dict = {
+        "estimator": [HasMethods(["fit", "predict"])],
+        "method": [StrOptions(set(METHODS))],
+        "alpha": [Interval(Real, 0, 1, closed="neither")],
+        "cv": ["cv_object"],
+        "calibration_fraction": [Interval(Real, 0, 1, closed="neither")],
+        "random_state": ["random_state"],
+        "n_jobs": [Integral, None],
+    }
+
     def __init__(self, estimator=None, *, method="cv_plus", alpha=0.1, cv=5,
                  calibration_fraction=0.25, random_state=None, n_jobs=None):
         self.estimator = estimator
@@ -198,22 +209,8 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
 
     # ------------------------------------------------------------------ checks
     def _check_params(self, n_rows: int) -> None:
-        if self.estimator is None:
-            raise ValueError("estimator must be a regressor, got None")
-        if self.method not in METHODS:
-            raise ValueError(f"method={self.method!r}: valid methods are {list(METHODS)}")
-        if (not isinstance(self.alpha, Real) or isinstance(self.alpha, bool)
-                or not 0 < self.alpha < 1):
-            raise ValueError(f"alpha={self.alpha!r}: give a miscoverage level strictly "
-                             f"between 0 and 1 (0.1 for 90% intervals)")
-        if self.method == "split":
-            frac = self.calibration_fraction
-            if isinstance(frac, bool) or not isinstance(frac, Real) or not 0 < frac < 1:
-                raise ValueError(f"calibration_fraction={frac!r}: give a fraction strictly "
-                                 f"between 0 and 1")
-        elif isinstance(self.cv, Integral) and not isinstance(self.cv, bool):
-            if self.cv < 2:
-                raise ValueError(f"cv={self.cv}: give at least 2 folds")
+        self._validate_params()  # each value against _parameter_constraints
+        if self.method != "split" and isinstance(self.cv, Integral):
             if self.cv > n_rows:
                 raise ValueError(f"cv={self.cv} folds need at least {self.cv} rows; got "
                                  f"n_samples={n_rows}")

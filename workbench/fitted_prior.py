@@ -15,10 +15,13 @@ physics model would learn from residuals that are smaller than the ones it meets
 
 from __future__ import annotations
 
+import numbers
+
 import numpy as np
 import pandas as pd
 from sklearn.base import BaseEstimator, MetaEstimatorMixin, RegressorMixin, clone
 from sklearn.model_selection import check_cv
+from sklearn.utils._param_validation import HasMethods
 from sklearn.utils.validation import check_is_fitted
 
 from .multitarget import MultiTargetBaseBoost, check_targets
@@ -70,6 +73,15 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
     target_names_ : list of str
     """
 
+    _parameter_constraints: dict = {
+        "physics": [HasMethods(["fit", "predict"])],
+        "boost": [None, HasMethods(["fit", "predict"])],
+        "prior_prefix": [str],
+        "cv": ["cv_object"],
+        "boost_stage": ["boolean"],
+        "fallback": [None, list, tuple],
+    }
+
     def __init__(self, physics=None, boost=None, *, prior_prefix="prior_", cv=5,
                  boost_stage=True, fallback=None):
         self.physics = physics
@@ -87,8 +99,7 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         return pd.concat([X, added], axis=1)
 
     def fit(self, X, Y):
-        if self.physics is None:
-            raise ValueError("physics must be a multi-output regressor, got None")
+        self._validate_params()
         if not isinstance(X, pd.DataFrame):
             raise ValueError(f"X must be a pandas DataFrame, got {type(X).__name__}")
         Y_arr, names = check_targets(X, Y)

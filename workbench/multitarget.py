@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import numbers
+
 import numpy as np
 import pandas as pd
 from sklearn.base import BaseEstimator, MetaEstimatorMixin, RegressorMixin, clone
 from sklearn.utils import check_random_state
+from sklearn.utils._param_validation import HasMethods
 from sklearn.utils.validation import check_is_fitted
 
 from .boosting import seed_estimator
@@ -78,6 +81,14 @@ class MultiTargetBaseBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
     target_names_ : list of str
     """
 
+    _parameter_constraints: dict = {
+        "estimator": [None, HasMethods(["fit", "predict"])],
+        "priors": [None, list, tuple],
+        "target_estimators": [None, dict],
+        "n_jobs": [numbers.Integral, None],
+        "random_state": ["random_state"],
+    }
+
     def __init__(self, estimator=None, *, priors=None, target_estimators=None, n_jobs=None,
                  random_state=None):
         self.estimator = estimator
@@ -117,6 +128,7 @@ class MultiTargetBaseBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         """:meth:`fit` as a plan (:mod:`workbench.parallel`): every target's folds and refit
         side by side (so several such fits, e.g. conformal fold models, can share the
         worker processes)."""
+        self._validate_params()
         Y, names = check_targets(X, Y)
         ests = self._estimators_for(names)
         self.estimators_ = yield from gather([_fit_plan(est, X, Y[:, j])

@@ -23,6 +23,7 @@ import numpy as np
 import pandas as pd
 from scipy.linalg.blas import dsyrk as _dsyrk
 from sklearn.base import BaseEstimator, RegressorMixin
+from sklearn.utils._param_validation import Interval, Options, StrOptions
 from sklearn.utils.validation import check_is_fitted
 
 from .hamiltonian import PARASITIC_KINDS, CouplingGraph, graph_spectrum
@@ -358,6 +359,23 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
     n_features_in_, feature_names_in_
     """
 
+    _parameter_constraints: dict = {
+        "onsite": [None, list, tuple],
+        "couplings": [None, list, tuple],
+        "edges": [None, "array-like"],
+        "parasitic": [None, StrOptions(set(PARASITIC_KINDS)), "array-like"],
+        "sign": [Options(numbers.Integral, {-1, 1})],
+        "covariates": [StrOptions({"default"}), dict],
+        "features": [None, list, tuple],
+        "alpha": [Interval(numbers.Real, 0, None, closed="left")],
+        "alpha_l1": [Interval(numbers.Real, 0, None, closed="left")],
+        "loss": [StrOptions(set(PARAM_LOSSES))],
+        "huber_delta": [Interval(numbers.Real, 0, None, closed="neither")],
+        "max_iter": [Interval(numbers.Integral, 0, None, closed="left")],
+        "tol": [Interval(numbers.Real, 0, None, closed="left")],
+        "solver": [StrOptions(set(SOLVERS))],
+    }
+
     def __init__(self, *, onsite=None, couplings=None, edges=None, parasitic=None, sign=-1,
                  covariates="default", features=None, alpha=1.0, alpha_l1=0.0,
                  loss="squared_error", huber_delta=1.0, max_iter=20, tol=1e-6,
@@ -379,6 +397,7 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
 
     # ------------------------------------------------------------------ validation
     def _check_params(self):
+        self._validate_params()  # each value against _parameter_constraints
         onsite = _names(self.onsite, "onsite")
         couplings = _names(self.couplings, "couplings")
         if len(onsite) < 2:
@@ -391,43 +410,18 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         features = _names(self.features, "features")
         if set(onsite) & set(couplings) or set(features) & set(onsite + couplings):
             raise ValueError("onsite, couplings and features must name distinct columns")
-        if isinstance(self.sign, bool) or self.sign not in (-1, 1):
-            raise ValueError(f"sign must be -1 or 1, got {self.sign!r}")
         extra = parasitic_names(onsite, pairs)
         params = onsite + couplings
-        if isinstance(self.covariates, str):
-            if self.covariates != "default":
-                raise ValueError('covariates must be "default" or a dict parameter -> list of '
-                                 f"covariate names, got {self.covariates!r}")
+        if isinstance(self.covariates, str):  # "default"
             library = default_library(onsite, couplings, self.edges, pairs)
-        elif isinstance(self.covariates, dict):
+        else:
             unknown = [p for p in self.covariates if p not in params + extra]
             if unknown:
                 raise ValueError(f"covariates names unknown parameter(s) {unknown}; "
                                  f"parameters are {params + extra}")
             library = {p: _names(self.covariates.get(p, []), f"covariates[{p!r}]")
                        for p in params + extra}
-        else:
-            raise ValueError('covariates must be "default" or a dict parameter -> list of '
-                             f"covariate names, got {type(self.covariates).__name__}")
         active = [(pair, p) for pair, p in zip(pairs, extra) if library.get(p)]
-        for name, value, low in (("alpha", self.alpha, 0), ("alpha_l1", self.alpha_l1, 0)):
-            if not (isinstance(value, numbers.Real) and np.isfinite(value) and value >= low):
-                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
-        if self.loss not in PARAM_LOSSES:
-            raise ValueError(f"unknown loss {self.loss!r}; valid names are: "
-                             f"{', '.join(PARAM_LOSSES)}")
-        if not (isinstance(self.huber_delta, numbers.Real) and np.isfinite(self.huber_delta)
-                and self.huber_delta > 0):
-            raise ValueError(f"huber_delta must be a finite number > 0, got "
-                             f"{self.huber_delta!r}")
-        if (not isinstance(self.max_iter, numbers.Integral) or isinstance(self.max_iter, bool)
-                or self.max_iter < 0):
-            raise ValueError(f"max_iter must be an integer >= 0, got {self.max_iter!r}")
-        if not (isinstance(self.tol, numbers.Real) and self.tol >= 0):
-            raise ValueError(f"tol must be a number >= 0, got {self.tol!r}")
-        if self.solver not in SOLVERS:
-            raise ValueError(f"unknown solver {self.solver!r}; valid: {', '.join(SOLVERS)}")
         graph = graph.with_edges([pair for pair, _ in active])
         return onsite, couplings, features, library, graph, [p for _, p in active]
 

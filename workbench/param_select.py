@@ -22,6 +22,7 @@ import pandas as pd
 from sklearn.base import BaseEstimator, RegressorMixin, clone
 from sklearn.model_selection import RepeatedKFold
 from sklearn.utils import check_random_state
+from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
 from sklearn.utils.parallel import Parallel, delayed
 from sklearn.utils.validation import check_is_fitted
 
@@ -448,17 +449,19 @@ def _print_progress(line: str) -> None:
 class HamiltonianSelectionCV(RegressorMixin, BaseEstimator):
     """Forward covariate selection by CV (on the rows given to ``fit``), then a refit.
 
-    ``fit`` runs :func:`forward_select` with these settings and fits a
-    :class:`~workbench.param_boost.HamiltonianParameterRegressor` with the selected
-    covariates on all the rows. Cloning it and cross-validating gives nested CV (the
-    selection runs again inside each outer fold).
+    ``fit`` runs :func:`forward_select` with these settings on ``regressor`` and refits it
+    with the selected covariates on all the rows. Cloning it and cross-validating gives
+    nested CV (the selection runs again inside each outer fold).
 
     Parameters
     ----------
-    onsite, couplings, edges, parasitic, sign, alpha, alpha_l1, loss, huber_delta, max_iter, tol
-        As in :class:`~workbench.param_boost.HamiltonianParameterRegressor`.
+    regressor : HamiltonianParameterRegressor, default=None
+        The model whose covariates are selected (its ``covariates`` is replaced by the
+        selection's; every other parameter is kept, e.g. the graph, penalties, loss and
+        solver). ``None``: ``HamiltonianParameterRegressor()``, which needs ``onsite`` and
+        ``couplings`` set (``regressor__onsite=...``).
     candidates : dict parameter -> list of covariate names, default=None
-        The pool (:func:`candidate_pool`); ``None``: the default library.
+        The pool (:func:`candidate_pool`); ``None``: the regressor's default library.
     start : dict, default=None
         Covariates every candidate model has (``None``: intercepts only).
     cv, n_repeats : int, default=5, 1
@@ -480,29 +483,32 @@ class HamiltonianSelectionCV(RegressorMixin, BaseEstimator):
     estimator_ : HamiltonianParameterRegressor (fitted on all rows)
     """
 
-    def __init__(self, *, onsite=None, couplings=None, edges=None, parasitic=None, sign=-1,
-                 candidates=None, start=None,
-                 cv=5, n_repeats=1, max_steps=30, min_improvement=1e-3, alpha=1.0,
-                 alpha_l1=0.0, loss="squared_error", huber_delta=1.0, max_iter=20, tol=1e-6,
-                 random_state=None, n_jobs=None, method="refit", shortlist=5, batch="auto",
-                 verbose=False):
-        self.onsite = onsite
-        self.couplings = couplings
-        self.edges = edges
-        self.parasitic = parasitic
-        self.sign = sign
+    _parameter_constraints: dict = {
+        "regressor": [None, HasMethods(["fit", "predict", "coef_dict"])],
+        "candidates": [None, dict],
+        "start": [None, dict],
+        "cv": [Interval(numbers.Integral, 2, None, closed="left")],
+        "n_repeats": [Interval(numbers.Integral, 1, None, closed="left")],
+        "max_steps": [Interval(numbers.Integral, 0, None, closed="left")],
+        "min_improvement": [Interval(numbers.Real, 0, None, closed="left")],
+        "random_state": ["random_state"],
+        "n_jobs": [numbers.Integral, None],
+        "method": [StrOptions(set(SELECTION_METHODS))],
+        "shortlist": [Interval(numbers.Integral, 1, None, closed="left")],
+        "batch": [StrOptions({"auto"}), Interval(numbers.Integral, 1, None, closed="left")],
+        "verbose": ["boolean"],
+    }
+
+    def __init__(self, regressor=None, *, candidates=None, start=None, cv=5, n_repeats=1,
+                 max_steps=30, min_improvement=1e-3, random_state=None, n_jobs=None,
+                 method="refit", shortlist=5, batch="auto", verbose=False):
+        self.regressor = regressor
         self.candidates = candidates
         self.start = start
         self.cv = cv
         self.n_repeats = n_repeats
         self.max_steps = max_steps
         self.min_improvement = min_improvement
-        self.alpha = alpha
-        self.alpha_l1 = alpha_l1
-        self.loss = loss
-        self.huber_delta = huber_delta
-        self.max_iter = max_iter
-        self.tol = tol
         self.random_state = random_state
         self.n_jobs = n_jobs
         self.method = method
@@ -510,23 +516,14 @@ class HamiltonianSelectionCV(RegressorMixin, BaseEstimator):
         self.batch = batch
         self.verbose = verbose
 
-    def _regressor_params(self):
-        return dict(onsite=self.onsite, couplings=self.couplings, edges=self.edges,
-                    parasitic=self.parasitic, sign=self.sign,
-                    alpha=self.alpha, alpha_l1=self.alpha_l1, loss=self.loss,
-                    huber_delta=self.huber_delta, max_iter=self.max_iter, tol=self.tol)
-
     def fit(self, X, y):
-        for name, value, low in (("cv", self.cv, 2), ("n_repeats", self.n_repeats, 1)):
-            if not isinstance(value, numbers.Integral) or isinstance(value, bool) or value < low:
-                raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
-        if not (isinstance(self.min_improvement, numbers.Real) and self.min_improvement >= 0):
-            raise ValueError(f"min_improvement must be a number >= 0, got "
-                             f"{self.min_improvement!r}")
+        self._validate_params()
+        regressor = HamiltonianParameterRegressor() if self.regressor is None else self.regressor
+        params = {k: v for k, v in regressor.get_params(deep=False).items() if k != "covariates"}
         candidates = self.candidates
         if candidates is None:
-            candidates = default_library(self.onsite or [], self.couplings or [], self.edges,
-                                         self.parasitic)
+            candidates = default_library(params["onsite"] or [], params["couplings"] or [],
+                                         params["edges"], params["parasitic"])
         if isinstance(self.random_state, numbers.Integral):
             seed = int(self.random_state)
         else:
@@ -536,7 +533,7 @@ class HamiltonianSelectionCV(RegressorMixin, BaseEstimator):
             X, y, candidates=candidates, cv=self.cv, n_repeats=self.n_repeats,
             random_state=seed, max_steps=self.max_steps, min_improvement=self.min_improvement,
             start=self.start, n_jobs=self.n_jobs, method=self.method, shortlist=self.shortlist,
-            batch=self.batch, progress=progress, **self._regressor_params())
+            batch=self.batch, progress=progress, **params)
         self.estimator_ = self.selection_.estimator().fit(X, y)
         self.n_features_in_ = X.shape[1]
         self.feature_names_in_ = self.estimator_.feature_names_in_

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numbers
 import warnings
 
 import numpy as np
@@ -10,6 +11,7 @@ from sklearn.exceptions import FitFailedWarning
 from sklearn.metrics import check_scoring
 from sklearn.model_selection import check_cv
 from sklearn.utils import _safe_indexing, check_random_state
+from sklearn.utils._param_validation import HasMethods
 from sklearn.utils.metaestimators import _BaseComposition
 from sklearn.utils.validation import check_is_fitted, validate_data
 
@@ -129,6 +131,17 @@ class BaseBoostCV(CachedParamNames, MetaEstimatorMixin, RegressorMixin, BaseEsti
         The selected model refitted on all rows (when ``refit=True``).
     """
 
+    _parameter_constraints: dict = {
+        "estimator": [None, HasMethods(["fit", "predict"])],
+        "incumbent": [None, HasMethods(["fit", "predict"])],
+        "cv": ["cv_object"],
+        "scoring": [str, callable],
+        "refit": ["boolean"],
+        "n_jobs": [numbers.Integral, None],
+        "random_state": ["random_state"],
+        "return_train_score": ["boolean"],
+    }
+
     def __init__(self, estimator=None, *, incumbent=None, cv=5,
                  scoring="neg_mean_absolute_error", refit=True, n_jobs=None, random_state=None,
                  return_train_score=False):
@@ -163,6 +176,7 @@ class BaseBoostCV(CachedParamNames, MetaEstimatorMixin, RegressorMixin, BaseEsti
         """:meth:`fit` as a plan (:mod:`workbench.parallel`): the folds, then the refit
         (``warn=False``: no warning for failed candidate fits, e.g. one of several
         candidates)."""
+        self._validate_params()
         candidate = self._candidate()
         incumbent = (PriorModel(prior=find_prior(candidate)) if self.incumbent is None
                      else self.incumbent)
@@ -281,6 +295,12 @@ class BasisChoiceCV(_BaseComposition, BaseBoostCV):
         As in :class:`BaseBoostCV`, the boosted ones of the winning candidate.
     """
 
+    _parameter_constraints: dict = {
+        **{k: v for k, v in BaseBoostCV._parameter_constraints.items()
+           if k not in ("estimator", "return_train_score")},
+        "candidates": [list],
+    }
+
     def __init__(self, candidates=None, *, incumbent=None, cv=5,
                  scoring="neg_mean_absolute_error", refit=True, n_jobs=None, random_state=None):
         self.candidates = candidates
@@ -312,7 +332,8 @@ class BasisChoiceCV(_BaseComposition, BaseBoostCV):
         side, then the refit."""
         if fold_callback is not None:
             raise TypeError("BasisChoiceCV takes no fold_callback")
-        if not isinstance(self.candidates, list) or not self.candidates or not all(
+        self._validate_params()
+        if not self.candidates or not all(
                 isinstance(c, tuple) and len(c) == 2 for c in self.candidates):
             raise ValueError(f"candidates must be a non-empty list of (name, regressor) "
                              f"tuples, got {self.candidates!r}")

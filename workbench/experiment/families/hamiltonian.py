@@ -112,11 +112,12 @@ def make_hamiltonian(settings: HamiltonianSettings, ds: Dataset, *, random_state
         names = list(dict.fromkeys([*on, *co, *start, *pool]))
         merged = {p: list(dict.fromkeys(start.get(p, []) + pool.get(p, []))) for p in names}
         return HamiltonianParameterRegressor(covariates=merged, **common)
-    return HamiltonianSelectionCV(candidates=pool, start=start or None, cv=s.selection_cv,
+    return HamiltonianSelectionCV(HamiltonianParameterRegressor(**common), candidates=pool,
+                                  start=start or None, cv=s.selection_cv,
                                   n_repeats=s.selection_repeats, max_steps=s.max_steps,
                                   min_improvement=float(s.min_improvement),
                                   method="linearised" if s.selection == "linearised" else "refit",
-                                  random_state=random_state, n_jobs=n_jobs, **common)
+                                  random_state=random_state, n_jobs=n_jobs)
 
 
 def physics_regressor(model):
