@@ -23,12 +23,12 @@ from sklearn.base import BaseEstimator, RegressorMixin, clone
 from sklearn.model_selection import RepeatedKFold
 from sklearn.utils import check_random_state
 from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
-from sklearn.utils.parallel import Parallel, delayed
 from sklearn.utils.validation import check_is_fitted
 
-from .param_linear import linear_scores
+from .parallel import Task, effective_n_jobs, map_tasks
 from .param_boost import (HamiltonianParameterRegressor, default_library, parasitic_names,
                           resolve_graph)
+from .param_linear import linear_scores
 
 __all__ = ["HamiltonianSelectionCV", "SelectionResult", "candidate_pool", "crosstalk_candidates",
            "cv_mae", "forward_select"]
@@ -257,9 +257,12 @@ def forward_select(X, y, *, candidates, cv=5, n_repeats=1, random_state=0, max_s
     X : DataFrame with the onsite, coupling and candidate-feature columns.
     y : (n, N) ascending eigenvalues.
     candidates : dict parameter -> list of covariate names (see :func:`candidate_pool`).
-    n_jobs : parallel workers when > 1: joblib processes over candidates for ``"refit"``
-        (arguments pickled, nothing memory-mapped), threads over folds and fits for
-        ``"linearised"``.
+    n_jobs : scikit-learn's convention (``None``: 1, ``-1``: every core; 1 inside a worker
+        process): for ``"refit"``, the candidates are scored on the workbench's worker
+        processes (:mod:`workbench.parallel`, the command's pool when there is one); for
+        ``"linearised"``, the folds' fits and linear scores run on threads of this process
+        (the folds' data and fitted models stay in memory from step to step; numpy's
+        linear algebra releases the GIL).
     progress : called with one line per step.
     **regressor_params : passed to :class:`~workbench.param_boost.HamiltonianParameterRegressor`
         (``onsite``, ``couplings``, ``sign``, ``alpha``, ``loss``, ...; not ``covariates``).
@@ -296,7 +299,7 @@ def forward_select(X, y, *, candidates, cv=5, n_repeats=1, random_state=0, max_s
     if batch != "auto" and not (isinstance(batch, numbers.Integral) and batch >= 1):
         raise ValueError(f'batch must be "auto" or an integer >= 1, got {batch!r}')
     folds = _sliced(X, y, _splits(len(X), cv, n_repeats, random_state))
-    jobs = 1 if n_jobs is None else int(n_jobs)
+    jobs = effective_n_jobs(n_jobs)  # scikit-learn's convention: None 1, -1 every core
     if method == "linearised":
         return _linearised_select(X, base, current, pool, folds, jobs, max_steps,
                                   min_improvement, shortlist, batch, progress, t0,
@@ -305,9 +308,8 @@ def forward_select(X, y, *, candidates, cv=5, n_repeats=1, random_state=0, max_s
     def score(libraries, warm):
         if jobs > 1 and len(libraries) > 1:
             chunks = [libraries[i::jobs] for i in range(jobs)]
-            # max_nbytes=None: arguments are pickled, never memory-mapped into /dev/shm
-            res = Parallel(n_jobs=jobs, max_nbytes=None)(
-                delayed(_score_many)(base, ch, folds, warm) for ch in chunks)
+            # the workbench's worker processes (workbench.parallel), the command's own pool
+            res = map_tasks([Task(_score_many, base, ch, folds, warm) for ch in chunks], jobs)
             out = [None] * len(libraries)
             for i, r in enumerate(res):
                 out[i::jobs] = r
