@@ -4,12 +4,14 @@
 """
 
 import dataclasses
+from pathlib import Path
 
 import pytest
 
 from workbench.experiment.config import load_config
 from workbench.experiment.evaluate import evaluate
-from workbench.experiment.reproduce import EXPERIMENTS
+
+EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
 
 pytestmark = pytest.mark.slow
 

@@ -127,3 +127,17 @@ def test_quick_studies_are_not_the_full_runs(quick_run):
     root = out.parent
     names = optuna.get_all_study_names(open_storage("mlruns/optuna.journal", root))
     assert names and all("-seed0-quick" in n for n in names if not n.endswith("streams"))
+
+
+def test_reproduce_without_its_configs_is_one_line(tmp_path, capsys, monkeypatch):
+    """An installed wheel carries no experiments/: the configs' folder is named, not a
+    traceback, and nothing is written."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "cfg").mkdir()
+    (tmp_path / "cfg" / "paper_main_body.toml").write_text("")
+    assert main(["reproduce", "--experiments", "cfg", "--out", "r", "--no-track"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and len(err) < 300, err
+    assert "cfg/" in err and "paper_improved.toml" in err and "--experiments" in err, err
+    assert "paper_main_body.toml" not in err  # present: not listed as missing
+    assert not (tmp_path / "r").exists()

@@ -2,6 +2,7 @@
 
 import dataclasses
 import json
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -192,7 +193,7 @@ def test_the_simulated_device_config_runs_as_documented(tmp_path, capsys):
     import shutil
 
     from workbench.experiment.cli import main
-    from workbench.experiment.reproduce import EXPERIMENTS
+    EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
 
     (tmp_path / "experiments").mkdir()
     shutil.copy(EXPERIMENTS / "simulated_device.toml", tmp_path / "experiments")

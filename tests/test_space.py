@@ -1,6 +1,8 @@
 """Search spaces (workbench.experiment.space): every basis family's conditional parameters are
 sampled and give a model that fits; bad spaces name the entry."""
 
+from pathlib import Path
+
 import numpy as np
 import optuna
 import pytest
@@ -9,8 +11,9 @@ from optuna.trial import FixedTrial
 from workbench.bases import BASES
 from workbench.experiment.config import load_config
 from workbench.experiment.families.eigenvalue import make_booster
-from workbench.experiment.reproduce import EXPERIMENTS
 from workbench.experiment.space import SearchSpace, SpaceError
+
+EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
 
 
 def test_paper_search_space_samples_every_basis_family_and_fits():

@@ -111,7 +111,8 @@ def _cmd_reproduce(args) -> int:
 
     with worker_pool(-1):
         res = reproduce(args.out, tracking_uri=args.tracking_uri, storage=args.storage,
-                        quick=args.quick, track=not args.no_track, seed=args.seed)
+                        quick=args.quick, track=not args.no_track, seed=args.seed,
+                        experiments=args.experiments)
     s = res.settings
     print(f"paper settings: average test MAE {s['paper'].model.avg('test_mae'):.3f} MHz "
           f"(control program {s['paper'].prior.avg('test_mae'):.3f}); improved "
@@ -394,6 +395,10 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--quick", action="store_true",
                      help="fewer curve points, SHAP rows, search trials and folds (for tests)")
     rep.add_argument("--seed", type=int, default=0)
+    rep.add_argument("--experiments", metavar="DIR", default=None,
+                     help="folder with the configs it runs (paper_main_body.toml, "
+                     "paper_improved.toml, paper_search.toml, hamiltonian.toml; default: the "
+                     "checkout's experiments/, else ./experiments)")
     rep.add_argument("--storage", default=None,
                      help="Optuna storage of the search (a journal file path or an RDB URL)")
     _tracking_args(rep)

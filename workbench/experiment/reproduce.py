@@ -24,6 +24,7 @@ from .._io import atomic_write
 from ..curves import learning_curve_plan
 from ..parallel import Task, map_tasks, run_plans
 from .config import load_config
+from .errors import UsageError
 from .evaluate import evaluate
 from .explain import shap_values
 from .intervals import family_model
@@ -35,7 +36,28 @@ from .tracking import Tracker, dataset_hash, git_commit, resolve_tracking_uri
 
 __all__ = ["PAPER_SIZES", "REFERENCE", "TABULA_RASA", "Reproduction", "report", "reproduce"]
 
-EXPERIMENTS = Path(__file__).resolve().parents[2] / "experiments"
+#: The source checkout the package may have been imported from (an installed wheel's
+#: site-packages has no ``experiments/``).
+CHECKOUT = Path(__file__).resolve().parents[2]
+#: The configs the reproduction runs, read from an experiments folder.
+CONFIGS = ("paper_main_body.toml", "paper_improved.toml", "paper_search.toml",
+           "hamiltonian.toml")
+
+
+def experiments_dir(explicit: str | Path | None = None) -> Path:
+    """The folder holding the reproduction's :data:`CONFIGS`: ``explicit`` if given, else the
+    ``experiments/`` of the checkout the package runs from, else ``./experiments`` (an
+    installed wheel carries no configs). A :class:`UsageError` names what is missing."""
+    folders = ([Path(explicit)] if explicit is not None
+               else [CHECKOUT / "experiments", Path.cwd() / "experiments"])
+    for folder in folders:
+        if all((folder / name).is_file() for name in CONFIGS):
+            return folder
+    shown = folders[0] if explicit is not None else Path("experiments")
+    missing = [n for n in CONFIGS if not (folders[-1] / n).is_file()]
+    raise UsageError(f"reproduce reads its configs from {shown}/, which lacks "
+                     f"{', '.join(missing)}; run it from a workbench checkout or pass "
+                     "--experiments DIR")
 SHORT = ["Y1", "Y2", "Y3", "Y4", "Y5"]
 
 #: The paper's learning-curve training sizes (23 ... 95 training rows).
@@ -104,11 +126,12 @@ def _say(text: str) -> None:
 
 
 def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
-              storage: str | None = None, quick: bool = False, track: bool = True, seed: int = 0
-              ) -> Reproduction:
+              storage: str | None = None, quick: bool = False, track: bool = True, seed: int = 0,
+              experiments: str | Path | None = None) -> Reproduction:
     """Compute the paper's results and figures; returns them (also written as
-    ``results.json``)."""
+    ``results.json``). The configs come from ``experiments`` (see :func:`experiments_dir`)."""
     start = _T0[0] = time.perf_counter()
+    configs = experiments_dir(experiments)
     out = Path(out)
     figdir = out / "figures"
     figdir.mkdir(parents=True, exist_ok=True)
@@ -124,14 +147,14 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
     settings = {}
     for key, toml in (("paper", "paper_main_body.toml"), ("improved", "paper_improved.toml")):
         _say(f"evaluating the {key} settings ({toml})")
-        cfg = _no_intervals(replace(load_config(EXPERIMENTS / toml), random_state=seed))
+        cfg = _no_intervals(replace(load_config(configs / toml), random_state=seed))
         run = evaluate(cfg, return_model=True)
         settings[key], ds = run.result, run.dataset
     _say("nested-CV search for the workbench's own best configuration "
                    "(experiments/paper_search.toml)")
     from .search import run_sweep  # Optuna only here
 
-    search_cfg = load_config(EXPERIMENTS / "paper_search.toml")
+    search_cfg = load_config(configs / "paper_search.toml")
     cv = {"seed": seed, **({"outer_folds": 2, "inner_folds": 3} if quick else {})}
     search_cfg = _no_intervals(replace(search_cfg, random_state=seed,
                                        cv=search_cfg.cv.model_copy(update=cv)))
@@ -140,7 +163,7 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
                                                   f"{'-quick' if quick else ''}",
                                        trials=2 if quick else None, storage=storage)
     settings["search"] = run_sweep(search_cfg, progress=False).result
-    hamiltonian_model = _hamiltonian(settings, seed, quick)
+    hamiltonian_model = _hamiltonian(settings, seed, quick, configs)
     X_train, X_test, y_train, y_test = ds.split()
     targets = ds.target_names
     paper = settings["paper"]
@@ -195,7 +218,7 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
     # the five curves' (size, fold) fits share the worker processes (every core)
     fitted = run_plans([learning_curve_plan(est, X_train, y_train[target].to_numpy(),
                                             train_sizes=sizes, cv=folds, random_state=seed)
-                        for target, est in zip(targets, _paper_candidates(ds))], -1)
+                        for target, est in zip(targets, _paper_candidates(ds, configs))], -1)
     for j, (target, curve) in enumerate(zip(targets, fitted)):
         curves[SHORT[j]] = curve.to_dict()
         fig = learning_curve_figure(curve, target=f"{SHORT[j]} ({target})",
@@ -276,12 +299,12 @@ def _no_intervals(cfg):
     return replace(cfg, intervals=cfg.intervals.model_copy(update={"enabled": False}))
 
 
-def _hamiltonian(settings: dict[str, Any], seed: int, quick: bool):
+def _hamiltonian(settings: dict[str, Any], seed: int, quick: bool, configs: Path):
     """Evaluate ``experiments/hamiltonian.toml`` into ``settings["hamiltonian"]``; returns
     the fitted model. Its nested CV over all rows (about 4 minutes, which would take the main
     job near 10) is left to ``workbench evaluate experiments/hamiltonian.toml``; quick mode
     also uses a smaller pool and one CV repeat."""
-    cfg = load_config(EXPERIMENTS / "hamiltonian.toml")
+    cfg = load_config(configs / "hamiltonian.toml")
     evaluation = {"nested_folds": 0}
     hamiltonian = {}
     if quick:
@@ -297,9 +320,9 @@ def _hamiltonian(settings: dict[str, Any], seed: int, quick: bool):
     return cfg, run.model
 
 
-def _paper_candidates(ds):
+def _paper_candidates(ds, configs: Path):
     """The paper-settings candidate (an unfitted BaseBoostRegressor) of each target."""
-    cfg = load_config(EXPERIMENTS / "paper_main_body.toml")
+    cfg = load_config(configs / "paper_main_body.toml")
     model = cfg.family.build(cfg, ds)
     return [model.target_estimators[t].estimator for t in ds.target_names]
 
