@@ -39,7 +39,8 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
-__all__ = ["Task", "effective_n_jobs", "gather", "in_worker", "map_tasks", "one_thread_env",
+__all__ = ["Task", "die_with_parent", "effective_n_jobs", "gather", "in_worker", "init_worker",
+           "map_tasks", "one_thread_env",
            "prioritised", "run_plans", "start_workers", "start_fork_server",
            "worker_pool"]
 
@@ -97,27 +98,41 @@ def in_worker() -> bool:
 # --------------------------------------------------------------------------- workers
 
 
-def _die_with_parent(parent: int) -> None:
+def die_with_parent(parent: int, sig: int = signal.SIGKILL) -> None:
+    """End this process with ``sig`` when its parent ends (Linux's ``PR_SET_PDEATHSIG``: the
+    process that started this one, i.e. ``parent`` itself when forked from it, or the fork
+    server, which ends when ``parent`` does), and exit now if ``parent`` is gone already."""
     if sys.platform.startswith("linux"):
         try:
             import ctypes
 
             libc = ctypes.CDLL(None, use_errno=True)
-            libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+            libc.prctl(1, sig)  # PR_SET_PDEATHSIG
         except (OSError, AttributeError):
             pass
-    if os.getppid() != parent:  # the parent died before prctl
-        os._exit(1)
+    try:
+        os.kill(parent, 0)
+    except ProcessLookupError:  # the parent died before prctl
+        os._exit(128 + sig)
+    except PermissionError:
+        pass
 
 
-def _init_worker(parent: int) -> None:
+def init_worker(parent: int, *, pool: bool = True) -> None:
+    """Make this process a worker of process ``parent``: :func:`effective_n_jobs` is 1 here
+    (the parent spreads the work; no nested processes), one BLAS/OpenMP thread, and it ends
+    with ``parent`` (:func:`die_with_parent`). A ``pool`` worker (:func:`run_plans`'s)
+    ignores SIGINT (its parent handles it and ends the pool) and is killed with its parent;
+    a sweep worker (``pool=False``) keeps its signal handling and gets SIGTERM, which fails
+    and queues its running trial before it exits."""
     global _IN_WORKER
     _IN_WORKER = True
     _AMBIENT.clear()
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    for sig in (signal.SIGTERM, signal.SIGALRM):
-        signal.signal(sig, signal.SIG_DFL)
-    _die_with_parent(parent)
+    if pool:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        for sig in (signal.SIGTERM, signal.SIGALRM):
+            signal.signal(sig, signal.SIG_DFL)
+    die_with_parent(parent, signal.SIGKILL if pool else signal.SIGTERM)
     os.environ.update({k: "1" for k in THREAD_ENV})
     try:
         from threadpoolctl import threadpool_limits
@@ -167,7 +182,7 @@ class _Pool:
         if self._executor is None:
             ctx = multiprocessing.get_context("fork")
             self._executor = ProcessPoolExecutor(self.n_jobs, mp_context=ctx,
-                                                 initializer=_init_worker,
+                                                 initializer=init_worker,
                                                  initargs=(os.getpid(),))
         return self._executor
 
@@ -225,10 +240,11 @@ def _fork_available() -> bool:
 
 
 @contextlib.contextmanager
-def worker_pool(n_jobs: int | None) -> Iterator[int]:
+def worker_pool(n_jobs: int | None, *, eager: bool = False) -> Iterator[int]:
     """Keep ``n_jobs`` workers for every parallel call inside the block (forked on first
-    use); yields the number of processes. With one process (or inside a worker) it does
-    nothing."""
+    use, or at once with ``eager``: a command enters it before it starts any thread, so
+    that no process is forked while another thread holds a lock); yields the number of
+    processes. With one process (or inside a worker) it does nothing."""
     jobs = effective_n_jobs(n_jobs)
     if jobs <= 1 or not _fork_available():
         yield jobs
@@ -237,6 +253,8 @@ def worker_pool(n_jobs: int | None) -> Iterator[int]:
     _AMBIENT.append(pool)
     ok = False
     try:
+        if eager:
+            start_workers(jobs)
         yield jobs
         ok = True
     finally:

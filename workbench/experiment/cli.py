@@ -109,7 +109,7 @@ def _cmd_reproduce(args) -> int:
     from ..parallel import worker_pool
     from .reproduce import reproduce
 
-    with worker_pool(-1):
+    with worker_pool(-1, eager=True):  # forked before any thread of this process
         res = reproduce(args.out, tracking_uri=args.tracking_uri, storage=args.storage,
                         quick=args.quick, track=not args.no_track, seed=args.seed,
                         experiments=args.experiments)
@@ -159,9 +159,10 @@ def _cmd_sweep(args) -> int:
     from ..parallel import worker_pool
     from .lifecycle import TrialRecorder, command_run
 
-    # visible while it searches; worker processes for the refits, the curves and the figures;
-    # the run ends FINISHED only once every output is written
-    with command_run(tracker, "sweep", cfg.name) as run_id, worker_pool(cfg.jobs):
+    # worker processes for the trials' fits, the refits, the curves and the figures, forked
+    # before this process starts any thread (the run's heartbeat); the run is visible while
+    # it searches and ends FINISHED only once every output is written
+    with worker_pool(cfg.jobs, eager=True), command_run(tracker, "sweep", cfg.name) as run_id:
         sweep = run_sweep(cfg, on_trial=run_id and TrialRecorder(tracker, run_id))
         result = sweep.result
         if not args.no_track:
@@ -186,13 +187,11 @@ RECORD_MODULES = ("shap", "mlflow.data.pandas_dataset", "mlflow.pyfunc", "mlflow
                   "workbench.experiment.serving")
 
 
-def _prefetch(n_jobs, modules) -> None:
+def _prefetch(modules) -> None:
     """Import ``modules`` in a background thread (errors ignored: the real import reports
-    them), after the worker processes were forked (no fork while it runs)."""
+    them); call it once the worker processes are forked (no fork while it runs)."""
     import importlib
     import threading
-
-    from ..parallel import start_workers
 
     def load():
         for name in modules:
@@ -201,7 +200,6 @@ def _prefetch(n_jobs, modules) -> None:
             except Exception:
                 pass
 
-    start_workers(n_jobs)
     threading.Thread(target=load, name="workbench-prefetch", daemon=True).start()
 
 
@@ -233,11 +231,13 @@ def _cmd_evaluate(args) -> int:
     from ..parallel import worker_pool
     from .lifecycle import command_run
 
-    # one set of worker processes for the fit, the curves and the figures; the run ends
+    # one set of worker processes for the fit, the curves and the figures, forked before
+    # this process starts any thread (the run's heartbeat, the prefetch); the run ends
     # FINISHED only once every output is written
-    with command_run(tracker, "evaluate", cfg.name) as run_id, worker_pool(cfg.jobs):
+    with worker_pool(cfg.jobs, eager=True), \
+            command_run(tracker, "evaluate", cfg.name) as run_id:
         if tracker is not None:  # what the records need, loaded while the model fits
-            _prefetch(cfg.jobs, RECORD_MODULES)
+            _prefetch(RECORD_MODULES)
         run = evaluate(cfg, return_model=True)
         result = run.result
         if args.out is not None:

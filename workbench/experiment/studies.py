@@ -20,7 +20,8 @@ Several processes (or machines) may work on one storage at once:
   (``stale_after_s``), or whose worker process on this host is gone (checked at once, no
   wait), is failed, not counted, and re-run once with the same parameters through Optuna's
   ``RetryFailedTrialCallback``.
-* **Workers die with their parent**: each watches its parent process.
+* **Workers die with their parent** (:func:`workbench.parallel.init_worker`): the parent's
+  end sends them SIGTERM, which fails and queues their running trials.
 """
 
 from __future__ import annotations
@@ -29,10 +30,8 @@ import copy
 import logging
 import multiprocessing
 import os
-import signal
 import socket
 import sys
-import threading
 import time
 import warnings
 import zlib
@@ -383,24 +382,14 @@ def run_studies(cfg, studies: list[tuple[optuna.Study, Callable]], *,
                       on_trial=on_trial)
 
 
-def _watch_parent(parent: int) -> None:
-    """Ends this worker (SIGTERM to itself) when its parent process is gone, e.g. SIGKILLed
-    (the parent by pid: a worker started by the fork server is the server's child)."""
-    def watch():
-        while _alive(parent) and os.getppid() != 1:
-            time.sleep(1.0)
-        os.kill(os.getpid(), signal.SIGTERM)
-        time.sleep(60)  # the main thread is stuck in native code: do not linger
-        os._exit(EXIT_SIGTERM)
-
-    threading.Thread(target=watch, daemon=True, name="watch-parent").start()
-
-
 def _worker(search: Callable, cfg, storage_url: str, index: int, show: bool, parent: int,
             on_trial) -> None:
+    from ..parallel import init_worker
     from .lifecycle import handle_signals
 
-    _watch_parent(parent)
+    # its fits serial (the sweep's processes are the parallelism), one BLAS thread, and a
+    # SIGTERM when the command's process ends (its running trial is failed and queued)
+    init_worker(parent, pool=False)
     try:
         with handle_signals():  # Ctrl-C reaches the whole group: the parent reports it
             if show:  # this process's per-trial lines to its standard error
