@@ -8,13 +8,14 @@ unit is the target), a trial's value read from BaseBoostCV's own fold scores.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 
 from ..results import ModelScores, Scores, mae, mse
 from .base import Artifacts, ModelFamily, quiet_fit
+from .stage import booster_cv, make_booster, per_target_boost, stage_scores, target_inputs
 
 if TYPE_CHECKING:
     from ...datasets import Dataset
@@ -22,125 +23,6 @@ if TYPE_CHECKING:
 
 __all__ = ["EigenvalueFamily", "booster_cv", "curve_sizes", "make_booster", "per_target_boost",
            "target_inputs"]
-
-
-def make_booster(settings: dict[str, Any], prior, inputs: list[str] | None):
-    """The :class:`~workbench.BaseBoostRegressor` that one target's settings describe."""
-    from ...bases import make_basis, make_transform
-    from ...boosting import BaseBoostRegressor
-
-    return BaseBoostRegressor(
-        prior=prior, basis=make_basis(settings["basis"], **settings["basis_params"]),
-        n_stages=settings["n_stages"], loss=settings["loss"],
-        line_search_loss=settings["line_search_loss"],
-        line_search_penalty=settings["line_search_penalty"], alpha=settings["alpha"],
-        basis_features=inputs,
-        input_transform=make_transform(settings["input_transform"],
-                                       **settings["input_transform_params"]))
-
-
-def target_inputs(settings: dict[str, Any], ds: Dataset, priors: list[str]) -> list[str]:
-    """The basis input columns ``settings["basis_inputs"]`` names: the prior columns
-    ``priors``, optionally with the dataset's features."""
-    extra = ds.feature_names if settings["basis_inputs"] == "prior+features" else []
-    return list(priors) + extra
-
-
-def selection_cv(cfg: ExperimentConfig):
-    """BaseBoostCV's folds (``[selection]``): contiguous unless ``shuffle``."""
-    from sklearn.model_selection import KFold
-
-    s = cfg.selection
-    return KFold(s.cv, shuffle=s.shuffle, random_state=cfg.random_state if s.shuffle else None)
-
-
-def per_target_boost(cfg: ExperimentConfig, ds: Dataset, priors: list[str], *,
-                     boost_from_prior: bool = True):
-    """One :class:`BaseBoostCV` per target (target ``j`` boosting from ``priors[j]``, or from
-    an outside prior when ``boost_from_prior`` is false), as a MultiTargetBaseBoost."""
-    from ...multitarget import MultiTargetBaseBoost
-    from ...selection import BaseBoostCV
-
-    names = ds.target_names
-    unknown = sorted(set(cfg.model.targets) - set(names))
-    if unknown:
-        from ..errors import ConfigError
-
-        raise ConfigError(f"[model.targets]: unknown target(s) {unknown}; the dataset's "
-                          f"targets are {names}")
-    _warn_quadratic_bases(cfg, names, len(ds.train_index))
-    per_target = {}
-    for target, prior in zip(names, priors):
-        s = cfg.model_for(target)
-        start = prior if boost_from_prior else None
-        inputs = target_inputs(s, ds, priors)
-        if isinstance(s["basis"], list):  # the basis family too is chosen by CV
-            from ...selection import BasisChoiceCV
-
-            candidates = [(name, make_booster({**s, "basis": name,
-                                               "basis_params": s["basis_params"].get(name, {})},
-                                              prior=start, inputs=inputs))
-                          for name in s["basis"]]
-            per_target[target] = BasisChoiceCV(candidates, cv=selection_cv(cfg),
-                                               scoring=cfg.selection.scoring)
-            continue
-        # training scores: the learning curves reuse the folds (family artifacts)
-        per_target[target] = BaseBoostCV(make_booster(s, prior=start, inputs=inputs),
-                                         cv=selection_cv(cfg), scoring=cfg.selection.scoring,
-                                         return_train_score=True)
-    return MultiTargetBaseBoost(target_estimators=per_target, n_jobs=cfg.jobs,
-                                random_state=cfg.random_state)
-
-
-def _warn_quadratic_bases(cfg: ExperimentConfig, targets: list[str], n_rows: int) -> None:
-    """Warn (the ``workbench`` logger), before anything is fitted, about a basis that will not
-    scale to ``n_rows``."""
-    import logging
-
-    from ...bases import quadratic_basis_warning
-
-    bases = set()
-    for target in targets:
-        basis = cfg.model_for(target)["basis"]
-        bases.update(basis if isinstance(basis, list) else [basis])
-    for name in sorted(bases):
-        message = quadratic_basis_warning(name, n_rows)
-        if message:
-            logging.getLogger("workbench").warning("[%s] warning: %s", cfg.name, message)
-
-
-def booster_cv(cfg: ExperimentConfig, ds: Dataset, target: str, settings: dict[str, Any], cv,
-               **kwargs):
-    """One target's BaseBoostCV of a sweep (inner folds ``cv``)."""
-    from ...selection import BaseBoostCV
-
-    prior = ds.prior_names[ds.target_names.index(target)]
-    booster = make_booster(settings, prior=prior, inputs=target_inputs(settings, ds,
-                                                                        ds.prior_names))
-    return BaseBoostCV(booster, cv=cv, scoring=cfg.selection.scoring,
-                       random_state=cfg.random_state, **kwargs)
-
-
-def cv_mse(y, predictions) -> float:
-    """MSE of out-of-fold predictions (rows without one, e.g. failed folds, left out)."""
-    y, p = np.asarray(y, dtype=float), np.asarray(predictions, dtype=float)
-    ok = np.isfinite(p)
-    return float(np.mean((y[ok] - p[ok]) ** 2)) if ok.any() else float("nan")
-
-
-def stage_scores(cvs, Y: np.ndarray) -> dict[str, list]:
-    """The per-target CV figures of fitted BaseBoostCVs: ``cv_mae`` their CV score (of what
-    they selected), ``cv_mse`` from out-of-fold predictions, the prior's and the boosted
-    candidate's own CV MAE, the stage coefficients."""
-    return {
-        "cv_mae": [-e.cv_score_ for e in cvs],
-        "cv_mse": [cv_mse(Y[:, j], e.cv_predictions_) for j, e in enumerate(cvs)],
-        "prior_cv_mae": [float(-np.mean(e.cv_scores_prior_)) for e in cvs],
-        "prior_cv_mse": [cv_mse(Y[:, j], e.cv_predictions_prior_) for j, e in enumerate(cvs)],
-        "boosted_cv_mae": [float(-np.mean(e.cv_scores_boosted_)) for e in cvs],
-        "coefs": [e.best_estimator_.coefs_.tolist() if e.selected_ == "boosted" else []
-                  for e in cvs],
-    }
 
 
 #: Sizes of a run's augmented learning curves: a quarter, half and all of a fold's training

@@ -32,7 +32,7 @@ from pydantic import Field
 from ..config import Section
 from ..results import ModelScores, Scores, mae, mse
 from .base import Artifacts, ModelFamily
-from .eigenvalue import per_target_boost, stage_scores
+from .stage import per_target_boost, stage_scores
 
 if TYPE_CHECKING:
     from ...datasets import Dataset
