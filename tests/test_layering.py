@@ -83,3 +83,93 @@ def test_import_workbench_is_light():
                           "'pandas', 'mlflow'}))"], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
     assert workbench.BaseBoostCV.__name__ == "BaseBoostCV"  # names still load on first use
+
+
+def _module_name(path: Path) -> str:
+    rel = path.relative_to(PACKAGE.parent).with_suffix("").as_posix().replace("/", ".")
+    return rel.removesuffix(".__init__")
+
+
+def _runtime_imports(path: Path, modules: set[str]) -> set[str]:
+    """The workbench modules ``path`` imports when it runs (at module level or inside
+    functions; imports under ``if TYPE_CHECKING:`` never run and are left out)."""
+    tree = ast.parse(path.read_text())
+    name = _module_name(path)
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    skipped = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+            skipped.update(id(n) for n in ast.walk(node))
+    found = set()
+    for node in ast.walk(tree):
+        if id(node) in skipped:
+            continue
+        if isinstance(node, ast.Import):
+            targets = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = package
+            for _ in range(node.level - 1):
+                base = base.rpartition(".")[0]
+            base = (f"{base}.{node.module}" if node.module else base) if node.level \
+                else node.module or ""
+            # "from pkg import module" imports pkg.module; "from pkg import name" only pkg
+            targets = [f"{base}.{a.name}" if f"{base}.{a.name}" in modules else base
+                       for a in node.names]
+        else:
+            continue
+        for target in targets:
+            while target and target not in modules:  # "import a.b.c" of a non-module name
+                target = target.rpartition(".")[0]
+            if target and target != name:
+                found.add(target)
+    return found
+
+
+def import_graph() -> dict[str, set[str]]:
+    files = {_module_name(p): p for p in PACKAGE.rglob("*.py")}
+    modules = set(files)
+    return {m: _runtime_imports(p, modules) for m, p in files.items()}
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components with more than one module (Tarjan)."""
+    index, low, stack, on, out, counter = {}, {}, [], set(), [], [0]
+
+    def visit(v):
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_no_import_circle_in_the_package():
+    """No two workbench modules import each other, directly or through others (imports inside
+    functions count: a circle is a design smell even when the import is deferred). A
+    package's __init__ importing its submodules counts too."""
+    graph = import_graph()
+    assert len(graph) >= 40 and "workbench.experiment.cli" in graph  # it sees the package
+    assert _cycles(graph) == []
+    # the check finds a circle when there is one
+    assert _cycles({**graph, "workbench.losses": graph["workbench.losses"]
+                    | {"workbench.boosting"}}) != []

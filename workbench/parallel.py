@@ -130,8 +130,7 @@ def init_worker(parent: int, *, pool: bool = True) -> None:
     _AMBIENT.clear()
     if pool:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
-        for sig in (signal.SIGTERM, signal.SIGALRM):
-            signal.signal(sig, signal.SIG_DFL)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
     die_with_parent(parent, signal.SIGKILL if pool else signal.SIGTERM)
     os.environ.update({k: "1" for k in THREAD_ENV})
     try:

@@ -48,68 +48,54 @@ class Interrupted(KeyboardInterrupt):
         self.code = 128 + signum
 
 
-#: Code that must not be interrupted half-way (a storage's file lock, a database transaction,
-#: a tracking request): a signal that arrives there is raised as soon as the code is left.
-_STORAGE_CODE = tuple(os.sep + p + os.sep for p in (
-    os.path.join("optuna", "storages"), "sqlalchemy", os.path.join("mlflow", "store"),
-    "alembic", "sqlite3", "psycopg2", "urllib3", "fasteners"))
-
-
-_DEFERRING = [0]  # depth of the enclosing ``interrupts_deferred`` blocks
+_DEFERRING = [0]  # depth of the main thread's enclosing ``interrupts_deferred`` blocks
+_PENDING: list[int] = []  # a signal that arrived inside them
 
 
 @contextlib.contextmanager
 def interrupts_deferred() -> Iterator[None]:
-    """Under :func:`handle_signals`, a SIGINT or SIGTERM that arrives inside the block is
-    raised once the block is left (bookkeeping that must not stop half-way, e.g. a trial
-    asked from the storage but not yet running, or run but not yet told)."""
+    """Under :func:`handle_signals`, a SIGINT or SIGTERM that arrives while the main thread is
+    inside the block is raised once the outermost block is left (bookkeeping that must not
+    stop half-way: a trial asked from the storage but not yet running, or run but not yet
+    told; an append to the Optuna journal under its file lock; a new store's migration).
+    In other threads the block does nothing (signals interrupt the main thread only)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
     _DEFERRING[0] += 1
     try:
         yield
     finally:
         _DEFERRING[0] -= 1
-
-
-def _in_storage_code(frame) -> bool:
-    while frame is not None:
-        name = frame.f_code.co_filename
-        if any(p in name for p in _STORAGE_CODE):
-            return True
-        frame = frame.f_back
-    return False
+    if _DEFERRING[0] == 0 and _PENDING:  # the block completed: the signal now
+        raise Interrupted(_PENDING.pop())
 
 
 @contextlib.contextmanager
 def handle_signals() -> Iterator[None]:
     """SIGINT and SIGTERM raise :class:`Interrupted` in the main thread (once: further
-    signals are ignored while the command cleans up). A signal that arrives inside storage
-    code (e.g. Optuna's journal-file lock, which would turn the interrupt into a
-    ``FileNotFoundError`` and leave its lock behind) or inside :func:`interrupts_deferred` is
-    raised once that code is left (checked every 50 ms)."""
+    signals are ignored while the command cleans up), or, inside
+    :func:`interrupts_deferred`, when that block is left. Any other code (e.g. MLflow's
+    requests and their retries, a database call) is interrupted where it is: its stores
+    roll back what was not committed."""
     fired: list[int] = []
-    pending: list[int] = []
 
     def handler(signum, frame):
         if fired:
             return
-        if _DEFERRING[0] or _in_storage_code(frame):
-            pending[:] = [signum]
-            signal.setitimer(signal.ITIMER_REAL, 0.05)
+        if _DEFERRING[0]:
+            _PENDING.append(signum)
+            fired.append(signum)
             return
-        pending.clear()
         fired.append(signum)
         raise Interrupted(signum)
 
-    def retry(signum, frame):
-        if pending:
-            handler(pending[0], frame)
-
-    signals = (signal.SIGINT, signal.SIGTERM, signal.SIGALRM)
-    old = {s: signal.signal(s, retry if s == signal.SIGALRM else handler) for s in signals}
+    signals = (signal.SIGINT, signal.SIGTERM)
+    old = {s: signal.signal(s, handler) for s in signals}
     try:
         yield
     finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
+        _PENDING.clear()
         for s, h in old.items():
             signal.signal(s, h)
 
