@@ -13,6 +13,7 @@ transform of the basis inputs; it never touches the prior term.
 from __future__ import annotations
 
 import numbers
+from collections import deque
 
 import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin, clone
@@ -314,7 +315,5 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
 
     def predict(self, X) -> np.ndarray:
         """``prior(X) + sum_k coef_k * b_k(T(X))``."""
-        pred = None
-        for pred in self.staged_predict(X):
-            pass
+        (pred,) = deque(self.staged_predict(X), maxlen=1)  # the last stage's (n_stages >= 1)
         return pred

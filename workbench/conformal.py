@@ -407,8 +407,8 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         """A cross-validated estimate of coverage and mean width per target, from the fit's
         own out-of-fold residuals (no refit).
 
-        ``"cv_plus"``, ``"cv"`` and ``"oof"``: each training row is held out with its fold; its interval
-        is its out-of-fold prediction (from the model that did not see it) +- the conformal
+        ``"cv_plus"``, ``"cv"`` and ``"oof"``: each training row is held out with its fold; its
+        interval is its out-of-fold prediction (from the model that did not see it) +- the conformal
         quantile of the *other* folds' out-of-fold residuals. ``"split"``: leave-one-out over the
         calibration rows (each row against the conformal quantile of the others). Returns
         ``(coverage, width)``, lists over targets.

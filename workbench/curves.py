@@ -355,7 +355,7 @@ def selection_curve_plan(model, X, y, *, train_sizes, random_state=None):
     perms = [check_random_state(int(seed)).permutation(tr)
              for seed, (tr, _) in zip(rng.randint(_SEED_MAX, size=len(folds)), folds)]
     known = {}
-    for j, (tr, va) in enumerate(folds):
+    for j, (tr, _) in enumerate(folds):
         if np.isfinite(model.cv_scores_boosted_[j]) and \
                 np.isfinite(model.cv_train_scores_boosted_[j]):  # else: fitted again
             known[(len(tr), j)] = (len(tr), -float(model.cv_train_scores_boosted_[j]),

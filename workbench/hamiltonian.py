@@ -73,8 +73,10 @@ class CouplingGraph:
         rows, cols = _int(rows, "grid rows", 1), _int(cols, "grid cols", 1)
         if rows * cols < 2:
             raise ValueError(f"a grid needs at least 2 sites, got shape {rows}x{cols}")
-        horizontal = [(r * cols + c, r * cols + c + 1) for r in range(rows) for c in range(cols - 1)]
-        vertical = [(r * cols + c, (r + 1) * cols + c) for r in range(rows - 1) for c in range(cols)]
+        horizontal = [(r * cols + c, r * cols + c + 1)
+                      for r in range(rows) for c in range(cols - 1)]
+        vertical = [(r * cols + c, (r + 1) * cols + c)
+                    for r in range(rows - 1) for c in range(cols)]
         return cls(rows * cols, tuple(horizontal + vertical), "grid", (rows, cols))
 
     @classmethod

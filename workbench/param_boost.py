@@ -283,8 +283,9 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
     voltages), and the product ``"a*b"`` of two of these (each factor centred by its
     training mean first; e.g. a qubit's bias times a neighbouring bias line, the first-order
     frequency change from flux crosstalk). Every variable is centred by its training mean
-    before the power is taken; every covariate is then standardised with its training mean and sd (sd 0 -> 1),
-    so a coefficient is in the targets' units (MHz) per standard deviation of its covariate.
+    before the power is taken; every covariate is then standardised with its training mean and
+    sd (sd 0 -> 1), so a coefficient is in the targets' units (MHz) per standard deviation of
+    its covariate.
 
     Fitting minimises ``sum rho(y - lambda) + alpha / 2 * ||c||^2 + alpha_l1 * ||c||_1``
     (intercepts excluded from both penalties), ``rho`` one of :data:`PARAM_LOSSES`

@@ -16,8 +16,16 @@ from __future__ import annotations
 import numpy as np
 
 from .hamiltonian import _hellmann_feynman
-from .param_boost import (HamiltonianParameterRegressor, _columns, _normal_equations, _parse,
-                          _weights, parasitic_names, product_factors, resolve_graph)
+from .param_boost import (
+    HamiltonianParameterRegressor,
+    _columns,
+    _normal_equations,
+    _parse,
+    _weights,
+    parasitic_names,
+    product_factors,
+    resolve_graph,
+)
 
 __all__ = ["linear_scores"]
 

@@ -26,8 +26,12 @@ from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted
 
 from .parallel import Task, effective_n_jobs, map_tasks
-from .param_boost import (HamiltonianParameterRegressor, default_library, parasitic_names,
-                          resolve_graph)
+from .param_boost import (
+    HamiltonianParameterRegressor,
+    default_library,
+    parasitic_names,
+    resolve_graph,
+)
 from .param_linear import linear_scores
 
 __all__ = ["HamiltonianSelectionCV", "SelectionResult", "candidate_pool", "crosstalk_candidates",
