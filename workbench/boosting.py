@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numbers
 from collections import deque
+from typing import Any
 
 import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin, clone
@@ -50,7 +51,8 @@ class CachedParamNames:
     def _get_param_names(cls):
         names = _PARAM_NAMES.get(cls)
         if names is None:
-            names = _PARAM_NAMES[cls] = super(CachedParamNames, cls)._get_param_names()
+            after: Any = super(CachedParamNames, cls)  # a BaseEstimator, later in the MRO
+            names = _PARAM_NAMES[cls] = after._get_param_names()
         return list(names)
 
 

@@ -211,7 +211,7 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
     def _check_params(self, n_rows: int) -> None:
         self._validate_params()  # each value against _parameter_constraints
         if self.method != "split" and isinstance(self.cv, Integral):
-            if self.cv > n_rows:
+            if int(self.cv) > n_rows:
                 raise ValueError(f"cv={self.cv} folds need at least {self.cv} rows; got "
                                  f"n_samples={n_rows}")
 
