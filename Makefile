@@ -1,22 +1,23 @@
-# The README's two commands. Both create .venv if it is missing and install the project.
+# The README's two commands. Both create .venv if it is missing and install the project with
+# the exact versions of requirements.lock (pip's constraints: every package pinned).
 PYTHON ?= python3
 VENV   ?= .venv
 PY     := $(VENV)/bin/python
 export MLFLOW_DISABLE_TELEMETRY := true
 export MPLCONFIGDIR := $(CURDIR)/.cache/matplotlib
 
-.PHONY: run test clean
+.PHONY: run test lint lock clean
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --upgrade pip
 
-$(VENV)/.installed: pyproject.toml | $(PY)
-	$(PY) -m pip install -e .
+$(VENV)/.installed: pyproject.toml requirements.lock | $(PY)
+	$(PY) -m pip install -c requirements.lock -e .
 	touch $@
 
-$(VENV)/.installed-dev: pyproject.toml | $(PY)
-	$(PY) -m pip install -e ".[dev]"
+$(VENV)/.installed-dev: pyproject.toml requirements.lock | $(PY)
+	$(PY) -m pip install -c requirements.lock -e ".[dev]"
 	touch $@ $(VENV)/.installed
 
 # One BLAS/OpenMP thread per test worker: two workers on 2 cores would oversubscribe.
@@ -28,10 +29,34 @@ THREADS := OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1
 run: $(VENV)/.installed
 	$(VENV)/bin/workbench reproduce --out reports
 
-# Default test suite (slow checks: `$(PY) -m pytest -m slow`). Two workers; a file's tests
-# stay on one worker, so module-scoped fixtures (a reproduce run, a sweep) run once.
-test: $(VENV)/.installed-dev
+# Lint (ruff) and type check (mypy), on the paths pyproject.toml's [tool.ruff] and
+# [tool.mypy] cover.
+lint: $(VENV)/.installed-dev
+	$(VENV)/bin/ruff check
+	$(VENV)/bin/mypy
+
+# Default test suite after the lint and type checks (slow checks: `$(PY) -m pytest -m slow`).
+# Two workers; a file's tests stay on one worker, so module-scoped fixtures (a reproduce run,
+# a sweep) run once.
+test: lint
 	$(THREADS) $(PY) -m pytest -n 2 --dist loadfile
+
+# Regenerate requirements.lock: the newest versions pyproject.toml allows (with the dev
+# extra), resolved in a throwaway venv by $(PYTHON) (3.11, the oldest Python the project
+# supports). Then run `make test` and commit the lock.
+LOCKVENV := .cache/lockvenv
+lock:
+	rm -rf $(LOCKVENV)
+	$(PYTHON) -m venv $(LOCKVENV)
+	$(LOCKVENV)/bin/python -m pip install --upgrade pip
+	$(LOCKVENV)/bin/python -m pip install -e ".[dev]"
+	( echo "# The exact versions \`make run\` (.) and \`make test\` (.[dev]) install: pip's constraints,"; \
+	  echo "# pip install -c requirements.lock -e \".[dev]\". Resolved for $$($(LOCKVENV)/bin/python -V)"; \
+	  echo "# by \`make lock\` (pip freeze --exclude-editable of a fresh venv after"; \
+	  echo "# pip install -e \".[dev]\"); regenerate with it, do not edit by hand."; \
+	  $(LOCKVENV)/bin/python -m pip freeze --exclude-editable ) > requirements.lock.tmp
+	mv requirements.lock.tmp requirements.lock
+	rm -rf $(LOCKVENV)
 
 clean:
 	rm -rf $(VENV) .cache

@@ -178,9 +178,10 @@ def _sum_trees(trees, X, chunk=200_000):
 
 
 #: The paper's LightGBM settings shared by all targets (GOSS sampling, absolute-error objective).
-PAPER_LGBM = dict(objective="mae", boosting_type="gbdt", data_sample_strategy="goss",
-                  num_leaves=32, max_depth=20, learning_rate=0.2, reg_alpha=0.3, reg_lambda=0.3,
-                  max_bin=512, subsample_for_bin=200)
+PAPER_LGBM: dict[str, Any] = dict(
+    objective="mae", boosting_type="gbdt", data_sample_strategy="goss", num_leaves=32,
+    max_depth=20, learning_rate=0.2, reg_alpha=0.3, reg_lambda=0.3, max_bin=512,
+    subsample_for_bin=200)
 
 #: The paper's per-target stacking hyperparameters (scikit-physlearn's ``_paper_params.py``).
 PAPER_PARAMS: dict[str, dict[str, Any]] = {

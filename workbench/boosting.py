@@ -13,6 +13,8 @@ transform of the basis inputs; it never touches the prior term.
 from __future__ import annotations
 
 import numbers
+from collections import deque
+from typing import Any
 
 import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin, clone
@@ -49,7 +51,8 @@ class CachedParamNames:
     def _get_param_names(cls):
         names = _PARAM_NAMES.get(cls)
         if names is None:
-            names = _PARAM_NAMES[cls] = super(CachedParamNames, cls)._get_param_names()
+            after: Any = super(CachedParamNames, cls)  # a BaseEstimator, later in the MRO
+            names = _PARAM_NAMES[cls] = after._get_param_names()
         return list(names)
 
 
@@ -314,7 +317,5 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
 
     def predict(self, X) -> np.ndarray:
         """``prior(X) + sum_k coef_k * b_k(T(X))``."""
-        pred = None
-        for pred in self.staged_predict(X):
-            pass
+        (pred,) = deque(self.staged_predict(X), maxlen=1)  # the last stage's (n_stages >= 1)
         return pred

@@ -211,7 +211,7 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
     def _check_params(self, n_rows: int) -> None:
         self._validate_params()  # each value against _parameter_constraints
         if self.method != "split" and isinstance(self.cv, Integral):
-            if self.cv > n_rows:
+            if int(self.cv) > n_rows:
                 raise ValueError(f"cv={self.cv} folds need at least {self.cv} rows; got "
                                  f"n_samples={n_rows}")
 
@@ -407,8 +407,8 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         """A cross-validated estimate of coverage and mean width per target, from the fit's
         own out-of-fold residuals (no refit).
 
-        ``"cv_plus"``, ``"cv"`` and ``"oof"``: each training row is held out with its fold; its interval
-        is its out-of-fold prediction (from the model that did not see it) +- the conformal
+        ``"cv_plus"``, ``"cv"`` and ``"oof"``: each training row is held out with its fold; its
+        interval is its out-of-fold prediction (from the model that did not see it) +- the conformal
         quantile of the *other* folds' out-of-fold residuals. ``"split"``: leave-one-out over the
         calibration rows (each row against the conformal quantile of the others). Returns
         ``(coverage, width)``, lists over targets.

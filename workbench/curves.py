@@ -66,8 +66,9 @@ def _readonly(values, dtype) -> np.ndarray:
     return arr
 
 
-def _json_list(arr: np.ndarray) -> list:
-    """Nested lists with NaN/inf replaced by ``None`` (strict JSON has no NaN)."""
+def _json_list(arr: np.ndarray) -> Any:
+    """Nested lists with NaN/inf replaced by ``None`` (strict JSON has no NaN); a 0-d array's
+    value (or ``None``)."""
     if arr.ndim == 0:
         v = arr.item()
         return None if isinstance(v, float) and not math.isfinite(v) else v
@@ -355,7 +356,7 @@ def selection_curve_plan(model, X, y, *, train_sizes, random_state=None):
     perms = [check_random_state(int(seed)).permutation(tr)
              for seed, (tr, _) in zip(rng.randint(_SEED_MAX, size=len(folds)), folds)]
     known = {}
-    for j, (tr, va) in enumerate(folds):
+    for j, (tr, _) in enumerate(folds):
         if np.isfinite(model.cv_scores_boosted_[j]) and \
                 np.isfinite(model.cv_train_scores_boosted_[j]):  # else: fitted again
             known[(len(tr), j)] = (len(tr), -float(model.cv_train_scores_boosted_[j]),
@@ -399,7 +400,7 @@ def _curve(estimator, incumbent, X, y, sizes, folds, perms, scorer, scoring, kno
         train_error=train_err,
         cv_error=cv_err,
         incumbent_error=inc_err,
-        n_validation_rows=[len(va) for _, va in folds],
+        n_validation_rows=np.array([len(va) for _, va in folds]),
         scoring=scoring if isinstance(scoring, str) else repr(scoring),
         fit_errors=tuple(errors),
     )

@@ -15,8 +15,6 @@ physics model would learn from residuals that are smaller than the ones it meets
 
 from __future__ import annotations
 
-import numbers
-
 import numpy as np
 import pandas as pd
 from sklearn.base import BaseEstimator, MetaEstimatorMixin, RegressorMixin, clone

@@ -73,8 +73,10 @@ class CouplingGraph:
         rows, cols = _int(rows, "grid rows", 1), _int(cols, "grid cols", 1)
         if rows * cols < 2:
             raise ValueError(f"a grid needs at least 2 sites, got shape {rows}x{cols}")
-        horizontal = [(r * cols + c, r * cols + c + 1) for r in range(rows) for c in range(cols - 1)]
-        vertical = [(r * cols + c, (r + 1) * cols + c) for r in range(rows - 1) for c in range(cols)]
+        horizontal = [(r * cols + c, r * cols + c + 1)
+                      for r in range(rows) for c in range(cols - 1)]
+        vertical = [(r * cols + c, (r + 1) * cols + c)
+                    for r in range(rows - 1) for c in range(cols)]
         return cls(rows * cols, tuple(horizontal + vertical), "grid", (rows, cols))
 
     @classmethod
@@ -114,7 +116,9 @@ class CouplingGraph:
         out = []
         for m in self.neighbours(i):
             if m != j and j in self.neighbours(m):
-                out.append((self.edge_index(i, m), self.edge_index(m, j)))
+                e1, e2 = self.edge_index(i, m), self.edge_index(m, j)
+                assert e1 is not None and e2 is not None  # m neighbours both i and j
+                out.append((e1, e2))
         return out
 
     def parasitic_edges(self, kind: str) -> list[tuple[int, int]]:
@@ -235,7 +239,7 @@ def _check(onsite, couplings, graph) -> tuple[np.ndarray, np.ndarray, CouplingGr
 def _check_sign(sign) -> int:
     if isinstance(sign, bool) or not isinstance(sign, numbers.Real) or sign not in (-1, 1):
         raise ValueError(f"sign must be -1 or 1, got {sign!r}")
-    return int(sign)
+    return 1 if sign == 1 else -1
 
 
 def _build(f, g, graph, out=None) -> np.ndarray:
@@ -293,6 +297,7 @@ def graph_spectrum(onsite, couplings, graph: CouplingGraph | None = None, sign=-
             lam[sl] = np.linalg.eigvalsh(h)
             continue
         lam[sl], vec = np.linalg.eigh(h)  # vec[j, i, k] = u_ik, ascending lam
+        assert jac is not None  # made above when jacobian
         _hellmann_feynman(vec, sign, a, b, jac[sl])
     return (lam, jac) if jacobian else lam
 

@@ -1,4 +1,5 @@
-"""Regression losses for base boosting: value, negative gradient and the shape the line search needs.
+"""Regression losses for base boosting: value, negative gradient and the shape the line search
+needs.
 
 Each loss is a function of the residual ``u = y - prediction`` and is *piecewise quadratic*
 in ``u`` between a few known kink points (``kinks``). That is all the exact line search in
@@ -137,7 +138,8 @@ class Huber(Loss):
 
 @dataclass(frozen=True)
 class Quantile(Loss):
-    """Pinball loss for the ``alpha`` quantile: ``alpha * u`` if ``u > 0`` else ``(alpha - 1) * u``."""
+    """Pinball loss for the ``alpha`` quantile: ``alpha * u`` if ``u > 0`` else
+    ``(alpha - 1) * u``."""
 
     alpha: float = 0.9
     name = "quantile"

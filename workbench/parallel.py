@@ -440,12 +440,12 @@ def gather(plans: Iterable[Plan]) -> Plan:
     while batches:
         order = list(batches)
         flat = [t for i in order for t in batches[i]]
+        values: list = []
+        error: Exception | None = None
         try:
             values = yield flat
         except Exception as exc:  # which task failed is not known here: fail every plan
-            values, error = None, exc
-        else:
-            error = None
+            error = exc
         pos = 0
         for i in order:
             n = len(batches[i])

@@ -126,7 +126,7 @@ def resolve_graph(n_sites: int, edges=None, parasitic=None
                              f"or one of {', '.join(PARASITIC_KINDS)}")
         pairs = graph.parasitic_edges(parasitic)
     else:
-        pairs = [tuple(int(v) for v in e) for e in graph.with_edges(parasitic).edges[
+        pairs = [(int(i), int(j)) for i, j in graph.with_edges(parasitic).edges[
             graph.n_edges:]]
     return graph, pairs
 
@@ -283,8 +283,9 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
     voltages), and the product ``"a*b"`` of two of these (each factor centred by its
     training mean first; e.g. a qubit's bias times a neighbouring bias line, the first-order
     frequency change from flux crosstalk). Every variable is centred by its training mean
-    before the power is taken; every covariate is then standardised with its training mean and sd (sd 0 -> 1),
-    so a coefficient is in the targets' units (MHz) per standard deviation of its covariate.
+    before the power is taken; every covariate is then standardised with its training mean and
+    sd (sd 0 -> 1), so a coefficient is in the targets' units (MHz) per standard deviation of
+    its covariate.
 
     Fitting minimises ``sum rho(y - lambda) + alpha / 2 * ||c||^2 + alpha_l1 * ||c||_1``
     (intercepts excluded from both penalties), ``rho`` one of :data:`PARAM_LOSSES`
@@ -358,6 +359,9 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         Objective at the start and after each accepted iteration.
     n_features_in_, feature_names_in_
     """
+
+    #: the product covariates' factors' training means (set while fitting; a declaration only)
+    factor_mean_: dict[str, float] | None
 
     _parameter_constraints: dict = {
         "onsite": [None, list, tuple],
@@ -450,8 +454,8 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         terms = {p: [_parse(name, variables) for name in library[p]]
                  + (every if p not in extra else []) for p in params}
         used = list(dict.fromkeys(v for ts in terms.values() for v, _ in ts))
-        self.products_ = {v: product_factors(v, variables) for v in used
-                          if product_factors(v, variables)}
+        self.products_ = {v: pair for v in used
+                          if (pair := product_factors(v, variables)) is not None}
         plain = [f for v in used for f in self.products_.get(v, (v,))]
         columns = list(dict.fromkeys(v for v in plain if v not in internal))
         return terms, columns
@@ -559,7 +563,7 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         self._derived_ = self._derived(onsite, couplings, graph)
         self.terms_, self.columns_ = self._resolve_library(X, onsite, couplings, features,
                                                            library, extra)
-        self.factor_mean_ = None
+        self.factor_mean_ = None  # set by _variables
         theta0, variables = self._variables(X)
         n, N = len(theta0), len(onsite)
         y = np.asarray(y, dtype=float)

@@ -16,8 +16,16 @@ from __future__ import annotations
 import numpy as np
 
 from .hamiltonian import _hellmann_feynman
-from .param_boost import (HamiltonianParameterRegressor, _columns, _normal_equations, _parse,
-                          _weights, parasitic_names, product_factors, resolve_graph)
+from .param_boost import (
+    HamiltonianParameterRegressor,
+    _columns,
+    _normal_equations,
+    _parse,
+    _weights,
+    parasitic_names,
+    product_factors,
+    resolve_graph,
+)
 
 __all__ = ["linear_scores"]
 
@@ -151,15 +159,15 @@ def linear_scores(est: HamiltonianParameterRegressor, X_fit, y_fit, X_val, y_val
     for p, members in by_param.items():
         q = col[p]
         is_new = p not in est.parameter_names_
-        Zf, Zv = [], []
+        zf, zv = [], []  # each candidate's standardised covariate: fit rows, held-out rows
         for m in members:
             v, k = _parse(candidates[m][1], all_vars)
             raw_f = (vf(v) - vf(v).mean()) ** k
             mu, sd = raw_f.mean(), raw_f.std()
             sd = sd if sd > 0 else 1.0
-            Zf.append((raw_f - mu) / sd)
-            Zv.append(((vv(v) - vf(v).mean()) ** k - mu) / sd)
-        Zf, Zv = np.stack(Zf, axis=1), np.stack(Zv, axis=1)  # (n, Cq)
+            zf.append((raw_f - mu) / sd)
+            zv.append(((vv(v) - vf(v).mean()) ** k - mu) / sd)
+        Zf, Zv = np.stack(zf, axis=1), np.stack(zv, axis=1)  # (n, Cq)
         Cq = Zf.shape[1]
         if is_new:  # the parasitic coupling's intercept enters with its first covariate
             Zf = np.stack([np.ones_like(Zf), Zf], axis=2)

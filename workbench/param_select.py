@@ -26,8 +26,12 @@ from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted
 
 from .parallel import Task, effective_n_jobs, map_tasks
-from .param_boost import (HamiltonianParameterRegressor, default_library, parasitic_names,
-                          resolve_graph)
+from .param_boost import (
+    HamiltonianParameterRegressor,
+    default_library,
+    parasitic_names,
+    resolve_graph,
+)
 from .param_linear import linear_scores
 
 __all__ = ["HamiltonianSelectionCV", "SelectionResult", "candidate_pool", "crosstalk_candidates",
@@ -272,7 +276,7 @@ def forward_select(X, y, *, candidates, cv=5, n_repeats=1, random_state=0, max_s
         raise ValueError("X must be a pandas DataFrame")
     if "covariates" in regressor_params:
         raise ValueError("pass the starting covariates as start=, not covariates=")
-    if not (isinstance(max_steps, numbers.Integral) and max_steps >= 0):
+    if not (isinstance(max_steps, numbers.Integral) and int(max_steps) >= 0):
         raise ValueError(f"max_steps must be an integer >= 0, got {max_steps!r}")
     if not isinstance(candidates, dict):
         raise ValueError("candidates must be a dict parameter -> list of covariate names, got "
@@ -294,9 +298,9 @@ def forward_select(X, y, *, candidates, cv=5, n_repeats=1, random_state=0, max_s
     if method not in SELECTION_METHODS:
         raise ValueError(f"unknown selection method {method!r}; valid: "
                          f"{', '.join(SELECTION_METHODS)}")
-    if not (isinstance(shortlist, numbers.Integral) and shortlist >= 1):
+    if not (isinstance(shortlist, numbers.Integral) and int(shortlist) >= 1):
         raise ValueError(f"shortlist must be an integer >= 1, got {shortlist!r}")
-    if batch != "auto" and not (isinstance(batch, numbers.Integral) and batch >= 1):
+    if batch != "auto" and not (isinstance(batch, numbers.Integral) and int(batch) >= 1):
         raise ValueError(f'batch must be "auto" or an integer >= 1, got {batch!r}')
     folds = _sliced(X, y, _splits(len(X), cv, n_repeats, random_state))
     jobs = effective_n_jobs(n_jobs)  # scikit-learn's convention: None 1, -1 every core
@@ -320,7 +324,7 @@ def forward_select(X, y, *, candidates, cv=5, n_repeats=1, random_state=0, max_s
     rows = [dict(step=0, parameter=None, covariate=None, cv_mae=best)]
     if progress:
         progress(f"start: cv_mae={best:.4f} ({len(pool)} candidate terms)")
-    for step in range(1, max_steps + 1):
+    for step in range(1, int(max_steps) + 1):
         if not pool:
             break
         trials = [{**current, p: current[p] + [c]} for p, c in pool]

@@ -327,9 +327,10 @@ class BasisChoiceCV(_BaseComposition, BaseBoostCV):
         (fitted,) = run_plans([self._fit_plan(X, y)], self.n_jobs)
         return fitted
 
-    def _fit_plan(self, X, y, fold_callback=None):
+    def _fit_plan(self, X, y, fold_callback=None, warn=True):
         """:meth:`fit` as a plan (:mod:`workbench.parallel`): every candidate's folds side by
-        side, then the refit."""
+        side, then the refit. ``warn`` is :class:`BaseBoostCV`'s: here a failed candidate fit
+        never warns (the candidate is simply not chosen)."""
         if fold_callback is not None:
             raise TypeError("BasisChoiceCV takes no fold_callback")
         self._validate_params()

@@ -19,8 +19,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .hamiltonian import CouplingGraph, graph_spectrum, make_graph
 from ._io import atomic_write
+from .hamiltonian import CouplingGraph, graph_spectrum, make_graph
 
 __all__ = ["MECHANISMS", "Mismatch", "Simulation", "simulate", "write_simulation"]
 
