@@ -343,8 +343,21 @@ def _tracking_args(parser: argparse.ArgumentParser, register: bool = False) -> N
                             "(then: workbench predict models:/NAME@champion ...)")
 
 
+class _Parser(argparse.ArgumentParser):
+    """Bad arguments end in one line, ``workbench: error: ...`` (exit code 2), without the
+    usage block (``--help`` shows it); the command's subparsers are of this class too."""
+
+    def error(self, message: str):
+        if "required: command" in message:
+            message += f" ({', '.join(COMMANDS)}; see workbench --help)"
+        self.exit(2, f"workbench: error: {message}\n")
+
+
+COMMANDS = ("evaluate", "sweep", "predict", "reproduce", "ui", "simulate")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="workbench", description="Base boosting workbench.")
+    parser = _Parser(prog="workbench", description="Base boosting workbench.")
     sub = parser.add_subparsers(dest="command", required=True)
     ev = sub.add_parser("evaluate", help="fit a config's model on the training rows and score "
                         "prior and model on the test rows")
