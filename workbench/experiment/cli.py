@@ -47,18 +47,23 @@ def _check_outputs(args) -> None:
 
 def _check_before_work(cfg, args):
     """Fail on bad data or an unusable MLflow store before any fitting or searching; returns
-    the tracker (``None`` with ``--no-track``)."""
+    the tracker (``None`` with ``--no-track``). Nothing is written until every check has
+    passed (then the tracking store is created)."""
     from .config import load_dataset
 
     load_dataset(cfg)
+    tracker = None
     if not args.no_track:
-        from .lifecycle import prepare_store
         from .record import tracker_for
+        from .tracking import check_store_uri
 
         tracker = tracker_for(cfg, args.tracking_uri)
+        check_store_uri(tracker.tracking_uri)  # writes nothing
+    if tracker is not None:
+        from .lifecycle import prepare_store
+
         prepare_store(tracker)  # one process at a time creates a new store
-        return tracker
-    return None
+    return tracker
 
 
 def _cmd_ui(args) -> int:
@@ -107,8 +112,16 @@ def ui_command(tracking_uri: str, port: int) -> list[str]:
 
 def _cmd_reproduce(args) -> int:
     from ..parallel import worker_pool
+    from .outputs import check_dir
     from .reproduce import reproduce
 
+    check_dir(args.out, "--out")
+    if not args.no_track:  # checked before any work
+        from .lifecycle import prepare_store
+        from .tracking import Tracker, resolve_tracking_uri
+
+        prepare_store(Tracker(resolve_tracking_uri(args.tracking_uri, None, Path.cwd()),
+                              "paper-reproduction"))
     with worker_pool(-1):
         res = reproduce(args.out, tracking_uri=args.tracking_uri, storage=args.storage,
                         quick=args.quick, track=not args.no_track, seed=args.seed)
