@@ -121,6 +121,9 @@ CASES = {
     "storage without driver": (["sweep", "tiny.toml", "--storage",
                                 "mysql+mysqldb://u:" + SECRET + "@127.0.0.1/db",
                                 "--tracking-uri", STORE], ["driver is not installed"]),
+    "storage in a read-only directory": (["sweep", "tiny.toml", "--storage",
+                                          "{ro}/optuna.journal", "--no-track"],
+                                         ["cannot write in"]),
     "reproduce storage is a directory": (["reproduce", "--storage", "{root}/studies", "--out",
                                           "{root}/report", "--tracking-uri", STORE],
                                          ["is a directory"]),
@@ -297,3 +300,30 @@ def test_repair_falls_back_when_a_lost_record_would_shift_trial_ids(tmp_path):
     study = optuna.load_study(study_name="s", storage=open_storage(str(journal), tmp_path))
     assert [t.state for t in study.get_trials()] == [TrialState.COMPLETE] * 2
     assert sum(_counted(t) for t in study.get_trials()) == 2
+
+
+def test_an_append_in_progress_is_not_taken_for_damage(tmp_path):
+    """Another process appending (it holds the journal's lock) leaves a line without its end
+    for a moment: the check waits for the lock and finds the line whole."""
+    import threading
+    import time
+
+    from optuna.storages.journal import JournalFileSymlinkLock
+
+    journal = tmp_path / "j.journal"
+    record = _small_journal(journal, trials=1)[-1]
+    lock = JournalFileSymlinkLock(str(journal))
+    lock.acquire()
+    with open(journal, "ab") as fh:
+        fh.write(record[:20])
+    opened: list = []
+    thread = threading.Thread(target=lambda: opened.append(open_storage(str(journal),
+                                                                        tmp_path)))
+    thread.start()
+    time.sleep(0.5)
+    assert thread.is_alive() and not opened  # waiting for the lock, not failing
+    with open(journal, "ab") as fh:
+        fh.write(record[20:])
+    lock.release()
+    thread.join(timeout=30)
+    assert len(opened) == 1

@@ -219,8 +219,8 @@ def _id_gap(records: list[dict]) -> int | None:
 def _find_damage(path: Path, shown: str, hint: str | None = None,
                  replay: bool = False) -> JournalDamaged | None:
     """The file's first damaged line as a :class:`JournalDamaged`, else ``None`` (with
-    ``replay``, records that Optuna cannot replay count as damaged too). Call it holding the
-    file's lock: without, another process's append in progress looks like a torn line."""
+    ``replay``, records that Optuna cannot replay count as damaged too). Without the file's
+    lock, another process's append in progress can look like a torn last line."""
     first = None
     last_good, total, records, numbers = "none", 0, [], []
     for number, _, record, why in _lines(path):
@@ -277,9 +277,14 @@ class _JournalFile(optuna.storages.journal.JournalFileBackend):
         self._shown = shown or file_path
 
     def check(self, hint: str | None = None) -> None:
-        """Raise :class:`JournalDamaged` at the first damaged line (under the file lock)."""
+        """Raise :class:`JournalDamaged` at the first damaged line. Damage found is checked
+        again under the file lock (another process's append in progress looks like a torn
+        last line), so an intact file is read without taking the lock."""
+        path = Path(self._file_path)
+        if _find_damage(path, self._shown, hint) is None:
+            return
         with _holding(self._lock, self._shown):
-            damage = _find_damage(Path(self._file_path), self._shown, hint)
+            damage = _find_damage(path, self._shown, hint)
         if damage is not None:
             raise damage
 
@@ -347,8 +352,7 @@ def open_storage(storage: str, root: Path, *, stale_after_s: float = 600,
     except StorageError:
         raise
     except Exception as exc:  # a well-formed record that Optuna cannot replay
-        with _holding(backend._lock, storage):
-            damage = _find_damage(path, storage, hint, replay=True)
+        damage = _find_damage(path, storage, hint, replay=True)
         raise damage or StorageError(f"Optuna journal {storage} cannot be replayed "
                                      f"({type(exc).__name__})") from None
 
@@ -365,18 +369,17 @@ def check_storage(storage: str, root: Path, *, hint: str | None = None) -> None:
     if path.is_dir():
         raise StorageError(f"Optuna storage {path} is a directory; give a journal file path "
                            "(e.g. mlruns/optuna.journal) or a database URL")
+    from .outputs import OutputError, check_file
+
+    try:  # its directory takes new files (the journal's lock is created there)
+        check_file(path, "Optuna journal")
+    except OutputError as exc:
+        raise StorageError(str(exc)) from None
     if path.exists():
         if not os.access(path, os.R_OK | os.W_OK):
             raise StorageError(f"Optuna journal {storage} cannot be read and written "
                                "(its permissions)")
         open_storage(storage, root, hint=hint)
-        return
-    from .outputs import OutputError, check_file
-
-    try:
-        check_file(path, "Optuna journal")
-    except OutputError as exc:
-        raise StorageError(str(exc)) from None
 
 
 @dataclass
