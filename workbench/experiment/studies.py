@@ -397,14 +397,19 @@ class Repair:
     def __str__(self) -> str:
         lines = ", ".join(f"{n} ({why})" for n, why in self.damaged[:3])
         more = f" and {len(self.damaged) - 3} more" if len(self.damaged) > 3 else ""
-        text = (f"repaired Optuna journal {self.shown}: kept {self.kept} records "
-                f"({self.trials} trials in {self.studies} studies), left out "
-                f"{len(self.damaged)} damaged line(s): {lines}{more}")
+        text = (f"repaired Optuna journal {self.shown}: kept {_n(self.kept, 'record')} "
+                f"({_n(self.trials, 'trial')} in {_n(self.studies, 'study')}), left out "
+                f"{_n(len(self.damaged), 'damaged line')}: {lines}{more}")
         if self.after:
-            text += (f"; also left out the {self.after} complete record(s) after line "
+            text += (f"; also left out the {_n(self.after, 'complete record')} after line "
                      f"{self.damaged[0][0]}: without the damaged line(s) they would not "
                      "replay as written (a lost record created a study or trial)")
         return text + f"; the damaged original is {self.damaged_copy}"
+
+
+def _n(count: int, noun: str) -> str:
+    plural = noun[:-1] + "ies" if noun.endswith("y") else noun + "s"
+    return f"{count} {noun if count == 1 else plural}"
 
 
 def repair_journal(storage: str, root: Path) -> Repair | None:
