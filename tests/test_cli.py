@@ -269,7 +269,9 @@ def test_missing_subcommand_is_usage_error(capsys):
     with pytest.raises(SystemExit) as info:
         main([])
     assert info.value.code == 2
-    assert "usage: workbench" in capsys.readouterr().err
+    err = capsys.readouterr().err  # one line, not the usage block
+    assert err.count("\n") == 1 and err.startswith("workbench: error: ")
+    assert "command" in err and "sweep" in err and "workbench --help" in err
 
 
 # --- the installed console script -----------------------------------------------------------

@@ -45,20 +45,56 @@ def _check_outputs(args) -> None:
         check_dir(args.out, "--out")
 
 
-def _check_before_work(cfg, args):
-    """Fail on bad data or an unusable MLflow store before any fitting or searching; returns
-    the tracker (``None`` with ``--no-track``)."""
+def _check_before_work(cfg, args, storage: str | None = None, hint: str | None = None):
+    """Fail on bad data, an unusable Optuna ``storage`` or an unusable MLflow store before
+    any fitting or searching; returns the tracker (``None`` with ``--no-track``). Nothing is
+    written until every check has passed (then the tracking store is created)."""
     from .config import load_dataset
 
     load_dataset(cfg)
+    tracker = None
     if not args.no_track:
-        from .lifecycle import prepare_store
         from .record import tracker_for
+        from .tracking import check_store_uri
 
         tracker = tracker_for(cfg, args.tracking_uri)
+        check_store_uri(tracker.tracking_uri)  # writes nothing
+    if storage is not None:
+        _check_storage(storage, getattr(args, "repair", False), hint)
+    if tracker is not None:
+        from .lifecycle import prepare_store
+
         prepare_store(tracker)  # one process at a time creates a new store
-        return tracker
-    return None
+    return tracker
+
+
+def _check_storage(storage: str, repair: bool, hint: str | None) -> None:
+    """The Optuna storage can be used (nothing written); with ``--repair``, a damaged journal
+    file is repaired first (the one write of the checks)."""
+    from .studies import check_storage, repair_journal
+
+    if repair:
+        done = repair_journal(storage, Path.cwd())
+        log.info("%s", done if done is not None else
+                 f"Optuna journal {storage} is not damaged: nothing to repair")
+    check_storage(storage, Path.cwd(), hint=hint)
+
+
+def _repair_hint(args) -> str:
+    """What repairs a damaged journal: this command line with ``--repair`` (passwords
+    hidden)."""
+    import shlex
+    from urllib.parse import urlsplit
+
+    def hidden(word: str) -> str:
+        try:
+            if "://" in word and urlsplit(word).password:
+                return "URI-WITH-PASSWORD"
+        except ValueError:
+            return "URI"
+        return word
+
+    return shlex.join(["workbench", *map(hidden, args.argv), "--repair"])
 
 
 def _cmd_ui(args) -> int:
@@ -107,12 +143,32 @@ def ui_command(tracking_uri: str, port: int) -> list[str]:
 
 def _cmd_reproduce(args) -> int:
     from ..parallel import worker_pool
-    from .reproduce import reproduce
+    from .outputs import check_dir
+    from .reproduce import experiments_dir, reproduce
 
+    configs = experiments_dir(args.experiments)  # its configs, before anything else
+    check_dir(args.out, "--out")
+    tracker = None
+    if not args.no_track:  # every store checked before any work, nothing written until then
+        from .tracking import Tracker, check_store_uri, resolve_tracking_uri
+
+        tracker = Tracker(resolve_tracking_uri(args.tracking_uri, None, Path.cwd()),
+                          "paper-reproduction")
+        check_store_uri(tracker.tracking_uri)
+    storage = args.storage
+    if storage is None:  # the search's own (relative to the working directory)
+        from .config import load_config
+
+        storage = load_config(configs / "paper_search.toml").study.storage
+    _check_storage(storage, args.repair, _repair_hint(args))
+    if tracker is not None:
+        from .lifecycle import prepare_store
+
+        prepare_store(tracker)
     with worker_pool(-1, eager=True):  # forked before any thread of this process
         res = reproduce(args.out, tracking_uri=args.tracking_uri, storage=args.storage,
                         quick=args.quick, track=not args.no_track, seed=args.seed,
-                        experiments=args.experiments)
+                        experiments=configs)
     s = res.settings
     print(f"paper settings: average test MAE {s['paper'].model.avg('test_mae'):.3f} MHz "
           f"(control program {s['paper'].prior.avg('test_mae'):.3f}); improved "
@@ -155,7 +211,7 @@ def _cmd_sweep(args) -> int:
     cfg = _without_intervals(load_config(args.config).with_study(
         trials=args.trials, workers=args.workers, storage=args.storage), args)
     _check_outputs(args)
-    tracker = _check_before_work(cfg, args)
+    tracker = _check_before_work(cfg, args, cfg.study.storage, _repair_hint(args))
     from ..parallel import worker_pool
     from .lifecycle import TrialRecorder, command_run
 
@@ -344,8 +400,28 @@ def _tracking_args(parser: argparse.ArgumentParser, register: bool = False) -> N
                             "(then: workbench predict models:/NAME@champion ...)")
 
 
+def _repair_arg(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--repair", action="store_true",
+                        help="first repair a damaged Optuna journal file: every complete "
+                        "record is kept (the original stays as FILE.damaged), then the "
+                        "command goes on")
+
+
+class _Parser(argparse.ArgumentParser):
+    """Bad arguments end in one line, ``workbench: error: ...`` (exit code 2), without the
+    usage block (``--help`` shows it); the command's subparsers are of this class too."""
+
+    def error(self, message: str):
+        if "required: command" in message:
+            message += f" ({', '.join(COMMANDS)}; see workbench --help)"
+        self.exit(2, f"workbench: error: {message}\n")
+
+
+COMMANDS = ("evaluate", "sweep", "predict", "reproduce", "ui", "simulate")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="workbench", description="Base boosting workbench.")
+    parser = _Parser(prog="workbench", description="Base boosting workbench.")
     sub = parser.add_subparsers(dest="command", required=True)
     ev = sub.add_parser("evaluate", help="fit a config's model on the training rows and score "
                         "prior and model on the test rows")
@@ -373,6 +449,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="processes working on the shared storage")
     sw.add_argument("--storage", default=None,
                     help="Optuna storage: a journal file path or an RDB URL")
+    _repair_arg(sw)
     sw.add_argument("--json", metavar="PATH", help="also write the results as JSON")
     _model_args(sw)
     sw.set_defaults(func=_cmd_sweep)
@@ -401,6 +478,7 @@ def build_parser() -> argparse.ArgumentParser:
                      "checkout's experiments/, else ./experiments)")
     rep.add_argument("--storage", default=None,
                      help="Optuna storage of the search (a journal file path or an RDB URL)")
+    _repair_arg(rep)
     _tracking_args(rep)
     rep.set_defaults(func=_cmd_reproduce)
 
@@ -490,6 +568,7 @@ def main(argv: list[str] | None = None) -> int:
 
     _START[0] = time.perf_counter()
     args = build_parser().parse_args(argv)
+    args.argv = list(sys.argv[1:] if argv is None else argv)
     _logging()
     from ..datasets import DatasetError, DataUnavailableError
     from .lifecycle import MESSAGE, handle_signals

@@ -10,7 +10,9 @@
   marked ``FAILED`` by the next command on the store: at once if its process was on this host
   and is gone, else once its heartbeat is older than :data:`RUN_GRACE_S`.
 * :func:`prepare_store`: a new SQLite store is created and migrated by one process at a time
-  (a file lock beside the database), so concurrent first commands do not race in alembic.
+  (a file lock beside the database), so concurrent first commands do not race in alembic;
+  an unusable store is one line before anything is written (:func:`driver_hint` says what
+  to install for a missing database driver).
 * :class:`TrialRecorder`: a sweep's trials become child runs as they finish.
 """
 
@@ -30,8 +32,8 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:  # mlflow is imported only where a run is touched
     from .tracking import Tracker
 
-__all__ = ["Interrupted", "MESSAGE", "TrialRecorder", "command_run", "handle_signals",
-           "interrupts_deferred", "prepare_store", "reap_stale_runs"]
+__all__ = ["Interrupted", "MESSAGE", "TrialRecorder", "command_run", "driver_hint",
+           "handle_signals", "interrupts_deferred", "prepare_store", "reap_stale_runs"]
 
 MESSAGE = "interrupted; run the same command to resume"
 #: Seconds between a live run's heartbeats, and after which a silent run counts as dead.
@@ -103,6 +105,24 @@ def handle_signals() -> Iterator[None]:
 # --------------------------------------------------------------------------- stores
 
 
+#: The pip package of a database driver module SQLAlchemy imports.
+_DRIVER_PACKAGES = {"psycopg": "psycopg[binary]", "psycopg2": "psycopg2-binary",
+                    "MySQLdb": "mysqlclient", "pymysql": "pymysql", "pg8000": "pg8000",
+                    "pyodbc": "pyodbc", "asyncpg": "asyncpg", "pymssql": "pymssql"}
+
+
+def driver_hint(exc: ImportError) -> str:
+    """What to do about a database driver that is not installed (SQLAlchemy 2.1 maps
+    ``postgresql://`` to psycopg 3; ``postgresql+psycopg2://`` names psycopg2)."""
+    import importlib.util
+
+    name = (exc.name or "").split(".")[0]
+    hint = f"pip install {_DRIVER_PACKAGES.get(name, name or 'the driver')}"
+    if name == "psycopg" and importlib.util.find_spec("psycopg2"):
+        hint += ", or use the installed psycopg2: postgresql+psycopg2://..."
+    return hint
+
+
 @contextlib.contextmanager
 def _first_use_lock(uri: str) -> Iterator[None]:
     """An exclusive lock on ``<db>.lock`` beside a SQLite store (no-op for other stores)."""
@@ -114,8 +134,16 @@ def _first_use_lock(uri: str) -> Iterator[None]:
         return
     import fcntl
 
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path.with_name(path.name + ".lock"), "a") as fh:
+    from .tracking import TrackingError
+
+    lock = path.with_name(path.name + ".lock")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fh = open(lock, "a")
+    except OSError as exc:
+        raise TrackingError(f"SQLite database {path}: cannot create its lock {lock.name}: "
+                            f"{exc.strerror or type(exc).__name__}") from None
+    with fh:
         fcntl.flock(fh, fcntl.LOCK_EX)
         try:
             yield
@@ -125,8 +153,14 @@ def _first_use_lock(uri: str) -> Iterator[None]:
 
 def prepare_store(tracker: Tracker) -> str:
     """Create (and migrate) the tracking store and the experiment, one process at a time;
-    returns the experiment id. Raises :class:`~workbench.experiment.tracking.TrackingError`."""
-    with _first_use_lock(tracker.tracking_uri):
+    returns the experiment id. Raises :class:`~workbench.experiment.tracking.TrackingError`
+    (before anything is written when the store cannot be used: an unknown scheme, a missing
+    database driver, a read-only directory, an unreachable server)."""
+    from .tracking import check_store_uri
+
+    check_store_uri(tracker.tracking_uri)
+    # a Ctrl-C waits for a new store's migration (a half-migrated database would not open)
+    with interrupts_deferred(), _first_use_lock(tracker.tracking_uri):
         return tracker.experiment_id
 
 

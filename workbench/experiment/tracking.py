@@ -59,6 +59,7 @@ __all__ = [
     "dataset_hash",
     "default_artifact_root",
     "default_tracking_uri",
+    "check_store_uri",
     "ensure_store",
     "git_commit",
     "resolve_tracking_uri",
@@ -167,6 +168,12 @@ from .errors import TrackingError  # noqa: E402  (kept importable from here)
 def _translate(exc: BaseException, uri: str) -> TrackingError | None:
     """A :class:`TrackingError` for store problems, ``None`` for other errors."""
     store = _describe_store(uri)
+    if isinstance(exc, ImportError) and urlsplit(uri).scheme.split("+")[0] in (
+            "postgresql", "mysql", "mssql", "sqlite"):  # the database's driver
+        return TrackingError(f"{store}: its database driver is not installed ({exc})")
+    if "supported uri schemes" in str(exc).lower():  # MLflow's registry: a 400-character line
+        scheme = urlsplit(uri).scheme if "://" in uri else ""
+        return TrackingError(f"{store}: MLflow has no tracking store for '{scheme}://'")
     text = f"{type(exc).__name__}: {exc}"
     cause = exc.__cause__ or exc.__context__
     if cause is not None:
@@ -201,9 +208,42 @@ def _check_sqlite_file(uri: str) -> None:
     path = _sqlite_path(uri)
     if path is None:
         return
+    _check_sqlite_location(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise TrackingError(f"SQLite database {path}: cannot create its directory: "
+                            f"{exc.strerror or type(exc).__name__}") from None
+    _check_sqlite_header(path)
+
+
+def _check_sqlite_location(path: Path) -> None:
+    """Without writing anything: ``path`` is not a directory, and its directory (or the
+    nearest existing one, where it would be created) accepts new files: SQLite writes its
+    journal and the first-use lock beside the database, even for an existing one."""
+    import tempfile
+
     if path.is_dir():
         raise TrackingError(f"SQLite database {path} is a directory, not a database file")
-    path.parent.mkdir(parents=True, exist_ok=True)
+    existing = Path(os.path.abspath(path)).parent
+    while not os.path.lexists(existing):
+        existing = existing.parent
+    if not existing.is_dir():
+        raise TrackingError(f"SQLite database {path}: {existing} is a file, not a directory")
+    try:  # a probe sees what SQLite will see (permissions, read-only file systems)
+        fd, probe = tempfile.mkstemp(dir=existing, prefix=".workbench-probe-")
+    except OSError as exc:
+        raise TrackingError(f"SQLite database {path}: cannot write in {existing} "
+                            f"({exc.strerror or type(exc).__name__}); SQLite writes its "
+                            "journal beside the database") from None
+    os.close(fd)
+    os.unlink(probe)
+    if path.is_file() and not os.access(path, os.R_OK | os.W_OK):
+        raise TrackingError(f"SQLite database {path} cannot be read and written (its "
+                            "permissions)")
+
+
+def _check_sqlite_header(path: Path) -> None:
     if path.is_file() and path.stat().st_size > 0:
         with path.open("rb") as fh:
             header = fh.read(len(_SQLITE_HEADER))
@@ -212,6 +252,70 @@ def _check_sqlite_file(uri: str) -> None:
                 f"SQLite database {path} is not a valid SQLite database (corrupt, or another "
                 "kind of file); it was left untouched. Restore it from a backup, move it away, "
                 "or point the tracking URI at another file.")
+
+
+#: URI schemes MLflow itself has a tracking store for (plug-ins add theirs as entry points).
+_MLFLOW_SCHEMES = ("", "file", "http", "https", "databricks", "databricks-uc", "uc")
+
+
+def _store_schemes() -> list[str]:
+    from importlib.metadata import entry_points
+
+    from mlflow.store.db.db_types import DATABASE_ENGINES
+
+    plugins = [e.name for e in entry_points(group="mlflow.tracking_store")]
+    return [*_MLFLOW_SCHEMES, *DATABASE_ENGINES, *plugins]
+
+
+def _check_scheme_and_driver(uri: str) -> None:
+    """Without connecting: MLflow has a store for the URI's scheme, and a database URI's
+    driver is installed."""
+    from mlflow.store.db.db_types import DATABASE_ENGINES
+
+    shown = _redact(uri)
+    try:
+        scheme = urlsplit(uri).scheme.lower()
+    except ValueError:
+        raise TrackingError(f"tracking URI {shown} is not a valid URI") from None
+    base = scheme.split("+")[0]
+    if len(base) == 1 and uri[1:2] == ":":  # a Windows drive letter: a path
+        base = ""
+    known = _store_schemes()
+    if base not in known and scheme not in known:
+        raise TrackingError(
+            f"tracking URI {shown}: MLflow has no tracking store for '{scheme}://'; use "
+            "sqlite:///PATH, postgresql://, mysql://, mssql://, http(s)://SERVER or a "
+            "directory")
+    if base not in DATABASE_ENGINES:
+        return
+    import sqlalchemy.exc
+    from sqlalchemy.engine import make_url
+
+    try:
+        make_url(uri).get_dialect().import_dbapi()
+    except ImportError as exc:
+        from .lifecycle import driver_hint
+
+        raise TrackingError(f"tracking store {shown}: its database driver is not installed "
+                            f"({exc}); {driver_hint(exc)}") from None
+    except sqlalchemy.exc.NoSuchModuleError:
+        raise TrackingError(f"tracking store {shown}: SQLAlchemy has no database driver "
+                            f"'{scheme}'") from None
+    except sqlalchemy.exc.ArgumentError:
+        raise TrackingError(f"tracking URI {shown} is not a valid database URL") from None
+
+
+def check_store_uri(uri: str) -> None:
+    """Before any work, writing nothing: the tracking store at ``uri`` can be used. Its
+    scheme has an MLflow store, a database's driver is installed, a SQLite database's
+    directory can be written (and the file is SQLite), a server accepts connections.
+    Raises :class:`TrackingError` (one line, no password)."""
+    _check_scheme_and_driver(uri)
+    path = _sqlite_path(uri)
+    if path is not None:
+        _check_sqlite_location(path)
+        _check_sqlite_header(path)
+    _check_server(uri)
 
 
 def _check_server(uri: str, timeout: float = 5.0) -> None:
@@ -379,6 +483,7 @@ class Tracker:
     def client(self) -> MlflowClient:
         """The :class:`mlflow.MlflowClient` (created, with its store, on first use)."""
         if self._client is None:
+            _check_scheme_and_driver(self.tracking_uri)
             _check_sqlite_file(self.tracking_uri)
             _check_server(self.tracking_uri)
             with self._errors():
