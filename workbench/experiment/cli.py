@@ -15,7 +15,8 @@ import sys
 import time
 from pathlib import Path
 
-from .errors import ConfigError, TrackingError, UsageError
+from .errors import ConfigError, StorageError, TrackingError, UsageError
+from .startup import SWEEP_WORKER_MODULES, setup_logging
 
 log = logging.getLogger("workbench")
 
@@ -177,11 +178,6 @@ def _cmd_reproduce(args) -> int:
     print(f"wrote {Path(args.out) / 'README.md'} and {len(res.figures)} figure entries "
           f"in {res.wall_s:.0f} s")
     return 0
-
-
-#: What a sweep's worker processes import (the fork server loads it once for all of them).
-SWEEP_WORKER_MODULES = ("workbench.experiment.search", "workbench.experiment.families",
-                        "workbench.experiment.cli", "workbench.multitarget", "workbench.bases")
 
 
 def _study_workers(args) -> int:
@@ -536,40 +532,13 @@ def _nested_folds(value: str) -> int:
     return number
 
 
-class _Stderr(logging.StreamHandler):
-    """A handler writing to the *current* ``sys.stderr`` (which callers may replace)."""
-
-    def __init__(self):
-        super().__init__(sys.stderr)
-
-    @property
-    def stream(self):
-        return sys.stderr
-
-    @stream.setter
-    def stream(self, value) -> None:
-        pass
-
-
-def _logging() -> None:
-    """Progress lines of the ``workbench`` logger to standard error (once per process)."""
-    logger = logging.getLogger("workbench")
-    if not any(isinstance(h, _Stderr) for h in logger.handlers):
-        handler = _Stderr()
-        handler.setFormatter(logging.Formatter("%(message)s"))
-        logger.addHandler(handler)
-    logger.setLevel(logging.INFO)
-    logger.propagate = False
-    logging.getLogger("mlflow").setLevel(logging.WARNING)  # keep the per-trial lines readable
-
-
 def main(argv: list[str] | None = None) -> int:
     import time
 
     _START[0] = time.perf_counter()
     args = build_parser().parse_args(argv)
     args.argv = list(sys.argv[1:] if argv is None else argv)
-    _logging()
+    setup_logging()
     from ..datasets import DatasetError, DataUnavailableError
     from .lifecycle import MESSAGE, handle_signals
 
@@ -577,19 +546,12 @@ def main(argv: list[str] | None = None) -> int:
         with handle_signals():  # SIGINT/SIGTERM: runs end KILLED, one line, exit 130/143
             return args.func(args)
     except (ConfigError, DatasetError, DataUnavailableError, TrackingError, UsageError,
-            _storage_error()) as exc:
+            StorageError) as exc:
         print(f"workbench: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as exc:
         print(f"workbench: {MESSAGE}", file=sys.stderr)
         return getattr(exc, "code", 130)
-
-
-def _storage_error() -> type:
-    """The Optuna storage's error class, once the storage module is loaded (no Optuna import
-    for commands that do not use it)."""
-    studies = sys.modules.get("workbench.experiment.studies")
-    return studies.StorageError if studies else UsageError
 
 
 if __name__ == "__main__":

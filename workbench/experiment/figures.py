@@ -29,7 +29,6 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from .._io import atomic_write
-from ..boosting import check_predictions
 from ..curves import LearningCurve
 from .explain import check_shap_frame, shap_values
 

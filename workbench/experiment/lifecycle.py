@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:  # mlflow is imported only where a run is touched
     from .tracking import Tracker
 
-__all__ = ["Interrupted", "MESSAGE", "TrialRecorder", "command_run", "driver_hint",
+__all__ = ["Interrupted", "MESSAGE", "TrialRecorder", "command_run",
            "handle_signals", "interrupts_deferred", "prepare_store", "reap_stale_runs"]
 
 MESSAGE = "interrupted; run the same command to resume"
@@ -105,24 +105,6 @@ def handle_signals() -> Iterator[None]:
 # --------------------------------------------------------------------------- stores
 
 
-#: The pip package of a database driver module SQLAlchemy imports.
-_DRIVER_PACKAGES = {"psycopg": "psycopg[binary]", "psycopg2": "psycopg2-binary",
-                    "MySQLdb": "mysqlclient", "pymysql": "pymysql", "pg8000": "pg8000",
-                    "pyodbc": "pyodbc", "asyncpg": "asyncpg", "pymssql": "pymssql"}
-
-
-def driver_hint(exc: ImportError) -> str:
-    """What to do about a database driver that is not installed (SQLAlchemy 2.1 maps
-    ``postgresql://`` to psycopg 3; ``postgresql+psycopg2://`` names psycopg2)."""
-    import importlib.util
-
-    name = (exc.name or "").split(".")[0]
-    hint = f"pip install {_DRIVER_PACKAGES.get(name, name or 'the driver')}"
-    if name == "psycopg" and importlib.util.find_spec("psycopg2"):
-        hint += ", or use the installed psycopg2: postgresql+psycopg2://..."
-    return hint
-
-
 @contextlib.contextmanager
 def _first_use_lock(uri: str) -> Iterator[None]:
     """An exclusive lock on ``<db>.lock`` beside a SQLite store (no-op for other stores)."""
@@ -134,7 +116,7 @@ def _first_use_lock(uri: str) -> Iterator[None]:
         return
     import fcntl
 
-    from .tracking import TrackingError
+    from .errors import TrackingError
 
     lock = path.with_name(path.name + ".lock")
     try:

@@ -46,7 +46,8 @@ from optuna.exceptions import ExperimentalWarning, UpdateFinishedTrialError
 from optuna.trial import FrozenTrial, TrialState
 
 from ..parallel import one_thread_env
-from .lifecycle import driver_hint, every, interrupts_deferred
+from .errors import StorageError, driver_hint
+from .lifecycle import every, interrupts_deferred
 
 log = logging.getLogger("workbench")
 
@@ -57,10 +58,6 @@ __all__ = ["JournalDamaged", "Repair", "StorageError", "check_storage", "open_st
 _ATTEMPT_ATTRS = ("worker", "heartbeat", "finished_by", "error", "surplus", "stale")
 #: Exit codes of a process ended by SIGINT / SIGTERM (128 + the signal number).
 EXIT_SIGINT, EXIT_SIGTERM = 130, 143
-
-
-class StorageError(ValueError):
-    """The Optuna storage cannot be used (bad path, missing driver, unreachable server)."""
 
 
 def redact(url: str) -> str:
@@ -816,9 +813,9 @@ def _worker(search: Callable, cfg, storage_url: str, index: int, show: bool, par
     try:
         with handle_signals():  # Ctrl-C reaches the whole group: the parent reports it
             if show:  # this process's per-trial lines to its standard error
-                from .cli import _logging
+                from .startup import setup_logging
 
-                _logging()
+                setup_logging()
             search(cfg, storage_url, progress=show, worker=index, on_trial=on_trial)
     except KeyboardInterrupt as exc:  # its running trial is failed and queued again
         sys.exit(getattr(exc, "code", EXIT_SIGINT))
@@ -829,7 +826,7 @@ def worker_context():
     (started early by the command, :func:`workbench.parallel.start_fork_server`, or now),
     else spawn."""
     from ..parallel import start_fork_server
-    from .cli import SWEEP_WORKER_MODULES
+    from .startup import SWEEP_WORKER_MODULES
 
     if start_fork_server(SWEEP_WORKER_MODULES):  # a no-op when it runs already
         return multiprocessing.get_context("forkserver")

@@ -294,7 +294,7 @@ def _check_scheme_and_driver(uri: str) -> None:
     try:
         make_url(uri).get_dialect().import_dbapi()
     except ImportError as exc:
-        from .lifecycle import driver_hint
+        from .errors import driver_hint
 
         raise TrackingError(f"tracking store {shown}: its database driver is not installed "
                             f"({exc}); {driver_hint(exc)}") from None

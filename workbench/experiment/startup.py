@@ -1,0 +1,41 @@
+"""What a command sets up first, kept light (no heavy imports) so that any module may use
+it: the progress lines of the ``workbench`` logger, and the modules a sweep's worker
+processes import (the fork server preloads them while the command starts)."""
+
+from __future__ import annotations
+
+import logging
+import sys
+
+__all__ = ["SWEEP_WORKER_MODULES", "setup_logging"]
+
+#: What a sweep's worker processes import (the fork server loads it once for all of them).
+SWEEP_WORKER_MODULES = ("workbench.experiment.search", "workbench.experiment.families",
+                        "workbench.multitarget", "workbench.bases")
+
+
+class _Stderr(logging.StreamHandler):
+    """A handler writing to the *current* ``sys.stderr`` (which callers may replace)."""
+
+    def __init__(self):
+        super().__init__(sys.stderr)
+
+    @property
+    def stream(self):
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, value) -> None:
+        pass
+
+
+def setup_logging() -> None:
+    """Progress lines of the ``workbench`` logger to standard error (once per process)."""
+    logger = logging.getLogger("workbench")
+    if not any(isinstance(h, _Stderr) for h in logger.handlers):
+        handler = _Stderr()
+        handler.setFormatter(logging.Formatter("%(message)s"))
+        logger.addHandler(handler)
+    logger.setLevel(logging.INFO)
+    logger.propagate = False
+    logging.getLogger("mlflow").setLevel(logging.WARNING)  # keep the per-trial lines readable
