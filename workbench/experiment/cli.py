@@ -15,7 +15,7 @@ import sys
 import time
 from pathlib import Path
 
-from .errors import ConfigError, TrackingError, UsageError
+from .errors import ConfigError, TrackingError, UsageError, redact
 
 log = logging.getLogger("workbench")
 
@@ -62,14 +62,14 @@ def _check_before_work(cfg, args):
 
 
 def _cmd_ui(args) -> int:
-    from .tracking import _redact, resolve_tracking_uri
+    from .tracking import resolve_tracking_uri
 
     uri = resolve_tracking_uri(args.tracking_uri, None, Path.cwd())
     cmds = [ui_command(uri, args.port)]
-    print(f"MLflow UI for {_redact(uri)} at http://127.0.0.1:{args.port}", flush=True)
+    print(f"MLflow UI for {redact(uri)} at http://127.0.0.1:{args.port}", flush=True)
     storage = args.storage or "mlruns/optuna.journal"
     if args.storage or (Path.cwd() / storage).is_file():  # the studies beside the runs
-        from .studies import dashboard_command, redact
+        from .studies import dashboard_command
 
         cmds.append(dashboard_command(storage, args.dashboard_port, Path.cwd()))
         print(f"Optuna dashboard for {redact(storage)} at "

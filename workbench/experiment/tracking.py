@@ -38,7 +38,7 @@ import warnings
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
-from urllib.parse import urlsplit, urlunsplit
+from urllib.parse import urlsplit
 
 import mlflow
 import numpy as np
@@ -139,29 +139,15 @@ def _sqlite_path(uri: str) -> Path | None:
     return Path(parts[0]) if parts else None
 
 
-def _redact(uri: str) -> str:
-    """``uri`` without a password."""
-    try:
-        parts = urlsplit(uri)
-        if parts.password:
-            netloc = f"{parts.username}:***@{parts.hostname}"
-            if parts.port:
-                netloc += f":{parts.port}"
-            return urlunsplit(parts._replace(netloc=netloc))
-    except ValueError:
-        pass
-    return uri
-
-
 def _describe_store(uri: str) -> str:
     path = _sqlite_path(uri)
-    return f"SQLite database {path}" if path else f"tracking store {_redact(uri)}"
+    return f"SQLite database {path}" if path else f"tracking store {redact(uri)}"
 
 
 # --------------------------------------------------------------------------- errors
 
 
-from .errors import TrackingError  # noqa: E402  (kept importable from here)
+from .errors import TrackingError, redact  # noqa: E402  (TrackingError kept importable here)
 
 
 def _translate(exc: BaseException, uri: str) -> TrackingError | None:
@@ -185,7 +171,7 @@ def _translate(exc: BaseException, uri: str) -> TrackingError | None:
     if "out-of-date database schema" in low:
         return TrackingError(
             f"{store} has an older MLflow schema: back it up, then run "
-            f"'mlflow db upgrade {_redact(uri)}'. ({exc})")
+            f"'mlflow db upgrade {redact(uri)}'. ({exc})")
     if any(s in low for s in ("connection refused", "max retries exceeded",
                               "failed to establish a new connection", "name or service not known",
                               "connectionerror", "timed out")):
@@ -225,7 +211,7 @@ def _check_server(uri: str, timeout: float = 5.0) -> None:
         with socket.create_connection((parts.hostname, port), timeout=timeout):
             pass
     except OSError as exc:
-        raise TrackingError(f"cannot reach the MLflow tracking server {_redact(uri)}: {exc}") \
+        raise TrackingError(f"cannot reach the MLflow tracking server {redact(uri)}: {exc}") \
             from exc
 
 
@@ -354,7 +340,7 @@ class Tracker:
         self._skipped: dict[str, set[str]] = {}
 
     def __repr__(self) -> str:
-        return (f"Tracker({_redact(self.tracking_uri)!r}, {self.experiment_name!r}, "
+        return (f"Tracker({redact(self.tracking_uri)!r}, {self.experiment_name!r}, "
                 f"artifact_root={self.artifact_root!r})")
 
     def __getstate__(self):  # picklable for worker processes; the client is rebuilt there
@@ -536,7 +522,7 @@ class Tracker:
 
     def log_model(self, run_id: str, model, input_example: pd.DataFrame,
                   name: str = "model", *, targets: list[str] | None = None,
-                  files: Mapping[str, str | os.PathLike] | None = None) -> str:
+                  texts: Mapping[str, str] | None = None) -> str:
         """Log a fitted model (``predict(DataFrame)`` -> DataFrame or array; optionally
         ``predict_interval``) as an MLflow pyfunc model linked to ``run_id``; returns its URI
         ``models:/<model_id>``.
@@ -548,9 +534,10 @@ class Tracker:
         ``mlflow models serve``) where only the pinned requirements are installed. The
         signature names ``input_example``'s columns and the outputs; the first 5 rows are
         the input example (the REST request's template). ``targets``: the target names
-        (default: the columns of ``model.predict``). ``files``: name -> local file stored
-        in the model directory as ``<name><suffix>`` (e.g. ``config.toml``). Requirements
-        are pinned from the installed versions (no inference subprocess)."""
+        (default: the columns of ``model.predict``). ``texts``: file name -> text written
+        in the model directory (e.g. ``{"config.toml": ...}``, credentials redacted by the
+        caller). Requirements are pinned from the installed versions (no inference
+        subprocess)."""
         import workbench
 
         from .serving import WorkbenchModel, model_signature
@@ -585,8 +572,8 @@ class Tracker:
                                                 "targets": wrapped.targets,
                                                 "outputs": wrapped.outputs}},
                         pip_requirements=_requirements(), code_paths=[str(code)])
-                for key, path in (files or {}).items():  # e.g. config.toml beside MLmodel
-                    shutil.copyfile(path, local / f"{key}{Path(path).suffix}")
+                for file_name, text in (texts or {}).items():  # config.toml beside MLmodel
+                    (local / file_name).write_text(text, encoding="utf-8")
                 with self._errors():
                     self.client.log_model_artifacts(logged.model_id, str(local))
             with self._errors():
