@@ -15,7 +15,7 @@ import sys
 import time
 from pathlib import Path
 
-from .errors import ConfigError, TrackingError, UsageError, redact
+from .errors import ConfigError, TrackingError, UsageError, redact, redact_urls
 
 log = logging.getLogger("workbench")
 
@@ -494,11 +494,23 @@ def main(argv: list[str] | None = None) -> int:
             return args.func(args)
     except (ConfigError, DatasetError, DataUnavailableError, TrackingError, UsageError,
             _storage_error()) as exc:
-        print(f"workbench: error: {exc}", file=sys.stderr)
+        print(error_line(exc), file=sys.stderr)
         return 2
     except KeyboardInterrupt as exc:
         print(f"workbench: {MESSAGE}", file=sys.stderr)
         return getattr(exc, "code", 130)
+
+
+#: Most characters of the error line ``workbench: error: ...``.
+MAX_ERROR_LINE = 299
+
+
+def error_line(exc: BaseException) -> str:
+    """``workbench: error: <message>`` as one line of at most :data:`MAX_ERROR_LINE`
+    characters (messages are written short; this is the last guard), passwords redacted."""
+    text = redact_urls(" ".join(str(exc).split()))
+    line = f"workbench: error: {text}"
+    return line if len(line) <= MAX_ERROR_LINE else line[:MAX_ERROR_LINE - 3] + "..."
 
 
 def _storage_error() -> type:

@@ -1,5 +1,6 @@
 """Errors the ``workbench`` command reports as one ``workbench: error: ...`` line, exit code 2,
-and what keeps such lines short and free of secrets (:func:`shorten`, :func:`redact`).
+and what keeps such lines short and free of secrets (:func:`shorten`, :func:`listing`,
+:func:`redact`).
 
 Kept in a module of their own (no heavy imports), so the command can catch them without
 loading MLflow, Optuna or the estimators.
@@ -7,11 +8,12 @@ loading MLflow, Optuna or the estimators.
 
 from __future__ import annotations
 
+import difflib
 import re
 from collections.abc import Iterable
 
-__all__ = ["ConfigError", "TrackingError", "UsageError", "redact", "redact_config",
-           "redact_urls", "shorten"]
+__all__ = ["ConfigError", "TrackingError", "UsageError", "listing", "redact",
+           "redact_config", "redact_urls", "shorten", "unknown_keys"]
 
 
 class ConfigError(ValueError):
@@ -33,6 +35,32 @@ def shorten(value, limit: int = 60) -> str:
     except ValueError:  # an int beyond Python's str-conversion limit
         return f"<an integer of {value.bit_length()} bits>"
     return text if len(text) <= limit else f"{text[:limit - 14]}... ({len(text)} chars)"
+
+
+def listing(names: Iterable, budget: int = 140, width: int = 30) -> str:
+    """``'a', 'b', ...`` for an error line: each name cut to ``width`` characters, as many as
+    fit in ``budget`` characters, then ``... (N in all)``."""
+    names = [str(n) for n in names]
+    shown: list[str] = []
+    used = 0
+    for name in names:
+        item = repr(name if len(name) <= width else name[:width - 3] + "...")
+        if shown and used + len(item) + 2 > budget:
+            break
+        shown.append(item)
+        used += len(item) + 2
+    more = len(names) - len(shown)
+    return ", ".join(shown) + (f", ... ({len(names)} in all)" if more else "")
+
+
+def unknown_keys(unknown: Iterable, valid: Iterable) -> str:
+    """``unknown key(s) ['x']; did you mean 'y'? valid keys are 'a', 'b', ...`` (shortened)."""
+    unknown, valid = sorted(map(str, unknown)), sorted(map(str, valid))
+    text = f"unknown key(s) [{listing(unknown, budget=60)}]"
+    close = [m for key in unknown[:3] for m in difflib.get_close_matches(key, valid, n=1)]
+    if close:
+        text += f" (did you mean {listing(dict.fromkeys(close), budget=60)}?)"
+    return f"{text}; valid keys are {listing(valid)}"
 
 
 # --------------------------------------------------------------------------- secrets
