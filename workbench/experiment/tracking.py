@@ -181,6 +181,14 @@ def _translate(exc: BaseException, uri: str) -> TrackingError | None:
     return None
 
 
+def _duplicate_row(exc: BaseException) -> bool:
+    """Whether ``exc`` is a database's unique-constraint violation (SQLite, PostgreSQL,
+    MySQL): a row another process inserted first."""
+    text = f"{exc} {exc.__cause__ or exc.__context__ or ''}".lower()
+    return any(s in text for s in ("unique constraint", "duplicate key", "duplicate entry",
+                                   "integrityerror"))
+
+
 def _check_sqlite_file(uri: str) -> None:
     """Create the parent directory of a sqlite store; refuse a file that is not SQLite
     (checked by its header, without writing to it)."""
@@ -622,10 +630,19 @@ class Tracker:
         with warnings.catch_warnings():  # a local path "can be interpreted in multiple ways"
             warnings.simplefilter("ignore", UserWarning)
             dataset = mlflow.data.from_pandas(frame, source=source, name=name, targets=targets)
-        entity = dataset._to_mlflow_entity()
+        inputs = [DatasetInput(dataset._to_mlflow_entity(),
+                               tags=[InputTag("mlflow.data.context", context)])]
         with self._errors():
-            self.client.log_inputs(run_id, [DatasetInput(
-                entity, tags=[InputTag("mlflow.data.context", context)])])
+            try:
+                self.client.log_inputs(run_id, inputs)
+            except MlflowException as exc:
+                if not _duplicate_row(exc):
+                    raise
+                # Another process created the same dataset row (experiment, name, digest)
+                # between MLflow's lookup and its insert (two first runs at once): the row
+                # exists now, and the second attempt links this run to it.
+                _logger.debug("log_inputs raced another process (%s); trying again", exc)
+                self.client.log_inputs(run_id, inputs)
         return dataset.digest
 
     def model_artifact_uri(self, model_uri: str) -> str:
