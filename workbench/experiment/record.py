@@ -20,11 +20,11 @@ from typing import Any
 import pandas as pd
 
 from .config import ExperimentConfig
+from .errors import redact, redact_config
 from .figures import mae_bars
 from .intervals import family_model, interval_artifacts
 from .results import INTERVAL_KEYS, Result
 from .serving import prediction_frame
-from .errors import redact, redact_config
 from .tracking import CHAMPION, Tracker, dataset_hash, git_commit, resolve_tracking_uri
 
 __all__ = ["record", "tracker_for"]
