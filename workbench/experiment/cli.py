@@ -492,8 +492,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with handle_signals():  # SIGINT/SIGTERM: runs end KILLED, one line, exit 130/143
             return args.func(args)
-    except (ConfigError, DatasetError, DataUnavailableError, TrackingError, UsageError,
-            _storage_error()) as exc:
+    except DataUnavailableError as exc:  # the benchmark's manual download steps, as written
+        print(f"workbench: error: {exc}", file=sys.stderr)
+        return 2
+    except (ConfigError, DatasetError, TrackingError, UsageError, _storage_error()) as exc:
         print(error_line(exc), file=sys.stderr)
         return 2
     except KeyboardInterrupt as exc:
