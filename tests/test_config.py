@@ -113,10 +113,10 @@ def test_unknown_keys(tmp_path, where, kwargs, section):
     # the valid keys of that section are listed
     expected = {"top": ["name", "random_state", "model", "selection"],
                 "data": ["source", "data_dir"],
-                # (alphabetical; the line stops at 300 characters)
+                # (alphabetical; the listing is shortened, "... (N in all)")
                 "model": ["alpha", "basis", "basis_inputs", "basis_params", "family"],
                 "selection": ["cv", "shuffle", "scoring"],
-                "target": ["basis", "basis_params", "loss"]}[where]
+                "target": ["basis", "basis_params", "input_transform"]}[where]
     assert _valid_names_listed(msg, expected), msg
 
 

@@ -19,8 +19,9 @@ from services import command_env, free_port, tiny_sweep, workbench_cmd
 
 from workbench.experiment import lifecycle
 from workbench.experiment.cli import main
+from workbench.experiment.errors import redact
 from workbench.experiment.studies import (STREAMS, _counted, _fail_stale, claim_stream,
-                                          open_storage, redact, run_study)
+                                          open_storage, run_study)
 from workbench.experiment.tracking import Tracker
 
 

@@ -630,7 +630,8 @@ def test_out_tables_are_written_all_or_nothing(tmp_path, monkeypatch):
 
 def test_served_model_gives_the_same_numbers(bench, tmp_path):
     """``mlflow models serve`` on the champion (a real process on 127.0.0.1): the test rows
-    as ``dataframe_split`` give evaluate's test predictions; a missing column is one line."""
+    as ``dataframe_split`` give evaluate's test predictions; a missing column is one line, a
+    request without rows a short answer."""
     port = free_port()
     bindir = str(Path(sys.executable).parent)  # mlflow execs uvicorn from PATH
     env = dict(os.environ, MLFLOW_TRACKING_URI=bench.uri, MLFLOW_DISABLE_TELEMETRY="true",
@@ -658,6 +659,10 @@ def test_served_model_gives_the_same_numbers(bench, tmp_path):
         columns[columns.index("qvolt5")] = "renamed"
         status, reply = _post(f"{base}/invocations", body)
         assert status == 400 and "missing column(s) qvolt5" in reply["message"]
+        body["dataframe_split"]["data"] = []  # no rows: a short answer, no stack trace
+        status, reply = _post(f"{base}/invocations", body)
+        assert status == 400 and "model input: no rows to predict" in reply["message"]
+        assert "stack_trace" not in reply and len(json.dumps(reply)) < 500, reply
     finally:
         os.killpg(proc.pid, signal.SIGTERM)
         try:

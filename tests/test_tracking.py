@@ -186,6 +186,43 @@ def test_experiment_created_once_under_a_race(tracker):
     assert not errors and len(set(ids)) == 1 and len(ids) == 4
 
 
+@pytest.mark.parametrize("error, tries", [
+    ("(sqlite3.IntegrityError) UNIQUE constraint failed: datasets.experiment_id, "
+     "datasets.name, datasets.digest", 2),
+    ('(psycopg2.errors.UniqueViolation) duplicate key value violates unique constraint '
+     '"dataset_pk"', 2),
+    ("something else", 1),
+])
+def test_dataset_input_survives_another_process_creating_its_row(tracker, data, monkeypatch,
+                                                                  error, tries):
+    """Two first runs at once: both look the dataset up, both insert it, the second insert
+    violates the unique key (seen under load). The second attempt finds the row and links
+    the run to it; other errors are not retried."""
+    from mlflow.exceptions import MlflowException
+
+    X, Y = data
+    real, calls = tracker.client.log_inputs, []
+
+    def raced(run_id, datasets=None, models=None):
+        calls.append(run_id)
+        if len(calls) == 1:
+            raise MlflowException(error)
+        return real(run_id, datasets=datasets, models=models)
+
+    monkeypatch.setattr(tracker.client, "log_inputs", raced)
+    with tracker.run("raced dataset") as run_id:
+        if tries == 1:
+            with pytest.raises(MlflowException, match="something else"):
+                tracker.log_dataset(run_id, pd.concat([X, Y], axis=1), name="raced",
+                                    context="training")
+        else:
+            digest = tracker.log_dataset(run_id, pd.concat([X, Y], axis=1), name="raced",
+                                         context="training")
+            inputs = tracker.client.get_run(run_id).inputs.dataset_inputs
+            assert [d.dataset.digest for d in inputs] == [digest]
+    assert len(calls) == tries
+
+
 def test_tracker_pickles_without_its_client(tracker):
     tracker.client  # noqa: B018 - make sure there is one
     clone = pickle.loads(pickle.dumps(tracker))

@@ -5,11 +5,16 @@ order), the targets, optional extra basis inputs (features), and optionally the 
 model's Hamiltonian parameters. The split comes from a ``train``/``test`` column or from a
 seeded random ``test_fraction``. Every problem is reported as a :class:`DatasetError` that
 names the file, the columns and the rows; nothing is written anywhere.
+
+A message never quotes the file's content beyond its header, and the header only when it
+looks like one (names of at most 64 characters, shortened): a config pointing at some
+other file (``csv = "/etc/shadow"``) does not have its first line printed.
 """
 
 from __future__ import annotations
 
 import csv
+import re
 from collections import Counter
 from pathlib import Path
 from typing import Sequence
@@ -27,6 +32,41 @@ class DatasetError(ValueError):
     """Input data that cannot be used; the message says what is wrong and where."""
 
 
+#: The largest magnitude a value may have: beyond it, squares and sums of squares overflow
+#: (a single 1e308 target gave a test MAE of 7e305 and no warning).
+MAX_MAGNITUDE = 1e150
+#: A column name as spreadsheets and scripts write them.
+_NAME = re.compile(r"[^\W\d][\w .()\[\]%+/-]{0,63}")
+#: Delimiters of other locales' exports, with their names.
+_DELIMITERS = {";": "semicolons", "\t": "tabs", "|": "vertical bars"}
+
+
+def _names(names, limit: int = 4, width: int = 30) -> str:
+    """``'a', 'b', ... (N in all)``: at most ``limit`` names, each cut to ``width``."""
+    names = [str(n) for n in names]
+    shown = [repr(n if len(n) <= width else n[:width - 3] + "...") for n in names[:limit]]
+    return ", ".join(shown) + (f", ... ({len(names)} in all)" if len(names) > limit else "")
+
+
+def _is_header(names) -> bool:
+    """Whether ``names`` look like a CSV header (two or more column names)."""
+    return len(names) >= 2 and all(_NAME.fullmatch(str(n).strip()) for n in names)
+
+
+def _one_column(path: Path, name: str) -> str:
+    """The message for a first line without commas: a header with another delimiter, or not
+    a CSV file at all (its content not shown)."""
+    for delimiter, what in _DELIMITERS.items():
+        parts = name.split(delimiter)
+        if len(parts) >= 2 and _is_header(parts):
+            shown = delimiter.join(p[:30] for p in parts[:3]) + (delimiter + "..."
+                                                                   if len(parts) > 3 else "")
+            return (f"{path} has one column named {shown!r} ({len(parts)} names separated by "
+                    f"{what}): wrong delimiter? the workbench reads comma-separated files")
+    return (f"{path} does not look like a CSV file: its first line is not a comma-separated "
+            f"header (one row per experiment, a header row naming the columns)")
+
+
 def _rows(labels, limit: int = 5) -> str:
     """Row labels as the lines of the file they come from (header is line 1)."""
     lines = [f"line {int(i) + 2}" for i in list(labels)[:limit]]
@@ -34,23 +74,35 @@ def _rows(labels, limit: int = 5) -> str:
     return ", ".join(lines) + (f" and {more} more" if more > 0 else "")
 
 
-def _read(path: Path) -> pd.DataFrame:
+def _read(path: Path, min_columns: int = 1) -> pd.DataFrame:
+    """Every cell of the CSV file ``path`` as text; ``min_columns``: fewer columns in its
+    header is an error (a first line without commas: another delimiter, or not a CSV)."""
     if not path.is_file():
         raise DatasetError(f"CSV file not found: {path}")
     try:
         with path.open(newline="", encoding="utf-8") as fh:
             header = next(csv.reader(fh), None)
-    except (OSError, UnicodeDecodeError) as exc:
-        raise DatasetError(f"cannot read {path}: {exc}") from None
+    except UnicodeDecodeError:
+        raise DatasetError(f"{path} is not UTF-8 text: is it a CSV file?") from None
+    except OSError as exc:
+        raise DatasetError(f"cannot read {path}: {exc.strerror or type(exc).__name__}"
+                           ) from None
+    except csv.Error:  # e.g. a NUL byte
+        raise DatasetError(f"{path} cannot be read as CSV: is it a CSV file?") from None
     if not header or not any(h.strip() for h in header):
         raise DatasetError(f"{path} is empty: expected a header row and one row per experiment")
+    if len(header) < min_columns:
+        raise DatasetError(_one_column(path, header[0]))
     dups = sorted(name for name, count in Counter(header).items() if count > 1)
     if dups:
-        raise DatasetError(f"{path}: duplicated column names {dups}")
+        raise DatasetError(f"{path}: duplicated column names "
+                           + (f"[{_names(dups)}]" if _is_header(header) else f"({len(dups)})"))
     try:
         frame = pd.read_csv(path, dtype=str, keep_default_na=False)
     except (pd.errors.ParserError, UnicodeDecodeError) as exc:
-        raise DatasetError(f"{path} is not a well-formed CSV file: {exc}") from None
+        reason = " ".join(str(exc).split())
+        reason = reason if len(reason) <= 100 else reason[:97] + "..."
+        raise DatasetError(f"{path} is not a well-formed CSV file: {reason}") from None
     if frame.empty:
         raise DatasetError(f"{path} has a header but no rows")
     return frame
@@ -62,18 +114,25 @@ def _numeric(frame: pd.DataFrame, columns: Sequence[str], path: Path) -> pd.Data
         raw = frame[col].str.strip()
         values = pd.to_numeric(raw.replace({"": "nan"}), errors="coerce")
         bad = values.isna() & ~raw.str.lower().isin(["", "nan", "na", "null"])
-        if bad.any():
-            first = raw[bad].iloc[0]
-            raise DatasetError(f"{path}: column {col!r} has non-numeric values (e.g. {first!r} "
-                               f"at {_rows(frame.index[bad])})")
+        if bad.any():  # the cells are not quoted: the file's content stays out of messages
+            raise DatasetError(f"{path}: column {col!r} has non-numeric values at "
+                               f"{_rows(frame.index[bad])}")
         out[col] = values.astype(float)
     data = pd.DataFrame(out, index=frame.index)
-    finite = np.isfinite(data.to_numpy())
+    values = data.to_numpy()
+    finite = np.isfinite(values)
     if not finite.all():
         bad_cols = [c for c, ok in zip(columns, finite.all(axis=0)) if not ok]
         bad_rows = data.index[~finite.all(axis=1)]
-        raise DatasetError(f"{path}: missing, NaN or infinite values in column(s) {bad_cols} "
-                           f"at {_rows(bad_rows)}")
+        raise DatasetError(f"{path}: missing, NaN or infinite values in column(s) "
+                           f"[{_names(bad_cols)}] at {_rows(bad_rows)}")
+    huge = np.abs(values) > MAX_MAGNITUDE
+    if huge.any():
+        bad_cols = [c for c, h in zip(columns, huge.any(axis=0)) if h]
+        bad_rows = data.index[huge.any(axis=1)]
+        raise DatasetError(f"{path}: column(s) [{_names(bad_cols)}] hold values beyond "
+                           f"+-{MAX_MAGNITUDE:.0e} at {_rows(bad_rows)}: too large to fit or "
+                           f"score (squares overflow); check the units")
     return data
 
 
@@ -87,8 +146,7 @@ def _split(frame: pd.DataFrame, path: Path, test_fraction, split_column, split_s
         bad = ~values.isin(["train", "test"])
         if bad.any():
             raise DatasetError(f"{path}: split column {split_column!r} must hold 'train' or "
-                               f"'test'; found {frame[split_column][bad].iloc[0]!r} at "
-                               f"{_rows(frame.index[bad])}")
+                               f"'test'; other values at {_rows(frame.index[bad])}")
         train, test = frame.index[values == "train"], frame.index[values == "test"]
     else:
         if not 0.0 <= float(test_fraction) < 1.0:
@@ -171,12 +229,14 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
     if named_twice:
         raise DatasetError(f"column(s) {named_twice} named in more than one role")
 
-    frame = _read(path)
+    frame = _read(path, min_columns=2)  # a prior and a target at least
     missing = [c for c in [*used, *([split_column] if split_column else [])]
                if c not in frame.columns]
     if missing:
-        raise DatasetError(f"{path}: missing column(s) {missing}; the file has columns "
-                           f"{list(frame.columns)}")
+        header = list(frame.columns)
+        has = (f"the file has columns [{_names(header)}]" if _is_header(header) else
+               "the file's first line does not look like a CSV header")
+        raise DatasetError(f"{path}: missing column(s) [{_names(missing)}]; {has}")
     data = _numeric(frame, used, path)
     train, test = _split(frame, path, test_fraction, split_column, split_seed)
     hamiltonian = None

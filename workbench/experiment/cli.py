@@ -15,7 +15,8 @@ import sys
 import time
 from pathlib import Path
 
-from .errors import ConfigError, StorageError, TrackingError, UsageError
+from .errors import (ConfigError, StorageError, TrackingError, UsageError, redact,
+                     redact_urls)
 from .startup import SWEEP_WORKER_MODULES, setup_logging
 
 log = logging.getLogger("workbench")
@@ -99,14 +100,14 @@ def _repair_hint(args) -> str:
 
 
 def _cmd_ui(args) -> int:
-    from .tracking import _redact, resolve_tracking_uri
+    from .tracking import resolve_tracking_uri
 
     uri = resolve_tracking_uri(args.tracking_uri, None, Path.cwd())
     cmds = [ui_command(uri, args.port)]
-    print(f"MLflow UI for {_redact(uri)} at http://127.0.0.1:{args.port}", flush=True)
+    print(f"MLflow UI for {redact(uri)} at http://127.0.0.1:{args.port}", flush=True)
     storage = args.storage or "mlruns/optuna.journal"
     if args.storage or (Path.cwd() / storage).is_file():  # the studies beside the runs
-        from .studies import dashboard_command, redact
+        from .studies import dashboard_command
 
         cmds.append(dashboard_command(storage, args.dashboard_port, Path.cwd()))
         print(f"Optuna dashboard for {redact(storage)} at "
@@ -545,13 +546,27 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with handle_signals():  # SIGINT/SIGTERM: runs end KILLED, one line, exit 130/143
             return args.func(args)
-    except (ConfigError, DatasetError, DataUnavailableError, TrackingError, UsageError,
-            StorageError) as exc:
+    except DataUnavailableError as exc:  # the benchmark's manual download steps, as written
         print(f"workbench: error: {exc}", file=sys.stderr)
+        return 2
+    except (ConfigError, DatasetError, TrackingError, UsageError, StorageError) as exc:
+        print(error_line(exc), file=sys.stderr)
         return 2
     except KeyboardInterrupt as exc:
         print(f"workbench: {MESSAGE}", file=sys.stderr)
         return getattr(exc, "code", 130)
+
+
+#: Most characters of the error line ``workbench: error: ...``.
+MAX_ERROR_LINE = 299
+
+
+def error_line(exc: BaseException) -> str:
+    """``workbench: error: <message>`` as one line of at most :data:`MAX_ERROR_LINE`
+    characters (messages are written short; this is the last guard), passwords redacted."""
+    text = redact_urls(" ".join(str(exc).split()))
+    line = f"workbench: error: {text}"
+    return line if len(line) <= MAX_ERROR_LINE else line[:MAX_ERROR_LINE - 3] + "..."
 
 
 if __name__ == "__main__":

@@ -34,7 +34,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from .errors import ConfigError, shorten
+from .errors import ConfigError, listing, shorten, unknown_keys
 from .space import SearchSpace, SpaceError
 
 __all__ = ["BoostSettings", "CVConfig", "ConfigError", "DataConfig", "EvaluationConfig",
@@ -44,8 +44,8 @@ __all__ = ["BoostSettings", "CVConfig", "ConfigError", "DataConfig", "Evaluation
 
 #: The largest seed or count a config may give (numpy seeds are 32-bit).
 MAX_INT = 2**32 - 1
-#: Most characters of a config error line.
-MAX_MESSAGE = 299
+#: Most characters of a config error line (``workbench: error: `` before it: under 300).
+MAX_MESSAGE = 280
 
 
 class Section(BaseModel):
@@ -59,8 +59,7 @@ class Section(BaseModel):
         if isinstance(data, dict):
             unknown = sorted(set(data) - set(cls.model_fields))
             if unknown:
-                raise ValueError(f"unknown key(s) {unknown}; valid keys are "
-                                 f"{sorted(cls.model_fields)}")
+                raise ValueError(unknown_keys(unknown, cls.model_fields))
         return data
 
 
@@ -270,8 +269,8 @@ def _validate_estimator(estimator) -> None:
             unknown = sorted(set(params) - set(constraints) - {"class_weight"})
             extra = sorted(k for k in unknown if params[k] is not None)
             if extra:
-                raise ValueError(f"unknown LightGBM parameter(s) {extra}; valid: "
-                                 f"{sorted(constraints)}")
+                raise ValueError(f"unknown LightGBM parameter(s) [{listing(extra, 60)}]; "
+                                 f"valid: {listing(sorted(constraints))}")
             params = {k: v for k, v in params.items() if k in constraints}
         else:
             constraints = getattr(est, "_parameter_constraints", None)

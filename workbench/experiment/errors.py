@@ -1,4 +1,6 @@
-"""Errors the ``workbench`` command reports as one ``workbench: error: ...`` line, exit code 2.
+"""Errors the ``workbench`` command reports as one ``workbench: error: ...`` line, exit code 2,
+and what keeps such lines short and free of secrets (:func:`shorten`, :func:`listing`,
+:func:`redact`).
 
 Kept in a module of their own (no heavy imports), so the command can catch them without
 loading MLflow, Optuna or the estimators.
@@ -6,7 +8,12 @@ loading MLflow, Optuna or the estimators.
 
 from __future__ import annotations
 
-__all__ = ["ConfigError", "StorageError", "TrackingError", "UsageError", "driver_hint", "shorten"]
+import difflib
+import re
+from collections.abc import Iterable
+
+__all__ = ["ConfigError", "StorageError", "TrackingError", "UsageError", "driver_hint",
+           "listing", "redact", "redact_config", "redact_urls", "shorten", "unknown_keys"]
 
 
 class ConfigError(ValueError):
@@ -51,3 +58,110 @@ def driver_hint(exc: ImportError) -> str:
     if name == "psycopg" and importlib.util.find_spec("psycopg2"):
         hint += ", or use the installed psycopg2: postgresql+psycopg2://..."
     return hint
+
+
+def listing(names: Iterable, budget: int = 140, width: int = 30) -> str:
+    """``'a', 'b', ...`` for an error line: each name cut to ``width`` characters, as many as
+    fit in ``budget`` characters, then ``... (N in all)``."""
+    names = [str(n) for n in names]
+    shown: list[str] = []
+    used = 0
+    for name in names:
+        item = repr(name if len(name) <= width else name[:width - 3] + "...")
+        if shown and used + len(item) + 2 > budget:
+            break
+        shown.append(item)
+        used += len(item) + 2
+    more = len(names) - len(shown)
+    return ", ".join(shown) + (f", ... ({len(names)} in all)" if more else "")
+
+
+def unknown_keys(unknown: Iterable, valid: Iterable) -> str:
+    """``unknown key(s) ['x']; did you mean 'y'? valid keys are 'a', 'b', ...`` (shortened)."""
+    unknown, valid = sorted(map(str, unknown)), sorted(map(str, valid))
+    text = f"unknown key(s) [{listing(unknown, budget=60)}]"
+    close = [m for key in unknown[:3] for m in difflib.get_close_matches(key, valid, n=1)]
+    if close:
+        text += f" (did you mean {listing(dict.fromkeys(close), budget=60)}?)"
+    return f"{text}; valid keys are {listing(valid)}"
+
+
+# --------------------------------------------------------------------------- secrets
+
+_SCHEME = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*")
+#: Query parameters of a URL that hold a credential (``...?password=...``).
+_SECRET_QUERY = re.compile(r"(?i)([?&;](?:password|passwd|pwd|secret|token|access_token|"
+                           r"api_key|apikey)=)[^&;#]*")
+#: A URL in free text (a TOML comment, a message): up to a space or a quote.
+_URL_TOKEN = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*://[^\s\"'`]+")
+
+
+def redact(url) -> str:
+    """``url`` with its password (``scheme://user:password@host``) and any credential in its
+    query (``?password=...``) replaced by ``***``: safe to print, log or store. Text that is
+    not a ``scheme://`` URL (a journal file path) is returned as given.
+
+    The password is everything between the first ``:`` of the user part and the *last*
+    ``@``, so a password holding ``/``, ``?``, ``#`` or ``@`` (unescaped, as people paste
+    them) is hidden too; a URL with an ``@`` in its path may be redacted more than needed,
+    never less."""
+    text = str(url)
+    head, sep, rest = text.partition("://")
+    if not sep or not _SCHEME.fullmatch(head):
+        return text
+    at = rest.rfind("@")
+    if at >= 0:
+        user, colon, _ = rest[:at].partition(":")
+        if colon and "/" not in user:
+            rest = f"{user}:***{rest[at:]}"
+    return head + sep + _SECRET_QUERY.sub(r"\1***", rest)
+
+
+def redact_urls(text: str) -> str:
+    """``text`` with :func:`redact` applied to every ``scheme://...`` in it (up to a space or
+    a quote)."""
+    return _URL_TOKEN.sub(lambda m: redact(m.group(0)), str(text))
+
+
+def _strings(value) -> Iterable[str]:
+    if isinstance(value, str):
+        yield value
+    elif isinstance(value, dict):
+        for item in value.values():
+            yield from _strings(item)
+    elif isinstance(value, list):
+        for item in value:
+            yield from _strings(item)
+
+
+def _toml_basic(text: str) -> str:
+    """``text`` as it appears inside a TOML basic string ("..."), common escapes."""
+    out = text.replace("\\", "\\\\").replace('"', '\\"')
+    for char, escape in (("\b", "\\b"), ("\t", "\\t"), ("\n", "\\n"), ("\f", "\\f"),
+                         ("\r", "\\r")):
+        out = out.replace(char, escape)
+    return out
+
+
+def redact_config(text: str, name: str = "the config") -> str:
+    """A TOML config's text with every URL's credentials replaced by ``***`` (values such as
+    ``[study] storage`` and ``[tracking] tracking_uri``, and URLs in comments), the rest of
+    the file as written. When a credential-bearing value cannot be found in the text (an
+    unusual escape), the whole text is replaced by a one-line note: it is never logged with
+    the secret."""
+    import tomllib
+
+    try:
+        values = [s for s in _strings(tomllib.loads(text)) if redact(s) != s]
+    except (tomllib.TOMLDecodeError, ValueError):
+        values = []
+    for value in sorted(set(values), key=len, reverse=True):
+        found = False
+        for form, safe in ((value, redact(value)),
+                           (_toml_basic(value), _toml_basic(redact(value)))):
+            if form in text:
+                text, found = text.replace(form, safe), True
+        if not found:
+            return (f"# {name}: not shown (it holds a credential that could not be "
+                    f"redacted)\n")
+    return redact_urls(text)

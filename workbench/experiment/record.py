@@ -20,12 +20,12 @@ from typing import Any
 import pandas as pd
 
 from .config import ExperimentConfig
+from .errors import redact, redact_config
 from .figures import mae_bars
 from .intervals import family_model, interval_artifacts
 from .results import INTERVAL_KEYS, Result
 from .serving import prediction_frame
-from .tracking import (CHAMPION, Tracker, _redact, dataset_hash, git_commit,
-                       resolve_tracking_uri)
+from .tracking import CHAMPION, Tracker, dataset_hash, git_commit, resolve_tracking_uri
 
 __all__ = ["record", "tracker_for"]
 
@@ -120,6 +120,14 @@ def _data_source(cfg: ExperimentConfig) -> str | None:
         return None
 
 
+def _config_text(cfg: ExperimentConfig) -> str | None:
+    """The config file's text with every credential redacted (a storage or tracking URL's
+    password), as the run and the model log it; ``None`` without a file."""
+    if cfg.path is None:
+        return None
+    return redact_config(Path(cfg.path).read_text(encoding="utf-8"), str(cfg.path))
+
+
 def source_tags(cfg: ExperimentConfig, kind: str, commit: str | None) -> dict[str, str]:
     """MLflow's source tags (the UI's "Source" column): the command and the git commit."""
     tags = {"mlflow.source.type": "LOCAL",
@@ -132,8 +140,8 @@ def source_tags(cfg: ExperimentConfig, kind: str, commit: str | None) -> dict[st
 def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
            tracking_uri: str | None = None, sweep=None, run_id: str | None = None,
            register: str | None = None) -> dict[str, str]:
-    """Log one evaluate/sweep as a parent run (metrics, the chosen settings, the config file,
-    the result, the training and test rows as MLflow datasets, MAE/MSE bars, the family's
+    """Log one evaluate/sweep as a parent run (metrics, the chosen settings, the config file
+    with its credentials redacted, the result, the training and test rows as MLflow datasets, MAE/MSE bars, the family's
     artifacts, the test rows' predictions, the model; for a sweep a child run per trial and
     per outer fold). Returns ids and URIs to add to the result. ``run_id``: log into this
     live run (see :func:`.lifecycle.command_run`; a sweep's trials are its children already)
@@ -161,7 +169,7 @@ def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
         tracker.log_params(run_id, params)
     with (contextlib.nullcontext(run_id) if live
           else tracker.run(f"{kind} {cfg.name}", tags=tags, params=params)) as run_id:
-        log.info("[%s] tracking in %s (run %s)", cfg.name, _redact(tracker.tracking_uri),
+        log.info("[%s] tracking in %s (run %s)", cfg.name, redact(tracker.tracking_uri),
                  run_id)
         tracker.log_metrics(run_id, _metrics(result))
         # the family's figures are computed on the workers while the rest is logged
@@ -170,8 +178,9 @@ def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
         for context, X, Y in (("training", X_train, y_train), ("test", X_test, y_test)):
             tracker.log_dataset(run_id, pd.concat([X, Y], axis=1), name=ds.name,
                                 context=context, source=source)
-        if cfg.path is not None:
-            tracker.log_file(run_id, cfg.path)
+        config = _config_text(cfg)
+        if config is not None:
+            tracker.log_text(run_id, config, Path(cfg.path).name)
         tracker.log_dict(run_id, json.loads(json.dumps(result.to_json(), default=str)),
                          "result.json")
         for metric, name in (("MAE", "mae_bars"), ("MSE", "mse_bars")):
@@ -190,7 +199,7 @@ def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
         predictions = prediction_frame(model, X_test, result.targets)
         tracker.log_text(run_id, predictions.to_csv(index_label="row"), "predictions/test.csv")
         model_uri = tracker.log_model(run_id, model, X_test.head(5), targets=result.targets,
-                                      files={"config": cfg.path} if cfg.path else None)
+                                      texts={"config.toml": config} if config else None)
         extra = finish_artifacts(lambda name, fig: tracker.log_figure(run_id, fig,
                                                                       f"plots/{name}.png"))
         for name, table in extra.tables.items():
@@ -199,7 +208,7 @@ def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
             tracker.log_dict(run_id, data, f"{name}.json")
         tracker.set_tags(run_id, {"model_uri": model_uri,
                                   "selected": ",".join(result.model.selected)})
-        out = {"tracking_uri": tracker.tracking_uri, "experiment_id": tracker.experiment_id,
+        out = {"tracking_uri": redact(tracker.tracking_uri), "experiment_id": tracker.experiment_id,
                "run_id": run_id, "model_uri": model_uri}
         if register:
             version = tracker.register_model(

@@ -30,9 +30,10 @@ from optuna.trial import TrialState
 
 from ..parallel import Task, map_tasks
 from .config import ExperimentConfig, load_dataset
+from .errors import redact
 from .evaluate import fit_and_score
 from .results import OuterFold, Result, SweepSummary
-from .studies import _counted, _pruner, _sampler, open_storage, redact, run_studies
+from .studies import _counted, _pruner, _sampler, open_storage, run_studies
 from . import studies as _studies
 
 __all__ = ["Sweep", "run_search", "run_sweep", "study_names"]

@@ -9,7 +9,8 @@ Used three ways, all with the same numbers:
 * ``mlflow models serve -m <uri> --env-manager local`` (REST, ``dataframe_split``).
 
 Inputs are checked by the model itself, so each problem is one short line naming the column
-(and the row): a missing column, a non-numeric value, a NaN or infinite value. Integer
+(and the row): no rows at all, a missing column, a non-numeric value, a NaN or infinite
+value. Integer
 columns are accepted (cast to float); extra columns are ignored. The signature therefore
 declares the input columns by name without MLflow types (``Any``, optional): MLflow's own
 enforcement would reject ``int64`` columns and report a missing column after a dump of the
@@ -71,11 +72,13 @@ def check_inputs(frame: pd.DataFrame, columns: Sequence[str], *, where: str = "i
     """The model's input ``columns`` of ``frame`` as a float frame (same index, the model's
     column order); extra columns are ignored, integer columns cast to float.
 
-    Raises :class:`InputError` (one line, starting with ``where``) for missing columns, a
-    non-numeric value, or a missing, NaN or infinite value, naming the column and the row
+    Raises :class:`InputError` (one line, starting with ``where``) for a table without rows,
+    missing columns, a non-numeric value, or a missing, NaN or infinite value, naming the column and the row
     (``row_name(position)``, default ``row <index label>``)."""
     if not isinstance(frame, pd.DataFrame):
         frame = pd.DataFrame(frame)
+    if len(frame) == 0:  # the estimators' own message is a traceback's worth of text
+        raise InputError(f"{where}: no rows to predict")
     columns = [str(c) for c in columns]
     names = [str(c) for c in frame.columns]
     dups = sorted({c for c in names if names.count(c) > 1} & set(columns))

@@ -16,6 +16,7 @@ from typing import Any, Callable
 
 from ..bases import BASES, TRANSFORMS
 from ..losses import LOSSES
+from .errors import unknown_keys
 
 __all__ = ["SearchSpace", "SpaceError"]
 
@@ -93,7 +94,7 @@ class SearchSpace:
         valid_keys = SEARCH_KEYS | ({family} if family else set())
         unknown = sorted(set(table) - SEARCH_KEYS)
         if unknown:
-            raise SpaceError(f"unknown key(s) {unknown}; valid keys are {sorted(valid_keys)}")
+            raise SpaceError(unknown_keys(unknown, valid_keys))
         for name, spec in table.items():
             if name != "basis_params":
                 _check_spec(name, spec, NAMED_CHOICES.get(name))

@@ -46,7 +46,7 @@ from optuna.exceptions import ExperimentalWarning, UpdateFinishedTrialError
 from optuna.trial import FrozenTrial, TrialState
 
 from ..parallel import one_thread_env
-from .errors import StorageError, driver_hint
+from .errors import StorageError, driver_hint, redact
 from .lifecycle import every, interrupts_deferred
 
 log = logging.getLogger("workbench")
@@ -60,26 +60,6 @@ _ATTEMPT_ATTRS = ("worker", "heartbeat", "finished_by", "error", "surplus", "sta
 EXIT_SIGINT, EXIT_SIGTERM = 130, 143
 
 
-def redact(url: str) -> str:
-    """``url`` with any password replaced by ``***`` (safe to print or log)."""
-    if "://" not in url:
-        return url
-    try:
-        from sqlalchemy.engine import make_url
-
-        return make_url(url).render_as_string(hide_password=True)
-    except Exception:  # not an SQLAlchemy URL (e.g. http): plain URL parsing
-        from urllib.parse import urlsplit, urlunsplit
-
-        try:
-            parts = urlsplit(url)
-            if parts.password is None:
-                return url
-            host = parts.hostname or ""
-            netloc = f"{parts.username}:***@{host}" + (f":{parts.port}" if parts.port else "")
-            return urlunsplit(parts._replace(netloc=netloc))
-        except ValueError:
-            return url
 
 
 def heartbeat_interval(stale_after_s: float) -> int:

@@ -38,7 +38,7 @@ import warnings
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
-from urllib.parse import urlsplit, urlunsplit
+from urllib.parse import urlsplit
 
 import mlflow
 import numpy as np
@@ -140,29 +140,15 @@ def _sqlite_path(uri: str) -> Path | None:
     return Path(parts[0]) if parts else None
 
 
-def _redact(uri: str) -> str:
-    """``uri`` without a password."""
-    try:
-        parts = urlsplit(uri)
-        if parts.password:
-            netloc = f"{parts.username}:***@{parts.hostname}"
-            if parts.port:
-                netloc += f":{parts.port}"
-            return urlunsplit(parts._replace(netloc=netloc))
-    except ValueError:
-        pass
-    return uri
-
-
 def _describe_store(uri: str) -> str:
     path = _sqlite_path(uri)
-    return f"SQLite database {path}" if path else f"tracking store {_redact(uri)}"
+    return f"SQLite database {path}" if path else f"tracking store {redact(uri)}"
 
 
 # --------------------------------------------------------------------------- errors
 
 
-from .errors import TrackingError  # noqa: E402  (kept importable from here)
+from .errors import TrackingError, redact  # noqa: E402  (TrackingError kept importable here)
 
 
 def _translate(exc: BaseException, uri: str) -> TrackingError | None:
@@ -192,7 +178,7 @@ def _translate(exc: BaseException, uri: str) -> TrackingError | None:
     if "out-of-date database schema" in low:
         return TrackingError(
             f"{store} has an older MLflow schema: back it up, then run "
-            f"'mlflow db upgrade {_redact(uri)}'. ({exc})")
+            f"'mlflow db upgrade {redact(uri)}'. ({exc})")
     if any(s in low for s in ("connection refused", "max retries exceeded",
                               "failed to establish a new connection", "name or service not known",
                               "connectionerror", "timed out")):
@@ -200,6 +186,14 @@ def _translate(exc: BaseException, uri: str) -> TrackingError | None:
     if "sqlite3.databaseerror" in low or "sqlite3.operationalerror" in low:
         return TrackingError(f"{store} cannot be used: {exc}")
     return None
+
+
+def _duplicate_row(exc: BaseException) -> bool:
+    """Whether ``exc`` is a database's unique-constraint violation (SQLite, PostgreSQL,
+    MySQL): a row another process inserted first."""
+    text = f"{exc} {exc.__cause__ or exc.__context__ or ''}".lower()
+    return any(s in text for s in ("unique constraint", "duplicate key", "duplicate entry",
+                                   "integrityerror"))
 
 
 def _check_sqlite_file(uri: str) -> None:
@@ -272,7 +266,7 @@ def _check_scheme_and_driver(uri: str) -> None:
     driver is installed."""
     from mlflow.store.db.db_types import DATABASE_ENGINES
 
-    shown = _redact(uri)
+    shown = redact(uri)
     try:
         scheme = urlsplit(uri).scheme.lower()
     except ValueError:
@@ -329,7 +323,7 @@ def _check_server(uri: str, timeout: float = 5.0) -> None:
         with socket.create_connection((parts.hostname, port), timeout=timeout):
             pass
     except OSError as exc:
-        raise TrackingError(f"cannot reach the MLflow tracking server {_redact(uri)}: {exc}") \
+        raise TrackingError(f"cannot reach the MLflow tracking server {redact(uri)}: {exc}") \
             from exc
 
 
@@ -458,7 +452,7 @@ class Tracker:
         self._skipped: dict[str, set[str]] = {}
 
     def __repr__(self) -> str:
-        return (f"Tracker({_redact(self.tracking_uri)!r}, {self.experiment_name!r}, "
+        return (f"Tracker({redact(self.tracking_uri)!r}, {self.experiment_name!r}, "
                 f"artifact_root={self.artifact_root!r})")
 
     def __getstate__(self):  # picklable for worker processes; the client is rebuilt there
@@ -641,7 +635,7 @@ class Tracker:
 
     def log_model(self, run_id: str, model, input_example: pd.DataFrame,
                   name: str = "model", *, targets: list[str] | None = None,
-                  files: Mapping[str, str | os.PathLike] | None = None) -> str:
+                  texts: Mapping[str, str] | None = None) -> str:
         """Log a fitted model (``predict(DataFrame)`` -> DataFrame or array; optionally
         ``predict_interval``) as an MLflow pyfunc model linked to ``run_id``; returns its URI
         ``models:/<model_id>``.
@@ -653,9 +647,10 @@ class Tracker:
         ``mlflow models serve``) where only the pinned requirements are installed. The
         signature names ``input_example``'s columns and the outputs; the first 5 rows are
         the input example (the REST request's template). ``targets``: the target names
-        (default: the columns of ``model.predict``). ``files``: name -> local file stored
-        in the model directory as ``<name><suffix>`` (e.g. ``config.toml``). Requirements
-        are pinned from the installed versions (no inference subprocess)."""
+        (default: the columns of ``model.predict``). ``texts``: file name -> text written
+        in the model directory (e.g. ``{"config.toml": ...}``, credentials redacted by the
+        caller). Requirements are pinned from the installed versions (no inference
+        subprocess)."""
         import workbench
 
         from .serving import WorkbenchModel, model_signature
@@ -690,8 +685,8 @@ class Tracker:
                                                 "targets": wrapped.targets,
                                                 "outputs": wrapped.outputs}},
                         pip_requirements=_requirements(), code_paths=[str(code)])
-                for key, path in (files or {}).items():  # e.g. config.toml beside MLmodel
-                    shutil.copyfile(path, local / f"{key}{Path(path).suffix}")
+                for file_name, text in (texts or {}).items():  # config.toml beside MLmodel
+                    (local / file_name).write_text(text, encoding="utf-8")
                 with self._errors():
                     self.client.log_model_artifacts(logged.model_id, str(local))
             with self._errors():
@@ -740,10 +735,19 @@ class Tracker:
         with warnings.catch_warnings():  # a local path "can be interpreted in multiple ways"
             warnings.simplefilter("ignore", UserWarning)
             dataset = mlflow.data.from_pandas(frame, source=source, name=name, targets=targets)
-        entity = dataset._to_mlflow_entity()
+        inputs = [DatasetInput(dataset._to_mlflow_entity(),
+                               tags=[InputTag("mlflow.data.context", context)])]
         with self._errors():
-            self.client.log_inputs(run_id, [DatasetInput(
-                entity, tags=[InputTag("mlflow.data.context", context)])])
+            try:
+                self.client.log_inputs(run_id, inputs)
+            except MlflowException as exc:
+                if not _duplicate_row(exc):
+                    raise
+                # Another process created the same dataset row (experiment, name, digest)
+                # between MLflow's lookup and its insert (two first runs at once): the row
+                # exists now, and the second attempt links this run to it.
+                _logger.debug("log_inputs raced another process (%s); trying again", exc)
+                self.client.log_inputs(run_id, inputs)
         return dataset.digest
 
     def model_artifact_uri(self, model_uri: str) -> str:

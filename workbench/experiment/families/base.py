@@ -12,6 +12,7 @@ import numpy as np
 import pandas as pd
 from pydantic import BaseModel, ValidationError
 
+from ..errors import listing
 from ..results import ModelScores, Scores, mae, mse
 from ..space import SearchSpace, SpaceError
 
@@ -102,7 +103,9 @@ class ModelFamily:
     def _check_setting(self, key: str, value: Any) -> None:
         fields_ = self.settings.model_fields
         if key not in fields_:
-            raise SpaceError(f"{self.name}.{key}: unknown key; valid keys are {sorted(fields_)}")
+            shown = key if len(key) <= 40 else key[:37] + "..."
+            raise SpaceError(f"{self.name}.{shown}: unknown key; valid keys are "
+                             f"{listing(sorted(fields_))}")
         try:
             self.settings.model_validate({key: value})
         except ValidationError as exc:
