@@ -14,7 +14,7 @@ from pydantic import Field
 from sklearn.base import BaseEstimator, RegressorMixin
 
 from workbench.experiment.cli import main
-from workbench.experiment.config import Section
+from workbench.experiment.schema import Section
 from workbench.experiment.families import FAMILIES, ModelFamily, register_family
 
 ROOT = Path(__file__).resolve().parents[1]

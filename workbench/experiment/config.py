@@ -32,40 +32,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, Field, ValidationError, model_validator
 
-from .errors import ConfigError, listing, shorten, unknown_keys
+from .errors import ConfigError, listing, shorten
+from .schema import MAX_INT, MAX_MESSAGE, Section, Seed
 from .space import SearchSpace, SpaceError
 
 __all__ = ["BoostSettings", "CVConfig", "ConfigError", "DataConfig", "EvaluationConfig",
            "ExperimentConfig", "HamiltonianData", "IntervalsConfig", "ModelConfig",
            "SelectionConfig",
            "StudyConfig", "TrackingConfig", "load_config", "load_dataset", "parse_config"]
-
-#: The largest seed or count a config may give (numpy seeds are 32-bit).
-MAX_INT = 2**32 - 1
-#: Most characters of a config error line (``workbench: error: `` before it: under 300).
-MAX_MESSAGE = 280
-
-
-class Section(BaseModel):
-    """A config table: strict types (TOML's), unknown keys an error listing the valid ones."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
-
-    @model_validator(mode="before")
-    @classmethod
-    def _known_keys(cls, data: Any) -> Any:
-        if isinstance(data, dict):
-            unknown = sorted(set(data) - set(cls.model_fields))
-            if unknown:
-                raise ValueError(unknown_keys(unknown, cls.model_fields))
-        return data
-
-
-def Seed():  # noqa: N802  (a field, like pydantic's Field)
-    return Field(default=0, ge=0, le=MAX_INT)
-
 
 # --------------------------------------------------------------------------- [data]
 

@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Literal
 import pandas as pd
 from pydantic import Field
 
-from ..config import Section
+from ..schema import Section
 from ..results import ModelScores, Scores, mae, mse
 from .base import Artifacts, ModelFamily
 from .stage import per_target_boost, stage_scores
