@@ -8,13 +8,13 @@ no assertions).
   search, outer-fold refits, final fit), paired and alternating (1 then 2 workers, then 2
   then 1, ...), each into a fresh temporary journal storage, one BLAS/OpenMP thread per
   process.
-* ``trials``: the search phase alone in this process (``studies._search_in_workers``):
+* ``trials``: the search phase alone in this process (``sweep.workers.search_in_workers``):
   trials per minute.
 
 Prints every run, the medians, the 2-vs-1 ratio and ``uptime``'s load before and after (the
 machine is shared: read the ratios beside the load).
 * ``storages``: trials per minute of 1, 2 and 4 sweep processes on one storage (journal
-  file, SQLite, PostgreSQL), each process running :func:`workbench.experiment.studies.run_study`
+  file, SQLite, PostgreSQL), each process running :func:`workbench.experiment.sweep.scheduler.run_study`
   (heartbeats, stale checks, exact budgets) on one shared study; a trial is three "inner
   folds" of ``--fold-s`` seconds of sleep, so the numbers show the scheduler and the storage,
   not the cores. PostgreSQL (pgserver) and ``mlflow server`` start as in tests/services.py;
@@ -63,9 +63,9 @@ def _commands(args) -> None:
 
 
 def _trials(args) -> None:
-    from workbench.experiment import studies
     from workbench.experiment.config import load_config
-    from workbench.experiment.search import run_search, study_names
+    from workbench.experiment.sweep.search import run_search, study_names
+    from workbench.experiment.sweep.workers import search_in_workers
 
     cfg = load_config(args.config).with_study(trials=args.trials)
     specs = study_names(cfg, [f"eeig{j}" for j in range(1, 6)])
@@ -76,8 +76,8 @@ def _trials(args) -> None:
             with tempfile.TemporaryDirectory() as tmp:
                 storage = str(Path(tmp) / "bench.journal")
                 start = time.perf_counter()
-                studies._search_in_workers(run_search, cfg, storage, workers, None,
-                                           [s.name for s in specs], Path.cwd())
+                search_in_workers(run_search, cfg, storage, workers, None,
+                                  [s.name for s in specs], Path.cwd())
                 wall = time.perf_counter() - start
             rates[workers].append(n_trials / wall * 60)
             print(f"trials run {rep}: {workers} worker(s): {n_trials} trials in {wall:.1f} s "
@@ -91,7 +91,8 @@ STORAGE_WORKER = textwrap.dedent("""
     import sys, time
     from pathlib import Path
     import optuna
-    from workbench.experiment.studies import open_storage, run_study
+    from workbench.experiment.sweep.scheduler import run_study
+    from workbench.experiment.sweep.storage import open_storage
     url, trials, fold_s, go = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), Path(sys.argv[4])
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     study = optuna.load_study(study_name="bench", sampler=optuna.samplers.RandomSampler(),
@@ -111,9 +112,9 @@ STORAGE_WORKER = textwrap.dedent("""
 def trials_per_minute(url: str, processes: int, trials: int, fold_s: float, tmp: Path) -> float:
     import optuna
 
-    from workbench.experiment import studies
+    from workbench.experiment.sweep import storage
 
-    optuna.create_study(study_name="bench", storage=studies.open_storage(url, tmp))
+    optuna.create_study(study_name="bench", storage=storage.open_storage(url, tmp))
     go = tmp / f"go-{processes}-{time.monotonic_ns()}"
     procs = [subprocess.Popen([sys.executable, "-c", STORAGE_WORKER, url, str(trials),
                                str(fold_s), str(go)], cwd=tmp) for _ in range(processes)]

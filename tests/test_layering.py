@@ -173,3 +173,67 @@ def test_no_import_circle_in_the_package():
     # the check finds a circle when there is one
     assert _cycles({**graph, "workbench.losses": graph["workbench.losses"]
                     | {"workbench.boosting"}}) != []
+
+
+#: The one module allowed to use what Optuna keeps private.
+OPTUNA_ADAPTER = PACKAGE / "experiment" / "sweep" / "storage.py"
+
+
+def _optuna_private_names() -> set[str]:
+    """Private attribute and method names Optuna's classes define (``self._x = ...``,
+    ``def _x``), read from its installed sources."""
+    import optuna
+
+    names = set()
+    for path in Path(optuna.__file__).parent.rglob("*.py"):
+        text = path.read_text(encoding="utf-8", errors="replace")
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) \
+                    and node.value.id == "self" and node.attr.startswith("_") \
+                    and not node.attr.startswith("__"):
+                names.add(node.attr)
+            elif isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) \
+                    and node.name.startswith("_") and not node.name.startswith("__"):
+                names.add(node.name)
+    return names
+
+
+def optuna_private_uses(source: str, private: set[str]) -> list[str]:
+    """Where ``source`` imports an Optuna module or name marked private (a ``_`` component:
+    ``optuna.storages.journal._file``, ``optuna_dashboard._cli``) or reads a private Optuna
+    attribute of an object other than ``self``/``cls`` (``study._storage``)."""
+    found = []
+    tree = ast.parse(source)
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.module \
+                and node.module.split(".")[0] in ("optuna", "optuna_dashboard"):
+            parts = node.module.split(".") + [a.name for a in node.names]
+            found += [f"line {node.lineno}: from {node.module} import ..."
+                      for p in parts if p.startswith("_") and not p.startswith("__")][:1]
+        elif isinstance(node, ast.Import):
+            found += [f"line {node.lineno}: import {a.name}" for a in node.names
+                      if a.name.split(".")[0] in ("optuna", "optuna_dashboard")
+                      and any(p.startswith("_") for p in a.name.split("."))]
+        elif isinstance(node, ast.Attribute) and node.attr in private \
+                and not (isinstance(node.value, ast.Name) and node.value.id in ("self", "cls")):
+            found.append(f"line {node.lineno}: .{node.attr}")
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str) \
+                and ("optuna_dashboard._" in node.value or "optuna.storages._" in node.value):
+            found.append(f"line {node.lineno}: {node.value[:40]!r}")
+    return found
+
+
+def test_only_the_storage_adapter_touches_optuna_s_private_names():
+    """Optuna's internals (a study's ``_storage``, ``_study_id``, a trial's ``_trial_id``, the
+    journal's private modules) are used in one module, whose upper bound on Optuna
+    (pyproject) guards them; everything else uses Optuna's public API."""
+    private = _optuna_private_names()
+    assert {"_storage", "_study_id", "_trial_id"} <= private  # it reads Optuna's sources
+    uses = {str(path.relative_to(PACKAGE)): optuna_private_uses(path.read_text(), private)
+            for path in PACKAGE.rglob("*.py") if path != OPTUNA_ADAPTER}
+    assert {k: v for k, v in uses.items() if v} == {}
+    assert optuna_private_uses(OPTUNA_ADAPTER.read_text(), private)  # the adapter does
+    # the check finds a use when there is one
+    assert optuna_private_uses("def f(study):\n    return study._storage\n", private)
+    assert optuna_private_uses("from optuna.storages.journal._file import get_lock_file\n",
+                               private)

@@ -14,14 +14,13 @@ import optuna
 import pytest
 from mlflow import MlflowClient
 from optuna.trial import TrialState
-
 from services import command_env, free_port, tiny_sweep, workbench_cmd
 
 from workbench.experiment import lifecycle
 from workbench.experiment.cli import main
 from workbench.experiment.errors import redact
-from workbench.experiment.studies import (STREAMS, _counted, _fail_stale, claim_stream,
-                                          open_storage, run_study)
+from workbench.experiment.sweep.scheduler import claim_stream, fail_stale, is_counted, run_study
+from workbench.experiment.sweep.storage import STREAMS, open_storage
 from workbench.experiment.tracking import Tracker
 
 
@@ -109,7 +108,7 @@ def test_runs_never_left_running(tiny, tmp_path):
     storage = open_storage(str(journal), tmp_path)
     for name in _sweep_studies(storage):
         trials = optuna.load_study(study_name=name, storage=storage).get_trials()
-        interrupted = [t for t in trials if t.state == TrialState.FAIL and not _counted(t)]
+        interrupted = [t for t in trials if t.state == TrialState.FAIL and not is_counted(t)]
         retried = [t for t in trials if "failed_trial" in t.system_attrs]
         assert len(retried) == len(interrupted)  # each queued once more
         assert not [t for t in trials if t.state == TrialState.RUNNING]
@@ -204,7 +203,7 @@ def test_heartbeat_beats_while_a_long_trial_runs(tmp_path, kind):
         other = optuna.load_study(study_name="h", storage=open_storage(url, tmp_path,
                                                                        stale_after_s=2))
         while not stop.wait(0.5):
-            _fail_stale(other, 2)
+            fail_stale(other, 2)
             checks.append(1)
 
     def objective(trial):
@@ -239,10 +238,10 @@ def test_dead_worker_on_this_host_is_failed_at_once_and_rerun_once(tmp_path, fin
     run_study(study, lambda t: seen.append(t.params["x"]) or t.suggest_float("x", 0, 1), 3,
               stale_after_s=600)
     trials = study.get_trials()
-    assert trials[0].state == TrialState.FAIL and not _counted(trials[0])
+    assert trials[0].state == TrialState.FAIL and not is_counted(trials[0])
     assert seen[0] == trials[0].params["x"]  # re-run with the same parameters
     assert trials[1].system_attrs["failed_trial"] == 0
-    assert sum(_counted(t) for t in trials) == 3
+    assert sum(is_counted(t) for t in trials) == 3
 
 
 def test_processes_claim_distinct_streams(tmp_path):
@@ -296,7 +295,7 @@ def test_rerun_after_killing_a_sweep_and_its_workers(tiny, tmp_path):
     assert rerun.returncode == 0, rerun.stderr[-3000:]
     for name in _sweep_studies(rdb):
         trials = optuna.load_study(study_name=name, storage=rdb).get_trials()
-        assert sum(_counted(t) for t in trials) == 4
+        assert sum(is_counted(t) for t in trials) == 4
         assert not [t for t in trials if t.state in (TrialState.RUNNING, TrialState.WAITING)]
 
 

@@ -12,10 +12,10 @@ from collections import Counter
 import optuna
 import pytest
 from optuna.trial import TrialState
-
 from services import MlflowServer, Postgres, command_env, tiny_sweep, workbench_cmd
 
-from workbench.experiment.studies import STREAMS, _counted
+from workbench.experiment.sweep.scheduler import is_counted
+from workbench.experiment.sweep.storage import STREAMS
 
 PASSWORD = "s3cret-pw"
 
@@ -77,7 +77,7 @@ def _check_studies(url, trials: int) -> dict:
     assert len(studies) == 3
     for name, study in studies.items():
         all_trials = study.get_trials()
-        counted = [t for t in all_trials if _counted(t)]
+        counted = [t for t in all_trials if is_counted(t)]
         assert len(counted) == trials, name
         assert all(t.state == TrialState.COMPLETE for t in counted), (
             name, [(t.number, t.state.name, t.user_attrs.get("error")) for t in all_trials])
@@ -121,7 +121,7 @@ def test_two_sweep_processes_share_postgres_and_mlflow_server(services, tmp_path
                if t.system_attrs.get("failed_trial") is not None]
     assert len(retried) == 1  # the killed trial, re-run once with its parameters
     killed = [t for s in studies.values() for t in s.get_trials()
-              if t.state == TrialState.FAIL and not _counted(t)]
+              if t.state == TrialState.FAIL and not is_counted(t)]
     assert len(killed) == 1 and killed[0].user_attrs["worker"].endswith(f":{a.pid}")
 
     client, runs = _runs(server)
@@ -143,7 +143,7 @@ def test_two_sweep_processes_share_postgres_and_mlflow_server(services, tmp_path
                if r.data.tags.get("workbench.kind") == "trial")
     assert len(children) == len(set(children))  # each trial logged once
     counted = {(name, t.number): t for name, s in studies.items() for t in s.get_trials()
-               if _counted(t)}
+               if is_counted(t)}
     assert set(children) <= set(counted)
     # a trial finished by the killed process between its tell and its child run may lack one
     missing = set(counted) - set(children)
@@ -158,7 +158,7 @@ def test_dashboard_serves_the_studies_on_loopback(tmp_path):
 
     from services import free_port
 
-    from workbench.experiment.studies import dashboard_command, open_storage
+    from workbench.experiment.sweep.storage import dashboard_command, open_storage
 
     study = optuna.create_study(study_name="tiny.measured_E1.final",
                                 storage=open_storage("s.journal", tmp_path))

@@ -12,12 +12,11 @@ from pathlib import Path
 import optuna
 import pytest
 from optuna.trial import TrialState
-
 from services import free_port, tiny_sweep
 
 from workbench.experiment.cli import main
-from workbench.experiment.studies import (STREAMS, JournalDamaged, _counted, open_storage,
-                                          repair_journal)
+from workbench.experiment.sweep.scheduler import is_counted
+from workbench.experiment.sweep.storage import STREAMS, JournalDamaged, open_storage, repair_journal
 
 SECRET = "s3cret"
 
@@ -299,7 +298,7 @@ def test_repair_falls_back_when_a_lost_record_would_shift_trial_ids(tmp_path):
     assert (tmp_path / "j.journal.damaged").read_bytes() == b"an older copy"
     study = optuna.load_study(study_name="s", storage=open_storage(str(journal), tmp_path))
     assert [t.state for t in study.get_trials()] == [TrialState.COMPLETE] * 2
-    assert sum(_counted(t) for t in study.get_trials()) == 2
+    assert sum(is_counted(t) for t in study.get_trials()) == 2
 
 
 def test_an_append_in_progress_is_not_taken_for_damage(tmp_path):

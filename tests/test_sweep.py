@@ -10,7 +10,8 @@ import pytest
 from optuna.trial import TrialState
 
 from workbench.experiment.cli import main
-from workbench.experiment.studies import _counted, open_storage, run_study
+from workbench.experiment.sweep.scheduler import is_counted, run_study
+from workbench.experiment.sweep.storage import open_storage
 
 SMOKE = "experiments/smoke.toml"
 
@@ -91,8 +92,9 @@ def test_smoke_sweep_json_and_tracking(smoke_run, tmp_path):
 
 INTERRUPTED = textwrap.dedent("""
     import os, sys, optuna
-    from workbench.experiment.studies import open_storage, run_study
     from pathlib import Path
+    from workbench.experiment.sweep.scheduler import run_study
+    from workbench.experiment.sweep.storage import open_storage
     study = optuna.create_study(study_name="s", storage=open_storage(sys.argv[1], Path(".")),
                                 load_if_exists=True)
     calls = []
@@ -116,18 +118,19 @@ def test_interrupted_study_resumes_without_losing_or_repeating_trials(tmp_path):
 
     run_study(study, lambda trial: trial.suggest_float("x", 0, 1) ** 2, 8)
     trials = study.get_trials()
-    assert sum(_counted(t) for t in trials) == 8
+    assert sum(is_counted(t) for t in trials) == 8
     assert sum(t.state == TrialState.COMPLETE for t in trials) == 8
     assert {t.number: t.params for t in trials if t.number in before} == before  # kept
     stale = [t for t in trials if t.state == TrialState.FAIL]
-    assert len(stale) == 1 and not _counted(stale[0])  # the interrupted one, not counted
+    assert len(stale) == 1 and not is_counted(stale[0])  # the interrupted one, not counted
     assert len(trials) == 9
 
 
 WORKER = textwrap.dedent("""
     import sys, time, optuna
     from pathlib import Path
-    from workbench.experiment.studies import open_storage, run_study
+    from workbench.experiment.sweep.scheduler import run_study
+    from workbench.experiment.sweep.storage import open_storage
     study = optuna.load_study(study_name="w", storage=open_storage(sys.argv[1], Path(".")))
     def objective(trial):
         time.sleep(0.05)
@@ -142,7 +145,7 @@ def test_two_workers_finish_exactly_n_trials(tmp_path):
     procs = [subprocess.Popen([sys.executable, "-c", WORKER, journal]) for _ in range(2)]
     assert [p.wait(timeout=120) for p in procs] == [0, 0]
     trials = optuna.load_study(study_name="w", storage=open_storage(journal, tmp_path)).get_trials()
-    counted = [t for t in trials if _counted(t)]
+    counted = [t for t in trials if is_counted(t)]
     assert len(counted) == 12
     assert sum(t.state == TrialState.COMPLETE for t in counted) == 12
     assert len({t.number for t in trials}) == len(trials)  # no duplicated trial numbers
@@ -187,21 +190,21 @@ def test_trial_of_a_vanished_machine_is_failed_and_rerun(tmp_path):
 
     run_study(study, finish_live_later, 5, stale_after_s=60)
     trials = study.get_trials()
-    assert trials[0].state == TrialState.FAIL and not _counted(trials[0])
+    assert trials[0].state == TrialState.FAIL and not is_counted(trials[0])
     assert trials[1].state == TrialState.COMPLETE and trials[1].value == 0.5
-    assert sum(_counted(t) for t in trials) == 5
+    assert sum(is_counted(t) for t in trials) == 5
     assert all(t.state != TrialState.RUNNING for t in trials)
 
 
 def test_workers_propose_different_configurations():
-    from workbench.experiment.config import load_config
-    from workbench.experiment.studies import _sampler
-
     from pathlib import Path
 
+    from workbench.experiment.config import load_config
+    from workbench.experiment.sweep.scheduler import sampler
+
     cfg = load_config(Path(__file__).resolve().parents[1] / SMOKE)
-    a, b = _sampler(cfg, "s", 0), _sampler(cfg, "s", 1)
+    a, b = sampler(cfg, "s", 0), sampler(cfg, "s", 1)
     pa = optuna.create_study(sampler=a).ask().suggest_float("x", 0, 1)
     pb = optuna.create_study(sampler=b).ask().suggest_float("x", 0, 1)
     assert pa != pb
-    assert optuna.create_study(sampler=_sampler(cfg, "s", 0)).ask().suggest_float("x", 0, 1) == pa
+    assert optuna.create_study(sampler=sampler(cfg, "s", 0)).ask().suggest_float("x", 0, 1) == pa

@@ -9,17 +9,16 @@ import math
 import numpy as np
 import optuna
 import pytest
-from optuna.trial import TrialState
+from optuna.trial import FixedTrial, TrialState
 
 from workbench.experiment.cli import main
 from workbench.experiment.config import ConfigError, load_config, load_dataset
 from workbench.experiment.evaluate import evaluate
-from workbench.experiment.intervals import family_model
-from optuna.trial import FixedTrial
-
 from workbench.experiment.families import FAMILIES
-from workbench.experiment.search import StudySpec, run_sweep, study_names, study_objective
-from workbench.experiment.studies import _counted, open_storage, run_study
+from workbench.experiment.intervals import family_model
+from workbench.experiment.sweep.scheduler import is_counted, run_study
+from workbench.experiment.sweep.search import StudySpec, run_sweep, study_names, study_objective
+from workbench.experiment.sweep.storage import open_storage
 from workbench.simulate import Mismatch, simulate
 
 N = 5
@@ -98,7 +97,7 @@ def write(directory, *, model=MODEL, search_=SEARCH, sweep=SWEEP, name="h.toml")
 
 
 def _counts(storage, names):
-    return {n: sum(_counted(t) for t in optuna.load_study(study_name=n, storage=storage)
+    return {n: sum(is_counted(t) for t in optuna.load_study(study_name=n, storage=storage)
                    .get_trials()) for n in names}
 
 
@@ -286,6 +285,6 @@ def test_two_worker_processes_run_the_sweep(project):
                    .get_trials()]
         assert len(numbers) == len(set(numbers))
     workers = {t.user_attrs.get("worker") for s in sweep.studies.values()
-               for t in s.get_trials() if _counted(t)}
+               for t in s.get_trials() if is_counted(t)}
     assert len(workers) == 2  # both processes took trials
     assert sweep.result.sweep.trials_counted == 3 * len(names)

@@ -73,7 +73,7 @@ def _check_before_work(cfg, args, storage: str | None = None, hint: str | None =
 def _check_storage(storage: str, repair: bool, hint: str | None) -> None:
     """The Optuna storage can be used (nothing written); with ``--repair``, a damaged journal
     file is repaired first (the one write of the checks)."""
-    from .studies import check_storage, repair_journal
+    from .sweep.storage import check_storage, repair_journal
 
     if repair:
         done = repair_journal(storage, Path.cwd())
@@ -107,7 +107,7 @@ def _cmd_ui(args) -> int:
     print(f"MLflow UI for {redact(uri)} at http://127.0.0.1:{args.port}", flush=True)
     storage = args.storage or "mlruns/optuna.journal"
     if args.storage or (Path.cwd() / storage).is_file():  # the studies beside the runs
-        from .studies import dashboard_command
+        from .sweep.storage import dashboard_command
 
         cmds.append(dashboard_command(storage, args.dashboard_port, Path.cwd()))
         print(f"Optuna dashboard for {redact(storage)} at "
@@ -203,7 +203,7 @@ def _cmd_sweep(args) -> int:
         start_fork_server(SWEEP_WORKER_MODULES)
     from .config import load_config
     from .evaluate import format_table
-    from .search import run_sweep  # imports Optuna only for sweeps
+    from .sweep.search import run_sweep  # imports Optuna only for sweeps
 
     cfg = _without_intervals(load_config(args.config).with_study(
         trials=args.trials, workers=args.workers, storage=args.storage), args)

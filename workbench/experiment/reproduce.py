@@ -152,7 +152,7 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
         settings[key], ds = run.result, run.dataset
     _say("nested-CV search for the workbench's own best configuration "
                    "(experiments/paper_search.toml)")
-    from .search import run_sweep  # Optuna only here
+    from .sweep.search import run_sweep  # Optuna only here
 
     search_cfg = load_config(configs / "paper_search.toml")
     cv = {"seed": seed, **({"outer_folds": 2, "inner_folds": 3} if quick else {})}

@@ -10,7 +10,7 @@ import sys
 __all__ = ["SWEEP_WORKER_MODULES", "setup_logging"]
 
 #: What a sweep's worker processes import (the fork server loads it once for all of them).
-SWEEP_WORKER_MODULES = ("workbench.experiment.search", "workbench.experiment.families",
+SWEEP_WORKER_MODULES = ("workbench.experiment.sweep.search", "workbench.experiment.families",
                         "workbench.multitarget", "workbench.bases")
 
 

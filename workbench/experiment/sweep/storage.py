@@ -1,27 +1,15 @@
-"""Optuna studies in shared storage, and the processes that work on them.
+"""The Optuna storage adapter of ``workbench sweep``: the only module that touches Optuna's
+private names (a test checks).
 
-The storage/scheduling half of ``workbench sweep`` (:mod:`workbench.experiment.search` holds
-the family-specific objectives): storages, samplers and pruners, the trial scheduler that
-leaves every study with exactly its budget of counted trials, and worker processes.
-
-Several processes (or machines) may work on one storage at once:
-
-* **Distinct proposals.** Each process claims a *stream* number on the study (the first
-  process 0, so a lone sweep draws the same numbers as before) and seeds its sampler with it;
-  TPE runs with ``constant_liar`` so running trials repel proposals.
-* **Exact budgets.** A trial started beyond the budget is marked ``surplus`` and not run; a
-  trial counts unless it is surplus or failed by someone other than its own worker.
-* **Dead workers.** While a trial runs, a background thread beats its heartbeat (so a long
-  inner fold never looks dead). RDB storages use Optuna's own heartbeat
-  (``RDBStorage(heartbeat_interval, grace_period, heartbeat_stale_trial_callback)`` and
-  :func:`optuna.storages.fail_stale_trials`); Optuna 5's ``JournalStorage`` has no heartbeat
-  (it does not implement ``BaseHeartbeat``), so for the journal file the heartbeat is a user
-  attribute checked here. A trial whose heartbeat is older than the grace period
-  (``stale_after_s``), or whose worker process on this host is gone (checked at once, no
-  wait), is failed, not counted, and re-run once with the same parameters through Optuna's
-  ``RetryFailedTrialCallback``.
-* **Workers die with their parent** (:func:`workbench.parallel.init_worker`): the parent's
-  end sends them SIGTERM, which fails and queues their running trials.
+* :func:`open_storage` / :func:`check_storage`: an RDB URL (with Optuna's heartbeat, a grace
+  period and one retry of a stale trial) or a journal file, checked before any work; problems
+  are one :class:`~workbench.experiment.errors.StorageError` line without the password.
+* The journal file fails safe: a damaged line is found before anything is appended
+  (:class:`JournalDamaged`, naming the command that repairs it) and :func:`repair_journal`
+  recovers every complete record into a new file (``workbench sweep --repair``).
+* What the scheduler needs of Optuna's internals: :func:`storage_of`, :func:`beat`,
+  :func:`heartbeat_enabled`, :func:`set_trial_attr`, :func:`retry`; and the
+  ``optuna-dashboard`` command line (:func:`dashboard_command`).
 """
 
 from __future__ import annotations
@@ -30,36 +18,30 @@ import contextlib
 import copy
 import json
 import logging
-import multiprocessing
 import os
-import socket
 import sys
 import time
 import warnings
-import zlib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import optuna
-from optuna.exceptions import ExperimentalWarning, UpdateFinishedTrialError
-from optuna.trial import FrozenTrial, TrialState
+from optuna.exceptions import ExperimentalWarning
+from optuna.trial import FrozenTrial
 
-from ..parallel import one_thread_env
-from .errors import StorageError, driver_hint, redact
-from .lifecycle import every, interrupts_deferred
+from ..errors import StorageError, driver_hint, redact
+from ..lifecycle import interrupts_deferred
 
 log = logging.getLogger("workbench")
 
-__all__ = ["JournalDamaged", "Repair", "StorageError", "check_storage", "open_storage", "redact",
-           "repair_journal", "run_studies", "run_study"]
+__all__ = ["STREAMS", "JournalDamaged", "Repair", "StorageError", "beat", "check_storage",
+           "dashboard_command", "heartbeat_enabled", "heartbeat_interval", "open_storage",
+           "repair_journal", "retry", "set_trial_attr", "storage_of"]
 
+#: The suffix of the study that hands out sampler streams (not a search's study).
+STREAMS = ".streams"
 #: User attributes that belong to one attempt at a trial, not to its configuration.
 _ATTEMPT_ATTRS = ("worker", "heartbeat", "finished_by", "error", "surplus", "stale")
-#: Exit codes of a process ended by SIGINT / SIGTERM (128 + the signal number).
-EXIT_SIGINT, EXIT_SIGTERM = 130, 143
-
-
 
 
 def heartbeat_interval(stale_after_s: float) -> int:
@@ -347,7 +329,7 @@ def check_storage(storage: str, root: Path, *, hint: str | None = None) -> None:
     if path.is_dir():
         raise StorageError(f"Optuna storage {path} is a directory; give a journal file path "
                            "(e.g. mlruns/optuna.journal) or a database URL")
-    from .outputs import OutputError, check_file
+    from ..outputs import OutputError, check_file
 
     try:  # its directory takes new files (the journal's lock is created there)
         check_file(path, "Optuna journal")
@@ -391,14 +373,14 @@ def _n(count: int, noun: str) -> str:
 
 
 def repair_journal(storage: str, root: Path) -> Repair | None:
-    """Recover every complete record of a damaged journal file into a new file (``None``
-    when it is not damaged, or does not exist). The original is kept as ``<file>.damaged`` (``.damaged-N`` when
-    that exists); the good records are written to a temporary file beside it, which must
-    replay (a :class:`JournalStorage` on it loads every study's trials) before it is moved
-    into place atomically. When the complete records do not replay as written without the
-    damaged lines (a lost record created a study or trial, so later ids would shift), only
-    the records before the first damaged line are kept. Run it while no sweep works on the
-    file."""
+    """Recover every complete record of a damaged journal file into a new file (``None`` when it is
+    not damaged, or does not exist). The original is kept as ``<file>.damaged``
+    (``.damaged-N`` when that exists); the good records are written to a temporary file
+    beside it, which must replay (a :class:`JournalStorage` on it loads every study's
+    trials) before it is moved into place atomically. When the complete records do not
+    replay as written without the damaged lines (a lost record created a study or trial, so
+    later ids would shift), only the records before the first damaged line are kept. Run it
+    while no sweep works on the file."""
     from optuna.storages.journal import JournalFileSymlinkLock
 
     if "://" in storage:
@@ -552,7 +534,7 @@ def _check_rdb(url: str) -> None:
     shown = redact(url)
     db = _sqlite_file(url, shown)
     if db is not None:
-        from .outputs import OutputError, check_file
+        from ..outputs import OutputError, check_file
 
         try:
             check_file(db, "Optuna storage")
@@ -584,272 +566,44 @@ def _rdb_storage(url: str, stale_after_s: float):
                 heartbeat_stale_trial_callback=_retry())
 
 
-def _heartbeat_enabled(storage) -> bool:
+# --------------------------------------------------------------------------- Optuna internals
+# The scheduler's access to what Optuna keeps private (a study's storage, its id, a trial's
+# id): here, and nowhere else (tests/test_layering.py checks).
+
+
+def storage_of(study: optuna.Study):
+    """The storage ``study`` works on (to open another study on it)."""
+    return study._storage
+
+
+def heartbeat_enabled(study: optuna.Study) -> bool:
+    """Whether ``study``'s storage has Optuna's own heartbeat (an RDB storage opened by
+    :func:`open_storage`); the journal file has none."""
+    storage = study._storage
     return isinstance(storage, optuna.storages.RDBStorage) \
         and storage.get_heartbeat_interval() is not None
 
 
-def _sampler(cfg, name: str, worker: int = 0):
-    """Seeded per study and per stream (processes with one seed would propose the same
-    configurations); stream 0 is the first process of a sweep."""
-    seed = (cfg.cv.seed + zlib.crc32(name.encode()) + 7919 * worker) % 2**31
-    if cfg.study.sampler == "random":
-        return optuna.samplers.RandomSampler(seed=seed)
-    return optuna.samplers.TPESampler(seed=seed, constant_liar=True)
-
-
-STREAMS = ".streams"
-
-
-def claim_stream(study: optuna.Study) -> int:
-    """A stream number no other process on this study holds: the number of a trial in the
-    study ``<name>.streams`` (trial numbers are assigned atomically by every storage, so the
-    first process gets 0 and concurrent ones never share a number)."""
-    streams = optuna.create_study(study_name=study.study_name + STREAMS,
-                                  storage=study._storage, load_if_exists=True,
-                                  sampler=optuna.samplers.RandomSampler(seed=0))
-    claim = streams.ask()
-    streams.tell(claim, 0.0, skip_if_finished=True)  # holds nothing: the number is the claim
-    return claim.number
-
-
-def _pruner(cfg):
-    name = cfg.study.pruner
-    if name == "median":  # reported values: running mean of the inner folds' MAE
-        return optuna.pruners.MedianPruner(n_startup_trials=3)
-    if name == "wilcoxon":  # reported values: each inner fold's MAE
-        return optuna.pruners.WilcoxonPruner(p_threshold=0.1)
-    return optuna.pruners.NopPruner()
-
-
-def _counted(t: FrozenTrial) -> bool:
-    """Whether a trial uses one of the study's ``trials`` (stale and surplus ones do not)."""
-    attrs = t.user_attrs
-    if attrs.get("surplus"):
-        return False
-    if t.state == TrialState.FAIL:  # failed in the objective, not failed as stale by others
-        return "finished_by" in attrs and not attrs.get("stale")
-    return True
-
-
-def _fail_and_retry(study: optuna.Study, number: int) -> None:
-    """Fail a running trial that no process works on, then queue it once more (only the
-    process whose FAIL lands first queues it: the storage refuses the others'). The trial is
-    marked ``stale`` first, so it is not counted even when its process died after setting
-    ``finished_by`` and before its own ``tell``."""
-    try:
-        storage = study._storage
-        trial_id = storage.get_trial_id_from_study_id_trial_number(study._study_id, number)
-        storage.set_trial_user_attr(trial_id, "stale", True)
-        study.tell(number, state=TrialState.FAIL)
-    except (RuntimeError, ValueError, UpdateFinishedTrialError):  # finished meanwhile
-        return
-    _retry()(study, study.get_trials(deepcopy=False)[number])
-
-
-def _fail_stale(study: optuna.Study, stale_after_s: float) -> None:
-    """Fail (and queue once more) running trials whose worker is gone: at once when it was a
-    process on this host; after ``stale_after_s`` without a heartbeat otherwise (RDB: by
-    Optuna's heartbeat; journal: by the ``heartbeat`` user attribute)."""
-    if _heartbeat_enabled(study._storage):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", ExperimentalWarning)
-            optuna.storages.fail_stale_trials(study)
-    host, now = socket.gethostname(), time.time()
-    for t in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
-        worker = t.user_attrs.get("worker", "")
-        w_host, _, w_pid = worker.rpartition(":")
-        dead = w_host == host and w_pid.isdigit() and not _alive(int(w_pid))
-        started = t.datetime_start.timestamp() if t.datetime_start else now
-        old = (not _heartbeat_enabled(study._storage)
-               and now - t.user_attrs.get("heartbeat", started) > stale_after_s)
-        if dead or old:
-            _fail_and_retry(study, t.number)
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
-def _best_value(study: optuna.Study) -> float | None:
-    try:
-        return study.best_value
-    except ValueError:
-        return None
-
-
-def _beat(study: optuna.Study, trial: optuna.Trial) -> None:
+def beat(study: optuna.Study, trial: optuna.Trial) -> None:
     """One heartbeat of a running trial: Optuna's own on an RDB storage, a user attribute on
-    the journal file (which has none)."""
-    if _heartbeat_enabled(study._storage):
+    the journal file."""
+    if heartbeat_enabled(study):
         study._storage.record_heartbeat(trial._trial_id)
     else:
         trial.set_user_attr("heartbeat", time.time())
 
 
-def _start_trial(study: optuna.Study, worker: str) -> optuna.Trial:
-    with warnings.catch_warnings():  # "heartbeat ... supposed to be used with optimize":
-        warnings.simplefilter("ignore", UserWarning)  # run_study beats it (see _beat)
-        trial = study.ask()
-    trial.set_user_attr("worker", worker)
-    trial.set_user_attr("heartbeat", time.time())
-    if _heartbeat_enabled(study._storage):
-        study._storage.record_heartbeat(trial._trial_id)
-    return trial
+def set_trial_attr(study: optuna.Study, number: int, key: str, value) -> None:
+    """Set a user attribute of trial ``number``, which another process may be running."""
+    storage = study._storage
+    trial_id = storage.get_trial_id_from_study_id_trial_number(study._study_id, number)
+    storage.set_trial_user_attr(trial_id, key, value)
 
 
-def run_study(study: optuna.Study, objective: Callable, n_trials: int, *,
-              timeout: float | None = None, stale_after_s: float = 600,
-              progress: bool = False, wait: bool = True,
-              on_trial: Callable[[optuna.Study, FrozenTrial], None] | None = None) -> None:
-    """Run trials until the study holds ``n_trials`` counted trials (or ``timeout`` s pass).
-
-    With ``wait``, return only once no counted trial is still running elsewhere (so the study
-    is complete); without, return as soon as the budget is taken. ``on_trial(study, trial)``
-    is called after each trial this process finishes (e.g. to log it). An interrupt
-    (``KeyboardInterrupt``, SIGTERM raised as one) fails the running trial, queues it to be
-    re-run, and propagates."""
-    worker = f"{socket.gethostname()}:{os.getpid()}"
-    beat = heartbeat_interval(stale_after_s)
-    start = time.perf_counter()
-    while timeout is None or time.perf_counter() - start < timeout:
-        _fail_stale(study, stale_after_s)
-        counted = [t for t in study.get_trials(deepcopy=False) if _counted(t)]
-        queued = any(t.state == TrialState.WAITING for t in counted)
-        if len(counted) >= n_trials and not queued:
-            if wait and any(t.state == TrialState.RUNNING for t in counted):
-                time.sleep(0.1)  # another worker's last trials: leave the study complete
-                continue
-            return
-        with interrupts_deferred():  # an asked trial is running or told, never left behind
-            trial = _start_trial(study, worker)
-            earlier = [t for t in study.get_trials(deepcopy=False) if t.number < trial.number]
-            if sum(_counted(t) for t in earlier) >= n_trials:  # another worker took the budget
-                trial.set_user_attr("surplus", True)
-                study.tell(trial, state=TrialState.FAIL)
-                continue
-        state, value, note = TrialState.COMPLETE, None, ""
-        try:
-            # beats while the folds run, so a long fold is not taken for dead
-            with every(beat, lambda: _beat(study, trial), name=f"heartbeat-{trial.number}"):
-                value = objective(trial)
-        except optuna.TrialPruned as exc:
-            state, note = TrialState.PRUNED, str(exc)
-        except Exception as exc:  # a failed configuration is recorded, never chosen
-            state, note = TrialState.FAIL, f"{type(exc).__name__}: {exc}"
-            trial.set_user_attr("error", note[:2000])
-        except BaseException:  # interrupted: not the configuration's fault, run it again
-            _fail_and_retry(study, trial.number)
-            raise
-        with interrupts_deferred():  # a finished trial is told (and logged) whole
-            trial.set_user_attr("finished_by", worker)
-            try:
-                study.tell(trial, value if state == TrialState.COMPLETE else None, state=state)
-            except (RuntimeError, ValueError, UpdateFinishedTrialError):
-                continue  # taken for dead meanwhile (and queued again): the retry counts
-            if on_trial is not None:
-                on_trial(study, study.get_trials(deepcopy=False)[trial.number])
-        if progress:
-            best = _best_value(study)
-            shown = f"MAE {value:.4f}" if value is not None else note[:60]
-            log.info("[%s] trial %3d %-8s %s  best %s", study.study_name, trial.number,
-                     state.name.lower(), shown, best if best is None else round(best, 4))
-
-
-def run_studies(cfg, studies: list[tuple[optuna.Study, Callable]], *,
-                progress: bool = False,
-                on_trial: Callable[[optuna.Study, FrozenTrial], None] | None = None) -> None:
-    """Run (or resume) ``(study, objective)`` pairs to their budgets in this process, with a
-    sampler stream of its own (see :func:`claim_stream`)."""
-    if not studies:
-        return
-    stream = claim_stream(studies[0][0])
-    for study, _ in studies:
-        study.sampler = _sampler(cfg, study.study_name, stream)
-        _fail_stale(study, cfg.study.stale_after_s)  # every dead trial at once, not per study
-    # First pass: take trials wherever budget is left, never idling while another worker
-    # finishes a study's last trials; second pass: make sure every study is complete.
-    for wait in (False, True):
-        for study, objective in studies:
-            run_study(study, objective, cfg.study.trials, timeout=cfg.study.timeout,
-                      stale_after_s=cfg.study.stale_after_s, progress=progress, wait=wait,
-                      on_trial=on_trial)
-
-
-def _worker(search: Callable, cfg, storage_url: str, index: int, show: bool, parent: int,
-            on_trial) -> None:
-    from ..parallel import init_worker
-    from .lifecycle import handle_signals
-
-    # its fits serial (the sweep's processes are the parallelism), one BLAS thread, and a
-    # SIGTERM when the command's process ends (its running trial is failed and queued)
-    init_worker(parent, pool=False)
-    try:
-        with handle_signals():  # Ctrl-C reaches the whole group: the parent reports it
-            if show:  # this process's per-trial lines to its standard error
-                from .startup import setup_logging
-
-                setup_logging()
-            search(cfg, storage_url, progress=show, worker=index, on_trial=on_trial)
-    except KeyboardInterrupt as exc:  # its running trial is failed and queued again
-        sys.exit(getattr(exc, "code", EXIT_SIGINT))
-
-
-def worker_context():
-    """The multiprocessing context of sweep workers: the fork server where there is one
-    (started early by the command, :func:`workbench.parallel.start_fork_server`, or now),
-    else spawn."""
-    from ..parallel import start_fork_server
-    from .startup import SWEEP_WORKER_MODULES
-
-    if start_fork_server(SWEEP_WORKER_MODULES):  # a no-op when it runs already
-        return multiprocessing.get_context("forkserver")
-    return multiprocessing.get_context("spawn")
-
-
-def _search_in_workers(search: Callable, cfg, storage_url: str, workers: int,
-                       progress: bool, names: list[str], root: Path,
-                       on_trial=None) -> None:
-    """``search(cfg, storage_url, progress=, worker=, on_trial=)`` (a module-level function:
-    workers come from the fork server, or are spawned) in ``workers`` processes, after creating the studies ``names`` once.
-    An interrupt of this process ends the workers (their running trials are queued again)."""
-    if workers == 1:
-        search(cfg, storage_url, progress=progress, on_trial=on_trial)
-        return
-    # Create the storage and studies once, before workers race to do it.
-    storage = open_storage(storage_url, root, stale_after_s=cfg.study.stale_after_s)
-    for name in names:
-        optuna.create_study(study_name=name, storage=storage, direction="minimize",
-                            load_if_exists=True)
-    procs = []
-    try:
-        ctx = worker_context()
-        procs = [ctx.Process(target=_worker, args=(search, cfg, storage_url, i, bool(progress),
-                                                   os.getpid(), on_trial))
-                 for i in range(workers)]
-        with one_thread_env():  # one BLAS/OpenMP thread per worker
-            for p in procs:
-                p.start()
-        for p in procs:
-            p.join()
-    except BaseException:
-        for p in procs:  # interrupted: the workers fail and queue their trials, then exit
-            if p.is_alive():
-                p.terminate()
-        for p in procs:
-            p.join(timeout=30)
-            if p.is_alive():
-                p.kill()
-        raise
-    failed = [p.exitcode for p in procs if p.exitcode != 0]
-    if failed:
-        raise RuntimeError(f"{len(failed)} of {workers} sweep workers exited with codes {failed}")
+def retry(study: optuna.Study, number: int) -> None:
+    """Queue failed trial ``number`` once more with its parameters (Optuna's
+    ``RetryFailedTrialCallback``, without the dead attempt's own attributes)."""
+    _retry()(study, study.get_trials(deepcopy=False)[number])
 
 
 def dashboard_command(storage: str, port: int, root: Path) -> list[str]:

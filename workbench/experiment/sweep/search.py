@@ -13,7 +13,9 @@ together for a family whose one model predicts them all), on the training rows o
 
 The family supplies the objective, the refit and the final model
 (:class:`~workbench.experiment.families.base.ModelFamily`); the studies' storage and trial
-scheduling are :mod:`workbench.experiment.studies`.
+scheduling are :mod:`~workbench.experiment.sweep.storage` and
+:mod:`~workbench.experiment.sweep.scheduler`, its processes
+:mod:`~workbench.experiment.sweep.workers`.
 """
 
 from __future__ import annotations
@@ -28,13 +30,14 @@ import numpy as np
 import optuna
 from optuna.trial import TrialState
 
-from ..parallel import Task, map_tasks
-from .config import ExperimentConfig, load_dataset
-from .errors import redact
-from .evaluate import fit_and_score
-from .results import OuterFold, Result, SweepSummary
-from .studies import _counted, _pruner, _sampler, open_storage, run_studies
-from . import studies as _studies
+from ...parallel import Task, map_tasks
+from ..config import ExperimentConfig, load_dataset
+from ..errors import redact
+from ..evaluate import fit_and_score
+from ..results import OuterFold, Result, SweepSummary
+from .scheduler import is_counted, pruner, run_studies, sampler
+from .storage import open_storage
+from .workers import search_in_workers
 
 __all__ = ["Sweep", "run_search", "run_sweep", "study_names"]
 
@@ -157,8 +160,8 @@ def run_search(cfg: ExperimentConfig, storage_url: str, *, progress: bool = Fals
     studies = []
     for spec in study_names(cfg, ds.target_names):
         study = optuna.create_study(study_name=spec.name, storage=storage, direction="minimize",
-                                    sampler=_sampler(cfg, spec.name, worker),
-                                    pruner=_pruner(cfg), load_if_exists=True)
+                                    sampler=sampler(cfg, spec.name, worker),
+                                    pruner=pruner(cfg), load_if_exists=True)
         studies.append((study, study_objective(cfg, ds, spec)))
     run_studies(cfg, studies, progress=progress, on_trial=on_trial)
 
@@ -180,13 +183,13 @@ def run_sweep(cfg: ExperimentConfig, *, progress: bool = True,
     specs = study_names(cfg, ds.target_names)
     log.info("[%s] sweep: %d studies x %d trials, %d worker(s), storage %s", cfg.name,
              len(specs), cfg.study.trials, workers, redact(storage_url))
-    _studies._search_in_workers(run_search, cfg, storage_url, workers, bool(progress),
+    search_in_workers(run_search, cfg, storage_url, workers, bool(progress),
                                 [s.name for s in specs], _root(), on_trial=on_trial)
 
     family = cfg.family
     storage = open_storage(storage_url, _root(), stale_after_s=cfg.study.stale_after_s)
     studies = {s.name: optuna.load_study(study_name=s.name, storage=storage,
-                                         sampler=_sampler(cfg, s.name), pruner=_pruner(cfg))
+                                         sampler=sampler(cfg, s.name), pruner=pruner(cfg))
                for s in specs}
     X_all = family.inputs(cfg, ds).loc[ds.train_index]
     Y_all = ds.targets.loc[ds.train_index]
@@ -230,7 +233,7 @@ def run_sweep(cfg: ExperimentConfig, *, progress: bool = True,
     chosen = family.chosen_config(cfg, ds, best)
     result, fitted = fit_and_score(chosen, ds, family.final_model(chosen, ds))
     unit_of = {t: unit for unit, ts in family.units(cfg, ds.target_names).items() for t in ts}
-    counted = sum(sum(_counted(t) for t in s.get_trials(deepcopy=False))
+    counted = sum(sum(is_counted(t) for t in s.get_trials(deepcopy=False))
                   for s in studies.values())
     result.sweep = SweepSummary(
         nested_cv_mae=[float(np.mean(nested[t])) for t in ds.target_names],

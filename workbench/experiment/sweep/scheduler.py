@@ -1,0 +1,238 @@
+"""The trial scheduler of ``workbench sweep``: samplers and pruners, and running studies in
+shared storage until each holds exactly its budget of counted trials
+(:mod:`~workbench.experiment.sweep.storage` opens the storages,
+:mod:`~workbench.experiment.sweep.workers` starts the processes,
+:mod:`~workbench.experiment.sweep.search` holds the objectives).
+
+Several processes (or machines) may work on one storage at once:
+
+* **Distinct proposals.** Each process claims a *stream* number on the study (the first
+  process 0, so a lone sweep draws the same numbers as before) and seeds its sampler with it;
+  TPE runs with ``constant_liar`` so running trials repel proposals.
+* **Exact budgets.** A trial started beyond the budget is marked ``surplus`` and not run; a
+  trial counts unless it is surplus or failed by someone other than its own worker.
+* **Dead workers.** While a trial runs, a background thread beats its heartbeat (so a long
+  inner fold never looks dead). RDB storages use Optuna's own heartbeat
+  (``RDBStorage(heartbeat_interval, grace_period, heartbeat_stale_trial_callback)`` and
+  :func:`optuna.storages.fail_stale_trials`); Optuna 5's ``JournalStorage`` has no heartbeat
+  (it does not implement ``BaseHeartbeat``), so for the journal file the heartbeat is a user
+  attribute checked here. A trial whose heartbeat is older than the grace period
+  (``stale_after_s``), or whose worker process on this host is gone (checked at once, no
+  wait), is failed, not counted, and re-run once with the same parameters through Optuna's
+  ``RetryFailedTrialCallback``.
+* **Workers die with their parent** (:func:`workbench.parallel.init_worker`): the parent's
+  end sends them SIGTERM, which fails and queues their running trials.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import socket
+import time
+import warnings
+import zlib
+from typing import Callable
+
+import optuna
+from optuna.exceptions import ExperimentalWarning, UpdateFinishedTrialError
+from optuna.trial import FrozenTrial, TrialState
+
+from ..lifecycle import every, interrupts_deferred
+from .storage import (
+    STREAMS,
+    beat,
+    heartbeat_enabled,
+    heartbeat_interval,
+    retry,
+    set_trial_attr,
+    storage_of,
+)
+
+log = logging.getLogger("workbench")
+
+__all__ = ["STREAMS", "claim_stream", "is_counted", "fail_stale", "pruner", "run_studies",
+           "run_study", "sampler"]
+
+
+def sampler(cfg, name: str, worker: int = 0):
+    """Seeded per study and per stream (processes with one seed would propose the same
+    configurations); stream 0 is the first process of a sweep."""
+    seed = (cfg.cv.seed + zlib.crc32(name.encode()) + 7919 * worker) % 2**31
+    if cfg.study.sampler == "random":
+        return optuna.samplers.RandomSampler(seed=seed)
+    return optuna.samplers.TPESampler(seed=seed, constant_liar=True)
+
+
+
+
+def claim_stream(study: optuna.Study) -> int:
+    """A stream number no other process on this study holds: the number of a trial in the
+    study ``<name>.streams`` (trial numbers are assigned atomically by every storage, so the
+    first process gets 0 and concurrent ones never share a number)."""
+    streams = optuna.create_study(study_name=study.study_name + STREAMS,
+                                  storage=storage_of(study), load_if_exists=True,
+                                  sampler=optuna.samplers.RandomSampler(seed=0))
+    claim = streams.ask()
+    streams.tell(claim, 0.0, skip_if_finished=True)  # holds nothing: the number is the claim
+    return claim.number
+
+
+def pruner(cfg):
+    name = cfg.study.pruner
+    if name == "median":  # reported values: running mean of the inner folds' MAE
+        return optuna.pruners.MedianPruner(n_startup_trials=3)
+    if name == "wilcoxon":  # reported values: each inner fold's MAE
+        return optuna.pruners.WilcoxonPruner(p_threshold=0.1)
+    return optuna.pruners.NopPruner()
+
+
+def is_counted(t: FrozenTrial) -> bool:
+    """Whether a trial uses one of the study's ``trials`` (stale and surplus ones do not)."""
+    attrs = t.user_attrs
+    if attrs.get("surplus"):
+        return False
+    if t.state == TrialState.FAIL:  # failed in the objective, not failed as stale by others
+        return "finished_by" in attrs and not attrs.get("stale")
+    return True
+
+
+def _fail_and_retry(study: optuna.Study, number: int) -> None:
+    """Fail a running trial that no process works on, then queue it once more (only the
+    process whose FAIL lands first queues it: the storage refuses the others'). The trial is
+    marked ``stale`` first, so it is not counted even when its process died after setting
+    ``finished_by`` and before its own ``tell``."""
+    try:
+        set_trial_attr(study, number, "stale", True)
+        study.tell(number, state=TrialState.FAIL)
+    except (RuntimeError, ValueError, UpdateFinishedTrialError):  # finished meanwhile
+        return
+    retry(study, number)
+
+
+def fail_stale(study: optuna.Study, stale_after_s: float) -> None:
+    """Fail (and queue once more) running trials whose worker is gone: at once when it was a
+    process on this host; after ``stale_after_s`` without a heartbeat otherwise (RDB: by
+    Optuna's heartbeat; journal: by the ``heartbeat`` user attribute)."""
+    if heartbeat_enabled(study):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ExperimentalWarning)
+            optuna.storages.fail_stale_trials(study)
+    host, now = socket.gethostname(), time.time()
+    for t in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
+        worker = t.user_attrs.get("worker", "")
+        w_host, _, w_pid = worker.rpartition(":")
+        dead = w_host == host and w_pid.isdigit() and not _alive(int(w_pid))
+        started = t.datetime_start.timestamp() if t.datetime_start else now
+        old = (not heartbeat_enabled(study)
+               and now - t.user_attrs.get("heartbeat", started) > stale_after_s)
+        if dead or old:
+            _fail_and_retry(study, t.number)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _best_value(study: optuna.Study) -> float | None:
+    try:
+        return study.best_value
+    except ValueError:
+        return None
+
+
+def _start_trial(study: optuna.Study, worker: str) -> optuna.Trial:
+    with warnings.catch_warnings():  # "heartbeat ... supposed to be used with optimize":
+        warnings.simplefilter("ignore", UserWarning)  # run_study beats it (see beat)
+        trial = study.ask()
+    trial.set_user_attr("worker", worker)
+    trial.set_user_attr("heartbeat", time.time())
+    if heartbeat_enabled(study):
+        beat(study, trial)
+    return trial
+
+
+def run_study(study: optuna.Study, objective: Callable, n_trials: int, *,
+              timeout: float | None = None, stale_after_s: float = 600,
+              progress: bool = False, wait: bool = True,
+              on_trial: Callable[[optuna.Study, FrozenTrial], None] | None = None) -> None:
+    """Run trials until the study holds ``n_trials`` counted trials (or ``timeout`` s pass).
+
+    With ``wait``, return only once no counted trial is still running elsewhere (so the study
+    is complete); without, return as soon as the budget is taken. ``on_trial(study, trial)``
+    is called after each trial this process finishes (e.g. to log it). An interrupt
+    (``KeyboardInterrupt``, SIGTERM raised as one) fails the running trial, queues it to be
+    re-run, and propagates."""
+    worker = f"{socket.gethostname()}:{os.getpid()}"
+    beat_s = heartbeat_interval(stale_after_s)
+    start = time.perf_counter()
+    while timeout is None or time.perf_counter() - start < timeout:
+        fail_stale(study, stale_after_s)
+        counted = [t for t in study.get_trials(deepcopy=False) if is_counted(t)]
+        queued = any(t.state == TrialState.WAITING for t in counted)
+        if len(counted) >= n_trials and not queued:
+            if wait and any(t.state == TrialState.RUNNING for t in counted):
+                time.sleep(0.1)  # another worker's last trials: leave the study complete
+                continue
+            return
+        with interrupts_deferred():  # an asked trial is running or told, never left behind
+            trial = _start_trial(study, worker)
+            earlier = [t for t in study.get_trials(deepcopy=False) if t.number < trial.number]
+            if sum(is_counted(t) for t in earlier) >= n_trials:  # another worker took the budget
+                trial.set_user_attr("surplus", True)
+                study.tell(trial, state=TrialState.FAIL)
+                continue
+        state, value, note = TrialState.COMPLETE, None, ""
+        try:
+            # beats while the folds run, so a long fold is not taken for dead
+            with every(beat_s, lambda t=trial: beat(study, t), name=f"heartbeat-{trial.number}"):
+                value = objective(trial)
+        except optuna.TrialPruned as exc:
+            state, note = TrialState.PRUNED, str(exc)
+        except Exception as exc:  # a failed configuration is recorded, never chosen
+            state, note = TrialState.FAIL, f"{type(exc).__name__}: {exc}"
+            trial.set_user_attr("error", note[:2000])
+        except BaseException:  # interrupted: not the configuration's fault, run it again
+            _fail_and_retry(study, trial.number)
+            raise
+        with interrupts_deferred():  # a finished trial is told (and logged) whole
+            trial.set_user_attr("finished_by", worker)
+            try:
+                study.tell(trial, value if state == TrialState.COMPLETE else None, state=state)
+            except (RuntimeError, ValueError, UpdateFinishedTrialError):
+                continue  # taken for dead meanwhile (and queued again): the retry counts
+            if on_trial is not None:
+                on_trial(study, study.get_trials(deepcopy=False)[trial.number])
+        if progress:
+            best = _best_value(study)
+            shown = f"MAE {value:.4f}" if value is not None else note[:60]
+            log.info("[%s] trial %3d %-8s %s  best %s", study.study_name, trial.number,
+                     state.name.lower(), shown, best if best is None else round(best, 4))
+
+
+def run_studies(cfg, studies: list[tuple[optuna.Study, Callable]], *,
+                progress: bool = False,
+                on_trial: Callable[[optuna.Study, FrozenTrial], None] | None = None) -> None:
+    """Run (or resume) ``(study, objective)`` pairs to their budgets in this process, with a
+    sampler stream of its own (see :func:`claim_stream`)."""
+    if not studies:
+        return
+    stream = claim_stream(studies[0][0])
+    for study, _ in studies:
+        study.sampler = sampler(cfg, study.study_name, stream)
+        fail_stale(study, cfg.study.stale_after_s)  # every dead trial at once, not per study
+    # First pass: take trials wherever budget is left, never idling while another worker
+    # finishes a study's last trials; second pass: make sure every study is complete.
+    for wait in (False, True):
+        for study, objective in studies:
+            run_study(study, objective, cfg.study.trials, timeout=cfg.study.timeout,
+                      stale_after_s=cfg.study.stale_after_s, progress=progress, wait=wait,
+                      on_trial=on_trial)
+
+
