@@ -11,8 +11,12 @@ from sklearn.linear_model import LinearRegression, Ridge
 from sklearn.model_selection import KFold, ShuffleSplit
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
-from workbench.conformal import (ConformalRegressor, conformal_rank, interval_coverage,
-                                 interval_width)
+from workbench.conformal import (
+    ConformalRegressor,
+    conformal_rank,
+    interval_coverage,
+    interval_width,
+)
 
 
 def _data(seed: int, n: int, n_targets: int = 2, noise=(1.0, 3.0)):

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from workbench.datasets import DataUnavailableError, Dataset, load_google_5q
+from workbench.datasets import Dataset, DataUnavailableError, load_google_5q
 from workbench.datasets import google_5q as g5
 
 NAMES = [g5.CSV_NAME, g5.JSON_NAME]

@@ -11,8 +11,7 @@ import pytest
 from PIL import Image
 
 from workbench.experiment.cli import main
-from workbench.experiment.config import (ConfigError, load_config, load_dataset,
-                                         parse_config)
+from workbench.experiment.config import ConfigError, load_config, load_dataset, parse_config
 from workbench.experiment.evaluate import evaluate
 from workbench.experiment.tracking import Tracker
 from workbench.fitted_prior import FittedPriorBoost

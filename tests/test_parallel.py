@@ -11,12 +11,24 @@ import pytest
 from sklearn.exceptions import FitFailedWarning
 from sklearn.model_selection import KFold
 
-from workbench import (BaseBoostCV, BaseBoostRegressor, MultiTargetBaseBoost, make_basis,
-                       make_transform)
+from workbench import (
+    BaseBoostCV,
+    BaseBoostRegressor,
+    MultiTargetBaseBoost,
+    make_basis,
+    make_transform,
+)
 from workbench.bases import paper_stacking
 from workbench.curves import augmented_learning_curve
-from workbench.parallel import (Task, effective_n_jobs, gather, in_worker, map_tasks,
-                                run_plans, worker_pool)
+from workbench.parallel import (
+    Task,
+    effective_n_jobs,
+    gather,
+    in_worker,
+    map_tasks,
+    run_plans,
+    worker_pool,
+)
 from workbench.selection import BasisChoiceCV
 
 

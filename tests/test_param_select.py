@@ -4,12 +4,10 @@ import numpy as np
 import pandas as pd
 import pytest
 from sklearn.base import clone
-
 from sklearn.model_selection import KFold, cross_val_predict
 
 from workbench.param_boost import HamiltonianParameterRegressor, default_library
-from workbench.param_select import (HamiltonianSelectionCV, candidate_pool, cv_mae,
-                                    forward_select)
+from workbench.param_select import HamiltonianSelectionCV, candidate_pool, cv_mae, forward_select
 from workbench.simulate import Mismatch, simulate
 
 N = 5

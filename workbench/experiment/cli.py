@@ -15,8 +15,7 @@ import sys
 import time
 from pathlib import Path
 
-from .errors import (ConfigError, StorageError, TrackingError, UsageError, redact,
-                     redact_urls)
+from .errors import ConfigError, StorageError, TrackingError, UsageError, redact, redact_urls
 from .startup import SWEEP_WORKER_MODULES, setup_logging
 
 log = logging.getLogger("workbench")

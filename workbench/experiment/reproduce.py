@@ -27,11 +27,18 @@ from .config import load_config
 from .errors import UsageError
 from .evaluate import evaluate
 from .explain import shap_values
+from .figures import (
+    correlation_heatmap,
+    learning_curve_figure,
+    mae_bars,
+    model_comparison_bars,
+    prior_target_boxplots,
+    save_figure,
+    shap_figure,
+    voltage_boxplots,
+)
 from .intervals import family_model
 from .results import Result
-from .figures import (correlation_heatmap, learning_curve_figure, mae_bars,
-                      model_comparison_bars, prior_target_boxplots, save_figure, shap_figure,
-                      voltage_boxplots)
 from .tracking import Tracker, dataset_hash, git_commit, resolve_tracking_uri
 
 __all__ = ["PAPER_SIZES", "REFERENCE", "TABULA_RASA", "Reproduction", "report", "reproduce"]

@@ -29,8 +29,8 @@ from typing import TYPE_CHECKING, Any, ClassVar, Literal
 import pandas as pd
 from pydantic import Field
 
-from ..schema import Section
 from ..results import ModelScores, Scores, mae, mse
+from ..schema import Section
 from .base import Artifacts, ModelFamily
 from .stage import per_target_boost, stage_scores
 
