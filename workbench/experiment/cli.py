@@ -421,7 +421,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     ev = sub.add_parser("evaluate", help="fit a config's model on the training rows and score "
                         "prior and model on the test rows")
-    ev.add_argument("config", help="experiment config (TOML), e.g. experiments/paper_main_body.toml")
+    ev.add_argument("config",
+                    help="experiment config (TOML), e.g. experiments/paper_main_body.toml")
     ev.add_argument("--json", metavar="PATH", help="also write the results as JSON")
     ev.add_argument("--jobs", type=_count, default=None, metavar="N",
                     help="processes for independent work: targets, folds, curve points "

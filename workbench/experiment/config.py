@@ -513,8 +513,8 @@ def parse_config(raw: dict[str, Any], path: Path | None = None) -> ExperimentCon
     cfg = ExperimentConfig(path=path, name=name, description=top.description,
                            random_state=top.random_state, n_jobs=top.n_jobs, data=data,
                            model=model, selection=top.selection, evaluation=top.evaluation,
-                           intervals=intervals, search=search, cv=top.cv, study=top.study, tracking=top.tracking,
-                           family_settings=settings)
+                           intervals=intervals, search=search, cv=top.cv, study=top.study,
+                           tracking=top.tracking, family_settings=settings)
     for target in [None, *model.targets]:
         label = "model" if target is None else f"model.targets.{target}"
         try:

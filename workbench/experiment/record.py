@@ -141,12 +141,13 @@ def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
            tracking_uri: str | None = None, sweep=None, run_id: str | None = None,
            register: str | None = None) -> dict[str, str]:
     """Log one evaluate/sweep as a parent run (metrics, the chosen settings, the config file
-    with its credentials redacted, the result, the training and test rows as MLflow datasets, MAE/MSE bars, the family's
-    artifacts, the test rows' predictions, the model; for a sweep a child run per trial and
-    per outer fold). Returns ids and URIs to add to the result. ``run_id``: log into this
-    live run (see :func:`.lifecycle.command_run`; a sweep's trials are its children already)
-    instead of a new one. ``register``: also register the model under this name in the
-    store's Model Registry (the new version gets the alias ``champion``)."""
+    with its credentials redacted, the result, the training and test rows as MLflow datasets,
+    MAE/MSE bars, the family's artifacts, the test rows' predictions, the model; for a sweep
+    a child run per trial and per outer fold). Returns ids and URIs to add to the result.
+    ``run_id``: log into this live run (see :func:`.lifecycle.command_run`; a sweep's trials
+    are its children already) instead of a new one. ``register``: also register the model
+    under this name in the store's Model Registry (the new version gets the alias
+    ``champion``)."""
     tracker = tracker_for(cfg, tracking_uri)
     family = cfg.family
     X_train, X_test, y_train, y_test = ds.split(family.inputs(cfg, ds))

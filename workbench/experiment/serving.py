@@ -73,8 +73,8 @@ def check_inputs(frame: pd.DataFrame, columns: Sequence[str], *, where: str = "i
     column order); extra columns are ignored, integer columns cast to float.
 
     Raises :class:`InputError` (one line, starting with ``where``) for a table without rows,
-    missing columns, a non-numeric value, or a missing, NaN or infinite value, naming the column and the row
-    (``row_name(position)``, default ``row <index label>``)."""
+    missing columns, a non-numeric value, or a missing, NaN or infinite value, naming the
+    column and the row (``row_name(position)``, default ``row <index label>``)."""
     if not isinstance(frame, pd.DataFrame):
         frame = pd.DataFrame(frame)
     if len(frame) == 0:  # the estimators' own message is a traceback's worth of text

@@ -617,7 +617,8 @@ class Tracker:
         with self._errors():
             self.client.log_text(run_id, text, artifact_file)
 
-    def log_file(self, run_id: str, path: str | os.PathLike, artifact_path: str | None = None) -> None:
+    def log_file(self, run_id: str, path: str | os.PathLike,
+                 artifact_path: str | None = None) -> None:
         """Copy a local file (or directory) into the run's artifacts under ``artifact_path``."""
         path = Path(path)
         with self._errors():
