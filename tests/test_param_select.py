@@ -161,7 +161,7 @@ def test_selection_cv_is_an_estimator_for_nested_cv(crosstalk, monkeypatch):
         seen_per_fold.append(set(spy.seen))
         pred[val_rows] = fitted.predict(train.iloc[val_rows])
         assert len(fitted.selection_.selected) <= 2
-    for (fit_rows, val_rows), seen in zip(outer, seen_per_fold):
+    for (fit_rows, _), seen in zip(outer, seen_per_fold):
         assert seen == set(train.index[fit_rows])  # the selection never saw its outer fold
     again = cross_val_predict(model, train, train[MEASURED], cv=outer)
     assert np.allclose(again, pred)
