@@ -295,6 +295,10 @@ def test_ui_command_serves_the_local_store_on_loopback(tmp_path):
     assert cmd[cmd.index("--backend-store-uri") + 1] == uri
     artifacts = (tmp_path / "mlruns" / "artifacts").as_uri()
     assert cmd[cmd.index("--default-artifact-root") + 1] == artifacts
+    # an in-memory SQLite store has no folder for the artifacts (was an AttributeError)
+    memory = ui_command("sqlite:///:memory:", 5055)
+    assert memory[memory.index("--backend-store-uri") + 1] == "sqlite:///:memory:"
+    assert "--default-artifact-root" not in memory
 
 
 def test_corrupt_store_is_a_clean_error_and_left_untouched(tmp_path, capsys, google_5q_dir,

@@ -137,8 +137,10 @@ def ui_command(tracking_uri: str, port: int) -> list[str]:
     if tracking_uri.startswith("sqlite:///"):
         from .tracking import _sqlite_path
 
-        root = _sqlite_path(tracking_uri).parent / "artifacts"
-        cmd += ["--default-artifact-root", root.resolve().as_uri()]
+        path = _sqlite_path(tracking_uri)  # None for an in-memory database: no folder
+        if path is not None:
+            root = path.parent / "artifacts"
+            cmd += ["--default-artifact-root", root.resolve().as_uri()]
     return cmd
 
 
