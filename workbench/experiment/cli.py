@@ -217,7 +217,7 @@ def _cmd_sweep(args) -> int:
     # before this process starts any thread (the run's heartbeat); the run is visible while
     # it searches and ends FINISHED only once every output is written
     with worker_pool(cfg.jobs, eager=True), command_run(tracker, "sweep", cfg.name) as run_id:
-        sweep = run_sweep(cfg, on_trial=run_id and TrialRecorder(tracker, run_id))
+        sweep = run_sweep(cfg, on_trial=TrialRecorder(tracker, run_id) if run_id else None)
         result = sweep.result
         if not args.no_track:
             from .record import record

@@ -29,9 +29,9 @@ import math
 from collections.abc import Callable, Sequence
 from typing import Any
 
-import mlflow.pyfunc
 import numpy as np
 import pandas as pd
+from mlflow.pyfunc import PythonModel  # not mlflow.pyfunc.PythonModel: mypy sees a LazyLoader
 
 from .errors import shorten
 
@@ -181,7 +181,7 @@ def model_signature(columns: Sequence[str], outputs: Sequence[str]):
         outputs=Schema([ColSpec(DataType.double, str(c)) for c in outputs]))
 
 
-class WorkbenchModel(mlflow.pyfunc.PythonModel):
+class WorkbenchModel(PythonModel):
     """A fitted workbench model as an MLflow pyfunc model: checks the input table
     (:func:`check_inputs`) and returns :func:`prediction_frame`.
 
