@@ -94,7 +94,7 @@ def fit_case(label, topology, shape, n_sites, m, solvers=("irls", "newton")):
         est = HamiltonianParameterRegressor(onsite=c["onsite"], couplings=c["couplings"],
                                             edges=c["edges"], loss="huber", huber_delta=0.5,
                                             solver=solver)
-        _, sec, peak, rss, cpu = measure(lambda: est.fit(d.iloc[train], y))
+        _, sec, peak, rss, cpu = measure(lambda est=est: est.fit(d.iloc[train], y))
         mae, prior = maes(est, d, c, test)
         n_coef = len(est.coef_)
         print(f"fit   {label:<22} {solver:<6} {len(train):>5} train rows  {n_coef:>5} "

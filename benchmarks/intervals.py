@@ -20,9 +20,9 @@ The intervals' method and level are the configs': 90% with 5 folds, CV+ (the def
 residual quantile). That choice was made after CV+ over-covered with this config on seeds
 0-5 (92.9% on average; its fold models make their own selections, and CV+ widens by their
 disagreement); seeds 6-8 had not been run before it (``--seeds 6 7 8``). Nothing is chosen
-on the benchmark's test rows. Prints one line per run and, per part, the average test coverage against the bands of
-issue 12 (benchmark: 85-95% on average over the targets, each target 78-100%; simulated:
-88-92% averaged over targets and seeds).
+on the benchmark's test rows. Prints one line per run and, per part, the average test
+coverage against the bands of issue 12 (benchmark: 85-95% on average over the targets, each
+target 78-100%; simulated: 88-92% averaged over targets and seeds).
 """
 
 from __future__ import annotations

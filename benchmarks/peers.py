@@ -60,7 +60,8 @@ def peer_mae(X_train, X_test, y_train, y_test, priors, features, trials, seed) -
         def make(params):
             return LGBMRegressor(n_jobs=1, verbose=-1, random_state=seed, **params)
 
-        def objective(trial):
+        # this target's data bound as defaults (the closure is consumed in this iteration)
+        def objective(trial, Xtr=Xtr, ytr=ytr, base=base):
             params = dict(
                 n_estimators=trial.suggest_int("n_estimators", 20, 600, log=True),
                 learning_rate=trial.suggest_float("learning_rate", 0.01, 0.3, log=True),

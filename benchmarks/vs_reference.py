@@ -25,10 +25,10 @@ joblib):
   reference's ``LearningCurve._modified_learning_curve(..., return_incumbent_score=True)``.
 
 Prints each run's wall time and CPU time (user + system of the process and its children,
-less sensitive to other load on the machine) (and, for the paper job, each side's per-target test MAE once),
-the medians, the reference/workbench ratio, and ``uptime``'s load before and after. The
-reference side runs only when its virtualenv exists (build it with
-``bash /work/shared/bench/reference/setup.sh [VENV]``).
+less sensitive to other load on the machine) (and, for the paper job, each side's
+per-target test MAE once), the medians, the reference/workbench ratio, and ``uptime``'s
+load before and after. The reference side runs only when its virtualenv exists (build it
+with ``bash /work/shared/bench/reference/setup.sh [VENV]``).
 """
 
 from __future__ import annotations

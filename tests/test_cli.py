@@ -118,8 +118,8 @@ def test_paper_run_json_schema(paper_run):
 
 def test_paper_run_reports_prediction_intervals(paper_run):
     """Family eigenvalue with [intervals] absent: 90% intervals from the model's own
-    out-of-fold residuals ("oof"), coverage and width per target on the test rows and in CV in the JSON and as MLflow metrics; the existing keys
-    are unchanged (checked above)."""
+    out-of-fold residuals ("oof"), coverage and width per target on the test rows and in CV
+    in the JSON and as MLflow metrics; the existing keys are unchanged (checked above)."""
     r = paper_run["result"]
     assert r["intervals"] == {"method": "oof", "alpha": 0.1, "level": 0.9}
     for key in ("test_coverage", "test_width", "cv_coverage", "cv_width"):
@@ -293,7 +293,12 @@ def test_ui_command_serves_the_local_store_on_loopback(tmp_path):
     assert cmd[cmd.index("--host") + 1] == "127.0.0.1"
     assert cmd[cmd.index("--port") + 1] == "5055"
     assert cmd[cmd.index("--backend-store-uri") + 1] == uri
-    assert cmd[cmd.index("--default-artifact-root") + 1] == (tmp_path / "mlruns" / "artifacts").as_uri()
+    artifacts = (tmp_path / "mlruns" / "artifacts").as_uri()
+    assert cmd[cmd.index("--default-artifact-root") + 1] == artifacts
+    # an in-memory SQLite store has no folder for the artifacts (was an AttributeError)
+    memory = ui_command("sqlite:///:memory:", 5055)
+    assert memory[memory.index("--backend-store-uri") + 1] == "sqlite:///:memory:"
+    assert "--default-artifact-root" not in memory
 
 
 def test_corrupt_store_is_a_clean_error_and_left_untouched(tmp_path, capsys, google_5q_dir,

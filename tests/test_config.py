@@ -31,7 +31,8 @@ def _toml_str(value) -> str:
 
 def write_config(tmp_path: Path, model: str = 'basis = "ridge"', *, extra: str = "",
                  data: str | None = None, top: str = "", name: str = "cfg.toml") -> Path:
-    """A cheap config file: ``top`` lines, ``[data]``, ``[model]`` with ``model``, then ``extra``."""
+    """A cheap config file: ``top`` lines, ``[data]``, ``[model]`` with ``model``, then
+    ``extra``."""
     data = data if data is not None else 'source = "google_5q"'
     text = (f'name = "t"\nrandom_state = 0\n{top}\n[data]\n{data}\n\n[model]\n{model}\n\n'
             f"{extra}\n")

@@ -5,6 +5,7 @@ line naming ``section.key`` (and, through the command, exit code 2 before any fi
 from __future__ import annotations
 
 import re
+import types
 import typing
 from pathlib import Path
 
@@ -37,7 +38,7 @@ def _base_type(annotation):
     args = [a for a in typing.get_args(annotation) if a is not type(None)]
     if typing.get_origin(annotation) is typing.Literal:
         return "literal"
-    if args and typing.get_origin(annotation) in (typing.Union, getattr(__import__("types"), "UnionType")):
+    if args and typing.get_origin(annotation) in (typing.Union, types.UnionType):
         return _base_type(args[0])
     return annotation
 
@@ -188,7 +189,8 @@ def test_family_table_for_another_family_is_an_error(tmp_path):
 def test_unknown_family_lists_the_valid_ones(tmp_path):
     path = tmp_path / "c.toml"
     path.write_text('[model]\nfamily = "bogus_family"\n')
-    with pytest.raises(ConfigError, match=r"model\.family = 'bogus_family'.*eigenvalue.*hamiltonian"):
+    with pytest.raises(ConfigError,
+                       match=r"model\.family = 'bogus_family'.*eigenvalue.*hamiltonian"):
         load_config(path)
 
 

@@ -11,8 +11,12 @@ from sklearn.linear_model import LinearRegression, Ridge
 from sklearn.model_selection import KFold, ShuffleSplit
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
-from workbench.conformal import (ConformalRegressor, conformal_rank, interval_coverage,
-                                 interval_width)
+from workbench.conformal import (
+    ConformalRegressor,
+    conformal_rank,
+    interval_coverage,
+    interval_width,
+)
 
 
 def _data(seed: int, n: int, n_targets: int = 2, noise=(1.0, 3.0)):
@@ -119,7 +123,7 @@ def test_cv_plus_matches_the_formula_by_hand():
     for j in range(2):
         for row in range(15):
             lo, hi = [], []
-            for k, (train, val) in enumerate(cv.split(X[:45])):
+            for train, val in cv.split(X[:45]):
                 fold = Ridge().fit(X[:45][train], Y[:45][train])
                 mu = fold.predict(X[45 + row:46 + row])[0, j]
                 r = np.abs(Y[:45][val, j] - fold.predict(X[:45][val])[:, j])

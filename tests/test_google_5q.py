@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from workbench.datasets import DataUnavailableError, Dataset, load_google_5q
+from workbench.datasets import Dataset, DataUnavailableError, load_google_5q
 from workbench.datasets import google_5q as g5
 
 NAMES = [g5.CSV_NAME, g5.JSON_NAME]
@@ -44,12 +44,14 @@ def test_shapes_and_index(ds: Dataset) -> None:
     assert ds.name == "google_5q"
     assert ds.features.shape == (136, 9) and ds.prior.shape == (136, 5)
     assert ds.targets.shape == (136, 5)
-    assert ds.feature_names == [f"qvolt{i}" for i in range(5, 10)] + [f"cvolt{i}" for i in range(5, 9)]
+    assert ds.feature_names == ([f"qvolt{i}" for i in range(5, 10)]
+                                + [f"cvolt{i}" for i in range(5, 9)])
     assert ds.prior_names == [f"peig{i}" for i in range(1, 6)]
     assert ds.target_names == [f"eeig{i}" for i in range(1, 6)]
     np.testing.assert_array_equal(ds.train_index, np.arange(95))
     np.testing.assert_array_equal(ds.test_index, np.arange(95, 136))
-    for frame in (ds.features, ds.prior, ds.targets, ds.hamiltonian.onsite, ds.hamiltonian.couplings):
+    for frame in (ds.features, ds.prior, ds.targets, ds.hamiltonian.onsite,
+                  ds.hamiltonian.couplings):
         np.testing.assert_array_equal(frame.index.to_numpy(), np.arange(136))
         assert (frame.dtypes == np.float64).all()
     X_train, X_test, y_train, y_test = ds.split()
@@ -108,7 +110,8 @@ def test_missing_files_without_download(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("cmd", "timeout", "expect"),
     [
-        ([sys.executable, "-c", "import sys; sys.stderr.write('ERROR: no network here\\n'); sys.exit(1)"],
+        ([sys.executable, "-c",
+          "import sys; sys.stderr.write('ERROR: no network here\\n'); sys.exit(1)"],
          300.0, "ERROR: no network here"),
         ([sys.executable, "-c", "import time; time.sleep(30)"], 0.5, "timed out"),
         (["/nonexistent/python-for-pip"], 300.0, "could not run pip"),
@@ -148,7 +151,8 @@ def test_corrupt_cache_is_refetched(shared_data: Path, cache_home: Path,
     assert sorted(p.name for p in cache_home.iterdir()) == sorted(NAMES)
 
 
-def test_bad_downloaded_bytes_not_written(cache_home: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_bad_downloaded_bytes_not_written(cache_home: Path,
+                                          monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(g5, "_fetch_members", lambda names: {n: b"garbage" for n in names})
     with pytest.raises(DataUnavailableError, match="expected .* got"):
         load_google_5q()

@@ -9,8 +9,13 @@ import pytest
 
 from workbench.datasets import DatasetError, load_csv_dataset
 from workbench.experiment.cli import main
-from workbench.hamiltonian import (CouplingGraph, _hellmann_feynman, graph_hamiltonian,
-                                  graph_spectrum, make_graph)
+from workbench.hamiltonian import (
+    CouplingGraph,
+    _hellmann_feynman,
+    graph_hamiltonian,
+    graph_spectrum,
+    make_graph,
+)
 from workbench.param_boost import HamiltonianParameterRegressor, default_library
 from workbench.param_select import HamiltonianSelectionCV, candidate_pool, forward_select
 from workbench.simulate import Mismatch, simulate, write_simulation

@@ -249,7 +249,8 @@ def test_regressor_clone_and_params():
 @pytest.mark.parametrize("kwargs, match", [
     (dict(couplings=COUPLINGS), "onsite must name at least 2"),
     (dict(onsite=ONSITE, couplings=COUPLINGS[:2]), "couplings must name"),
-    (dict(onsite=ONSITE, couplings=COUPLINGS, loss="quantile"), r"'loss' parameter of HamiltonianParameterRegressor must be a str among "
+    (dict(onsite=ONSITE, couplings=COUPLINGS, loss="quantile"),
+     r"'loss' parameter of HamiltonianParameterRegressor must be a str among "
      r"\{('(squared_error|absolute_error|huber)'(, )?){3}\}\. Got 'quantile'"),
     (dict(onsite=ONSITE, couplings=COUPLINGS, alpha_l1=-0.1), "alpha_l1"),
     (dict(onsite=ONSITE, couplings=COUPLINGS, covariates={"nope": ["v_q1"]}),

@@ -11,8 +11,7 @@ import pytest
 from PIL import Image
 
 from workbench.experiment.cli import main
-from workbench.experiment.config import (ConfigError, load_config, load_dataset,
-                                         parse_config)
+from workbench.experiment.config import ConfigError, load_config, load_dataset, parse_config
 from workbench.experiment.evaluate import evaluate
 from workbench.experiment.tracking import Tracker
 from workbench.fitted_prior import FittedPriorBoost
@@ -95,7 +94,8 @@ def test_config_builds_the_parameter_space_model(device):
 
 
 @pytest.mark.parametrize("change, match", [
-    (lambda r: r["model"].update(family="hamiltonain"), r"model\.family = 'hamiltonain': unknown family"),
+    (lambda r: r["model"].update(family="hamiltonain"),
+     r"model\.family = 'hamiltonain': unknown family"),
     (lambda r: r["model"].update(family="eigenvalue"),
      r"\[model.hamiltonian\]: applies to family = \"hamiltonian\" only"),
     (lambda r: r["model"]["hamiltonian"].update(candidate="local"),
@@ -200,10 +200,10 @@ def test_evaluate_is_tracked_and_the_model_serves(cli_run):
 
 
 def test_evaluate_reports_and_writes_prediction_intervals(cli_run):
-    """[intervals] absent: 90% "oof" intervals (the model's own out-of-fold residuals). The JSON has per-target coverage and width on
-    the test rows and in CV (with averages), --out writes the figure and the test rows'
-    intervals, MLflow has them as metrics and artifacts, and the logged model carries
-    predict_interval."""
+    """[intervals] absent: 90% "oof" intervals (the model's own out-of-fold residuals). The
+    JSON has per-target coverage and width on the test rows and in CV (with averages), --out
+    writes the figure and the test rows' intervals, MLflow has them as metrics and artifacts,
+    and the logged model carries predict_interval."""
     _, result, out, store, _ = cli_run
     assert result["intervals"] == {"method": "oof", "alpha": 0.1, "level": 0.9}
     m = result["model"]

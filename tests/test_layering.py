@@ -19,8 +19,9 @@ def _core_files():
 
 
 def test_importing_the_core_loads_no_experiment_dependencies():
-    modules = sorted(f"workbench.{p.relative_to(PACKAGE).with_suffix('').as_posix().replace('/', '.')}"
-                     .removesuffix(".__init__") for p in _core_files())
+    modules = sorted(
+        f"workbench.{p.relative_to(PACKAGE).with_suffix('').as_posix().replace('/', '.')}"
+        .removesuffix(".__init__") for p in _core_files())
     code = ("import sys\n" + "".join(f"import {m}\n" for m in modules) +
             f"bad = [m for m in sys.modules if m.split('.')[0] in {FORBIDDEN!r} "
             "or m.startswith('workbench.experiment')]\nprint(bad)\n")

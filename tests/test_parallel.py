@@ -11,12 +11,24 @@ import pytest
 from sklearn.exceptions import FitFailedWarning
 from sklearn.model_selection import KFold
 
-from workbench import (BaseBoostCV, BaseBoostRegressor, MultiTargetBaseBoost, make_basis,
-                       make_transform)
+from workbench import (
+    BaseBoostCV,
+    BaseBoostRegressor,
+    MultiTargetBaseBoost,
+    make_basis,
+    make_transform,
+)
 from workbench.bases import paper_stacking
 from workbench.curves import augmented_learning_curve
-from workbench.parallel import (Task, effective_n_jobs, gather, in_worker, map_tasks,
-                                run_plans, worker_pool)
+from workbench.parallel import (
+    Task,
+    effective_n_jobs,
+    gather,
+    in_worker,
+    map_tasks,
+    run_plans,
+    worker_pool,
+)
 from workbench.selection import BasisChoiceCV
 
 
@@ -35,8 +47,9 @@ def _multi(n_jobs, basis):
                                 n_jobs=n_jobs, random_state=3)
 
 
-@pytest.mark.parametrize("basis", [make_basis("lightgbm", n_estimators=30, min_child_samples=5),
-                                   make_basis("mlp", hidden_layer_sizes=4, max_iter=2000, alpha=1.0)])
+@pytest.mark.parametrize("basis", [
+    make_basis("lightgbm", n_estimators=30, min_child_samples=5),
+    make_basis("mlp", hidden_layer_sizes=4, max_iter=2000, alpha=1.0)])
 def test_multitarget_two_processes_equal_one(basis):
     X, Y = _data()
     one = _multi(1, basis).fit(X, Y)
@@ -209,7 +222,8 @@ def test_plans_and_gathered_plans(n_jobs):
 
 
 def _warns(x):
-    warnings.warn(f"careful with {x}", FitFailedWarning)
+    # no stacklevel (B028), deliberately: the warning's location is this worker-side line
+    warnings.warn(f"careful with {x}", FitFailedWarning)  # noqa: B028
     return x
 
 

@@ -4,12 +4,10 @@ import numpy as np
 import pandas as pd
 import pytest
 from sklearn.base import clone
-
 from sklearn.model_selection import KFold, cross_val_predict
 
 from workbench.param_boost import HamiltonianParameterRegressor, default_library
-from workbench.param_select import (HamiltonianSelectionCV, candidate_pool, cv_mae,
-                                    forward_select)
+from workbench.param_select import HamiltonianSelectionCV, candidate_pool, cv_mae, forward_select
 from workbench.simulate import Mismatch, simulate
 
 N = 5
@@ -163,7 +161,7 @@ def test_selection_cv_is_an_estimator_for_nested_cv(crosstalk, monkeypatch):
         seen_per_fold.append(set(spy.seen))
         pred[val_rows] = fitted.predict(train.iloc[val_rows])
         assert len(fitted.selection_.selected) <= 2
-    for (fit_rows, val_rows), seen in zip(outer, seen_per_fold):
+    for (fit_rows, _), seen in zip(outer, seen_per_fold):
         assert seen == set(train.index[fit_rows])  # the selection never saw its outer fold
     again = cross_val_predict(model, train, train[MEASURED], cv=outer)
     assert np.allclose(again, pred)

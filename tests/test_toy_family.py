@@ -14,8 +14,8 @@ from pydantic import Field
 from sklearn.base import BaseEstimator, RegressorMixin
 
 from workbench.experiment.cli import main
-from workbench.experiment.schema import Section
 from workbench.experiment.families import FAMILIES, ModelFamily, register_family
+from workbench.experiment.schema import Section
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -68,8 +68,9 @@ def _config(tmp_path, google_5q_dir, extra="") -> Path:
 
 def test_no_workbench_module_names_a_family_outside_its_own():
     """The families' names appear only in their own modules (and the registry's docs)."""
-    out = subprocess.run(["git", "grep", "-nE", r"(==|!=|in) *\(?[\"'](eigenvalue|hamiltonian)[\"']",
-                          "--", "workbench"], cwd=ROOT, capture_output=True, text=True)
+    pattern = r"(==|!=|in) *\(?[\"'](eigenvalue|hamiltonian)[\"']"
+    out = subprocess.run(["git", "grep", "-nE", pattern, "--", "workbench"], cwd=ROOT,
+                         capture_output=True, text=True)
     hits = [line for line in out.stdout.splitlines() if "/families/" not in line]
     assert hits == [], hits
 

@@ -194,6 +194,7 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
     ham_cols = [*(onsite or []), *(couplings or [])]
     graph = None
     if onsite is not None:
+        assert couplings is not None  # both or neither, checked above
         if len(onsite) < 2:
             raise DatasetError(f"the Hamiltonian needs at least 2 onsite columns, got "
                                f"{list(onsite)}")
@@ -241,6 +242,7 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
     train, test = _split(frame, path, test_fraction, split_column, split_seed)
     hamiltonian = None
     if onsite is not None:
+        assert couplings is not None and graph is not None  # both set with onsite, above
         hamiltonian = Hamiltonian(
             onsite=data[list(onsite)], couplings=data[list(couplings)], sign=int(sign),
             qubit_features=tuple(qubit_features) if qubit_features is not None else None,

@@ -15,8 +15,7 @@ import sys
 import time
 from pathlib import Path
 
-from .errors import (ConfigError, StorageError, TrackingError, UsageError, redact,
-                     redact_urls)
+from .errors import ConfigError, StorageError, TrackingError, UsageError, redact, redact_urls
 from .startup import SWEEP_WORKER_MODULES, setup_logging
 
 log = logging.getLogger("workbench")
@@ -138,8 +137,10 @@ def ui_command(tracking_uri: str, port: int) -> list[str]:
     if tracking_uri.startswith("sqlite:///"):
         from .tracking import _sqlite_path
 
-        root = _sqlite_path(tracking_uri).parent / "artifacts"
-        cmd += ["--default-artifact-root", root.resolve().as_uri()]
+        path = _sqlite_path(tracking_uri)  # None for an in-memory database: no folder
+        if path is not None:
+            root = path.parent / "artifacts"
+            cmd += ["--default-artifact-root", root.resolve().as_uri()]
     return cmd
 
 
@@ -216,7 +217,7 @@ def _cmd_sweep(args) -> int:
     # before this process starts any thread (the run's heartbeat); the run is visible while
     # it searches and ends FINISHED only once every output is written
     with worker_pool(cfg.jobs, eager=True), command_run(tracker, "sweep", cfg.name) as run_id:
-        sweep = run_sweep(cfg, on_trial=run_id and TrialRecorder(tracker, run_id))
+        sweep = run_sweep(cfg, on_trial=TrialRecorder(tracker, run_id) if run_id else None)
         result = sweep.result
         if not args.no_track:
             from .record import record
@@ -422,7 +423,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     ev = sub.add_parser("evaluate", help="fit a config's model on the training rows and score "
                         "prior and model on the test rows")
-    ev.add_argument("config", help="experiment config (TOML), e.g. experiments/paper_main_body.toml")
+    ev.add_argument("config",
+                    help="experiment config (TOML), e.g. experiments/paper_main_body.toml")
     ev.add_argument("--json", metavar="PATH", help="also write the results as JSON")
     ev.add_argument("--jobs", type=_count, default=None, metavar="N",
                     help="processes for independent work: targets, folds, curve points "

@@ -119,6 +119,7 @@ class DataConfig(Section):
         for key in ("csv", "prior", "targets"):
             if getattr(self, key) is None:
                 raise ValueError(f"source = \"csv\" needs {key!r}")
+        assert self.prior is not None and self.targets is not None  # checked just above
         if len(self.prior) != len(self.targets):
             raise ValueError(f"{len(self.prior)} prior column(s) for {len(self.targets)} "
                              f"target(s): give one prior column per target")
@@ -238,6 +239,7 @@ def _validate_estimator(estimator) -> None:
 
     nested = [estimator] + [v for v in estimator.get_params(deep=True).values()
                             if isinstance(v, BaseEstimator)]
+    constraints: dict[str, list[Any]] | None
     for est in nested:
         params = est.get_params(deep=False)
         if any(c.__module__.startswith("lightgbm") for c in type(est).__mro__[:-1]):
@@ -513,8 +515,8 @@ def parse_config(raw: dict[str, Any], path: Path | None = None) -> ExperimentCon
     cfg = ExperimentConfig(path=path, name=name, description=top.description,
                            random_state=top.random_state, n_jobs=top.n_jobs, data=data,
                            model=model, selection=top.selection, evaluation=top.evaluation,
-                           intervals=intervals, search=search, cv=top.cv, study=top.study, tracking=top.tracking,
-                           family_settings=settings)
+                           intervals=intervals, search=search, cv=top.cv, study=top.study,
+                           tracking=top.tracking, family_settings=settings)
     for target in [None, *model.targets]:
         label = "model" if target is None else f"model.targets.{target}"
         try:
@@ -556,6 +558,8 @@ def load_dataset(cfg: ExperimentConfig):
         ds = load_google_5q((base / data.data_dir).resolve() if data.data_dir else None)
     else:
         ham = data.hamiltonian
+        # source = "csv" has them (DataConfig's check)
+        assert data.csv is not None and data.prior is not None and data.targets is not None
         ds = load_csv_dataset(
             (base / data.csv).resolve(), prior=data.prior, targets=data.targets,
             features=data.features, test_fraction=data.test_fraction,

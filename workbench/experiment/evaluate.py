@@ -164,13 +164,13 @@ def format_table(result: Result) -> str:
     lines.append(f"test MAE in the targets' units (MHz for the benchmark); "
                  f"wall time {result.wall_s:.1f} s")
     if result.model.test_coverage:
-        m, iv = result.model, result.intervals
+        model, iv = result.model, result.intervals
         level = f"{iv['level']:.0%} " if "level" in iv else ""
         lines.append(f"{level}prediction intervals ({iv.get('method', 'conformal')}): test "
-                     f"coverage {m.avg('test_coverage'):.1%} (per target "
-                     f"{', '.join(f'{c:.0%}' for c in m.test_coverage)}), mean width "
-                     f"{m.avg('test_width'):.3f}; CV coverage {m.avg('cv_coverage'):.1%}, "
-                     f"width {m.avg('cv_width'):.3f}")
+                     f"coverage {model.avg('test_coverage'):.1%} (per target "
+                     f"{', '.join(f'{c:.0%}' for c in model.test_coverage)}), mean width "
+                     f"{model.avg('test_width'):.3f}; CV coverage "
+                     f"{model.avg('cv_coverage'):.1%}, width {model.avg('cv_width'):.3f}")
     if result.repeated_cv is not None:
         r = result.repeated_cv
         lines.append(f"repeated CV on the training rows ({r.repeats} x {r.folds} folds): "
@@ -180,7 +180,7 @@ def format_table(result: Result) -> str:
         lines.append(f"nested CV over all {r.n_rows} rows ({r.folds} outer folds): "
                      f"model {r.model_mae_avg:.3f}, prior {r.prior_mae_avg:.3f}")
     if result.sweep is not None:
-        s = result.sweep
-        lines.append(f"nested-CV MAE: model {s.nested_cv_mae_avg:.3f}, prior "
-                     f"{s.nested_cv_prior_mae_avg:.3f} (average over targets)")
+        sweep = result.sweep
+        lines.append(f"nested-CV MAE: model {sweep.nested_cv_mae_avg:.3f}, prior "
+                     f"{sweep.nested_cv_prior_mae_avg:.3f} (average over targets)")
     return "\n".join(lines)

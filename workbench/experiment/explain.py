@@ -40,8 +40,9 @@ MIN_ROWS, MIN_BACKGROUND = 100, 10
 
 def shap_sample(n_rows: int, n_features: int, background: int = 30) -> tuple[int, int]:
     """``(explained rows, background rows)`` of a summary of ``n_rows`` rows over
-    ``n_features`` features (exact values up to ten, else 256 sampled coalitions), within :data:`MAX_MODEL_ROWS` model rows: every row
-    and ``background`` background rows when they fit; else the background shrinks (to
+    ``n_features`` features (exact values up to ten, else 256 sampled coalitions), within
+    :data:`MAX_MODEL_ROWS` model rows: every row and ``background`` background rows when they
+    fit; else the background shrinks (to
     :data:`MIN_BACKGROUND`), then the explained rows (to :data:`MIN_ROWS`, a seeded sample).
     The paper's benchmark (95 rows, 5 prior columns) keeps all 95 rows and 30 background
     rows; 1,650 rows of 10 features are summarised on 100 rows over a 10-row background

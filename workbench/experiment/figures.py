@@ -21,11 +21,12 @@ The same data give the same figure.
 from __future__ import annotations
 
 import io
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from matplotlib.artist import Artist
 from matplotlib.figure import Figure
 
 from .._io import atomic_write
@@ -517,7 +518,7 @@ def model_comparison_bars(targets: Sequence[str], values: Mapping[str, Sequence[
 
 
 def parameter_corrections(control: pd.DataFrame, corrected: pd.DataFrame, *,
-                          groups: Mapping[str, Sequence] | None = None, unit: str = "MHz",
+                          groups: Mapping[str, Iterable] | None = None, unit: str = "MHz",
                           title: str | None = None, setting: str | None = None) -> Figure:
     """One panel per Hamiltonian parameter: its correction (corrected - control) against the
     control model's value, one point per experiment.
@@ -638,7 +639,7 @@ def interval_figure(table: pd.DataFrame, *, level: float, unit: str = "MHz",
                              f"{unit}", fontsize=10)
         axes[0, j].set_ylabel(f"measured ({unit})", fontsize=9)
         axes[1, j].set_ylabel(f"measured - predicted ({unit})", fontsize=9)
-    handles = {}
+    handles: dict[str, Artist] = {}
     for ax in axes[1]:
         for handle, label in zip(*ax.get_legend_handles_labels()):
             handles.setdefault(label, handle)

@@ -141,12 +141,13 @@ def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
            tracking_uri: str | None = None, sweep=None, run_id: str | None = None,
            register: str | None = None) -> dict[str, str]:
     """Log one evaluate/sweep as a parent run (metrics, the chosen settings, the config file
-    with its credentials redacted, the result, the training and test rows as MLflow datasets, MAE/MSE bars, the family's
-    artifacts, the test rows' predictions, the model; for a sweep a child run per trial and
-    per outer fold). Returns ids and URIs to add to the result. ``run_id``: log into this
-    live run (see :func:`.lifecycle.command_run`; a sweep's trials are its children already)
-    instead of a new one. ``register``: also register the model under this name in the
-    store's Model Registry (the new version gets the alias ``champion``)."""
+    with its credentials redacted, the result, the training and test rows as MLflow datasets,
+    MAE/MSE bars, the family's artifacts, the test rows' predictions, the model; for a sweep
+    a child run per trial and per outer fold). Returns ids and URIs to add to the result.
+    ``run_id``: log into this live run (see :func:`.lifecycle.command_run`; a sweep's trials
+    are its children already) instead of a new one. ``register``: also register the model
+    under this name in the store's Model Registry (the new version gets the alias
+    ``champion``)."""
     tracker = tracker_for(cfg, tracking_uri)
     family = cfg.family
     X_train, X_test, y_train, y_test = ds.split(family.inputs(cfg, ds))
@@ -164,10 +165,10 @@ def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
     params.update(_flat("intervals.", cfg.intervals.model_dump()))
     setting = f"{kind} of {cfg.name}"
     live = run_id is not None
-    if live:
+    if run_id is not None:
         tracker.set_tags(run_id, tags)
         tracker.log_params(run_id, params)
-    with (contextlib.nullcontext(run_id) if live
+    with (contextlib.nullcontext(run_id) if run_id is not None
           else tracker.run(f"{kind} {cfg.name}", tags=tags, params=params)) as run_id:
         log.info("[%s] tracking in %s (run %s)", cfg.name, redact(tracker.tracking_uri),
                  run_id)
@@ -179,7 +180,7 @@ def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
             tracker.log_dataset(run_id, pd.concat([X, Y], axis=1), name=ds.name,
                                 context=context, source=source)
         config = _config_text(cfg)
-        if config is not None:
+        if config is not None and cfg.path is not None:  # both or neither
             tracker.log_text(run_id, config, Path(cfg.path).name)
         tracker.log_dict(run_id, json.loads(json.dumps(result.to_json(), default=str)),
                          "result.json")

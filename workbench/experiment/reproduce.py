@@ -27,11 +27,18 @@ from .config import load_config
 from .errors import UsageError
 from .evaluate import evaluate
 from .explain import shap_values
+from .figures import (
+    correlation_heatmap,
+    learning_curve_figure,
+    mae_bars,
+    model_comparison_bars,
+    prior_target_boxplots,
+    save_figure,
+    shap_figure,
+    voltage_boxplots,
+)
 from .intervals import family_model
 from .results import Result
-from .figures import (correlation_heatmap, learning_curve_figure, mae_bars,
-                      model_comparison_bars, prior_target_boxplots, save_figure, shap_figure,
-                      voltage_boxplots)
 from .tracking import Tracker, dataset_hash, git_commit, resolve_tracking_uri
 
 __all__ = ["PAPER_SIZES", "REFERENCE", "TABULA_RASA", "Reproduction", "report", "reproduce"]
@@ -306,10 +313,11 @@ def _hamiltonian(settings: dict[str, Any], seed: int, quick: bool, configs: Path
     also uses a smaller pool and one CV repeat."""
     cfg = load_config(configs / "hamiltonian.toml")
     evaluation = {"nested_folds": 0}
-    hamiltonian = {}
+    hamiltonian: dict[str, Any] = {}
     if quick:
         evaluation.update(cv_repeats=1)
         hamiltonian.update(candidates="local", max_steps=2, selection_cv=3)
+    assert cfg.family_settings is not None  # family = "hamiltonian" has settings
     cfg = replace(cfg, random_state=seed, evaluation=cfg.evaluation.model_copy(update=evaluation),
                   family_settings=cfg.family_settings.model_copy(update=hamiltonian))
     cfg = _no_intervals(cfg)
@@ -344,7 +352,9 @@ def _log(rep: Reproduction, files, groups, out: Path, tracking_uri, ds) -> dict[
             for s, v in zip(SHORT, res.model.test_mae):
                 metrics[f"{key}.test_mae.{s}"] = v
         metrics["prior.test_mae_avg"] = rep.settings["paper"].prior.avg("test_mae")
-        metrics["search.nested_cv_mae_avg"] = rep.settings["search"].sweep.nested_cv_mae_avg
+        search = rep.settings["search"].sweep
+        assert search is not None  # a sweep's result
+        metrics["search.nested_cv_mae_avg"] = search.nested_cv_mae_avg
         metrics["tabula_rasa.test_mae_avg"] = float(np.mean(rep.tabula_rasa["test_mae"]))
         ham = rep.settings["hamiltonian"]
         for key in ("repeated_cv", "nested_cv_all"):
@@ -429,6 +439,7 @@ def report(rep: Reproduction) -> str:
         return "\n".join(f"![{caption}]({p})" for p in figs[fig_id])
 
     nested = s["search"].sweep
+    assert nested is not None  # a sweep's result
     quick = " (quick mode: reduced curves, SHAP rows and search)" if rep.quick else ""
     return f"""# Reproducing "Boosting on the shoulders of giants in quantum device calibration"
 

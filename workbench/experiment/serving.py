@@ -29,9 +29,9 @@ import math
 from collections.abc import Callable, Sequence
 from typing import Any
 
-import mlflow.pyfunc
 import numpy as np
 import pandas as pd
+from mlflow.pyfunc import PythonModel  # not mlflow.pyfunc.PythonModel: mypy sees a LazyLoader
 
 from .errors import shorten
 
@@ -73,8 +73,8 @@ def check_inputs(frame: pd.DataFrame, columns: Sequence[str], *, where: str = "i
     column order); extra columns are ignored, integer columns cast to float.
 
     Raises :class:`InputError` (one line, starting with ``where``) for a table without rows,
-    missing columns, a non-numeric value, or a missing, NaN or infinite value, naming the column and the row
-    (``row_name(position)``, default ``row <index label>``)."""
+    missing columns, a non-numeric value, or a missing, NaN or infinite value, naming the
+    column and the row (``row_name(position)``, default ``row <index label>``)."""
     if not isinstance(frame, pd.DataFrame):
         frame = pd.DataFrame(frame)
     if len(frame) == 0:  # the estimators' own message is a traceback's worth of text
@@ -181,7 +181,7 @@ def model_signature(columns: Sequence[str], outputs: Sequence[str]):
         outputs=Schema([ColSpec(DataType.double, str(c)) for c in outputs]))
 
 
-class WorkbenchModel(mlflow.pyfunc.PythonModel):
+class WorkbenchModel(PythonModel):
     """A fitted workbench model as an MLflow pyfunc model: checks the input table
     (:func:`check_inputs`) and returns :func:`prediction_frame`.
 

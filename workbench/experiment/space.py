@@ -4,9 +4,9 @@ Each entry is a choice list (categorical), a range table ``{ low, high, log?, st
 when both ends are ints, else float) or a plain value (fixed). Basis hyperparameters are
 conditional: ``[search.basis_params.<basis>]`` is sampled only in trials that pick that basis,
 as parameters named ``<basis>.<name>``. ``[search.<family>]`` varies the model family's own
-``[model.<family>]`` settings, as parameters named ``<family>.<key>``. Sampling goes through any object with Optuna's
-``suggest_categorical``/``suggest_int``/``suggest_float`` (an Optuna trial, or
-``optuna.trial.FixedTrial`` to rebuild the settings of a finished trial).
+``[model.<family>]`` settings, as parameters named ``<family>.<key>``. Sampling goes through
+any object with Optuna's ``suggest_categorical``/``suggest_int``/``suggest_float`` (an Optuna
+trial, or ``optuna.trial.FixedTrial`` to rebuild the settings of a finished trial).
 """
 
 from __future__ import annotations
@@ -66,7 +66,8 @@ def _suggest(trial, name: str, spec: Any) -> Any:
         return trial.suggest_categorical(name, spec)
     if isinstance(spec, dict):
         low, high, log = spec["low"], spec["high"], bool(spec.get("log", False))
-        if isinstance(low, int) and isinstance(high, int) and not isinstance(spec.get("step"), float):
+        if (isinstance(low, int) and isinstance(high, int)
+                and not isinstance(spec.get("step"), float)):
             return trial.suggest_int(name, low, high, log=log, step=spec.get("step", 1))
         return trial.suggest_float(name, float(low), float(high), log=log, step=spec.get("step"))
     return spec

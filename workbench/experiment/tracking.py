@@ -50,6 +50,7 @@ from mlflow import MlflowClient
 os.environ.setdefault("MLFLOW_SUPPRESS_PRINTING_URL_TO_STDOUT", "true")
 from mlflow.entities import LoggedModelOutput, Metric, Param, RunTag
 from mlflow.exceptions import MlflowException
+from mlflow.pyfunc import PythonModel  # not mlflow.pyfunc.PythonModel: mypy sees a LazyLoader
 
 __all__ = [
     "DEFAULT_STORE",
@@ -408,7 +409,7 @@ def _quiet(logger_name: str, *texts: str) -> Iterator[None]:
         log.removeFilter(flt)
 
 
-class _PyfuncModel(mlflow.pyfunc.PythonModel):
+class _PyfuncModel(PythonModel):
     """An MLflow pyfunc wrapper holding a fitted model (pickled with cloudpickle by MLflow;
     the ``workbench`` package travels with it as ``code_paths``). Kept so that models logged
     before :class:`~.serving.WorkbenchModel` still load; new models use the latter."""
@@ -617,7 +618,8 @@ class Tracker:
         with self._errors():
             self.client.log_text(run_id, text, artifact_file)
 
-    def log_file(self, run_id: str, path: str | os.PathLike, artifact_path: str | None = None) -> None:
+    def log_file(self, run_id: str, path: str | os.PathLike,
+                 artifact_path: str | None = None) -> None:
         """Copy a local file (or directory) into the run's artifacts under ``artifact_path``."""
         path = Path(path)
         with self._errors():
@@ -729,12 +731,15 @@ class Tracker:
         """Record ``frame`` as an input dataset of the run (MLflow's name, digest and schema;
         the runs table's "Dataset" column), with ``mlflow.data.context`` = ``context``;
         returns MLflow's digest."""
-        import mlflow.data
+        # mlflow.data.from_pandas is this function, set on mlflow.data at import: no stub sees it
+        from mlflow.data.pandas_dataset import from_pandas
         from mlflow.entities import DatasetInput, InputTag
 
         with warnings.catch_warnings():  # a local path "can be interpreted in multiple ways"
             warnings.simplefilter("ignore", UserWarning)
-            dataset = mlflow.data.from_pandas(frame, source=source, name=name, targets=targets)
+            # its hint omits None, its default (None: "the code location")
+            dataset = from_pandas(frame, source=source,  # type: ignore[arg-type]
+                                  name=name, targets=targets)
         inputs = [DatasetInput(dataset._to_mlflow_entity(),
                                tags=[InputTag("mlflow.data.context", context)])]
         with self._errors():

@@ -101,13 +101,15 @@ class ModelFamily:
                                       check=self._check_setting)
 
     def _check_setting(self, key: str, value: Any) -> None:
-        fields_ = self.settings.model_fields
+        settings = self.settings
+        assert settings is not None  # [search.<name>] is read only with settings (parse_search)
+        fields_ = settings.model_fields
         if key not in fields_:
             shown = key if len(key) <= 40 else key[:37] + "..."
             raise SpaceError(f"{self.name}.{shown}: unknown key; valid keys are "
                              f"{listing(sorted(fields_))}")
         try:
-            self.settings.model_validate({key: value})
+            settings.model_validate({key: value})
         except ValidationError as exc:
             err = exc.errors(include_url=False)[0]
             raise SpaceError(f"{self.name}.{key} = {value!r}: "
@@ -183,8 +185,9 @@ class ModelFamily:
         from optuna.trial import FixedTrial
 
         for unit, targets in self.units(cfg, ds.target_names).items():
-            if best.get(unit) is not None:
-                cfg = self.with_trial(cfg, FixedTrial(best[unit]), targets)
+            params = best.get(unit)
+            if params is not None:
+                cfg = self.with_trial(cfg, FixedTrial(params), targets)
         return cfg
 
     def final_model(self, cfg: ExperimentConfig, ds: Dataset):

@@ -114,9 +114,15 @@ class EigenvalueFamily(ModelFamily):
         import threading
 
         from ...curves import learning_curve_plan, selection_curve_plan
-        from ...parallel import (Task, effective_n_jobs, gather, prioritised, run_plans,
-                                 start_workers)
-        from ...selection import BasisChoiceCV, BaseBoostCV
+        from ...parallel import (
+            Task,
+            effective_n_jobs,
+            gather,
+            prioritised,
+            run_plans,
+            start_workers,
+        )
+        from ...selection import BaseBoostCV, BasisChoiceCV
 
         log = logging.getLogger("workbench")
         X_train, _, y_train, _ = ds.split()

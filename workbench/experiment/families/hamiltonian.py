@@ -24,13 +24,13 @@ MLflow run's artifacts).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, ClassVar, Literal
+from typing import TYPE_CHECKING, Any, ClassVar, Literal, cast
 
 import pandas as pd
 from pydantic import Field
 
-from ..schema import Section
 from ..results import ModelScores, Scores, mae, mse
+from ..schema import Section
 from .base import Artifacts, ModelFamily
 from .stage import per_target_boost, stage_scores
 
@@ -156,7 +156,7 @@ class HamiltonianFamily(ModelFamily):
 
         from ...fitted_prior import FittedPriorBoost
 
-        h = cfg.family_settings
+        h = cast(HamiltonianSettings, cfg.family_settings)  # validated by `settings`
         priors = [f"{PRIOR_PREFIX}{t}" for t in ds.target_names]
         boost = per_target_boost(cfg, ds, priors, boost_from_prior=False)
         physics = make_hamiltonian(h, ds, random_state=cfg.random_state, n_jobs=cfg.n_jobs)
