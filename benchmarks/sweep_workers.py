@@ -14,10 +14,10 @@ no assertions).
 Prints every run, the medians, the 2-vs-1 ratio and ``uptime``'s load before and after (the
 machine is shared: read the ratios beside the load).
 * ``storages``: trials per minute of 1, 2 and 4 sweep processes on one storage (journal
-  file, SQLite, PostgreSQL), each process running :func:`workbench.experiment.sweep.scheduler.run_study`
-  (heartbeats, stale checks, exact budgets) on one shared study; a trial is three "inner
-  folds" of ``--fold-s`` seconds of sleep, so the numbers show the scheduler and the storage,
-  not the cores. PostgreSQL (pgserver) and ``mlflow server`` start as in tests/services.py;
+  file, SQLite, PostgreSQL), each process running
+  :func:`workbench.experiment.sweep.scheduler.run_study` (heartbeats, stale checks, exact
+  budgets) on one shared study; a trial is three "inner folds" of ``--fold-s`` seconds of
+  sleep, so the numbers show the scheduler and the storage, not the cores. PostgreSQL (pgserver) and ``mlflow server`` start as in tests/services.py;
   then the median time to log one trial as a child run against local SQLite and the server.
   Not part of the default run: ``--only storages``.
 """

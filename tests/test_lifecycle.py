@@ -14,7 +14,6 @@ import optuna
 import pytest
 from mlflow import MlflowClient
 from optuna.trial import TrialState
-from services import command_env, free_port, tiny_sweep, workbench_cmd
 
 from workbench.experiment import lifecycle
 from workbench.experiment.cli import main
@@ -22,6 +21,8 @@ from workbench.experiment.errors import redact
 from workbench.experiment.sweep.scheduler import claim_stream, fail_stale, is_counted, run_study
 from workbench.experiment.sweep.storage import STREAMS, open_storage
 from workbench.experiment.tracking import Tracker
+
+from services import command_env, free_port, tiny_sweep, workbench_cmd
 
 
 @pytest.fixture(scope="module")

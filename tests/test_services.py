@@ -12,10 +12,11 @@ from collections import Counter
 import optuna
 import pytest
 from optuna.trial import TrialState
-from services import MlflowServer, Postgres, command_env, tiny_sweep, workbench_cmd
 
 from workbench.experiment.sweep.scheduler import is_counted
 from workbench.experiment.sweep.storage import STREAMS
+
+from services import MlflowServer, Postgres, command_env, tiny_sweep, workbench_cmd
 
 PASSWORD = "s3cret-pw"
 
@@ -156,9 +157,9 @@ def test_dashboard_serves_the_studies_on_loopback(tmp_path):
     import json
     import urllib.request
 
-    from services import free_port
-
     from workbench.experiment.sweep.storage import dashboard_command, open_storage
+
+    from services import free_port
 
     study = optuna.create_study(study_name="tiny.measured_E1.final",
                                 storage=open_storage("s.journal", tmp_path))

@@ -12,11 +12,12 @@ from pathlib import Path
 import optuna
 import pytest
 from optuna.trial import TrialState
-from services import free_port, tiny_sweep
 
 from workbench.experiment.cli import main
 from workbench.experiment.sweep.scheduler import is_counted
 from workbench.experiment.sweep.storage import STREAMS, JournalDamaged, open_storage, repair_journal
+
+from services import free_port, tiny_sweep
 
 SECRET = "s3cret"
 
@@ -178,7 +179,7 @@ def test_existing_store_in_a_read_only_directory(project, capsys, read_only):
     from workbench.experiment.tracking import Tracker
 
     store = project / "store"
-    Tracker(f"sqlite:///{store}/mlflow.db", "tiny").experiment_id  # the store exists
+    assert Tracker(f"sqlite:///{store}/mlflow.db", "tiny").experiment_id  # the store exists
     read_only(store)
     before = _files(project)
     code, err = _run(["sweep", "tiny.toml", "--tracking-uri", f"sqlite:///{store}/mlflow.db"],

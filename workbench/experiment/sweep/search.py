@@ -69,6 +69,7 @@ class Sweep:
 
     @property
     def outer_folds(self) -> list[OuterFold]:
+        assert self.result.sweep is not None  # a sweep's result has its summary
         return self.result.sweep.outer_folds
 
 
@@ -201,10 +202,11 @@ def run_sweep(cfg: ExperimentConfig, *, progress: bool = True,
     best: dict[str, dict[str, Any] | None] = {}
     params_of = {spec.name: _best_params(studies[spec.name]) for spec in specs}
     # the outer folds' refits: independent, on the command's worker processes
-    refits = [spec for spec in specs if spec.fold is not None and params_of[spec.name]]
-    refitted = dict(zip((spec.name for spec in refits), map_tasks(
+    refits = [(spec, spec.fold) for spec in specs
+              if spec.fold is not None and params_of[spec.name]]
+    refitted = dict(zip((spec.name for spec, _ in refits), map_tasks(
         [Task(family.refit_predict, cfg, ds, spec.targets, params_of[spec.name], X_all, Y_all,
-              *outer[spec.fold]) for spec in refits], cfg.jobs)))
+              *outer[fold]) for spec, fold in refits], cfg.jobs)))
     for spec in specs:
         params = params_of[spec.name]
         if spec.fold is None:

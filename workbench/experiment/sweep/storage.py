@@ -108,7 +108,8 @@ def _what(record: dict) -> str:
         name = record["study_name"]
         return f"study {name if len(name) <= 40 else name[:37] + '...'} created"
     if op == 6:
-        return _STATES.get(record.get("state"), _OPS[op])
+        state = record.get("state")
+        return _STATES.get(state, _OPS[op]) if isinstance(state, int) else _OPS[op]
     return _OPS[op]
 
 
@@ -159,15 +160,16 @@ def _id_gap(records: list[dict]) -> int | None:
     for i, r in enumerate(records):
         op, sid, tid = r["op_code"], r.get("study_id"), r.get("trial_id")
         if op == 0:
-            if r.get("study_name") not in studies.values():
-                studies[next_study] = r.get("study_name")
+            name = r.get("study_name")
+            if isinstance(name, str) and name not in studies.values():
+                studies[next_study] = name
                 next_study += 1
             continue
         if sid is not None and not (isinstance(sid, int) and 0 <= sid < next_study):
             return i
         if tid is not None and not (isinstance(tid, int) and 0 <= tid < n_trials):
             return i
-        if op == 1:
+        if op == 1 and isinstance(sid, int):
             studies.pop(sid, None)
         elif op == 4 and sid in studies:
             n_trials += 1
@@ -587,8 +589,9 @@ def heartbeat_enabled(study: optuna.Study) -> bool:
 def beat(study: optuna.Study, trial: optuna.Trial) -> None:
     """One heartbeat of a running trial: Optuna's own on an RDB storage, a user attribute on
     the journal file."""
-    if heartbeat_enabled(study):
-        study._storage.record_heartbeat(trial._trial_id)
+    storage = study._storage
+    if isinstance(storage, optuna.storages.RDBStorage) and heartbeat_enabled(study):
+        storage.record_heartbeat(trial._trial_id)
     else:
         trial.set_user_attr("heartbeat", time.time())
 
