@@ -17,9 +17,10 @@ machine is shared: read the ratios beside the load).
   file, SQLite, PostgreSQL), each process running
   :func:`workbench.experiment.sweep.scheduler.run_study` (heartbeats, stale checks, exact
   budgets) on one shared study; a trial is three "inner folds" of ``--fold-s`` seconds of
-  sleep, so the numbers show the scheduler and the storage, not the cores. PostgreSQL (pgserver) and ``mlflow server`` start as in tests/services.py;
-  then the median time to log one trial as a child run against local SQLite and the server.
-  Not part of the default run: ``--only storages``.
+  sleep, so the numbers show the scheduler and the storage, not the cores. PostgreSQL
+  (pgserver) and ``mlflow server`` start as in tests/services.py; then the median time to
+  log one trial as a child run against local SQLite and the server. Not part of the default
+  run: ``--only storages``.
 """
 
 import argparse
