@@ -134,7 +134,7 @@ def run_overhead(uri: str, runs: int) -> float:
     import optuna
 
     from workbench.experiment.lifecycle import TrialRecorder
-    from workbench.experiment.tracking import Tracker
+    from workbench.experiment.tracking.runs import Tracker
 
     tracker = Tracker(uri, "bench")
     parent = tracker.start_run("parent")

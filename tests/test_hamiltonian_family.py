@@ -13,7 +13,7 @@ from PIL import Image
 from workbench.experiment.cli import main
 from workbench.experiment.config import ConfigError, load_config, load_dataset, parse_config
 from workbench.experiment.evaluate import evaluate
-from workbench.experiment.tracking import Tracker
+from workbench.experiment.tracking.runs import Tracker
 from workbench.fitted_prior import FittedPriorBoost
 from workbench.param_boost import HamiltonianParameterRegressor
 from workbench.param_select import HamiltonianSelectionCV

@@ -15,12 +15,12 @@ import pytest
 from mlflow import MlflowClient
 from optuna.trial import TrialState
 
-from workbench.experiment import lifecycle
+from workbench.experiment import lifecycle, signals
 from workbench.experiment.cli import main
 from workbench.experiment.errors import redact
 from workbench.experiment.sweep.scheduler import claim_stream, fail_stale, is_counted, run_study
 from workbench.experiment.sweep.storage import STREAMS, open_storage
-from workbench.experiment.tracking import Tracker
+from workbench.experiment.tracking.runs import Tracker
 
 from services import command_env, free_port, tiny_sweep, workbench_cmd
 
@@ -165,9 +165,9 @@ def test_an_interrupt_inside_bookkeeping_is_raised_after_it(signum):
     once the block is left: no trial is left RUNNING by an interrupt between ``ask`` and its
     objective (seen on a fresh clone: a SIGINT right after a trial line)."""
     done = []
-    with pytest.raises(lifecycle.Interrupted):
-        with lifecycle.handle_signals():
-            with lifecycle.interrupts_deferred():
+    with pytest.raises(signals.Interrupted):
+        with signals.handle_signals():
+            with signals.interrupts_deferred():
                 os.kill(os.getpid(), signum)
                 time.sleep(0.2)  # the handler ran meanwhile
                 done.append("block finished")
@@ -183,8 +183,8 @@ def test_an_interrupt_does_not_wait_for_mlflow_s_retries(monkeypatch):
     monkeypatch.setenv("MLFLOW_HTTP_REQUEST_MAX_RETRIES", "8")  # MLflow allows at most 10
     timer = threading.Timer(1.0, os.kill, (os.getpid(), signal.SIGINT))
     start = time.monotonic()
-    with pytest.raises(lifecycle.Interrupted):
-        with lifecycle.handle_signals():
+    with pytest.raises(signals.Interrupted):
+        with signals.handle_signals():
             timer.start()
             MlflowClient("http://127.0.0.1:9").search_experiments()  # discard port: refused
     assert time.monotonic() - start < 10

@@ -185,7 +185,7 @@ def test_check_inputs_names_the_problem_in_one_line():
 
 @pytest.fixture(scope="module")
 def logged_interval_model(bench):
-    from workbench.experiment.tracking import Tracker
+    from workbench.experiment.tracking.runs import Tracker
 
     tracker = Tracker(bench.uri, "pyfunc")  # the module's store (created once)
     X = pd.DataFrame({"a": [1.0, 2.0, 3.0], "b": [0.5, 0.25, 0.0]})
@@ -318,7 +318,7 @@ def test_registered_version_carries_config_dataset_and_metrics(bench):
 
 
 def test_a_new_registration_moves_the_champion_alias(bench):
-    from workbench.experiment.tracking import Tracker
+    from workbench.experiment.tracking.runs import Tracker
 
     tracker = Tracker(bench.uri, "predict_test")
     version = tracker.register_model(bench.result["mlflow"]["model_uri"], NAME,
@@ -408,7 +408,7 @@ def test_shipped_configs_predict_reproduces_evaluate(config, google_5q_dir, tmp_
 def test_an_existing_experiment_becomes_a_model_training_one(bench):
     from mlflow import MlflowClient
 
-    from workbench.experiment.tracking import Tracker
+    from workbench.experiment.tracking.runs import Tracker
 
     uri = bench.uri  # the module's store (created once)
     client = MlflowClient(uri)

@@ -176,7 +176,7 @@ def test_one_line_before_any_work_and_nothing_written(project, capsys, read_only
 def test_existing_store_in_a_read_only_directory(project, capsys, read_only):
     """An existing SQLite store whose directory became read-only: one line, not
     PermissionError on mlflow.db.lock."""
-    from workbench.experiment.tracking import Tracker
+    from workbench.experiment.tracking.runs import Tracker
 
     store = project / "store"
     assert Tracker(f"sqlite:///{store}/mlflow.db", "tiny").experiment_id  # the store exists

@@ -19,16 +19,17 @@ import pandas as pd
 import pytest
 
 import workbench
-from workbench.experiment.tracking import (
+from workbench.experiment.errors import TrackingError
+from workbench.experiment.tracking.records import dataset_hash, git_commit
+from workbench.experiment.tracking.runs import (
     SKIPPED_METRICS_TAG,
     TRUNCATED_PARAMS_TAG,
     Tracker,
-    TrackingError,
-    dataset_hash,
+    ensure_store,
+)
+from workbench.experiment.tracking.uris import (
     default_artifact_root,
     default_tracking_uri,
-    ensure_store,
-    git_commit,
     resolve_tracking_uri,
 )
 
@@ -388,7 +389,8 @@ def test_dataset_hash_stable_and_sensitive(data):
     X2.iloc[3, 1] += 1e-9
     assert dataset_hash(X2, Y) != h
     assert dataset_hash(Y, X) != h
-    code = ("import sys, pandas as pd; from workbench.experiment.tracking import dataset_hash; "
+    code = ("import sys, pandas as pd; "
+            "from workbench.experiment.tracking.records import dataset_hash; "
             "print(dataset_hash(pd.DataFrame({'a': [1.0, 2.5], 'b': ['x', 'y']})))")
     other_process = subprocess.run([sys.executable, "-c", code], capture_output=True,
                                    text=True, check=True).stdout.strip()

@@ -40,7 +40,7 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
 __all__ = ["Task", "die_with_parent", "effective_n_jobs", "gather", "in_worker", "init_worker",
-           "map_tasks", "one_thread_env",
+           "map_tasks", "one_thread_env", "pid_alive",
            "prioritised", "run_plans", "start_workers", "start_fork_server",
            "worker_pool"]
 
@@ -98,6 +98,17 @@ def in_worker() -> bool:
 # --------------------------------------------------------------------------- workers
 
 
+def pid_alive(pid: int) -> bool:
+    """Whether process ``pid`` exists (on this host; another user's counts)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
 def die_with_parent(parent: int, sig: int = signal.SIGKILL) -> None:
     """End this process with ``sig`` when its parent ends (Linux's ``PR_SET_PDEATHSIG``: the
     process that started this one, i.e. ``parent`` itself when forked from it, or the fork
@@ -110,12 +121,8 @@ def die_with_parent(parent: int, sig: int = signal.SIGKILL) -> None:
             libc.prctl(1, sig)  # PR_SET_PDEATHSIG
         except (OSError, AttributeError):
             pass
-    try:
-        os.kill(parent, 0)
-    except ProcessLookupError:  # the parent died before prctl
+    if not pid_alive(parent):  # the parent died before prctl
         os._exit(128 + sig)
-    except PermissionError:
-        pass
 
 
 def init_worker(parent: int, *, pool: bool = True) -> None:

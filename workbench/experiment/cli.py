@@ -56,7 +56,7 @@ def _check_before_work(cfg, args, storage: str | None = None, hint: str | None =
     tracker = None
     if not args.no_track:
         from .record import tracker_for
-        from .tracking import check_store_uri
+        from .tracking.uris import check_store_uri
 
         tracker = tracker_for(cfg, args.tracking_uri)
         check_store_uri(tracker.tracking_uri)  # writes nothing
@@ -99,7 +99,7 @@ def _repair_hint(args) -> str:
 
 
 def _cmd_ui(args) -> int:
-    from .tracking import resolve_tracking_uri
+    from .tracking.uris import resolve_tracking_uri
 
     uri = resolve_tracking_uri(args.tracking_uri, None, Path.cwd())
     cmds = [ui_command(uri, args.port)]
@@ -135,9 +135,9 @@ def ui_command(tracking_uri: str, port: int) -> list[str]:
     cmd = [sys.executable, "-m", "mlflow", "server", "--backend-store-uri", tracking_uri,
            "--host", "127.0.0.1", "--port", str(port)]
     if tracking_uri.startswith("sqlite:///"):
-        from .tracking import _sqlite_path
+        from .tracking.uris import sqlite_path
 
-        path = _sqlite_path(tracking_uri)  # None for an in-memory database: no folder
+        path = sqlite_path(tracking_uri)  # None for an in-memory database: no folder
         if path is not None:
             root = path.parent / "artifacts"
             cmd += ["--default-artifact-root", root.resolve().as_uri()]
@@ -153,7 +153,8 @@ def _cmd_reproduce(args) -> int:
     check_dir(args.out, "--out")
     tracker = None
     if not args.no_track:  # every store checked before any work, nothing written until then
-        from .tracking import Tracker, check_store_uri, resolve_tracking_uri
+        from .tracking.runs import Tracker
+        from .tracking.uris import check_store_uri, resolve_tracking_uri
 
         tracker = Tracker(resolve_tracking_uri(args.tracking_uri, None, Path.cwd()),
                           "paper-reproduction")
@@ -320,7 +321,7 @@ def _cmd_evaluate(args) -> int:
 
 def _cmd_predict(args) -> int:
     from .predict import predict_csv
-    from .tracking import resolve_tracking_uri
+    from .tracking.uris import resolve_tracking_uri
 
     uri = resolve_tracking_uri(args.tracking_uri, None, Path.cwd())
     done = predict_csv(args.model, args.data, args.out, tracking_uri=uri)
@@ -543,7 +544,7 @@ def main(argv: list[str] | None = None) -> int:
     args.argv = list(sys.argv[1:] if argv is None else argv)
     setup_logging()
     from ..datasets import DatasetError, DataUnavailableError
-    from .lifecycle import MESSAGE, handle_signals
+    from .signals import MESSAGE, handle_signals
 
     try:
         with handle_signals():  # SIGINT/SIGTERM: runs end KILLED, one line, exit 130/143

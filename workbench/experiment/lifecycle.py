@@ -1,8 +1,9 @@
 """Lifecycle of the MLflow runs of ``evaluate`` and ``sweep``: never left RUNNING.
 
-* :func:`handle_signals`: SIGINT and SIGTERM raise :class:`Interrupted` (a
-  ``KeyboardInterrupt``) in the main thread, so the command unwinds, ends its run ``KILLED``
-  and exits 130 / 143 with the one line :data:`MESSAGE` (no traceback).
+(Signals: :mod:`~workbench.experiment.signals`; an interrupted command's run ends
+``KILLED``.)
+
+* :func:`live_run`: :meth:`Tracker.run` with this process's host, pid and a heartbeat.
 * :func:`command_run`: the command's parent run, created before any work (a sweep's search is
   visible in MLflow while it runs), with a heartbeat tag that a background thread refreshes;
   ``FINISHED``, ``KILLED`` (interrupt) or ``FAILED`` (error) at the end.
@@ -11,8 +12,7 @@
   and is gone, else once its heartbeat is older than :data:`RUN_GRACE_S`.
 * :func:`prepare_store`: a new SQLite store is created and migrated by one process at a time
   (a file lock beside the database), so concurrent first commands do not race in alembic;
-  an unusable store is one line before anything is written (:func:`driver_hint` says what
-  to install for a missing database driver).
+  an unusable store is one line before anything is written.
 * :class:`TrialRecorder`: a sweep's trials become child runs as they finish.
 """
 
@@ -20,84 +20,24 @@ from __future__ import annotations
 
 import contextlib
 import os
-import signal
 import socket
 import threading
 import time
 from collections.abc import Iterator, Mapping
 from typing import TYPE_CHECKING, Any
 
+from ..parallel import pid_alive
+from .signals import interrupts_deferred
+
 if TYPE_CHECKING:  # mlflow is imported only where a run is touched
-    from .tracking import Tracker
+    from .tracking.runs import Tracker
 
-__all__ = ["Interrupted", "MESSAGE", "TrialRecorder", "command_run",
-           "handle_signals", "interrupts_deferred", "prepare_store", "reap_stale_runs"]
+__all__ = ["TrialRecorder", "command_run", "live_run", "prepare_store", "reap_stale_runs"]
 
-MESSAGE = "interrupted; run the same command to resume"
 #: Seconds between a live run's heartbeats, and after which a silent run counts as dead.
 RUN_HEARTBEAT_S = float(os.environ.get("WORKBENCH_RUN_HEARTBEAT_S", 30))
 RUN_GRACE_S = 4 * RUN_HEARTBEAT_S
 HOST_TAG, PID_TAG, HEARTBEAT_TAG = "workbench.host", "workbench.pid", "workbench.heartbeat"
-
-
-class Interrupted(KeyboardInterrupt):
-    """SIGINT or SIGTERM; ``code`` is the exit code (128 + signal number)."""
-
-    def __init__(self, signum: int):
-        super().__init__(signal.Signals(signum).name)
-        self.code = 128 + signum
-
-
-_DEFERRING = [0]  # depth of the main thread's enclosing ``interrupts_deferred`` blocks
-_PENDING: list[int] = []  # a signal that arrived inside them
-
-
-@contextlib.contextmanager
-def interrupts_deferred() -> Iterator[None]:
-    """Under :func:`handle_signals`, a SIGINT or SIGTERM that arrives while the main thread is
-    inside the block is raised once the outermost block is left (bookkeeping that must not
-    stop half-way: a trial asked from the storage but not yet running, or run but not yet
-    told; an append to the Optuna journal under its file lock; a new store's migration).
-    In other threads the block does nothing (signals interrupt the main thread only)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    _DEFERRING[0] += 1
-    try:
-        yield
-    finally:
-        _DEFERRING[0] -= 1
-    if _DEFERRING[0] == 0 and _PENDING:  # the block completed: the signal now
-        raise Interrupted(_PENDING.pop())
-
-
-@contextlib.contextmanager
-def handle_signals() -> Iterator[None]:
-    """SIGINT and SIGTERM raise :class:`Interrupted` in the main thread (once: further
-    signals are ignored while the command cleans up), or, inside
-    :func:`interrupts_deferred`, when that block is left. Any other code (e.g. MLflow's
-    requests and their retries, a database call) is interrupted where it is: its stores
-    roll back what was not committed."""
-    fired: list[int] = []
-
-    def handler(signum, frame):
-        if fired:
-            return
-        if _DEFERRING[0]:
-            _PENDING.append(signum)
-            fired.append(signum)
-            return
-        fired.append(signum)
-        raise Interrupted(signum)
-
-    signals = (signal.SIGINT, signal.SIGTERM)
-    old = {s: signal.signal(s, handler) for s in signals}
-    try:
-        yield
-    finally:
-        _PENDING.clear()
-        for s, h in old.items():
-            signal.signal(s, h)
 
 
 # --------------------------------------------------------------------------- stores
@@ -106,9 +46,9 @@ def handle_signals() -> Iterator[None]:
 @contextlib.contextmanager
 def _first_use_lock(uri: str) -> Iterator[None]:
     """An exclusive lock on ``<db>.lock`` beside a SQLite store (no-op for other stores)."""
-    from .tracking import _sqlite_path
+    from .tracking.uris import sqlite_path
 
-    path = _sqlite_path(uri)
+    path = sqlite_path(uri)
     if path is None or path.is_dir():
         yield
         return
@@ -133,10 +73,10 @@ def _first_use_lock(uri: str) -> Iterator[None]:
 
 def prepare_store(tracker: Tracker) -> str:
     """Create (and migrate) the tracking store and the experiment, one process at a time;
-    returns the experiment id. Raises :class:`~workbench.experiment.tracking.TrackingError`
+    returns the experiment id. Raises :class:`~workbench.experiment.errors.TrackingError`
     (before anything is written when the store cannot be used: an unknown scheme, a missing
     database driver, a read-only directory, an unreachable server)."""
-    from .tracking import check_store_uri
+    from .tracking.uris import check_store_uri
 
     check_store_uri(tracker.tracking_uri)
     # a Ctrl-C waits for a new store's migration (a half-migrated database would not open)
@@ -145,16 +85,6 @@ def prepare_store(tracker: Tracker) -> str:
 
 
 # --------------------------------------------------------------------------- runs
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
 
 
 def reap_stale_runs(tracker: Tracker, grace_s: float | None = None) -> list[str]:
@@ -175,7 +105,7 @@ def reap_stale_runs(tracker: Tracker, grace_s: float | None = None) -> list[str]
             continue
         pid = tags.get(PID_TAG, "")
         dead = (tags.get(HOST_TAG) == host and pid.isdigit() and int(pid) != os.getpid()
-                and not _alive(int(pid)))
+                and not pid_alive(int(pid)))
         silent = now - float(tags[HEARTBEAT_TAG]) > grace
         if dead or silent:
             why = "its process is gone" if dead else f"no heartbeat for {grace:.0f} s"
@@ -217,46 +147,16 @@ def every(interval: float, beat, name: str = "heartbeat") -> Iterator[None]:
 @contextlib.contextmanager
 def live_run(tracker: Tracker, name: str, *, tags: Mapping[str, Any] | None = None,
              interval: float | None = None) -> Iterator[str]:
-    """A run that exists while the block runs, with a heartbeat; ended ``FINISHED``,
-    ``KILLED`` on ``KeyboardInterrupt`` (:class:`Interrupted`), ``FAILED`` otherwise."""
+    """:meth:`Tracker.run` (ended ``FINISHED``, ``KILLED`` on ``KeyboardInterrupt``,
+    ``FAILED`` otherwise) with this process's host and pid and a heartbeat tag that a
+    background thread refreshes while the block runs (:func:`reap_stale_runs` reads them)."""
     all_tags = dict(tags or {})
     all_tags.update({HOST_TAG: socket.gethostname(), PID_TAG: str(os.getpid()),
                      HEARTBEAT_TAG: f"{time.time():.0f}"})
-    run_id = tracker.start_run(name, tags=all_tags)
-    status = "FINISHED"
-    try:
-        with every(interval or RUN_HEARTBEAT_S, name="run-heartbeat",
-                   beat=lambda: tracker.set_tags(run_id, {HEARTBEAT_TAG: f"{time.time():.0f}"})):
-            yield run_id
-    except KeyboardInterrupt:
-        status = "KILLED"
-        raise
-    except BaseException:
-        status = "FAILED"
-        raise
-    finally:
-        with _ignoring_signals():
-            try:
-                tracker.end_run(run_id, status)
-            except Exception as exc:  # never mask the original error
-                import logging
-
-                logging.getLogger(__name__).warning("could not mark run %s %s: %s", run_id,
-                                                    status, exc)
-
-
-@contextlib.contextmanager
-def _ignoring_signals() -> Iterator[None]:
-    """Let the run's end be written even if a second Ctrl-C arrives."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    old = {s: signal.signal(s, signal.SIG_IGN) for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield
-    finally:
-        for s, h in old.items():
-            signal.signal(s, h)
+    with tracker.run(name, tags=all_tags) as run_id, \
+            every(interval or RUN_HEARTBEAT_S, name="run-heartbeat",
+                  beat=lambda: tracker.set_tags(run_id, {HEARTBEAT_TAG: f"{time.time():.0f}"})):
+        yield run_id
 
 
 @contextlib.contextmanager

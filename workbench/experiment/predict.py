@@ -65,15 +65,16 @@ def resolve_model(spec: str, tracking_uri: str) -> str:
                          "a model directory")
     from mlflow.exceptions import MlflowException
 
-    from .tracking import Tracker, _describe_store, _sqlite_path
+    from .tracking.runs import Tracker
+    from .tracking.uris import describe_store, sqlite_path
 
-    db = _sqlite_path(tracking_uri)
+    db = sqlite_path(tracking_uri)
     if db is not None and not db.is_file():
         raise UsageError(f"model {spec!r}: no MLflow store at {db} (give --tracking-uri or "
                          "set MLFLOW_TRACKING_URI)")
     tracker = Tracker(tracking_uri, "Default")
     client = tracker.client
-    where = _describe_store(tracking_uri)
+    where = describe_store(tracking_uri)
     try:
         with tracker._errors():
             model_id = _model_id(client, spec)

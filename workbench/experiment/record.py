@@ -25,7 +25,10 @@ from .figures import mae_bars
 from .intervals import family_model, interval_artifacts
 from .results import INTERVAL_KEYS, Result
 from .serving import prediction_frame
-from .tracking import CHAMPION, Tracker, dataset_hash, git_commit, resolve_tracking_uri
+from .tracking.models import CHAMPION
+from .tracking.records import dataset_hash, git_commit
+from .tracking.runs import Tracker
+from .tracking.uris import resolve_tracking_uri
 
 __all__ = ["record", "tracker_for"]
 

@@ -39,7 +39,9 @@ from .figures import (
 )
 from .intervals import family_model
 from .results import Result
-from .tracking import Tracker, dataset_hash, git_commit, resolve_tracking_uri
+from .tracking.records import dataset_hash, git_commit
+from .tracking.runs import Tracker
+from .tracking.uris import resolve_tracking_uri
 
 __all__ = ["PAPER_SIZES", "REFERENCE", "TABULA_RASA", "Reproduction", "report", "reproduce"]
 

@@ -38,7 +38,9 @@ import optuna
 from optuna.exceptions import ExperimentalWarning, UpdateFinishedTrialError
 from optuna.trial import FrozenTrial, TrialState
 
-from ..lifecycle import every, interrupts_deferred
+from ...parallel import pid_alive
+from ..lifecycle import every
+from ..signals import interrupts_deferred
 from .storage import (
     STREAMS,
     beat,
@@ -122,22 +124,12 @@ def fail_stale(study: optuna.Study, stale_after_s: float) -> None:
     for t in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
         worker = t.user_attrs.get("worker", "")
         w_host, _, w_pid = worker.rpartition(":")
-        dead = w_host == host and w_pid.isdigit() and not _alive(int(w_pid))
+        dead = w_host == host and w_pid.isdigit() and not pid_alive(int(w_pid))
         started = t.datetime_start.timestamp() if t.datetime_start else now
         old = (not heartbeat_enabled(study)
                and now - t.user_attrs.get("heartbeat", started) > stale_after_s)
         if dead or old:
             _fail_and_retry(study, t.number)
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
 
 
 def _best_value(study: optuna.Study) -> float | None:

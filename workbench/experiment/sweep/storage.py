@@ -30,7 +30,7 @@ from optuna.exceptions import ExperimentalWarning
 from optuna.trial import FrozenTrial
 
 from ..errors import StorageError, driver_hint, redact
-from ..lifecycle import interrupts_deferred
+from ..signals import interrupts_deferred
 
 log = logging.getLogger("workbench")
 

@@ -26,7 +26,7 @@ EXIT_SIGINT, EXIT_SIGTERM = 130, 143
 def _worker(search: Callable, cfg, storage_url: str, index: int, show: bool, parent: int,
             on_trial) -> None:
     from ...parallel import init_worker
-    from ..lifecycle import handle_signals
+    from ..signals import handle_signals
 
     # its fits serial (the sweep's processes are the parallelism), one BLAS thread, and a
     # SIGTERM when the command's process ends (its running trial is failed and queued)

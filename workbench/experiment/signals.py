@@ -1,0 +1,96 @@
+"""Signals of a command: SIGINT and SIGTERM end it cleanly.
+
+* :func:`handle_signals`: they raise :class:`Interrupted` (a ``KeyboardInterrupt``) in the
+  main thread, so the command unwinds, ends its runs ``KILLED`` and exits 130 / 143 with the
+  one line :data:`MESSAGE` (no traceback).
+* :func:`interrupts_deferred`: bookkeeping that must not stop half-way (a trial being asked
+  or told, an append to the Optuna journal under its lock, a new store's migration) gets
+  the signal as it ends.
+* :func:`ignoring_signals`: a run's end is written even if a second Ctrl-C arrives.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import threading
+from collections.abc import Iterator
+
+__all__ = ["Interrupted", "MESSAGE", "handle_signals", "ignoring_signals",
+           "interrupts_deferred"]
+
+MESSAGE = "interrupted; run the same command to resume"
+
+
+class Interrupted(KeyboardInterrupt):
+    """SIGINT or SIGTERM; ``code`` is the exit code (128 + signal number)."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.code = 128 + signum
+
+
+_DEFERRING = [0]  # depth of the main thread's enclosing ``interrupts_deferred`` blocks
+_PENDING: list[int] = []  # a signal that arrived inside them
+
+
+@contextlib.contextmanager
+def interrupts_deferred() -> Iterator[None]:
+    """Under :func:`handle_signals`, a SIGINT or SIGTERM that arrives while the main thread is
+    inside the block is raised once the outermost block is left (bookkeeping that must not
+    stop half-way: a trial asked from the storage but not yet running, or run but not yet
+    told; an append to the Optuna journal under its file lock; a new store's migration).
+    In other threads the block does nothing (signals interrupt the main thread only)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    _DEFERRING[0] += 1
+    try:
+        yield
+    finally:
+        _DEFERRING[0] -= 1
+    if _DEFERRING[0] == 0 and _PENDING:  # the block completed: the signal now
+        raise Interrupted(_PENDING.pop())
+
+
+@contextlib.contextmanager
+def handle_signals() -> Iterator[None]:
+    """SIGINT and SIGTERM raise :class:`Interrupted` in the main thread (once: further
+    signals are ignored while the command cleans up), or, inside
+    :func:`interrupts_deferred`, when that block is left. Any other code (e.g. MLflow's
+    requests and their retries, a database call) is interrupted where it is: its stores
+    roll back what was not committed."""
+    fired: list[int] = []
+
+    def handler(signum, frame):
+        if fired:
+            return
+        if _DEFERRING[0]:
+            _PENDING.append(signum)
+            fired.append(signum)
+            return
+        fired.append(signum)
+        raise Interrupted(signum)
+
+    signals = (signal.SIGINT, signal.SIGTERM)
+    old = {s: signal.signal(s, handler) for s in signals}
+    try:
+        yield
+    finally:
+        _PENDING.clear()
+        for s, h in old.items():
+            signal.signal(s, h)
+
+
+@contextlib.contextmanager
+def ignoring_signals() -> Iterator[None]:
+    """Let the run's end be written even if a second Ctrl-C arrives."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = {s: signal.signal(s, signal.SIG_IGN) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)

@@ -1,0 +1,45 @@
+"""MLflow tracking for experiments: runs (nested), params, metrics, artifacts and models.
+
+Part of the experiment layer: it imports MLflow, the core (:mod:`workbench`) never imports it.
+
+Everything goes through an explicit :class:`mlflow.MlflowClient` bound to one tracking URI;
+MLflow's global state (tracking URI, active run, experiment) is neither read nor changed
+(models are saved with ``mlflow.pyfunc.save_model`` and uploaded through the client, so no
+active run is needed).
+
+The default store is a SQLite file plus a local artifact directory inside the project::
+
+    <root>/mlruns/mlflow.db          runs, params, metrics, tags   (sqlite:///...)
+    <root>/mlruns/artifacts/         figures, tables, models        (file:///...)
+
+Several processes may write to the same SQLite store; create it once with
+:func:`ensure_store` before starting them (parallel schema migrations race). MLflow waits up
+to 20 s for a locked database during normal operations (hard-coded ``busy_timeout``); the
+first connection of a process uses SQLite's connect timeout (5 s, or ``?timeout=<s>`` in the
+URI, e.g. ``sqlite:////abs/mlflow.db?timeout=30``). Store problems (locked or corrupt
+database, unreachable server, out-of-date schema) raise :class:`TrackingError` naming the
+store; the store itself is never deleted or rewritten.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import TYPE_CHECKING, Any
+
+# MLflow prints "View run ... at <url>" to stdout whenever a run ends against a tracking server:
+# one line per trial in a sweep. The workbench reports runs itself.
+os.environ.setdefault("MLFLOW_SUPPRESS_PRINTING_URL_TO_STDOUT", "true")
+
+# The package's rooms: uris (where the store is, checked before any work), translate (store
+# errors as one line), runs (Tracker), models (logged, registered, loaded models), records
+# (hashes, commits, MLflow's value limits). Import from them.
+
+
+if not TYPE_CHECKING:  # type checkers see the package's real names only
+
+    def __getattr__(name: str) -> Any:
+        if name == "_PyfuncModel":  # models logged before serving.WorkbenchModel pickle it
+            from .models import LegacyPyfuncModel
+
+            return LegacyPyfuncModel
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

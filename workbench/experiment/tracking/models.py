@@ -1,0 +1,203 @@
+"""Models in the store: a fitted model logged as an MLflow pyfunc model (the ``workbench``
+package travels with it), registered with an alias, and loaded back."""
+
+from __future__ import annotations
+
+import contextlib
+import importlib.metadata
+import logging
+import shutil
+import tempfile
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import mlflow
+import numpy as np
+import pandas as pd
+from mlflow.entities import LoggedModelOutput
+from mlflow.exceptions import MlflowException
+from mlflow.pyfunc import PythonModel  # not mlflow.pyfunc.PythonModel: mypy sees a LazyLoader
+
+from ..errors import TrackingError
+from .records import tag_value
+
+if TYPE_CHECKING:
+    from mlflow import MlflowClient
+
+__all__ = ["CHAMPION", "MODEL_REQUIREMENTS", "ModelRecords"]
+
+#: The alias the newest registered version gets (aliases, not the deprecated stages).
+CHAMPION = "champion"
+#: Distributions pinned in a logged model's requirements (those installed).
+MODEL_REQUIREMENTS = ("mlflow", "cloudpickle", "numpy", "pandas", "scipy", "scikit-learn",
+                      "lightgbm", "joblib")
+
+
+def _requirements() -> list[str]:
+    reqs = []
+    for dist in MODEL_REQUIREMENTS:
+        try:
+            reqs.append(f"{dist}=={importlib.metadata.version(dist)}")
+        except importlib.metadata.PackageNotFoundError:
+            pass
+    return reqs
+
+
+class _DropMessages(logging.Filter):
+    """Drop log records containing one of ``texts`` (MLflow's notices for deliberate choices)."""
+
+    def __init__(self, *texts: str):
+        super().__init__()
+        self.texts = texts
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        message = record.getMessage()
+        return not any(t in message for t in self.texts)
+
+
+@contextlib.contextmanager
+def _quiet(logger_name: str, *texts: str) -> Iterator[None]:
+    log, flt = logging.getLogger(logger_name), _DropMessages(*texts)
+    log.addFilter(flt)
+    try:
+        yield
+    finally:
+        log.removeFilter(flt)
+
+
+class LegacyPyfuncModel(PythonModel):
+    """An MLflow pyfunc wrapper holding a fitted model (pickled with cloudpickle by MLflow;
+    the ``workbench`` package travels with it as ``code_paths``). Kept so that models logged
+    before :class:`~workbench.experiment.serving.WorkbenchModel` still load (their pickles
+    name ``workbench.experiment.tracking._PyfuncModel``, which the package resolves to this
+    class); new models use the latter."""
+
+    def __init__(self, model):
+        self.model = model
+
+    # A DataFrame type hint: MLflow then neither infers a schema from it nor warns about a
+    # missing hint; the logged signature (inferred from the input example) validates inputs.
+    def predict(self, context, model_input: pd.DataFrame, params: dict[str, Any] | None = None):
+        return self.model.predict(model_input)
+
+
+class ModelRecords:
+    """The model half of :class:`~workbench.experiment.tracking.runs.Tracker` (which gives
+    it ``client``, ``experiment_id`` and ``_errors``)."""
+
+    @property
+    def client(self) -> MlflowClient:
+        raise NotImplementedError
+
+    @property
+    def experiment_id(self) -> str:
+        raise NotImplementedError
+
+    def _errors(self) -> contextlib.AbstractContextManager[None]:
+        raise NotImplementedError
+
+    def log_model(self, run_id: str, model, input_example: pd.DataFrame,
+                  name: str = "model", *, targets: list[str] | None = None,
+                  texts: Mapping[str, str] | None = None) -> str:
+        """Log a fitted model (``predict(DataFrame)`` -> DataFrame or array; optionally
+        ``predict_interval``) as an MLflow pyfunc model linked to ``run_id``; returns its URI
+        ``models:/<model_id>``.
+
+        The model is cloudpickled inside :class:`~.serving.WorkbenchModel` (checks the input
+        table by column name, returns one column per target and ``<target>_lower/_upper``
+        when the model has intervals); the ``workbench`` package is stored with it
+        (``code_paths``), so it loads with ``mlflow.pyfunc.load_model`` (and serves with
+        ``mlflow models serve``) where only the pinned requirements are installed. The
+        signature names ``input_example``'s columns and the outputs; the first 5 rows are
+        the input example (the REST request's template). ``targets``: the target names
+        (default: the columns of ``model.predict``). ``texts``: file name -> text written
+        in the model directory (e.g. ``{"config.toml": ...}``, credentials redacted by the
+        caller). Requirements are pinned from the installed versions (no inference
+        subprocess)."""
+        import workbench
+
+        from ..serving import WorkbenchModel, model_signature
+
+        example = pd.DataFrame(input_example)
+        if targets is None:
+            pred = model.predict(example.head(2))
+            targets = ([str(c) for c in pred.columns] if isinstance(pred, pd.DataFrame)
+                       else [f"y{j}" for j in range(np.asarray(pred).reshape(2, -1).shape[1])])
+        wrapped = WorkbenchModel(model, list(example.columns), targets)
+        signature = model_signature(wrapped.columns, wrapped.outputs)
+        experiment_id = self.experiment_id
+        with self._errors():
+            logged = self.client.create_logged_model(experiment_id, name=name,
+                                                     source_run_id=run_id)
+        try:
+            with tempfile.TemporaryDirectory(prefix="workbench-model-") as tmp:
+                code = Path(tmp) / "code" / "workbench"
+                shutil.copytree(Path(workbench.__file__).parent, code,
+                                ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+                local = Path(tmp) / "model"
+                # cloudpickle is the deliberate choice here (the docs' "models from code" would
+                # need a script per model): silence MLflow's notice about it for this call.
+                meta = mlflow.models.Model(artifact_path=logged.artifact_location, run_id=run_id,
+                                           model_uuid=logged.model_id, model_id=logged.model_id)
+                with _quiet("mlflow.pyfunc", "serialized using CloudPickle",
+                            "Validating input example"):
+                    mlflow.pyfunc.save_model(
+                        str(local), python_model=wrapped, mlflow_model=meta,
+                        signature=signature, input_example=example.head(5),
+                        metadata={"workbench": {"inputs": wrapped.columns,
+                                                "targets": wrapped.targets,
+                                                "outputs": wrapped.outputs}},
+                        pip_requirements=_requirements(), code_paths=[str(code)])
+                for file_name, text in (texts or {}).items():  # config.toml beside MLmodel
+                    (local / file_name).write_text(text, encoding="utf-8")
+                with self._errors():
+                    self.client.log_model_artifacts(logged.model_id, str(local))
+            with self._errors():
+                self.client.log_outputs(run_id, [LoggedModelOutput(logged.model_id, step=0)])
+                self.client.finalize_logged_model(logged.model_id, "READY")
+        except BaseException:
+            with contextlib.suppress(Exception):
+                self.client.finalize_logged_model(logged.model_id, "FAILED")
+            raise
+        return f"models:/{logged.model_id}"
+
+    def register_model(self, model_uri: str, name: str, *, run_id: str | None = None,
+                       tags: Mapping[str, Any] | None = None, description: str | None = None,
+                       alias: str = CHAMPION) -> str:
+        """Register ``models:/<model_id>`` (from :meth:`log_model`) as a new version of the
+        registered model ``name`` (created if missing) in this store's Model Registry, with
+        ``tags``, and point ``alias`` at it; returns the version."""
+        model_id = model_uri.removeprefix("models:/")
+        with self._errors():
+            try:
+                self.client.create_registered_model(
+                    name, description="Registered by workbench evaluate/sweep --register")
+            except MlflowException as exc:
+                if exc.error_code not in ("RESOURCE_ALREADY_EXISTS", "ALREADY_EXISTS"):
+                    raise TrackingError(f"cannot register model {name!r}: {exc.message}") \
+                        from None
+            # the artifact location as source: MLflow's SQL registry would resolve a
+            # models:/ source through the *global* tracking URI, not this client's store
+            source = self.client.get_logged_model(model_id).artifact_location
+            version = self.client.create_model_version(
+                name, source=source, run_id=run_id, model_id=model_id,
+                tags={"model_id": model_id,
+                      **{str(k): tag_value(v) for k, v in (tags or {}).items()}},
+                description=description)
+            self.client.set_registered_model_alias(name, alias, version.version)
+        return str(version.version)
+
+    def model_artifact_uri(self, model_uri: str) -> str:
+        """The artifact location of ``models:/<model_id>`` (loadable without a tracking
+        URI, e.g. ``mlflow.pyfunc.load_model(tracker.model_artifact_uri(uri))``)."""
+        model_id = model_uri.removeprefix("models:/").split("/")[0]
+        with self._errors():
+            return self.client.get_logged_model(model_id).artifact_location
+
+    def load_model(self, model_uri: str):
+        """``mlflow.pyfunc.load_model`` for a model of this store (no global state used)."""
+        if model_uri.startswith("models:/"):
+            model_uri = self.model_artifact_uri(model_uri)
+        with self._errors():
+            return mlflow.pyfunc.load_model(model_uri)

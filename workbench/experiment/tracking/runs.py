@@ -1,0 +1,291 @@
+"""Runs in the store: :class:`Tracker`, an explicit :class:`mlflow.MlflowClient` bound to
+one tracking URI and one experiment (runs, nested runs, params, metrics, tags, artifacts,
+input datasets; its models from :class:`~.models.ModelRecords`)."""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import os
+import warnings
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+from mlflow import MlflowClient
+from mlflow.entities import Metric, Param, RunTag
+from mlflow.exceptions import MlflowException
+
+from ..errors import TrackingError, redact
+from ..signals import ignoring_signals
+from .models import ModelRecords
+from .records import now_ms, param_value, tag_value
+from .translate import duplicate_row, translate
+from .uris import (
+    check_scheme_and_driver,
+    check_server,
+    describe_store,
+    prepare_sqlite_file,
+    sqlite_path,
+)
+
+__all__ = ["Tracker", "ensure_store"]
+
+_logger = logging.getLogger("workbench.experiment.tracking")
+
+PARENT_TAG = "mlflow.parentRunId"
+SKIPPED_METRICS_TAG = "workbench.skipped_metrics"
+TRUNCATED_PARAMS_TAG = "workbench.truncated_params"
+_RUN_STATUSES = ("FINISHED", "FAILED", "KILLED")
+#: MLflow 3's UI opens an experiment without this tag in its GenAI (traces) view; this value
+#: opens it in the model-training view (runs, metrics, charts, models).
+EXPERIMENT_KIND_TAG = "mlflow.experimentKind"
+EXPERIMENT_KIND = "custom_model_development"
+
+
+class Tracker(ModelRecords):
+    """Log runs of one experiment to one tracking store through an explicit client.
+
+    Parameters
+    ----------
+    tracking_uri : str
+        E.g. :func:`default_tracking_uri` or :func:`resolve_tracking_uri`'s result.
+    experiment_name : str
+        Created on first use (with ``artifact_location=artifact_root``) if missing.
+    artifact_root : str, default=None
+        Artifact location for a new experiment. ``None``: ``artifacts/`` next to a SQLite
+        database file, the server's default otherwise. An existing experiment keeps its own.
+
+    The client is created on first use; constructing a ``Tracker`` touches nothing.
+    """
+
+    def __init__(self, tracking_uri: str, experiment_name: str, artifact_root: str | None = None):
+        self.tracking_uri = str(tracking_uri)
+        self.experiment_name = experiment_name
+        if artifact_root is None and (path := sqlite_path(self.tracking_uri)):
+            artifact_root = (path.resolve().parent / "artifacts").as_uri()
+        self.artifact_root = artifact_root
+        self._client: MlflowClient | None = None
+        self._experiment_id: str | None = None
+        self._skipped: dict[str, set[str]] = {}
+
+    def __repr__(self) -> str:
+        return (f"Tracker({redact(self.tracking_uri)!r}, {self.experiment_name!r}, "
+                f"artifact_root={self.artifact_root!r})")
+
+    def __getstate__(self):  # picklable for worker processes; the client is rebuilt there
+        state = self.__dict__.copy()
+        state["_client"] = None
+        return state
+
+    @contextlib.contextmanager
+    def _errors(self) -> Iterator[None]:
+        """Re-raise store problems as :class:`TrackingError`."""
+        try:
+            yield
+        except TrackingError:
+            raise
+        except Exception as exc:
+            err = translate(exc, self.tracking_uri)
+            if err is None:
+                raise
+            raise err from exc
+
+    @property
+    def client(self) -> MlflowClient:
+        """The :class:`mlflow.MlflowClient` (created, with its store, on first use)."""
+        if self._client is None:
+            check_scheme_and_driver(self.tracking_uri)
+            prepare_sqlite_file(self.tracking_uri)
+            check_server(self.tracking_uri)
+            with self._errors():
+                self._client = MlflowClient(self.tracking_uri)
+        return self._client
+
+    @property
+    def experiment_id(self) -> str:
+        """The experiment's id; the experiment is created if it does not exist."""
+        if self._experiment_id is None:
+            client = self.client
+            with self._errors():
+                exp = client.get_experiment_by_name(self.experiment_name)
+                if exp is None:
+                    try:
+                        client.create_experiment(self.experiment_name,
+                                                 artifact_location=self.artifact_root,
+                                                 tags={EXPERIMENT_KIND_TAG: EXPERIMENT_KIND})
+                    except MlflowException as exc:
+                        # Another process may have created it meanwhile: look it up again.
+                        if translate(exc, self.tracking_uri) is not None:
+                            raise
+                        _logger.debug("create_experiment(%r) failed (%s); looking it up again",
+                                      self.experiment_name, exc)
+                    exp = client.get_experiment_by_name(self.experiment_name)
+                    if exp is None:
+                        raise TrackingError(f"could not create experiment "
+                                            f"{self.experiment_name!r} in "
+                                            f"{describe_store(self.tracking_uri)}")
+            if exp.lifecycle_stage != "active":
+                raise TrackingError(
+                    f"experiment {self.experiment_name!r} (id {exp.experiment_id}) in "
+                    f"{describe_store(self.tracking_uri)} is deleted; restore it "
+                    f"('mlflow experiments restore --experiment-id {exp.experiment_id}') or use "
+                    "another name")
+            if EXPERIMENT_KIND_TAG not in exp.tags:  # an experiment from before the tag
+                with self._errors():
+                    client.set_experiment_tag(exp.experiment_id, EXPERIMENT_KIND_TAG,
+                                              EXPERIMENT_KIND)
+            self._experiment_id = exp.experiment_id
+        return self._experiment_id
+
+    # ----------------------------------------------------------------- runs
+
+    def start_run(self, name: str, *, parent_run_id: str | None = None,
+                  tags: Mapping[str, Any] | None = None,
+                  params: Mapping[str, Any] | None = None) -> str:
+        """Create a run (a child of ``parent_run_id`` if given) and return its id."""
+        all_tags = {str(k): tag_value(v) for k, v in (tags or {}).items()}
+        if parent_run_id:
+            all_tags[PARENT_TAG] = parent_run_id
+        experiment_id = self.experiment_id
+        with self._errors():
+            run = self.client.create_run(experiment_id, run_name=name, tags=all_tags)
+        run_id = run.info.run_id
+        if params:
+            self.log_params(run_id, params)
+        return run_id
+
+    def end_run(self, run_id: str, status: str = "FINISHED") -> None:
+        """Mark the run ``FINISHED``, ``FAILED`` or ``KILLED``."""
+        if status not in _RUN_STATUSES:
+            raise ValueError(f"status must be one of {_RUN_STATUSES}, got {status!r}")
+        with self._errors():
+            self.client.set_terminated(run_id, status=status)
+
+    @contextlib.contextmanager
+    def run(self, name: str, parent_run_id: str | None = None,
+            tags: Mapping[str, Any] | None = None,
+            params: Mapping[str, Any] | None = None) -> Iterator[str]:
+        """``with tracker.run("fold-0", parent_run_id=pid) as run_id:`` ... ends the run
+        ``FINISHED``, or ``FAILED`` (``KILLED`` on ``KeyboardInterrupt``) and re-raises."""
+        run_id = self.start_run(name, parent_run_id=parent_run_id, tags=tags, params=params)
+        try:
+            yield run_id
+        except BaseException as exc:
+            status = "KILLED" if isinstance(exc, KeyboardInterrupt) else "FAILED"
+            with ignoring_signals():  # a second Ctrl-C does not stop the end being written
+                try:
+                    self.end_run(run_id, status)
+                except Exception as end_exc:  # never mask the original error
+                    _logger.warning("could not mark run %s %s: %s", run_id, status, end_exc)
+            raise
+        else:
+            with ignoring_signals():
+                self.end_run(run_id, "FINISHED")
+
+    # ----------------------------------------------------------------- params, metrics, tags
+
+    def _log_batch(self, run_id: str, *, metrics=(), params=(), tags=()) -> None:
+        # MlflowClient.log_batch splits into the store's batch limits itself
+        with self._errors():
+            self.client.log_batch(run_id, metrics=list(metrics), params=list(params),
+                                  tags=list(tags))
+
+    def log_params(self, run_id: str, params: Mapping[str, Any]) -> None:
+        """Log params (values as strings; longer than 6000 characters: truncated, with a note
+        in the value and the key in the tag ``workbench.truncated_params``)."""
+        items, truncated = [], []
+        for key, value in params.items():
+            text, cut = param_value(str(key), value)
+            items.append(Param(str(key), text))
+            if cut:
+                truncated.append(str(key))
+        tags = [RunTag(TRUNCATED_PARAMS_TAG, tag_value(",".join(truncated)))] if truncated else []
+        self._log_batch(run_id, params=items, tags=tags)
+
+    def log_metrics(self, run_id: str, metrics: Mapping[str, float],
+                    step: int | None = None) -> None:
+        """Log metrics in one batch; NaN/inf values are skipped and their names recorded in
+        the tag ``workbench.skipped_metrics``."""
+        ts, items, skipped = now_ms(), [], []
+        for key, value in metrics.items():
+            value = float(value)
+            if math.isfinite(value):
+                items.append(Metric(str(key), value, ts, int(step or 0)))
+            else:
+                skipped.append(str(key))
+        tags = []
+        if skipped:
+            seen = self._skipped.setdefault(run_id, set())
+            seen.update(f"{k}@{int(step or 0)}" if step is not None else k for k in skipped)
+            _logger.warning("run %s: skipped non-finite metrics %s", run_id, skipped)
+            tags = [RunTag(SKIPPED_METRICS_TAG, tag_value(",".join(sorted(seen))))]
+        self._log_batch(run_id, metrics=items, tags=tags)
+
+    def set_tags(self, run_id: str, tags: Mapping[str, Any]) -> None:
+        """Set tags (values as strings)."""
+        self._log_batch(run_id, tags=[RunTag(str(k), tag_value(v)) for k, v in tags.items()])
+
+    # ----------------------------------------------------------------- artifacts
+
+    def log_dict(self, run_id: str, obj: Any, artifact_file: str) -> None:
+        """``obj`` as JSON (``.json``) or YAML (``.yaml``/``.yml``)."""
+        with self._errors():
+            self.client.log_dict(run_id, obj, artifact_file)
+
+    def log_text(self, run_id: str, text: str, artifact_file: str) -> None:
+        with self._errors():
+            self.client.log_text(run_id, text, artifact_file)
+
+    def log_file(self, run_id: str, path: str | os.PathLike,
+                 artifact_path: str | None = None) -> None:
+        """Copy a local file (or directory) into the run's artifacts under ``artifact_path``."""
+        path = Path(path)
+        with self._errors():
+            if path.is_dir():
+                self.client.log_artifacts(run_id, str(path), artifact_path)
+            else:
+                self.client.log_artifact(run_id, str(path), artifact_path)
+
+    def log_figure(self, run_id: str, fig, artifact_file: str) -> None:
+        """A matplotlib figure, saved in the format of ``artifact_file``'s suffix (PNG)."""
+        with self._errors():
+            self.client.log_figure(run_id, fig, artifact_file)
+
+    def log_dataset(self, run_id: str, frame: pd.DataFrame, *, name: str, context: str,
+                    source: str | None = None, targets: str | None = None) -> str:
+        """Record ``frame`` as an input dataset of the run (MLflow's name, digest and schema;
+        the runs table's "Dataset" column), with ``mlflow.data.context`` = ``context``;
+        returns MLflow's digest."""
+        # mlflow.data.from_pandas is this function, set on mlflow.data at import: no stub sees it
+        from mlflow.data.pandas_dataset import from_pandas
+        from mlflow.entities import DatasetInput, InputTag
+
+        with warnings.catch_warnings():  # a local path "can be interpreted in multiple ways"
+            warnings.simplefilter("ignore", UserWarning)
+            # its hint omits None, its default (None: "the code location")
+            dataset = from_pandas(frame, source=source,  # type: ignore[arg-type]
+                                  name=name, targets=targets)
+        inputs = [DatasetInput(dataset._to_mlflow_entity(),
+                               tags=[InputTag("mlflow.data.context", context)])]
+        with self._errors():
+            try:
+                self.client.log_inputs(run_id, inputs)
+            except MlflowException as exc:
+                if not duplicate_row(exc):
+                    raise
+                # Another process created the same dataset row (experiment, name, digest)
+                # between MLflow's lookup and its insert (two first runs at once): the row
+                # exists now, and the second attempt links this run to it.
+                _logger.debug("log_inputs raced another process (%s); trying again", exc)
+                self.client.log_inputs(run_id, inputs)
+        return dataset.digest
+
+
+def ensure_store(tracking_uri: str, experiment_name: str,
+                 artifact_root: str | None = None) -> str:
+    """Create the store (schema) and the experiment once, e.g. before starting parallel
+    workers; returns the experiment id."""
+    return Tracker(tracking_uri, experiment_name, artifact_root).experiment_id

@@ -1,0 +1,56 @@
+"""MLflow's and the databases' errors as one-line :class:`TrackingError` s naming the store
+(a locked or corrupt SQLite file, an old schema, an unreachable server, a missing driver)."""
+
+from __future__ import annotations
+
+from urllib.parse import urlsplit
+
+from ..errors import TrackingError, redact
+from .uris import describe_store
+
+__all__ = ["duplicate_row", "translate"]
+
+
+def translate(exc: BaseException, uri: str) -> TrackingError | None:
+    """A :class:`TrackingError` for store problems, ``None`` for other errors."""
+    store = describe_store(uri)
+    if isinstance(exc, ImportError) and urlsplit(uri).scheme.split("+")[0] in (
+            "postgresql", "mysql", "mssql", "sqlite"):  # the database's driver
+        return TrackingError(f"{store}: its database driver is not installed ({exc})")
+    if "supported uri schemes" in str(exc).lower():  # MLflow's registry: a 400-character line
+        scheme = urlsplit(uri).scheme if "://" in uri else ""
+        return TrackingError(f"{store}: MLflow has no tracking store for '{scheme}://'")
+    text = f"{type(exc).__name__}: {exc}"
+    cause = exc.__cause__ or exc.__context__
+    if cause is not None:
+        text += f" | {type(cause).__name__}: {cause}"
+    low = text.lower()
+    if "database is locked" in low:
+        return TrackingError(
+            f"{store} is locked by another process (SQLite 'database is locked' after waiting "
+            "for the lock). Retry when the other writer is done; for many parallel writers use "
+            "an MLflow server or a PostgreSQL store.")
+    if "file is not a database" in low or "database disk image is malformed" in low:
+        return TrackingError(
+            f"{store} is not a valid SQLite database (corrupt, or another kind of file); it was "
+            "left untouched. Restore it from a backup, move it away, or point the tracking URI "
+            "at another file.")
+    if "out-of-date database schema" in low:
+        return TrackingError(
+            f"{store} has an older MLflow schema: back it up, then run "
+            f"'mlflow db upgrade {redact(uri)}'. ({exc})")
+    if any(s in low for s in ("connection refused", "max retries exceeded",
+                              "failed to establish a new connection", "name or service not known",
+                              "connectionerror", "timed out")):
+        return TrackingError(f"cannot reach the MLflow {store}: {exc}")
+    if "sqlite3.databaseerror" in low or "sqlite3.operationalerror" in low:
+        return TrackingError(f"{store} cannot be used: {exc}")
+    return None
+
+
+def duplicate_row(exc: BaseException) -> bool:
+    """Whether ``exc`` is a database's unique-constraint violation (SQLite, PostgreSQL,
+    MySQL): a row another process inserted first."""
+    text = f"{exc} {exc.__cause__ or exc.__context__ or ''}".lower()
+    return any(s in text for s in ("unique constraint", "duplicate key", "duplicate entry",
+                                   "integrityerror"))

@@ -1,0 +1,208 @@
+"""Where the MLflow store is: tracking URIs (the default SQLite store in the project, a
+relative path resolved where the user typed it) and the checks run before any work (a scheme
+MLflow has a store for, an installed database driver, a writable SQLite location, a server
+that answers). Light: MLflow and SQLAlchemy are imported only by the checks that need them."""
+
+from __future__ import annotations
+
+import os
+import socket
+from pathlib import Path
+from urllib.parse import urlsplit
+
+from ..errors import TrackingError, redact
+
+__all__ = ["DEFAULT_STORE", "check_store_uri", "default_artifact_root", "default_tracking_uri",
+           "describe_store", "resolve_tracking_uri", "sqlite_path"]
+
+DEFAULT_STORE = "mlruns"
+_SQLITE_HEADER = b"SQLite format 3\x00"
+
+
+def default_tracking_uri(root: Path) -> str:
+    """``sqlite:///<abs root>/mlruns/mlflow.db``."""
+    return "sqlite:///" + str(Path(root).resolve() / DEFAULT_STORE / "mlflow.db")
+
+
+def default_artifact_root(root: Path) -> str:
+    """``file:///<abs root>/mlruns/artifacts``."""
+    return (Path(root).resolve() / DEFAULT_STORE / "artifacts").as_uri()
+
+
+def _split_sqlite(uri: str) -> tuple[str, str] | None:
+    """``(path, query)`` of a ``sqlite:///`` URI (``path`` relative unless it starts with
+    ``/``), ``None`` for other URIs and in-memory databases."""
+    if not uri.startswith("sqlite:///"):
+        return None
+    path, sep, query = uri.removeprefix("sqlite:///").partition("?")
+    if not path or path == ":memory:":
+        return None
+    return path, sep + query
+
+
+def _absolute_sqlite(uri: str, base: Path) -> str:
+    """``uri`` with a relative sqlite path made absolute against ``base``."""
+    parts = _split_sqlite(uri)
+    if parts is None or Path(parts[0]).is_absolute():
+        return uri
+    path, query = parts
+    return "sqlite:///" + str((Path(base) / path).resolve()) + query
+
+
+def resolve_tracking_uri(cli: str | None, config: str | None, root: Path) -> str:
+    """The tracking URI to use: the CLI flag, else ``$MLFLOW_TRACKING_URI``, else the config
+    value, else :func:`default_tracking_uri`. A relative sqlite path in the config
+    (``sqlite:///mlruns/mlflow.db``) is relative to ``root``; in the CLI flag or the
+    environment it is relative to the current directory, as the user typed it there."""
+    if cli:
+        return _absolute_sqlite(cli, Path.cwd())
+    env = os.environ.get("MLFLOW_TRACKING_URI")
+    if env:
+        return _absolute_sqlite(env, Path.cwd())
+    if config:
+        return _absolute_sqlite(config, Path(root))
+    return default_tracking_uri(root)
+
+
+def sqlite_path(uri: str) -> Path | None:
+    """The database file of a ``sqlite:///`` URI (``None`` for other stores and in-memory
+    databases)."""
+    parts = _split_sqlite(uri)
+    return Path(parts[0]) if parts else None
+
+
+def describe_store(uri: str) -> str:
+    """The store as messages name it (its SQLite file, else its URI without a password)."""
+    path = sqlite_path(uri)
+    return f"SQLite database {path}" if path else f"tracking store {redact(uri)}"
+
+
+def prepare_sqlite_file(uri: str) -> None:
+    """Create the parent directory of a sqlite store; refuse a file that is not SQLite
+    (checked by its header, without writing to it)."""
+    path = sqlite_path(uri)
+    if path is None:
+        return
+    _check_sqlite_location(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise TrackingError(f"SQLite database {path}: cannot create its directory: "
+                            f"{exc.strerror or type(exc).__name__}") from None
+    _check_sqlite_header(path)
+
+
+def _check_sqlite_location(path: Path) -> None:
+    """Without writing anything: ``path`` is not a directory, and its directory (or the
+    nearest existing one, where it would be created) accepts new files: SQLite writes its
+    journal and the first-use lock beside the database, even for an existing one."""
+    import tempfile
+
+    if path.is_dir():
+        raise TrackingError(f"SQLite database {path} is a directory, not a database file")
+    existing = Path(os.path.abspath(path)).parent
+    while not os.path.lexists(existing):
+        existing = existing.parent
+    if not existing.is_dir():
+        raise TrackingError(f"SQLite database {path}: {existing} is a file, not a directory")
+    try:  # a probe sees what SQLite will see (permissions, read-only file systems)
+        fd, probe = tempfile.mkstemp(dir=existing, prefix=".workbench-probe-")
+    except OSError as exc:
+        raise TrackingError(f"SQLite database {path}: cannot write in {existing} "
+                            f"({exc.strerror or type(exc).__name__}); SQLite writes its "
+                            "journal beside the database") from None
+    os.close(fd)
+    os.unlink(probe)
+    if path.is_file() and not os.access(path, os.R_OK | os.W_OK):
+        raise TrackingError(f"SQLite database {path} cannot be read and written (its "
+                            "permissions)")
+
+
+def _check_sqlite_header(path: Path) -> None:
+    if path.is_file() and path.stat().st_size > 0:
+        with path.open("rb") as fh:
+            header = fh.read(len(_SQLITE_HEADER))
+        if header != _SQLITE_HEADER:
+            raise TrackingError(
+                f"SQLite database {path} is not a valid SQLite database (corrupt, or another "
+                "kind of file); it was left untouched. Restore it from a backup, move it away, "
+                "or point the tracking URI at another file.")
+
+
+#: URI schemes MLflow itself has a tracking store for (plug-ins add theirs as entry points).
+_MLFLOW_SCHEMES = ("", "file", "http", "https", "databricks", "databricks-uc", "uc")
+
+
+def _store_schemes() -> list[str]:
+    from importlib.metadata import entry_points
+
+    from mlflow.store.db.db_types import DATABASE_ENGINES
+
+    plugins = [e.name for e in entry_points(group="mlflow.tracking_store")]
+    return [*_MLFLOW_SCHEMES, *DATABASE_ENGINES, *plugins]
+
+
+def check_scheme_and_driver(uri: str) -> None:
+    """Without connecting: MLflow has a store for the URI's scheme, and a database URI's
+    driver is installed."""
+    from mlflow.store.db.db_types import DATABASE_ENGINES
+
+    shown = redact(uri)
+    try:
+        scheme = urlsplit(uri).scheme.lower()
+    except ValueError:
+        raise TrackingError(f"tracking URI {shown} is not a valid URI") from None
+    base = scheme.split("+")[0]
+    if len(base) == 1 and uri[1:2] == ":":  # a Windows drive letter: a path
+        base = ""
+    known = _store_schemes()
+    if base not in known and scheme not in known:
+        raise TrackingError(
+            f"tracking URI {shown}: MLflow has no tracking store for '{scheme}://'; use "
+            "sqlite:///PATH, postgresql://, mysql://, mssql://, http(s)://SERVER or a "
+            "directory")
+    if base not in DATABASE_ENGINES:
+        return
+    import sqlalchemy.exc
+    from sqlalchemy.engine import make_url
+
+    try:
+        make_url(uri).get_dialect().import_dbapi()
+    except ImportError as exc:
+        from ..errors import driver_hint
+
+        raise TrackingError(f"tracking store {shown}: its database driver is not installed "
+                            f"({exc}); {driver_hint(exc)}") from None
+    except sqlalchemy.exc.NoSuchModuleError:
+        raise TrackingError(f"tracking store {shown}: SQLAlchemy has no database driver "
+                            f"'{scheme}'") from None
+    except sqlalchemy.exc.ArgumentError:
+        raise TrackingError(f"tracking URI {shown} is not a valid database URL") from None
+
+
+def check_store_uri(uri: str) -> None:
+    """Before any work, writing nothing: the tracking store at ``uri`` can be used. Its
+    scheme has an MLflow store, a database's driver is installed, a SQLite database's
+    directory can be written (and the file is SQLite), a server accepts connections.
+    Raises :class:`TrackingError` (one line, no password)."""
+    check_scheme_and_driver(uri)
+    path = sqlite_path(uri)
+    if path is not None:
+        _check_sqlite_location(path)
+        _check_sqlite_header(path)
+    check_server(uri)
+
+
+def check_server(uri: str, timeout: float = 5.0) -> None:
+    """Fail fast when an http(s) tracking server does not accept connections (MLflow itself
+    retries for minutes)."""
+    parts = urlsplit(uri)
+    if parts.scheme not in ("http", "https") or not parts.hostname:
+        return
+    port = parts.port or (443 if parts.scheme == "https" else 80)
+    try:
+        with socket.create_connection((parts.hostname, port), timeout=timeout):
+            pass
+    except OSError as exc:
+        raise TrackingError(f"cannot reach the MLflow tracking server {redact(uri)}: {exc}") \
+            from exc
