@@ -195,13 +195,95 @@ def test_unknown_scoring_rejected_at_load(tmp_path):
         load_config(path)
 
 
-@pytest.mark.parametrize("model", ['basis = "ridge"\nloss = "quantile"\nalpha = 1.5',
-                                   'basis = "ridge"\nn_stages = 0'],
-                         ids=["quantile_alpha_1.5", "n_stages_0"])
-def test_invalid_model_values_rejected_at_load(tmp_path, model):
+@pytest.mark.parametrize("model, match", [
+    ('basis = "ridge"\nloss = "quantile"\nalpha = 1.5',
+     r"model\.alpha = 1\.5: The 'alpha' parameter of BaseBoostRegressor must be a float in the "
+     r"range \(0\.0, 1\.0\)\. Got 1\.5 instead\."),
+    ('basis = "ridge"\nn_stages = 0',
+     r"model\.n_stages = 0: The 'n_stages' parameter of BaseBoostRegressor must be an int in "
+     r"the range \[1, inf\)\. Got 0 instead\."),
+], ids=["quantile_alpha_1.5", "n_stages_0"])
+def test_invalid_model_values_rejected_at_load(tmp_path, model, match):
     path = write_config(tmp_path, model)
-    with pytest.raises(ConfigError, match=r"model\.(alpha|n_stages) = "):
+    with pytest.raises(ConfigError, match=match) as info:
         load_config(path)
+    assert str(path) in str(info.value)
+
+
+# --- values that are an estimator's parameters are checked by that estimator's constraints ---
+
+def test_boosting_values_are_the_estimators_to_check(tmp_path, monkeypatch):
+    """The config declares no range of its own for n_stages: tighten BaseBoostRegressor's
+    constraint and a value the estimator no longer takes is refused at load."""
+    from numbers import Integral
+
+    from sklearn.utils._param_validation import Interval
+
+    path = write_config(tmp_path, 'basis = "ridge"\nn_stages = 7',
+                        extra="[model.targets.eeig2]\nn_stages = 3")
+    assert load_config(path).model_for("eeig1")["n_stages"] == 7
+    monkeypatch.setitem(BaseBoostRegressor._parameter_constraints, "n_stages",
+                        [Interval(Integral, 1, 5, closed="both")])
+    with pytest.raises(ConfigError, match=r"model\.n_stages = 7: The 'n_stages' parameter of "
+                                          r"BaseBoostRegressor must be an int in the range "
+                                          r"\[1, 5\]\. Got 7 instead\."):
+        load_config(path)
+    path = write_config(tmp_path, 'basis = "ridge"',
+                        extra="[model.targets.eeig2]\nn_stages = 6")
+    with pytest.raises(ConfigError, match=r"model\.targets\.eeig2\.n_stages = 6: .*\[1, 5\]"):
+        load_config(path)
+
+
+def test_interval_values_are_the_estimators_to_check(tmp_path, monkeypatch):
+    from numbers import Real
+
+    from sklearn.utils._param_validation import Interval, StrOptions
+
+    from workbench.conformal import ConformalRegressor
+
+    path = write_config(tmp_path, extra='[intervals]\nalpha = 0.3\nmethod = "split"')
+    assert load_config(path).intervals.alpha == 0.3
+    monkeypatch.setitem(ConformalRegressor._parameter_constraints, "alpha",
+                        [Interval(Real, 0, 0.2, closed="neither")])
+    with pytest.raises(ConfigError, match=r"intervals\.alpha = 0\.3: The 'alpha' parameter of "
+                                          r"ConformalRegressor"):
+        load_config(path)
+    monkeypatch.undo()
+    monkeypatch.setitem(ConformalRegressor._parameter_constraints, "method",
+                        [StrOptions({"cv_plus"})])
+    with pytest.raises(ConfigError, match=r"intervals\.method = 'split': .*ConformalRegressor"):
+        load_config(path)
+
+
+def test_the_delegated_keys_and_their_defaults():
+    """Which config keys are which estimator's parameters; every default a section gives
+    for one satisfies the estimator's constraints."""
+    from workbench.conformal import ConformalRegressor
+    from workbench.experiment.config import MODEL_DEFAULTS, BoostSettings, IntervalsConfig
+    from workbench.experiment.families.hamiltonian import HamiltonianSettings
+    from workbench.experiment.schema import check_values, parameters_of
+    from workbench.param_boost import HamiltonianParameterRegressor as HPR
+    from workbench.param_select import HamiltonianSelectionCV as HSCV
+
+    boost = {k: (BaseBoostRegressor, k)
+             for k in ("n_stages", "loss", "line_search_loss", "line_search_penalty", "alpha")}
+    assert parameters_of(BoostSettings) == boost
+    assert parameters_of(IntervalsConfig) == {
+        k: (ConformalRegressor, k) for k in ("alpha", "method", "cv", "calibration_fraction")}
+    assert parameters_of(HamiltonianSettings) == {
+        **{k: (HPR, k) for k in ("loss", "huber_delta", "alpha", "alpha_l1", "max_iter")},
+        "selection_cv": (HSCV, "cv"), "selection_repeats": (HSCV, "n_repeats"),
+        "max_steps": (HSCV, "max_steps"), "min_improvement": (HSCV, "min_improvement")}
+    for key in boost:
+        check_values(BaseBoostRegressor, {key: MODEL_DEFAULTS[key]})
+    for section in (IntervalsConfig, HamiltonianSettings):
+        defaults = section()
+        for key, (estimator, param) in parameters_of(section).items():
+            value = getattr(defaults, key)
+            if value is not None:  # [intervals] method: the family's default
+                check_values(estimator, {param: value})
+    with pytest.raises(TypeError, match="declares no parameter 'bogus'"):
+        check_values(BaseBoostRegressor, {"n": 1}, rename={"n": "bogus"})
 
 
 def test_non_table_target_basis_params_is_config_error(tmp_path):

@@ -1,6 +1,8 @@
 """Table-driven: every numeric key of every config section, given a wrong type or a value out
 of its range, and every choice key given an unknown name, ends at load time with one short
-line naming ``section.key`` (and, through the command, exit code 2 before any fit)."""
+line naming ``section.key`` (and, through the command, exit code 2 before any fit). The
+ranges and choices come from the schema, and for a key that is an estimator's parameter
+(``ParameterOf``) from that estimator's ``_parameter_constraints``."""
 
 from __future__ import annotations
 
@@ -11,11 +13,13 @@ from pathlib import Path
 
 import annotated_types as at
 import pytest
+from sklearn.utils._param_validation import Interval, StrOptions, make_constraint
 
 from workbench.experiment import config as C
 from workbench.experiment.cli import main
 from workbench.experiment.config import ConfigError, load_config
 from workbench.experiment.families import FAMILIES
+from workbench.experiment.schema import parameters_of
 
 #: section path in the file -> (its schema, the config lines it needs besides itself)
 SECTIONS = {
@@ -34,25 +38,52 @@ SECTIONS = {
 
 
 def _base_type(annotation):
-    """int / float / bool / str / 'literal' of a field's annotation (optional unwrapped)."""
+    """int / float / bool / str / 'literal' of a field's annotation (optional and
+    ``Annotated`` unwrapped)."""
     args = [a for a in typing.get_args(annotation) if a is not type(None)]
     if typing.get_origin(annotation) is typing.Literal:
         return "literal"
+    if typing.get_origin(annotation) is typing.Annotated:
+        return _base_type(args[0])
     if args and typing.get_origin(annotation) in (typing.Union, types.UnionType):
         return _base_type(args[0])
     return annotation
+
+
+def _estimator_bounds(estimator, param):
+    """The bounds (``annotated_types``) and choices the estimator's constraints declare for
+    ``param`` (an Interval's ends; a StrOptions' names)."""
+    bounds, choices = [], False
+    declared = [make_constraint(c) for c in estimator._parameter_constraints[param]]
+    # "cv_object" holds an Interval of its own (the int folds)
+    for constraint in [i for c in declared for i in getattr(c, "_constraints", [c])]:
+        if isinstance(constraint, Interval):
+            if constraint.left is not None:
+                bounds.append(at.Ge(constraint.left) if constraint.closed in ("left", "both")
+                              else at.Gt(constraint.left))
+            if constraint.right is not None:
+                bounds.append(at.Le(constraint.right) if constraint.closed in ("right", "both")
+                              else at.Lt(constraint.right))
+        elif isinstance(constraint, StrOptions):
+            choices = True
+    return bounds, choices
 
 
 def _bad_values():
     """(section, key, TOML value, why) for every numeric, boolean and choice key."""
     cases = []
     for section, (schema, _) in SECTIONS.items():
+        delegated = parameters_of(schema)
         for key, field in schema.model_fields.items():
             kind = _base_type(field.annotation)
+            metadata, choices = list(field.metadata), False
+            if key in delegated:
+                bounds, choices = _estimator_bounds(*delegated[key])
+                metadata += bounds
             if kind in (int, float):
                 cases.append((section, key, '"abc"', "type"))
                 cases.append((section, key, "[1, 2]", "type"))
-                for meta in field.metadata:
+                for meta in metadata:
                     if isinstance(meta, (at.Ge, at.Gt)):
                         low = meta.ge if isinstance(meta, at.Ge) else meta.gt
                         below = low - 1 if isinstance(meta, at.Ge) else low
@@ -68,9 +99,9 @@ def _bad_values():
                     cases.append((section, key, "9" * 5000, "huge"))  # beyond Python's limit
             elif kind is bool:
                 cases.append((section, key, '"yes"', "type"))
-            elif kind == "literal":
+            elif kind == "literal" or choices:
                 cases.append((section, key, '"bogus_choice"', "choice"))
-            elif kind is str:
+            if kind is str:
                 cases.append((section, key, "5", "type"))
     return cases
 
@@ -100,6 +131,15 @@ def test_every_section_and_kind_is_covered():
         assert any(s == section for s, _ in covered), section
     assert {"type", "low", "high", "choice", "huge"} <= {why for _, why in covered}
     assert len(CASES) > 80
+    # the keys the estimators check are covered from their constraints
+    keys = {(s, k, why) for s, k, _, why in CASES}
+    for section, key, why in [("model", "n_stages", "low"), ("model", "alpha", "high"),
+                              ("model", "loss", "choice"), ("intervals", "method", "choice"),
+                              ("intervals", "calibration_fraction", "high"),
+                              ("model.hamiltonian", "selection_cv", "low"),
+                              ("model.hamiltonian", "loss", "choice"),
+                              ("model.targets.eeig1", "line_search_penalty", "low")]:
+        assert (section, key, why) in keys, (section, key, why)
 
 
 @pytest.mark.parametrize("section, key, value, why", CASES,

@@ -101,12 +101,19 @@ def test_config_builds_the_parameter_space_model(device):
     (lambda r: r["model"]["hamiltonian"].update(candidate="local"),
      r"unknown key\(s\) \['candidate'\]"),
     (lambda r: r["model"]["hamiltonian"].update(loss="quantile"),
-     r"model\.hamiltonian\.loss = 'quantile': Input should be 'squared_error', 'absolute_error'"
-     r" or 'huber'"),
+     r"model\.hamiltonian\.loss = 'quantile': The 'loss' parameter of "
+     r"HamiltonianParameterRegressor must be a str among \{('(squared_error|absolute_error|"
+     r"huber)'(, )?){3}\}\. Got 'quantile' instead\."),
     (lambda r: r["model"]["hamiltonian"].update(selection_cv=1),
-     r"model\.hamiltonian\.selection_cv = 1"),
+     r"model\.hamiltonian\.selection_cv = 1: The 'cv' parameter of HamiltonianSelectionCV "
+     r"must be an int in the range \[2, inf\)\. Got 1 instead\."),
     (lambda r: r["model"]["hamiltonian"].update(huber_delta=0),
-     r"model\.hamiltonian\.huber_delta = 0: Input should be greater than 0"),
+     r"model\.hamiltonian\.huber_delta = 0: The 'huber_delta' parameter of "
+     r"HamiltonianParameterRegressor must be a float in the range \(0\.0, inf\)\. Got 0\.0 "
+     r"instead\."),
+    (lambda r: r["model"]["hamiltonian"].update(selection_repeats=0),
+     r"model\.hamiltonian\.selection_repeats = 0: The 'n_repeats' parameter of "
+     r"HamiltonianSelectionCV"),
     (lambda r: r["model"]["hamiltonian"].update(boost_stage="yes"),
      r"model\.hamiltonian\.boost_stage = 'yes'"),
     (lambda r: r["data"].pop("hamiltonian"), r"needs the Hamiltonian's columns"),
@@ -116,8 +123,9 @@ def test_config_builds_the_parameter_space_model(device):
 def test_bad_hamiltonian_configs_raise(device, change, match):
     raw = json.loads(json.dumps(_raw()))
     change(raw)
-    with pytest.raises(ConfigError, match=match):
+    with pytest.raises(ConfigError, match=match) as info:
         parse_config(raw, device / "config.toml")
+    assert str(info.value).startswith(f"{device / 'config.toml'}: ")
 
 
 def test_qubit_features_must_match_the_chain(device):

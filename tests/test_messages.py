@@ -116,6 +116,18 @@ def hamiltonian_key(key):
     return case
 
 
+def estimator_range(section, line, needles):
+    """A value outside the range of the estimator whose parameter the key is: the line names
+    the file, ``section.key``, the value and the estimator's constraint."""
+    def case(tmp_path):
+        kwargs = ({"model": line} if section == "model" else
+                  {"data": HAMILTONIAN, "model": 'family = "hamiltonian"',
+                   "extra": f"[{section}]\n{line}\n"} if section == "model.hamiltonian" else
+                  {"extra": f"[{section}]\n{line}\n"})
+        return ["evaluate", with_data(tmp_path, **kwargs)], ["msg.toml: ", *needles], []
+    return case
+
+
 def unknown_key(section):
     """``bogus_key = 1`` in ``section`` (``""``: the top level)."""
     def case(tmp_path):
@@ -149,6 +161,16 @@ CASES = {
     **{f"unknown key in [{s or 'top'}]": unknown_key(s) for s in (
         "", "data", "data.hamiltonian", "model", "model.targets.measured_E1", "selection",
         "evaluation", "intervals", "search", "cv", "study", "tracking")},
+    "model.n_stages below BaseBoostRegressor's range": estimator_range(
+        "model", "n_stages = 0", ["model.n_stages = 0: The 'n_stages' parameter of "
+                                  "BaseBoostRegressor must be an int in the range [1, inf)"]),
+    "intervals.alpha outside ConformalRegressor's range": estimator_range(
+        "intervals", "alpha = 1.5", ["intervals.alpha = 1.5: The 'alpha' parameter of "
+                                     "ConformalRegressor", "(0.0, 1.0)"]),
+    "model.hamiltonian.selection_cv below HamiltonianSelectionCV's": estimator_range(
+        "model.hamiltonian", "selection_cv = 1",
+        ["model.hamiltonian.selection_cv = 1: The 'cv' parameter of HamiltonianSelectionCV",
+         "[2, inf)"]),
     "5000-char basis name": huge_basis_name,
     "tracking server with a password": tracking_server_with_password,
 }

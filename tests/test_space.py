@@ -67,6 +67,13 @@ def test_fixed_trial_rebuilds_a_finished_trials_settings():
     ({"basis_params": {"forest": {"n": [1]}}}, "basis_params.forest: unknown basis"),
     ({"basis_params": {"ridge": 3}}, "basis_params.ridge must be a table"),
     ({"loss": {"low": 0, "high": 1}}, "loss: unknown value"),
+    # the numeric boosting settings: BaseBoostRegressor's constraints
+    ({"n_stages": {"low": 0, "high": 3}}, r"n_stages = 0: The 'n_stages' parameter of "
+                                          r"BaseBoostRegressor must be an int in the range "
+                                          r"\[1, inf\)"),
+    ({"n_stages": {"low": 1.0, "high": 3.0}}, r"n_stages = 1\.0: .* must be an int"),
+    ({"alpha": [0.5, 1.0]}, r"alpha = 1\.0: The 'alpha' parameter of BaseBoostRegressor"),
+    ({"line_search_penalty": -0.1}, r"line_search_penalty = -0\.1: .*\[0\.0, inf\)"),
 ])
 def test_bad_spaces_name_the_entry(table, match):
     with pytest.raises(SpaceError, match=match):

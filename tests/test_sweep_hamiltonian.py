@@ -137,18 +137,21 @@ def test_sampled_names_and_settings(project):
 @pytest.mark.parametrize("entry, match", [
     ("bogus = [1, 2]", r"\[search\]: hamiltonian\.bogus: unknown key; valid keys "
                        r"are .*'alpha'.*'boost_stage'"),
-    ('loss = ["huber", "cauchy"]', r"hamiltonian\.loss = 'cauchy': Input should be .*"
+    ('loss = ["huber", "cauchy"]', r"hamiltonian\.loss = 'cauchy': The 'loss' parameter of "
+                                   r"HamiltonianParameterRegressor must be a str among .*"
                                    r"'squared_error'"),
     ('candidates = ["physical", "everything"]', r"hamiltonian\.candidates = 'everything'"),
     ('selection = "backward"', r"hamiltonian\.selection = 'backward'"),
     ('boost_stage = ["yes"]', r"hamiltonian\.boost_stage = 'yes'"),
     ("boost_stage = { low = 0, high = 1 }", r"hamiltonian\.boost_stage"),
-    ("alpha = { low = -1.0, high = 1.0 }", r"\[search\]: hamiltonian\.alpha = -1\.0: Input "
-                                           r"should be greater than or equal to 0"),
-    ("huber_delta = [0.0, 1.0]", r"hamiltonian\.huber_delta = 0\.0: Input should be greater "
-                                 r"than 0"),
-    ("selection_cv = { low = 1, high = 3 }", r"hamiltonian\.selection_cv = 1: Input should be "
-                                             r"greater than or equal to 2"),
+    ("alpha = { low = -1.0, high = 1.0 }", r"\[search\]: hamiltonian\.alpha = -1\.0: The "
+                                           r"'alpha' parameter of HamiltonianParameterRegressor "
+                                           r"must be a float in the range \[0\.0, inf\)"),
+    ("huber_delta = [0.0, 1.0]", r"hamiltonian\.huber_delta = 0\.0: The 'huber_delta' "
+                                 r"parameter .* must be a float in the range \(0\.0, inf\)"),
+    ("selection_cv = { low = 1, high = 3 }", r"hamiltonian\.selection_cv = 1: The 'cv' "
+                                             r"parameter of HamiltonianSelectionCV must be an "
+                                             r"int in the range \[2, inf\)"),
     ('max_steps = { low = "a", high = "b" }', r"hamiltonian\.max_steps: a range needs numbers"),
     ("alpha = { low = 10.0, high = 1.0 }", r"hamiltonian\.alpha: low 10\.0 is above high"),
 ])

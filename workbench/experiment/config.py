@@ -20,8 +20,11 @@ the config (see ``experiments/paper_main_body.toml`` for an annotated file)::
 
 Loading validates every value before anything is fitted: a bad one raises
 :class:`ConfigError` with one line naming the file, ``section.key``, the value (shortened)
-and what is allowed. Basis hyperparameters are checked against the basis estimator's own
-parameter constraints (scikit-learn's ``_parameter_constraints``).
+and what is allowed. A section checks structure and the config's own values; a key that is
+an estimator's parameter (``ParameterOf``: the boosting settings are
+:class:`~workbench.BaseBoostRegressor`'s, ``[intervals]``
+:class:`~workbench.conformal.ConformalRegressor`'s) and the basis hyperparameters are
+checked against that estimator's own ``_parameter_constraints`` (scikit-learn's machinery).
 """
 
 from __future__ import annotations
@@ -30,12 +33,14 @@ import dataclasses
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, Field, ValidationError, model_validator
 
+from ..boosting import BaseBoostRegressor
+from ..conformal import ConformalRegressor, min_calibration_rows
 from .errors import ConfigError, listing, shorten
-from .schema import MAX_INT, MAX_MESSAGE, Section, Seed
+from .schema import MAX_INT, MAX_MESSAGE, ParameterOf, Section, Seed
 from .space import SearchSpace, SpaceError
 
 __all__ = ["BoostSettings", "CVConfig", "ConfigError", "DataConfig", "EvaluationConfig",
@@ -130,20 +135,25 @@ class DataConfig(Section):
 
 # --------------------------------------------------------------------------- [model]
 
-LOSS_NAMES = Literal["squared_error", "absolute_error", "huber", "quantile"]
+#: A key whose value :class:`~workbench.BaseBoostRegressor`'s constraints check.
+_Boost = ParameterOf(BaseBoostRegressor)
 
 
 class BoostSettings(Section):
     """The eigenvalue-space boosting settings of one target (``[model]``, or a
-    ``[model.targets.<target>]`` override, where every key is optional)."""
+    ``[model.targets.<target>]`` override, where every key is optional). ``n_stages``,
+    ``loss``, ``line_search_loss``, ``line_search_penalty`` and ``alpha`` are
+    BaseBoostRegressor's parameters, checked against its ``_parameter_constraints``."""
 
     basis: str | list[str] | None = None
     basis_params: dict[str, Any] | None = None
-    n_stages: int | None = Field(default=None, ge=1, le=10_000)
-    loss: LOSS_NAMES | None = None
-    line_search_loss: LOSS_NAMES | None = None
-    line_search_penalty: float | None = Field(default=None, ge=0)
-    alpha: float | None = Field(default=None, gt=0, lt=1)
+    # le: a cap no estimator declares (each stage fits the basis once more): a typo such as
+    # 1e6 stages is refused at load instead of running for days
+    n_stages: Annotated[int, _Boost] | None = Field(default=None, le=10_000)
+    loss: Annotated[str, _Boost] | None = None
+    line_search_loss: Annotated[str, _Boost] | None = None
+    line_search_penalty: Annotated[float, _Boost] | None = None
+    alpha: Annotated[float, _Boost] | None = None
     basis_inputs: Literal["prior", "prior+features"] | None = None
     input_transform: str | None = None
     input_transform_params: dict[str, Any] | None = None
@@ -295,6 +305,10 @@ class EvaluationConfig(Section):
         return self
 
 
+#: A key whose value :class:`~workbench.conformal.ConformalRegressor`'s constraints check.
+_Conformal = ParameterOf(ConformalRegressor)
+
+
 class IntervalsConfig(Section):
     """``[intervals]``: conformal prediction intervals around the fitted model
     (:class:`~workbench.conformal.ConformalRegressor`), ``1 - alpha`` per target. ``method``
@@ -306,13 +320,15 @@ class IntervalsConfig(Section):
     (every choice remade) once per ``cv`` fold; "cv" uses the same refits but centres
     ``+- q`` on the model fitted on all rows (not widened by the fold models'
     disagreement); "split" holds out ``calibration_fraction`` of the training rows.
-    On unless ``enabled = false``."""
+    On unless ``enabled = false``. ``alpha``, ``method``, ``cv`` and ``calibration_fraction``
+    are ConformalRegressor's parameters, checked against its ``_parameter_constraints``."""
 
     enabled: bool = True
-    alpha: float = Field(default=0.1, gt=0, lt=1)
-    method: Literal["oof", "cv_plus", "cv", "split"] | None = None
-    cv: int = Field(default=5, ge=2, le=10_000)
-    calibration_fraction: float = Field(default=0.25, gt=0, lt=1)
+    alpha: Annotated[float, _Conformal] = 0.1
+    method: Annotated[str, _Conformal] | None = None
+    # le: a cap ConformalRegressor does not declare (each fold refits the whole model)
+    cv: Annotated[int, _Conformal] = Field(default=5, le=10_000)
+    calibration_fraction: Annotated[float, _Conformal] = 0.25
 
 
 class CVConfig(Section):
@@ -576,8 +592,6 @@ def load_dataset(cfg: ExperimentConfig):
                            f"at least {2 * folds} training rows)")
     iv = cfg.intervals
     if iv.enabled:
-        from ..conformal import min_calibration_rows
-
         # CV+ calibrates on every training row (each fold needs 2); split on its held-out
         # share (rounded up, as train_test_split does)
         need = min_calibration_rows(iv.alpha)

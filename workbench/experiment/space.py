@@ -14,9 +14,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
+from sklearn.utils._param_validation import InvalidParameterError
+
 from ..bases import BASES, TRANSFORMS
+from ..boosting import BaseBoostRegressor
 from ..losses import LOSSES
-from .errors import unknown_keys
+from .errors import shorten, unknown_keys
+from .schema import check_values
 
 __all__ = ["SearchSpace", "SpaceError"]
 
@@ -28,6 +32,8 @@ NAMED_CHOICES: dict[str, tuple[str, ...]] = {
     "input_transform": ("none", *TRANSFORMS),
     "basis_inputs": ("prior", "prior+features"),
 }
+#: BaseBoostRegressor's numeric parameters a search may vary: each value a search can take
+#: (a choice, a range's ends) is checked against its ``_parameter_constraints``.
 NUMERIC = ("n_stages", "line_search_penalty", "alpha")
 SEARCH_KEYS = {*NAMED_CHOICES, *NUMERIC, "basis_params"}
 
@@ -99,6 +105,12 @@ class SearchSpace:
         for name, spec in table.items():
             if name != "basis_params":
                 _check_spec(name, spec, NAMED_CHOICES.get(name))
+            if name in NUMERIC:
+                for value in _values(spec):
+                    try:
+                        check_values(BaseBoostRegressor, {name: value})
+                    except InvalidParameterError as exc:
+                        raise SpaceError(f"{name} = {shorten(value)}: {exc}") from None
         params = table.get("basis_params", {})
         if not isinstance(params, dict):
             raise SpaceError(f"basis_params must be a table of tables, got {params!r}")

@@ -24,13 +24,15 @@ MLflow run's artifacts).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, ClassVar, Literal, cast
+from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, cast
 
 import pandas as pd
 from pydantic import Field
 
+from ...param_boost import HamiltonianParameterRegressor, default_library
+from ...param_select import HamiltonianSelectionCV, candidate_pool
 from ..results import ModelScores, Scores, mae, mse
-from ..schema import Section
+from ..schema import ParameterOf, Section
 from .base import Artifacts, ModelFamily
 from .stage import per_target_boost, stage_scores
 
@@ -46,26 +48,41 @@ __all__ = ["PRIOR_PREFIX", "HamiltonianFamily", "HamiltonianSettings", "make_ham
 PRIOR_PREFIX = "prior_"
 
 
+#: Keys whose values the parameter-space model's (the selection's) constraints check.
+_Regressor = ParameterOf(HamiltonianParameterRegressor)
+_Selection = ParameterOf(HamiltonianSelectionCV)
+
+
 class HamiltonianSettings(Section):
     """``[model.hamiltonian]``. ``start``: covariates every model has ("default": the default
     library, "none": intercepts only); ``candidates``: the pool ("physical": with neighbours,
     "local": without, "none"); ``selection``: "forward" (forward selection by CV from start
     over the pool, every candidate refitted), "linearised" (the same, candidates scored by one
     Gauss-Newton step: scales to large devices) or "none" (start and pool together,
-    regularised by alpha / alpha_l1)."""
+    regularised by alpha / alpha_l1).
 
-    loss: Literal["squared_error", "absolute_error", "huber"] = "huber"
-    huber_delta: float = Field(default=0.5, gt=0)
-    alpha: float = Field(default=1.0, ge=0)
-    alpha_l1: float = Field(default=0.0, ge=0)
-    max_iter: int = Field(default=20, ge=0, le=100_000)
+    ``loss``, ``huber_delta``, ``alpha``, ``alpha_l1`` and ``max_iter`` are
+    HamiltonianParameterRegressor's parameters; ``selection_cv`` (its ``cv``),
+    ``selection_repeats`` (``n_repeats``), ``max_steps`` and ``min_improvement``
+    HamiltonianSelectionCV's: their values are checked against the estimators'
+    ``_parameter_constraints``. The ``le`` caps are the config's own, declared by no
+    estimator: they keep a typo (a million folds, repeats, iterations or steps, each more
+    fits) from running for days."""
+
+    loss: Annotated[str, _Regressor] = "huber"
+    huber_delta: Annotated[float, _Regressor] = 0.5
+    alpha: Annotated[float, _Regressor] = 1.0
+    alpha_l1: Annotated[float, _Regressor] = 0.0
+    max_iter: Annotated[int, _Regressor] = Field(default=20, le=100_000)
     start: Literal["default", "none"] = "default"
     candidates: Literal["physical", "local", "none"] = "physical"
     selection: Literal["forward", "linearised", "none"] = "forward"
-    selection_cv: int = Field(default=5, ge=2, le=10_000)
-    selection_repeats: int = Field(default=1, ge=1, le=1000)
-    max_steps: int = Field(default=20, ge=0, le=100_000)
-    min_improvement: float = Field(default=1e-3, ge=0)
+    selection_cv: Annotated[int, ParameterOf(HamiltonianSelectionCV, "cv")] = Field(
+        default=5, le=10_000)
+    selection_repeats: Annotated[int, ParameterOf(HamiltonianSelectionCV, "n_repeats")] = Field(
+        default=1, le=1000)
+    max_steps: Annotated[int, _Selection] = Field(default=20, le=100_000)
+    min_improvement: Annotated[float, _Selection] = 1e-3
     boost_stage: bool = True
     prior_cv: int = Field(default=5, ge=2, le=10_000)
     #: Keep, per target, the control model's prediction where the corrected Hamiltonian does
@@ -84,8 +101,6 @@ def make_hamiltonian(settings: HamiltonianSettings, ds: Dataset, *, random_state
     """The parameter-space model that ``[model.hamiltonian]`` describes: a
     :class:`HamiltonianSelectionCV` (``selection = "forward"``) or a
     :class:`HamiltonianParameterRegressor` with the start and pool covariates together."""
-    from ...param_boost import HamiltonianParameterRegressor, default_library
-    from ...param_select import HamiltonianSelectionCV, candidate_pool
     from ..errors import ConfigError
 
     ham = ds.hamiltonian
