@@ -140,47 +140,6 @@ def test_no_nested_processes_inside_a_worker():
     assert jobs == 1 and len({pid for pid, _, _ in inner}) == 1
 
 
-_SWEEP_WORKER = """
-import os, signal, time
-from workbench.parallel import effective_n_jobs, init_worker
-mine = signal.getsignal(signal.SIGINT)
-init_worker(os.getppid(), pool=False)
-print(effective_n_jobs(-1), signal.getsignal(signal.SIGINT) is mine, flush=True)
-time.sleep(60)
-"""
-
-
-def test_a_sweep_worker_fits_in_itself_and_ends_with_its_parent():
-    """A sweep worker (``init_worker(parent, pool=False)``): its fits run in it (no nested
-    processes: the sweep's processes are the parallelism), it keeps its own signal handling,
-    and the end of its parent sends it SIGTERM."""
-    import signal
-    import subprocess
-    import sys
-
-    # a parent process that starts the worker, prints its pid and its first line, then dies
-    parent = (f"import subprocess, sys; p = subprocess.Popen([sys.executable, '-c', "
-              f"{_SWEEP_WORKER!r}], stdout=subprocess.PIPE, text=True); "
-              "print(p.pid, p.stdout.readline().strip(), flush=True)")
-    out = subprocess.run([sys.executable, "-c", parent], capture_output=True, text=True,
-                         timeout=60, check=True)
-    pid, jobs, kept = out.stdout.split()
-    assert (jobs, kept) == ("1", "True")
-    deadline = time.monotonic() + 20
-    while time.monotonic() < deadline:
-        try:
-            os.kill(int(pid), 0)
-        except ProcessLookupError:
-            break
-        with open(f"/proc/{pid}/stat") as fh:  # a zombie counts as ended
-            if fh.read().rsplit(")", 1)[-1].split()[0] == "Z":
-                break
-        time.sleep(0.1)
-    else:
-        os.kill(int(pid), signal.SIGKILL)
-        raise AssertionError("the worker outlived its parent")
-
-
 def _boom(x):
     if x == 2:
         raise ValueError("task two failed")

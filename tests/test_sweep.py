@@ -1,9 +1,11 @@
 """workbench sweep: nested-CV results, resuming an interrupted study, workers sharing storage."""
 
 import json
+import os
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import optuna
 import pytest
@@ -208,3 +210,31 @@ def test_workers_propose_different_configurations():
     pb = optuna.create_study(sampler=b).ask().suggest_float("x", 0, 1)
     assert pa != pb
     assert optuna.create_study(sampler=sampler(cfg, "s", 0)).ask().suggest_float("x", 0, 1) == pa
+
+
+def _fake_search(cfg, storage_url, progress=False, worker=0, on_trial=None):
+    from workbench.parallel import effective_n_jobs, in_worker
+
+    Path(storage_url).with_name(f"worker-{worker}.txt").write_text(
+        f"{os.getpid()} {in_worker()} {effective_n_jobs(-1)}")
+
+
+def test_sweep_workers_are_the_command_s_worker_processes(tmp_path):
+    """``--workers 2``: the searches run as tasks on the command's forked worker processes
+    (one mechanism for every parallel part; no process forked after the command's threads
+    start), each a worker whose own fits are serial."""
+    from types import SimpleNamespace
+
+    from workbench.experiment.sweep.workers import search_in_workers
+    from workbench.parallel import worker_pool
+
+    cfg = SimpleNamespace(study=SimpleNamespace(stale_after_s=60))
+    journal = tmp_path / "w.journal"
+    with worker_pool(2, eager=True):
+        search_in_workers(_fake_search, cfg, str(journal), 2, False, ["a"], tmp_path)
+    seen = [(tmp_path / f"worker-{i}.txt").read_text().split() for i in range(2)]
+    pids = {pid for pid, _, _ in seen}
+    assert len(pids) == 2 and str(os.getpid()) not in pids
+    assert all(worker == "True" and jobs == "1" for _, worker, jobs in seen)
+    assert optuna.load_study(study_name="a", storage=open_storage(str(journal), tmp_path))
+

@@ -16,13 +16,15 @@
   inside the block (a command's fit, learning curves and figures); without it, each parallel
   call starts its workers and ends them.
 
-Workers are forked from this process when first needed, so they inherit its imported
+Workers are forked from this process when first needed (a command forks them as it starts,
+``worker_pool(..., eager=True)``, before it starts any thread), so they inherit its imported
 modules and data (no re-import); each runs one BLAS/OpenMP thread (threadpoolctl, and
-``OMP_NUM_THREADS=1`` etc. for libraries loaded later), ignores SIGINT (the parent handles
-it and ends them) and dies with its parent. Where ``fork`` is unavailable (Windows; macOS
-by default) joblib's processes run the tasks. Warnings raised in a task are issued again in
-the parent, where its filters apply. The core estimators' ``n_jobs`` follows scikit-learn:
-``None`` is 1, ``-1`` every core.
+``OMP_NUM_THREADS=1`` etc. for libraries loaded later), runs its tasks' fits serially,
+ignores SIGINT (the parent handles it and ends them) and dies with its parent. They are
+the one worker mechanism: a sweep's ``--workers`` are tasks on them too. Where ``fork`` is
+unavailable (Windows; macOS by default) joblib's processes run the tasks. Warnings raised
+in a task are issued again in the parent, where its filters apply. The core estimators'
+``n_jobs`` follows scikit-learn: ``None`` is 1, ``-1`` every core.
 """
 
 from __future__ import annotations
@@ -40,8 +42,8 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
 __all__ = ["Task", "die_with_parent", "effective_n_jobs", "gather", "in_worker", "init_worker",
-           "map_tasks", "one_thread_env", "pid_alive",
-           "prioritised", "run_plans", "start_workers", "start_fork_server",
+           "map_tasks", "pid_alive",
+           "prioritised", "run_plans", "start_workers",
            "worker_pool"]
 
 THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
@@ -110,9 +112,8 @@ def pid_alive(pid: int) -> bool:
 
 
 def die_with_parent(parent: int, sig: int = signal.SIGKILL) -> None:
-    """End this process with ``sig`` when its parent ends (Linux's ``PR_SET_PDEATHSIG``: the
-    process that started this one, i.e. ``parent`` itself when forked from it, or the fork
-    server, which ends when ``parent`` does), and exit now if ``parent`` is gone already."""
+    """End this process with ``sig`` when its parent ``parent`` ends (Linux's
+    ``PR_SET_PDEATHSIG``), and exit now if ``parent`` is gone already."""
     if sys.platform.startswith("linux"):
         try:
             import ctypes
@@ -125,20 +126,18 @@ def die_with_parent(parent: int, sig: int = signal.SIGKILL) -> None:
         os._exit(128 + sig)
 
 
-def init_worker(parent: int, *, pool: bool = True) -> None:
+def init_worker(parent: int) -> None:
     """Make this process a worker of process ``parent``: :func:`effective_n_jobs` is 1 here
-    (the parent spreads the work; no nested processes), one BLAS/OpenMP thread, and it ends
-    with ``parent`` (:func:`die_with_parent`). A ``pool`` worker (:func:`run_plans`'s)
-    ignores SIGINT (its parent handles it and ends the pool) and is killed with its parent;
-    a sweep worker (``pool=False``) keeps its signal handling and gets SIGTERM, which fails
-    and queues its running trial before it exits."""
+    (the parent spreads the work; no nested processes), one BLAS/OpenMP thread, SIGINT
+    ignored (the parent handles it and ends its workers; a task may handle signals itself,
+    as a sweep's worker does to queue its running trial again), and killed with its parent
+    (:func:`die_with_parent`)."""
     global _IN_WORKER
     _IN_WORKER = True
     _AMBIENT.clear()
-    if pool:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-        signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    die_with_parent(parent, signal.SIGKILL if pool else signal.SIGTERM)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    die_with_parent(parent, signal.SIGKILL)
     os.environ.update({k: "1" for k in THREAD_ENV})
     try:
         from threadpoolctl import threadpool_limits
@@ -207,38 +206,6 @@ class _Pool:
                     p.join(timeout=5)
         else:
             ex.shutdown(wait=True)
-
-
-def start_fork_server(modules: Iterable[str]) -> bool:
-    """Start multiprocessing's fork server now (if not running), importing ``modules`` in it
-    with one BLAS/OpenMP thread: it loads them while this process goes on, and processes
-    started later with the ``"forkserver"`` context are forked copies of it (no re-import;
-    no threads, locks or connections of this process). Returns whether there is a fork
-    server (not on Windows)."""
-    if "forkserver" not in multiprocessing.get_all_start_methods():
-        return False
-    from multiprocessing import forkserver
-
-    multiprocessing.get_context("forkserver").set_forkserver_preload(list(modules))
-    with one_thread_env():
-        forkserver.ensure_running()
-    return True
-
-
-@contextlib.contextmanager
-def one_thread_env() -> Iterator[None]:
-    """Inside the block, processes started from this one get one BLAS/OpenMP thread
-    (``THREAD_ENV`` set to 1); the environment is restored afterwards."""
-    saved = {k: os.environ.get(k) for k in THREAD_ENV}
-    os.environ.update({k: "1" for k in THREAD_ENV})
-    try:
-        yield
-    finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
 
 
 def _fork_available() -> bool:

@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 
 from .errors import ConfigError, StorageError, TrackingError, UsageError, redact, redact_urls
-from .startup import SWEEP_WORKER_MODULES, setup_logging
+from .startup import setup_logging
 
 log = logging.getLogger("workbench")
 
@@ -183,26 +183,7 @@ def _cmd_reproduce(args) -> int:
     return 0
 
 
-def _study_workers(args) -> int:
-    """``--workers``, else the config file's ``[study] workers`` (read without loading the
-    config), else 1."""
-    if args.workers is not None:
-        return args.workers
-    try:
-        import tomllib
-
-        with open(args.config, "rb") as fh:
-            workers = tomllib.load(fh).get("study", {}).get("workers", 1)
-        return workers if isinstance(workers, int) else 1
-    except (OSError, ValueError):
-        return 1  # load_config reports the problem
-
-
 def _cmd_sweep(args) -> int:
-    if _study_workers(args) > 1:  # the workers' imports, while this process starts up
-        from ..parallel import start_fork_server
-
-        start_fork_server(SWEEP_WORKER_MODULES)
     from .config import load_config
     from .evaluate import format_table
     from .sweep.search import run_sweep  # imports Optuna only for sweeps
@@ -211,13 +192,15 @@ def _cmd_sweep(args) -> int:
         trials=args.trials, workers=args.workers, storage=args.storage), args)
     _check_outputs(args)
     tracker = _check_before_work(cfg, args, cfg.study.storage, _repair_hint(args))
-    from ..parallel import worker_pool
+    from ..parallel import effective_n_jobs, worker_pool
     from .lifecycle import TrialRecorder, command_run
 
-    # worker processes for the trials' fits, the refits, the curves and the figures, forked
-    # before this process starts any thread (the run's heartbeat); the run is visible while
-    # it searches and ends FINISHED only once every output is written
-    with worker_pool(cfg.jobs, eager=True), command_run(tracker, "sweep", cfg.name) as run_id:
+    # worker processes for the sweep's workers (--workers), the trials' fits, the refits,
+    # the curves and the figures, forked before this process starts any thread (the run's
+    # heartbeat); the run is visible while it searches and ends FINISHED only once every
+    # output is written
+    processes = max(effective_n_jobs(cfg.jobs), cfg.study.workers)
+    with worker_pool(processes, eager=True), command_run(tracker, "sweep", cfg.name) as run_id:
         sweep = run_sweep(cfg, on_trial=TrialRecorder(tracker, run_id) if run_id else None)
         result = sweep.result
         if not args.no_track:

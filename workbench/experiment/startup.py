@@ -1,18 +1,12 @@
 """What a command sets up first, kept light (no heavy imports) so that any module may use
-it: the progress lines of the ``workbench`` logger, and the modules a sweep's worker
-processes import (the fork server preloads them while the command starts)."""
+it: the progress lines of the ``workbench`` logger (to standard error)."""
 
 from __future__ import annotations
 
 import logging
 import sys
 
-__all__ = ["SWEEP_WORKER_MODULES", "setup_logging"]
-
-#: What a sweep's worker processes import (the fork server loads it once for all of them).
-SWEEP_WORKER_MODULES = ("workbench.experiment.sweep.search", "workbench.experiment.families",
-                        "workbench.multitarget", "workbench.bases")
-
+__all__ = ["setup_logging"]
 
 class _Stderr(logging.StreamHandler):
     """A handler writing to the *current* ``sys.stderr`` (which callers may replace)."""

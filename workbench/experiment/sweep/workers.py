@@ -1,66 +1,43 @@
 """The processes of ``workbench sweep --workers N``: each runs the search on the shared
-storage (:func:`search_in_workers`), started by the fork server where there is one (no fork
-of the command's process, which has threads), set up by
-:func:`workbench.parallel.init_worker` (serial fits, one BLAS thread, SIGTERM when the
-command's process ends, which fails and queues its running trial)."""
+storage, as a task on the command's worker processes (:mod:`workbench.parallel`: forked
+before the command starts any thread, one BLAS thread and serial fits each, ended with the
+command). The one mechanism for every parallel part of a command."""
 
 from __future__ import annotations
 
-import multiprocessing
-import os
-import sys
 from pathlib import Path
 from typing import Callable
 
 import optuna
 
-from ...parallel import one_thread_env
+from ...parallel import Task, map_tasks
+from ..signals import handle_signals
+from ..startup import setup_logging
 from .storage import open_storage
 
-__all__ = ["search_in_workers", "worker_context"]
-
-#: Exit codes of a process ended by SIGINT / SIGTERM (128 + the signal number).
-EXIT_SIGINT, EXIT_SIGTERM = 130, 143
+__all__ = ["search_in_workers", "sweep_task"]
 
 
-def _worker(search: Callable, cfg, storage_url: str, index: int, show: bool, parent: int,
-            on_trial) -> None:
-    from ...parallel import init_worker
-    from ..signals import handle_signals
-
-    # its fits serial (the sweep's processes are the parallelism), one BLAS thread, and a
-    # SIGTERM when the command's process ends (its running trial is failed and queued)
-    init_worker(parent, pool=False)
-    try:
-        with handle_signals():  # Ctrl-C reaches the whole group: the parent reports it
-            if show:  # this process's per-trial lines to its standard error
-                from ..startup import setup_logging
-
-                setup_logging()
-            search(cfg, storage_url, progress=show, worker=index, on_trial=on_trial)
-    except KeyboardInterrupt as exc:  # its running trial is failed and queued again
-        sys.exit(getattr(exc, "code", EXIT_SIGINT))
-
-
-def worker_context():
-    """The multiprocessing context of sweep workers: the fork server where there is one
-    (started early by the command, :func:`workbench.parallel.start_fork_server`, or now),
-    else spawn."""
-    from ...parallel import start_fork_server
-    from ..startup import SWEEP_WORKER_MODULES
-
-    if start_fork_server(SWEEP_WORKER_MODULES):  # a no-op when it runs already
-        return multiprocessing.get_context("forkserver")
-    return multiprocessing.get_context("spawn")
+def sweep_task(search: Callable, cfg, storage_url: str, index: int, show: bool,
+               on_trial) -> None:
+    """One sweep worker: ``search(cfg, storage_url, progress=show, worker=index,
+    on_trial=on_trial)`` in a worker process. A SIGTERM (the command ending its workers) or
+    Ctrl-C (it reaches the whole process group) fails and queues the running trial, then
+    ends the task."""
+    with handle_signals():
+        if show:  # this process's per-trial lines to its standard error
+            setup_logging()
+        search(cfg, storage_url, progress=show, worker=index, on_trial=on_trial)
 
 
 def search_in_workers(search: Callable, cfg, storage_url: str, workers: int,
-                       progress: bool, names: list[str], root: Path,
-                       on_trial=None) -> None:
-    """``search(cfg, storage_url, progress=, worker=, on_trial=)`` (a module-level function:
-    workers come from the fork server, or are spawned) in ``workers`` processes, after
-    creating the studies ``names`` once. An interrupt of this process ends the workers
-    (their running trials are queued again)."""
+                      progress: bool, names: list[str], root: Path,
+                      on_trial=None) -> None:
+    """``search(cfg, storage_url, progress=, worker=, on_trial=)`` in ``workers`` worker
+    processes (the enclosing :func:`workbench.parallel.worker_pool`'s, which must hold at
+    least ``workers``; without one, a pool of its own), after creating the studies
+    ``names`` once. An interrupt ends the workers (their running trials are queued again);
+    a worker's error is raised here."""
     if workers == 1:
         search(cfg, storage_url, progress=progress, on_trial=on_trial)
         return
@@ -69,28 +46,5 @@ def search_in_workers(search: Callable, cfg, storage_url: str, workers: int,
     for name in names:
         optuna.create_study(study_name=name, storage=storage, direction="minimize",
                             load_if_exists=True)
-    procs = []
-    try:
-        ctx = worker_context()
-        procs = [ctx.Process(target=_worker, args=(search, cfg, storage_url, i, bool(progress),
-                                                   os.getpid(), on_trial))
-                 for i in range(workers)]
-        with one_thread_env():  # one BLAS/OpenMP thread per worker
-            for p in procs:
-                p.start()
-        for p in procs:
-            p.join()
-    except BaseException:
-        for p in procs:  # interrupted: the workers fail and queue their trials, then exit
-            if p.is_alive():
-                p.terminate()
-        for p in procs:
-            p.join(timeout=30)
-            if p.is_alive():
-                p.kill()
-        raise
-    failed = [p.exitcode for p in procs if p.exitcode != 0]
-    if failed:
-        raise RuntimeError(f"{len(failed)} of {workers} sweep workers exited with codes {failed}")
-
-
+    map_tasks([Task(sweep_task, search, cfg, storage_url, i, bool(progress), on_trial)
+               for i in range(workers)], workers)
