@@ -16,13 +16,17 @@ import lightgbm.sklearn as _lgb_sklearn
 import numpy as np
 from lightgbm import LGBMRegressor
 from lightgbm.engine import train as _lgb_train
+from scipy import stats
+from scipy.special import ndtri
 from sklearn.base import BaseEstimator, RegressorMixin, TransformerMixin
 from sklearn.ensemble import StackingRegressor
 from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
+from sklearn.kernel_approximation import Nystroem
 from sklearn.kernel_ridge import KernelRidge
 from sklearn.linear_model import Ridge
 from sklearn.neural_network import MLPRegressor
+from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import QuantileTransformer, StandardScaler
 from sklearn.utils._param_validation import Interval
 from sklearn.utils.validation import check_is_fitted
@@ -265,9 +269,6 @@ class ScalableKernelRidge(CachedParamNames, RegressorMixin, BaseEstimator):
         self.random_state = random_state
 
     def fit(self, X, y):
-        from sklearn.kernel_approximation import Nystroem
-        from sklearn.pipeline import make_pipeline
-
         self._validate_params()
         kernel = dict(kernel=self.kernel, gamma=self.gamma, degree=self.degree,
                       coef0=self.coef0, kernel_params=self.kernel_params)
@@ -368,8 +369,6 @@ class _NormalQuantiles(CachedParamNames, QuantileTransformer):
 def _norm_ppf(q: np.ndarray) -> np.ndarray:
     """``scipy.stats.norm.ppf(q)`` for a float array: ``ndtri`` inside (0, 1), the infinite
     ends at 0 and 1, NaN elsewhere."""
-    from scipy.special import ndtri
-
     q = np.asarray(q, dtype=float)
     out = np.full(q.shape, np.nan)
     out[q == 0] = -np.inf
@@ -380,8 +379,6 @@ def _norm_ppf(q: np.ndarray) -> np.ndarray:
 
 
 def _clip_bounds() -> tuple[float, float]:
-    from scipy import stats
-
     low = _BOUNDS - np.spacing(1)
     return float(stats.norm.ppf(low)), float(stats.norm.ppf(1 - low))
 

@@ -32,14 +32,22 @@ from __future__ import annotations
 import dataclasses
 import tomllib
 from dataclasses import dataclass, field
+from numbers import Integral, Real
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, Field, ValidationError, model_validator
+from sklearn.base import BaseEstimator
+from sklearn.metrics import get_scorer_names
+from sklearn.utils._param_validation import Interval, StrOptions, validate_parameter_constraints
 
+from ..bases import BASES, TRANSFORMS, make_basis, make_transform
 from ..boosting import BaseBoostRegressor
 from ..conformal import ConformalRegressor, min_calibration_rows
+from ..datasets import DatasetError, load_csv_dataset, load_google_5q
+from ..hamiltonian import make_graph
 from .errors import ConfigError, listing, shorten
+from .families import FAMILIES, get_family
 from .schema import MAX_INT, MAX_MESSAGE, ParameterOf, Section, Seed
 from .space import SearchSpace, SpaceError
 
@@ -69,8 +77,6 @@ class HamiltonianData(Section):
 
     @model_validator(mode="after")
     def _graph(self) -> HamiltonianData:
-        from ..hamiltonian import make_graph
-
         if self.shape is not None and self.topology != "grid":
             raise ValueError(f"shape applies to topology = \"grid\" only (topology is "
                              f"{self.topology!r})")
@@ -179,8 +185,6 @@ def check_boost_settings(settings: dict[str, Any]) -> None:
     """Resolve a target's merged settings the way a fit will (basis and transform names,
     their parameters against the estimators' own constraints, losses): ``ValueError`` with
     the offending key first."""
-    from ..bases import BASES, TRANSFORMS, make_basis, make_transform
-
     if isinstance(settings["basis"], list):  # candidates chosen by CV per target
         names = settings["basis"]
         if not names or len(set(names)) != len(names):
@@ -217,10 +221,6 @@ def check_boost_settings(settings: dict[str, Any]) -> None:
 
 #: LightGBM's scikit-learn estimator declares no constraints; these are its documented ranges.
 def _lightgbm_constraints() -> dict[str, list]:
-    from numbers import Integral, Real
-
-    from sklearn.utils._param_validation import Interval, StrOptions
-
     positive = [Interval(Real, 0, None, closed="neither")]
     nonneg = [Interval(Real, 0, None, closed="left")]
     fraction = [Interval(Real, 0, 1, closed="right")]
@@ -244,9 +244,6 @@ def _lightgbm_constraints() -> dict[str, list]:
 def _validate_estimator(estimator) -> None:
     """Check an estimator's (and its nested estimators') parameters against their declared
     constraints, without fitting."""
-    from sklearn.base import BaseEstimator
-    from sklearn.utils._param_validation import validate_parameter_constraints
-
     nested = [estimator] + [v for v in estimator.get_params(deep=True).values()
                             if isinstance(v, BaseEstimator)]
     constraints: dict[str, list[Any]] | None
@@ -278,8 +275,6 @@ class SelectionConfig(Section):
 
     @model_validator(mode="after")
     def _scorer(self) -> SelectionConfig:
-        from sklearn.metrics import get_scorer_names
-
         if self.scoring not in get_scorer_names():
             raise ValueError(f"scoring = {shorten(self.scoring)}: unknown scorer; see "
                              "sklearn.metrics.get_scorer_names(), e.g. "
@@ -414,8 +409,6 @@ class ExperimentConfig:
     @property
     def family(self):
         """The :class:`~workbench.experiment.families.ModelFamily` of ``[model] family``."""
-        from .families import get_family
-
         return get_family(self.model.family)
 
     @property
@@ -479,8 +472,6 @@ def _error(where: str, text: str) -> ConfigError:
 def parse_config(raw: dict[str, Any], path: Path | None = None) -> ExperimentConfig:
     """Validate a config's tables (every value, name and basis parameter) and return an
     :class:`ExperimentConfig`; :class:`ConfigError` (one line) for the first bad value."""
-    from .families import FAMILIES
-
     where = str(path) if path else "config"
     try:
         top = _Top.model_validate(raw)
@@ -566,8 +557,6 @@ def load_dataset(cfg: ExperimentConfig):
     Raises :class:`~workbench.datasets.DatasetError` for unusable data, including a training
     split too small for the configured CV folds.
     """
-    from ..datasets import DatasetError, load_csv_dataset, load_google_5q
-
     data = cfg.data
     base = cfg.path.parent if cfg.path is not None else Path.cwd()
     if data.source == "google_5q":

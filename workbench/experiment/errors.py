@@ -9,6 +9,7 @@ loading MLflow, Optuna or the estimators.
 from __future__ import annotations
 
 import difflib
+import importlib.util
 import re
 from collections.abc import Iterable
 
@@ -51,8 +52,6 @@ _DRIVER_PACKAGES = {"psycopg": "psycopg[binary]", "psycopg2": "psycopg2-binary",
 def driver_hint(exc: ImportError) -> str:
     """What to do about a database driver that is not installed (SQLAlchemy 2.1 maps
     ``postgresql://`` to psycopg 3; ``postgresql+psycopg2://`` names psycopg2)."""
-    import importlib.util
-
     name = (exc.name or "").split(".")[0]
     hint = f"pip install {_DRIVER_PACKAGES.get(name, name or 'the driver')}"
     if name == "psycopg" and importlib.util.find_spec("psycopg2"):
@@ -149,7 +148,7 @@ def redact_config(text: str, name: str = "the config") -> str:
     the file as written. When a credential-bearing value cannot be found in the text (an
     unusual escape), the whole text is replaced by a one-line note: it is never logged with
     the secret."""
-    import tomllib
+    import tomllib  # (c) stdlib, 5 ms: `workbench --help` loads this module
 
     try:
         values = [s for s in _strings(tomllib.loads(text)) if redact(s) != s]

@@ -14,9 +14,16 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from sklearn.model_selection import KFold, RepeatedKFold, cross_val_predict
 
 from .config import ExperimentConfig, load_dataset
-from .intervals import family_model, interval_scores, interval_settings, with_intervals
+from .intervals import (
+    family_model,
+    interval_artifacts,
+    interval_scores,
+    interval_settings,
+    with_intervals,
+)
 from .results import CVEstimate, Result, mae, mse
 
 __all__ = ["Evaluation", "evaluate", "fit_and_score", "format_table", "has_outputs",
@@ -63,8 +70,6 @@ def evaluate(cfg: ExperimentConfig, return_model: bool = False):
 
 def _oof(model, X, Y, cv) -> np.ndarray:
     """Out-of-fold predictions of ``model`` refitted on each split's training rows."""
-    from sklearn.model_selection import cross_val_predict
-
     return np.asarray(cross_val_predict(model, X, Y, cv=cv), dtype=float)
 
 
@@ -72,8 +77,6 @@ def repeated_cv(cfg: ExperimentConfig, ds, model) -> CVEstimate:
     """Repeated K-fold CV (``[evaluation]`` cv_folds x cv_repeats, ``RepeatedKFold`` seeded by
     cv_seed) of ``model`` (unfitted) on the training rows only, with the control program's
     MAE there."""
-    from sklearn.model_selection import RepeatedKFold
-
     ev = cfg.evaluation
     X = cfg.family.inputs(cfg, ds).loc[ds.train_index]
     Y = ds.targets.loc[ds.train_index]
@@ -93,8 +96,6 @@ def nested_cv_all(cfg: ExperimentConfig, ds) -> CVEstimate:
     """Nested CV over every row (training and test): in each of ``nested_folds`` outer folds
     the whole model, every choice included, is fitted on the other rows and scored on the
     fold's rows. The least noisy estimate for small data; no choice is made from it."""
-    from sklearn.model_selection import KFold
-
     ev = cfg.evaluation
     X, Y = cfg.family.inputs(cfg, ds), ds.targets
     pred = _oof(cfg.family.build(cfg, ds), X, Y,
@@ -138,8 +139,6 @@ def outputs(cfg: ExperimentConfig, model, ds, setting: str):
     """What ``evaluate --out DIR`` writes: the family's tables and figures
     (:meth:`~workbench.experiment.families.base.ModelFamily.outputs`) and the intervals'
     figure and table (:func:`~workbench.experiment.intervals.interval_artifacts`)."""
-    from .intervals import interval_artifacts
-
     out = interval_artifacts(cfg, ds, model, setting)
     if cfg.family.writes_outputs:
         extra = cfg.family.outputs(family_model(model), ds, setting)

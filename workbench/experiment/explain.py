@@ -23,6 +23,7 @@ from typing import Callable
 
 import numpy as np
 import pandas as pd
+from sklearn.utils import shuffle
 
 from ..boosting import check_predictions
 
@@ -59,8 +60,6 @@ def shap_sample(n_rows: int, n_features: int, background: int = 30) -> tuple[int
 def sample_background(data: np.ndarray, size: int, random_state: int = 0) -> np.ndarray:
     """``size`` rows of ``data`` without replacement (all of them if there are fewer): the
     same rows as ``shap.sample(data, size, random_state)``."""
-    from sklearn.utils import shuffle
-
     if size >= len(data):
         return data
     return shuffle(data, n_samples=size, random_state=random_state)
@@ -122,7 +121,7 @@ def shap_values(predict: Callable[[np.ndarray], np.ndarray], X: pd.DataFrame, *,
     background = sample_background(data, background_size, random_state)
     if nsamples == "auto" and data.shape[1] <= MAX_EXACT_FEATURES:
         return exact_shap_values(predict, data, background)
-    import shap  # heavy; imported only when sampling coalitions
+    import shap  # (b) SHAP: exact values (evaluate, sweep) do not need it
 
     # a lambda, never a bound method (shap 0.51 and scikit-learn 1.9 pipelines disagree)
     explainer = shap.KernelExplainer(lambda a: check_predictions(predict(a), len(a), "predict"),

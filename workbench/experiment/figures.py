@@ -15,7 +15,9 @@
 
 Figures are built on :class:`matplotlib.figure.Figure` directly, never through pyplot, so no
 global figure state is created or leaked and no GUI backend is needed; nothing is shown.
-The same data give the same figure.
+The same data give the same figure. matplotlib is imported when the first figure is drawn:
+the model families import this module, and a command that draws nothing (``evaluate
+--no-track``) does not load it.
 """
 
 from __future__ import annotations
@@ -23,15 +25,18 @@ from __future__ import annotations
 import io
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
-from matplotlib.artist import Artist
-from matplotlib.figure import Figure
 
 from .._io import atomic_write
 from ..curves import LearningCurve
 from .explain import check_shap_frame, shap_values
+
+if TYPE_CHECKING:
+    from matplotlib.artist import Artist
+    from matplotlib.figure import Figure
 
 __all__ = ["correlation_heatmap", "interval_figure", "learning_curve_figure", "mae_bars",
            "model_comparison_bars", "parameter_corrections", "prior_target_boxplots",
@@ -59,6 +64,8 @@ _METRICS = {  # scorer name -> (axis label, is the unit squared)
 
 
 def _new_figure(width: float, height: float) -> Figure:
+    from matplotlib.figure import Figure  # (b) matplotlib: not for evaluate --no-track
+
     fig = Figure(figsize=(width, height), layout="constrained")
     return fig
 
@@ -213,7 +220,7 @@ def shap_figure(values: np.ndarray, expected: float, X: pd.DataFrame, *, target:
                 title: str | None = None, setting: str | None = None) -> Figure:
     """The beeswarm summary of SHAP ``values`` (shape ``(n_rows, n_features)``) of the rows of
     ``X`` (see :func:`shap_summary`)."""
-    import shap  # heavy; imported only when a SHAP figure is asked for
+    import shap  # (b) SHAP: not for evaluate --no-track
 
     check_shap_frame(X)
     names = [str(c) for c in X.columns]
@@ -298,7 +305,7 @@ def correlation_heatmap(frame: pd.DataFrame, *, title: str | None = None,
     n = len(names)
     values = corr.to_numpy(dtype=float)
 
-    import matplotlib
+    import matplotlib  # (b) matplotlib: not for evaluate --no-track
 
     cmap = matplotlib.colormaps["RdBu_r"].with_extremes(bad="#d9d9d9")
     side = max(4.0, 0.58 * n + 1.6)
@@ -493,7 +500,7 @@ def model_comparison_bars(targets: Sequence[str], values: Mapping[str, Sequence[
                   average=average, fmt=fmt, fontsize=8 if n <= 3 else 7)
     ax.set_ylabel(f"{metric} ({unit}, log scale)" if log else f"{metric} ({unit})", fontsize=11)
     if log:
-        from matplotlib.ticker import FuncFormatter
+        from matplotlib.ticker import FuncFormatter  # (b) matplotlib: not for evaluate --no-track
 
         ax.set_yscale("log")
         ax.set_ylim(every.min() / 2.0, every.max() * 2.5)
@@ -664,7 +671,7 @@ def save_figure(fig: Figure, path: str | Path, *, dpi: int = 120) -> Path:
     fig.savefig(buffer, dpi=dpi, format="png")
     atomic_write(path, buffer.getvalue())
     if getattr(fig.canvas, "manager", None) is not None:  # a pyplot figure: drop its reference
-        import matplotlib.pyplot as plt
+        import matplotlib.pyplot as plt  # (b) matplotlib: not for evaluate --no-track
 
         plt.close(fig)
     return path

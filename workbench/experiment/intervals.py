@@ -25,11 +25,12 @@ import numpy as np
 import pandas as pd
 
 from ..conformal import ConformalRegressor, interval_coverage, interval_width
+from .families.base import Artifacts
+from .figures import interval_figure
 
 if TYPE_CHECKING:
     from ..datasets import Dataset
     from .config import ExperimentConfig
-    from .families.base import Artifacts
 
 __all__ = ["family_model", "interval_artifacts", "interval_scores", "interval_settings",
            "interval_table", "with_intervals"]
@@ -97,9 +98,6 @@ def interval_artifacts(cfg: ExperimentConfig, ds: Dataset, model,
     """The intervals' figure (measured against predicted with the interval of every test
     row, a panel per target) and table (:func:`interval_table`); nothing without
     intervals."""
-    from .families.base import Artifacts
-    from .figures import interval_figure
-
     if not isinstance(model, ConformalRegressor):
         return Artifacts()
     table = interval_table(model, ds, cfg.family.inputs(cfg, ds))

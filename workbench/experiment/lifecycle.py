@@ -19,6 +19,7 @@
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import os
 import socket
 import threading
@@ -27,7 +28,9 @@ from collections.abc import Iterator, Mapping
 from typing import TYPE_CHECKING, Any
 
 from ..parallel import pid_alive
+from .errors import TrackingError
 from .signals import interrupts_deferred
+from .tracking.uris import check_store_uri, sqlite_path
 
 if TYPE_CHECKING:  # mlflow is imported only where a run is touched
     from .tracking.runs import Tracker
@@ -46,15 +49,10 @@ HOST_TAG, PID_TAG, HEARTBEAT_TAG = "workbench.host", "workbench.pid", "workbench
 @contextlib.contextmanager
 def _first_use_lock(uri: str) -> Iterator[None]:
     """An exclusive lock on ``<db>.lock`` beside a SQLite store (no-op for other stores)."""
-    from .tracking.uris import sqlite_path
-
     path = sqlite_path(uri)
     if path is None or path.is_dir():
         yield
         return
-    import fcntl
-
-    from .errors import TrackingError
 
     lock = path.with_name(path.name + ".lock")
     try:
@@ -76,8 +74,6 @@ def prepare_store(tracker: Tracker) -> str:
     returns the experiment id. Raises :class:`~workbench.experiment.errors.TrackingError`
     (before anything is written when the store cannot be used: an unknown scheme, a missing
     database driver, a read-only directory, an unreachable server)."""
-    from .tracking.uris import check_store_uri
-
     check_store_uri(tracker.tracking_uri)
     # a Ctrl-C waits for a new store's migration (a half-migrated database would not open)
     with interrupts_deferred(), _first_use_lock(tracker.tracking_uri):
@@ -183,7 +179,7 @@ class TrialRecorder:
 
     def __call__(self, study, trial) -> None:
         """Three requests per trial (create, one batch, end): it runs between trials."""
-        from mlflow.entities import Metric, Param
+        from mlflow.entities import Metric, Param  # (b) MLflow: not for evaluate --no-track
 
         t, now = trial, int(time.time() * 1000)
         run = self.tracker.start_run(

@@ -18,6 +18,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
+from .._io import atomic_write
 from .errors import UsageError
 
 __all__ = ["OutputError", "check_dir", "check_file", "write_artifacts", "write_file"]
@@ -74,8 +75,6 @@ def check_dir(path: str | os.PathLike, flag: str) -> Path:
 
 def write_file(path: str | os.PathLike, data: str | bytes, flag: str) -> Path:
     """Write ``data`` to ``path`` all or nothing; a failure is one :class:`OutputError` line."""
-    from .._io import atomic_write
-
     try:
         return atomic_write(path, data)
     except OSError as exc:

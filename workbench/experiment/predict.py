@@ -24,10 +24,16 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+import mlflow.pyfunc
 import pandas as pd
+from mlflow.exceptions import MlflowException
 
+from ..datasets.csv import _read
 from .errors import UsageError
 from .outputs import check_file, write_file
+from .serving import InputError, check_inputs
+from .tracking.runs import Tracker
+from .tracking.uris import describe_store, sqlite_path
 
 __all__ = ["Prediction", "load_predictor", "predict_csv", "resolve_model"]
 
@@ -63,10 +69,6 @@ def resolve_model(spec: str, tracking_uri: str) -> str:
         raise UsageError(f"model {spec!r}: expected a run id, runs:/<run_id>/<name>, "
                          "models:/NAME/VERSION, models:/NAME@ALIAS, models:/<model_id> or "
                          "a model directory")
-    from mlflow.exceptions import MlflowException
-
-    from .tracking.runs import Tracker
-    from .tracking.uris import describe_store, sqlite_path
 
     db = sqlite_path(tracking_uri)
     if db is not None and not db.is_file():
@@ -178,9 +180,6 @@ class _Predictor:
 
 def load_predictor(spec: str, tracking_uri: str) -> _Predictor:
     """Resolve and load ``spec``; one-line errors."""
-    import mlflow.pyfunc
-    from mlflow.exceptions import MlflowException
-
     location = resolve_model(spec, tracking_uri)
     try:
         pyfunc = mlflow.pyfunc.load_model(location)
@@ -190,16 +189,12 @@ def load_predictor(spec: str, tracking_uri: str) -> _Predictor:
 
 
 def _read_csv(path: Path) -> pd.DataFrame:
-    from ..datasets.csv import _read
-
     return _read(path)  # every cell as text: a passed-through id keeps its exact form
 
 
 def predict_csv(spec: str, data: str | Path, out: str | Path, *,
                 tracking_uri: str) -> Prediction:
     """Predict the rows of the CSV ``data`` with the model ``spec`` and write ``out``."""
-    from .serving import InputError, check_inputs
-
     check_file(out, "--out")
     data = Path(data)
     frame = _read_csv(data)

@@ -19,6 +19,7 @@ from typing import Any
 
 import pandas as pd
 
+from ..datasets.google_5q import google_5q_csv_path
 from .config import ExperimentConfig
 from .errors import redact, redact_config
 from .figures import mae_bars
@@ -115,8 +116,6 @@ def _data_source(cfg: ExperimentConfig) -> str | None:
     if cfg.data.csv:
         return str((base / cfg.data.csv).resolve())
     try:
-        from ..datasets.google_5q import google_5q_csv_path
-
         data_dir = (base / cfg.data.data_dir).resolve() if cfg.data.data_dir else None
         return str(google_5q_csv_path(data_dir, download=False))
     except Exception:  # the source is a label only

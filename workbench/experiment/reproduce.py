@@ -39,6 +39,7 @@ from .figures import (
 )
 from .intervals import family_model
 from .results import Result
+from .sweep.search import run_sweep
 from .tracking.records import dataset_hash, git_commit
 from .tracking.runs import Tracker
 from .tracking.uris import resolve_tracking_uri
@@ -161,7 +162,6 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
         settings[key], ds = run.result, run.dataset
     _say("nested-CV search for the workbench's own best configuration "
                    "(experiments/paper_search.toml)")
-    from .sweep.search import run_sweep  # Optuna only here
 
     search_cfg = load_config(configs / "paper_search.toml")
     cv = {"seed": seed, **({"outer_folds": 2, "inner_folds": 3} if quick else {})}

@@ -31,7 +31,11 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+from mlflow.exceptions import MlflowException
+from mlflow.models import ModelSignature
 from mlflow.pyfunc import PythonModel  # not mlflow.pyfunc.PythonModel: mypy sees a LazyLoader
+from mlflow.types import DataType
+from mlflow.types.schema import AnyType, ColSpec, Schema
 
 from .errors import shorten
 
@@ -172,10 +176,6 @@ def has_intervals(model) -> bool:
 def model_signature(columns: Sequence[str], outputs: Sequence[str]):
     """Inputs by name (type ``Any``, optional: the model checks them itself, see the module
     docstring), outputs as doubles."""
-    from mlflow.models import ModelSignature
-    from mlflow.types import DataType
-    from mlflow.types.schema import AnyType, ColSpec, Schema
-
     return ModelSignature(
         inputs=Schema([ColSpec(AnyType(), str(c), required=False) for c in columns]),
         outputs=Schema([ColSpec(DataType.double, str(c)) for c in outputs]))
@@ -217,7 +217,5 @@ class WorkbenchModel(PythonModel):
         try:
             X = check_inputs(model_input, self.columns, where="model input")
         except InputError as exc:
-            from mlflow.exceptions import MlflowException
-
             raise MlflowException.invalid_parameter_value(str(exc)) from None
         return self.predict_checked(X)

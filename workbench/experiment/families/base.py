@@ -6,13 +6,18 @@ from __future__ import annotations
 import dataclasses
 import warnings
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, ClassVar
 
 import numpy as np
 import pandas as pd
 from pydantic import BaseModel, ValidationError
+from sklearn.base import clone
+from sklearn.exceptions import ConvergenceWarning
 
+from ..._io import atomic_write
 from ..errors import listing
+from ..figures import save_figure
 from ..results import ModelScores, Scores, mae, mse
 from ..space import SearchSpace, SpaceError
 
@@ -41,11 +46,6 @@ class Artifacts:
     def write(self, directory, *, tables: bool = True, figures: bool = True) -> dict[str, Any]:
         """Tables as ``<directory>/<name>.csv`` (no index column), figures as PNG; returns
         name -> path."""
-        from pathlib import Path
-
-        from ..._io import atomic_write
-        from ..figures import save_figure
-
         directory = Path(directory)
         directory.mkdir(parents=True, exist_ok=True)
         written: dict[str, Any] = {}
@@ -59,8 +59,6 @@ class Artifacts:
 def quiet_fit(model, X, y):
     """``model.fit(X, y)`` without scikit-learn's convergence warnings (an MLP's max_iter is
     the search's business, not noise)."""
-    from sklearn.exceptions import ConvergenceWarning
-
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
         return model.fit(X, y)
@@ -143,8 +141,6 @@ class ModelFamily:
     def fixed_choices(self, model):
         """An unfitted copy of a fitted model that keeps the choices it made on its training
         rows where refitting would remake them differently (default: a clone)."""
-        from sklearn.base import clone
-
         return clone(model)
 
     # ------------------------------------------------------------------ sweeps
@@ -156,8 +152,6 @@ class ModelFamily:
                   cv, report: Report) -> None:
         """Score a trial on a study's rows by inner CV: ``report(fold, mae, prior_mae)``
         after each fold (MAE averaged over ``targets``)."""
-        from sklearn.base import clone
-
         model = self.build(self.with_trial(cfg, trial, targets), ds)
         prior = ds.prior.loc[X.index].to_numpy()[:, [ds.target_names.index(t) for t in targets]]
         for i, (train, val) in enumerate(cv.split(X)):
@@ -171,7 +165,7 @@ class ModelFamily:
         """An outer fold: a study's best settings refitted on ``train`` rows; returns the
         predictions on ``val`` rows (one column per target of the unit) and what was
         selected."""
-        from optuna.trial import FixedTrial
+        from optuna.trial import FixedTrial  # (b) Optuna: not for evaluate
 
         model = self.build(self.with_trial(cfg, FixedTrial(params), targets), ds)
         quiet_fit(model, X.iloc[train], Y.iloc[train])
@@ -182,7 +176,7 @@ class ModelFamily:
                       best: dict[str, dict[str, Any] | None]) -> ExperimentConfig:
         """``cfg`` with the final studies' choices (unit -> best params; a unit without a
         completed trial keeps the config's own settings)."""
-        from optuna.trial import FixedTrial
+        from optuna.trial import FixedTrial  # (b) Optuna: not for evaluate
 
         for unit, targets in self.units(cfg, ds.target_names).items():
             params = best.get(unit)

@@ -8,11 +8,23 @@ unit is the target), a trial's value read from BaseBoostCV's own fold scores.
 
 from __future__ import annotations
 
+import logging
+import queue
+import threading
+import warnings
 from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
+from sklearn.exceptions import ConvergenceWarning
+from sklearn.model_selection import KFold
 
+from ...curves import learning_curve_plan, selection_curve_plan
+from ...multitarget import MultiTargetBaseBoost
+from ...parallel import Task, effective_n_jobs, gather, prioritised, run_plans, start_workers
+from ...selection import BaseBoostCV, BasisChoiceCV
+from ..explain import sample_background, shap_sample, shap_values
+from ..figures import learning_curve_figure, shap_figure
 from ..results import ModelScores, Scores, mae, mse
 from .base import Artifacts, ModelFamily, quiet_fit
 from .stage import booster_cv, make_booster, per_target_boost, stage_scores, target_inputs
@@ -66,7 +78,7 @@ class EigenvalueFamily(ModelFamily):
         quiet_fit_callback(model, X, Y[target].to_numpy(), report)
 
     def refit_predict(self, cfg, ds, targets, params, X, Y, train, val):
-        from optuna.trial import FixedTrial
+        from optuna.trial import FixedTrial  # (b) Optuna: not for evaluate
 
         (target,) = targets
         settings = self.with_trial(cfg, FixedTrial(params), targets).model_for(target)
@@ -77,8 +89,6 @@ class EigenvalueFamily(ModelFamily):
     def final_model(self, cfg: ExperimentConfig, ds: Dataset):
         """The final model of a sweep: the chosen settings, each target's BaseBoostCV on the
         sweep's inner folds (as in the search)."""
-        from ...multitarget import MultiTargetBaseBoost
-
         return MultiTargetBaseBoost(target_estimators={
             t: booster_cv(cfg, ds, t, cfg.model_for(t), cfg_inner_cv(cfg),
                           return_train_score=True)  # the curves reuse its folds
@@ -109,21 +119,6 @@ class EigenvalueFamily(ModelFamily):
         while the workers go on with the next ones; figures are drawn in the calling thread
         (matplotlib and SHAP's plots are not thread-safe). SHAP explains the fitted model
         itself."""
-        import logging
-        import queue
-        import threading
-
-        from ...curves import learning_curve_plan, selection_curve_plan
-        from ...parallel import (
-            Task,
-            effective_n_jobs,
-            gather,
-            prioritised,
-            run_plans,
-            start_workers,
-        )
-        from ...selection import BaseBoostCV, BasisChoiceCV
-
         log = logging.getLogger("workbench")
         X_train, _, y_train, _ = ds.split()
         sizes = curve_sizes(len(X_train), cfg.selection.cv)
@@ -162,8 +157,6 @@ class EigenvalueFamily(ModelFamily):
         threading.Thread(target=work, name="workbench-artifacts", daemon=True).start()
 
         def finish(emit=None) -> Artifacts:
-            from ..figures import learning_curve_figure, shap_figure
-
             drawn: dict[int, tuple] = {}
             while len(drawn) < n_targets:
                 item = results.get()
@@ -208,8 +201,6 @@ def _shap_values(used, X_train: pd.DataFrame, cols: list[str], random_state=0):
     than :data:`~workbench.experiment.explain.MAX_MODEL_ROWS` rows through the model
     (:func:`~workbench.experiment.explain.shap_sample`). Returns the values, the expected
     value and the explained rows."""
-    from ..explain import sample_background, shap_sample, shap_values
-
     base = X_train.iloc[[0]].to_numpy()
 
     def predict(a):
@@ -229,17 +220,11 @@ def _shap_values(used, X_train: pd.DataFrame, cols: list[str], random_state=0):
 
 def cfg_inner_cv(cfg: ExperimentConfig):
     """A sweep's inner folds (``[cv]``)."""
-    from sklearn.model_selection import KFold
-
     return KFold(cfg.cv.inner_folds, shuffle=True, random_state=cfg.cv.seed)
 
 
 def quiet_fit_callback(model, X, y, report) -> None:
     """Fit a BaseBoostCV, reporting each fold's boosted and prior MAE as it finishes."""
-    import warnings
-
-    from sklearn.exceptions import ConvergenceWarning
-
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
         model.fit(X, y, fold_callback=lambda i, prior_score, boosted_score:

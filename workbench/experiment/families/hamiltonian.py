@@ -28,9 +28,14 @@ from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, cast
 
 import pandas as pd
 from pydantic import Field
+from sklearn.base import clone
+from sklearn.model_selection import KFold
 
+from ...fitted_prior import FittedPriorBoost
 from ...param_boost import HamiltonianParameterRegressor, default_library
 from ...param_select import HamiltonianSelectionCV, candidate_pool
+from ..errors import ConfigError
+from ..figures import parameter_corrections, selection_path_figure
 from ..results import ModelScores, Scores, mae, mse
 from ..schema import ParameterOf, Section
 from .base import Artifacts, ModelFamily
@@ -101,8 +106,6 @@ def make_hamiltonian(settings: HamiltonianSettings, ds: Dataset, *, random_state
     """The parameter-space model that ``[model.hamiltonian]`` describes: a
     :class:`HamiltonianSelectionCV` (``selection = "forward"``) or a
     :class:`HamiltonianParameterRegressor` with the start and pool covariates together."""
-    from ..errors import ConfigError
-
     ham = ds.hamiltonian
     if ham is None:
         raise ConfigError(f"family = \"hamiltonian\" needs a dataset with Hamiltonian "
@@ -167,10 +170,6 @@ class HamiltonianFamily(ModelFamily):
         """A :class:`FittedPriorBoost` whose physics model is :func:`make_hamiltonian` and
         whose per-target stage is BaseBoostCV, boosting from the physics model's
         prediction (columns ``prior_<target>``)."""
-        from sklearn.model_selection import KFold
-
-        from ...fitted_prior import FittedPriorBoost
-
         h = cast(HamiltonianSettings, cfg.family_settings)  # validated by `settings`
         priors = [f"{PRIOR_PREFIX}{t}" for t in ds.target_names]
         boost = per_target_boost(cfg, ds, priors, boost_from_prior=False)
@@ -183,8 +182,6 @@ class HamiltonianFamily(ModelFamily):
 
     def fixed_choices(self, model):
         """Keep the selected covariates (refitting the selection would remake it)."""
-        from sklearn.base import clone
-
         selection = getattr(model.physics_, "selection_", None)
         if selection is not None:
             return clone(model).set_params(physics=selection.estimator())
@@ -234,8 +231,6 @@ class HamiltonianFamily(ModelFamily):
         """The tables and figures of a fitted model, from one computation of the corrected
         parameters of every experiment. Every table is written without its index (the
         corrected parameters carry the experiment label in the column ``experiment``)."""
-        from ..figures import parameter_corrections, selection_path_figure
-
         regressor = physics_regressor(model)
         X = ds.X_physics
         names = regressor.parameter_names_

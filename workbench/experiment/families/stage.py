@@ -6,9 +6,17 @@ puts it on top of the parameter-space model."""
 
 from __future__ import annotations
 
+import logging
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from sklearn.model_selection import KFold
+
+from ...bases import make_basis, make_transform, quadratic_basis_warning
+from ...boosting import BaseBoostRegressor
+from ...multitarget import MultiTargetBaseBoost
+from ...selection import BaseBoostCV, BasisChoiceCV
+from ..errors import ConfigError
 
 if TYPE_CHECKING:
     from ...datasets import Dataset
@@ -20,9 +28,6 @@ __all__ = ["booster_cv", "cv_mse", "make_booster", "per_target_boost", "selectio
 
 def make_booster(settings: dict[str, Any], prior, inputs: list[str] | None):
     """The :class:`~workbench.BaseBoostRegressor` that one target's settings describe."""
-    from ...bases import make_basis, make_transform
-    from ...boosting import BaseBoostRegressor
-
     return BaseBoostRegressor(
         prior=prior, basis=make_basis(settings["basis"], **settings["basis_params"]),
         n_stages=settings["n_stages"], loss=settings["loss"],
@@ -42,8 +47,6 @@ def target_inputs(settings: dict[str, Any], ds: Dataset, priors: list[str]) -> l
 
 def selection_cv(cfg: ExperimentConfig):
     """BaseBoostCV's folds (``[selection]``): contiguous unless ``shuffle``."""
-    from sklearn.model_selection import KFold
-
     s = cfg.selection
     return KFold(s.cv, shuffle=s.shuffle, random_state=cfg.random_state if s.shuffle else None)
 
@@ -52,14 +55,9 @@ def per_target_boost(cfg: ExperimentConfig, ds: Dataset, priors: list[str], *,
                      boost_from_prior: bool = True):
     """One :class:`BaseBoostCV` per target (target ``j`` boosting from ``priors[j]``, or from
     an outside prior when ``boost_from_prior`` is false), as a MultiTargetBaseBoost."""
-    from ...multitarget import MultiTargetBaseBoost
-    from ...selection import BaseBoostCV
-
     names = ds.target_names
     unknown = sorted(set(cfg.model.targets) - set(names))
     if unknown:
-        from ..errors import ConfigError
-
         raise ConfigError(f"[model.targets]: unknown target(s) {unknown}; the dataset's "
                           f"targets are {names}")
     _warn_quadratic_bases(cfg, names, len(ds.train_index))
@@ -69,8 +67,6 @@ def per_target_boost(cfg: ExperimentConfig, ds: Dataset, priors: list[str], *,
         start = prior if boost_from_prior else None
         inputs = target_inputs(s, ds, priors)
         if isinstance(s["basis"], list):  # the basis family too is chosen by CV
-            from ...selection import BasisChoiceCV
-
             candidates = [(name, make_booster({**s, "basis": name,
                                                "basis_params": s["basis_params"].get(name, {})},
                                               prior=start, inputs=inputs))
@@ -89,10 +85,6 @@ def per_target_boost(cfg: ExperimentConfig, ds: Dataset, priors: list[str], *,
 def _warn_quadratic_bases(cfg: ExperimentConfig, targets: list[str], n_rows: int) -> None:
     """Warn (the ``workbench`` logger), before anything is fitted, about a basis that will not
     scale to ``n_rows``."""
-    import logging
-
-    from ...bases import quadratic_basis_warning
-
     bases = set()
     for target in targets:
         basis = cfg.model_for(target)["basis"]
@@ -106,8 +98,6 @@ def _warn_quadratic_bases(cfg: ExperimentConfig, targets: list[str], n_rows: int
 def booster_cv(cfg: ExperimentConfig, ds: Dataset, target: str, settings: dict[str, Any], cv,
                **kwargs):
     """One target's BaseBoostCV of a sweep (inner folds ``cv``)."""
-    from ...selection import BaseBoostCV
-
     prior = ds.prior_names[ds.target_names.index(target)]
     booster = make_booster(settings, prior=prior, inputs=target_inputs(settings, ds,
                                                                         ds.prior_names))

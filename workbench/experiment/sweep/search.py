@@ -29,6 +29,7 @@ from typing import Any, Callable
 import numpy as np
 import optuna
 from optuna.trial import TrialState
+from sklearn.model_selection import KFold, RepeatedKFold
 
 from ...parallel import Task, map_tasks
 from ..config import ExperimentConfig, load_dataset
@@ -92,8 +93,6 @@ def study_names(cfg: ExperimentConfig, targets: list[str]) -> list[StudySpec]:
 
 def outer_splits(cfg: ExperimentConfig, n_rows: int) -> list:
     """The outer folds: ``RepeatedKFold`` (``[cv]`` outer_folds x repeats, seeded)."""
-    from sklearn.model_selection import RepeatedKFold
-
     c = cfg.cv
     splitter = RepeatedKFold(n_splits=c.outer_folds, n_repeats=c.repeats, random_state=c.seed)
     return list(splitter.split(np.zeros((n_rows, 1))))
@@ -101,8 +100,6 @@ def outer_splits(cfg: ExperimentConfig, n_rows: int) -> list:
 
 def inner_cv(cfg: ExperimentConfig):
     """The inner folds of every trial (``[cv]`` inner_folds, shuffled with the seed)."""
-    from sklearn.model_selection import KFold
-
     return KFold(cfg.cv.inner_folds, shuffle=True, random_state=cfg.cv.seed)
 
 

@@ -19,7 +19,9 @@ import copy
 import json
 import logging
 import os
+import shutil
 import sys
+import tempfile
 import time
 import warnings
 from dataclasses import dataclass
@@ -27,9 +29,13 @@ from pathlib import Path
 
 import optuna
 from optuna.exceptions import ExperimentalWarning
+from optuna.storages.journal import JournalFileSymlinkLock
+from optuna.storages.journal._file import get_lock_file
+from optuna.storages.journal._storage import JournalOperation, JournalStorageReplayResult
 from optuna.trial import FrozenTrial
 
 from ..errors import StorageError, driver_hint, redact
+from ..outputs import OutputError, check_file
 from ..signals import interrupts_deferred
 
 log = logging.getLogger("workbench")
@@ -139,8 +145,6 @@ def _lines(path: Path):
 def _replay(records: list[dict]) -> tuple[int | None, str]:
     """``(index, why)`` of the first record Optuna's replay raises on, else ``(None, "")``
     (replayed as a process that wrote none of them, as Optuna replays others' records)."""
-    from optuna.storages.journal._storage import JournalStorageReplayResult
-
     replay = JournalStorageReplayResult("workbench-check-")
     for i, record in enumerate(records):
         try:
@@ -259,11 +263,9 @@ class _JournalFile(optuna.storages.journal.JournalFileBackend):
                                f"{type(exc).__name__}") from None
 
     def append_logs(self, logs: list[dict]) -> None:
-        from optuna.storages.journal._file import get_lock_file
-        from optuna.storages.journal._storage import JournalOperation as Op
-
-        synced = (Op.CREATE_STUDY, Op.DELETE_STUDY, Op.CREATE_TRIAL,
-                  Op.SET_TRIAL_STATE_VALUES, Op.DISCARD_TRIALS)
+        op = JournalOperation
+        synced = (op.CREATE_STUDY, op.DELETE_STUDY, op.CREATE_TRIAL, op.SET_TRIAL_STATE_VALUES,
+                  op.DISCARD_TRIALS)
         sync = any(log.get("op_code") in synced for log in logs)
         # a Ctrl-C waits for the append: interrupted under the lock, it would leave the
         # lock file behind (and a torn record)
@@ -331,7 +333,6 @@ def check_storage(storage: str, root: Path, *, hint: str | None = None) -> None:
     if path.is_dir():
         raise StorageError(f"Optuna storage {path} is a directory; give a journal file path "
                            "(e.g. mlruns/optuna.journal) or a database URL")
-    from ..outputs import OutputError, check_file
 
     try:  # its directory takes new files (the journal's lock is created there)
         check_file(path, "Optuna journal")
@@ -383,8 +384,6 @@ def repair_journal(storage: str, root: Path) -> Repair | None:
     replay as written without the damaged lines (a lost record created a study or trial, so
     later ids would shift), only the records before the first damaged line are kept. Run it
     while no sweep works on the file."""
-    from optuna.storages.journal import JournalFileSymlinkLock
-
     if "://" in storage:
         raise StorageError(f"--repair repairs an Optuna journal file; {redact(storage)} is a "
                            "database")
@@ -430,8 +429,6 @@ def repair_journal(storage: str, root: Path) -> Repair | None:
 
 
 def _write_temp(path: Path, data: bytes) -> Path:
-    import tempfile
-
     fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".repair")
     try:
         with os.fdopen(fd, "wb") as fh:
@@ -460,8 +457,6 @@ def _verify(path: Path, n_records: int) -> tuple[int, int]:
 def _keep_original(path: Path) -> Path:
     """A second name for the damaged file, ``<file>.damaged`` or ``<file>.damaged-N``, that
     keeps its bytes once the repaired file replaces it (a hard link, else a copy)."""
-    import shutil
-
     for n in range(10_000):
         copy = path.with_name(f"{path.name}.damaged" + (f"-{n}" if n else ""))
         if os.path.lexists(copy):
@@ -495,7 +490,7 @@ def _sync_dir(directory: Path) -> None:
 @contextlib.contextmanager
 def _rdb_errors(shown: str):
     """Database problems as one :class:`StorageError` line (without the password)."""
-    import sqlalchemy.exc
+    import sqlalchemy.exc  # (b) SQLAlchemy: database storages only, not a journal
 
     try:
         yield
@@ -531,13 +526,11 @@ def _sqlite_file(url: str, shown: str) -> Path | None:
 def _check_rdb(url: str) -> None:
     """The database accepts a connection (nothing is created; a new SQLite file's directory
     must be writable)."""
-    import sqlalchemy
+    import sqlalchemy  # (b) SQLAlchemy: database storages only, not a journal
 
     shown = redact(url)
     db = _sqlite_file(url, shown)
     if db is not None:
-        from ..outputs import OutputError, check_file
-
         try:
             check_file(db, "Optuna storage")
         except OutputError as exc:

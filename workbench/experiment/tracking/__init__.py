@@ -39,6 +39,7 @@ if not TYPE_CHECKING:  # type checkers see the package's real names only
 
     def __getattr__(name: str) -> Any:
         if name == "_PyfuncModel":  # models logged before serving.WorkbenchModel pickle it
+            # (b) .models imports MLflow; importing the light .uris runs this __init__ too
             from .models import LegacyPyfuncModel
 
             return LegacyPyfuncModel

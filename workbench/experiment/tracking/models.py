@@ -19,7 +19,10 @@ from mlflow.entities import LoggedModelOutput
 from mlflow.exceptions import MlflowException
 from mlflow.pyfunc import PythonModel  # not mlflow.pyfunc.PythonModel: mypy sees a LazyLoader
 
+import workbench
+
 from ..errors import TrackingError
+from ..serving import WorkbenchModel, model_signature
 from .records import tag_value
 
 if TYPE_CHECKING:
@@ -115,10 +118,6 @@ class ModelRecords:
         in the model directory (e.g. ``{"config.toml": ...}``, credentials redacted by the
         caller). Requirements are pinned from the installed versions (no inference
         subprocess)."""
-        import workbench
-
-        from ..serving import WorkbenchModel, model_signature
-
         example = pd.DataFrame(input_example)
         if targets is None:
             pred = model.predict(example.head(2))

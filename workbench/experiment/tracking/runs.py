@@ -15,7 +15,8 @@ from typing import Any
 
 import pandas as pd
 from mlflow import MlflowClient
-from mlflow.entities import Metric, Param, RunTag
+from mlflow.data.pandas_dataset import from_pandas  # mlflow.data.from_pandas: no stub sees it
+from mlflow.entities import DatasetInput, InputTag, Metric, Param, RunTag
 from mlflow.exceptions import MlflowException
 
 from ..errors import TrackingError, redact
@@ -259,10 +260,6 @@ class Tracker(ModelRecords):
         """Record ``frame`` as an input dataset of the run (MLflow's name, digest and schema;
         the runs table's "Dataset" column), with ``mlflow.data.context`` = ``context``;
         returns MLflow's digest."""
-        # mlflow.data.from_pandas is this function, set on mlflow.data at import: no stub sees it
-        from mlflow.data.pandas_dataset import from_pandas
-        from mlflow.entities import DatasetInput, InputTag
-
         with warnings.catch_warnings():  # a local path "can be interpreted in multiple ways"
             warnings.simplefilter("ignore", UserWarning)
             # its hint omits None, its default (None: "the code location")

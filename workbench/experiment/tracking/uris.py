@@ -7,10 +7,11 @@ from __future__ import annotations
 
 import os
 import socket
+import tempfile
 from pathlib import Path
 from urllib.parse import urlsplit
 
-from ..errors import TrackingError, redact
+from ..errors import TrackingError, driver_hint, redact
 
 __all__ = ["DEFAULT_STORE", "check_store_uri", "default_artifact_root", "default_tracking_uri",
            "describe_store", "resolve_tracking_uri", "sqlite_path"]
@@ -96,8 +97,6 @@ def _check_sqlite_location(path: Path) -> None:
     """Without writing anything: ``path`` is not a directory, and its directory (or the
     nearest existing one, where it would be created) accepts new files: SQLite writes its
     journal and the first-use lock beside the database, even for an existing one."""
-    import tempfile
-
     if path.is_dir():
         raise TrackingError(f"SQLite database {path} is a directory, not a database file")
     existing = Path(os.path.abspath(path)).parent
@@ -134,9 +133,9 @@ _MLFLOW_SCHEMES = ("", "file", "http", "https", "databricks", "databricks-uc", "
 
 
 def _store_schemes() -> list[str]:
-    from importlib.metadata import entry_points
+    from importlib.metadata import entry_points  # (c) stdlib, 20 ms: this module is light
 
-    from mlflow.store.db.db_types import DATABASE_ENGINES
+    from mlflow.store.db.db_types import DATABASE_ENGINES  # (b) MLflow: not for evaluate --no-track
 
     plugins = [e.name for e in entry_points(group="mlflow.tracking_store")]
     return [*_MLFLOW_SCHEMES, *DATABASE_ENGINES, *plugins]
@@ -145,7 +144,7 @@ def _store_schemes() -> list[str]:
 def check_scheme_and_driver(uri: str) -> None:
     """Without connecting: MLflow has a store for the URI's scheme, and a database URI's
     driver is installed."""
-    from mlflow.store.db.db_types import DATABASE_ENGINES
+    from mlflow.store.db.db_types import DATABASE_ENGINES  # (b) MLflow: not for evaluate --no-track
 
     shown = redact(uri)
     try:
@@ -163,14 +162,12 @@ def check_scheme_and_driver(uri: str) -> None:
             "directory")
     if base not in DATABASE_ENGINES:
         return
-    import sqlalchemy.exc
-    from sqlalchemy.engine import make_url
+    import sqlalchemy.exc  # (b) SQLAlchemy: database URIs only
+    from sqlalchemy.engine import make_url  # (b) SQLAlchemy: database URIs only
 
     try:
         make_url(uri).get_dialect().import_dbapi()
     except ImportError as exc:
-        from ..errors import driver_hint
-
         raise TrackingError(f"tracking store {shown}: its database driver is not installed "
                             f"({exc}); {driver_hint(exc)}") from None
     except sqlalchemy.exc.NoSuchModuleError:
