@@ -213,10 +213,18 @@ def test_workers_propose_different_configurations():
 
 
 def _fake_search(cfg, storage_url, progress=False, worker=0, on_trial=None):
+    """Records where it runs, then waits (up to 30 s) until the other search runs too: two
+    searches at once, as a sweep's workers are."""
+    import time
+
     from workbench.parallel import effective_n_jobs, in_worker
 
-    Path(storage_url).with_name(f"worker-{worker}.txt").write_text(
+    folder = Path(storage_url).parent
+    (folder / f"worker-{worker}.txt").write_text(
         f"{os.getpid()} {in_worker()} {effective_n_jobs(-1)}")
+    deadline = time.monotonic() + 30
+    while len(list(folder.glob("worker-*.txt"))) < 2 and time.monotonic() < deadline:
+        time.sleep(0.05)
 
 
 def test_sweep_workers_are_the_command_s_worker_processes(tmp_path):
