@@ -88,7 +88,7 @@ def test_paper_run_exit_code_and_json_written(paper_run):
     assert f"wrote {paper_run['out']}" in paper_run["stdout"]
 
 
-def test_paper_run_json_schema(paper_run):
+def test_paper_run_json_schema(paper_run, tmp_path):
     r = paper_run["result"]
     assert r is not None
     assert r["targets"] == TARGETS
@@ -114,6 +114,10 @@ def test_paper_run_json_schema(paper_run):
     assert {"plots/mae_bars.png", "plots/learning_curve_eeig3.png", "plots/shap_eeig1.png"} <= plots
     assert r["mlflow"]["model_uri"].startswith("models:/")
     assert isinstance(r["wall_s"], float) and r["wall_s"] > 0
+    # the whole command's wall time, the same in MLflow (metric, result.json) and --json
+    assert run.data.metrics["wall_s"] == pytest.approx(r["wall_s"])
+    local = client.download_artifacts(run.info.run_id, "result.json", str(tmp_path))
+    assert json.loads(Path(local).read_text())["wall_s"] == pytest.approx(r["wall_s"])
 
 
 def test_paper_run_reports_prediction_intervals(paper_run):

@@ -73,6 +73,7 @@ def test_smoke_sweep_json_and_tracking(smoke_run, tmp_path):
                  "test_mae.eeig1", "test_mse.eeig5", "nested_cv_mae.eeig3"):
         assert name in run.data.metrics
     assert run.data.metrics["test_mae_avg"] == pytest.approx(res["model"]["test_mae_avg"])
+    assert run.data.metrics["wall_s"] == pytest.approx(res["wall_s"])  # the whole command's
     assert run.data.tags["dataset_hash"] and run.data.tags["git_commit"]
     plots = [a.path for a in client.list_artifacts(run.info.run_id, "plots")]
     assert len(plots) >= 3 and all(p.endswith(".png") for p in plots)

@@ -211,6 +211,10 @@ def _cmd_sweep(args) -> int:
                                    kind="sweep", tracking_uri=args.tracking_uri, sweep=sweep,
                                    run_id=run_id, register=args.register)
         result.wall_s = _wall()
+        if run_id is not None:  # the same figure in MLflow, the output and --json
+            from .record import record_wall_time
+
+            record_wall_time(sweep.config, result, tracking_uri=args.tracking_uri, run_id=run_id)
         if args.json:
             _write_json(args.json, result.to_json())
     print(format_table(result))
@@ -290,6 +294,10 @@ def _cmd_evaluate(args) -> int:
                                    tracking_uri=args.tracking_uri, run_id=run_id,
                                    register=args.register)
         result.wall_s = _wall()
+        if run_id is not None:  # the same figure in MLflow, the output and --json
+            from .record import record_wall_time
+
+            record_wall_time(cfg, result, tracking_uri=args.tracking_uri, run_id=run_id)
         if args.json:
             _write_json(args.json, result.to_json())
     print(format_table(result))

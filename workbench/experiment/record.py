@@ -53,8 +53,8 @@ def _flat(prefix: str, settings: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _metrics(result: Result) -> dict[str, float]:
-    m: dict[str, float] = {"wall_s": result.wall_s}
+def _metrics(result: Result, wall: bool = True) -> dict[str, float]:
+    m: dict[str, float] = {"wall_s": result.wall_s} if wall else {}
     for scores, prefix in ((result.model, ""), (result.prior, "prior_")):
         for key in ("test_mae", "test_mse", "cv_mae", "cv_mse"):
             m[f"{prefix}{key}_avg"] = scores.avg(key)
@@ -174,7 +174,8 @@ def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
           else tracker.run(f"{kind} {cfg.name}", tags=tags, params=params)) as run_id:
         log.info("[%s] tracking in %s (run %s)", cfg.name, redact(tracker.tracking_uri),
                  run_id)
-        tracker.log_metrics(run_id, _metrics(result))
+        # a command's run gets its whole wall time at the end (record_wall_time)
+        tracker.log_metrics(run_id, _metrics(result, wall=not live))
         # the family's figures are computed on the workers while the rest is logged
         finish_artifacts = family.begin_artifacts(cfg, ds, family_model(model), setting)
         source = _data_source(cfg)
@@ -231,3 +232,15 @@ def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
         if sweep is not None:
             _record_sweep_children(tracker, run_id, sweep, trials=not live)
     return out
+
+
+def record_wall_time(cfg: ExperimentConfig, result: Result, *, tracking_uri: str | None,
+                     run_id: str) -> None:
+    """The command's whole wall time, once everything else is logged: the run's ``wall_s``
+    metric and its ``result.json`` get the figure the command prints and ``--json``
+    writes."""
+    tracker = tracker_for(cfg, tracking_uri)
+    tracker.log_metrics(run_id, {"wall_s": result.wall_s})
+    tracker.log_dict(run_id, json.loads(json.dumps(result.to_json(), default=str)),
+                     "result.json")
+
