@@ -74,6 +74,14 @@ def test_smoke_sweep_json_and_tracking(smoke_run, tmp_path):
         assert name in run.data.metrics
     assert run.data.metrics["test_mae_avg"] == pytest.approx(res["model"]["test_mae_avg"])
     assert run.data.metrics["wall_s"] == pytest.approx(res["wall_s"])  # the whole command's
+    # the studies' objective is named (the dashboard's label), with its unit
+    from workbench.experiment.sweep.scheduler import OBJECTIVE
+
+    journal = open_storage(str(tmp_path / "mlruns" / "optuna.journal"), tmp_path)
+    names = [s.study_name for s in optuna.get_all_study_summaries(journal)
+             if not s.study_name.endswith(".streams")]
+    assert names and all(optuna.load_study(study_name=n, storage=journal).metric_names
+                         == [OBJECTIVE] for n in names)
     assert run.data.tags["dataset_hash"] and run.data.tags["git_commit"]
     plots = [a.path for a in client.list_artifacts(run.info.run_id, "plots")]
     assert len(plots) >= 3 and all(p.endswith(".png") for p in plots)

@@ -53,8 +53,8 @@ from .storage import (
 
 log = logging.getLogger("workbench")
 
-__all__ = ["STREAMS", "claim_stream", "is_counted", "fail_stale", "pruner", "run_studies",
-           "run_study", "sampler"]
+__all__ = ["OBJECTIVE", "STREAMS", "claim_stream", "fail_stale", "is_counted", "open_study",
+           "pruner", "run_studies", "run_study", "sampler"]
 
 
 def sampler(cfg, name: str, worker: int = 0):
@@ -66,6 +66,22 @@ def sampler(cfg, name: str, worker: int = 0):
     return optuna.samplers.TPESampler(seed=seed, constant_liar=True)
 
 
+
+
+#: What a study's value is, as the Optuna dashboard labels it (instead of "Objective 0").
+OBJECTIVE = "inner-CV MAE (targets' units)"
+
+
+def open_study(name: str, storage, **kwargs) -> optuna.Study:
+    """The sweep's study ``name`` in ``storage`` (created if new; minimised), its objective
+    named (:data:`OBJECTIVE`). ``kwargs``: Optuna's (a sampler, a pruner)."""
+    study = optuna.create_study(study_name=name, storage=storage, direction="minimize",
+                                load_if_exists=True, **kwargs)
+    if study.metric_names != [OBJECTIVE]:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ExperimentalWarning)  # set_metric_names
+            study.set_metric_names([OBJECTIVE])
+    return study
 
 
 def claim_stream(study: optuna.Study) -> int:

@@ -36,7 +36,7 @@ from ..config import ExperimentConfig, load_dataset
 from ..errors import redact
 from ..evaluate import fit_and_score
 from ..results import OuterFold, Result, SweepSummary
-from .scheduler import is_counted, pruner, run_studies, sampler
+from .scheduler import is_counted, open_study, pruner, run_studies, sampler
 from .storage import open_storage
 from .workers import search_in_workers
 
@@ -157,9 +157,8 @@ def run_search(cfg: ExperimentConfig, storage_url: str, *, progress: bool = Fals
     storage = open_storage(storage_url, _root(), stale_after_s=cfg.study.stale_after_s)
     studies = []
     for spec in study_names(cfg, ds.target_names):
-        study = optuna.create_study(study_name=spec.name, storage=storage, direction="minimize",
-                                    sampler=sampler(cfg, spec.name, worker),
-                                    pruner=pruner(cfg), load_if_exists=True)
+        study = open_study(spec.name, storage, sampler=sampler(cfg, spec.name, worker),
+                           pruner=pruner(cfg))
         studies.append((study, study_objective(cfg, ds, spec)))
     run_studies(cfg, studies, progress=progress, on_trial=on_trial)
 

@@ -8,11 +8,10 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Callable
 
-import optuna
-
 from ...parallel import Task, map_tasks
 from ..signals import handle_signals
 from ..startup import setup_logging
+from .scheduler import open_study
 from .storage import open_storage
 
 __all__ = ["search_in_workers", "sweep_task"]
@@ -44,7 +43,6 @@ def search_in_workers(search: Callable, cfg, storage_url: str, workers: int,
     # Create the storage and studies once, before workers race to do it.
     storage = open_storage(storage_url, root, stale_after_s=cfg.study.stale_after_s)
     for name in names:
-        optuna.create_study(study_name=name, storage=storage, direction="minimize",
-                            load_if_exists=True)
+        open_study(name, storage)
     map_tasks([Task(sweep_task, search, cfg, storage_url, i, bool(progress), on_trial)
                for i in range(workers)], workers)
