@@ -1,6 +1,9 @@
 """workbench reproduce --quick: every manifest entry, the report, numbers that agree everywhere."""
 
+import contextlib
+import io
 import json
+import warnings
 
 import matplotlib.image
 import pytest
@@ -18,11 +21,19 @@ FIGURE_IDS = ["fig2_mae_bars", "fig3_correlation", "fig4_learning_curve_Y3", "fi
 def quick_run(tmp_path_factory, google_5q_dir):
     root = tmp_path_factory.mktemp("reproduce")
     uri = f"sqlite:///{root / 'store' / 'mlflow.db'}"
-    with pytest.MonkeyPatch.context() as mp:
+    output = io.StringIO()
+    with pytest.MonkeyPatch.context() as mp, contextlib.redirect_stdout(output), \
+            contextlib.redirect_stderr(output), warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")  # what a user's terminal would show, recorded:
+        for hidden in (DeprecationWarning, PendingDeprecationWarning, ImportWarning,
+                       ResourceWarning):  # Python's default filters hide these
+            warnings.simplefilter("ignore", hidden)
         mp.setenv("WORKBENCH_DATA_DIR", str(google_5q_dir))
         mp.chdir(root)  # the search's journal lands here
         assert main(["reproduce", "--quick", "--out", str(root / "reports"),
                      "--tracking-uri", uri]) == 0
+    shown = "".join(f"{w.category.__name__}: {w.message}\n" for w in caught)
+    (root / "output.txt").write_text(output.getvalue() + shown)  # what the user saw
     return root / "reports", uri
 
 
@@ -35,6 +46,17 @@ def test_every_figure_is_written(quick_run):
         for f in files:
             assert matplotlib.image.imread(out / f).size > 0, f
     assert len(manifest["figS5_learning_curves"]) == len(manifest["figS8_shap"]) == 5
+
+
+def test_progress_and_the_final_count(quick_run):
+    """Every phase shows progress (a line per trial of the search), no library warning leaks,
+    and the last line counts the figure files written."""
+    out, _ = quick_run
+    text = (out.parent / "output.txt").read_text()
+    assert "[paper_search" in text and " trial " in text  # the search's per-trial lines
+    assert "Warning" not in text, [line for line in text.splitlines() if "Warning" in line]
+    written = len(list((out / "figures").glob("*.png")))
+    assert f"and {written} figures (of {len(FIGURE_IDS)} numbered figures)" in text
 
 
 def test_report_and_numbers(quick_run):

@@ -178,8 +178,9 @@ def _cmd_reproduce(args) -> int:
           f"(control program {s['paper'].prior.avg('test_mae'):.3f}); improved "
           f"{s['improved'].model.avg('test_mae'):.3f}; nested-CV search "
           f"{s['search'].model.avg('test_mae'):.3f}")
-    print(f"wrote {Path(args.out) / 'README.md'} and {len(res.figures)} figure entries "
-          f"in {res.wall_s:.0f} s")
+    written = sum(len(paths) for paths in res.figures.values())
+    print(f"wrote {Path(args.out) / 'README.md'} and {written} figures (of {len(res.figures)} "
+          f"numbered figures) in {res.wall_s:.0f} s")
     return 0
 
 

@@ -171,7 +171,10 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
     search_cfg = search_cfg.with_study(study_name=f"{search_cfg.name}-seed{seed}"
                                                   f"{'-quick' if quick else ''}",
                                        trials=2 if quick else None, storage=storage)
-    settings["search"] = run_sweep(search_cfg, progress=False).result
+    with warnings.catch_warnings():  # a candidate basis's convergence notes: not the user's
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        # a line per trial: the longest phase of the job
+        settings["search"] = run_sweep(search_cfg, progress=True).result
     hamiltonian_model = _hamiltonian(settings, seed, quick, configs)
     X_train, X_test, y_train, y_test = ds.split()
     targets = ds.target_names
