@@ -111,3 +111,23 @@ def test_config_builds_a_basis_choice_per_target(tmp_path, google_5q):
     assert isinstance(est, BasisChoiceCV)
     assert [n for n, _ in est.candidates] == ["ridge", "kernel_ridge"]
     assert dict(est.candidates)["ridge"].prior == "peig1"
+
+
+def test_a_boosted_stage_whose_coefficients_are_all_zero_is_reported_as_the_prior():
+    """BaseBoostCV chose boosting by CV, but the refit's line search set every stage's
+    coefficient to 0: the model is the prior exactly, and the results say so."""
+    from types import SimpleNamespace
+
+    from workbench.experiment.families.stage import stage_scores
+
+    def fitted(selected, coefs):
+        return SimpleNamespace(selected_=selected, cv_score_=-1.0,
+                               cv_predictions_=np.zeros(4), cv_predictions_prior_=np.zeros(4),
+                               cv_scores_prior_=np.ones(2), cv_scores_boosted_=np.ones(2),
+                               best_estimator_=SimpleNamespace(coefs_=np.asarray(coefs)))
+
+    cvs = [fitted("boosted", [0.0, 0.0, 0.0]), fitted("boosted", [0.0, 0.4]),
+           fitted("prior", [])]
+    s = stage_scores(cvs, np.zeros((4, 3)))
+    assert s["selected"] == ["prior", "boosted", "prior"]
+    assert s["coefs"] == [[0.0, 0.0, 0.0], [0.0, 0.4], []]  # the coefficients stay visible

@@ -100,7 +100,7 @@ class EigenvalueFamily(ModelFamily):
                        cv_mae=s["prior_cv_mae"], cv_mse=s["prior_cv_mse"])
         scores = ModelScores(test_mae=mae(y_test, pred), test_mse=mse(y_test, pred),
                              cv_mae=s["cv_mae"], cv_mse=s["cv_mse"],
-                             selected=list(model.selected_), coefs=s["coefs"],
+                             selected=s["selected"], coefs=s["coefs"],
                              extra={"cv_mae_boosted": s["boosted_cv_mae"]})
         return prior, scores, {}
 

@@ -115,13 +115,18 @@ def cv_mse(y, predictions) -> float:
 def stage_scores(cvs, Y: np.ndarray) -> dict[str, list]:
     """The per-target CV figures of fitted BaseBoostCVs: ``cv_mae`` their CV score (of what
     they selected), ``cv_mse`` from out-of-fold predictions, the prior's and the boosted
-    candidate's own CV MAE, the stage coefficients."""
+    candidate's own CV MAE, the stage coefficients, and ``selected``: what each target
+    predicts with, "boosted", or "prior" when the prior was selected or when every boosted
+    stage's coefficient came out 0 in the refit (the model is then the prior exactly)."""
+    coefs = [e.best_estimator_.coefs_.tolist() if e.selected_ == "boosted" else []
+             for e in cvs]
     return {
         "cv_mae": [-e.cv_score_ for e in cvs],
         "cv_mse": [cv_mse(Y[:, j], e.cv_predictions_) for j, e in enumerate(cvs)],
         "prior_cv_mae": [float(-np.mean(e.cv_scores_prior_)) for e in cvs],
         "prior_cv_mse": [cv_mse(Y[:, j], e.cv_predictions_prior_) for j, e in enumerate(cvs)],
         "boosted_cv_mae": [float(-np.mean(e.cv_scores_boosted_)) for e in cvs],
-        "coefs": [e.best_estimator_.coefs_.tolist() if e.selected_ == "boosted" else []
-                  for e in cvs],
+        "coefs": coefs,
+        "selected": ["boosted" if e.selected_ == "boosted" and np.any(c) else "prior"
+                     for e, c in zip(cvs, coefs)],
     }
