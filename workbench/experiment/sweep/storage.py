@@ -291,6 +291,15 @@ def _journal_path(storage: str, root: Path) -> Path:
     return path if path.is_absolute() else root / path
 
 
+def _journal_file(storage: str, root: Path) -> Path:
+    """:func:`_journal_path`, refused when it is a directory."""
+    path = _journal_path(storage, root)
+    if path.is_dir():
+        raise StorageError(f"Optuna storage {path} is a directory; give a journal file path "
+                           "(e.g. mlruns/optuna.journal) or a database URL")
+    return path
+
+
 def open_storage(storage: str, root: Path, *, stale_after_s: float = 600,
                  hint: str | None = None):
     """An Optuna storage: an RDB URL (with Optuna's heartbeat, grace period ``stale_after_s``
@@ -300,10 +309,7 @@ def open_storage(storage: str, root: Path, *, stale_after_s: float = 600,
     password)."""
     if "://" in storage:
         return _rdb_storage(storage, stale_after_s)
-    path = _journal_path(storage, root)
-    if path.is_dir():
-        raise StorageError(f"Optuna storage {path} is a directory; give a journal file path "
-                           "(e.g. mlruns/optuna.journal) or a database URL")
+    path = _journal_file(storage, root)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         backend = _JournalFile(str(path), storage)
@@ -329,11 +335,7 @@ def check_storage(storage: str, root: Path, *, hint: str | None = None) -> None:
     if "://" in storage:
         _check_rdb(storage)
         return
-    path = _journal_path(storage, root)
-    if path.is_dir():
-        raise StorageError(f"Optuna storage {path} is a directory; give a journal file path "
-                           "(e.g. mlruns/optuna.journal) or a database URL")
-
+    path = _journal_file(storage, root)
     try:  # its directory takes new files (the journal's lock is created there)
         check_file(path, "Optuna journal")
     except OutputError as exc:
