@@ -25,10 +25,8 @@ from .models import ModelRecords
 from .records import now_ms, param_value, tag_value
 from .translate import duplicate_row, translate
 from .uris import (
-    check_scheme_and_driver,
-    check_server,
     describe_store,
-    prepare_sqlite_file,
+    prepare_store_location,
     sqlite_path,
 )
 
@@ -98,9 +96,7 @@ class Tracker(ModelRecords):
     def client(self) -> MlflowClient:
         """The :class:`mlflow.MlflowClient` (created, with its store, on first use)."""
         if self._client is None:
-            check_scheme_and_driver(self.tracking_uri)
-            prepare_sqlite_file(self.tracking_uri)
-            check_server(self.tracking_uri)
+            prepare_store_location(self.tracking_uri)
             with self._errors():
                 self._client = MlflowClient(self.tracking_uri)
         return self._client

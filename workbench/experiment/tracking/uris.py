@@ -78,19 +78,18 @@ def describe_store(uri: str) -> str:
     return f"SQLite database {path}" if path else f"tracking store {redact(uri)}"
 
 
-def prepare_sqlite_file(uri: str) -> None:
-    """Create the parent directory of a sqlite store; refuse a file that is not SQLite
-    (checked by its header, without writing to it)."""
+def prepare_store_location(uri: str) -> None:
+    """:func:`check_store_uri`, then the directory of a SQLite store created (what a client
+    needs before its first use of the store)."""
+    check_store_uri(uri)
     path = sqlite_path(uri)
     if path is None:
         return
-    _check_sqlite_location(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise TrackingError(f"SQLite database {path}: cannot create its directory: "
                             f"{exc.strerror or type(exc).__name__}") from None
-    _check_sqlite_header(path)
 
 
 def _check_sqlite_location(path: Path) -> None:
@@ -141,7 +140,7 @@ def _store_schemes() -> list[str]:
     return [*_MLFLOW_SCHEMES, *DATABASE_ENGINES, *plugins]
 
 
-def check_scheme_and_driver(uri: str) -> None:
+def _check_scheme_and_driver(uri: str) -> None:
     """Without connecting: MLflow has a store for the URI's scheme, and a database URI's
     driver is installed."""
     from mlflow.store.db.db_types import DATABASE_ENGINES  # (b) MLflow: not for evaluate --no-track
@@ -182,15 +181,15 @@ def check_store_uri(uri: str) -> None:
     scheme has an MLflow store, a database's driver is installed, a SQLite database's
     directory can be written (and the file is SQLite), a server accepts connections.
     Raises :class:`TrackingError` (one line, no password)."""
-    check_scheme_and_driver(uri)
+    _check_scheme_and_driver(uri)
     path = sqlite_path(uri)
     if path is not None:
         _check_sqlite_location(path)
         _check_sqlite_header(path)
-    check_server(uri)
+    _check_server(uri)
 
 
-def check_server(uri: str, timeout: float = 5.0) -> None:
+def _check_server(uri: str, timeout: float = 5.0) -> None:
     """Fail fast when an http(s) tracking server does not accept connections (MLflow itself
     retries for minutes)."""
     parts = urlsplit(uri)
