@@ -139,7 +139,7 @@ def test_paper_run_reports_prediction_intervals(paper_run):
     run = MlflowClient(r["mlflow"]["tracking_uri"]).get_run(r["mlflow"]["run_id"])
     assert run.data.metrics["test_coverage_avg"] == pytest.approx(
         r["model"]["test_coverage_avg"])
-    assert run.data.metrics["cv_width.eeig3"] == pytest.approx(r["model"]["cv_width"][2])
+    assert run.data.metrics["cv_width/eeig3"] == pytest.approx(r["model"]["cv_width"][2])
 
 
 def test_paper_run_meets_acceptance_criterion(paper_run):

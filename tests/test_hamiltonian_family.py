@@ -233,7 +233,7 @@ def test_evaluate_reports_and_writes_prediction_intervals(cli_run):
     tracker = Tracker(store, "ham")
     run = tracker.client.get_run(result["mlflow"]["run_id"])
     assert run.data.metrics["test_coverage_avg"] == pytest.approx(m["test_coverage_avg"])
-    assert run.data.metrics["cv_width.measured_E2"] == pytest.approx(m["cv_width"][1])
+    assert run.data.metrics["cv_width/measured_E2"] == pytest.approx(m["cv_width"][1])
     assert run.data.params["intervals.method"] == "oof"
     assert "plots/intervals.png" in {a.path for a in
                                      tracker.client.list_artifacts(run.info.run_id, "plots")}

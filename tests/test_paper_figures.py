@@ -221,8 +221,9 @@ def test_model_comparison_bars_with_two_systems_matches_mae_bars_geometry():
 
 
 @pytest.mark.parametrize("values, kwargs, match", [
-    ({"only one": PRIOR_MAE}, {}, r"2 to 4 systems; got 1: \['only one'\]"),
-    ({f"s{i}": PRIOR_MAE for i in range(5)}, {}, "2 to 4 systems; got 5"),
+    ({"only one": PRIOR_MAE}, {}, r"2 to 6 systems; got 1: \['only one'\]"),
+    ({f"s{i}": PRIOR_MAE for i in range(7)}, {}, "2 to 6 systems; got 7"),
+    ({f"s{i}": PRIOR_MAE for i in range(5)}, {}, "more than 4 systems other than the control"),
     ({"a": PRIOR_MAE, "b": MODEL_MAE[:4]}, {}, r"values\['b'\] must have one value per target"),
     ({"a": PRIOR_MAE, "b": [np.nan, 1, 1, 1, 1]}, {}, r"values\['b'\] has non-finite"),
     ({"a": PRIOR_MAE, "b": [0.0, 1, 1, 1, 1]}, {"log": True}, r"log=True needs positive.*'b'"),

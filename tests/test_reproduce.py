@@ -1,6 +1,7 @@
 """workbench reproduce --quick: every manifest entry, the report, numbers that agree everywhere."""
 
 import contextlib
+import csv
 import io
 import json
 import warnings
@@ -9,12 +10,13 @@ import matplotlib.image
 import pytest
 
 from workbench.experiment.cli import main
+from workbench.experiment.reproduce import SYSTEMS
 
 FIGURE_IDS = ["fig2_mae_bars", "fig3_correlation", "fig4_learning_curve_Y3", "fig5_shap_Y1",
               "figS2_voltage_boxplots", "figS3_prior_target_boxplots", "figS4_mse_bars",
               "figS5_learning_curves", "figS6_tabula_rasa_mae", "figS7_tabula_rasa_mse",
               "figS8_shap", "figH1_hamiltonian_mae_bars", "figH2_parameter_corrections",
-              "figH3_selection_path"]
+              "figH3_selection_path", "figR1_systems_mae"]
 
 
 @pytest.fixture(scope="module")
@@ -67,8 +69,18 @@ def test_report_and_numbers(quick_run):
     assert all(m < p for m, p in zip(paper["model"]["test_mae"], paper["prior"]["test_mae"]))
     text = (out / "README.md").read_text()
     assert f"**{paper['model']['test_mae_avg']:.3f}**" in text
-    for fig_id in FIGURE_IDS:
-        assert "figures/" + fig_id.split("_")[0] in text or fig_id in text
+    manifest = json.loads((out / "manifest.json").read_text())
+    for fig_id, files in manifest.items():  # shown in the report, or named there (a panel)
+        for f in [files] if isinstance(files, str) else files:
+            assert f in text, (fig_id, f)
+    # Fig. 4 and Fig. 5 are panels of S5 and S8, drawn once
+    assert manifest["fig4_learning_curve_Y3"] == "figures/figS5_learning_curve_Y3.png"
+    assert manifest["fig5_shap_Y1"] == "figures/figS8_shap_Y1.png"
+    tabula = res["tabula_rasa"]
+    assert len(tabula["seeds"]) == len(tabula["test_mae_avg_per_seed"]) == 3  # --quick
+    assert tabula["test_mae_avg_min"] <= tabula["test_mae_avg"] <= tabula["test_mae_avg_max"]
+    assert 5 < tabula["test_mae_avg"] < 16  # the reference measured about 11
+    assert f"{tabula['test_mae_avg']:.1f} MHz average test MAE, the mean of 3" in text
     ham = res["settings"]["hamiltonian"]
     assert ham["family"] == "hamiltonian"
     assert ham["model"]["test_mae_avg"] < ham["prior"]["test_mae_avg"]
@@ -99,15 +111,45 @@ def test_figures_show_the_json_numbers_and_mlflow_has_them(quick_run, tmp_path):
     assert redrawn.read_bytes() == (out / "figures" / "fig2_mae_bars.png").read_bytes()
     client = MlflowClient(uri)
     run = client.get_run(res["mlflow"]["run_id"])
-    assert run.data.metrics["paper.test_mae_avg"] == pytest.approx(paper["model"]["test_mae_avg"])
-    children = client.search_runs([run.info.experiment_id],
-                                  f"tags.mlflow.parentRunId = '{run.info.run_id}'")
-    assert {c.info.run_name for c in children} == {"benchmark", "data", "learning_curves",
-                                                   "shap", "tabula_rasa", "hamiltonian"}
-    ham = res["settings"]["hamiltonian"]
-    assert run.data.metrics["hamiltonian.test_mae_avg"] == pytest.approx(
-        ham["model"]["test_mae_avg"])
+    assert run.data.metrics["wall_s"] == pytest.approx(res["wall_s"])
     assert client.get_experiment(run.info.experiment_id).name == "paper-reproduction"
+    children = {c.info.run_name: c for c in client.search_runs(
+        [run.info.experiment_id], f"tags.mlflow.parentRunId = '{run.info.run_id}'")}
+    assert set(children) == {name for name, _ in SYSTEMS.values()}
+    targets = res["targets"]
+    rows = {row["system"]: row
+            for row in csv.DictReader((out / "systems.csv").read_text().splitlines())}
+    for key, (name, _) in SYSTEMS.items():
+        child = children[name]
+        assert child.data.tags["workbench.system"] == key
+        assert res["mlflow"][f"run_id.{key}"] == child.info.run_id
+        # one metric schema: the dataset's target names, the keys of `workbench evaluate`
+        maes = [child.data.metrics[f"test_mae/{t}"] for t in targets]
+        assert child.data.metrics["test_mae_avg"] == pytest.approx(sum(maes) / len(maes))
+        assert float(rows[name]["average"]) == pytest.approx(
+            child.data.metrics["test_mae_avg"], abs=1e-4)
+        assert {d.dataset.name for d in child.inputs.dataset_inputs} == {"google_5q"}
+        # its true duration, inside the parent's
+        assert run.info.start_time <= child.info.start_time <= child.info.end_time \
+            <= run.info.end_time
+    paper_run = children[SYSTEMS["paper"][0]]
+    assert [paper_run.data.metrics[f"test_mae/{t}"] for t in targets] == pytest.approx(
+        paper["model"]["test_mae"])
+    assert [children[SYSTEMS["prior"][0]].data.metrics[f"test_mae/{t}"]
+            for t in targets] == pytest.approx(paper["prior"]["test_mae"])
+    assert paper_run.info.end_time - paper_run.info.start_time > 1000  # fits, curves: seconds
+    ham = res["settings"]["hamiltonian"]
+    assert children[SYSTEMS["hamiltonian"][0]].data.metrics["test_mae_avg"] == pytest.approx(
+        ham["model"]["test_mae_avg"])
+    tabula = children[SYSTEMS["tabula_rasa"][0]]
+    assert tabula.data.metrics["test_mae_avg"] == pytest.approx(res["tabula_rasa"]["test_mae_avg"])
+    artifacts = {a.path for a in client.list_artifacts(paper_run.info.run_id, "figures")}
+    assert "figures/fig2_mae_bars.png" in artifacts
+    assert "paper_main_body.toml" in {a.path for a in client.list_artifacts(paper_run.info.run_id)}
+    search = children[SYSTEMS["search"][0]]
+    folds = client.search_runs([run.info.experiment_id],
+                               f"tags.mlflow.parentRunId = '{search.info.run_id}'")
+    assert folds and all(f.data.tags["workbench.kind"] == "outer_fold" for f in folds)
 
 
 @pytest.mark.slow  # a second whole reproduction; determinism is also unit-tested (figures,

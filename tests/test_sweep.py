@@ -70,7 +70,7 @@ def test_smoke_sweep_json_and_tracking(smoke_run, tmp_path):
     kinds = pd.Series([c.data.tags["workbench.kind"] for c in children]).value_counts()
     assert kinds["trial"] == 60 and kinds["outer_fold"] == 15
     for name in ("test_mae_avg", "prior_test_mae_avg", "nested_cv_mae_avg", "cv_mae_avg",
-                 "test_mae.eeig1", "test_mse.eeig5", "nested_cv_mae.eeig3"):
+                 "test_mae/eeig1", "test_mse/eeig5", "nested_cv_mae/eeig3"):
         assert name in run.data.metrics
     assert run.data.metrics["test_mae_avg"] == pytest.approx(res["model"]["test_mae_avg"])
     assert run.data.metrics["wall_s"] == pytest.approx(res["wall_s"])  # the whole command's

@@ -178,7 +178,7 @@ def _cmd_reproduce(args) -> int:
           f"(control program {s['paper'].prior.avg('test_mae'):.3f}); improved "
           f"{s['improved'].model.avg('test_mae'):.3f}; nested-CV search "
           f"{s['search'].model.avg('test_mae'):.3f}")
-    written = sum(len(paths) for paths in res.figures.values())
+    written = len({path for paths in res.figures.values() for path in paths})
     print(f"wrote {Path(args.out) / 'README.md'} and {written} figures (of {len(res.figures)} "
           f"numbered figures) in {res.wall_s:.0f} s")
     return 0

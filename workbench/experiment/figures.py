@@ -7,7 +7,7 @@
 * :func:`correlation_heatmap` -- pairwise Pearson correlations of the training examples (Fig. 3).
 * :func:`voltage_boxplots` -- boxplots of the qubit and coupler bias voltages (Fig. S2).
 * :func:`prior_target_boxplots` -- paired boxplots of prior and target eigenenergies (Fig. S3).
-* :func:`model_comparison_bars` -- per-target error bars of 2 to 4 systems (Fig. S6, S7).
+* :func:`model_comparison_bars` -- per-target error bars of 2 to 6 systems (Fig. S6, S7).
 * :func:`parameter_corrections` -- control-model vs corrected Hamiltonian parameters.
 * :func:`selection_path_figure` -- CV error along a forward covariate selection.
 * :func:`interval_figure` -- measured against predicted with each row's prediction interval.
@@ -437,7 +437,10 @@ def _system_colors(systems: list[str]) -> list[str]:
         color = (PRIOR_COLOR if "control program" in name else
                  MODEL_COLOR if "base boost" in name else None)
         if color is None or color in used:
-            color = next(c for c in others if c not in used)
+            color = next((c for c in others if c not in used), None)
+            if color is None:
+                raise ValueError(f"more than {len(OTHER_SYSTEM_COLORS)} systems other than "
+                                 f"the control program and base boosting: {systems}")
         used.add(color)
         colors.append(color)
     return colors
@@ -447,7 +450,8 @@ def model_comparison_bars(targets: Sequence[str], values: Mapping[str, Sequence[
                           metric: str = "MAE", unit: str = "MHz", title: str | None = None,
                           setting: str | None = None, log: bool = False,
                           average: bool = True) -> Figure:
-    """Grouped bars of a per-target error for 2 to 4 systems, plus their averages (Fig. S6, S7).
+    """Grouped bars of a per-target error for 2 to 6 systems (at most 4 besides the control
+    program and base boosting), plus their averages (Fig. S6, S7).
 
     Parameters
     ----------
@@ -475,9 +479,11 @@ def model_comparison_bars(targets: Sequence[str], values: Mapping[str, Sequence[
         raise TypeError(f"values must map each system's name to its values; got "
                         f"{type(values).__name__}")
     systems = [str(s) for s in values]
-    if not 2 <= len(systems) <= len(OTHER_SYSTEM_COLORS):
-        raise ValueError(f"model_comparison_bars compares 2 to {len(OTHER_SYSTEM_COLORS)} "
-                         f"systems; got {len(systems)}: {systems}")
+    most = len(OTHER_SYSTEM_COLORS) + 2  # the control program and base boosting: their own
+    if not 2 <= len(systems) <= most:
+        raise ValueError(f"model_comparison_bars compares 2 to {most} systems; got "
+                         f"{len(systems)}: {systems}")
+    colors = _system_colors(systems)
     arrays = []
     for system, v in zip(systems, values.values(), strict=True):
         arr = _values(f"values[{system!r}]", v, len(names))
@@ -496,7 +502,7 @@ def model_comparison_bars(targets: Sequence[str], values: Mapping[str, Sequence[
     every = np.concatenate(arrays)
     biggest = np.abs(every).max()
     fmt = "%.2f" if biggest < 100 else "%.1f" if biggest < 1000 else "%.0f"
-    _grouped_bars(ax, names, list(zip(systems, arrays, _system_colors(systems), strict=True)),
+    _grouped_bars(ax, names, list(zip(systems, arrays, colors, strict=True)),
                   average=average, fmt=fmt, fontsize=8 if n <= 3 else 7)
     ax.set_ylabel(f"{metric} ({unit}, log scale)" if log else f"{metric} ({unit})", fontsize=11)
     if log:

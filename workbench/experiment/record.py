@@ -24,14 +24,15 @@ from .config import ExperimentConfig
 from .errors import redact, redact_config
 from .figures import mae_bars
 from .intervals import family_model, interval_artifacts
-from .results import INTERVAL_KEYS, Result
+from .results import INTERVAL_KEYS, Result, Scores
 from .serving import prediction_frame
 from .tracking.models import CHAMPION
 from .tracking.records import dataset_hash, git_commit
 from .tracking.runs import Tracker
 from .tracking.uris import resolve_tracking_uri
 
-__all__ = ["record", "tracker_for"]
+__all__ = ["config_text", "log_inputs", "log_sweep_children", "record", "record_wall_time",
+           "result_metrics", "run_params", "run_tags", "score_metrics", "tracker_for"]
 
 log = logging.getLogger("workbench")
 
@@ -53,37 +54,49 @@ def _flat(prefix: str, settings: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _metrics(result: Result, wall: bool = True) -> dict[str, float]:
-    m: dict[str, float] = {"wall_s": result.wall_s} if wall else {}
-    for scores, prefix in ((result.model, ""), (result.prior, "prior_")):
-        for key in ("test_mae", "test_mse", "cv_mae", "cv_mse"):
+def score_metrics(targets: list[str], scores: Scores, prefix: str = "") -> dict[str, float]:
+    """One system's errors in the metric schema every run shares (``evaluate``, ``sweep``
+    and each of ``reproduce``'s systems): ``<prefix>test_mae/<target>`` and
+    ``<prefix>test_mae_avg``, the same for ``test_mse``, ``cv_mae`` and ``cv_mse`` (a key
+    whose list is empty is left out). The ``/`` groups a metric's targets in MLflow's charts
+    and lines them up in its compare view."""
+    m: dict[str, float] = {}
+    for key in ("test_mae", "test_mse", "cv_mae", "cv_mse"):
+        values = getattr(scores, key)
+        if values:
             m[f"{prefix}{key}_avg"] = scores.avg(key)
-            for t, v in zip(result.targets, getattr(scores, key)):
-                m[f"{prefix}{key}.{t}"] = v
+            m.update({f"{prefix}{key}/{t}": v for t, v in zip(targets, values)})
+    return m
+
+
+def result_metrics(result: Result, wall: bool = True) -> dict[str, float]:
+    m: dict[str, float] = {"wall_s": result.wall_s} if wall else {}
+    m.update(score_metrics(result.targets, result.model))
+    m.update(score_metrics(result.targets, result.prior, "prior_"))
     for key in INTERVAL_KEYS:  # prediction intervals (none: empty)
         values = getattr(result.model, key)
         if values:
             m[f"{key}_avg"] = result.model.avg(key)
             for t, v in zip(result.targets, values):
-                m[f"{key}.{t}"] = v
+                m[f"{key}/{t}"] = v
     for key in ("repeated_cv", "nested_cv_all"):
         est = getattr(result, key)
         if est is not None:
             m[f"{key}_mae_avg"] = est.model_mae_avg
             m[f"prior_{key}_mae_avg"] = est.prior_mae_avg
             for t, v in zip(result.targets, est.model_mae):
-                m[f"{key}_mae.{t}"] = v
+                m[f"{key}_mae/{t}"] = v
     if result.sweep is not None:
         s = result.sweep
         m["nested_cv_mae_avg"] = s.nested_cv_mae_avg
         m["prior_nested_cv_mae_avg"] = s.nested_cv_prior_mae_avg
         for t, v, p in zip(result.targets, s.nested_cv_mae, s.nested_cv_prior_mae):
-            m[f"nested_cv_mae.{t}"] = v
-            m[f"prior_nested_cv_mae.{t}"] = p
+            m[f"nested_cv_mae/{t}"] = v
+            m[f"prior_nested_cv_mae/{t}"] = p
     return m
 
 
-def _record_sweep_children(tracker: Tracker, parent: str, sweep, trials: bool = True) -> None:
+def log_sweep_children(tracker: Tracker, parent: str, sweep, trials: bool = True) -> None:
     for name, study in (sweep.studies.items() if trials else ()):
         for t in study.get_trials(deepcopy=False):
             if t.user_attrs.get("surplus"):
@@ -122,7 +135,7 @@ def _data_source(cfg: ExperimentConfig) -> str | None:
         return None
 
 
-def _config_text(cfg: ExperimentConfig) -> str | None:
+def config_text(cfg: ExperimentConfig) -> str | None:
     """The config file's text with every credential redacted (a storage or tracking URL's
     password), as the run and the model log it; ``None`` without a file."""
     if cfg.path is None:
@@ -139,6 +152,39 @@ def source_tags(cfg: ExperimentConfig, kind: str, commit: str | None) -> dict[st
     return tags
 
 
+def run_tags(cfg: ExperimentConfig, ds, kind: str) -> dict[str, str]:
+    """A run's tags: what made it (``workbench.kind``, the config, MLflow's source and git
+    commit) and on which data (the dataset's name and content hash)."""
+    commit = git_commit(Path(__file__).resolve().parents[2])
+    return {"workbench.kind": kind, "config": str(cfg.path) if cfg.path else "",
+            "dataset": ds.name, "dataset_hash": dataset_hash(ds.X, ds.targets),
+            "git_commit": commit or "unknown", **source_tags(cfg, kind, commit)}
+
+
+def run_params(cfg: ExperimentConfig, targets: list[str], n_train: int,
+               n_test: int) -> dict[str, Any]:
+    """A run's params: the seed, the split's sizes, the family, every target's model
+    settings (``<target>.<setting>``), the family's and the intervals' settings."""
+    family = cfg.family
+    params: dict[str, Any] = {"random_state": cfg.random_state, "n_train": n_train,
+                              "n_test": n_test, "family": family.name}
+    for target in targets:
+        params.update(_flat(f"{target}.", cfg.model_for(target)))
+    if cfg.family_settings is not None:
+        params.update(_flat(f"{family.name}.", cfg.family_settings.model_dump()))
+    params.update(_flat("intervals.", cfg.intervals.model_dump()))
+    return params
+
+
+def log_inputs(tracker: Tracker, run_id: str, cfg: ExperimentConfig, ds, X_train, X_test,
+               y_train, y_test) -> None:
+    """The training and test rows (inputs and targets) as the run's MLflow datasets."""
+    source = _data_source(cfg)
+    for context, X, Y in (("training", X_train, y_train), ("test", X_test, y_test)):
+        tracker.log_dataset(run_id, pd.concat([X, Y], axis=1), name=ds.name,
+                            context=context, source=source)
+
+
 def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
            tracking_uri: str | None = None, sweep=None, run_id: str | None = None,
            register: str | None = None) -> dict[str, str]:
@@ -153,18 +199,9 @@ def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
     tracker = tracker_for(cfg, tracking_uri)
     family = cfg.family
     X_train, X_test, y_train, y_test = ds.split(family.inputs(cfg, ds))
-    commit = git_commit(Path(__file__).resolve().parents[2])
-    digest = dataset_hash(ds.X, ds.targets)
-    tags = {"workbench.kind": kind, "config": str(cfg.path) if cfg.path else "",
-            "dataset": ds.name, "dataset_hash": digest, "git_commit": commit or "unknown",
-            **source_tags(cfg, kind, commit)}
-    params: dict[str, Any] = {"random_state": cfg.random_state, "n_train": len(X_train),
-                              "n_test": len(X_test), "family": family.name}
-    for target in result.targets:
-        params.update(_flat(f"{target}.", cfg.model_for(target)))
-    if cfg.family_settings is not None:
-        params.update(_flat(f"{family.name}.", cfg.family_settings.model_dump()))
-    params.update(_flat("intervals.", cfg.intervals.model_dump()))
+    tags = run_tags(cfg, ds, kind)
+    digest = tags["dataset_hash"]
+    params = run_params(cfg, result.targets, len(X_train), len(X_test))
     setting = f"{kind} of {cfg.name}"
     live = run_id is not None
     if run_id is not None:
@@ -175,14 +212,11 @@ def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
         log.info("[%s] tracking in %s (run %s)", cfg.name, redact(tracker.tracking_uri),
                  run_id)
         # a command's run gets its whole wall time at the end (record_wall_time)
-        tracker.log_metrics(run_id, _metrics(result, wall=not live))
+        tracker.log_metrics(run_id, result_metrics(result, wall=not live))
         # the family's figures are computed on the workers while the rest is logged
         finish_artifacts = family.begin_artifacts(cfg, ds, family_model(model), setting)
-        source = _data_source(cfg)
-        for context, X, Y in (("training", X_train, y_train), ("test", X_test, y_test)):
-            tracker.log_dataset(run_id, pd.concat([X, Y], axis=1), name=ds.name,
-                                context=context, source=source)
-        config = _config_text(cfg)
+        log_inputs(tracker, run_id, cfg, ds, X_train, X_test, y_train, y_test)
+        config = config_text(cfg)
         if config is not None and cfg.path is not None:  # both or neither
             tracker.log_text(run_id, config, Path(cfg.path).name)
         tracker.log_dict(run_id, json.loads(json.dumps(result.to_json(), default=str)),
@@ -230,7 +264,7 @@ def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
             out.update(registered_model=register, registered_version=version,
                        registered_uri=f"models:/{register}@{CHAMPION}")
         if sweep is not None:
-            _record_sweep_children(tracker, run_id, sweep, trials=not live)
+            log_sweep_children(tracker, run_id, sweep, trials=not live)
     return out
 
 

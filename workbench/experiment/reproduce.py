@@ -1,9 +1,11 @@
 """``workbench reproduce``: every result and figure of the paper from the Google 5-qubit data.
 
-Writes PNG figures, ``results.json``, ``manifest.json`` (figure id -> file(s)) and a
-``README.md`` report under the output folder, and logs the same numbers and figures to the
-MLflow experiment ``paper-reproduction`` (a parent run with one child run per figure group).
-Every number in a figure comes from the same dictionaries that are written to JSON and MLflow.
+Writes PNG figures, ``results.json``, ``systems.csv`` (test MAE of every system),
+``manifest.json`` (figure id -> file(s)) and a ``README.md`` report under the output folder,
+and logs the same numbers and figures to the MLflow experiment ``paper-reproduction``: a parent
+run with one child run per system (:data:`SYSTEMS`, logged by :mod:`.systems` in the metric
+schema of ``evaluate``). Every number in a figure comes from the same dictionaries that are
+written to JSON and MLflow.
 """
 
 from __future__ import annotations
@@ -19,12 +21,14 @@ from typing import Any
 import numpy as np
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.neural_network import MLPRegressor
+from sklearn.pipeline import Pipeline, make_pipeline
 
 from .._io import atomic_write
+from ..bases import NormalQuantileTransformer
 from ..curves import learning_curve_plan
 from ..parallel import Task, map_tasks, run_plans
-from .config import load_config
-from .errors import UsageError
+from .config import ExperimentConfig, load_config
+from .errors import UsageError, redact
 from .evaluate import evaluate
 from .explain import shap_values
 from .figures import (
@@ -38,9 +42,10 @@ from .figures import (
     voltage_boxplots,
 )
 from .intervals import family_model
-from .results import Result
+from .record import log_inputs, result_metrics, run_params, run_tags, score_metrics
+from .results import Result, Scores
 from .sweep.search import run_sweep
-from .tracking.records import dataset_hash, git_commit
+from .systems import NOTE_TAG, Stopwatch, System, log_systems, summary_table
 from .tracking.runs import Tracker
 from .tracking.uris import resolve_tracking_uri
 
@@ -87,10 +92,21 @@ TABULA_RASA = [((10,), 15.0, 4600), ((10,), 15.0, 5020), ((10,), 13.0, 5780),
                ((10,), 19.0, 4160), ((8,), 19.0, 5240)]
 
 
-def _tabula_rasa(j: int, seed: int) -> MLPRegressor:
+#: Seeds of the tabula rasa MLPs (their spread is reported; ``--quick``: 3).
+TABULA_RASA_SEEDS = 10
+
+
+def _tabula_rasa(j: int, seed: int) -> Pipeline:
+    """Target ``j``'s tabula rasa model: the voltages mapped to normal quantiles, then the
+    paper's MLP. The reference's ``Regressor`` puts the same transform before every model by
+    default (``pipeline_transform="quantilenormal"``); without it the voltages' scale (standard
+    deviations 0.006 to 0.1) against the penalty alpha = 13 to 19 leaves the MLP near a
+    constant (about 19.8 MHz average test MAE for every seed, against about 11 with it)."""
     hidden, alpha, max_iter = TABULA_RASA[j]
-    return MLPRegressor(hidden_layer_sizes=hidden, activation="relu", solver="lbfgs",
-                        alpha=alpha, max_iter=max_iter, random_state=seed)
+    return make_pipeline(
+        NormalQuantileTransformer(random_state=seed),
+        MLPRegressor(hidden_layer_sizes=hidden, activation="relu", solver="lbfgs",
+                     alpha=alpha, max_iter=max_iter, random_state=seed))
 
 
 @dataclass
@@ -139,30 +155,53 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
               storage: str | None = None, quick: bool = False, track: bool = True, seed: int = 0,
               experiments: str | Path | None = None) -> Reproduction:
     """Compute the paper's results and figures; returns them (also written as
-    ``results.json``). The configs come from ``experiments`` (see :func:`experiments_dir`)."""
+    ``results.json``). The configs come from ``experiments`` (see :func:`experiments_dir`).
+    Each system is computed in one stretch (its MLflow run's duration); with ``track`` each
+    becomes a child run of the parent run ``paper reproduction`` (:mod:`.systems`)."""
     start = _T0[0] = time.perf_counter()
+    started = time.time()
     configs = experiments_dir(experiments)
     out = Path(out)
     figdir = out / "figures"
     figdir.mkdir(parents=True, exist_ok=True)
     files: dict[str, list[Path]] = {}
-    groups: dict[str, list[str]] = {}
+    watches = {key: Stopwatch() for key in SYSTEMS}
 
-    def save(fig_id: str, group: str, fig, name: str | None = None) -> None:
+    def save(fig_id: str, fig, name: str | None = None) -> Path:
         path = save_figure(fig, figdir / f"{name or fig_id}.png")
         files.setdefault(fig_id, []).append(path)
-        groups.setdefault(group, []).append(fig_id)
+        return path
 
-    # -- the benchmark under three settings --------------------------------------------
-    settings = {}
+    def same_as(fig_id: str, path: Path) -> None:  # a paper figure that is another's panel
+        files.setdefault(fig_id, []).append(path)
+
+    # -- the paper and improved settings; the paper settings' learning curves ------------
+    settings: dict[str, Result] = {}
+    cfgs: dict[str, ExperimentConfig] = {}
+    evaluations = {}
     for key, toml in (("paper", "paper_main_body.toml"), ("improved", "paper_improved.toml")):
         _say(f"evaluating the {key} settings ({toml})")
-        cfg = _no_intervals(replace(load_config(configs / toml), random_state=seed))
-        run = evaluate(cfg, return_model=True)
-        settings[key], ds = run.result, run.dataset
-    _say("nested-CV search for the workbench's own best configuration "
-                   "(experiments/paper_search.toml)")
+        with watches[key]:
+            cfgs[key] = _no_intervals(replace(load_config(configs / toml), random_state=seed))
+            evaluations[key] = evaluate(cfgs[key], return_model=True)
+            settings[key] = evaluations[key].result
+    ds = evaluations["paper"].dataset
+    X_train, X_test, y_train, y_test = ds.split()
+    targets = ds.target_names
+    paper = settings["paper"]
+    with watches["paper"]:
+        save("fig2_mae_bars", mae_bars(SHORT, paper.prior.test_mae, paper.model.test_mae,
+                                       title="Test MAE per eigenenergy (Fig. 2)",
+                                       setting="paper settings"))
+        save("figS4_mse_bars", mae_bars(SHORT, paper.prior.test_mse, paper.model.test_mse,
+                                        metric="MSE", unit="MHz²",
+                                        title="Test MSE per eigenenergy (Fig. S4)",
+                                        setting="paper settings"))
+        learning_curves = _learning_curves(ds, configs, seed, quick, save, same_as)
 
+    # -- the workbench's own nested-CV search ----------------------------------------------
+    _say("nested-CV search for the workbench's own best configuration "
+         "(experiments/paper_search.toml)")
     search_cfg = load_config(configs / "paper_search.toml")
     cv = {"seed": seed, **({"outer_folds": 2, "inner_folds": 3} if quick else {})}
     search_cfg = _no_intervals(replace(search_cfg, random_state=seed,
@@ -171,53 +210,126 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
     search_cfg = search_cfg.with_study(study_name=f"{search_cfg.name}-seed{seed}"
                                                   f"{'-quick' if quick else ''}",
                                        trials=2 if quick else None, storage=storage)
-    with warnings.catch_warnings():  # a candidate basis's convergence notes: not the user's
+    with watches["search"], warnings.catch_warnings():
+        # a candidate basis's convergence notes: not the user's
         warnings.simplefilter("ignore", ConvergenceWarning)
         # a line per trial: the longest phase of the job
-        settings["search"] = run_sweep(search_cfg, progress=True).result
-    hamiltonian_model = _hamiltonian(settings, seed, quick, configs)
-    X_train, X_test, y_train, y_test = ds.split()
-    targets = ds.target_names
-    paper = settings["paper"]
+        search = run_sweep(search_cfg, progress=True)
+    settings["search"], cfgs["search"] = search.result, search_cfg
 
-    save("fig2_mae_bars", "benchmark",
-         mae_bars(SHORT, paper.prior.test_mae, paper.model.test_mae,
-                  title="Test MAE per eigenenergy (Fig. 2)", setting="paper settings"))
-    save("figS4_mse_bars", "benchmark",
-         mae_bars(SHORT, paper.prior.test_mse, paper.model.test_mse, metric="MSE",
-                  unit="MHz²", title="Test MSE per eigenenergy (Fig. S4)",
-                  setting="paper settings"))
+    # -- beyond the paper: the parameter-space model ---------------------------------------
+    with watches["hamiltonian"]:
+        ham_cfg, hamiltonian_model = _hamiltonian(settings, seed, quick, configs)
+        cfgs["hamiltonian"] = ham_cfg
+        ham = settings["hamiltonian"]
+        save("figH1_hamiltonian_mae_bars",
+             mae_bars(SHORT, ham.prior.test_mae, ham.model.test_mae,
+                      labels=("control program", "parameter-space model"),
+                      title="Test MAE per eigenenergy: corrected Hamiltonian",
+                      setting="experiments/hamiltonian.toml"))
+        ham_out = ham_cfg.family.outputs(family_model(hamiltonian_model), ds,
+                                         setting="experiments/hamiltonian.toml")
+        save("figH2_parameter_corrections", ham_out.figures["parameter_corrections"])
+        save("figH3_selection_path", ham_out.figures["selection_path"])
+        table_files = ham_out.write(out / "hamiltonian", figures=False)
+        tables = {name: str(path.relative_to(out)) for name, path in table_files.items()}
 
-    # -- beyond the paper: the parameter-space model -------------------------------------
-    ham = settings["hamiltonian"]
-    save("figH1_hamiltonian_mae_bars", "hamiltonian",
-         mae_bars(SHORT, ham.prior.test_mae, ham.model.test_mae,
-                  labels=("control program", "parameter-space model"),
-                  title="Test MAE per eigenenergy: corrected Hamiltonian",
-                  setting="experiments/hamiltonian.toml"))
-    ham_cfg, hamiltonian_model = hamiltonian_model
-    ham_out = ham_cfg.family.outputs(family_model(hamiltonian_model), ds,
-                                     setting="experiments/hamiltonian.toml")
-    save("figH2_parameter_corrections", "hamiltonian", ham_out.figures["parameter_corrections"])
-    save("figH3_selection_path", "hamiltonian", ham_out.figures["selection_path"])
-    tables = {name: str(path.relative_to(out))
-              for name, path in ham_out.write(out / "hamiltonian", figures=False).items()}
+    # -- tabula rasa and SHAP ----------------------------------------------------------------
+    with watches["tabula_rasa"]:
+        tabula = _tabula_rasa_system(ds, seed, quick, save, same_as)
+    for metric, fig_id, unit in (("mae", "figS6_tabula_rasa_mae", "MHz"),
+                                 ("mse", "figS7_tabula_rasa_mse", "MHz²")):
+        values = {f"tabula rasa MLP (voltages only, mean of {len(tabula['seeds'])} seeds)":
+                  tabula[f"test_{metric}"],
+                  "control program": getattr(paper.prior, f"test_{metric}"),
+                  "base boosting (paper settings)": getattr(paper.model, f"test_{metric}")}
+        save(fig_id, model_comparison_bars(
+            SHORT, values, metric=metric.upper(), unit=unit, log=True,
+            title=f"Tabula rasa vs base boosting, test {metric.upper()} (Fig. "
+                  f"{'S6' if metric == 'mae' else 'S7'})"))
 
-    # -- the data --------------------------------------------------------------------------
+    # -- the data ------------------------------------------------------------------------------
     _say("data figures")
     train = ds.X.loc[ds.train_index]
     frame = train[ds.prior_names].set_axis([f"X{j}" for j in range(1, 6)], axis=1)
     frame = frame.join(y_train.set_axis(SHORT, axis=1))
     correlation = frame.corr()
-    save("fig3_correlation", "data", correlation_heatmap(
+    save("fig3_correlation", correlation_heatmap(
         frame, title="Correlation of training examples (Fig. 3)"))
-    save("figS2_voltage_boxplots", "data", voltage_boxplots(
+    save("figS2_voltage_boxplots", voltage_boxplots(
         ds.features.loc[ds.train_index], title="Bias voltages, training rows (Fig. S2)"))
-    save("figS3_prior_target_boxplots", "data", prior_target_boxplots(
+    save("figS3_prior_target_boxplots", prior_target_boxplots(
         train[ds.prior_names].set_axis(SHORT, axis=1), y_train.set_axis(SHORT, axis=1),
         title="Control program (X) and measured (Y) eigenenergies (Fig. S3)"))
 
-    # -- augmented learning curves -------------------------------------------------------
+    # -- every system side by side -----------------------------------------------------------
+    systems = _systems(settings, cfgs, tabula, search, watches, files, table_files, targets)
+    save("figR1_systems_mae", model_comparison_bars(
+        SHORT, {s.name: [s.metrics[f"test_mae/{t}"] for t in targets]
+                for s in systems if s.key != "tabula_rasa"},
+        title="Test MAE per eigenenergy, every system of this reproduction"))
+    summary = summary_table(targets, systems)
+    atomic_write(out / "systems.csv", summary.to_csv(index=False))
+
+    rep = Reproduction(
+        targets=targets, seed=seed, quick=quick, settings=settings,
+        tabula_rasa=tabula, correlation=correlation.round(6).to_dict(),
+        learning_curves=learning_curves,
+        figures={k: [str(p.relative_to(out)) for p in v] for k, v in files.items()},
+        hamiltonian_tables=tables)
+    if track:
+        _say("logging every system as a run in MLflow")
+        rep.mlflow = _log(rep, systems, files, out, tracking_uri, ds, cfgs["paper"], started,
+                          start)
+    else:
+        rep.wall_s = time.perf_counter() - start
+    _write(out / "results.json", rep.to_json())
+    _write(out / "manifest.json", {k: (v[0] if len(v) == 1 else v)
+                                   for k, v in rep.figures.items()})
+    atomic_write(out / "README.md", report(rep))
+    _say(f"done in {rep.wall_s:.0f} s: {out / 'README.md'}")
+    return rep
+
+
+#: The reproduction's systems: key -> the name of its MLflow run (and its table row), and the
+#: description its run page shows.
+SYSTEMS = {
+    "prior": ("control program",
+              "The control program's prediction of each eigenenergy (the prior), scored on the "
+              "test rows: the incumbent every other system must beat."),
+    "paper": ("base boosting, paper settings",
+              "Base boosting with the paper's main-body settings "
+              "(`experiments/paper_main_body.toml`): stacking basis, K = 1, squared-error "
+              "residuals, absolute-error line search with penalty 0.1, inbuilt model "
+              "selection by 5-fold CV. Figures: Fig. 2, S4 and the learning curves (S5; Fig. "
+              "4 is its Y3 panel)."),
+    "improved": ("base boosting, improved settings",
+                 "Base boosting with the reference's improved settings "
+                 "(`experiments/paper_improved.toml`): Huber losses, a ridge basis for Y3."),
+    "search": ("nested-CV search",
+               "The configuration chosen per target by the workbench's nested-CV search on the "
+               "training rows (`experiments/paper_search.toml`); its children are the outer "
+               "folds."),
+    "hamiltonian": ("parameter-space model",
+                    "The Hamiltonian parameter-space model (`experiments/hamiltonian.toml`): "
+                    "corrected chain-Hamiltonian parameters, re-diagonalised. Figures H1-H3, "
+                    "tables of coefficients and corrected parameters."),
+    "tabula_rasa": ("tabula rasa MLP",
+                    "An MLP on the 9 bias voltages alone (no prior; the paper's per-target "
+                    "settings), the mean over several seeds. Figures S6, S7, S8 (Fig. 5 is "
+                    "S8's Y1 panel)."),
+}
+
+
+#: Paper figures drawn once as a panel of another: id -> (the other's id, the panel's file).
+PANELS = {"fig4_learning_curve_Y3": ("figS5_learning_curves", "figS5_learning_curve_Y3"),
+          "fig5_shap_Y1": ("figS8_shap", "figS8_shap_Y1")}
+
+
+def _learning_curves(ds, configs: Path, seed: int, quick: bool, save, same_as) -> dict:
+    """The paper settings' augmented learning curves per target (Fig. S5; Fig. 4 is its Y3
+    panel)."""
+    X_train, _, y_train, _ = ds.split()
     folds = 5
     largest = len(X_train) - -(-len(X_train) // folds)
     sizes = [s for s in PAPER_SIZES if s <= largest]
@@ -225,8 +337,9 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
     if quick:
         sizes = [sizes[0], sizes[len(sizes) // 2], sizes[-1]]
     _say(f"augmented learning curves at training sizes {sizes} "
-                   f"(5-fold CV on the training rows: at most {largest} rows)")
+         f"(5-fold CV on the training rows: at most {largest} rows)")
     curves = {}
+    targets = ds.target_names
     # the five curves' (size, fold) fits share the worker processes (every core)
     fitted = run_plans([learning_curve_plan(est, X_train, y_train[target].to_numpy(),
                                             train_sizes=sizes, cv=folds, random_state=seed)
@@ -235,72 +348,109 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
         curves[SHORT[j]] = curve.to_dict()
         fig = learning_curve_figure(curve, target=f"{SHORT[j]} ({target})",
                                     setting="paper settings")
-        save("figS5_learning_curves", "learning_curves", fig, f"figS5_learning_curve_{SHORT[j]}")
+        path = save("figS5_learning_curves", fig, f"figS5_learning_curve_{SHORT[j]}")
         if SHORT[j] == "Y3":
-            save("fig4_learning_curve_Y3", "learning_curves",
-                 learning_curve_figure(curve, target=f"Y3 ({target})",
-                                       title="Augmented learning curve, Y3 (Fig. 4)",
-                                       setting="paper settings"))
+            same_as("fig4_learning_curve_Y3", path)
+    return {"train_sizes": sizes, "folds": folds, "curves": curves}
 
-    # -- tabula rasa and SHAP ------------------------------------------------------------
-    _say("tabula rasa MLPs on the 9 voltages, SHAP summaries")
+
+def _tabula_rasa_system(ds, seed: int, quick: bool, save, same_as) -> dict[str, Any]:
+    """The tabula rasa MLPs over :data:`TABULA_RASA_SEEDS` seeds (``seed``, ``seed + 1``,
+    ...): per target the mean test MAE and MSE over the seeds, each seed's average, and the
+    SHAP summaries (Fig. S8; Fig. 5 is its Y1 panel) of the first seed's MLPs."""
+    n_seeds = 3 if quick else TABULA_RASA_SEEDS
+    seeds = list(range(seed, seed + n_seeds))
+    _say(f"tabula rasa MLPs on the 9 voltages ({n_seeds} seeds), SHAP summaries")
+    X_train, X_test, y_train, y_test = ds.split()
+    targets = ds.target_names
     V_train, V_test = X_train[ds.feature_names], X_test[ds.feature_names]
-    tabula: dict[str, list[float]] = {"test_mae": [], "test_mse": []}
     shap_rows = V_train.iloc[:30] if quick else V_train
     background = 10 if quick else 50
-    # one task per target on the workers (fit, test errors, SHAP values); figures here
-    per_target = map_tasks([Task(_tabula_rasa_target, j, seed, V_train, y_train[target],
-                                 V_test, y_test[target], shap_rows, background)
-                            for j, target in enumerate(targets)], -1)
-    for j, (target, (mae, mse, values, expected)) in enumerate(zip(targets, per_target)):
-        tabula["test_mae"].append(mae)
-        tabula["test_mse"].append(mse)
-        if SHORT[j] == "Y1":
-            save("fig5_shap_Y1", "shap", shap_figure(
-                values, expected, shap_rows, target=f"Y1 ({target})",
-                title="SHAP summary, Y1 (Fig. 5)", random_state=seed,
-                setting="MLP on the 9 voltages"))
-        save("figS8_shap", "shap", shap_figure(
+    # one task per (target, seed) on the workers (fit, test errors; SHAP for the first seed)
+    tasks = [Task(_tabula_rasa_target, j, s, V_train, y_train[target], V_test, y_test[target],
+                  shap_rows if s == seed else None, background)
+             for s in seeds for j, target in enumerate(targets)]
+    done = map_tasks(tasks, -1)
+    per_seed = np.array([[d[0] for d in done[k * len(targets):(k + 1) * len(targets)]]
+                         for k in range(n_seeds)])  # seeds x targets
+    per_seed_mse = np.array([[d[1] for d in done[k * len(targets):(k + 1) * len(targets)]]
+                             for k in range(n_seeds)])
+    for j, target in enumerate(targets):
+        _, _, values, expected = done[j]  # the first seed's
+        path = save("figS8_shap", shap_figure(
             values, expected, shap_rows, target=f"{SHORT[j]} ({target})", random_state=seed,
             setting="MLP on the 9 voltages"), f"figS8_shap_{SHORT[j]}")
-    for metric, fig_id, unit in (("mae", "figS6_tabula_rasa_mae", "MHz"),
-                                 ("mse", "figS7_tabula_rasa_mse", "MHz²")):
-        values = {"tabula rasa MLP (voltages only)": tabula[f"test_{metric}"],
-                  "control program": getattr(paper.prior, f"test_{metric}"),
-                  "base boosting (paper settings)": getattr(paper.model, f"test_{metric}")}
-        save(fig_id, "tabula_rasa", model_comparison_bars(
-            SHORT, values, metric=metric.upper(), unit=unit, log=True,
-            title=f"Tabula rasa vs base boosting, test {metric.upper()} (Fig. "
-                  f"{'S6' if metric == 'mae' else 'S7'})"))
+        if SHORT[j] == "Y1":
+            same_as("fig5_shap_Y1", path)
+    avg = per_seed.mean(axis=1)
+    return {"test_mae": per_seed.mean(axis=0).tolist(),
+            "test_mse": per_seed_mse.mean(axis=0).tolist(),
+            "seeds": seeds, "test_mae_per_seed": per_seed.tolist(),
+            "test_mae_avg_per_seed": avg.tolist(),
+            "test_mae_avg_min": float(avg.min()), "test_mae_avg_max": float(avg.max()),
+            "test_mae_avg_sd": float(avg.std(ddof=1)) if n_seeds > 1 else 0.0,
+            "input_transform": "quantile_normal"}
 
-    rep = Reproduction(
-        targets=targets, seed=seed, quick=quick, settings=settings,
-        tabula_rasa=tabula, correlation=correlation.round(6).to_dict(),
-        learning_curves={"train_sizes": sizes, "folds": folds, "curves": curves},
-        figures={k: [str(p.relative_to(out)) for p in v] for k, v in files.items()},
-        hamiltonian_tables=tables)
-    rep.wall_s = time.perf_counter() - start
-    _write(out / "results.json", rep.to_json())
-    _write(out / "manifest.json", {k: (v[0] if len(v) == 1 else v)
-                                   for k, v in rep.figures.items()})
-    if track:
-        rep.mlflow = _log(rep, files, groups, out, tracking_uri, ds)
-        _write(out / "results.json", rep.to_json())
-    atomic_write(out / "README.md", report(rep))
-    _say(f"done in {rep.wall_s:.0f} s: {out / 'README.md'}")
-    return rep
+
+def _systems(settings, cfgs, tabula, search, watches, files, table_files,
+             targets) -> list[System]:
+    """The reproduction's systems (:data:`SYSTEMS`), their metrics in the shared schema."""
+    paper = settings["paper"]
+    figures = {"paper": ["fig2_mae_bars", "figS4_mse_bars", "figS5_learning_curves"],
+               "hamiltonian": ["figH1_hamiltonian_mae_bars", "figH2_parameter_corrections",
+                               "figH3_selection_path"],
+               "tabula_rasa": ["figS6_tabula_rasa_mae", "figS7_tabula_rasa_mse",
+                               "figS8_shap"]}
+    out = []
+    for key, (name, description) in SYSTEMS.items():
+        watch = watches[key]
+        system = System(key, name, watch.started, watch.ended,
+                        description=f"{description} Test rows scored once; errors in MHz "
+                                    "(MSE in MHz²).",
+                        figures=[p for f in figures.get(key, []) for p in files[f]])
+        if key == "prior":  # scored with the paper settings: no work of its own
+            system.started = system.ended = watches["paper"].ended
+            system.metrics = score_metrics(targets, paper.prior)
+            system.params = {"system": "control program", "n_train": paper.n_train,
+                             "n_test": paper.n_test}
+        elif key == "tabula_rasa":
+            scores = Scores(tabula["test_mae"], tabula["test_mse"], [], [])
+            system.metrics = {**score_metrics(targets, scores),
+                              "test_mae_avg_min_over_seeds": tabula["test_mae_avg_min"],
+                              "test_mae_avg_max_over_seeds": tabula["test_mae_avg_max"],
+                              "test_mae_avg_sd_over_seeds": tabula["test_mae_avg_sd"]}
+            system.params = {"seeds": ",".join(map(str, tabula["seeds"])),
+                             "inputs": "the 9 bias voltages",
+                             "input_transform": tabula["input_transform"],
+                             **{f"{t}.{k}": v for t, spec in zip(targets, TABULA_RASA)
+                                for k, v in zip(("hidden_layer_sizes", "alpha", "max_iter"),
+                                                spec)}}
+        else:
+            result, cfg = settings[key], cfgs[key]
+            system.config, system.result = cfg, result
+            system.metrics = result_metrics(result, wall=False)
+            system.params = run_params(cfg, targets, result.n_train, result.n_test)
+            if key == "search":
+                system.sweep = search
+            if key == "hamiltonian":
+                system.tables = list(table_files.values())
+        out.append(system)
+    return out
 
 
 def _tabula_rasa_target(j: int, seed: int, V_train, y_train, V_test, y_test, shap_rows,
-                        background: int) -> tuple[float, float, np.ndarray, float]:
-    """Target ``j``'s tabula rasa MLP on the voltages: its test MAE and MSE, and the SHAP
-    values (and expected value) of its predictions on ``shap_rows``."""
+                        background: int) -> tuple[float, float, np.ndarray | None, float | None]:
+    """Target ``j``'s tabula rasa MLP on the voltages: its test MAE and MSE, and (unless
+    ``shap_rows`` is ``None``) the SHAP values and expected value of its predictions on
+    ``shap_rows``."""
     with warnings.catch_warnings():  # the paper's max_iter, kept as published
         warnings.simplefilter("ignore", ConvergenceWarning)
         mlp = _tabula_rasa(j, seed).fit(V_train.to_numpy(), y_train.to_numpy())
     err = y_test.to_numpy() - mlp.predict(V_test.to_numpy())
-    values, expected = shap_values(lambda a: mlp.predict(a), shap_rows,
-                                   background_size=background, random_state=seed)
+    values = expected = None
+    if shap_rows is not None:
+        values, expected = shap_values(lambda a: mlp.predict(a), shap_rows,
+                                       background_size=background, random_state=seed)
     return float(np.mean(np.abs(err))), float(np.mean(err ** 2)), values, expected
 
 
@@ -344,37 +494,40 @@ def _write(path: Path, obj) -> None:
     atomic_write(path, json.dumps(obj, indent=2, default=str) + "\n")
 
 
-def _log(rep: Reproduction, files, groups, out: Path, tracking_uri, ds) -> dict[str, str]:
+def _log(rep: Reproduction, systems: list[System], files, out: Path, tracking_uri, ds,
+         paper_cfg, started: float, start: float) -> dict[str, str]:
+    """The parent run (from the reproduction's start: its data and cross-system figures,
+    ``systems.csv``, ``results.json``) and a child run per system; ``rep.wall_s`` is set to
+    the whole command's time, the parent's ``wall_s``, once everything else is logged."""
     uri = resolve_tracking_uri(tracking_uri, None, Path.cwd())
     tracker = Tracker(uri, "paper-reproduction")
-    tags = {"workbench.kind": "reproduce", "dataset_hash": dataset_hash(ds.X, ds.targets),
-            "git_commit": git_commit(Path(__file__).resolve().parents[2]) or "unknown"}
-    with tracker.run("paper reproduction", tags=tags,
-                     params={"seed": rep.seed, "quick": rep.quick}) as parent:
-        metrics = {}
-        for key, res in rep.settings.items():
-            metrics[f"{key}.test_mae_avg"] = res.model.avg("test_mae")
-            for s, v in zip(SHORT, res.model.test_mae):
-                metrics[f"{key}.test_mae.{s}"] = v
-        metrics["prior.test_mae_avg"] = rep.settings["paper"].prior.avg("test_mae")
-        search = rep.settings["search"].sweep
-        assert search is not None  # a sweep's result
-        metrics["search.nested_cv_mae_avg"] = search.nested_cv_mae_avg
-        metrics["tabula_rasa.test_mae_avg"] = float(np.mean(rep.tabula_rasa["test_mae"]))
-        ham = rep.settings["hamiltonian"]
-        for key in ("repeated_cv", "nested_cv_all"):
-            if getattr(ham, key) is not None:
-                metrics[f"hamiltonian.{key}_mae_avg"] = getattr(ham, key).model_mae_avg
-        tracker.log_metrics(parent, metrics)
+    tags = {**run_tags(paper_cfg, ds, "reproduce"), "config": "",
+            "mlflow.source.name": "workbench reproduce",
+            NOTE_TAG: "The paper's results and figures from the Google 5-qubit data (95 "
+                      "training, 41 test experiments): one child run per system, with the "
+                      "metric keys of `workbench evaluate`; here the figures comparing them "
+                      "and the data figures, `systems.csv` and `results.json`. Errors in MHz."}
+    parent = tracker.start_run("paper reproduction", tags=tags, start_time=started,
+                               params={"seed": rep.seed, "quick": rep.quick,
+                                       "systems": ", ".join(s.name for s in systems)})
+    try:
+        ids = log_systems(tracker, parent, systems, ds, paper_cfg)
+        log_inputs(tracker, parent, paper_cfg, ds, *ds.split())
+        for fig_id in ("figR1_systems_mae", "fig3_correlation", "figS2_voltage_boxplots",
+                       "figS3_prior_target_boxplots"):
+            for path in files[fig_id]:
+                tracker.log_file(parent, path, "figures")
+        tracker.log_file(parent, out / "systems.csv")
+        rep.wall_s = time.perf_counter() - start
         tracker.log_dict(parent, json.loads(json.dumps(rep.to_json(), default=str)),
                          "results.json")
-        for group, fig_ids in groups.items():
-            with tracker.run(group, parent_run_id=parent,
-                             tags={"workbench.kind": "figure_group"}) as child:
-                for fig_id in dict.fromkeys(fig_ids):
-                    for path in files[fig_id]:
-                        tracker.log_file(child, path, "figures")
-    return {"tracking_uri": uri, "run_id": parent}
+        tracker.log_metrics(parent, {"wall_s": rep.wall_s})
+    except BaseException:
+        tracker.end_run(parent, "FAILED")
+        raise
+    tracker.end_run(parent)
+    return {"tracking_uri": redact(uri), "run_id": parent,
+            **{f"run_id.{key}": run for key, run in ids.items()}}
 
 
 def _row(name: str, values, avg=None) -> str:
@@ -436,9 +589,11 @@ def report(rep: Reproduction) -> str:
                   s["search"].model.test_mae),
              _row("workbench, Hamiltonian parameter-space model (this run)",
                   s["hamiltonian"].model.test_mae),
-             _row("tabula rasa MLP on the 9 voltages (this run)", rep.tabula_rasa["test_mae"])]
+             _row(f"tabula rasa MLP on the 9 voltages (this run, mean of "
+                  f"{len(rep.tabula_rasa['seeds'])} seeds)", rep.tabula_rasa["test_mae"])]
     figs = rep.figures
     lc = rep.learning_curves
+    tr = rep.tabula_rasa
 
     def img(fig_id, caption):
         return "\n".join(f"![{caption}]({p})" for p in figs[fig_id])
@@ -471,6 +626,13 @@ is the configuration chosen per target by nested cross-validation on the trainin
 {nested.nested_cv_mae_avg:.3f} MHz against {nested.nested_cv_prior_mae_avg:.3f} for the
 control program.
 
+{img('figR1_systems_mae', 'Every system')}
+
+The same numbers are in `systems.csv` and, one run per system, in MLflow's experiment
+`paper-reproduction` (`workbench ui`): the runs share the metric keys of `workbench evaluate`
+(`test_mae/<target>`, `test_mae_avg`, ...), so MLflow's compare view lines them up with each
+other and with any evaluate run.
+
 {img('fig2_mae_bars', 'Fig. 2')}
 
 {img('figS4_mse_bars', 'Fig. S4')}
@@ -501,24 +663,29 @@ number of training rows actually used: {lc['train_sizes']}. The paper's sizes ru
 would need rows outside the training set (the reference labelled sizes up to 95 while
 training on fewer rows).
 
-{img('fig4_learning_curve_Y3', 'Fig. 4')}
-
 {img('figS5_learning_curves', 'Fig. S5')}
+
+The paper's Fig. 4 is the Y3 panel of Fig. S5 ({figs['fig4_learning_curve_Y3'][0]}), drawn
+once.
 
 ## Tabula rasa and SHAP
 
-A ReLU MLP on the 9 voltages alone (no prior, the paper's per-target settings) reaches
-{float(np.mean(rep.tabula_rasa['test_mae'])):.1f} MHz average test MAE in this run (its result
-depends strongly on the random initialisation; about 11 MHz was measured for the reference):
-either way the physics prior is worth an order of magnitude.
+A ReLU MLP on the 9 voltages alone (no prior, the paper's per-target settings, the voltages
+mapped to normal quantiles first as the reference implementation does by default) reaches
+{float(np.mean(tr['test_mae'])):.1f} MHz average test MAE, the mean of {len(tr['seeds'])}
+random initialisations (seeds {tr['seeds'][0]} to {tr['seeds'][-1]}: from
+{tr['test_mae_avg_min']:.1f} to {tr['test_mae_avg_max']:.1f} MHz, standard deviation
+{tr['test_mae_avg_sd']:.1f}); about 11 MHz was measured for the reference. Either way the
+physics prior is worth an order of magnitude.
 
 {img('figS6_tabula_rasa_mae', 'Fig. S6')}
 
 {img('figS7_tabula_rasa_mse', 'Fig. S7')}
 
-SHAP summaries (Kernel SHAP over the training rows) of that MLP per target:
-
-{img('fig5_shap_Y1', 'Fig. 5')}
+SHAP summaries (exact SHAP values over the training rows) of that MLP per target (the
+first seed's):
 
 {img('figS8_shap', 'Fig. S8')}
+
+The paper's Fig. 5 is the Y1 panel of Fig. S8 ({figs['fig5_shap_Y1'][0]}), drawn once.
 """

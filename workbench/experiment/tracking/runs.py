@@ -141,25 +141,34 @@ class Tracker(ModelRecords):
 
     def start_run(self, name: str, *, parent_run_id: str | None = None,
                   tags: Mapping[str, Any] | None = None,
-                  params: Mapping[str, Any] | None = None) -> str:
-        """Create a run (a child of ``parent_run_id`` if given) and return its id."""
+                  params: Mapping[str, Any] | None = None,
+                  start_time: float | None = None) -> str:
+        """Create a run (a child of ``parent_run_id`` if given) and return its id.
+        ``start_time``: when the run's work began (seconds since the epoch; default now), for
+        a run logged after the work it records."""
         all_tags = {str(k): tag_value(v) for k, v in (tags or {}).items()}
         if parent_run_id:
             all_tags[PARENT_TAG] = parent_run_id
         experiment_id = self.experiment_id
         with self._errors():
-            run = self.client.create_run(experiment_id, run_name=name, tags=all_tags)
+            run = self.client.create_run(
+                experiment_id, run_name=name, tags=all_tags,
+                start_time=None if start_time is None else int(start_time * 1000))
         run_id = run.info.run_id
         if params:
             self.log_params(run_id, params)
         return run_id
 
-    def end_run(self, run_id: str, status: str = "FINISHED") -> None:
-        """Mark the run ``FINISHED``, ``FAILED`` or ``KILLED``."""
+    def end_run(self, run_id: str, status: str = "FINISHED",
+                end_time: float | None = None) -> None:
+        """Mark the run ``FINISHED``, ``FAILED`` or ``KILLED``; ``end_time``: when its work
+        ended (seconds since the epoch; default now)."""
         if status not in _RUN_STATUSES:
             raise ValueError(f"status must be one of {_RUN_STATUSES}, got {status!r}")
         with self._errors():
-            self.client.set_terminated(run_id, status=status)
+            self.client.set_terminated(
+                run_id, status=status,
+                end_time=None if end_time is None else int(end_time * 1000))
 
     @contextlib.contextmanager
     def run(self, name: str, parent_run_id: str | None = None,
