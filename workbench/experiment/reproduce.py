@@ -175,21 +175,13 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
     def same_as(fig_id: str, path: Path) -> None:  # a paper figure that is another's panel
         files.setdefault(fig_id, []).append(path)
 
-    # -- the paper and improved settings; the paper settings' learning curves ------------
+    # -- the paper settings with their figures and learning curves; the improved settings --
     settings: dict[str, Result] = {}
     cfgs: dict[str, ExperimentConfig] = {}
-    evaluations = {}
-    for key, toml in (("paper", "paper_main_body.toml"), ("improved", "paper_improved.toml")):
-        _say(f"evaluating the {key} settings ({toml})")
-        with watches[key]:
-            cfgs[key] = _no_intervals(replace(load_config(configs / toml), random_state=seed))
-            evaluations[key] = evaluate(cfgs[key], return_model=True)
-            settings[key] = evaluations[key].result
-    ds = evaluations["paper"].dataset
-    X_train, X_test, y_train, y_test = ds.split()
-    targets = ds.target_names
-    paper = settings["paper"]
     with watches["paper"]:
+        paper_run = _evaluate("paper", configs / "paper_main_body.toml", seed, cfgs)
+        paper = settings["paper"] = paper_run.result
+        ds = paper_run.dataset
         save("fig2_mae_bars", mae_bars(SHORT, paper.prior.test_mae, paper.model.test_mae,
                                        title="Test MAE per eigenenergy (Fig. 2)",
                                        setting="paper settings"))
@@ -198,6 +190,11 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
                                         title="Test MSE per eigenenergy (Fig. S4)",
                                         setting="paper settings"))
         learning_curves = _learning_curves(ds, configs, seed, quick, save, same_as)
+    with watches["improved"]:
+        settings["improved"] = _evaluate("improved", configs / "paper_improved.toml", seed,
+                                         cfgs).result
+    X_train, X_test, y_train, y_test = ds.split()
+    targets = ds.target_names
 
     # -- the workbench's own nested-CV search ----------------------------------------------
     _say("nested-CV search for the workbench's own best configuration "
@@ -289,6 +286,14 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
     atomic_write(out / "README.md", report(rep))
     _say(f"done in {rep.wall_s:.0f} s: {out / 'README.md'}")
     return rep
+
+
+def _evaluate(key: str, path: Path, seed: int, cfgs: dict[str, ExperimentConfig]):
+    """``workbench evaluate`` of the config ``path`` (seeded, no intervals) into
+    ``cfgs[key]``; returns the :class:`~.evaluate.Evaluation`."""
+    _say(f"evaluating the {key} settings ({path.name})")
+    cfgs[key] = _no_intervals(replace(load_config(path), random_state=seed))
+    return evaluate(cfgs[key], return_model=True)
 
 
 #: The reproduction's systems: key -> the name of its MLflow run (and its table row), and the

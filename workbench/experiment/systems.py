@@ -66,15 +66,14 @@ class System:
 
 
 class Stopwatch:
-    """``with watch: ...`` adds the block's span to :attr:`started`/:attr:`ended`
-    (the first start, the last end)."""
+    """``with watch: ...`` records the block's start and end (:attr:`started`,
+    :attr:`ended`: seconds since the epoch; NaN before)."""
 
     def __init__(self) -> None:
         self.started = self.ended = float("nan")
 
     def __enter__(self) -> Stopwatch:
-        if self.started != self.started:  # nan: the first block
-            self.started = time.time()
+        self.started = time.time()
         return self
 
     def __exit__(self, *exc) -> None:
