@@ -140,6 +140,10 @@ def test_paper_run_reports_prediction_intervals(paper_run):
     assert run.data.metrics["test_coverage_avg"] == pytest.approx(
         r["model"]["test_coverage_avg"])
     assert run.data.metrics["cv_width/eeig3"] == pytest.approx(r["model"]["cv_width"][2])
+    # one metric schema (the dataset's target names after a slash), described on the run page
+    assert [run.data.metrics[f"test_mae/{t}"] for t in r["targets"]] == pytest.approx(
+        r["model"]["test_mae"])
+    assert "`test_mae/<target>`" in run.data.tags["mlflow.note.content"]
 
 
 def test_paper_run_meets_acceptance_criterion(paper_run):

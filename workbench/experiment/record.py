@@ -31,8 +31,9 @@ from .tracking.records import dataset_hash, git_commit
 from .tracking.runs import Tracker
 from .tracking.uris import resolve_tracking_uri
 
-__all__ = ["config_text", "log_inputs", "log_sweep_children", "record", "record_wall_time",
-           "result_metrics", "run_params", "run_tags", "score_metrics", "tracker_for"]
+__all__ = ["NOTE_TAG", "config_text", "log_inputs", "log_sweep_children", "record",
+           "record_wall_time", "result_metrics", "run_params", "run_tags", "score_metrics",
+           "tracker_for"]
 
 log = logging.getLogger("workbench")
 
@@ -185,6 +186,20 @@ def log_inputs(tracker: Tracker, run_id: str, cfg: ExperimentConfig, ds, X_train
                             context=context, source=source)
 
 
+#: MLflow's tag for a run's description (the run page's "Description", Markdown).
+NOTE_TAG = "mlflow.note.content"
+
+
+def _description(cfg: ExperimentConfig, ds, kind: str, result: Result) -> str:
+    """The run page's description: what ran on which rows, and how to read the metrics."""
+    source = f"`{cfg.path}`" if cfg.path else f"config {cfg.name!r}"
+    return (f"`workbench {kind}` of {source} (family {cfg.family.name}) on {ds.name}: fitted "
+            f"on {result.n_train} training rows, every choice by CV on them; the "
+            f"{result.n_test} test rows scored once. Metrics `test_mae/<target>`, "
+            "`test_mae_avg`, `cv_mae/<target>`, ... (the control program's: `prior_...`) in "
+            "the targets' units (MHz for the Google 5-qubit data; MSE squared).")
+
+
 def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
            tracking_uri: str | None = None, sweep=None, run_id: str | None = None,
            register: str | None = None) -> dict[str, str]:
@@ -199,7 +214,7 @@ def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
     tracker = tracker_for(cfg, tracking_uri)
     family = cfg.family
     X_train, X_test, y_train, y_test = ds.split(family.inputs(cfg, ds))
-    tags = run_tags(cfg, ds, kind)
+    tags = {**run_tags(cfg, ds, kind), NOTE_TAG: _description(cfg, ds, kind, result)}
     digest = tags["dataset_hash"]
     params = run_params(cfg, result.targets, len(X_train), len(X_test))
     setting = f"{kind} of {cfg.name}"

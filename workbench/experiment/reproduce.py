@@ -42,10 +42,10 @@ from .figures import (
     voltage_boxplots,
 )
 from .intervals import family_model
-from .record import log_inputs, result_metrics, run_params, run_tags, score_metrics
+from .record import NOTE_TAG, log_inputs, result_metrics, run_params, run_tags, score_metrics
 from .results import Result, Scores
 from .sweep.search import run_sweep
-from .systems import NOTE_TAG, Stopwatch, System, log_systems, summary_table
+from .systems import Stopwatch, System, log_systems, summary_table
 from .tracking.runs import Tracker
 from .tracking.uris import resolve_tracking_uri
 

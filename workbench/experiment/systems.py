@@ -23,6 +23,7 @@ import pandas as pd
 
 from .config import ExperimentConfig
 from .record import (
+    NOTE_TAG,
     config_text,
     log_inputs,
     log_sweep_children,
@@ -31,10 +32,7 @@ from .record import (
 from .results import Result
 from .tracking.runs import Tracker
 
-__all__ = ["NOTE_TAG", "Stopwatch", "System", "log_systems", "summary_table"]
-
-#: MLflow's tag for a run's description (the run page's "Description").
-NOTE_TAG = "mlflow.note.content"
+__all__ = ["Stopwatch", "System", "log_systems", "summary_table"]
 
 
 @dataclass
