@@ -1,13 +1,15 @@
 """Figures of the base-boosting paper, as functions that return a matplotlib ``Figure``.
 
-* :func:`mae_bars` -- per-target test error, control program vs learned model (Fig. 2, S4).
+* :func:`mae_bars` -- per-target test error, control program vs learned model (Fig. 2, S4),
+  with the errors' bootstrap intervals as error bars when given them.
 * :func:`learning_curve_figure` -- the augmented learning curve (Fig. 4, S5).
 * :func:`shap_summary` -- SHAP beeswarm summary of a model's predictions (Fig. 5, S8);
   :func:`shap_values` and :func:`shap_figure` are its two halves.
 * :func:`correlation_heatmap` -- pairwise Pearson correlations of the training examples (Fig. 3).
 * :func:`voltage_boxplots` -- boxplots of the qubit and coupler bias voltages (Fig. S2).
 * :func:`prior_target_boxplots` -- paired boxplots of prior and target eigenenergies (Fig. S3).
-* :func:`model_comparison_bars` -- per-target error bars of 2 to 4 systems (Fig. S6, S7).
+* :func:`model_comparison_bars` -- per-target error bars of 2 to 4 systems (Fig. S6, S7), with
+  intervals as error bars when given them.
 * :func:`parameter_corrections` -- control-model vs corrected Hamiltonian parameters.
 * :func:`selection_path_figure` -- CV error along a forward covariate selection.
 * :func:`interval_figure` -- measured against predicted with each row's prediction interval.
@@ -87,18 +89,48 @@ def _values(name: str, values, n: int) -> np.ndarray:
     return arr
 
 
+#: Error bars of the bar charts: thin, dark, capped.
+ERROR_BAR_STYLE = {"ecolor": "#222222", "elinewidth": 0.8, "capsize": 3.0, "capthick": 0.8}
+
+
+def _intervals(name: str, intervals, values: np.ndarray, n_targets: int,
+               average: bool) -> np.ndarray:
+    """Bounds ``[low, high]`` per bar (one per target, then the average's when ``average``)
+    as matplotlib's ``yerr`` (shape ``(2, n_bars)``: the distances below and above each bar's
+    value; an interval that misses its bar's value, which a percentile bootstrap interval of
+    a skewed statistic may, is drawn from the value on)."""
+    arr = np.asarray(intervals, dtype=float)
+    n_bars = n_targets + 1 if average else n_targets
+    if arr.ndim != 2 or arr.shape[1] != 2 or arr.shape[0] not in (n_bars, n_targets + 1):
+        expected = (f"{n_targets} targets' and the average's" if average
+                    else f"{n_targets} targets'")
+        raise ValueError(f"{name} must hold the {expected} [low, high] (shape ({n_bars}, 2)); "
+                         f"got shape {arr.shape}")
+    arr = arr[:n_bars]  # without the average bar, its interval (last row) is not drawn
+    if not np.isfinite(arr).all() or (arr[:, 0] > arr[:, 1]).any():
+        raise ValueError(f"{name} must be finite with low <= high; got {arr.tolist()}")
+    return np.clip(np.stack([values - arr[:, 0], arr[:, 1] - values]), 0.0, None)
+
+
 def _grouped_bars(ax, names: list[str], series: Sequence[tuple[str, np.ndarray, str]], *,
-                  average: bool, fmt: str = "%.2f", fontsize: float = 8) -> list:
+                  average: bool, fmt: str = "%.2f", fontsize: float = 8,
+                  errors: Sequence[np.ndarray | None] | None = None) -> list:
     """Draw one bar per (label, values, colour) series in each group of ``names``, annotated.
 
     The series of a group share a total width of 0.76, side by side in the given order; with
-    ``average`` the last group is set apart by a dotted line. Returns the bar containers.
+    ``average`` the last group is set apart by a dotted line. ``errors``: per series ``None``
+    or its error bars (``yerr``, shape ``(2, n_bars)``); a bar's value is written above its
+    error bar. Returns the bar containers.
     """
     x = np.arange(len(names), dtype=float)
     n = len(series)
     width = 0.76 / n
-    containers = [ax.bar(x + (i - (n - 1) / 2) * width, values, width, label=label, color=color)
-                  for i, (label, values, color) in enumerate(series)]
+    errors = list(errors) if errors is not None else [None] * n
+    containers = [ax.bar(x + (i - (n - 1) / 2) * width, values, width, label=label, color=color,
+                         **({} if yerr is None else {"yerr": yerr,
+                                                     "error_kw": ERROR_BAR_STYLE}))
+                  for i, ((label, values, color), yerr) in enumerate(zip(series, errors,
+                                                                         strict=True))]
     for bars in containers:
         ax.bar_label(bars, fmt=fmt, padding=2, fontsize=fontsize)
     if average:
@@ -111,8 +143,11 @@ def _grouped_bars(ax, names: list[str], series: Sequence[tuple[str, np.ndarray, 
 def mae_bars(targets: Sequence[str], prior, model, *, metric: str = "MAE", unit: str = "MHz",
              title: str | None = None, labels: tuple[str, str] = ("control program",
                                                                   "base boosting"),
-             setting: str | None = None, average: bool = True) -> Figure:
-    """Grouped bars of a per-target error for the prior and the model, plus their averages.
+             setting: str | None = None, average: bool = True, prior_ci=None, model_ci=None,
+             ci_note: str | None = "error bars: 95% bootstrap intervals over the test rows"
+             ) -> Figure:
+    """Grouped bars of a per-target error for the prior and the model, plus their averages,
+    with error bars when given the errors' intervals.
 
     Parameters
     ----------
@@ -130,29 +165,52 @@ def mae_bars(targets: Sequence[str], prior, model, *, metric: str = "MAE", unit:
         A second title line naming the setting (e.g. the config).
     average : bool, default=True
         Append an "average" group (the mean over targets), set apart by a dotted line.
+    prior_ci, model_ci : array-like of shape (n_targets + 1, 2), optional
+        Intervals drawn as error bars: ``[low, high]`` per target, then the average's (an
+        interval of the average over targets is not the average of the targets' intervals:
+        give the one computed with them, e.g. :meth:`Scores.ci
+        <workbench.experiment.results.Scores.ci>` ``("test_mae")``); without ``average``,
+        ``(n_targets, 2)`` is enough. Either may be given alone.
+    ci_note : str or None
+        With error bars, a note under the axis saying what they are (``None``: none).
     """
     names = [str(t) for t in targets]
     if not names:
         raise ValueError("targets is empty")
-    prior = _values("prior", prior, len(names))
-    model = _values("model", model, len(names))
+    n_targets = len(names)
+    prior = _values("prior", prior, n_targets)
+    model = _values("model", model, n_targets)
     if average:
         names = [*names, "average"]
         prior = np.append(prior, prior.mean())
         model = np.append(model, model.mean())
+    errors = [None if ci is None else _intervals(name, ci, values, n_targets, average)
+              for name, ci, values in (("prior_ci", prior_ci, prior),
+                                       ("model_ci", model_ci, model))]
 
     fig = _new_figure(max(5.0, 0.95 * len(names) + 1.8), 4.0)
     ax = fig.add_subplot()
     _grouped_bars(ax, names, [(labels[0], prior, PRIOR_COLOR), (labels[1], model, MODEL_COLOR)],
-                  average=average)
+                  average=average, errors=errors)
     ax.set_ylabel(f"{metric} ({unit})", fontsize=11)
-    top = np.nanmax(np.concatenate([prior, model])) if np.any(np.isfinite(prior)) else 1.0
+    tops = [values + (0 if err is None else err[1])
+            for values, err in zip((prior, model), errors)]
+    top = np.nanmax(np.concatenate(tops)) if np.any(np.isfinite(prior)) else 1.0
     ax.set_ylim(0, top * 1.22 if np.isfinite(top) and top > 0 else 1.0)
     ax.legend(loc="upper right", frameon=False, fontsize=10, ncols=2)
     ax.set_title(_with_setting(title or f"Test {metric} per target: {labels[0]} vs {labels[1]}",
                                setting), fontsize=12)
+    if ci_note and any(err is not None for err in errors):
+        _note_under_xlabel(ax, ci_note)
     _style(ax)
     return fig
+
+
+def _note_under_xlabel(ax, note: str) -> None:
+    """A small grey line of text centred under the x-axis label (a caption's note)."""
+    ax.annotate(note, xy=(0.5, 0.0), xycoords=ax.xaxis.label, xytext=(0, -3),
+                textcoords="offset points", ha="center", va="top", fontsize=8,
+                color="#555555")
 
 
 def learning_curve_figure(curve: LearningCurve, *, target: str, unit: str = "MHz",
@@ -446,8 +504,12 @@ def _system_colors(systems: list[str]) -> list[str]:
 def model_comparison_bars(targets: Sequence[str], values: Mapping[str, Sequence[float]], *,
                           metric: str = "MAE", unit: str = "MHz", title: str | None = None,
                           setting: str | None = None, log: bool = False,
-                          average: bool = True) -> Figure:
-    """Grouped bars of a per-target error for 2 to 4 systems, plus their averages (Fig. S6, S7).
+                          average: bool = True,
+                          intervals: Mapping[str, Sequence[Sequence[float]]] | None = None,
+                          ci_note: str | None = ("error bars: 95% bootstrap intervals over "
+                                                 "the test rows")) -> Figure:
+    """Grouped bars of a per-target error for 2 to 4 systems, plus their averages (Fig. S6, S7),
+    with error bars for the systems given intervals.
 
     Parameters
     ----------
@@ -467,10 +529,16 @@ def model_comparison_bars(targets: Sequence[str], values: Mapping[str, Sequence[
         Logarithmic y axis, for systems an order of magnitude apart (needs positive values).
     average : bool, default=True
         Append an "average" group (the mean over targets), set apart by a dotted line.
+    intervals : mapping of str to array-like of shape (n_targets + 1, 2), optional
+        System name -> ``[low, high]`` per target, then the average's (as ``model_ci`` of
+        :func:`mae_bars`), drawn as error bars; systems not in it have none.
+    ci_note : str or None
+        With error bars, a note under the axis saying what they are (``None``: none).
     """
     names = [str(t) for t in targets]
     if not names:
         raise ValueError("targets is empty")
+    n_targets = len(names)
     if not isinstance(values, Mapping):
         raise TypeError(f"values must map each system's name to its values; got "
                         f"{type(values).__name__}")
@@ -489,6 +557,14 @@ def model_comparison_bars(targets: Sequence[str], values: Mapping[str, Sequence[
         arrays.append(np.append(arr, arr.mean()) if average else arr)
     if average:
         names = [*names, "average"]
+    intervals = dict(intervals or {})
+    unknown = sorted(set(map(str, intervals)) - set(systems))
+    if unknown:
+        raise ValueError(f"intervals of unknown systems {unknown}; the systems are {systems}")
+    errors = [None if intervals.get(system) is None
+              else _intervals(f"intervals[{system!r}]", intervals[system], arr, n_targets,
+                              average)
+              for system, arr in zip(systems, arrays)]
 
     n = len(systems)
     fig = _new_figure(max(5.0, (0.42 * n + 0.15) * len(names) + 1.8), 4.4)
@@ -497,7 +573,13 @@ def model_comparison_bars(targets: Sequence[str], values: Mapping[str, Sequence[
     biggest = np.abs(every).max()
     fmt = "%.2f" if biggest < 100 else "%.1f" if biggest < 1000 else "%.0f"
     _grouped_bars(ax, names, list(zip(systems, arrays, _system_colors(systems), strict=True)),
-                  average=average, fmt=fmt, fontsize=8 if n <= 3 else 7)
+                  average=average, fmt=fmt, fontsize=8 if n <= 3 else 7, errors=errors)
+    # the axis holds the error bars' ends too
+    ends = [every] + [bounds for arr, err in zip(arrays, errors) if err is not None
+                      for bounds in (arr - err[0], arr + err[1])]
+    every = np.concatenate(ends)
+    if log:
+        every = every[every > 0]
     ax.set_ylabel(f"{metric} ({unit}, log scale)" if log else f"{metric} ({unit})", fontsize=11)
     if log:
         from matplotlib.ticker import FuncFormatter  # (b) matplotlib: not for evaluate --no-track
@@ -520,6 +602,8 @@ def model_comparison_bars(targets: Sequence[str], values: Mapping[str, Sequence[
                fontsize=10)
     default = f"Test {metric} per target: " + " vs ".join(systems)
     ax.set_title(_with_setting(title or default, setting), fontsize=12)
+    if ci_note and any(err is not None for err in errors):
+        _note_under_xlabel(ax, ci_note)
     _style(ax)
     return fig
 
