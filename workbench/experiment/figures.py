@@ -5,6 +5,8 @@
 * :func:`learning_curve_figure` -- the augmented learning curve (Fig. 4, S5).
 * :func:`shap_summary` -- SHAP beeswarm summary of a model's predictions (Fig. 5, S8);
   :func:`shap_values` and :func:`shap_figure` are its two halves.
+* :func:`correction_shap_figure` -- the SHAP summary of what a base-boosting model adds to its
+  prior (model - prior), or a note that the model is the prior.
 * :func:`correlation_heatmap` -- pairwise Pearson correlations of the training examples (Fig. 3).
 * :func:`voltage_boxplots` -- boxplots of the qubit and coupler bias voltages (Fig. S2).
 * :func:`prior_target_boxplots` -- paired boxplots of prior and target eigenenergies (Fig. S3).
@@ -34,16 +36,16 @@ import pandas as pd
 
 from .._io import atomic_write
 from ..curves import LearningCurve
-from .explain import check_shap_frame, shap_values
+from .explain import ShapValues, check_shap_frame, shap_values
 
 if TYPE_CHECKING:
     from matplotlib.artist import Artist
     from matplotlib.figure import Figure
 
-__all__ = ["correlation_heatmap", "interval_figure", "learning_curve_figure", "mae_bars",
-           "model_comparison_bars", "parameter_corrections", "prior_target_boxplots",
-           "save_figure", "selection_path_figure", "shap_figure", "shap_summary", "shap_values",
-           "voltage_boxplots"]
+__all__ = ["correction_shap_figure", "correlation_heatmap", "interval_figure",
+           "learning_curve_figure", "mae_bars", "model_comparison_bars", "parameter_corrections",
+           "prior_target_boxplots", "save_figure", "selection_path_figure", "shap_figure",
+           "shap_summary", "shap_values", "voltage_boxplots"]
 
 #: Colours (Okabe-Ito, readable in grey scale and by colour-blind readers).
 PRIOR_COLOR = "#7f7f7f"
@@ -273,12 +275,24 @@ def shap_summary(predict: Callable[[np.ndarray], np.ndarray], X: pd.DataFrame, *
     return fig, values
 
 
+#: What a SHAP summary explains (``explained=``): the words of its axis label and title.
+EXPLAINED = {"prediction": "the whole prediction", "correction": "the correction (model − prior)"}
+
+
 def shap_figure(values: np.ndarray, expected: float, X: pd.DataFrame, *, target: str,
                 unit: str = "MHz", max_display: int = 10, random_state: int = 0,
-                title: str | None = None, setting: str | None = None) -> Figure:
+                title: str | None = None, setting: str | None = None,
+                explained: str | None = None) -> Figure:
     """The beeswarm summary of SHAP ``values`` (shape ``(n_rows, n_features)``) of the rows of
-    ``X`` (see :func:`shap_summary`)."""
+    ``X`` (see :func:`shap_summary`). ``explained``: ``"prediction"`` (a base-boosting
+    model's whole prediction) or ``"correction"`` (what it adds to its prior, model - prior),
+    named in the axis label and the default title; ``None``: "predicted <target>", a model
+    without a prior."""
     import shap  # (b) SHAP: not for evaluate --no-track
+
+    if explained is not None and explained not in EXPLAINED:
+        raise ValueError(f"explained must be one of {sorted(EXPLAINED)} or None; got "
+                         f"{explained!r}")
 
     check_shap_frame(X)
     names = [str(c) for c in X.columns]
@@ -299,9 +313,39 @@ def shap_figure(values: np.ndarray, expected: float, X: pd.DataFrame, *, target:
                             plot_size=None, s=18)
     finally:
         np.random.set_state(state)
-    ax.set_xlabel(f"SHAP value: effect on predicted {target} ({unit})", fontsize=11)
+    size = f"{len(data)} rows x {len(names)} features"
+    if explained is None:
+        ax.set_xlabel(f"SHAP value: effect on predicted {target} ({unit})", fontsize=11)
+        default = f"SHAP summary: {target}, {size}"
+    else:
+        ax.set_xlabel(f"SHAP value: effect on {EXPLAINED[explained]} of {target} ({unit})",
+                      fontsize=11)
+        default = f"SHAP summary of {EXPLAINED[explained]}: {target}\n{size}"
     ax.tick_params("y", labelsize=10)
-    default = f"SHAP summary: {target}, {len(data)} rows x {len(names)} features"
+    ax.set_title(_with_setting(title or default, setting), fontsize=12)
+    return fig
+
+
+def correction_shap_figure(shap: ShapValues | None, *, target: str, unit: str = "MHz",
+                           note: str = "", max_display: int = 10, random_state: int = 0,
+                           title: str | None = None, setting: str | None = None) -> Figure:
+    """The SHAP summary of a per-target model's correction (model - prior), ``shap`` from
+    :func:`~workbench.experiment.explain.target_shap_values` (its ``correction``). ``None``:
+    the model is the prior (its correction is 0 on every row), and the figure says so, with
+    ``note`` (why: :func:`~workbench.experiment.explain.prior_reason`), instead of a beeswarm
+    of zeros."""
+    if shap is not None:
+        return shap_figure(shap.values, shap.expected, shap.rows, target=target, unit=unit,
+                           max_display=max_display, random_state=random_state, title=title,
+                           setting=setting, explained="correction")
+    fig = _new_figure(7.0, 2.2)
+    ax = fig.add_subplot()
+    ax.set_axis_off()
+    why = f" ({note})" if note else ""
+    ax.text(0.5, 0.5, f"The model of {target} is its prior{why}:\nthe correction "
+                      f"(model − prior) is 0 {unit} on every row; nothing to explain.",
+            ha="center", va="center", fontsize=11, transform=ax.transAxes, wrap=True)
+    default = f"SHAP summary of {EXPLAINED['correction']}: {target}"
     ax.set_title(_with_setting(title or default, setting), fontsize=12)
     return fig
 
