@@ -15,12 +15,13 @@ a stacking) is called a handful of times instead of once per row.
 SHAP or matplotlib import for exact values (they run in worker processes too); the beeswarm
 figure is :func:`workbench.experiment.figures.shap_figure`.
 
-A fitted per-target base-boosting model predicts ``prior(X) + correction(X)``; its SHAP values
-are dominated by the prior (a column of ``X``: tens of MHz against a correction of about one).
-:func:`target_shap_values` explains both, on the same rows over the same background: the whole
+A fitted per-target base-boosting model predicts ``prior(X) + correction(X)``; the SHAP values
+of its whole prediction are dominated by the prior (on the benchmark a column of ``X`` spread
+over +-50 MHz, against a correction of a few MHz). :func:`target_shap_values` explains both,
+each computed from its own function on the same rows over the same background: the whole
 prediction and the correction alone (:func:`correction_predictor`: what the boosted stages add
-to the prior, ``None`` when the model is the prior). The correction's SHAP values are those of
-the whole prediction minus the prior's (Shapley values are linear in the model).
+to the prior, ``None`` when the model is the prior). Exact Shapley values are linear in the
+model, so the whole prediction's values are the prior's plus the correction's (to rounding).
 """
 
 from __future__ import annotations

@@ -174,7 +174,9 @@ def mae_bars(targets: Sequence[str], prior, model, *, metric: str = "MAE", unit:
         <workbench.experiment.results.Scores.ci>` ``("test_mae")``); without ``average``,
         ``(n_targets, 2)`` is enough. Either may be given alone.
     ci_note : str or None
-        With error bars, a note under the axis saying what they are (``None``: none).
+        With error bars, a note under the axis saying what they are (``None``: none); the
+        default describes :func:`~workbench.experiment.results.bootstrap_test_scores`'
+        intervals, give another for other intervals.
     """
     names = [str(t) for t in targets]
     if not names:
@@ -577,7 +579,8 @@ def model_comparison_bars(targets: Sequence[str], values: Mapping[str, Sequence[
         System name -> ``[low, high]`` per target, then the average's (as ``model_ci`` of
         :func:`mae_bars`), drawn as error bars; systems not in it have none.
     ci_note : str or None
-        With error bars, a note under the axis saying what they are (``None``: none).
+        With error bars, a note under the axis saying what they are (``None``: none; the
+        default as in :func:`mae_bars`).
     """
     names = [str(t) for t in targets]
     if not names:
