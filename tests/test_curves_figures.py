@@ -237,6 +237,65 @@ def test_mae_bars(tmp_path):
         figures.mae_bars(["Y1", "Y2"], [1.0], [1.0, 2.0])
 
 
+def _interval_rows(values, half):
+    values = [*values, float(np.mean(values))]
+    return [[v - half, v + 1.5 * half] for v in values]
+
+
+def test_mae_bars_with_intervals_draws_capped_error_bars(tmp_path):
+    prior_ci, model_ci = _interval_rows(PRIOR_MAE, 0.3), _interval_rows(MODEL_MAE, 0.2)
+    fig = figures.mae_bars(["Y1", "Y2", "Y3", "Y4", "Y5"], PRIOR_MAE, MODEL_MAE,
+                           setting="paper settings", prior_ci=prior_ci, model_ci=model_ci)
+    ax = fig.axes[0]
+    bars = [c for c in ax.containers if hasattr(c, "patches")]
+    assert len(bars) == 2
+    for container, rows in zip(bars, (prior_ci, model_ci), strict=True):
+        assert container.errorbar is not None
+        line_collection = container.errorbar.lines[2][0]
+        segments = line_collection.get_segments()
+        ends = [[seg[:, 1].min(), seg[:, 1].max()] for seg in segments]
+        np.testing.assert_allclose(ends, rows)  # every target's interval and the average's
+        assert line_collection.get_linewidth()[0] == pytest.approx(0.8)  # thin
+        assert len(container.errorbar.lines[1]) == 2  # caps below and above
+        # each bar's value is written above its error bar
+        centers = [bar.get_x() + bar.get_width() / 2 for bar in container]
+        for x, (_, high) in zip(centers, rows, strict=True):
+            label = min((t for t in ax.texts if t.xy[0] == pytest.approx(x)),
+                        key=lambda t: t.xy[1])
+            assert label.xy[1] == pytest.approx(high)
+    assert ax.get_ylim()[1] > max(r[1] for r in prior_ci + model_ci)
+    # the legend as without intervals; a note says what the error bars are
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["control program",
+                                                                   "base boosting"]
+    assert any("95% bootstrap intervals" in t.get_text() for t in ax.texts)
+    _png(fig, tmp_path, "bars_ci.png")
+    assert _no_pyplot_figures()
+    # one system alone; without an average the targets' rows are enough
+    fig = figures.mae_bars(["Y1", "Y2"], [1.0, 2.0], [0.5, 1.0], model_ci=[[0.4, 0.7],
+                                                                         [0.8, 1.3]],
+                           average=False, ci_note=None)
+    ax = fig.axes[0]
+    assert [c.errorbar is None for c in ax.containers if hasattr(c, "patches")] == [True, False]
+    assert not any("bootstrap" in t.get_text() for t in ax.texts)
+
+
+def test_mae_bars_without_intervals_draws_no_error_bars():
+    fig = figures.mae_bars(["Y1", "Y2", "Y3", "Y4", "Y5"], PRIOR_MAE, MODEL_MAE)
+    ax = fig.axes[0]
+    assert len(ax.containers) == 2 and all(c.errorbar is None for c in ax.containers)
+    assert not any("bootstrap" in t.get_text() for t in ax.texts)
+
+
+@pytest.mark.parametrize("ci, match", [
+    (_interval_rows(MODEL_MAE, 0.2)[:5], r"the 5 targets' and the average's \[low, high\]"),
+    ([[0.0, 1.0]] * 5 + [[1.0, 0.5]], "low <= high"),
+    ([[0.0, np.nan]] * 6, "finite"),
+])
+def test_mae_bars_refuses_bad_intervals(ci, match):
+    with pytest.raises(ValueError, match=match):
+        figures.mae_bars(["Y1", "Y2", "Y3", "Y4", "Y5"], PRIOR_MAE, MODEL_MAE, model_ci=ci)
+
+
 def test_learning_curve_figure(curve, tmp_path):
     fig = figures.learning_curve_figure(curve, target="eeig3", setting="ridge basis")
     ax = fig.axes[0]

@@ -210,6 +210,23 @@ def test_model_comparison_bars_linear_mse_and_four_systems():
     assert len(colours) == 4
 
 
+def test_model_comparison_bars_draws_the_intervals_given(tmp_path):
+    rows = [[v * 0.8, v * 1.3] for v in [*TABULA, np.mean(TABULA)]]
+    fig = figures.model_comparison_bars(SHORT, SYSTEMS, log=True,
+                                        intervals={"tabula rasa MLP": rows})
+    ax = fig.axes[0]
+    bars = [c for c in ax.containers if hasattr(c, "patches")]
+    assert [c.errorbar is not None for c in bars] == [True, False, False]
+    segments = bars[0].errorbar.lines[2][0].get_segments()
+    np.testing.assert_allclose([[s[:, 1].min(), s[:, 1].max()] for s in segments], rows)
+    assert ax.get_ylim()[1] > max(r[1] for r in rows)
+    assert [t.get_text() for t in fig.legends[0].get_texts()] == list(SYSTEMS)
+    assert any("95% bootstrap intervals" in t.get_text() for t in ax.texts)
+    _png(fig, tmp_path, "s6_ci.png")
+    with pytest.raises(ValueError, match=r"unknown systems \['MLP'\]"):
+        figures.model_comparison_bars(SHORT, SYSTEMS, intervals={"MLP": rows})
+
+
 def test_model_comparison_bars_with_two_systems_matches_mae_bars_geometry():
     fig = figures.model_comparison_bars(SHORT, {"control program": PRIOR_MAE,
                                                 "base boosting": MODEL_MAE})

@@ -75,7 +75,7 @@ def test_no_workbench_module_names_a_family_outside_its_own():
     assert hits == [], hits
 
 
-def test_toy_family_evaluates(toy_family, tmp_path, google_5q_dir, google_5q):
+def test_toy_family_evaluates(toy_family, tmp_path, google_5q_dir, google_5q, capsys):
     path = _config(tmp_path, google_5q_dir)
     out = tmp_path / "result.json"
     assert main(["evaluate", str(path), "--json", str(out)]) == 0
@@ -90,6 +90,20 @@ def test_toy_family_evaluates(toy_family, tmp_path, google_5q_dir, google_5q):
     assert result["mlflow"]["run_id"]
     # a model that keeps no out-of-fold predictions of its own: CV+ by default
     assert result["intervals"]["method"] == "cv_plus"
+    # every family's test errors get bootstrap intervals over the 41 test rows, seeded by
+    # the config's random_state: the prior's, the model's and the paired model - prior
+    assert result["bootstrap"] == {"method": "percentile", "level": 0.95, "n_resamples": 10_000,
+                                   "random_state": 0, "n_rows": 41}
+    for part in ("prior", "model"):
+        for key in ("test_mae", "test_mse"):
+            bounds = [*result[part][f"{key}_ci"], result[part][f"{key}_avg_ci"]]
+            point = [*result[part][key], result[part][f"{key}_avg"]]
+            assert all(lo < p < hi for (lo, hi), p in zip(bounds, point, strict=True))
+    diff = np.subtract(result["model"]["test_mae"], result["prior"]["test_mae"]).mean()
+    low, high = result["model"]["test_mae_diff_avg_ci"]
+    assert low < diff < high
+    assert "95% bootstrap intervals over the 41 test rows, average test MAE" in \
+        capsys.readouterr().out
 
 
 def test_toy_family_refuses_oof_intervals_before_any_fit(toy_family, tmp_path, google_5q_dir,

@@ -305,6 +305,21 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
         check_is_fitted(self)
         return self.prior_model_.predict(X)
 
+    def predict_correction(self, X) -> np.ndarray:
+        """What the stages add to the prior for ``X``, ``sum_k coef_k * b_k(T(X))``: the
+        learned correction, ``predict(X) - predict_prior(X)`` up to rounding (exactly 0 where
+        every coefficient is 0; a stage whose coefficient is 0 is not evaluated)."""
+        check_is_fitted(self)
+        X = validate_data(self, X, reset=False, dtype=float)
+        out = np.zeros(X.shape[0])
+        if not np.any(self.coefs_):
+            return out
+        Z = self._basis_inputs(X)
+        for est, coef in zip(self.estimators_, self.coefs_):
+            if coef != 0:
+                out = out + coef * np.asarray(est.predict(Z), dtype=float).ravel()
+        return out
+
     def staged_predict(self, X):
         """Yield the prediction after each stage ``k = 1..n_stages``."""
         check_is_fitted(self)

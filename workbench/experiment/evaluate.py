@@ -24,7 +24,7 @@ from .intervals import (
     interval_settings,
     with_intervals,
 )
-from .results import CVEstimate, Result, mae, mse
+from .results import CVEstimate, Result, bootstrap_test_scores, mae, mse
 
 __all__ = ["Evaluation", "evaluate", "fit_and_score", "format_table", "has_outputs",
            "nested_cv_all", "outputs", "repeated_cv"]
@@ -122,10 +122,14 @@ def fit_and_score(cfg: ExperimentConfig, ds, model) -> tuple[Result, Any]:
                                            y_test, pred)
     for key, values in interval_scores(model, X_test, y_test).items():
         setattr(scores, key, values)
+    # 95% intervals of the test errors over the test rows (one seed: the same resamples for
+    # the prior, the model and their difference)
+    bootstrap = bootstrap_test_scores(prior, scores, y_test, prior_test, pred,
+                                      random_state=cfg.random_state or 0)
     result = Result(name=cfg.name, config=str(cfg.path) if cfg.path else None,
                     family=family.name, targets=list(ds.target_names), n_train=len(y_train),
                     n_test=len(y_test), prior=prior, model=scores, details=details,
-                    intervals=interval_settings(cfg))
+                    intervals=interval_settings(cfg), bootstrap=bootstrap)
     return result, model
 
 
@@ -147,8 +151,13 @@ def outputs(cfg: ExperimentConfig, model, ds, setting: str):
     return out
 
 
+def _interval(bounds) -> str:
+    return f"[{bounds[0]:.3f}, {bounds[1]:.3f}]"
+
+
 def format_table(result: Result) -> str:
-    """Per-target table: prior and model test MAE, the model's CV MAE and what was selected."""
+    """Per-target table: prior and model test MAE, the model's CV MAE and what was selected;
+    below it the bootstrap intervals of the average test MAE (prior, model, model - prior)."""
     w = max(10, *(len(t) + 2 for t in result.targets))
     rule = "-" * (w + 46)
     lines = [f"{'target':<{w}}{'prior MAE':>11}{'model MAE':>11}{'model CV MAE':>14}  selected",
@@ -162,6 +171,14 @@ def format_table(result: Result) -> str:
                  f"{result.model.avg('test_mae'):>11.3f}{result.model.avg('cv_mae'):>14.3f}")
     lines.append(f"test MAE in the targets' units (MHz for the benchmark); "
                  f"wall time {result.wall_s:.1f} s")
+    if result.model.test_mae_diff_avg_ci:
+        boot = result.bootstrap
+        ci_level = f"{boot['level']:.0%} " if "level" in boot else ""
+        over = f" over the {boot['n_rows']} test rows" if "n_rows" in boot else ""
+        lines.append(f"{ci_level}bootstrap intervals{over}, average test MAE: prior "
+                     f"{_interval(result.prior.test_mae_avg_ci)}, model "
+                     f"{_interval(result.model.test_mae_avg_ci)}, model - prior "
+                     f"{_interval(result.model.test_mae_diff_avg_ci)}")
     if result.model.test_coverage:
         model, iv = result.model, result.intervals
         level = f"{iv['level']:.0%} " if "level" in iv else ""

@@ -14,21 +14,31 @@ a stacking) is called a handful of times instead of once per row.
 :func:`shap_values` picks the method (exact, or the kernel explainer for many features). No
 SHAP or matplotlib import for exact values (they run in worker processes too); the beeswarm
 figure is :func:`workbench.experiment.figures.shap_figure`.
+
+A fitted per-target base-boosting model predicts ``prior(X) + correction(X)``; the SHAP values
+of its whole prediction are dominated by the prior (on the benchmark a column of ``X`` spread
+over +-50 MHz, against a correction of a few MHz). :func:`target_shap_values` explains both,
+each computed from its own function on the same rows over the same background: the whole
+prediction and the correction alone (:func:`correction_predictor`: what the boosted stages add
+to the prior, ``None`` when the model is the prior). Exact Shapley values are linear in the
+model, so the whole prediction's values are the prior's plus the correction's (to rounding).
 """
 
 from __future__ import annotations
 
 from math import factorial
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import numpy as np
 import pandas as pd
 from sklearn.utils import shuffle
 
-from ..boosting import check_predictions
+from ..boosting import BaseBoostRegressor, PriorModel, check_predictions
 
-__all__ = ["MAX_EXACT_FEATURES", "MAX_MODEL_ROWS", "check_shap_frame", "exact_shap_values",
-           "sample_background", "shap_sample", "shap_values"]
+__all__ = ["MAX_EXACT_FEATURES", "MAX_MODEL_ROWS", "ShapValues", "TargetShap",
+           "check_shap_frame", "correction_predictor", "correction_shap_values",
+           "exact_shap_values", "model_columns", "prior_reason", "sample_background",
+           "shap_sample", "shap_values", "target_shap_values"]
 
 #: Up to this many features the values are exact (2^M coalitions per row).
 MAX_EXACT_FEATURES = 10
@@ -129,3 +139,126 @@ def shap_values(predict: Callable[[np.ndarray], np.ndarray], X: pd.DataFrame, *,
     values = np.asarray(explainer.shap_values(data, nsamples=nsamples, silent=True),
                         dtype=float)
     return values, float(np.ravel(explainer.expected_value)[0])
+
+
+# ------------------------------------------------------------------ a per-target model
+
+
+class ShapValues(NamedTuple):
+    """SHAP values (shape ``(n_rows, n_features)``), their expected value (the explained
+    function's mean over the background) and the explained rows (columns: the features)."""
+
+    values: np.ndarray
+    expected: float
+    rows: pd.DataFrame
+
+
+class TargetShap(NamedTuple):
+    """A per-target model's SHAP values on the same rows over the same background:
+    ``prediction`` of the whole prediction, ``correction`` of the correction (model - prior;
+    ``None`` when the model is the prior, ``note`` then says why)."""
+
+    prediction: ShapValues | None
+    correction: ShapValues | None
+    note: str = ""
+
+
+def _fitted_model(estimator):
+    """The fitted model a selection predicts with (``best_estimator_``), or ``estimator``."""
+    return getattr(estimator, "best_estimator_", estimator)
+
+
+def prior_reason(estimator) -> str:
+    """Why the fitted per-target model ``estimator`` (a BaseBoostCV, or the model it
+    selected) is its prior exactly, or ``""`` when it is not: the prior was selected by CV,
+    or every boosted stage's coefficient is 0."""
+    model = _fitted_model(estimator)
+    if isinstance(model, PriorModel):
+        return "cross-validation on the training rows selected the prior"
+    if isinstance(model, BaseBoostRegressor) and not np.any(model.coefs_):
+        return f"all {len(model.coefs_)} boosted stages have coefficient 0"
+    return ""
+
+
+def correction_predictor(estimator) -> Callable[[pd.DataFrame], np.ndarray] | None:
+    """The correction a fitted per-target model adds to its prior, as a function of ``X`` (a
+    frame of the columns it was fitted on): ``model(X) - prior(X)``. ``estimator``: a
+    BaseBoostCV or BasisChoiceCV (the model it selected), a BaseBoostRegressor (its
+    :meth:`~workbench.BaseBoostRegressor.predict_correction`), a PriorModel, or any
+    regressor with ``predict_prior``. ``None`` when the model is the prior exactly
+    (:func:`prior_reason`): the correction is 0 everywhere."""
+    model = _fitted_model(estimator)
+    if prior_reason(model):
+        return None
+    if hasattr(model, "predict_correction"):
+        return lambda X: model.predict_correction(X)
+    if hasattr(model, "predict_prior"):
+        return lambda X: (np.asarray(model.predict(X), dtype=float)
+                          - np.asarray(model.predict_prior(X), dtype=float))
+    raise TypeError(f"cannot tell the prior of a {type(model).__name__}: a per-target model is "
+                    "a BaseBoostCV, a BaseBoostRegressor, a PriorModel, or has predict_prior")
+
+
+def model_columns(estimator, X: pd.DataFrame) -> list[str]:
+    """The columns of ``X`` a fitted per-target model reads: its basis inputs and its prior
+    column (all of ``X``'s columns when it names none)."""
+    model = _fitted_model(estimator)
+    names = list(X.columns)
+    prior = getattr(model, "prior", None)
+    cols = [names[i] for i in getattr(model, "basis_columns_", [])]
+    if isinstance(prior, str) and prior not in cols:
+        cols.append(prior)
+    return cols or names
+
+
+def target_shap_values(estimator, X: pd.DataFrame, *, random_state: int = 0,
+                       prediction: bool = True, correction: bool = True,
+                       background: int = 30) -> TargetShap:
+    """SHAP values of a fitted per-target model (see :func:`correction_predictor`) on the
+    rows of ``X`` (the columns it was fitted on), over the columns it reads
+    (:func:`model_columns`; the others fixed at the first row's values): of its whole
+    prediction and of its correction (model - prior), on the same rows over the same
+    ``background``-row background, so the two summaries are comparable. Where every row
+    would send more than :data:`MAX_MODEL_ROWS` rows through the model, a seeded sample of
+    the rows and a smaller background (:func:`shap_sample`). Exact values up to ten columns,
+    else the kernel explainer with 256 coalitions per row.
+
+    ``prediction`` / ``correction``: which to compute (the other is ``None``). The
+    correction is ``None`` when the model is the prior (its correction is 0 everywhere),
+    with ``note`` saying why (:func:`prior_reason`)."""
+    check_shap_frame(X)
+    cols = model_columns(estimator, X)
+    base = X.iloc[[0]].to_numpy()
+
+    def on_columns(f):
+        def predict(a):
+            frame = pd.DataFrame(np.repeat(base, len(a), axis=0), columns=X.columns)
+            frame[cols] = a
+            return f(frame)
+        return predict
+
+    rows, size = shap_sample(len(X), len(cols), background)
+    Xs = X[cols]
+    if rows < len(Xs):
+        keep = sample_background(np.arange(len(Xs)), rows, random_state)
+        Xs = Xs.iloc[np.sort(keep)]
+    nsamples: int | str = "auto" if len(cols) <= MAX_EXACT_FEATURES else 256
+
+    def explain(f) -> ShapValues:
+        values, expected = shap_values(on_columns(f), Xs, nsamples=nsamples,
+                                       background_size=size, random_state=random_state)
+        return ShapValues(values, expected, Xs)
+
+    model = _fitted_model(estimator)
+    whole = explain(lambda frame: model.predict(frame)) if prediction else None
+    f = correction_predictor(model) if correction else None
+    return TargetShap(whole, None if f is None else explain(f), prior_reason(model))
+
+
+def correction_shap_values(estimator, X: pd.DataFrame, *, random_state: int = 0,
+                           background: int = 30) -> ShapValues | None:
+    """SHAP values of the correction (model - prior) of a fitted per-target model on the rows
+    of ``X`` (:func:`target_shap_values` without the whole prediction's); ``None`` when the
+    model is the prior (:func:`prior_reason` says why)."""
+    return target_shap_values(estimator, X, random_state=random_state, prediction=False,
+                              background=background).correction

@@ -1,13 +1,17 @@
 """Figures of the base-boosting paper, as functions that return a matplotlib ``Figure``.
 
-* :func:`mae_bars` -- per-target test error, control program vs learned model (Fig. 2, S4).
+* :func:`mae_bars` -- per-target test error, control program vs learned model (Fig. 2, S4),
+  with the errors' bootstrap intervals as error bars when given them.
 * :func:`learning_curve_figure` -- the augmented learning curve (Fig. 4, S5).
 * :func:`shap_summary` -- SHAP beeswarm summary of a model's predictions (Fig. 5, S8);
   :func:`shap_values` and :func:`shap_figure` are its two halves.
+* :func:`correction_shap_figure` -- the SHAP summary of what a base-boosting model adds to its
+  prior (model - prior), or a note that the model is the prior.
 * :func:`correlation_heatmap` -- pairwise Pearson correlations of the training examples (Fig. 3).
 * :func:`voltage_boxplots` -- boxplots of the qubit and coupler bias voltages (Fig. S2).
 * :func:`prior_target_boxplots` -- paired boxplots of prior and target eigenenergies (Fig. S3).
-* :func:`model_comparison_bars` -- per-target error bars of 2 to 6 systems (Fig. S6, S7).
+* :func:`model_comparison_bars` -- per-target error bars of 2 to 6 systems (Fig. S6, S7), with
+  intervals as error bars when given them.
 * :func:`parameter_corrections` -- control-model vs corrected Hamiltonian parameters.
 * :func:`selection_path_figure` -- CV error along a forward covariate selection.
 * :func:`interval_figure` -- measured against predicted with each row's prediction interval.
@@ -32,16 +36,16 @@ import pandas as pd
 
 from .._io import atomic_write
 from ..curves import LearningCurve
-from .explain import check_shap_frame, shap_values
+from .explain import ShapValues, check_shap_frame, shap_values
 
 if TYPE_CHECKING:
     from matplotlib.artist import Artist
     from matplotlib.figure import Figure
 
-__all__ = ["correlation_heatmap", "interval_figure", "learning_curve_figure", "mae_bars",
-           "model_comparison_bars", "parameter_corrections", "prior_target_boxplots",
-           "save_figure", "selection_path_figure", "shap_figure", "shap_summary", "shap_values",
-           "voltage_boxplots"]
+__all__ = ["correction_shap_figure", "correlation_heatmap", "interval_figure",
+           "learning_curve_figure", "mae_bars", "model_comparison_bars", "parameter_corrections",
+           "prior_target_boxplots", "save_figure", "selection_path_figure", "shap_figure",
+           "shap_summary", "shap_values", "voltage_boxplots"]
 
 #: Colours (Okabe-Ito, readable in grey scale and by colour-blind readers).
 PRIOR_COLOR = "#7f7f7f"
@@ -87,18 +91,48 @@ def _values(name: str, values, n: int) -> np.ndarray:
     return arr
 
 
+#: Error bars of the bar charts: thin, dark, capped.
+ERROR_BAR_STYLE = {"ecolor": "#222222", "elinewidth": 0.8, "capsize": 3.0, "capthick": 0.8}
+
+
+def _intervals(name: str, intervals, values: np.ndarray, n_targets: int,
+               average: bool) -> np.ndarray:
+    """Bounds ``[low, high]`` per bar (one per target, then the average's when ``average``)
+    as matplotlib's ``yerr`` (shape ``(2, n_bars)``: the distances below and above each bar's
+    value; an interval that misses its bar's value, which a percentile bootstrap interval of
+    a skewed statistic may, is drawn from the value on)."""
+    arr = np.asarray(intervals, dtype=float)
+    n_bars = n_targets + 1 if average else n_targets
+    if arr.ndim != 2 or arr.shape[1] != 2 or arr.shape[0] not in (n_bars, n_targets + 1):
+        expected = (f"{n_targets} targets' and the average's" if average
+                    else f"{n_targets} targets'")
+        raise ValueError(f"{name} must hold the {expected} [low, high] (shape ({n_bars}, 2)); "
+                         f"got shape {arr.shape}")
+    arr = arr[:n_bars]  # without the average bar, its interval (last row) is not drawn
+    if not np.isfinite(arr).all() or (arr[:, 0] > arr[:, 1]).any():
+        raise ValueError(f"{name} must be finite with low <= high; got {arr.tolist()}")
+    return np.clip(np.stack([values - arr[:, 0], arr[:, 1] - values]), 0.0, None)
+
+
 def _grouped_bars(ax, names: list[str], series: Sequence[tuple[str, np.ndarray, str]], *,
-                  average: bool, fmt: str = "%.2f", fontsize: float = 8) -> list:
+                  average: bool, fmt: str = "%.2f", fontsize: float = 8,
+                  errors: Sequence[np.ndarray | None] | None = None) -> list:
     """Draw one bar per (label, values, colour) series in each group of ``names``, annotated.
 
     The series of a group share a total width of 0.76, side by side in the given order; with
-    ``average`` the last group is set apart by a dotted line. Returns the bar containers.
+    ``average`` the last group is set apart by a dotted line. ``errors``: per series ``None``
+    or its error bars (``yerr``, shape ``(2, n_bars)``); a bar's value is written above its
+    error bar. Returns the bar containers.
     """
     x = np.arange(len(names), dtype=float)
     n = len(series)
     width = 0.76 / n
-    containers = [ax.bar(x + (i - (n - 1) / 2) * width, values, width, label=label, color=color)
-                  for i, (label, values, color) in enumerate(series)]
+    errors = list(errors) if errors is not None else [None] * n
+    containers = [ax.bar(x + (i - (n - 1) / 2) * width, values, width, label=label, color=color,
+                         **({} if yerr is None else {"yerr": yerr,
+                                                     "error_kw": ERROR_BAR_STYLE}))
+                  for i, ((label, values, color), yerr) in enumerate(zip(series, errors,
+                                                                         strict=True))]
     for bars in containers:
         ax.bar_label(bars, fmt=fmt, padding=2, fontsize=fontsize)
     if average:
@@ -111,8 +145,11 @@ def _grouped_bars(ax, names: list[str], series: Sequence[tuple[str, np.ndarray, 
 def mae_bars(targets: Sequence[str], prior, model, *, metric: str = "MAE", unit: str = "MHz",
              title: str | None = None, labels: tuple[str, str] = ("control program",
                                                                   "base boosting"),
-             setting: str | None = None, average: bool = True) -> Figure:
-    """Grouped bars of a per-target error for the prior and the model, plus their averages.
+             setting: str | None = None, average: bool = True, prior_ci=None, model_ci=None,
+             ci_note: str | None = "error bars: 95% bootstrap intervals over the test rows"
+             ) -> Figure:
+    """Grouped bars of a per-target error for the prior and the model, plus their averages,
+    with error bars when given the errors' intervals.
 
     Parameters
     ----------
@@ -130,29 +167,54 @@ def mae_bars(targets: Sequence[str], prior, model, *, metric: str = "MAE", unit:
         A second title line naming the setting (e.g. the config).
     average : bool, default=True
         Append an "average" group (the mean over targets), set apart by a dotted line.
+    prior_ci, model_ci : array-like of shape (n_targets + 1, 2), optional
+        Intervals drawn as error bars: ``[low, high]`` per target, then the average's (an
+        interval of the average over targets is not the average of the targets' intervals:
+        give the one computed with them, e.g. :meth:`Scores.ci
+        <workbench.experiment.results.Scores.ci>` ``("test_mae")``); without ``average``,
+        ``(n_targets, 2)`` is enough. Either may be given alone.
+    ci_note : str or None
+        With error bars, a note under the axis saying what they are (``None``: none); the
+        default describes :func:`~workbench.experiment.results.bootstrap_test_scores`'
+        intervals, give another for other intervals.
     """
     names = [str(t) for t in targets]
     if not names:
         raise ValueError("targets is empty")
-    prior = _values("prior", prior, len(names))
-    model = _values("model", model, len(names))
+    n_targets = len(names)
+    prior = _values("prior", prior, n_targets)
+    model = _values("model", model, n_targets)
     if average:
         names = [*names, "average"]
         prior = np.append(prior, prior.mean())
         model = np.append(model, model.mean())
+    errors = [None if ci is None else _intervals(name, ci, values, n_targets, average)
+              for name, ci, values in (("prior_ci", prior_ci, prior),
+                                       ("model_ci", model_ci, model))]
 
     fig = _new_figure(max(5.0, 0.95 * len(names) + 1.8), 4.0)
     ax = fig.add_subplot()
     _grouped_bars(ax, names, [(labels[0], prior, PRIOR_COLOR), (labels[1], model, MODEL_COLOR)],
-                  average=average)
+                  average=average, errors=errors)
     ax.set_ylabel(f"{metric} ({unit})", fontsize=11)
-    top = np.nanmax(np.concatenate([prior, model])) if np.any(np.isfinite(prior)) else 1.0
+    tops = [values + (0 if err is None else err[1])
+            for values, err in zip((prior, model), errors)]
+    top = np.nanmax(np.concatenate(tops)) if np.any(np.isfinite(prior)) else 1.0
     ax.set_ylim(0, top * 1.22 if np.isfinite(top) and top > 0 else 1.0)
     ax.legend(loc="upper right", frameon=False, fontsize=10, ncols=2)
     ax.set_title(_with_setting(title or f"Test {metric} per target: {labels[0]} vs {labels[1]}",
                                setting), fontsize=12)
+    if ci_note and any(err is not None for err in errors):
+        _note_under_xlabel(ax, ci_note)
     _style(ax)
     return fig
+
+
+def _note_under_xlabel(ax, note: str) -> None:
+    """A small grey line of text centred under the x-axis label (a caption's note)."""
+    ax.annotate(note, xy=(0.5, 0.0), xycoords=ax.xaxis.label, xytext=(0, -3),
+                textcoords="offset points", ha="center", va="top", fontsize=8,
+                color="#555555")
 
 
 def learning_curve_figure(curve: LearningCurve, *, target: str, unit: str = "MHz",
@@ -215,12 +277,24 @@ def shap_summary(predict: Callable[[np.ndarray], np.ndarray], X: pd.DataFrame, *
     return fig, values
 
 
+#: What a SHAP summary explains (``explained=``): the words of its axis label and title.
+EXPLAINED = {"prediction": "the whole prediction", "correction": "the correction (model − prior)"}
+
+
 def shap_figure(values: np.ndarray, expected: float, X: pd.DataFrame, *, target: str,
                 unit: str = "MHz", max_display: int = 10, random_state: int = 0,
-                title: str | None = None, setting: str | None = None) -> Figure:
+                title: str | None = None, setting: str | None = None,
+                explained: str | None = None) -> Figure:
     """The beeswarm summary of SHAP ``values`` (shape ``(n_rows, n_features)``) of the rows of
-    ``X`` (see :func:`shap_summary`)."""
+    ``X`` (see :func:`shap_summary`). ``explained``: ``"prediction"`` (a base-boosting
+    model's whole prediction) or ``"correction"`` (what it adds to its prior, model - prior),
+    named in the axis label and the default title; ``None``: "predicted <target>", a model
+    without a prior."""
     import shap  # (b) SHAP: not for evaluate --no-track
+
+    if explained is not None and explained not in EXPLAINED:
+        raise ValueError(f"explained must be one of {sorted(EXPLAINED)} or None; got "
+                         f"{explained!r}")
 
     check_shap_frame(X)
     names = [str(c) for c in X.columns]
@@ -241,9 +315,39 @@ def shap_figure(values: np.ndarray, expected: float, X: pd.DataFrame, *, target:
                             plot_size=None, s=18)
     finally:
         np.random.set_state(state)
-    ax.set_xlabel(f"SHAP value: effect on predicted {target} ({unit})", fontsize=11)
+    size = f"{len(data)} rows x {len(names)} features"
+    if explained is None:
+        ax.set_xlabel(f"SHAP value: effect on predicted {target} ({unit})", fontsize=11)
+        default = f"SHAP summary: {target}, {size}"
+    else:
+        ax.set_xlabel(f"SHAP value: effect on {EXPLAINED[explained]} of {target} ({unit})",
+                      fontsize=11)
+        default = f"SHAP summary of {EXPLAINED[explained]}: {target}\n{size}"
     ax.tick_params("y", labelsize=10)
-    default = f"SHAP summary: {target}, {len(data)} rows x {len(names)} features"
+    ax.set_title(_with_setting(title or default, setting), fontsize=12)
+    return fig
+
+
+def correction_shap_figure(shap: ShapValues | None, *, target: str, unit: str = "MHz",
+                           note: str = "", max_display: int = 10, random_state: int = 0,
+                           title: str | None = None, setting: str | None = None) -> Figure:
+    """The SHAP summary of a per-target model's correction (model - prior), ``shap`` from
+    :func:`~workbench.experiment.explain.target_shap_values` (its ``correction``). ``None``:
+    the model is the prior (its correction is 0 on every row), and the figure says so, with
+    ``note`` (why: :func:`~workbench.experiment.explain.prior_reason`), instead of a beeswarm
+    of zeros."""
+    if shap is not None:
+        return shap_figure(shap.values, shap.expected, shap.rows, target=target, unit=unit,
+                           max_display=max_display, random_state=random_state, title=title,
+                           setting=setting, explained="correction")
+    fig = _new_figure(7.0, 2.2)
+    ax = fig.add_subplot()
+    ax.set_axis_off()
+    why = f" ({note})" if note else ""
+    ax.text(0.5, 0.5, f"The model of {target} is its prior{why}:\nthe correction "
+                      f"(model − prior) is 0 {unit} on every row; nothing to explain.",
+            ha="center", va="center", fontsize=11, transform=ax.transAxes, wrap=True)
+    default = f"SHAP summary of {EXPLAINED['correction']}: {target}"
     ax.set_title(_with_setting(title or default, setting), fontsize=12)
     return fig
 
@@ -449,9 +553,13 @@ def _system_colors(systems: list[str]) -> list[str]:
 def model_comparison_bars(targets: Sequence[str], values: Mapping[str, Sequence[float]], *,
                           metric: str = "MAE", unit: str = "MHz", title: str | None = None,
                           setting: str | None = None, log: bool = False,
-                          average: bool = True) -> Figure:
+                          average: bool = True,
+                          intervals: Mapping[str, Sequence[Sequence[float]]] | None = None,
+                          ci_note: str | None = ("error bars: 95% bootstrap intervals over "
+                                                 "the test rows")) -> Figure:
     """Grouped bars of a per-target error for 2 to 6 systems (at most 4 besides the control
-    program and base boosting), plus their averages (Fig. S6, S7).
+    program and base boosting), plus their averages (Fig. S6, S7), with error bars for the
+    systems given intervals.
 
     Parameters
     ----------
@@ -471,10 +579,17 @@ def model_comparison_bars(targets: Sequence[str], values: Mapping[str, Sequence[
         Logarithmic y axis, for systems an order of magnitude apart (needs positive values).
     average : bool, default=True
         Append an "average" group (the mean over targets), set apart by a dotted line.
+    intervals : mapping of str to array-like of shape (n_targets + 1, 2), optional
+        System name -> ``[low, high]`` per target, then the average's (as ``model_ci`` of
+        :func:`mae_bars`), drawn as error bars; systems not in it have none.
+    ci_note : str or None
+        With error bars, a note under the axis saying what they are (``None``: none; the
+        default as in :func:`mae_bars`).
     """
     names = [str(t) for t in targets]
     if not names:
         raise ValueError("targets is empty")
+    n_targets = len(names)
     if not isinstance(values, Mapping):
         raise TypeError(f"values must map each system's name to its values; got "
                         f"{type(values).__name__}")
@@ -495,6 +610,14 @@ def model_comparison_bars(targets: Sequence[str], values: Mapping[str, Sequence[
         arrays.append(np.append(arr, arr.mean()) if average else arr)
     if average:
         names = [*names, "average"]
+    intervals = dict(intervals or {})
+    unknown = sorted(set(map(str, intervals)) - set(systems))
+    if unknown:
+        raise ValueError(f"intervals of unknown systems {unknown}; the systems are {systems}")
+    errors = [None if intervals.get(system) is None
+              else _intervals(f"intervals[{system!r}]", intervals[system], arr, n_targets,
+                              average)
+              for system, arr in zip(systems, arrays)]
 
     n = len(systems)
     fig = _new_figure(max(5.0, (0.42 * n + 0.15) * len(names) + 1.8), 4.4)
@@ -503,7 +626,13 @@ def model_comparison_bars(targets: Sequence[str], values: Mapping[str, Sequence[
     biggest = np.abs(every).max()
     fmt = "%.2f" if biggest < 100 else "%.1f" if biggest < 1000 else "%.0f"
     _grouped_bars(ax, names, list(zip(systems, arrays, colors, strict=True)),
-                  average=average, fmt=fmt, fontsize=8 if n <= 3 else 7)
+                  average=average, fmt=fmt, fontsize=8 if n <= 3 else 7, errors=errors)
+    # the axis holds the error bars' ends too
+    ends = [every] + [bounds for arr, err in zip(arrays, errors) if err is not None
+                      for bounds in (arr - err[0], arr + err[1])]
+    every = np.concatenate(ends)
+    if log:
+        every = every[every > 0]
     ax.set_ylabel(f"{metric} ({unit}, log scale)" if log else f"{metric} ({unit})", fontsize=11)
     if log:
         from matplotlib.ticker import FuncFormatter  # (b) matplotlib: not for evaluate --no-track
@@ -526,6 +655,8 @@ def model_comparison_bars(targets: Sequence[str], values: Mapping[str, Sequence[
                fontsize=10)
     default = f"Test {metric} per target: " + " vs ".join(systems)
     ax.set_title(_with_setting(title or default, setting), fontsize=12)
+    if ci_note and any(err is not None for err in errors):
+        _note_under_xlabel(ax, ci_note)
     _style(ax)
     return fig
 

@@ -15,7 +15,6 @@ import warnings
 from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.model_selection import KFold
 
@@ -23,8 +22,8 @@ from ...curves import learning_curve_plan, selection_curve_plan
 from ...multitarget import MultiTargetBaseBoost
 from ...parallel import Task, effective_n_jobs, gather, prioritised, run_plans, start_workers
 from ...selection import BaseBoostCV, BasisChoiceCV
-from ..explain import sample_background, shap_sample, shap_values
-from ..figures import learning_curve_figure, shap_figure
+from ..explain import target_shap_values
+from ..figures import correction_shap_figure, learning_curve_figure, shap_figure
 from ..results import ModelScores, Scores, mae, mse
 from .base import Artifacts, ModelFamily, quiet_fit
 from .stage import booster_cv, make_booster, per_target_boost, stage_scores, target_inputs
@@ -46,16 +45,6 @@ def curve_sizes(n_rows: int, folds: int, points: int = CURVE_POINTS) -> list[int
     """Training sizes from a quarter of the fold-training size up to all of it."""
     largest = n_rows - -(-n_rows // folds)  # rows left for training in the largest fold
     return sorted({int(s) for s in np.linspace(max(5, largest // 4), largest, points)})
-
-
-def _columns(fitted, X: pd.DataFrame) -> list[str]:
-    """The columns a fitted per-target model reads: its basis inputs and its prior column."""
-    names = list(X.columns)
-    prior = getattr(fitted, "prior", None)
-    cols = [names[i] for i in getattr(fitted, "basis_columns_", [])]
-    if isinstance(prior, str) and prior not in cols:
-        cols.append(prior)
-    return cols or names
 
 
 class EigenvalueFamily(ModelFamily):
@@ -108,7 +97,7 @@ class EigenvalueFamily(ModelFamily):
         return self.begin_artifacts(cfg, ds, model, setting, quick)()
 
     def begin_artifacts(self, cfg, ds, model, setting, quick=False):
-        """An augmented learning curve and a SHAP summary per target.
+        """An augmented learning curve and two SHAP summaries per target.
 
         A BaseBoostCV's curve is drawn on its own selection folds, with its candidate as
         seeded there, at :data:`CURVE_POINTS` sizes: the whole-fold points are the
@@ -117,8 +106,11 @@ class EigenvalueFamily(ModelFamily):
         while the caller logs the run's other records, one target after another (its tasks
         first in the queue), so the returned function draws (and emits) a target's figures
         while the workers go on with the next ones; figures are drawn in the calling thread
-        (matplotlib and SHAP's plots are not thread-safe). SHAP explains the fitted model
-        itself."""
+        (matplotlib and SHAP's plots are not thread-safe). SHAP explains the fitted model's
+        whole prediction (``shap_<target>``, dominated by its prior) and, on the same rows
+        over the same background, its correction, model - prior, what boosting learned
+        (``shap_correction_<target>``; a note instead where the model is the prior)
+        (:func:`~workbench.experiment.explain.target_shap_values`)."""
         log = logging.getLogger("workbench")
         X_train, _, y_train, _ = ds.split()
         sizes = curve_sizes(len(X_train), cfg.selection.cv)
@@ -139,9 +131,9 @@ class EigenvalueFamily(ModelFamily):
                 candidate = getattr(est, "estimator_", None) or est.estimator
                 curve = learning_curve_plan(candidate, X_train, y, train_sizes=sizes,
                                             cv=cfg.selection.cv, random_state=cfg.random_state)
-            cols = _columns(est.best_estimator_, X_train)
-            shap = Task(_shap_values, est.best_estimator_, X_train, cols,
-                        cfg.random_state or 0)
+            # the whole prediction's and the correction's SHAP values, one task
+            shap = Task(target_shap_values, est.best_estimator_, X_train,
+                        random_state=cfg.random_state or 0)
             shap.priority = 10 ** 6  # a long task: start it early
             # target j's tasks before target j + 1's: its figures can be drawn early
             plans.append(prioritised(_reported(gather([curve, _all([shap])]), j, results),
@@ -162,12 +154,17 @@ class EigenvalueFamily(ModelFamily):
                 item = results.get()
                 if isinstance(item, BaseException):
                     raise item
-                j, (curve, [(values, expected, rows)]) = item
+                j, (curve, [explained]) = item
                 target = ds.target_names[j]
+                whole = explained.prediction
                 figs = {f"learning_curve_{target}": learning_curve_figure(
                             curve, target=target, setting=setting),
-                        f"shap_{target}": shap_figure(values, expected, rows, target=target,
-                                                      setting=setting)}
+                        f"shap_{target}": shap_figure(whole.values, whole.expected, whole.rows,
+                                                      target=target, setting=setting,
+                                                      explained="prediction"),
+                        f"shap_correction_{target}": correction_shap_figure(
+                            explained.correction, target=target, note=explained.note,
+                            setting=setting)}
                 for name, fig in figs.items():
                     if emit is not None:
                         emit(name, fig)
@@ -192,30 +189,6 @@ def _reported(plan, key, results):
 def _all(tasks):
     """A plan of independent tasks (:mod:`workbench.parallel`)."""
     return (yield tasks)
-
-
-def _shap_values(used, X_train: pd.DataFrame, cols: list[str], random_state=0):
-    """SHAP values of a fitted per-target model on the training rows, over the columns it
-    reads (the others fixed at the first row's values), with a 30-row background; on a
-    seeded sample of the rows (and a smaller background) where every row would send more
-    than :data:`~workbench.experiment.explain.MAX_MODEL_ROWS` rows through the model
-    (:func:`~workbench.experiment.explain.shap_sample`). Returns the values, the expected
-    value and the explained rows."""
-    base = X_train.iloc[[0]].to_numpy()
-
-    def predict(a):
-        frame = pd.DataFrame(np.repeat(base, len(a), axis=0), columns=X_train.columns)
-        frame[cols] = a
-        return used.predict(frame)
-
-    rows, background = shap_sample(len(X_train), len(cols))
-    Xs = X_train[cols]
-    if rows < len(Xs):
-        keep = sample_background(np.arange(len(Xs)), rows, random_state)
-        Xs = Xs.iloc[np.sort(keep)]
-    values, expected = shap_values(predict, Xs, nsamples="auto" if len(cols) <= 10 else 256,
-                                   background_size=background, random_state=random_state)
-    return values, expected, Xs
 
 
 def cfg_inner_cv(cfg: ExperimentConfig):
