@@ -185,7 +185,7 @@ def test_repeatable_with_same_random_state(tmp_path, google_5q_dir, capsys, mode
     assert _numbers(first) == _numbers(second)
     assert first["targets"] == TARGETS
     out = capsys.readouterr().out
-    assert out.count("average") == 2
+    assert sum(line.startswith("average") for line in out.splitlines()) == 2  # a table each
 
 
 def test_random_state_matters_for_random_basis(tmp_path, google_5q_dir, capsys):
@@ -195,7 +195,11 @@ def test_random_state_matters_for_random_basis(tmp_path, google_5q_dir, capsys):
     b = _run_json(tmp_path, write_config(tmp_path, google_5q_dir, model, random_state=1,
                                          name="b.toml"), "b")
     assert a["model"]["cv_mae_boosted"] != b["model"]["cv_mae_boosted"]
-    assert a["prior"] == b["prior"]  # the prior never depends on the seed
+    # the prior never depends on the seed (its bootstrap intervals' resamples do)
+    def point(scores):
+        return {k: v for k, v in scores.items() if "_ci" not in k}
+
+    assert point(a["prior"]) == point(b["prior"])
 
 
 def test_jobs_override_gives_same_numbers(tmp_path, google_5q_dir, capsys):

@@ -16,7 +16,8 @@ FIGURE_IDS = ["fig2_mae_bars", "fig3_correlation", "fig4_learning_curve_Y3", "fi
               "figS2_voltage_boxplots", "figS3_prior_target_boxplots", "figS4_mse_bars",
               "figS5_learning_curves", "figS6_tabula_rasa_mae", "figS7_tabula_rasa_mse",
               "figS8_shap", "figH1_hamiltonian_mae_bars", "figH2_parameter_corrections",
-              "figH3_selection_path", "figR1_systems_mae"]
+              "figH3_selection_path", "figR1_systems_mae", "figR2_shap_correction",
+              "figR3_shap_prediction"]
 
 
 @pytest.fixture(scope="module")
@@ -81,6 +82,14 @@ def test_report_and_numbers(quick_run):
     assert tabula["test_mae_avg_min"] <= tabula["test_mae_avg"] <= tabula["test_mae_avg_max"]
     assert 5 < tabula["test_mae_avg"] < 16  # the reference measured about 11
     assert f"{tabula['test_mae_avg']:.1f} MHz average test MAE, the mean of 3" in text
+    # 95% intervals in the table: the paper settings' average, and its gain over the prior
+    m = paper["model"]
+    low, high = m["test_mae_avg_ci"]
+    assert low < m["test_mae_avg"] < high
+    assert f"**{m['test_mae_avg']:.3f}** ({low:.2f}-{high:.2f})" in text
+    gain = m["test_mae_diff_avg_ci"]
+    assert gain[1] < 0 and f"{gain[0]:+.2f} to {gain[1]:+.2f}" in text
+    assert "What base boosting learned: SHAP of the correction" in text
     ham = res["settings"]["hamiltonian"]
     assert ham["family"] == "hamiltonian"
     assert ham["model"]["test_mae_avg"] < ham["prior"]["test_mae_avg"]
@@ -106,6 +115,10 @@ def test_figures_show_the_json_numbers_and_mlflow_has_them(quick_run, tmp_path):
     paper = res["settings"]["paper"]
     redrawn = save_figure(mae_bars(res["short"], paper["prior"]["test_mae"],
                                    paper["model"]["test_mae"],
+                                   prior_ci=[*paper["prior"]["test_mae_ci"],
+                                             paper["prior"]["test_mae_avg_ci"]],
+                                   model_ci=[*paper["model"]["test_mae_ci"],
+                                             paper["model"]["test_mae_avg_ci"]],
                                    title="Test MAE per eigenenergy (Fig. 2)",
                                    setting="paper settings"), tmp_path / "fig2.png")
     assert redrawn.read_bytes() == (out / "figures" / "fig2_mae_bars.png").read_bytes()
@@ -138,6 +151,10 @@ def test_figures_show_the_json_numbers_and_mlflow_has_them(quick_run, tmp_path):
     assert [children[SYSTEMS["prior"][0]].data.metrics[f"test_mae/{t}"]
             for t in targets] == pytest.approx(paper["prior"]["test_mae"])
     assert paper_run.info.end_time - paper_run.info.start_time > 1000  # fits, curves: seconds
+    assert paper_run.data.metrics["test_mae_avg_ci_low"] == pytest.approx(
+        paper["model"]["test_mae_avg_ci"][0])
+    assert "figures/figR2_shap_correction_Y1.png" in {
+        a.path for a in client.list_artifacts(paper_run.info.run_id, "figures")}
     ham = res["settings"]["hamiltonian"]
     assert children[SYSTEMS["hamiltonian"][0]].data.metrics["test_mae_avg"] == pytest.approx(
         ham["model"]["test_mae_avg"])

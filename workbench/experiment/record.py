@@ -60,13 +60,19 @@ def score_metrics(targets: list[str], scores: Scores, prefix: str = "") -> dict[
     and each of ``reproduce``'s systems): ``<prefix>test_mae/<target>`` and
     ``<prefix>test_mae_avg``, the same for ``test_mse``, ``cv_mae`` and ``cv_mse`` (a key
     whose list is empty is left out). The ``/`` groups a metric's targets in MLflow's charts
-    and lines them up in its compare view."""
+    and lines them up in its compare view. With bootstrap intervals, the average's 95%
+    interval as ``<prefix>test_mae_avg_ci_low`` / ``_high`` (``test_mse``, and a model's
+    paired ``test_mae_diff`` against the prior, likewise)."""
     m: dict[str, float] = {}
     for key in ("test_mae", "test_mse", "cv_mae", "cv_mse"):
         values = getattr(scores, key)
         if values:
             m[f"{prefix}{key}_avg"] = scores.avg(key)
             m.update({f"{prefix}{key}/{t}": v for t, v in zip(targets, values)})
+    for key in ("test_mae", "test_mse", "test_mae_diff"):  # bootstrap 95% intervals
+        bounds = getattr(scores, f"{key}_avg_ci", None)
+        if bounds:
+            m[f"{prefix}{key}_avg_ci_low"], m[f"{prefix}{key}_avg_ci_high"] = bounds
     return m
 
 
@@ -240,6 +246,7 @@ def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
             key = f"test_{metric.lower()}"
             fig = mae_bars(result.targets, getattr(result.prior, key),
                            getattr(result.model, key), metric=metric,
+                           prior_ci=result.prior.ci(key), model_ci=result.model.ci(key),
                            unit="MHz" if metric == "MAE" else "MHz²",
                            title=f"Test {metric} per target", setting=setting)
             tracker.log_figure(run_id, fig, f"plots/{name}.png")
