@@ -151,14 +151,14 @@ def study_objective(cfg: ExperimentConfig, ds, spec: StudySpec) -> Callable:
 
 def run_search(cfg: ExperimentConfig, storage_url: str, *, progress: bool = False,
                worker: int = 0, on_trial: Callable | None = None) -> None:
-    """Run (or resume) every study of the sweep in this process (``worker``: its index;
-    ``on_trial(study, trial)`` after each trial it finishes)."""
+    """Run (or resume) every study of the sweep in this process (``worker``: its index, which
+    changes nothing: the studies' samplers are seeded per trial; ``on_trial(study, trial)``
+    after each trial it finishes)."""
     ds = load_dataset(cfg)
     storage = open_storage(storage_url, _root(), stale_after_s=cfg.study.stale_after_s)
     studies = []
     for spec in study_names(cfg, ds.target_names):
-        study = open_study(spec.name, storage, sampler=sampler(cfg, spec.name, worker),
-                           pruner=pruner(cfg))
+        study = open_study(spec.name, storage, sampler=sampler(cfg), pruner=pruner(cfg))
         studies.append((study, study_objective(cfg, ds, spec)))
     run_studies(cfg, studies, progress=progress, on_trial=on_trial)
 
@@ -181,12 +181,12 @@ def run_sweep(cfg: ExperimentConfig, *, progress: bool = True,
     log.info("[%s] sweep: %d studies x %d trials, %d worker(s), storage %s", cfg.name,
              len(specs), cfg.study.trials, workers, redact(storage_url))
     search_in_workers(run_search, cfg, storage_url, workers, bool(progress),
-                                [s.name for s in specs], _root(), on_trial=on_trial)
+                      [s.name for s in specs], _root(), on_trial=on_trial)
 
     family = cfg.family
     storage = open_storage(storage_url, _root(), stale_after_s=cfg.study.stale_after_s)
     studies = {s.name: optuna.load_study(study_name=s.name, storage=storage,
-                                         sampler=sampler(cfg, s.name), pruner=pruner(cfg))
+                                         sampler=sampler(cfg), pruner=pruner(cfg))
                for s in specs}
     X_all = family.inputs(cfg, ds).loc[ds.train_index]
     Y_all = ds.targets.loc[ds.train_index]
