@@ -39,7 +39,7 @@ def smoke_run(project, tmp_path, capsys):
     return json.loads(out.read_text()), uri, capsys.readouterr().err
 
 
-def test_smoke_sweep_json_and_tracking(smoke_run, tmp_path):
+def test_smoke_sweep_json_and_tracking(smoke_run, tmp_path, project):
     import matplotlib.image
     import mlflow
     import pandas as pd
@@ -83,6 +83,12 @@ def test_smoke_sweep_json_and_tracking(smoke_run, tmp_path):
                                    for k in ("outer0", "outer1", "outer2", "final"))
     assert all(optuna.load_study(study_name=n, storage=journal).metric_names
                == [OBJECTIVE] for n in names)
+    # recognisable as one sweep's in the dashboard: the name's prefix and user attributes
+    attrs = optuna.load_study(study_name="smoke.eeig2.outer1", storage=journal).user_attrs
+    assert attrs == {"sweep": "smoke", "config": str(project),
+                     "unit": "eeig2", "targets": ["eeig2"], "fold": 1}
+    assert optuna.load_study(study_name="smoke.eeig2.final",
+                             storage=journal).user_attrs["fold"] == "final"
     assert run.data.tags["dataset_hash"] and run.data.tags["git_commit"]
     plots = [a.path for a in client.list_artifacts(run.info.run_id, "plots")]
     assert len(plots) >= 3 and all(p.endswith(".png") for p in plots)
@@ -297,10 +303,12 @@ def test_sweep_workers_are_the_command_s_worker_processes(tmp_path):
     cfg = SimpleNamespace(study=SimpleNamespace(stale_after_s=60))
     journal = tmp_path / "w.journal"
     with worker_pool(2, eager=True):
-        search_in_workers(_fake_search, cfg, str(journal), 2, False, ["a"], tmp_path)
+        search_in_workers(_fake_search, cfg, str(journal), 2, False, ["a"], tmp_path,
+                          attrs={"a": {"sweep": "s", "fold": 0}})
     seen = [(tmp_path / f"worker-{i}.txt").read_text().split() for i in range(2)]
     pids = {pid for pid, _, _ in seen}
     assert len(pids) == 2 and str(os.getpid()) not in pids
     assert all(worker == "True" and jobs == "1" for _, worker, jobs in seen)
-    assert optuna.load_study(study_name="a", storage=open_storage(str(journal), tmp_path))
+    study = optuna.load_study(study_name="a", storage=open_storage(str(journal), tmp_path))
+    assert study.user_attrs == {"sweep": "s", "fold": 0}  # created once, before the workers
 

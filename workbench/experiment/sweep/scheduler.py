@@ -35,7 +35,7 @@ import socket
 import time
 import warnings
 import zlib
-from typing import Callable
+from typing import Any, Callable, Mapping
 
 import numpy as np
 import optuna
@@ -126,15 +126,23 @@ def sampler(cfg) -> TrialSeededSampler:
 OBJECTIVE = "inner-CV MAE (targets' units)"
 
 
-def open_study(name: str, storage, **kwargs) -> optuna.Study:
+def open_study(name: str, storage, *, attrs: Mapping[str, Any] | None = None,
+               **kwargs) -> optuna.Study:
     """The sweep's study ``name`` in ``storage`` (created if new; minimised), its objective
-    named (:data:`OBJECTIVE`). ``kwargs``: Optuna's (a sampler, a pruner)."""
+    named (:data:`OBJECTIVE`) and its user attributes ``attrs`` set where missing (what
+    sweep it belongs to, which the dashboard shows; a resumed study keeps the values it
+    has). ``kwargs``: Optuna's (a sampler, a pruner)."""
     study = optuna.create_study(study_name=name, storage=storage, direction="minimize",
                                 load_if_exists=True, **kwargs)
     if study.metric_names != [OBJECTIVE]:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ExperimentalWarning)  # set_metric_names
             study.set_metric_names([OBJECTIVE])
+    if attrs:
+        have = study.user_attrs
+        for key, value in attrs.items():
+            if key not in have:
+                study.set_user_attr(key, value)
     return study
 
 
