@@ -1,5 +1,5 @@
 """Runs never left RUNNING (signals, silent deaths), safe first use of a SQLite store, storage
-errors of one line, heartbeats while a trial runs, distinct sampler streams."""
+errors of one line, heartbeats while a trial runs, distinct sampler streams per trial."""
 
 from __future__ import annotations
 
@@ -18,8 +18,8 @@ from optuna.trial import TrialState
 from workbench.experiment import lifecycle, signals
 from workbench.experiment.cli import main
 from workbench.experiment.errors import redact
-from workbench.experiment.sweep.scheduler import claim_stream, fail_stale, is_counted, run_study
-from workbench.experiment.sweep.storage import STREAMS, open_storage
+from workbench.experiment.sweep.scheduler import fail_stale, is_counted, run_study, sampler
+from workbench.experiment.sweep.storage import open_storage
 from workbench.experiment.tracking.runs import Tracker
 
 from services import command_env, free_port, tiny_sweep, workbench_cmd
@@ -31,7 +31,7 @@ def tiny(tmp_path_factory):
 
 
 def _sweep_studies(storage) -> list[str]:
-    names = [n for n in optuna.get_all_study_names(storage) if not n.endswith(STREAMS)]
+    names = optuna.get_all_study_names(storage)
     assert len(names) == 3
     return names
 
@@ -245,18 +245,29 @@ def test_dead_worker_on_this_host_is_failed_at_once_and_rerun_once(tmp_path, fin
     assert sum(is_counted(t) for t in trials) == 3
 
 
-def test_processes_claim_distinct_streams(tmp_path):
+def test_processes_draw_distinct_streams(tmp_path):
+    """Four processes (threads, each with its own study object and sampler) start trials on
+    one study at once: distinct trial numbers, so distinct random streams and proposals;
+    the storage holds the study alone (no bookkeeping beside it)."""
+    from types import SimpleNamespace
+
+    cfg = SimpleNamespace(cv=SimpleNamespace(seed=0), study=SimpleNamespace(sampler="tpe"))
     storage = open_storage(str(tmp_path / "c.journal"), tmp_path)
-    study = optuna.create_study(study_name="c", storage=storage)
-    claims = []
-    threads = [threading.Thread(target=lambda: claims.append(claim_stream(
-        optuna.load_study(study_name="c", storage=storage)))) for _ in range(4)]
+    optuna.create_study(study_name="c", storage=storage)
+    drawn: dict[int, float] = {}
+
+    def process():
+        study = optuna.load_study(study_name="c", storage=storage, sampler=sampler(cfg))
+        trial = study.ask()
+        drawn[trial.number] = trial.suggest_float("x", 0, 1)
+
+    threads = [threading.Thread(target=process) for _ in range(4)]
     for t in threads:
         t.start()
     for t in threads:
         t.join()
-    assert sorted(claims) == [0, 1, 2, 3]
-    assert claim_stream(study) == 4
+    assert sorted(drawn) == [0, 1, 2, 3] and len(set(drawn.values())) == 4
+    assert optuna.get_all_study_names(storage) == ["c"]
 
 
 def test_rerun_after_killing_a_sweep_and_its_workers(tiny, tmp_path):

@@ -14,7 +14,6 @@ import pytest
 from optuna.trial import TrialState
 
 from workbench.experiment.sweep.scheduler import is_counted
-from workbench.experiment.sweep.storage import STREAMS
 
 from services import MlflowServer, Postgres, command_env, tiny_sweep, workbench_cmd
 
@@ -69,8 +68,7 @@ def _kill_mid_trial(storage, proc, timeout: float = 120) -> None:
 def _studies(url):
     storage = optuna.storages.RDBStorage(url)
     return {s.study_name: optuna.load_study(study_name=s.study_name, storage=storage)
-            for s in optuna.get_all_study_summaries(storage)
-            if not s.study_name.endswith(STREAMS)}
+            for s in optuna.get_all_study_summaries(storage)}
 
 
 def _check_studies(url, trials: int) -> dict:

@@ -15,7 +15,7 @@ from optuna.trial import TrialState
 
 from workbench.experiment.cli import main
 from workbench.experiment.sweep.scheduler import is_counted
-from workbench.experiment.sweep.storage import STREAMS, JournalDamaged, open_storage, repair_journal
+from workbench.experiment.sweep.storage import JournalDamaged, open_storage, repair_journal
 
 from services import free_port, tiny_sweep
 
@@ -197,7 +197,7 @@ def _trials(journal: Path) -> dict[str, list[tuple]]:
         optuna.storages.journal.JournalFileBackend(str(journal)))
     return {s.study_name: [(t.number, t.state, t.params, t.value)
                            for t in storage.get_all_trials(s._study_id)]
-            for s in storage.get_all_studies() if not s.study_name.endswith(STREAMS)}
+            for s in storage.get_all_studies()}
 
 
 @pytest.fixture(scope="module")

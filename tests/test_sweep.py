@@ -39,7 +39,7 @@ def smoke_run(project, tmp_path, capsys):
     return json.loads(out.read_text()), uri, capsys.readouterr().err
 
 
-def test_smoke_sweep_json_and_tracking(smoke_run, tmp_path):
+def test_smoke_sweep_json_and_tracking(smoke_run, tmp_path, project):
     import matplotlib.image
     import mlflow
     import pandas as pd
@@ -78,10 +78,17 @@ def test_smoke_sweep_json_and_tracking(smoke_run, tmp_path):
     from workbench.experiment.sweep.scheduler import OBJECTIVE
 
     journal = open_storage(str(tmp_path / "mlruns" / "optuna.journal"), tmp_path)
-    names = [s.study_name for s in optuna.get_all_study_summaries(journal)
-             if not s.study_name.endswith(".streams")]
-    assert names and all(optuna.load_study(study_name=n, storage=journal).metric_names
-                         == [OBJECTIVE] for n in names)
+    names = optuna.get_all_study_names(journal)  # the sweep's studies, no bookkeeping
+    assert sorted(names) == sorted(f"smoke.eeig{j}.{k}" for j in range(1, 6)
+                                   for k in ("outer0", "outer1", "outer2", "final"))
+    assert all(optuna.load_study(study_name=n, storage=journal).metric_names
+               == [OBJECTIVE] for n in names)
+    # recognisable as one sweep's in the dashboard: the name's prefix and user attributes
+    attrs = optuna.load_study(study_name="smoke.eeig2.outer1", storage=journal).user_attrs
+    assert attrs == {"sweep": "smoke", "config": str(project),
+                     "unit": "eeig2", "targets": ["eeig2"], "fold": 1}
+    assert optuna.load_study(study_name="smoke.eeig2.final",
+                             storage=journal).user_attrs["fold"] == "final"
     assert run.data.tags["dataset_hash"] and run.data.tags["git_commit"]
     plots = [a.path for a in client.list_artifacts(run.info.run_id, "plots")]
     assert len(plots) >= 3 and all(p.endswith(".png") for p in plots)
@@ -207,18 +214,66 @@ def test_trial_of_a_vanished_machine_is_failed_and_rerun(tmp_path):
     assert all(t.state != TrialState.RUNNING for t in trials)
 
 
-def test_workers_propose_different_configurations():
-    from pathlib import Path
+def _cfg(sampler="tpe", trials=14, seed=3):
+    from types import SimpleNamespace
 
-    from workbench.experiment.config import load_config
-    from workbench.experiment.sweep.scheduler import sampler
+    return SimpleNamespace(cv=SimpleNamespace(seed=seed), study=SimpleNamespace(
+        sampler=sampler, trials=trials, timeout=None, stale_after_s=60))
 
-    cfg = load_config(Path(__file__).resolve().parents[1] / SMOKE)
-    a, b = sampler(cfg, "s", 0), sampler(cfg, "s", 1)
-    pa = optuna.create_study(sampler=a).ask().suggest_float("x", 0, 1)
-    pb = optuna.create_study(sampler=b).ask().suggest_float("x", 0, 1)
-    assert pa != pb
-    assert optuna.create_study(sampler=sampler(cfg, "s", 0)).ask().suggest_float("x", 0, 1) == pa
+
+def _search(storage, cfg, names=("a", "b")) -> dict[str, list[dict]]:
+    """``run_studies`` on studies ``names`` with a toy objective; their trials' params."""
+    from workbench.experiment.sweep.scheduler import open_study, run_studies, sampler
+
+    def objective(trial):
+        x, n = trial.suggest_float("x", -2, 2), trial.suggest_int("n", 1, 9)
+        c = trial.suggest_categorical("c", ["u", "v"])
+        return (x - 0.5) ** 2 + abs(n - 4) / 9 + (c == "v")
+
+    studies = [(open_study(n, storage, sampler=sampler(cfg)), objective) for n in names]
+    run_studies(cfg, studies)
+    return {s.study_name: [t.params for t in s.get_trials()] for s, _ in studies}
+
+
+def test_one_seed_gives_the_same_trials(tmp_path):
+    """A lone process proposes the same trials run after run (random and TPE, past TPE's 10
+    random startup trials), on any storage; another seed, or another study, other ones."""
+    for kind in ("tpe", "random"):
+        first = _search(open_storage(str(tmp_path / f"{kind}1.journal"), tmp_path), _cfg(kind))
+        again = _search(optuna.storages.InMemoryStorage(), _cfg(kind))
+        assert first == again and len(first["a"]) == 14
+        assert first["a"] != first["b"]  # seeded by the study's name too
+        other = _search(optuna.storages.InMemoryStorage(), _cfg(kind, seed=4))
+        assert other["a"][0] != first["a"][0]
+
+
+def test_a_trial_number_draws_the_same_numbers_in_any_process():
+    """Two processes (samplers) on one study, taking turns: distinct proposals, and each
+    trial's the ones a lone process draws for that trial number (random phase)."""
+    from workbench.experiment.sweep.scheduler import sampler, trial_seed
+
+    storage = optuna.storages.InMemoryStorage()
+    optuna.create_study(study_name="s", storage=storage)
+    procs = [optuna.load_study(study_name="s", storage=storage, sampler=sampler(_cfg()))
+             for _ in range(2)]
+    shared = [procs[i % 2].ask().suggest_float("x", 0, 1) for i in range(6)]
+    alone = optuna.create_study(study_name="s", sampler=sampler(_cfg()))
+    assert [alone.ask().suggest_float("x", 0, 1) for _ in range(6)] == shared
+    assert len(set(shared)) == 6
+    assert len({trial_seed(3, "s", n) for n in range(1000)}) == 1000
+    assert trial_seed(3, "s", 0) != trial_seed(3, "t", 0) != trial_seed(4, "s", 0)
+
+
+def test_a_storage_with_older_stream_studies_still_sweeps(tmp_path):
+    """Studies ``<name>.streams`` that earlier versions kept in the storage (a dummy trial
+    per process) are left alone: the sweep adds nothing beside its own studies."""
+    journal = open_storage(str(tmp_path / "old.journal"), tmp_path)
+    legacy = optuna.create_study(study_name="a.streams", storage=journal)
+    legacy.tell(legacy.ask(), 0.0)
+    _search(journal, _cfg(trials=3))
+    assert sorted(optuna.get_all_study_names(journal)) == ["a", "a.streams", "b"]
+    assert [t.value for t in optuna.load_study(study_name="a.streams",
+                                               storage=journal).get_trials()] == [0.0]
 
 
 def _fake_search(cfg, storage_url, progress=False, worker=0, on_trial=None):
@@ -248,10 +303,12 @@ def test_sweep_workers_are_the_command_s_worker_processes(tmp_path):
     cfg = SimpleNamespace(study=SimpleNamespace(stale_after_s=60))
     journal = tmp_path / "w.journal"
     with worker_pool(2, eager=True):
-        search_in_workers(_fake_search, cfg, str(journal), 2, False, ["a"], tmp_path)
+        search_in_workers(_fake_search, cfg, str(journal), 2, False, ["a"], tmp_path,
+                          attrs={"a": {"sweep": "s", "fold": 0}})
     seen = [(tmp_path / f"worker-{i}.txt").read_text().split() for i in range(2)]
     pids = {pid for pid, _, _ in seen}
     assert len(pids) == 2 and str(os.getpid()) not in pids
     assert all(worker == "True" and jobs == "1" for _, worker, jobs in seen)
-    assert optuna.load_study(study_name="a", storage=open_storage(str(journal), tmp_path))
+    study = optuna.load_study(study_name="a", storage=open_storage(str(journal), tmp_path))
+    assert study.user_attrs == {"sweep": "s", "fold": 0}  # created once, before the workers
 

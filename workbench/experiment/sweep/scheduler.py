@@ -6,9 +6,12 @@ shared storage until each holds exactly its budget of counted trials
 
 Several processes (or machines) may work on one storage at once:
 
-* **Distinct proposals.** Each process claims a *stream* number on the study (the first
-  process 0, so a lone sweep draws the same numbers as before) and seeds its sampler with it;
-  TPE runs with ``constant_liar`` so running trials repel proposals.
+* **Distinct proposals.** The sampler's random numbers are seeded per *trial*, from (the cv
+  seed, the study's name, the trial's number) (:class:`TrialSeededSampler`). Every storage
+  assigns trial numbers atomically, so concurrent processes never draw from one stream, a
+  trial number draws the same numbers whichever process runs it, and nothing but the
+  studies is kept in the storage. TPE runs with ``constant_liar`` so running trials repel
+  proposals.
 * **Exact budgets.** A trial started beyond the budget is marked ``surplus`` and not run; a
   trial counts unless it is surplus or failed by someone other than its own worker.
 * **Dead workers.** While a trial runs, a background thread beats its heartbeat (so a long
@@ -32,8 +35,9 @@ import socket
 import time
 import warnings
 import zlib
-from typing import Callable
+from typing import Any, Callable, Mapping
 
+import numpy as np
 import optuna
 from optuna.exceptions import ExperimentalWarning, UpdateFinishedTrialError
 from optuna.trial import FrozenTrial, TrialState
@@ -42,58 +46,104 @@ from ...parallel import pid_alive
 from ..lifecycle import every
 from ..signals import interrupts_deferred
 from .storage import (
-    STREAMS,
     beat,
     heartbeat_enabled,
     heartbeat_interval,
     retry,
     set_trial_attr,
-    storage_of,
 )
 
 log = logging.getLogger("workbench")
 
-__all__ = ["OBJECTIVE", "STREAMS", "claim_stream", "fail_stale", "is_counted", "open_study",
-           "pruner", "run_studies", "run_study", "sampler"]
+__all__ = ["OBJECTIVE", "TrialSeededSampler", "fail_stale", "is_counted", "open_study",
+           "pruner", "run_studies", "run_study", "sampler", "trial_seed"]
 
 
-def sampler(cfg, name: str, worker: int = 0):
-    """Seeded per study and per stream (processes with one seed would propose the same
-    configurations); stream 0 is the first process of a sweep."""
-    seed = (cfg.cv.seed + zlib.crc32(name.encode()) + 7919 * worker) % 2**31
-    if cfg.study.sampler == "random":
-        return optuna.samplers.RandomSampler(seed=seed)
-    return optuna.samplers.TPESampler(seed=seed, constant_liar=True)
+def trial_seed(seed: int, study_name: str, number: int) -> int:
+    """The seed of trial ``number`` of study ``study_name`` (32 bits, well mixed: nearby
+    seeds, names and numbers give unrelated streams)."""
+    entropy = [seed, zlib.crc32(study_name.encode()), number]
+    return int(np.random.SeedSequence(entropy).generate_state(1)[0])
 
 
+class TrialSeededSampler(optuna.samplers.BaseSampler):
+    """Optuna's sampler ``kind`` (``"tpe"``, with ``constant_liar``, or ``"random"``) with its
+    random numbers seeded per trial: each trial is sampled by a fresh sampler seeded with
+    :func:`trial_seed` of (``seed``, the study's name, the trial's number). Trial numbers are
+    assigned atomically by every Optuna storage, so processes sharing a study never draw the
+    same numbers, one trial number draws the same numbers in whichever process runs it, and
+    one process alone proposes the same trials run after run (TPE's proposals also depend on
+    the trials finished before, which only a lone process fixes). A fresh sampler per trial
+    costs nothing that matters here: Optuna's TPE and random samplers keep no state between
+    trials but their random generator and caches of the study's trials."""
+
+    def __init__(self, kind: str, seed: int):
+        if kind not in ("tpe", "random"):
+            raise ValueError(f"unknown sampler {kind!r}")
+        self.kind, self.seed = kind, seed
+        self._current: tuple[tuple[str, int], optuna.samplers.BaseSampler] | None = None
+
+    def __repr__(self) -> str:
+        return f"TrialSeededSampler({self.kind!r}, seed={self.seed})"
+
+    def _for(self, study: optuna.Study, trial: FrozenTrial) -> optuna.samplers.BaseSampler:
+        """The sampler of ``trial`` (made when the trial starts, kept while it runs)."""
+        key = (study.study_name, trial.number)
+        if self._current is None or self._current[0] != key:
+            seed = trial_seed(self.seed, *key)
+            inner = (optuna.samplers.RandomSampler(seed=seed) if self.kind == "random" else
+                     optuna.samplers.TPESampler(seed=seed, constant_liar=True))
+            self._current = (key, inner)
+        return self._current[1]
+
+    def before_trial(self, study: optuna.Study, trial: FrozenTrial) -> None:
+        self._for(study, trial).before_trial(study, trial)
+
+    def infer_relative_search_space(self, study, trial):
+        return self._for(study, trial).infer_relative_search_space(study, trial)
+
+    def sample_relative(self, study, trial, search_space):
+        return self._for(study, trial).sample_relative(study, trial, search_space)
+
+    def sample_independent(self, study, trial, param_name, param_distribution):
+        return self._for(study, trial).sample_independent(study, trial, param_name,
+                                                          param_distribution)
+
+    def after_trial(self, study, trial, state, values) -> None:
+        self._for(study, trial).after_trial(study, trial, state, values)
+
+    def reseed_rng(self) -> None:
+        """Nothing to reseed: every trial's numbers come from its own seed."""
+
+
+def sampler(cfg) -> TrialSeededSampler:
+    """The sampler of a sweep's study (``[study] sampler``), seeded per trial from
+    ``[cv] seed`` and the study's name (:class:`TrialSeededSampler`)."""
+    return TrialSeededSampler(cfg.study.sampler, cfg.cv.seed)
 
 
 #: What a study's value is, as the Optuna dashboard labels it (instead of "Objective 0").
 OBJECTIVE = "inner-CV MAE (targets' units)"
 
 
-def open_study(name: str, storage, **kwargs) -> optuna.Study:
+def open_study(name: str, storage, *, attrs: Mapping[str, Any] | None = None,
+               **kwargs) -> optuna.Study:
     """The sweep's study ``name`` in ``storage`` (created if new; minimised), its objective
-    named (:data:`OBJECTIVE`). ``kwargs``: Optuna's (a sampler, a pruner)."""
+    named (:data:`OBJECTIVE`) and its user attributes ``attrs`` set where missing (what
+    sweep it belongs to, which the dashboard shows; a resumed study keeps the values it
+    has). ``kwargs``: Optuna's (a sampler, a pruner)."""
     study = optuna.create_study(study_name=name, storage=storage, direction="minimize",
                                 load_if_exists=True, **kwargs)
     if study.metric_names != [OBJECTIVE]:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ExperimentalWarning)  # set_metric_names
             study.set_metric_names([OBJECTIVE])
+    if attrs:
+        have = study.user_attrs
+        for key, value in attrs.items():
+            if key not in have:
+                study.set_user_attr(key, value)
     return study
-
-
-def claim_stream(study: optuna.Study) -> int:
-    """A stream number no other process on this study holds: the number of a trial in the
-    study ``<name>.streams`` (trial numbers are assigned atomically by every storage, so the
-    first process gets 0 and concurrent ones never share a number)."""
-    streams = optuna.create_study(study_name=study.study_name + STREAMS,
-                                  storage=storage_of(study), load_if_exists=True,
-                                  sampler=optuna.samplers.RandomSampler(seed=0))
-    claim = streams.ask()
-    streams.tell(claim, 0.0, skip_if_finished=True)  # holds nothing: the number is the claim
-    return claim.number
 
 
 def pruner(cfg):
@@ -227,13 +277,11 @@ def run_study(study: optuna.Study, objective: Callable, n_trials: int, *,
 def run_studies(cfg, studies: list[tuple[optuna.Study, Callable]], *,
                 progress: bool = False,
                 on_trial: Callable[[optuna.Study, FrozenTrial], None] | None = None) -> None:
-    """Run (or resume) ``(study, objective)`` pairs to their budgets in this process, with a
-    sampler stream of its own (see :func:`claim_stream`)."""
+    """Run (or resume) ``(study, objective)`` pairs to their budgets in this process (each
+    study with its own sampler, see :func:`sampler`)."""
     if not studies:
         return
-    stream = claim_stream(studies[0][0])
     for study, _ in studies:
-        study.sampler = sampler(cfg, study.study_name, stream)
         fail_stale(study, cfg.study.stale_after_s)  # every dead trial at once, not per study
     # First pass: take trials wherever budget is left, never idling while another worker
     # finishes a study's last trials; second pass: make sure every study is complete.
@@ -242,5 +290,3 @@ def run_studies(cfg, studies: list[tuple[optuna.Study, Callable]], *,
             run_study(study, objective, cfg.study.trials, timeout=cfg.study.timeout,
                       stale_after_s=cfg.study.stale_after_s, progress=progress, wait=wait,
                       on_trial=on_trial)
-
-

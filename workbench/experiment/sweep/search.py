@@ -40,7 +40,7 @@ from .scheduler import is_counted, open_study, pruner, run_studies, sampler
 from .storage import open_storage
 from .workers import search_in_workers
 
-__all__ = ["Sweep", "run_search", "run_sweep", "study_names"]
+__all__ = ["Sweep", "run_search", "run_sweep", "study_attrs", "study_names", "sweep_name"]
 
 optuna.logging.set_verbosity(optuna.logging.WARNING)
 log = logging.getLogger("workbench")
@@ -80,8 +80,11 @@ def _root() -> Path:
 
 
 def study_names(cfg: ExperimentConfig, targets: list[str]) -> list[StudySpec]:
-    """The sweep's studies in order: per unit, one per outer fold, then the final one."""
-    base = cfg.study.study_name or cfg.name
+    """The sweep's studies in order: per unit, one per outer fold, then the final one, all
+    named ``<sweep>.<unit>.outer<k>`` / ``<sweep>.<unit>.final`` (``<sweep>``:
+    :func:`sweep_name`), so that the sweep's name finds them (the dashboard's "Search
+    study" box)."""
+    base = sweep_name(cfg)
     n_outer = cfg.cv.outer_folds * cfg.cv.repeats
     out = []
     for unit, unit_targets in cfg.family.units(cfg, targets).items():
@@ -89,6 +92,20 @@ def study_names(cfg: ExperimentConfig, targets: list[str]) -> list[StudySpec]:
                 for k in range(n_outer)]
         out.append(StudySpec(f"{base}.{unit}.final", unit, unit_targets, None))
     return out
+
+
+def sweep_name(cfg: ExperimentConfig) -> str:
+    """The name a sweep's studies begin with: ``[study] study_name``, else the config's."""
+    return cfg.study.study_name or cfg.name
+
+
+def study_attrs(cfg: ExperimentConfig, spec: StudySpec) -> dict[str, Any]:
+    """A study's user attributes (the dashboard shows them on the study's page): the sweep
+    it belongs to, its config, unit, targets and outer fold (``"final"``: the final study
+    on all training rows)."""
+    return {"sweep": sweep_name(cfg), "config": cfg.label, "unit": spec.unit,
+            "targets": list(spec.targets),
+            "fold": "final" if spec.fold is None else spec.fold}
 
 
 def outer_splits(cfg: ExperimentConfig, n_rows: int) -> list:
@@ -151,14 +168,15 @@ def study_objective(cfg: ExperimentConfig, ds, spec: StudySpec) -> Callable:
 
 def run_search(cfg: ExperimentConfig, storage_url: str, *, progress: bool = False,
                worker: int = 0, on_trial: Callable | None = None) -> None:
-    """Run (or resume) every study of the sweep in this process (``worker``: its index;
-    ``on_trial(study, trial)`` after each trial it finishes)."""
+    """Run (or resume) every study of the sweep in this process (``worker``: its index, which
+    changes nothing: the studies' samplers are seeded per trial; ``on_trial(study, trial)``
+    after each trial it finishes)."""
     ds = load_dataset(cfg)
     storage = open_storage(storage_url, _root(), stale_after_s=cfg.study.stale_after_s)
     studies = []
     for spec in study_names(cfg, ds.target_names):
-        study = open_study(spec.name, storage, sampler=sampler(cfg, spec.name, worker),
-                           pruner=pruner(cfg))
+        study = open_study(spec.name, storage, attrs=study_attrs(cfg, spec),
+                           sampler=sampler(cfg), pruner=pruner(cfg))
         studies.append((study, study_objective(cfg, ds, spec)))
     run_studies(cfg, studies, progress=progress, on_trial=on_trial)
 
@@ -181,12 +199,13 @@ def run_sweep(cfg: ExperimentConfig, *, progress: bool = True,
     log.info("[%s] sweep: %d studies x %d trials, %d worker(s), storage %s", cfg.name,
              len(specs), cfg.study.trials, workers, redact(storage_url))
     search_in_workers(run_search, cfg, storage_url, workers, bool(progress),
-                                [s.name for s in specs], _root(), on_trial=on_trial)
+                      [s.name for s in specs], _root(), on_trial=on_trial,
+                      attrs={s.name: study_attrs(cfg, s) for s in specs})
 
     family = cfg.family
     storage = open_storage(storage_url, _root(), stale_after_s=cfg.study.stale_after_s)
     studies = {s.name: optuna.load_study(study_name=s.name, storage=storage,
-                                         sampler=sampler(cfg, s.name), pruner=pruner(cfg))
+                                         sampler=sampler(cfg), pruner=pruner(cfg))
                for s in specs}
     X_all = family.inputs(cfg, ds).loc[ds.train_index]
     Y_all = ds.targets.loc[ds.train_index]

@@ -7,8 +7,8 @@ private names (a test checks).
 * The journal file fails safe: a damaged line is found before anything is appended
   (:class:`JournalDamaged`, naming the command that repairs it) and :func:`repair_journal`
   recovers every complete record into a new file (``workbench sweep --repair``).
-* What the scheduler needs of Optuna's internals: :func:`storage_of`, :func:`beat`,
-  :func:`heartbeat_enabled`, :func:`set_trial_attr`, :func:`retry`; and the
+* What the scheduler needs of Optuna's internals: :func:`beat`, :func:`heartbeat_enabled`,
+  :func:`set_trial_attr`, :func:`retry`; and the
   ``optuna-dashboard`` command line (:func:`dashboard_command`).
 """
 
@@ -40,12 +40,10 @@ from ..signals import interrupts_deferred
 
 log = logging.getLogger("workbench")
 
-__all__ = ["STREAMS", "JournalDamaged", "Repair", "StorageError", "beat", "check_storage",
+__all__ = ["JournalDamaged", "Repair", "StorageError", "beat", "check_storage",
            "dashboard_command", "heartbeat_enabled", "heartbeat_interval", "open_storage",
-           "repair_journal", "retry", "set_trial_attr", "storage_of"]
+           "repair_journal", "retry", "set_trial_attr"]
 
-#: The suffix of the study that hands out sampler streams (not a search's study).
-STREAMS = ".streams"
 #: User attributes that belong to one attempt at a trial, not to its configuration.
 _ATTEMPT_ATTRS = ("worker", "heartbeat", "finished_by", "error", "surplus", "stale")
 
@@ -451,7 +449,7 @@ def _verify(path: Path, n_records: int) -> tuple[int, int]:
     if storage._replay_result.log_number_read != n_records:
         raise StorageError(f"replayed {storage._replay_result.log_number_read} of "
                            f"{n_records} records")
-    studies = [s for s in storage.get_all_studies() if not s.study_name.endswith(STREAMS)]
+    studies = storage.get_all_studies()
     trials = sum(len(storage.get_all_trials(s._study_id, deepcopy=False)) for s in studies)
     return len(studies), trials
 
@@ -566,11 +564,6 @@ def _rdb_storage(url: str, stale_after_s: float):
 # --------------------------------------------------------------------------- Optuna internals
 # The scheduler's access to what Optuna keeps private (a study's storage, its id, a trial's
 # id): here, and nowhere else (tests/test_layering.py checks).
-
-
-def storage_of(study: optuna.Study):
-    """The storage ``study`` works on (to open another study on it)."""
-    return study._storage
 
 
 def heartbeat_enabled(study: optuna.Study) -> bool:

@@ -6,7 +6,7 @@ command). The one mechanism for every parallel part of a command."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable, Mapping
 
 from ...parallel import Task, map_tasks
 from ..signals import handle_signals
@@ -31,18 +31,19 @@ def sweep_task(search: Callable, cfg, storage_url: str, index: int, show: bool,
 
 def search_in_workers(search: Callable, cfg, storage_url: str, workers: int,
                       progress: bool, names: list[str], root: Path,
-                      on_trial=None) -> None:
+                      on_trial=None, attrs: Mapping[str, Mapping[str, Any]] | None = None
+                      ) -> None:
     """``search(cfg, storage_url, progress=, worker=, on_trial=)`` in ``workers`` worker
     processes (the enclosing :func:`workbench.parallel.worker_pool`'s, which must hold at
     least ``workers``; without one, a pool of its own), after creating the studies
-    ``names`` once. An interrupt ends the workers (their running trials are queued again);
-    a worker's error is raised here."""
+    ``names`` once (with their user attributes ``attrs[name]``). An interrupt ends the
+    workers (their running trials are queued again); a worker's error is raised here."""
     if workers == 1:
         search(cfg, storage_url, progress=progress, on_trial=on_trial)
         return
     # Create the storage and studies once, before workers race to do it.
     storage = open_storage(storage_url, root, stale_after_s=cfg.study.stale_after_s)
     for name in names:
-        open_study(name, storage)
+        open_study(name, storage, attrs=(attrs or {}).get(name))
     map_tasks([Task(sweep_task, search, cfg, storage_url, i, bool(progress), on_trial)
                for i in range(workers)], workers)
