@@ -6,7 +6,7 @@ PY     := $(VENV)/bin/python
 export MLFLOW_DISABLE_TELEMETRY := true
 export MPLCONFIGDIR := $(CURDIR)/.cache/matplotlib
 
-.PHONY: run test lint lock clean
+.PHONY: run test lint lock clean browser
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -35,10 +35,19 @@ lint: $(VENV)/.installed-dev
 	$(VENV)/bin/ruff check
 	$(VENV)/bin/mypy
 
+# The browser test (tests/test_ui_browser.py) renders MLflow's UI in headless Chromium:
+# Debian's package, installed once if missing (as root, or through sudo).
+browser:
+	@command -v chromium >/dev/null || command -v chromium-browser >/dev/null || { \
+	  echo "installing Debian's chromium (for tests/test_ui_browser.py)"; \
+	  SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
+	  $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get update -qq && \
+	  $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; }
+
 # Default test suite after the lint and type checks (slow checks: `$(PY) -m pytest -m slow`).
 # Two workers; a file's tests stay on one worker, so module-scoped fixtures (a reproduce run,
 # a sweep) run once.
-test: lint
+test: lint browser
 	$(THREADS) $(PY) -m pytest -n 2 --dist loadfile
 
 # Regenerate requirements.lock: the newest versions pyproject.toml allows (with the dev

@@ -98,12 +98,35 @@ def _repair_hint(args) -> str:
     return shlex.join(["workbench", *map(hidden, args.argv), "--repair"])
 
 
+def _experiment_views(uri: str, port: int) -> list[tuple[str, str]]:
+    """The UI's address of each experiment in the store that has the workbench's runs view
+    (its runs' test MAE per target side by side); none if the store cannot be read now (the
+    UI reports that itself)."""
+    from .tracking.runs import RUNS_VIEW, SHARED_VIEW_PREFIX
+    from .tracking.uris import sqlite_path, ui_url
+
+    path = sqlite_path(uri)
+    if uri.startswith("sqlite:") and (path is None or not path.is_file()):
+        return []  # nothing stored yet; reading would create the database
+    try:
+        from mlflow import MlflowClient
+
+        experiments = MlflowClient(uri).search_experiments()
+    except Exception as exc:  # a locked or unreachable store: the UI shows the problem
+        log.debug("could not list the experiments of %s: %s", redact(uri), exc)
+        return []
+    return [(e.name, ui_url(port, e.experiment_id, RUNS_VIEW)) for e in experiments
+            if SHARED_VIEW_PREFIX + RUNS_VIEW in e.tags]
+
+
 def _cmd_ui(args) -> int:
-    from .tracking.uris import resolve_tracking_uri
+    from .tracking.uris import resolve_tracking_uri, ui_url
 
     uri = resolve_tracking_uri(args.tracking_uri, None, Path.cwd())
     cmds = [ui_command(uri, args.port)]
-    print(f"MLflow UI for {redact(uri)} at http://127.0.0.1:{args.port}", flush=True)
+    print(f"MLflow UI for {redact(uri)} at {ui_url(args.port)}", flush=True)
+    for name, url in _experiment_views(uri, args.port):
+        print(f"  {name}: {url}", flush=True)
     storage = args.storage or "mlruns/optuna.journal"
     if args.storage or (Path.cwd() / storage).is_file():  # the studies beside the runs
         from .sweep.storage import dashboard_command

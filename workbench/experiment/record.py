@@ -28,7 +28,7 @@ from .results import INTERVAL_KEYS, Result, Scores
 from .serving import prediction_frame
 from .tracking.models import CHAMPION
 from .tracking.records import dataset_hash, git_commit
-from .tracking.runs import Tracker
+from .tracking.runs import Tracker, metric_view
 from .tracking.uris import resolve_tracking_uri
 
 __all__ = ["NOTE_TAG", "config_text", "log_inputs", "log_sweep_children", "record",
@@ -268,6 +268,7 @@ def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
             tracker.log_dict(run_id, data, f"{name}.json")
         tracker.set_tags(run_id, {"model_uri": model_uri,
                                   "selected": ",".join(result.model.selected)})
+        tracker.share_view(metric_view(result.targets))  # `workbench ui`'s link opens it
         out = {"tracking_uri": redact(tracker.tracking_uri), "experiment_id": tracker.experiment_id,
                "run_id": run_id, "model_uri": model_uri}
         if register:

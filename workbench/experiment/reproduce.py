@@ -46,8 +46,8 @@ from .intervals import family_model
 from .record import NOTE_TAG, log_inputs, result_metrics, run_params, run_tags, score_metrics
 from .results import Result, Scores, bootstrap_error_interval
 from .sweep.search import run_sweep
-from .systems import Stopwatch, System, log_systems, summary_table
-from .tracking.runs import Tracker
+from .systems import SYSTEM_TAG, Stopwatch, System, log_systems, summary_table
+from .tracking.runs import Tracker, metric_view
 from .tracking.uris import resolve_tracking_uri
 
 __all__ = ["PAPER_SIZES", "REFERENCE", "TABULA_RASA", "Reproduction", "report", "reproduce"]
@@ -576,6 +576,8 @@ def _log(rep: Reproduction, systems: list[System], files, out: Path, tracking_ur
             for path in files[fig_id]:
                 tracker.log_file(parent, path, "figures")
         tracker.log_file(parent, out / "systems.csv")
+        # `workbench ui`'s link: the systems side by side, their test MAE per target
+        tracker.share_view(metric_view(rep.targets, search_filter=f"tags.`{SYSTEM_TAG}` LIKE '%'"))
         rep.wall_s = time.perf_counter() - start
         tracker.log_dict(parent, json.loads(json.dumps(rep.to_json(), default=str)),
                          "results.json")

@@ -32,7 +32,11 @@ from .record import (
 from .results import Result
 from .tracking.runs import Tracker
 
-__all__ = ["Stopwatch", "System", "log_systems", "summary_table"]
+__all__ = ["SYSTEM_TAG", "Stopwatch", "System", "log_systems", "summary_table"]
+
+
+#: The tag naming a run's system (its key in the reproduction).
+SYSTEM_TAG = "workbench.system"
 
 
 @dataclass
@@ -86,7 +90,7 @@ def log_systems(tracker: Tracker, parent: str, systems: list[System], ds, paper_
     ids = {}
     for system in systems:
         cfg = system.config or paper_cfg
-        tags = {**run_tags(cfg, ds, kind), "workbench.system": system.key,
+        tags = {**run_tags(cfg, ds, kind), SYSTEM_TAG: system.key,
                 NOTE_TAG: system.description}
         if system.config is None:  # no config of its own: the reproduction's source
             tags.update({"config": "", "mlflow.source.name": f"workbench {kind}"})

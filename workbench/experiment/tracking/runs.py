@@ -5,6 +5,7 @@ input datasets; its models from :class:`~.models.ModelRecords`)."""
 from __future__ import annotations
 
 import contextlib
+import json
 import logging
 import math
 import os
@@ -30,7 +31,7 @@ from .uris import (
     sqlite_path,
 )
 
-__all__ = ["Tracker", "ensure_store"]
+__all__ = ["RUNS_VIEW", "SHARED_VIEW_PREFIX", "Tracker", "ensure_store", "metric_view"]
 
 _logger = logging.getLogger("workbench.experiment.tracking")
 
@@ -42,6 +43,11 @@ _RUN_STATUSES = ("FINISHED", "FAILED", "KILLED")
 #: opens it in the model-training view (runs, metrics, charts, models).
 EXPERIMENT_KIND_TAG = "mlflow.experimentKind"
 EXPERIMENT_KIND = "custom_model_development"
+#: MLflow 3's UI loads a runs view (columns, filter, order) from the experiment tag
+#: ``<prefix><key>`` when its URL has ``?viewStateShareKey=<key>`` (a "shared view").
+SHARED_VIEW_PREFIX = "mlflow.sharedViewState."
+#: The shared view every workbench experiment gets (:meth:`Tracker.share_view`).
+RUNS_VIEW = "workbench"
 
 
 class Tracker(ModelRecords):
@@ -230,6 +236,16 @@ class Tracker(ModelRecords):
             tags = [RunTag(SKIPPED_METRICS_TAG, tag_value(",".join(sorted(seen))))]
         self._log_batch(run_id, metrics=items, tags=tags)
 
+    def share_view(self, state: Mapping[str, Any], key: str = RUNS_VIEW) -> None:
+        """Store a runs view of the experiment for MLflow's UI (an experiment tag read when
+        the runs page's URL has ``?viewStateShareKey=<key>``; see
+        :func:`~.uris.ui_url`): ``state`` as the UI keeps it, e.g. ``selectedColumns``
+        (``"metrics.`test_mae_avg`"``, ...), ``searchFilter``, ``orderByKey``,
+        ``orderByAsc``. Replaces the view of the same key."""
+        with self._errors():
+            self.client.set_experiment_tag(self.experiment_id, SHARED_VIEW_PREFIX + key,
+                                           json.dumps(dict(state)))
+
     def set_tags(self, run_id: str, tags: Mapping[str, Any]) -> None:
         """Set tags (values as strings)."""
         self._log_batch(run_id, tags=[RunTag(str(k), tag_value(v)) for k, v in tags.items()])
@@ -291,3 +307,13 @@ def ensure_store(tracking_uri: str, experiment_name: str,
     """Create the store (schema) and the experiment once, e.g. before starting parallel
     workers; returns the experiment id."""
     return Tracker(tracking_uri, experiment_name, artifact_root).experiment_id
+
+
+def metric_view(targets: list[str], metric: str = "test_mae",
+                search_filter: str = "") -> dict[str, Any]:
+    """The runs view :meth:`Tracker.share_view` stores by default: the columns ``<metric>/<t>``
+    per target and ``<metric>_avg``, the runs ordered by that average (best first), and
+    ``search_filter`` (MLflow's run search syntax; empty: every run)."""
+    columns = [f"metrics.`{metric}/{t}`" for t in targets] + [f"metrics.`{metric}_avg`"]
+    return {"selectedColumns": columns, "searchFilter": search_filter,
+            "orderByKey": f"metrics.`{metric}_avg`", "orderByAsc": True}
