@@ -158,12 +158,14 @@ def test_failing_run_ends_failed_and_reraises(tracker):
 def test_long_params_truncated_and_nonfinite_metrics_skipped(tracker):
     with tracker.run("limits") as run_id:
         tracker.log_params(run_id, {"long": "x" * 7000, **{f"p{i}": i for i in range(150)}})
-        tracker.log_metrics(run_id, {"ok": 1.5, "nan": float("nan"), "inf": np.inf})
+        tracker.log_metrics(run_id, {"ok": 1.5, "nan": float("nan"), "inf": np.inf,
+                                     "third": 1 / 3, "big": 12345.678912})
     run = tracker.client.get_run(run_id)
     assert len(run.data.params) == 151  # more than one batch of 100
     assert len(run.data.params["long"]) == 6000 and "truncated" in run.data.params["long"]
     assert run.data.tags[TRUNCATED_PARAMS_TAG] == "long"
-    assert run.data.metrics == {"ok": 1.5}
+    # 7 significant digits: whole in the runs table
+    assert run.data.metrics == {"ok": 1.5, "third": 0.3333333, "big": 12345.68}
     assert set(run.data.tags[SKIPPED_METRICS_TAG].split(",")) == {"nan", "inf"}
 
 
