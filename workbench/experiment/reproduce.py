@@ -271,7 +271,8 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
         title="Control program (X) and measured (Y) eigenenergies (Fig. S3)"))
 
     # -- every system side by side -----------------------------------------------------------
-    systems = _systems(settings, cfgs, tabula, search, watches, files, table_files, targets)
+    systems = _systems(settings, cfgs, tabula, search, watches, files,
+                       {"hamiltonian": list(table_files.values())}, targets)
     compared = [s for s in systems if s.key != "tabula_rasa"]
     save("figR1_systems_mae", model_comparison_bars(
         SHORT, {s.name: [s.metrics[f"test_mae/{t}"] for t in targets] for s in compared},
@@ -447,7 +448,7 @@ def _correction_shap(model, ds, seed: int, quick: bool, save) -> None:
             explained="prediction"), f"figR3_shap_prediction_{SHORT[j]}")
 
 
-def _systems(settings, cfgs, tabula, search, watches, files, table_files,
+def _systems(settings, cfgs, tabula, search, watches, files, tables,
              targets) -> list[System]:
     """The reproduction's systems (:data:`SYSTEMS`), their metrics in the shared schema."""
     paper = settings["paper"]
@@ -490,8 +491,7 @@ def _systems(settings, cfgs, tabula, search, watches, files, table_files,
             system.params = run_params(cfg, targets, result.n_train, result.n_test)
             if key == "search":
                 system.sweep = search
-            if key == "hamiltonian":
-                system.tables = list(table_files.values())
+            system.tables = tables.get(key, [])
         out.append(system)
     return out
 
