@@ -38,6 +38,21 @@ def wait_until_answering(url: str, proc: subprocess.Popen, log: Path, timeout: f
     raise RuntimeError(f"{url} did not answer in {timeout} s: {log.read_text()[-2000:]}")
 
 
+def stop_process_group(proc: subprocess.Popen, timeout: float = 10) -> None:
+    """SIGTERM the process group of ``proc`` (started with ``start_new_session=True``: a
+    server and its workers), SIGKILL it if it is still there after ``timeout`` seconds."""
+    import signal
+
+    try:
+        os.killpg(proc.pid, signal.SIGTERM)
+        proc.wait(timeout=timeout)
+    except ProcessLookupError:
+        return
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+
+
 class Postgres:
     """A PostgreSQL server in ``root`` (started in about a second); :meth:`database` creates
     a database and returns its SQLAlchemy URL (Unix socket; trust authentication, so any

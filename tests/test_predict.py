@@ -12,7 +12,6 @@ import io
 import json
 import os
 import shutil
-import signal
 import subprocess
 import sys
 import urllib.error
@@ -29,7 +28,7 @@ from workbench.experiment.cli import main
 from workbench.experiment.families import Artifacts
 from workbench.experiment.families.eigenvalue import EigenvalueFamily
 
-from services import free_port, wait_until_answering
+from services import free_port, stop_process_group, wait_until_answering
 
 ROOT = Path(__file__).resolve().parents[1]
 TARGETS = [f"eeig{i}" for i in range(1, 6)]
@@ -664,12 +663,7 @@ def test_served_model_gives_the_same_numbers(bench, tmp_path):
         assert status == 400 and "model input: no rows to predict" in reply["message"]
         assert "stack_trace" not in reply and len(json.dumps(reply)) < 500, reply
     finally:
-        os.killpg(proc.pid, signal.SIGTERM)
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
+        stop_process_group(proc)
         log.close()
 
 

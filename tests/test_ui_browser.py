@@ -13,7 +13,6 @@ from __future__ import annotations
 import os
 import re
 import shutil
-import signal
 import subprocess
 import time
 from pathlib import Path
@@ -24,7 +23,13 @@ from workbench.experiment.record import NOTE_TAG
 from workbench.experiment.systems import SYSTEM_TAG
 from workbench.experiment.tracking.runs import Tracker, metric_view
 
-from services import command_env, free_port, wait_until_answering, workbench_cmd
+from services import (
+    command_env,
+    free_port,
+    stop_process_group,
+    wait_until_answering,
+    workbench_cmd,
+)
 
 TARGETS = ["eeig1", "eeig2", "eeig3", "eeig4", "eeig5"]
 SYSTEMS = {"control program": 1.341, "base boosting, paper settings": 1.074,
@@ -85,11 +90,7 @@ def ui(tmp_path_factory):
         wait_until_answering(f"http://127.0.0.1:{port}/health", proc, log, timeout=180)
         yield log.read_text(), root
     finally:
-        os.killpg(proc.pid, signal.SIGTERM)
-        try:
-            proc.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
+        stop_process_group(proc, timeout=15)
 
 
 def test_ui_prints_model_training_addresses(ui):
