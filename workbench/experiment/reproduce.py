@@ -389,19 +389,17 @@ def _tabula_rasa_system(ds, seed: int, quick: bool, save, same_as) -> dict[str, 
                   shap_rows if s == seed else None, background)
              for s in seeds for j, target in enumerate(targets)]
     done = map_tasks(tasks, -1)
-    per_seed = np.array([[d[0] for d in done[k * len(targets):(k + 1) * len(targets)]]
-                         for k in range(n_seeds)])  # seeds x targets
-    per_seed_mse = np.array([[d[1] for d in done[k * len(targets):(k + 1) * len(targets)]]
-                             for k in range(n_seeds)])
+    # test residuals, seeds x targets x rows
+    errors = np.array([d[2] for d in done]).reshape(n_seeds, len(targets), -1)
+    per_seed = np.abs(errors).mean(axis=2)  # seeds x targets
+    per_seed_mse = (errors ** 2).mean(axis=2)
     # per test row and target, the seeds' mean absolute and root mean squared error: their
     # bootstrap over rows is that of the seed-averaged MAE and MSE
-    errors = np.array([[d[4] for d in done[k * len(targets):(k + 1) * len(targets)]]
-                       for k in range(n_seeds)])  # seeds x targets x rows
     mae_ci = bootstrap_error_interval(np.abs(errors).mean(axis=0).T, random_state=seed)
     mse_ci = bootstrap_error_interval(np.sqrt((errors ** 2).mean(axis=0)).T, squared=True,
                                       random_state=seed)
     for j, target in enumerate(targets):
-        values, expected = done[j][2:4]  # the first seed's
+        values, expected, _ = done[j]  # the first seed's
         path = save("figS8_shap", shap_figure(
             values, expected, shap_rows, target=f"{SHORT[j]} ({target})", random_state=seed,
             setting="MLP on the 9 voltages"), f"figS8_shap_{SHORT[j]}")
@@ -498,9 +496,9 @@ def _systems(settings, cfgs, tabula, search, watches, files, tables,
 
 def _tabula_rasa_target(j: int, seed: int, V_train, y_train, V_test, y_test, shap_rows,
                         background: int):
-    """Target ``j``'s tabula rasa MLP on the voltages: its test MAE and MSE, (unless
-    ``shap_rows`` is ``None``) the SHAP values and expected value of its predictions on
-    ``shap_rows``, and its test residuals."""
+    """Target ``j``'s tabula rasa MLP on the voltages: (unless ``shap_rows`` is ``None``) the
+    SHAP values and expected value of its predictions on ``shap_rows``, and its test
+    residuals."""
     with warnings.catch_warnings():  # the paper's max_iter, kept as published
         warnings.simplefilter("ignore", ConvergenceWarning)
         mlp = _tabula_rasa(j, seed).fit(V_train.to_numpy(), y_train.to_numpy())
@@ -509,7 +507,7 @@ def _tabula_rasa_target(j: int, seed: int, V_train, y_train, V_test, y_test, sha
     if shap_rows is not None:
         values, expected = shap_values(lambda a: mlp.predict(a), shap_rows,
                                        background_size=background, random_state=seed)
-    return float(np.mean(np.abs(err))), float(np.mean(err ** 2)), values, expected, err
+    return values, expected, err
 
 
 def _no_intervals(cfg):
