@@ -127,6 +127,8 @@ def _cmd_ui(args) -> int:
     print(f"MLflow UI for {redact(uri)} at {ui_url(args.port)}", flush=True)
     for name, url in _experiment_views(uri, args.port):
         print(f"  {name}: {url}", flush=True)
+    print("  (a run's own page opens in MLflow's GenAI view until the sidebar's \"Model "
+          "training\" switch is clicked once; the browser remembers it)", flush=True)
     storage = args.storage or "mlruns/optuna.journal"
     if args.storage or (Path.cwd() / storage).is_file():  # the studies beside the runs
         from .sweep.storage import dashboard_command
