@@ -175,6 +175,31 @@ def test_an_interrupt_inside_bookkeeping_is_raised_after_it(signum):
     assert done == ["block finished"]
 
 
+def test_an_interrupt_during_the_ask_fails_and_queues_the_asked_trial(tmp_path, monkeypatch):
+    """A signal that arrives while a trial is being asked is raised as the deferred block is
+    left: run_study fails that trial and queues it again, as when the objective is
+    interrupted (it was left RUNNING; seen under load in test_runs_never_left_running)."""
+    from workbench.experiment.sweep import scheduler
+
+    ask = scheduler._start_trial
+
+    def ask_then_signal(study, worker):
+        trial = ask(study, worker)
+        os.kill(os.getpid(), signal.SIGINT)  # pending: the ask's block is deferring it
+        time.sleep(0.2)
+        return trial
+
+    monkeypatch.setattr(scheduler, "_start_trial", ask_then_signal)
+    study = optuna.create_study(study_name="ask",
+                                storage=open_storage(str(tmp_path / "a.journal"), tmp_path))
+    with pytest.raises(signals.Interrupted):
+        with signals.handle_signals():
+            run_study(study, lambda trial: 1.0, 3)
+    trials = study.get_trials()
+    assert [t.state for t in trials] == [TrialState.FAIL, TrialState.WAITING]
+    assert not is_counted(trials[0]) and "failed_trial" in trials[1].system_attrs
+
+
 def test_an_interrupt_does_not_wait_for_mlflow_s_retries(monkeypatch):
     """Outside the deferred bookkeeping, Ctrl-C interrupts at once, even while MLflow retries
     a request to a server that does not answer (its retries with back-off take minutes)."""

@@ -239,13 +239,22 @@ def run_study(study: optuna.Study, objective: Callable, n_trials: int, *,
                 time.sleep(0.1)  # another worker's last trials: leave the study complete
                 continue
             return
-        with interrupts_deferred():  # an asked trial is running or told, never left behind
-            trial = _start_trial(study, worker)
-            earlier = [t for t in study.get_trials(deepcopy=False) if t.number < trial.number]
-            if sum(is_counted(t) for t in earlier) >= n_trials:  # another worker took the budget
-                trial.set_user_attr("surplus", True)
-                study.tell(trial, state=TrialState.FAIL)
-                continue
+        asked: list[optuna.Trial] = []
+        try:
+            with interrupts_deferred():  # an asked trial is running or told, never left behind
+                trial = _start_trial(study, worker)
+                asked.append(trial)
+                earlier = [t for t in study.get_trials(deepcopy=False)
+                           if t.number < trial.number]
+                if sum(is_counted(t) for t in earlier) >= n_trials:  # another took the budget
+                    trial.set_user_attr("surplus", True)
+                    study.tell(trial, state=TrialState.FAIL)
+                    asked.clear()
+                    continue
+        except BaseException:  # a signal deferred during the ask is raised on leaving it:
+            if asked:  # the asked trial is failed and queued again, as in the objective
+                _fail_and_retry(study, asked[0].number)
+            raise
         state, value, note = TrialState.COMPLETE, None, ""
         try:
             # beats while the folds run, so a long fold is not taken for dead
