@@ -1,26 +1,35 @@
 """The peer every claim is measured against: LightGBM boosted from the prior, tuned by CV.
 
-    python benchmarks/peers.py [--datasets chain grid none google] [--seeds 0 1 2]
-                               [--trials 50] [--config experiments/any_device.toml]
+    python benchmarks/peers.py [--datasets google ibm ibm_devices chain grid none]
+                               [--seeds 0 1 2] [--trials 50] [--peer-objective]
+                               [--config experiments/generic.toml]
 
 For each dataset (and seed) on its train/test split:
 
-* **prior**: the control program's prediction;
-* **peer**: per target, ``LGBMRegressor`` fitted with ``init_score`` = the prior column, on the
-  prior columns and the voltages, its hyperparameters tuned by 5-fold CV on the training rows
-  (Optuna TPE, ``--trials`` per target, seeded, one LightGBM thread); it predicts
-  ``prior + booster``;
+* **prior**: the physics model's prediction;
+* **peer** (``workbench.experiment.peer``): per target, ``LGBMRegressor`` fitted with
+  ``init_score`` = the prior column, on the prior columns and the dataset's features, its
+  hyperparameters tuned by 5-fold CV on the training rows (Optuna TPE, ``--trials`` per
+  target, seeded, one LightGBM thread per fit and a trial's folds on both cores, squared
+  loss; ``--peer-objective`` lets the search choose LightGBM's objective too, among l2, l1
+  and huber); it predicts ``prior + booster``;
 * **workbench**: ``workbench evaluate`` of one config (``--config``; only its ``[data]`` is
-  pointed at the dataset: the CSV, the columns and the coupling graph);
+  pointed at each dataset: a benchmark's ``source`` and split, or a simulated CSV with its
+  columns and coupling graph);
 * **noise floor** (simulated devices): the MAE of the true eigenvalues against the measured
   ones, i.e. the best any model can do on the test rows. The true eigenvalues come from the
   same simulation with measurement noise and misidentified peaks switched off (the simulator
   draws its random numbers in the same order whatever the mismatch sizes).
 
-Prints one line per dataset with the four test MAEs and the ratio workbench / peer.
-Datasets: ``chain`` (5-site chain, 400 experiments, default mismatches), ``grid`` (3x3 grid,
-600 experiments), ``none`` (5-site chain, 400 experiments, the control model exact but for
-noise), ``google`` (the benchmark's paper split).
+Prints one line per dataset with the test MAEs (average over targets) and their 95% bootstrap
+intervals over the test rows, the paired interval of workbench - peer, the ratio
+workbench / peer and the two fitting times (the peer's tuning and final fit; the workbench's
+``evaluate`` with the config's intervals, figures off: ``--no-track``).
+Datasets: ``google`` (the Google benchmark's paper split), ``ibm`` (the IBM two-qubit gates,
+the time split: newer snapshots held out), ``ibm_devices`` (the IBM gates, 30% of the devices
+held out; ``--seeds`` draw the devices), ``chain`` (5-site chain, 400 experiments, default
+mismatches), ``grid`` (3x3 grid, 600 experiments), ``none`` (5-site chain, 400 experiments,
+the control model exact but for noise).
 """
 
 from __future__ import annotations
@@ -41,50 +50,6 @@ DATASETS = {"chain": dict(sites=5, experiments=400, topology="chain", shape=None
             "grid": dict(sites=None, experiments=600, topology="grid", shape=(3, 3)),
             "none": dict(sites=5, experiments=400, topology="chain", shape=None,
                          mismatch="none")}
-
-
-def peer_mae(X_train, X_test, y_train, y_test, priors, features, trials, seed) -> list[float]:
-    """Per-target test MAE of LightGBM boosted from the prior, tuned by 5-fold CV."""
-    import optuna
-    from lightgbm import LGBMRegressor
-    from sklearn.model_selection import KFold
-
-    optuna.logging.set_verbosity(optuna.logging.WARNING)
-    cols = list(dict.fromkeys(priors + features))
-    folds = list(KFold(5, shuffle=True, random_state=seed).split(X_train))
-    out = []
-    for j, target in enumerate(y_train.columns):
-        Xtr, ytr = X_train[cols].to_numpy(), y_train[target].to_numpy()
-        base = X_train[priors[j]].to_numpy()
-
-        def make(params):
-            return LGBMRegressor(n_jobs=1, verbose=-1, random_state=seed, **params)
-
-        # this target's data bound as defaults (the closure is consumed in this iteration)
-        def objective(trial, Xtr=Xtr, ytr=ytr, base=base):
-            params = dict(
-                n_estimators=trial.suggest_int("n_estimators", 20, 600, log=True),
-                learning_rate=trial.suggest_float("learning_rate", 0.01, 0.3, log=True),
-                num_leaves=trial.suggest_int("num_leaves", 4, 63, log=True),
-                min_child_samples=trial.suggest_int("min_child_samples", 3, 40, log=True),
-                reg_lambda=trial.suggest_float("reg_lambda", 1e-3, 10.0, log=True),
-                subsample=trial.suggest_float("subsample", 0.5, 1.0), subsample_freq=1,
-                colsample_bytree=trial.suggest_float("colsample_bytree", 0.5, 1.0))
-            errs = []
-            for fit_rows, val_rows in folds:
-                model = make(params).fit(Xtr[fit_rows], ytr[fit_rows],
-                                         init_score=base[fit_rows])
-                pred = base[val_rows] + model.predict(Xtr[val_rows])
-                errs.append(np.mean(np.abs(ytr[val_rows] - pred)))
-            return float(np.mean(errs))
-
-        study = optuna.create_study(sampler=optuna.samplers.TPESampler(seed=seed))
-        study.optimize(objective, n_trials=trials)
-        params = {**study.best_params, "subsample_freq": 1}
-        model = make(params).fit(Xtr, ytr, init_score=base)
-        pred = X_test[priors[j]].to_numpy() + model.predict(X_test[cols].to_numpy())
-        out.append(float(np.mean(np.abs(y_test[target].to_numpy() - pred))))
-    return out
 
 
 def simulated(name: str, seed: int, directory: Path):
@@ -142,63 +107,96 @@ def write_config(base: Path, data: dict, out: Path) -> Path:
     return out
 
 
+#: the real benchmarks: ``[data]`` of each (``seed``: the split's seed where it has one)
+BENCHMARKS = {
+    "google": lambda seed: {"source": "google_5q"},
+    "ibm": lambda seed: {"source": "ibm_gates", "split": "time"},
+    "ibm_devices": lambda seed: {"source": "ibm_gates", "split": "devices",
+                                 "split_seed": seed},
+}
+DEFAULT_SEEDS = {"chain": range(5), "grid": range(3), "none": range(3), "google": [0],
+                 "ibm": [0], "ibm_devices": range(3)}
+
+
+def _ci(low_high) -> str:
+    return f"[{low_high[0]:.3f}, {low_high[1]:.3f}]"
+
+
 def run(name: str, seed: int, args, tmp: Path) -> dict:
     from workbench.experiment.config import load_config, load_dataset
     from workbench.experiment.evaluate import evaluate
+    from workbench.experiment.peer import peer_predict
+    from workbench.experiment.results import bootstrap_error_interval
 
     true = None
-    if name == "google":
-        cfg = load_config(args.google_config)
+    if name in BENCHMARKS:
+        data = BENCHMARKS[name](seed)
     else:
         data, true = simulated(name, seed, tmp)
-        cfg = load_config(write_config(Path(args.config), data, tmp / f"{name}_{seed}.toml"))
+    cfg = load_config(write_config(Path(args.config), data, tmp / f"{name}_{seed}.toml"))
+    if name in BENCHMARKS:  # a benchmark's random_state is the config's; the seed its split's
+        seed = cfg.random_state or 0
     ds = load_dataset(cfg)
     X_train, X_test, y_train, y_test = ds.split()
+    objectives = ("regression", "regression_l1", "huber") if args.peer_objective else \
+        ("regression",)
+    fitted = peer_predict(X_train, y_train, X_test, ds.prior_names, ds.feature_names,
+                          trials=args.trials, seed=seed, objectives=objectives, n_jobs=2)
+    peer, peer_s = fitted.predictions, fitted.seconds
     start = time.perf_counter()
-    peer = peer_mae(X_train, X_test, y_train, y_test, ds.prior_names, ds.feature_names,
-                    args.trials, seed)
-    peer_s = time.perf_counter() - start
-    start = time.perf_counter()
-    res = evaluate(cfg)
+    ev = evaluate(cfg, return_model=True)
+    res, model = ev.result, ev.model
     wb_s = time.perf_counter() - start
-    prior = res.prior.avg("test_mae")
-    floor = (float(np.mean(np.abs(true.loc[ds.test_index].to_numpy()
-                                  - y_test.to_numpy()))) if true is not None else None)
-    return dict(dataset=name, seed=seed, prior=prior, peer=float(np.mean(peer)),
-                workbench=res.model.avg("test_mae"), floor=floor, selected=res.model.selected,
-                peer_s=peer_s, workbench_s=wb_s)
+    y = y_test.to_numpy()
+    wb_err = y - np.asarray(model.predict(X_test), dtype=float).reshape(y.shape)
+    peer_err, prior_err = y - peer, y - X_test[ds.prior_names].to_numpy()
+    floor = (float(np.mean(np.abs(true.loc[ds.test_index].to_numpy() - y)))
+             if true is not None else None)
+    ci = {k: bootstrap_error_interval(e).average
+          for k, e in (("prior", prior_err), ("peer", peer_err), ("workbench", wb_err))}
+    return dict(dataset=name, seed=seed, prior=float(np.mean(np.abs(prior_err))),
+                peer=float(np.mean(np.abs(peer_err))), workbench=float(np.mean(np.abs(wb_err))),
+                ci=ci, diff=bootstrap_error_interval(wb_err, baseline=peer_err).average,
+                floor=floor, selected=res.model.selected, peer_s=peer_s, workbench_s=wb_s,
+                test_rows=len(y))
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--datasets", nargs="+", default=["chain", "grid", "none", "google"])
+    parser.add_argument("--datasets", nargs="+",
+                        default=["google", "ibm", "ibm_devices", "chain", "grid", "none"])
     parser.add_argument("--seeds", type=int, nargs="+", default=None,
-                        help="default: chain 0-4, grid 0-2, none 0-2")
+                        help="default: chain 0-4, grid 0-2, none 0-2, ibm_devices 0-2")
     parser.add_argument("--trials", type=int, default=50)
-    parser.add_argument("--config", default=str(ROOT / "experiments" / "any_device.toml"))
-    parser.add_argument("--google-config", default=str(ROOT / "experiments" / "hamiltonian.toml"))
+    parser.add_argument("--peer-objective", action="store_true",
+                        help="the peer's search chooses LightGBM's objective too")
+    parser.add_argument("--config", default=str(ROOT / "experiments" / "generic.toml"))
     args = parser.parse_args()
-    default_seeds = {"chain": range(5), "grid": range(3), "none": range(3), "google": [0]}
     rows = []
-    print(f"{'dataset':<8}{'seed':>5}{'prior':>8}{'peer':>8}{'workbench':>10}{'floor':>8}"
-          f"{'wb/peer':>9}  selected (seconds: peer, workbench)", flush=True)
+    print(f"config {args.config}; peer: {args.trials} trials per target"
+          + (", objective searched" if args.peer_objective else "")
+          + "; test MAE (average over targets) [95% bootstrap interval]", flush=True)
     with tempfile.TemporaryDirectory() as tmp:
         for name in args.datasets:
-            for seed in (args.seeds if args.seeds is not None else default_seeds[name]):
-                if name == "google" and seed != 0:
+            for seed in (args.seeds if args.seeds is not None else DEFAULT_SEEDS[name]):
+                if name in ("google", "ibm") and seed != 0:
                     continue
                 r = run(name, seed, args, Path(tmp))
                 rows.append(r)
-                floor = f"{r['floor']:8.3f}" if r["floor"] is not None else f"{'-':>8}"
-                print(f"{name:<8}{seed:>5}{r['prior']:8.3f}{r['peer']:8.3f}"
-                      f"{r['workbench']:10.3f}{floor}{r['workbench'] / r['peer']:9.2f}  "
-                      f"{','.join(sorted(set(r['selected'])))} "
-                      f"({r['peer_s']:.0f}, {r['workbench_s']:.0f})", flush=True)
+                floor = f", noise floor {r['floor']:.3f}" if r["floor"] is not None else ""
+                print(f"{name} seed {seed} ({r['test_rows']} test rows): "
+                      f"prior {r['prior']:.3f} {_ci(r['ci']['prior'])}, "
+                      f"peer {r['peer']:.3f} {_ci(r['ci']['peer'])}, "
+                      f"workbench {r['workbench']:.3f} {_ci(r['ci']['workbench'])}{floor}; "
+                      f"workbench / peer {r['workbench'] / r['peer']:.3f}, workbench - peer "
+                      f"{_ci(r['diff'])}; {','.join(sorted(set(r['selected'])))}; "
+                      f"seconds: peer {r['peer_s']:.0f}, workbench {r['workbench_s']:.0f}",
+                      flush=True)
     for name in args.datasets:
         ratios = [r["workbench"] / r["peer"] for r in rows if r["dataset"] == name]
         if ratios:
-            print(f"{name}: workbench / peer median {statistics.median(ratios):.2f}, "
-                  f"worst {max(ratios):.2f} over {len(ratios)} seed(s)")
+            print(f"{name}: workbench / peer median {statistics.median(ratios):.3f}, "
+                  f"worst {max(ratios):.3f} over {len(ratios)} seed(s)")
 
 
 if __name__ == "__main__":

@@ -32,6 +32,15 @@ def google_5q_dir():
 
 
 @pytest.fixture(scope="session")
+def ibm_gates_dir():
+    """A directory with the IBM snapshots: the loader's cache, filled by a real (verified)
+    download of the wheel when missing."""
+    from workbench.datasets.ibm_gates import WHEEL
+
+    return WHEEL.directory()
+
+
+@pytest.fixture(scope="session")
 def google_5q(google_5q_dir):
     from workbench.datasets import load_google_5q
 

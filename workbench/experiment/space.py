@@ -11,9 +11,11 @@ trial, or ``optuna.trial.FixedTrial`` to rebuild the settings of a finished tria
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
+import numpy as np
 from sklearn.utils._param_validation import InvalidParameterError
 
 from ..bases import BASES, TRANSFORMS
@@ -22,7 +24,7 @@ from ..losses import LOSSES
 from .errors import shorten, unknown_keys
 from .schema import check_values
 
-__all__ = ["SearchSpace", "SpaceError"]
+__all__ = ["SearchSpace", "SpaceError", "check_ranges", "draw_params", "has_ranges"]
 
 #: The model settings a search may vary, with the valid values of the categorical ones.
 NAMED_CHOICES: dict[str, tuple[str, ...]] = {
@@ -170,3 +172,55 @@ def _values(spec: Any) -> list[Any]:
     if isinstance(spec, dict):
         return [spec["low"], spec["high"]]
     return [spec]
+
+
+# --------------------------------------------------------------------------- random draws
+class _Draw:
+    """Optuna's ``suggest_*`` answered by independent draws of a seeded numpy Generator
+    (uniform, or log-uniform for ``log`` ranges; on the ``step`` grid when given)."""
+
+    def __init__(self, rng: np.random.Generator) -> None:
+        self.rng = rng
+
+    def suggest_categorical(self, name: str, choices: list[Any]) -> Any:
+        return choices[int(self.rng.integers(len(choices)))]
+
+    def _uniform(self, low: float, high: float, log: bool) -> float:
+        if log:
+            return math.exp(self.rng.uniform(math.log(low), math.log(high)))
+        return float(self.rng.uniform(low, high))
+
+    def suggest_int(self, name: str, low: int, high: int, log: bool = False,
+                    step: int = 1) -> int:
+        if log:
+            return min(high, max(low, round(self._uniform(low, high, True))))
+        return low + step * int(self.rng.integers((high - low) // step + 1))
+
+    def suggest_float(self, name: str, low: float, high: float, log: bool = False,
+                      step: float | None = None) -> float:
+        if step:
+            return low + step * int(self.rng.integers(int(round((high - low) / step)) + 1))
+        return self._uniform(low, high, log)
+
+
+def has_ranges(params: dict[str, Any]) -> bool:
+    """Whether a basis's ``basis_params`` hold a range table (``{ low, high, log? }``)."""
+    return any(isinstance(v, dict) for v in params.values())
+
+
+def check_ranges(name: str, params: dict[str, Any]) -> list[dict[str, Any]]:
+    """Check the range tables of ``basis_params.<name>``; the two settings to validate
+    against the basis: every range at its low end, and at its high end."""
+    for key, spec in params.items():
+        if isinstance(spec, dict):
+            _check_spec(f"basis_params.{name}.{key}", spec)
+    return [{k: (v[end] if isinstance(v, dict) else v) for k, v in params.items()}
+            for end in ("low", "high")]
+
+
+def draw_params(params: dict[str, Any], n: int, seed: int | None) -> list[dict[str, Any]]:
+    """``n`` settings of a basis whose ``basis_params`` hold ranges: each range drawn at
+    random (seeded by ``seed``), fixed values kept. The same seed gives the same draws."""
+    draw = _Draw(np.random.default_rng(seed))
+    return [{k: (_suggest(draw, k, v) if isinstance(v, dict) else v) for k, v in params.items()}
+            for _ in range(n)]

@@ -17,13 +17,14 @@ from ...boosting import BaseBoostRegressor
 from ...multitarget import MultiTargetBaseBoost
 from ...selection import BaseBoostCV, BasisChoiceCV
 from ..errors import ConfigError
+from ..space import draw_params, has_ranges
 
 if TYPE_CHECKING:
     from ...datasets import Dataset
     from ..config import ExperimentConfig
 
-__all__ = ["booster_cv", "cv_mse", "make_booster", "per_target_boost", "selection_cv",
-           "stage_scores", "target_inputs"]
+__all__ = ["booster_cv", "candidate_settings", "cv_mse", "has_candidates", "make_booster",
+           "per_target_boost", "selection_cv", "stage_scores", "target_inputs"]
 
 
 def make_booster(settings: dict[str, Any], prior, inputs: list[str] | None):
@@ -36,6 +37,40 @@ def make_booster(settings: dict[str, Any], prior, inputs: list[str] | None):
         basis_features=inputs,
         input_transform=make_transform(settings["input_transform"],
                                        **settings["input_transform_params"]))
+
+
+def has_candidates(settings: dict[str, Any]) -> bool:
+    """Whether a target's settings describe several candidates for CV to choose from: a list
+    of bases or of losses, or ranges in a basis's ``basis_params``."""
+    params = settings["basis_params"]
+    tables = list(params.values()) if isinstance(settings["basis"], list) else [params]
+    return (isinstance(settings["basis"], list) or isinstance(settings["loss"], list)
+            or any(isinstance(t, dict) and has_ranges(t) for t in tables))
+
+
+def candidate_settings(settings: dict[str, Any],
+                       seed: int | None) -> list[tuple[str, dict[str, Any]]]:
+    """The candidates of settings for which :func:`has_candidates`: one per basis, drawn
+    setting and loss (bases outer). A basis whose ``basis_params`` hold ranges gives
+    ``draws`` settings drawn at random (``seed``; the same draws for every target and loss),
+    named ``basis#i``. A name joins what varies: the basis (or draw) and the loss, e.g.
+    ``"ridge"``, ``"huber"``, ``"lightgbm#07/huber"``."""
+    bases, losses = settings["basis"], settings["loss"]
+    many_bases, many_losses = isinstance(bases, list), isinstance(losses, list)
+    out = []
+    for basis in (bases if many_bases else [bases]):
+        params = settings["basis_params"].get(basis, {}) if many_bases else \
+            settings["basis_params"]
+        drawn = ([(f"{basis}#{i:02d}", p) for i, p in
+                  enumerate(draw_params(params, settings["draws"], seed))]
+                 if has_ranges(params) else [(basis, params)])
+        for label, values in drawn:
+            for loss in (losses if many_losses else [losses]):
+                parts = ([label] if many_bases or label != basis else []) + \
+                    ([loss] if many_losses else [])
+                out.append(("/".join(parts), {**settings, "basis": basis,
+                                              "basis_params": values, "loss": loss}))
+    return out
 
 
 def target_inputs(settings: dict[str, Any], ds: Dataset, priors: list[str]) -> list[str]:
@@ -66,11 +101,9 @@ def per_target_boost(cfg: ExperimentConfig, ds: Dataset, priors: list[str], *,
         s = cfg.model_for(target)
         start = prior if boost_from_prior else None
         inputs = target_inputs(s, ds, priors)
-        if isinstance(s["basis"], list):  # the basis family too is chosen by CV
-            candidates = [(name, make_booster({**s, "basis": name,
-                                               "basis_params": s["basis_params"].get(name, {})},
-                                              prior=start, inputs=inputs))
-                          for name in s["basis"]]
+        if has_candidates(s):  # the basis family, its settings or the loss too by CV
+            candidates = [(name, make_booster(settings, prior=start, inputs=inputs))
+                          for name, settings in candidate_settings(s, cfg.random_state)]
             per_target[target] = BasisChoiceCV(candidates, cv=selection_cv(cfg),
                                                scoring=cfg.selection.scoring)
             continue

@@ -1,0 +1,125 @@
+"""The recommended generic config's parts: losses and drawn basis settings as CV candidates
+(``[model] loss = [...]``, ranges in ``[model.basis_params.<basis>]`` with ``draws``), and
+experiments/generic.toml itself."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from workbench.experiment.config import ConfigError, load_config
+from workbench.experiment.families.stage import candidate_settings, has_candidates
+from workbench.experiment.space import draw_params
+from workbench.selection import BasisChoiceCV
+
+ROOT = Path(__file__).resolve().parents[1]
+LGBM_RANGES = ('[model.basis_params.lightgbm]\n'
+               'n_estimators = { low = 10, high = 80, log = true }\n'
+               'learning_rate = { low = 0.05, high = 0.3, log = true }\n'
+               'subsample = { low = 0.5, high = 1.0 }\nsubsample_freq = 1\n')
+
+
+def _config(tmp_path: Path, model: str, data: str | None = None) -> Path:
+    path = tmp_path / "c.toml"
+    path.write_text(f"name = \"c\"\nrandom_state = 3\n{data or ''}\n[model]\n{model}")
+    return path
+
+
+def test_draws_are_seeded_inside_their_ranges() -> None:
+    params = {"n": {"low": 10, "high": 80, "log": True}, "lr": {"low": 0.05, "high": 0.3},
+              "step": {"low": 0.0, "high": 1.0, "step": 0.25}, "fixed": 1, "kept": [4, 8]}
+    a, b = draw_params(params, 50, 7), draw_params(params, 50, 7)
+    assert a == b and a != draw_params(params, 50, 8)
+    assert all(10 <= d["n"] <= 80 and isinstance(d["n"], int) for d in a)
+    assert all(0.05 <= d["lr"] <= 0.3 for d in a)
+    assert {d["step"] for d in a} <= {0.0, 0.25, 0.5, 0.75, 1.0}
+    assert all(d["fixed"] == 1 and d["kept"] == [4, 8] for d in a)  # a list is a value
+    assert len({d["n"] for d in a}) > 10  # spread over the range, log-uniform
+    assert np.median([d["n"] for d in a]) < 45
+
+
+def test_candidates_are_bases_draws_and_losses(tmp_path: Path) -> None:
+    cfg = load_config(_config(tmp_path, 'basis = ["ridge", "lightgbm"]\n'
+                              'loss = ["squared_error", "huber"]\ndraws = 3\n' + LGBM_RANGES))
+    s = cfg.model_for("t")
+    assert has_candidates(s)
+    cands = candidate_settings(s, cfg.random_state)
+    assert [n for n, _ in cands] == [
+        "ridge/squared_error", "ridge/huber", *(f"lightgbm#{i:02d}/{loss}" for i in range(3)
+                                                for loss in ("squared_error", "huber"))]
+    drawn = [c["basis_params"] for n, c in cands if n.startswith("lightgbm")]
+    assert drawn[0] == drawn[1] and drawn[0] != drawn[2]  # one draw, every loss
+    assert candidate_settings(s, cfg.random_state) == cands  # the seed decides
+    assert all(c["basis_params"] == {} for n, c in cands if n.startswith("ridge"))
+    # one basis with ranges, one loss: the draws alone
+    one = load_config(_config(tmp_path, 'basis = "lightgbm"\ndraws = 2\n'
+                              + LGBM_RANGES.replace("basis_params.lightgbm", "basis_params")))
+    assert [n for n, _ in candidate_settings(one.model_for("t"), 0)] == \
+        ["lightgbm#00", "lightgbm#01"]
+    plain = load_config(_config(tmp_path, 'basis = "ridge"\n'))
+    assert not has_candidates(plain.model_for("t"))
+
+
+@pytest.mark.parametrize("model, message", [
+    ('loss = ["huber", "huber"]', "distinct loss"),
+    ('loss = ["huber", "bogus"]', "loss"),
+    ('basis = "lightgbm"\n[model.basis_params]\nn_estimators = { low = 0, high = 5 }',
+     "n_estimators"),
+    ('basis = "lightgbm"\n[model.basis_params]\nlearning_rate = { low = 0.3, high = '
+     '0.1 }', "low 0.3 is above high 0.1"),
+    ('basis = "lightgbm"\n[model.basis_params]\nlearning_rate = { low = 0.1 }',
+     "a range needs low and high"),
+    ('basis = "lightgbm"\ndraws = 0', "draws"),
+])
+def test_bad_candidates_are_refused(tmp_path: Path, model: str, message: str) -> None:
+    with pytest.raises(ConfigError, match=message) as exc:
+        load_config(_config(tmp_path, model))
+    assert len(str(exc.value).splitlines()) == 1 and len(str(exc.value)) < 300
+
+
+def test_the_loss_that_fits_heavy_tails_is_chosen(tmp_path: Path) -> None:
+    """Outliers in the targets: CV prefers the Huber loss over the squared one."""
+    rng = np.random.default_rng(0)
+    n = 300
+    x = rng.uniform(-2, 2, n)
+    prior = 2 * x
+    y = prior + 0.5 * x + 0.05 * rng.standard_normal(n)
+    wild = rng.random(n) < 0.1
+    y[wild] += rng.choice([-8.0, 8.0], wild.sum())
+    frame = pd.DataFrame({"x": x, "prior": prior, "y": y,
+                          "split": np.where(np.arange(n) < 240, "train", "test")})
+    frame.to_csv(tmp_path / "d.csv", index=False)
+    data = ('[data]\ncsv = "d.csv"\nprior = ["prior"]\ntargets = ["y"]\nfeatures = ["x"]\n'
+            'split_column = "split"\n[selection]\ncv = 5\nshuffle = true\n')
+    cfg = load_config(_config(tmp_path, 'basis = "ridge"\nbasis_inputs = "prior+features"\n'
+                                        'loss = ["squared_error", "huber"]\n'
+                                        'line_search_penalty = 0.0\n', data))
+    from workbench.experiment.config import load_dataset
+
+    ds = load_dataset(cfg)
+    model = cfg.family.build(cfg, ds)
+    X_train, _, y_train, _ = ds.split()
+    model.fit(X_train, y_train)
+    (est,) = model.estimators_
+    assert isinstance(est, BasisChoiceCV) and est.selected_candidate_ == "huber"
+
+
+def test_generic_config_is_the_init_template() -> None:
+    """experiments/generic.toml is the recommended config: its sections besides [data] are
+    what `workbench init` writes."""
+    import tomllib
+
+    cfg = load_config(ROOT / "experiments" / "generic.toml")
+    assert cfg.data.source == "ibm_gates" and cfg.data.split == "time"
+    s = cfg.model_for("gate_error")
+    assert s["basis"] == ["ridge", "lightgbm"] and isinstance(s["loss"], list)
+    assert len(candidate_settings(s, cfg.random_state)) == 2 * (1 + s["draws"])
+    template = ROOT / "workbench" / "experiment" / "templates" / "generic.toml"
+    if template.exists():  # written by `workbench init`
+        ours = tomllib.loads((ROOT / "experiments" / "generic.toml").read_text())
+        theirs = tomllib.loads(template.read_text())
+        assert {k: v for k, v in ours.items() if k not in ("data", "name", "random_state")} \
+            == {k: v for k, v in theirs.items() if k not in ("data", "name", "random_state")}
