@@ -6,6 +6,8 @@ import contextlib
 import io
 import json
 import os
+import re
+import shlex
 import shutil
 import subprocess
 import sys
@@ -346,3 +348,22 @@ def test_init_help_loads_no_heavy_library():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout
     assert "--split-column" in out and out.strip().endswith("[]")
+
+
+def test_the_readme_s_two_commands(tmp_path, monkeypatch):
+    """The README's "Your own data" section opens with init and evaluate; init, as written
+    there, writes the config the evaluate line names."""
+    readme = (ROOT / "README.md").read_text()
+    section = readme.split("## Your own data: a CSV and a config", 1)[1]
+    block = re.search(r"```sh\n(.*?)```", section, flags=re.S)
+    assert block and block.start() < section.index("```toml")  # the commands come first
+    init_line, evaluate_line = block.group(1).strip().splitlines()
+    init_argv, evaluate_argv = shlex.split(init_line), shlex.split(evaluate_line)
+    assert init_argv[:2] == ["workbench", "init"] and evaluate_argv[:2] == ["workbench",
+                                                                              "evaluate"]
+    monkeypatch.chdir(tmp_path)
+    write_csv(tmp_path / init_argv[2])
+    rc, out, err = run(*init_argv[1:])
+    assert rc == 0, err
+    assert f"next: workbench evaluate {evaluate_argv[2]}" in out
+    load_dataset(load_config(tmp_path / evaluate_argv[2]))
