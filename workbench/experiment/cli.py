@@ -336,6 +336,24 @@ def _cmd_evaluate(args) -> int:
     return 0
 
 
+def _cmd_init(args) -> int:
+    import shlex
+
+    from .init import init_config
+
+    done = init_config(args.data, prior=args.prior, targets=args.target, features=args.features,
+                       split_column=args.split_column, test_fraction=args.test_fraction,
+                       split_seed=args.split_seed, name=args.name, out=args.out,
+                       force=args.force)
+    if done.defaulted:
+        left = "; not taken: " + ", ".join(f"{c!r} ({why})" for c, why in done.skipped.items())
+        print(f"features: {', '.join(done.features) or '(none)'} (every other numeric column"
+              f"{left if done.skipped else ''}; --features chooses)")
+    print(f"wrote {done.path} ({done.n_train} training rows, {done.n_test} test rows)")
+    print(f"next: workbench evaluate {shlex.quote(str(done.path))}\n      workbench ui")
+    return 0
+
+
 def _cmd_predict(args) -> int:
     from .predict import predict_csv
     from .tracking.uris import resolve_tracking_uri
@@ -433,12 +451,39 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"workbench: error: {message}\n")
 
 
-COMMANDS = ("evaluate", "sweep", "predict", "reproduce", "ui", "simulate")
+COMMANDS = ("init", "evaluate", "sweep", "predict", "reproduce", "ui", "simulate")
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="workbench", description="Base boosting workbench.")
     sub = parser.add_subparsers(dest="command", required=True)
+    ini = sub.add_parser("init", help="write a first config for a CSV of your own (then: "
+                         "workbench evaluate CONFIG)")
+    ini.add_argument("data", metavar="DATA.csv",
+                     help="the CSV: one row per experiment, a header naming the columns")
+    ini.add_argument("--prior", nargs="+", required=True, metavar="COL",
+                     help="the physics model's prediction of each target, in the targets' order")
+    ini.add_argument("--target", nargs="+", required=True, metavar="COL",
+                     help="the measured values to predict")
+    ini.add_argument("--features", nargs="*", default=None, metavar="COL",
+                     help="the basis' inputs besides the prior (default: every other numeric "
+                     "column but the split column; --features alone: none)")
+    split = ini.add_mutually_exclusive_group()
+    split.add_argument("--split-column", metavar="COL", default=None,
+                       help="a column saying 'train' or 'test' for each row")
+    split.add_argument("--test-fraction", type=_fraction, default=None, metavar="F",
+                       help="the share of rows held out for testing, drawn at random "
+                       "(default: 0.3 when there is no --split-column)")
+    ini.add_argument("--split-seed", type=_seed, default=None, metavar="N",
+                     help="the seed of the random split (default: 0)")
+    ini.add_argument("--name", default=None,
+                     help="the config's name (its MLflow experiment; default: the CSV's name "
+                     "without .csv)")
+    ini.add_argument("--out", default=None, metavar="PATH",
+                     help="the config file to write (default: NAME.toml here)")
+    ini.add_argument("--force", action="store_true", help="overwrite an existing --out")
+    ini.set_defaults(func=_cmd_init)
+
     ev = sub.add_parser("evaluate", help="fit a config's model on the training rows and score "
                         "prior and model on the test rows")
     ev.add_argument("config",
@@ -537,6 +582,29 @@ def _count(value: str) -> int:
         raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {value[:40]!r}") from None
     if number < 1:
         raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {number}")
+    return number
+
+
+def _fraction(value: str) -> float:
+    """``--test-fraction``: a number strictly between 0 and 1."""
+    try:
+        number = float(value)
+    except ValueError:
+        number = float("nan")
+    if not 0.0 < number < 1.0:
+        raise argparse.ArgumentTypeError(f"expected a number between 0 and 1 (exclusive), got "
+                                         f"{value[:40]!r}")
+    return number
+
+
+def _seed(value: str) -> int:
+    """``--split-seed``: an integer >= 0."""
+    try:
+        number = int(value)
+    except ValueError:
+        number = -1
+    if number < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {value[:40]!r}")
     return number
 
 

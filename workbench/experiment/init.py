@@ -1,0 +1,278 @@
+"""``workbench init``: a first config for a CSV of your own.
+
+The config's ``[data]`` section is written from the command's options; everything after it
+(``[model]``, ``[selection]``, ...) is the text of one template, the package data file
+``workbench/experiment/templates/generic.toml``, copied with its comments. Before anything
+is written the data are loaded exactly as ``workbench evaluate`` will load them (the same
+loader, the same values, the same one-line errors), and the config is parsed by the
+project's own config parser; the file is then written all or nothing.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shlex
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+import pandas as pd
+
+from ..datasets import load_csv_dataset
+from .config import load_dataset, parse_config
+from .errors import ConfigError, UsageError
+from .outputs import check_file, write_file
+
+__all__ = ["DEFAULT_TEST_FRACTION", "TEMPLATE", "InitResult", "csv_entry", "init_config",
+           "numeric_columns", "render_config", "split_template", "template_text"]
+
+#: The template every generated config copies below its ``[data]`` section.
+TEMPLATE = "generic.toml"
+#: The share of rows held out for testing when no split column is given.
+DEFAULT_TEST_FRACTION = 0.3
+#: What the loader reads as a missing cell (``workbench.datasets.csv``).
+_MISSING = ("", "nan", "na", "null")
+#: The keys the command writes itself; the template may not set them.
+_OWN_KEYS = ("name", "random_state", "data")
+
+
+@dataclass(frozen=True)
+class InitResult:
+    """What :func:`init_config` wrote: the config file, its text, the feature columns (and,
+    when they were chosen by default, the columns not taken and why), the split's sizes."""
+
+    path: Path
+    text: str
+    features: list[str]
+    defaulted: bool
+    skipped: dict[str, str] = field(default_factory=dict)
+    n_train: int = 0
+    n_test: int = 0
+
+
+def template_text(name: str = TEMPLATE) -> str:
+    """The text of a config template shipped with the package (package data, read through
+    :mod:`importlib.resources`: an installed wheel carries it)."""
+    source = resources.files("workbench.experiment") / "templates" / name
+    return source.read_text(encoding="utf-8")
+
+
+def csv_entry(csv: str | os.PathLike[str], config: str | os.PathLike[str]) -> str:
+    """``[data] csv`` for the file ``csv`` in the config ``config``: relative to the config's
+    directory (as the config parser reads it), or absolute where no relative path leads
+    there (another drive). Forward slashes, which every platform reads."""
+    target = Path(csv).resolve()
+    base = Path(config).resolve().parent
+    try:
+        return Path(os.path.relpath(target, base)).as_posix()
+    except ValueError:  # Windows: the file and the config on different drives
+        return target.as_posix()
+
+
+def numeric_columns(path: str | os.PathLike[str], exclude: Sequence[str]
+                    ) -> tuple[list[str], dict[str, str]]:
+    """The columns of the CSV ``path`` (other than ``exclude``) whose every cell is a finite
+    number, in the file's order, and the others with the reason they were left out. Cells
+    are read as the loader reads them (text, stripped; empty, ``nan``, ``na``, ``null``
+    missing); call it once the loader has read the file."""
+    frame = pd.read_csv(path, dtype=str, keep_default_na=False)
+    taken: list[str] = []
+    skipped: dict[str, str] = {}
+    for column in frame.columns:
+        if column in exclude:
+            continue
+        raw = frame[column].str.strip()
+        missing = raw.str.lower().isin(_MISSING)
+        values = pd.to_numeric(raw.where(~missing, "nan"), errors="coerce")
+        if (values.isna() & ~missing).any():
+            skipped[column] = "not numeric"
+        elif not np.isfinite(values.to_numpy(dtype=float)).all():
+            skipped[column] = "missing or infinite values"
+        else:
+            taken.append(column)
+    return taken, skipped
+
+
+def _string(value: str) -> str:
+    """``value`` as a TOML basic string."""
+    out = []
+    for ch in value:
+        if ch in '"\\':
+            out.append("\\" + ch)
+        elif ch in "\b\t\n\f\r":
+            out.append({"\b": "\\b", "\t": "\\t", "\n": "\\n", "\f": "\\f", "\r": "\\r"}[ch])
+        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
+            out.append(f"\\u{ord(ch):04x}")
+        else:
+            out.append(ch)
+    return '"' + "".join(out) + '"'
+
+
+def _strings(key: str, values: Sequence[str], width: int = 92) -> str:
+    """``key = ["a", "b"]``, wrapped over several lines when it is long."""
+    items = [_string(v) for v in values]
+    line = f"{key} = [{', '.join(items)}]"
+    if len(line) <= width:
+        return line
+    lines, current = [], "    "
+    for item in items:
+        if current.strip() and len(current) + len(item) + 1 > width:
+            lines.append(current.rstrip())
+            current = "    "
+        current += item + ", "
+    lines.append(current.rstrip())
+    return f"{key} = [\n" + "\n".join(lines) + "\n]"
+
+
+def _comment(text: str) -> str:
+    """``text`` fit for a TOML comment (no control characters)."""
+    return "".join(ch if ch.isprintable() else "?" for ch in text)
+
+
+def render_config(*, name: str, csv: str, prior: Sequence[str], targets: Sequence[str],
+                  features: Sequence[str], split_column: str | None, test_fraction: float | None,
+                  split_seed: int, out: str, source: str, template: str) -> str:
+    """The config's text: a header comment (what wrote it, from which CSV, what to run
+    next), ``name``, ``random_state``, ``[data]``, then the ``template``'s text as is (top-level
+    keys of the template, if any, above ``[data]``: :func:`split_template`)."""
+    header = [
+        f"# A first config for the data set {_comment(repr(name))}, written by `workbench "
+        f"init` from {_comment(source)}.",
+        "# [data] names the CSV's columns (its csv path is relative to this file); the sections",
+        f"# after it are the template {TEMPLATE} (workbench/experiment/templates/), to edit.",
+        "# Next:",
+        f"#   workbench evaluate {_comment(shlex.quote(out))}",
+        "#   workbench ui",
+    ]
+    data = [
+        "[data]",
+        f"csv = {_string(csv)}",
+        "# one prior column per target, in the same order",
+        _strings("prior", prior),
+        _strings("targets", targets),
+        "# the basis' inputs besides the prior",
+        _strings("features", features),
+    ]
+    if split_column is not None:
+        data.append(f"split_column = {_string(split_column)}   # its values: train, test")
+    else:
+        assert test_fraction is not None  # one of the two (init_config)
+        data += [f"test_fraction = {test_fraction!r}   # of the rows, drawn at random with "
+                 "split_seed", f"split_seed = {split_seed}"]
+    top, rest = split_template(template)
+    head = [*header, "", f"name = {_string(name)}", "random_state = 0"]
+    return "\n".join(head) + "\n" + (top and top.rstrip("\n") + "\n") + "\n" \
+        + "\n".join(data) + "\n\n" + rest
+
+
+#: A line opening a table (``[name]``, ``[[name]]``), possibly after spaces, with a comment.
+_TABLE = re.compile(r"\s*\[\[?[^\[\]]+\]\]?\s*(#.*)?")
+
+
+def split_template(template: str) -> tuple[str, str]:
+    """The template's top-level keys (with the comments among them) and the rest, from its
+    first table on (with the comment lines just above that table): the first part goes
+    above ``[data]``, where its keys stay top-level; ``("", template)`` when it has none."""
+    lines = template.splitlines(keepends=True)
+    for i, line in enumerate(lines):
+        head = "".join(lines[:i])
+        if not _TABLE.fullmatch(line.rstrip("\r\n")):
+            continue
+        try:  # a line like a table inside a multi-line string or array is not one
+            keys = tomllib.loads(head)
+        except tomllib.TOMLDecodeError:
+            continue
+        if not keys:
+            return "", template
+        while i > 0 and lines[i - 1].lstrip().startswith("#"):
+            i -= 1
+        return "".join(lines[:i]), "".join(lines[i:])
+    return template, ""
+
+
+def _check_template(template: str) -> dict[str, Any]:
+    """The template's tables; it must be valid TOML and leave the keys init writes alone."""
+    try:
+        tables = tomllib.loads(template)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"template {TEMPLATE}: not valid TOML: {exc}") from None
+    own = [key for key in _OWN_KEYS if key in tables]
+    if own:
+        raise ConfigError(f"template {TEMPLATE} sets {own}: workbench init writes them")
+    return tables
+
+
+def _parse(text: str, template: dict[str, Any]) -> dict[str, Any]:
+    """The generated text read back: its keys beyond init's own must be the template's,
+    unchanged (the last guard of :func:`split_template`)."""
+    raw = tomllib.loads(text)
+    if {k: v for k, v in raw.items() if k not in _OWN_KEYS} != template:
+        raise ConfigError(f"template {TEMPLATE}: its settings change when written below "
+                          f"[data] (keys before its first table?)")
+    return raw
+
+
+def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str], targets: Sequence[str],
+                features: Sequence[str] | None = None, split_column: str | None = None,
+                test_fraction: float | None = None, split_seed: int | None = None,
+                name: str | None = None, out: str | os.PathLike[str] | None = None,
+                force: bool = False) -> InitResult:
+    """Write a first config for the CSV ``csv`` and return what was written.
+
+    ``features``: ``None`` takes every other numeric column (not the prior, target and
+    split columns). The split is ``split_column`` (values train/test) or a random
+    ``test_fraction`` (default :data:`DEFAULT_TEST_FRACTION`) drawn with ``split_seed``
+    (default 0). ``name`` defaults to the CSV's stem, ``out`` to ``<name>.toml``; an
+    existing ``out`` is an error unless ``force``. Bad data raise the loader's
+    :class:`~workbench.datasets.DatasetError`, as ``workbench evaluate`` would; nothing is
+    written then.
+    """
+    csv = Path(csv)
+    name = csv.stem if name is None else name
+    if not name.strip():
+        raise UsageError("--name: give a non-empty name")
+    if out is None:
+        if any(sep in name for sep in "/\\"):
+            raise UsageError(f"--name {name!r} holds a path separator: give --out too")
+        out = f"{name}.toml"
+    out = check_file(out, "--out")  # a file name, in a folder that can be written
+    if out.exists() and not force:
+        raise UsageError(f"{out} exists: nothing written (--force overwrites it)")
+    if split_column is not None:
+        if test_fraction is not None:
+            raise UsageError("give either --split-column or --test-fraction, not both")
+        if split_seed is not None:
+            raise UsageError("--split-seed draws the random split of --test-fraction; "
+                             "--split-column gives the split")
+    else:
+        test_fraction = DEFAULT_TEST_FRACTION if test_fraction is None else test_fraction
+        split_seed = 0 if split_seed is None else split_seed
+    prior, targets = list(prior), list(targets)
+    entry = csv_entry(csv, out)
+    path = (out.parent / entry).resolve()  # where load_dataset will read it
+    # the data with the values the config will hold: the loader's checks and messages
+    load_csv_dataset(path, prior=prior, targets=targets, features=features or (),
+                     test_fraction=test_fraction, split_column=split_column,
+                     split_seed=split_seed or 0, name=name)
+    skipped: dict[str, str] = {}
+    defaulted = features is None
+    if features is None:
+        features, skipped = numeric_columns(
+            path, [*prior, *targets, *([split_column] if split_column else [])])
+    features = list(features)
+    template = template_text()
+    tables = _check_template(template)
+    text = render_config(name=name, csv=entry, prior=prior, targets=targets, features=features,
+                         split_column=split_column, test_fraction=test_fraction,
+                         split_seed=split_seed or 0, out=str(out), source=str(csv),
+                         template=template)
+    cfg = parse_config(_parse(text, tables), out)  # the project's own parser
+    dataset = load_dataset(cfg)  # exactly what evaluate loads, its size checks included
+    write_file(out, text, "--out")  # atomic_write: all or nothing, a failure in one line
+    return InitResult(path=out, text=text, features=features, defaulted=defaulted,
+                      skipped=skipped, n_train=len(dataset.train_index),
+                      n_test=len(dataset.test_index))
