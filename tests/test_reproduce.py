@@ -10,6 +10,7 @@ import matplotlib.image
 import pytest
 
 from workbench.experiment.cli import main
+from workbench.experiment.gates import GATE_SYSTEMS
 from workbench.experiment.reproduce import SYSTEMS
 
 FIGURE_IDS = ["fig2_mae_bars", "fig3_correlation", "fig4_learning_curve_Y3", "fig5_shap_Y1",
@@ -17,11 +18,11 @@ FIGURE_IDS = ["fig2_mae_bars", "fig3_correlation", "fig4_learning_curve_Y3", "fi
               "figS5_learning_curves", "figS6_tabula_rasa_mae", "figS7_tabula_rasa_mse",
               "figS8_shap", "figH1_hamiltonian_mae_bars", "figH2_parameter_corrections",
               "figH3_selection_path", "figR1_systems_mae", "figR2_shap_correction",
-              "figR3_shap_prediction"]
+              "figR3_shap_prediction", "figG1_gates_mae"]
 
 
 @pytest.fixture(scope="module")
-def quick_run(tmp_path_factory, google_5q_dir):
+def quick_run(tmp_path_factory, google_5q_dir, ibm_gates_dir):
     root = tmp_path_factory.mktemp("reproduce")
     uri = f"sqlite:///{root / 'store' / 'mlflow.db'}"
     output = io.StringIO()
@@ -128,7 +129,7 @@ def test_figures_show_the_json_numbers_and_mlflow_has_them(quick_run, tmp_path):
     assert client.get_experiment(run.info.experiment_id).name == "paper-reproduction"
     children = {c.info.run_name: c for c in client.search_runs(
         [run.info.experiment_id], f"tags.mlflow.parentRunId = '{run.info.run_id}'")}
-    assert set(children) == {name for name, _ in SYSTEMS.values()}
+    assert set(children) == {name for name, _ in SYSTEMS.values()} | {"IBM two-qubit gates"}
     targets = res["targets"]
     rows = {row["system"]: row
             for row in csv.DictReader((out / "systems.csv").read_text().splitlines())}
@@ -167,6 +168,44 @@ def test_figures_show_the_json_numbers_and_mlflow_has_them(quick_run, tmp_path):
     folds = client.search_runs([run.info.experiment_id],
                                f"tags.mlflow.parentRunId = '{search.info.run_id}'")
     assert folds and all(f.data.tags["workbench.kind"] == "outer_fold" for f in folds)
+    # the second benchmark: its systems under their own parent, the same metric schema
+    second = children["IBM two-qubit gates"]
+    gate_runs = {c.info.run_name: c for c in client.search_runs(
+        [run.info.experiment_id], f"tags.mlflow.parentRunId = '{second.info.run_id}'")}
+    assert set(gate_runs) == {name for name, _ in GATE_SYSTEMS.values()}
+    gates = res["ibm_gates"]
+    gate_rows = {row["system"]: row for row in csv.DictReader(
+        (out / "systems_ibm_gates.csv").read_text().splitlines())}
+    expected = {"gates_prior": gates["generic"]["prior"]["test_mae_avg"],
+                "gates_peer": gates["peer"]["model"]["test_mae_avg"],
+                "gates_generic": gates["generic"]["model"]["test_mae_avg"]}
+    for key, (name, _) in GATE_SYSTEMS.items():
+        child = gate_runs[name]
+        assert child.data.tags["workbench.system"] == key
+        assert child.data.metrics["test_mae/gate_error"] == pytest.approx(expected[key])
+        assert float(gate_rows[name]["average"]) == pytest.approx(expected[key], abs=1e-4)
+        assert {d.dataset.name for d in child.inputs.dataset_inputs} == {"ibm_gates"}
+
+
+def test_second_benchmark_in_the_report(quick_run):
+    """The IBM gates: prior, peer and generic config with intervals, in the report."""
+    out, _ = quick_run
+    res = json.loads((out / "results.json").read_text())
+    gates = res["ibm_gates"]
+    text = (out / "README.md").read_text()
+    assert "## A second benchmark: IBM two-qubit gates" in text
+    generic, peer = gates["generic"], gates["peer"]
+    assert generic["n_train"] == 1935 and generic["n_test"] == 4713
+    assert generic["prior"]["test_mae_avg"] == pytest.approx(0.5779, abs=1e-4)
+    assert peer["prior"]["test_mae_avg"] == pytest.approx(generic["prior"]["test_mae_avg"])
+    for scores in (generic["prior"], peer["model"], generic["model"]):
+        low, high = scores["test_mae_avg_ci"]
+        assert low < scores["test_mae_avg"] < high
+        assert f"**{scores['test_mae_avg']:.3f}** ({low:.2f}-{high:.2f})" in text
+    low, high = gates["generic_minus_peer_test_mae_avg_ci"]
+    assert f"{low:+.3f} to {high:+.3f}" in text
+    assert len(gates["peer_params"]) == 1 and "n_estimators" in gates["peer_params"][0]
+    assert gates["generic_chosen"] and gates["generic_chosen"][0] in text
 
 
 @pytest.mark.slow  # a second whole reproduction; determinism is also unit-tested (figures,

@@ -42,6 +42,7 @@ from .figures import (
     shap_figure,
     voltage_boxplots,
 )
+from .gates import GATE_SYSTEMS, Gates, gates_benchmark, gates_figure, gates_section
 from .intervals import family_model
 from .record import NOTE_TAG, log_inputs, result_metrics, run_params, run_tags, score_metrics
 from .results import Result, Scores, bootstrap_error_interval
@@ -126,6 +127,7 @@ class Reproduction:
     learning_curves: dict[str, Any]
     figures: dict[str, list[str]]
     hamiltonian_tables: dict[str, str] = field(default_factory=dict)
+    gates: Gates | None = None
     mlflow: dict[str, str] = field(default_factory=dict)
     wall_s: float = float("nan")
 
@@ -139,6 +141,8 @@ class Reproduction:
                "correlation": self.correlation, "learning_curves": self.learning_curves,
                "figures": self.figures, "hamiltonian_tables": self.hamiltonian_tables,
                "wall_s": self.wall_s}
+        if self.gates is not None:
+            out["ibm_gates"] = self.gates.to_json()
         if self.mlflow:
             out["mlflow"] = self.mlflow
         return out
@@ -256,6 +260,10 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
             title=f"Tabula rasa vs base boosting, test {metric.upper()} (Fig. "
                   f"{'S6' if metric == 'mae' else 'S7'})"))
 
+    # -- a second benchmark: the IBM two-qubit gates --------------------------------------------
+    gates = gates_benchmark(configs, seed, quick, _say)
+    save("figG1_gates_mae", gates_figure(gates))
+
     # -- the data ------------------------------------------------------------------------------
     _say("data figures")
     train = ds.X.loc[ds.train_index]
@@ -280,17 +288,20 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
         title="Test MAE per eigenenergy, every system of this reproduction"))
     summary = summary_table(targets, systems)
     atomic_write(out / "systems.csv", summary.to_csv(index=False))
+    gate_systems = _gate_systems(gates, files)
+    atomic_write(out / "systems_ibm_gates.csv",
+                 summary_table(gates.generic.targets, gate_systems).to_csv(index=False))
 
     rep = Reproduction(
         targets=targets, seed=seed, quick=quick, settings=settings,
         tabula_rasa=tabula, correlation=correlation.round(6).to_dict(),
         learning_curves=learning_curves,
         figures={k: [str(p.relative_to(out)) for p in v] for k, v in files.items()},
-        hamiltonian_tables=tables)
+        hamiltonian_tables=tables, gates=gates)
     if track:
         _say("logging every system as a run in MLflow")
-        rep.mlflow = _log(rep, systems, files, out, tracking_uri, ds, cfgs["paper"], started,
-                          start)
+        rep.mlflow = _log(rep, systems, gate_systems, files, out, tracking_uri, ds,
+                          cfgs["paper"], started, start)
     else:
         rep.wall_s = time.perf_counter() - start
     _write(out / "results.json", rep.to_json())
@@ -550,11 +561,40 @@ def _write(path: Path, obj) -> None:
     atomic_write(path, json.dumps(obj, indent=2, default=str) + "\n")
 
 
-def _log(rep: Reproduction, systems: list[System], files, out: Path, tracking_uri, ds,
-         paper_cfg, started: float, start: float) -> dict[str, str]:
+def _gate_systems(gates: Gates, files) -> list[System]:
+    """The IBM benchmark's systems (:data:`~.gates.GATE_SYSTEMS`) in the shared schema."""
+    out = []
+    targets, g, p = gates.generic.targets, gates.generic, gates.peer
+    for key, (name, description) in GATE_SYSTEMS.items():
+        watch = gates.watches[key]
+        system = System(key, name, watch.started, watch.ended,
+                        description=f"{description} Test rows scored once; errors in "
+                                    "percentage points of gate error.",
+                        figures=list(files["figG1_gates_mae"]) if key != "gates_prior" else [])
+        base = {"n_train": g.n_train, "n_test": g.n_test}
+        if key == "gates_prior":
+            system.metrics = score_metrics(targets, g.prior)
+            system.params = {"system": "coherence limit", **base}
+        elif key == "gates_peer":
+            system.result, system.metrics = p, result_metrics(p, wall=False)
+            system.params = {"system": "peer", **base,
+                             **{f"{t}.{k}": v for t, params in zip(targets, gates.peer_params)
+                                for k, v in params.items()}}
+        else:
+            system.config, system.result = gates.config, g
+            system.metrics = result_metrics(g, wall=False)
+            system.params = run_params(gates.config, targets, g.n_train, g.n_test)
+        out.append(system)
+    return out
+
+
+def _log(rep: Reproduction, systems: list[System], gate_systems: list[System], files,
+         out: Path, tracking_uri, ds, paper_cfg, started: float, start: float
+         ) -> dict[str, str]:
     """The parent run (from the reproduction's start: its data and cross-system figures,
-    ``systems.csv``, ``results.json``) and a child run per system; ``rep.wall_s`` is set to
-    the whole command's time, the parent's ``wall_s``, once everything else is logged."""
+    ``systems.csv``, ``results.json``) and a child run per system, and a second parent run
+    for the IBM benchmark's systems; ``rep.wall_s`` is set to the whole command's time, the
+    parent's ``wall_s``, once everything else is logged."""
     uri = resolve_tracking_uri(tracking_uri, None, Path.cwd())
     tracker = Tracker(uri, "paper-reproduction")
     tags = {**run_tags(paper_cfg, ds, "reproduce"), "config": "",
@@ -568,6 +608,17 @@ def _log(rep: Reproduction, systems: list[System], files, out: Path, tracking_ur
                                        "systems": ", ".join(s.name for s in systems)})
     try:
         ids = log_systems(tracker, parent, systems, ds, paper_cfg)
+        gates = rep.gates
+        if gates is not None:
+            second = tracker.start_run(
+                "IBM two-qubit gates", parent_run_id=parent,
+                tags={**run_tags(gates.config, gates.dataset, "reproduce"),
+                      NOTE_TAG: "The second benchmark: the coherence limit, the peer and the "
+                                "generic config on IBM's two-qubit gates, newer devices held "
+                                "out; one child run per system."},
+                start_time=gates.watches["gates_generic"].started)
+            ids.update(log_systems(tracker, second, gate_systems, gates.dataset, gates.config))
+            tracker.end_run(second, end_time=gates.watches["gates_peer"].ended)
         log_inputs(tracker, parent, paper_cfg, ds, *ds.split())
         for fig_id in ("figR1_systems_mae", "fig3_correlation", "figS2_voltage_boxplots",
                        "figS3_prior_target_boxplots"):
@@ -732,6 +783,8 @@ other and with any evaluate run.
 
 {img('figH3_selection_path', 'Forward covariate selection')}
 
+{gates_section(rep.gates, _row, img('figG1_gates_mae', 'IBM two-qubit gates')) if rep.gates
+ else ""}
 ## The data
 
 {img('fig3_correlation', 'Fig. 3')}
