@@ -115,10 +115,88 @@ def test_generic_config_is_the_init_template() -> None:
     cfg = load_config(ROOT / "experiments" / "generic.toml")
     assert cfg.data.source == "ibm_gates" and cfg.data.split == "time"
     s = cfg.model_for("gate_error")
-    assert s["basis"] == ["ridge", "lightgbm"] and isinstance(s["loss"], list)
-    assert len(candidate_settings(s, cfg.random_state)) == 2 * (1 + s["draws"])
+    assert s["basis"] == ["ridge", "lightgbm"] and s["loss"] == "squared_error"
+    names = [n for n, _ in candidate_settings(s, cfg.random_state)]
+    assert names == ["ridge", *(f"lightgbm#{i:02d}" for i in range(s["draws"]))]
+    assert cfg.selection.groups and cfg.selection.shuffle
     template = ROOT / "workbench" / "experiment" / "templates" / "generic.toml"
     ours = tomllib.loads((ROOT / "experiments" / "generic.toml").read_text())
     theirs = tomllib.loads(template.read_text())  # what `workbench init` writes
     assert {k: v for k, v in ours.items() if k not in ("data", "name", "random_state")} \
         == theirs
+
+
+def test_label_group_kfold_holds_whole_groups_out() -> None:
+    from sklearn.base import clone
+
+    from workbench.selection import LabelGroupKFold
+
+    labels = np.arange(100, 160)
+    groups = pd.Series(np.repeat(list("abcdefghij"), 6), index=labels)
+    X = pd.DataFrame({"x": np.arange(60.0)}, index=labels)
+    cv = LabelGroupKFold(groups, 5, shuffle=True, random_state=0)
+    assert cv.get_n_splits() == 5
+    copied = clone(BasisChoiceCV([], cv=cv)).cv  # an estimator's clone copies its splitter
+    assert copied.n_splits == 5 and copied.groups.equals(groups)
+    splits = list(cv.split(X))
+    assert len(splits) == 5
+    for train, test in splits:  # positions in X; no group on both sides
+        assert not set(groups.iloc[train]) & set(groups.iloc[test])
+    assert sorted(np.concatenate([t for _, t in splits])) == list(range(60))
+    assert [t.tolist() for _, t in splits] == [t.tolist() for _, t in cv.split(X)]  # seeded
+    subset = X.iloc[::2]  # any subset of the dataset: the groups follow the labels
+    for train, test in cv.split(subset):
+        assert not set(groups.loc[subset.index[train]]) & set(groups.loc[subset.index[test]])
+    with pytest.raises(ValueError, match="2 group.*fewer than the 5 folds"):
+        list(cv.split(X.iloc[:12]))
+    with pytest.raises(ValueError, match="have no group"):
+        list(cv.split(pd.DataFrame({"x": [1.0]}, index=[7])))
+    with pytest.raises(TypeError, match="DataFrame"):
+        list(cv.split(np.zeros((60, 1))))
+
+
+def test_a_dataset_with_groups_gets_grouped_folds(tmp_path: Path, ibm_gates_dir: Path,
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    from workbench.experiment.config import load_dataset
+    from workbench.selection import LabelGroupKFold
+
+    monkeypatch.setenv("WORKBENCH_IBM_DATA_DIR", str(ibm_gates_dir))
+    data = '[data]\nsource = "ibm_gates"\n[selection]\ncv = 5\nshuffle = true\n'
+    cfg = load_config(_config(tmp_path, 'basis = "ridge"\n', data))
+    ds = load_dataset(cfg)
+    est = cfg.family.build(cfg, ds).target_estimators["gate_error"]
+    assert isinstance(est.cv, LabelGroupKFold) and est.cv.groups is ds.groups
+    X_train = ds.split()[0]
+    for train, test in est.cv.split(X_train):
+        assert not set(ds.groups[X_train.index[train]]) & set(ds.groups[X_train.index[test]])
+    plain = load_config(_config(tmp_path, 'basis = "ridge"\n', data + "groups = false\n"))
+    assert not isinstance(plain.family.build(plain, ds).target_estimators["gate_error"].cv,
+                          LabelGroupKFold)
+
+
+def test_csv_group_column(tmp_path: Path) -> None:
+    from workbench.datasets import DatasetError
+    from workbench.experiment.config import load_dataset
+    from workbench.selection import LabelGroupKFold
+
+    rng = np.random.default_rng(1)
+    n = 80
+    frame = pd.DataFrame({"x": rng.normal(size=n), "prior": rng.normal(size=n),
+                          "device": [f"dev {i % 8}" for i in range(n)]})
+    frame["y"] = frame["prior"] + 0.3 * frame["x"]
+    frame.to_csv(tmp_path / "d.csv", index=False)
+    data = ('[data]\ncsv = "d.csv"\nprior = ["prior"]\ntargets = ["y"]\nfeatures = ["x"]\n'
+            'test_fraction = 0.25\ngroup_column = "device"\n')
+    cfg = load_config(_config(tmp_path, 'basis = "ridge"\n', data))
+    ds = load_dataset(cfg)
+    assert ds.groups is not None and set(ds.groups) == {f"dev {i}" for i in range(8)}
+    est = cfg.family.build(cfg, ds).target_estimators["y"]
+    assert isinstance(est.cv, LabelGroupKFold)
+    frame.loc[5, "device"] = " "
+    frame.to_csv(tmp_path / "d.csv", index=False)
+    with pytest.raises(DatasetError, match="group column 'device' is empty at line 7"):
+        load_dataset(cfg)
+    twice = load_config(_config(tmp_path, 'basis = "ridge"\n',
+                                data.replace('group_column = "device"', 'group_column = "x"')))
+    with pytest.raises(DatasetError, match="group column 'x' is also named"):
+        load_dataset(twice)

@@ -9,7 +9,7 @@ import numpy as np
 from sklearn.base import BaseEstimator, MetaEstimatorMixin, RegressorMixin, clone
 from sklearn.exceptions import FitFailedWarning
 from sklearn.metrics import check_scoring
-from sklearn.model_selection import check_cv
+from sklearn.model_selection import BaseCrossValidator, GroupKFold, check_cv
 from sklearn.utils import _safe_indexing, check_random_state
 from sklearn.utils._param_validation import HasMethods
 from sklearn.utils.metaestimators import _BaseComposition
@@ -18,7 +18,7 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 from .boosting import BaseBoostRegressor, CachedParamNames, PriorModel, seed_estimator
 from .parallel import Task, gather, run_plans
 
-__all__ = ["BaseBoostCV", "BasisChoiceCV", "find_prior"]
+__all__ = ["BaseBoostCV", "BasisChoiceCV", "LabelGroupKFold", "find_prior"]
 
 
 def find_prior(estimator):
@@ -381,3 +381,51 @@ class BasisChoiceCV(_BaseComposition, BaseBoostCV):
             if self.selected_ == "prior":
                 self.best_estimator_ = clone(incumbent).fit(X_all, np.ravel(y))
         return self
+
+
+class LabelGroupKFold(BaseCrossValidator):
+    """K-fold CV over groups of rows (scikit-learn's ``GroupKFold``), each row's group looked
+    up by its label: ``groups`` maps the row labels of a whole dataset (a pandas Series) to
+    their group, e.g. the device a row was measured on, and :meth:`split` takes the groups of
+    the rows of ``X`` (a DataFrame) from its index. So an estimator holding this splitter
+    makes grouped folds on any subset of the dataset it is fitted on (a training split, an
+    outer fold), with no ``groups`` argument to route: rows of one group are never on both
+    sides of a fold, as a test split of whole groups demands.
+
+    Parameters
+    ----------
+    groups : pandas Series
+        The group of each row label.
+    n_splits : int, default=5
+    shuffle, random_state :
+        As in ``GroupKFold`` (shuffled groups before they are dealt into folds).
+    """
+
+    def __init__(self, groups=None, n_splits=5, *, shuffle=False, random_state=None):
+        self.groups = groups
+        self.n_splits = n_splits
+        self.shuffle = shuffle
+        self.random_state = random_state
+
+    def get_n_splits(self, X=None, y=None, groups=None) -> int:
+        return self.n_splits
+
+    def split(self, X, y=None, groups=None):
+        if not hasattr(X, "index"):
+            raise TypeError("LabelGroupKFold looks the rows' groups up by label: X must be a "
+                            "DataFrame with the dataset's row labels")
+        missing = X.index.difference(self.groups.index)
+        if len(missing):
+            raise ValueError(f"LabelGroupKFold: {len(missing)} row label(s) of X have no "
+                             f"group, e.g. {missing[0]!r}")
+        labels = self.groups.loc[X.index].to_numpy()
+        n_groups = len(np.unique(labels))
+        if n_groups < self.n_splits:
+            raise ValueError(f"LabelGroupKFold: {n_groups} group(s) in these rows, fewer than "
+                             f"the {self.n_splits} folds (each fold holds whole groups out)")
+        folds = GroupKFold(self.n_splits, shuffle=self.shuffle,
+                           random_state=self.random_state if self.shuffle else None)
+        yield from folds.split(X, y, labels)
+
+    def _iter_test_indices(self, X=None, y=None, groups=None):  # split is overridden
+        raise NotImplementedError

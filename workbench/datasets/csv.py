@@ -170,7 +170,7 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
                      coupler_features: Sequence[str] | None = None,
                      topology: str = "chain", shape: Sequence[int] | None = None,
                      edges: Sequence[Sequence[int]] | None = None,
-                     name: str | None = None) -> Dataset:
+                     group_column: str | None = None, name: str | None = None) -> Dataset:
     """Read a CSV of experiments into a :class:`Dataset`.
 
     ``prior[j]`` is the scientific model's prediction of ``targets[j]``. ``onsite`` (N
@@ -181,6 +181,8 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
     explicit ``edges`` list of 0-based site pairs, one per coupling column.
     ``qubit_features`` (N) and ``coupler_features`` (one per edge), columns among
     ``features``, name what acts on each site and coupling (e.g. bias voltages).
+    ``group_column`` names each row's group (any text, e.g. the device or the cooldown it
+    was measured in): the dataset's ``groups``, which CV folds then keep whole.
     """
     path = Path(path)
     prior, targets, features = list(prior), list(targets), list(features)
@@ -231,7 +233,8 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
         raise DatasetError(f"column(s) {named_twice} named in more than one role")
 
     frame = _read(path, min_columns=2)  # a prior and a target at least
-    missing = [c for c in [*used, *([split_column] if split_column else [])]
+    missing = [c for c in [*used, *([split_column] if split_column else []),
+                           *([group_column] if group_column else [])]
                if c not in frame.columns]
     if missing:
         header = list(frame.columns)
@@ -248,6 +251,16 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
             qubit_features=tuple(qubit_features) if qubit_features is not None else None,
             coupler_features=tuple(coupler_features) if coupler_features is not None else None,
             edges=None if graph.topology == "chain" else graph.edges)
+    groups = None
+    if group_column is not None:
+        if group_column in used:
+            raise DatasetError(f"group column {group_column!r} is also named as a prior, "
+                               f"target, feature or Hamiltonian column")
+        groups = frame[group_column].str.strip()
+        empty = groups == ""
+        if empty.any():
+            raise DatasetError(f"{path}: group column {group_column!r} is empty at "
+                               f"{_rows(frame.index[empty])}")
     return Dataset(name=name or path.stem, features=data[features], prior=data[prior],
                    targets=data[targets], train_index=train, test_index=test,
-                   hamiltonian=hamiltonian)
+                   hamiltonian=hamiltonian, groups=groups)

@@ -110,6 +110,7 @@ class DataConfig(Section):
     test_fraction: float | None = Field(default=None, gt=0, lt=1)
     split_column: str | None = None
     split_seed: int = Seed()
+    group_column: str | None = None
     hamiltonian: HamiltonianData | None = None
 
     @model_validator(mode="before")
@@ -122,7 +123,7 @@ class DataConfig(Section):
     @model_validator(mode="after")
     def _consistent(self) -> DataConfig:
         csv_keys = sorted(k for k in ("csv", "prior", "targets", "test_fraction",
-                                      "split_column", "hamiltonian")
+                                      "split_column", "group_column", "hamiltonian")
                           if getattr(self, k) is not None) + (["features"] if self.features
                                                               else [])
         if self.source != "csv":
@@ -288,11 +289,13 @@ def _validate_estimator(estimator) -> None:
 # --------------------------------------------------------------------------- other sections
 
 class SelectionConfig(Section):
-    """``[selection]``: BaseBoostCV's folds (contiguous unless ``shuffle``) and scoring."""
+    """``[selection]``: BaseBoostCV's folds (contiguous unless ``shuffle``; whole groups of rows
+    when the dataset has groups, unless ``groups = false``) and scoring."""
 
     cv: int = Field(default=5, ge=2, le=10_000)
     shuffle: bool = False
     scoring: str = "neg_mean_absolute_error"
+    groups: bool = True  # whole groups per fold when the dataset has groups (e.g. devices)
 
     @model_validator(mode="after")
     def _scorer(self) -> SelectionConfig:
@@ -597,7 +600,8 @@ def load_dataset(cfg: ExperimentConfig):
             sign=ham.sign if ham else -1, topology=ham.topology if ham else "chain",
             shape=ham.shape if ham else None, edges=ham.edges if ham else None,
             qubit_features=ham.qubit_features if ham else None,
-            coupler_features=ham.coupler_features if ham else None, name=cfg.name)
+            coupler_features=ham.coupler_features if ham else None,
+            group_column=data.group_column, name=cfg.name)
     folds = cfg.selection.cv
     if len(ds.train_index) < 2 * folds:
         raise DatasetError(f"the training split has {len(ds.train_index)} rows, too few for "

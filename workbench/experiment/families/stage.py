@@ -15,7 +15,7 @@ from sklearn.model_selection import KFold
 from ...bases import make_basis, make_transform, quadratic_basis_warning
 from ...boosting import BaseBoostRegressor
 from ...multitarget import MultiTargetBaseBoost
-from ...selection import BaseBoostCV, BasisChoiceCV
+from ...selection import BaseBoostCV, BasisChoiceCV, LabelGroupKFold
 from ..errors import ConfigError
 from ..space import draw_params, has_ranges
 
@@ -80,10 +80,15 @@ def target_inputs(settings: dict[str, Any], ds: Dataset, priors: list[str]) -> l
     return list(priors) + extra
 
 
-def selection_cv(cfg: ExperimentConfig):
-    """BaseBoostCV's folds (``[selection]``): contiguous unless ``shuffle``."""
+def selection_cv(cfg: ExperimentConfig, ds: Dataset | None = None):
+    """BaseBoostCV's folds (``[selection]``): contiguous unless ``shuffle``; whole groups
+    (:class:`~workbench.selection.LabelGroupKFold`) when the dataset has groups (e.g. the
+    device of each row) and ``[selection] groups`` is true, its default."""
     s = cfg.selection
-    return KFold(s.cv, shuffle=s.shuffle, random_state=cfg.random_state if s.shuffle else None)
+    seed = cfg.random_state if s.shuffle else None
+    if s.groups and ds is not None and ds.groups is not None:
+        return LabelGroupKFold(ds.groups, s.cv, shuffle=s.shuffle, random_state=seed)
+    return KFold(s.cv, shuffle=s.shuffle, random_state=seed)
 
 
 def per_target_boost(cfg: ExperimentConfig, ds: Dataset, priors: list[str], *,
@@ -104,12 +109,13 @@ def per_target_boost(cfg: ExperimentConfig, ds: Dataset, priors: list[str], *,
         if has_candidates(s):  # the basis family, its settings or the loss too by CV
             candidates = [(name, make_booster(settings, prior=start, inputs=inputs))
                           for name, settings in candidate_settings(s, cfg.random_state)]
-            per_target[target] = BasisChoiceCV(candidates, cv=selection_cv(cfg),
+            per_target[target] = BasisChoiceCV(candidates, cv=selection_cv(cfg, ds),
                                                scoring=cfg.selection.scoring)
             continue
         # training scores: the learning curves reuse the folds (family artifacts)
         per_target[target] = BaseBoostCV(make_booster(s, prior=start, inputs=inputs),
-                                         cv=selection_cv(cfg), scoring=cfg.selection.scoring,
+                                         cv=selection_cv(cfg, ds),
+                                         scoring=cfg.selection.scoring,
                                          return_train_score=True)
     return MultiTargetBaseBoost(target_estimators=per_target, n_jobs=cfg.jobs,
                                 random_state=cfg.random_state)
