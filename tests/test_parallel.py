@@ -328,3 +328,23 @@ def test_kernel_ridge_basis_is_exact_up_to_a_row_count_then_nystroem():
     assert "cubic" in quadratic_basis_warning("gaussian_process", 50_000)
     assert quadratic_basis_warning("gaussian_process", 500) is None
     assert quadratic_basis_warning("kernel_ridge", 10 ** 6) is None
+
+
+def test_lean_lightgbm_predicts_large_trees_with_lightgbm(monkeypatch):
+    """numpy's all-rows-through-every-node evaluation only for small trees; larger ones go
+    through LightGBM's traversal (the same numbers either way)."""
+    from workbench import bases
+    from workbench.bases import LeanLGBMRegressor
+
+    X, Y = _data(90)
+    small = LeanLGBMRegressor(n_estimators=20, verbose=-1, n_jobs=1).fit(X, Y["y0"])
+    large = LeanLGBMRegressor(n_estimators=20, num_leaves=15, min_child_samples=3,
+                              verbose=-1, n_jobs=1).fit(X, Y["y0"])
+    assert small._small_trees() and not large._small_trees()  # 90 // 20 = 4 leaves at most
+    rows = np.random.default_rng(0).normal(size=(bases.NUMPY_PREDICT_ROWS, 5))
+    summed = []
+    monkeypatch.setattr(bases, "_sum_trees", lambda *a: summed.append(1) or np.zeros(len(rows)))
+    large.predict(rows)
+    assert not summed
+    small.predict(rows)
+    assert summed
