@@ -193,6 +193,21 @@ def test_split_column(data, tmp_path):
     assert not (tmp_path / "t.toml").exists()
 
 
+def test_group_column(data, tmp_path):
+    """--group-column: written to [data], the dataset's groups (which CV folds keep whole)."""
+    rc, out, err = run("init", data, *TARGET_ARGS, "--group-column", "device", "--out",
+                       "g.toml")
+    assert rc == 0, err
+    raw = tomllib.loads((tmp_path / "g.toml").read_text())
+    assert raw["data"]["group_column"] == "device" and "device" not in raw["data"]["features"]
+    cfg = load_config(tmp_path / "g.toml")
+    ds = load_dataset(cfg)
+    assert set(ds.groups) == {"chip0", "chip1", "chip2"}
+    rc, _, err = run("init", data, *TARGET_ARGS, "--group-column", "nope", "--out", "h.toml")
+    assert rc == 2 and "nope" in one_error_line(err)
+    assert not (tmp_path / "h.toml").exists()
+
+
 def test_test_fraction_and_seed(data, tmp_path):
     rc, out, err = run("init", data, *TARGET_ARGS, "--test-fraction", "0.25", "--split-seed",
                        "7", "--out", "f.toml")

@@ -344,7 +344,7 @@ def _cmd_init(args) -> int:
     done = init_config(args.data, prior=args.prior, targets=args.target, features=args.features,
                        split_column=args.split_column, test_fraction=args.test_fraction,
                        split_seed=args.split_seed, name=args.name, out=args.out,
-                       force=args.force)
+                       force=args.force, group_column=args.group_column)
     if done.defaulted:
         left = "; not taken: " + ", ".join(f"{c!r} ({why})" for c, why in done.skipped.items())
         print(f"features: {', '.join(done.features) or '(none)'} (every other numeric column"
@@ -468,6 +468,9 @@ def build_parser() -> argparse.ArgumentParser:
     ini.add_argument("--features", nargs="*", default=None, metavar="COL",
                      help="the basis' inputs besides the prior (default: every other numeric "
                      "column but the split column; --features alone: none)")
+    ini.add_argument("--group-column", metavar="COL", default=None,
+                     help="a column naming each row's group (e.g. its device): CV folds keep "
+                     "each group whole")
     split = ini.add_mutually_exclusive_group()
     split.add_argument("--split-column", metavar="COL", default=None,
                        help="a column saying 'train' or 'test' for each row")

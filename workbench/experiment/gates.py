@@ -40,9 +40,9 @@ GATE_SYSTEMS = {
                    "rows (workbench.experiment.peer)."),
     "gates_generic": ("IBM gates: base boosting, generic config",
                       "The recommended generic config (`experiments/generic.toml`): per "
-                      "target a ridge stage or one of 40 drawn LightGBM stages, squared or "
-                      "Huber loss, or the prior alone, chosen by 5-fold CV on the training "
-                      "rows."),
+                      "target a ridge stage, one of the LightGBM stages drawn from the peer's "
+                      "search space, or the prior alone, chosen by 5-fold CV on the training "
+                      "rows (each device whole in a fold)."),
 }
 
 

@@ -135,7 +135,8 @@ def _comment(text: str) -> str:
 
 def render_config(*, name: str, csv: str, prior: Sequence[str], targets: Sequence[str],
                   features: Sequence[str], split_column: str | None, test_fraction: float | None,
-                  split_seed: int, out: str, source: str, template: str) -> str:
+                  split_seed: int, out: str, source: str, template: str,
+                  group_column: str | None = None) -> str:
     """The config's text: a header comment (what wrote it, from which CSV, what to run
     next), ``name``, ``random_state``, ``[data]``, then the ``template``'s text as is (top-level
     keys of the template, if any, above ``[data]``: :func:`split_template`)."""
@@ -163,6 +164,8 @@ def render_config(*, name: str, csv: str, prior: Sequence[str], targets: Sequenc
         assert test_fraction is not None  # one of the two (init_config)
         data += [f"test_fraction = {test_fraction!r}   # of the rows, drawn at random with "
                  "split_seed", f"split_seed = {split_seed}"]
+    if group_column is not None:
+        data.append(f"group_column = {_string(group_column)}   # CV folds keep each group whole")
     top, rest = split_template(template)
     head = [*header, "", f"name = {_string(name)}", "random_state = 0"]
     return "\n".join(head) + "\n" + (top and top.rstrip("\n") + "\n") + "\n" \
@@ -220,11 +223,12 @@ def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str], targets: S
                 features: Sequence[str] | None = None, split_column: str | None = None,
                 test_fraction: float | None = None, split_seed: int | None = None,
                 name: str | None = None, out: str | os.PathLike[str] | None = None,
-                force: bool = False) -> InitResult:
+                force: bool = False, group_column: str | None = None) -> InitResult:
     """Write a first config for the CSV ``csv`` and return what was written.
 
     ``features``: ``None`` takes every other numeric column (not the prior, target and
-    split columns). The split is ``split_column`` (values train/test) or a random
+    split columns, nor ``group_column``: each row's group, e.g. its device, which CV folds
+    keep whole). The split is ``split_column`` (values train/test) or a random
     ``test_fraction`` (default :data:`DEFAULT_TEST_FRACTION`) drawn with ``split_seed``
     (default 0). ``name`` defaults to the CSV's stem, ``out`` to ``<name>.toml``; an
     existing ``out`` is an error unless ``force``. Bad data raise the loader's
@@ -257,19 +261,20 @@ def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str], targets: S
     # the data with the values the config will hold: the loader's checks and messages
     load_csv_dataset(path, prior=prior, targets=targets, features=features or (),
                      test_fraction=test_fraction, split_column=split_column,
-                     split_seed=split_seed or 0, name=name)
+                     split_seed=split_seed or 0, group_column=group_column, name=name)
     skipped: dict[str, str] = {}
     defaulted = features is None
     if features is None:
         features, skipped = numeric_columns(
-            path, [*prior, *targets, *([split_column] if split_column else [])])
+            path, [*prior, *targets, *([split_column] if split_column else []),
+                   *([group_column] if group_column else [])])
     features = list(features)
     template = template_text()
     tables = _check_template(template)
     text = render_config(name=name, csv=entry, prior=prior, targets=targets, features=features,
                          split_column=split_column, test_fraction=test_fraction,
                          split_seed=split_seed or 0, out=str(out), source=str(csv),
-                         template=template)
+                         template=template, group_column=group_column)
     cfg = parse_config(_parse(text, tables), out)  # the project's own parser
     dataset = load_dataset(cfg)  # exactly what evaluate loads, its size checks included
     write_file(out, text, "--out")  # atomic_write: all or nothing, a failure in one line
