@@ -41,6 +41,20 @@ def test_draws_are_seeded_inside_their_ranges() -> None:
     assert np.median([d["n"] for d in a]) < 45
 
 
+def test_choices_are_drawn_too() -> None:
+    from workbench.experiment.space import check_ranges
+
+    params = {"objective": {"choices": ["regression", "regression_l1", "huber"]},
+              "n": {"low": 1, "high": 9}, "fixed": [4, 8]}
+    drawn = draw_params(params, 60, 0)
+    assert {d["objective"] for d in drawn} == {"regression", "regression_l1", "huber"}
+    assert all(d["fixed"] == [4, 8] for d in drawn)
+    # the settings validated against the basis: each choice, each end of each range
+    ends = check_ranges("lightgbm", params)
+    assert [e["objective"] for e in ends] == ["regression", "regression_l1", "huber"]
+    assert [e["n"] for e in ends] == [1, 9, 9]
+
+
 def test_candidates_are_bases_draws_and_losses(tmp_path: Path) -> None:
     cfg = load_config(_config(tmp_path, 'basis = ["ridge", "lightgbm"]\n'
                               'loss = ["squared_error", "huber"]\ndraws = 3\n' + LGBM_RANGES))

@@ -204,23 +204,38 @@ class _Draw:
 
 
 def has_ranges(params: dict[str, Any]) -> bool:
-    """Whether a basis's ``basis_params`` hold a range table (``{ low, high, log? }``)."""
+    """Whether a basis's ``basis_params`` hold a table to draw from: a range
+    (``{ low, high, log? }``) or a choice (``{ choices = [...] }``; a plain list is a value)."""
     return any(isinstance(v, dict) for v in params.values())
 
 
+def _spec(spec: dict[str, Any]) -> Any:
+    """A drawn entry as a search-space spec: ``{ choices = [...] }`` is a choice list."""
+    return spec["choices"] if set(spec) == {"choices"} else spec
+
+
 def check_ranges(name: str, params: dict[str, Any]) -> list[dict[str, Any]]:
-    """Check the range tables of ``basis_params.<name>``; the two settings to validate
-    against the basis: every range at its low end, and at its high end."""
+    """Check the tables to draw from of ``basis_params.<name>``; the settings to validate
+    against the basis: every range at its low end, and at its high end (choices: each)."""
+    width = 2
     for key, spec in params.items():
         if isinstance(spec, dict):
-            _check_spec(f"basis_params.{name}.{key}", spec)
-    return [{k: (v[end] if isinstance(v, dict) else v) for k, v in params.items()}
-            for end in ("low", "high")]
+            _check_spec(f"basis_params.{name}.{key}", _spec(spec))
+            if isinstance(_spec(spec), list):
+                width = max(width, len(spec["choices"]))
+
+    def at(spec: Any, i: int) -> Any:
+        if not isinstance(spec, dict):
+            return spec
+        values = _values(_spec(spec))
+        return values[min(i, len(values) - 1)]
+    return [{k: at(v, i) for k, v in params.items()} for i in range(width)]
 
 
 def draw_params(params: dict[str, Any], n: int, seed: int | None) -> list[dict[str, Any]]:
-    """``n`` settings of a basis whose ``basis_params`` hold ranges: each range drawn at
-    random (seeded by ``seed``), fixed values kept. The same seed gives the same draws."""
+    """``n`` settings of a basis whose ``basis_params`` hold tables to draw from: each range
+    drawn at random (uniform, or log-uniform), each choice uniformly (seeded by ``seed``),
+    fixed values kept. The same seed gives the same draws."""
     draw = _Draw(np.random.default_rng(seed))
-    return [{k: (_suggest(draw, k, v) if isinstance(v, dict) else v) for k, v in params.items()}
-            for _ in range(n)]
+    return [{k: (_suggest(draw, k, _spec(v)) if isinstance(v, dict) else v)
+             for k, v in params.items()} for _ in range(n)]
