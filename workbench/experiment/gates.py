@@ -9,7 +9,6 @@ each system's gain over the prior and of the generic config's over the peer.
 
 from __future__ import annotations
 
-import logging
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -22,12 +21,19 @@ from .families.stage import candidate_settings
 from .figures import model_comparison_bars
 from .intervals import family_model
 from .peer import PEER_TRIALS, peer_predict
-from .results import ModelScores, Result, Scores, bootstrap_error_interval, bootstrap_test_scores
+from .results import (
+    ModelScores,
+    Result,
+    Scores,
+    bootstrap_error_interval,
+    bootstrap_test_scores,
+    mae,
+    mse,
+)
 from .systems import Stopwatch
 
 __all__ = ["GATE_SYSTEMS", "Gates", "gates_benchmark", "gates_section"]
 
-log = logging.getLogger("workbench")
 
 #: The benchmark's systems: key -> (its MLflow run's and table row's name, its description).
 GATE_SYSTEMS = {
@@ -87,9 +93,9 @@ def gates_benchmark(configs: Path, seed: int, quick: bool, say) -> Gates:
                             trials=trials, seed=seed, n_jobs=2)
     y = y_test.to_numpy(dtype=float)
     prior_pred = X_test[ds.prior_names].to_numpy(dtype=float)
-    prior = Scores(test_mae=_mae(y, prior_pred), test_mse=_mse(y, prior_pred), cv_mae=[],
+    prior = Scores(test_mae=mae(y, prior_pred), test_mse=mse(y, prior_pred), cv_mae=[],
                    cv_mse=[])
-    scores = ModelScores(test_mae=_mae(y, peer.predictions), test_mse=_mse(y, peer.predictions),
+    scores = ModelScores(test_mae=mae(y, peer.predictions), test_mse=mse(y, peer.predictions),
                          cv_mae=[], cv_mse=[], selected=["boosted"] * y.shape[1])
     boot = bootstrap_test_scores(prior, scores, y, prior_pred, peer.predictions,
                                  random_state=seed)
@@ -108,14 +114,6 @@ def gates_benchmark(configs: Path, seed: int, quick: bool, say) -> Gates:
     return Gates(generic=run.result, peer=peer_result, peer_params=peer.params,
                  generic_minus_peer=list(diff), chosen=chosen, config=cfg, dataset=ds,
                  watches=watches)
-
-
-def _mae(y: np.ndarray, pred: np.ndarray) -> list[float]:
-    return np.mean(np.abs(y - pred), axis=0).tolist()
-
-
-def _mse(y: np.ndarray, pred: np.ndarray) -> list[float]:
-    return np.mean((y - pred) ** 2, axis=0).tolist()
 
 
 def gates_figure(gates: Gates):
