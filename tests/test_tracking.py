@@ -226,6 +226,38 @@ def test_dataset_input_survives_another_process_creating_its_row(tracker, data, 
     assert len(calls) == tries
 
 
+def test_share_view_retries_a_race_for_its_tag(tracker, monkeypatch):
+    """Two first evaluates on a new store set the same shared-view tag at once; the second
+    insert violates the unique key (seen on a fresh clone's make test). It tries once more;
+    other errors are not retried."""
+    from mlflow.exceptions import MlflowException
+
+    real, calls = tracker.client.set_experiment_tag, []
+
+    def raced(experiment_id, key, value, error="UNIQUE constraint failed: experiment_tags"):
+        calls.append(key)
+        if len(calls) == 1:
+            raise MlflowException(error)
+        return real(experiment_id, key, value)
+
+    monkeypatch.setattr(tracker.client, "set_experiment_tag", raced)
+    tracker.share_view({"orderByKey": "metrics.`test_mae_avg`"})
+    assert len(calls) == 2
+    tags = tracker.client.get_experiment(tracker.experiment_id).tags
+    assert json.loads(tags["mlflow.sharedViewState.workbench"]) == {
+        "orderByKey": "metrics.`test_mae_avg`"}
+    calls.clear()
+
+    def broken(experiment_id, key, value):
+        calls.append(key)
+        raise MlflowException("something else")
+
+    monkeypatch.setattr(tracker.client, "set_experiment_tag", broken)
+    with pytest.raises(MlflowException, match="something else"):
+        tracker.share_view({"orderByKey": "x"})
+    assert len(calls) == 1
+
+
 def test_tracker_pickles_without_its_client(tracker):
     tracker.client  # noqa: B018 - make sure there is one
     clone = pickle.loads(pickle.dumps(tracker))

@@ -247,9 +247,18 @@ class Tracker(ModelRecords):
         :func:`~.uris.ui_url`): ``state`` as the UI keeps it, e.g. ``selectedColumns``
         (``"metrics.`test_mae_avg`"``, ...), ``searchFilter``, ``orderByKey``,
         ``orderByAsc``. Replaces the view of the same key."""
+        name, value = SHARED_VIEW_PREFIX + key, json.dumps(dict(state))
         with self._errors():
-            self.client.set_experiment_tag(self.experiment_id, SHARED_VIEW_PREFIX + key,
-                                           json.dumps(dict(state)))
+            try:
+                self.client.set_experiment_tag(self.experiment_id, name, value)
+            except MlflowException as exc:
+                if not duplicate_row(exc):
+                    raise
+                # Another process inserted the same tag between MLflow's lookup and its
+                # insert (two runs of a new experiment at once): it exists now, and the
+                # second attempt updates it.
+                _logger.debug("share_view raced another process (%s); trying again", exc)
+                self.client.set_experiment_tag(self.experiment_id, name, value)
 
     def set_tags(self, run_id: str, tags: Mapping[str, Any]) -> None:
         """Set tags (values as strings)."""
