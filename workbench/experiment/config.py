@@ -222,7 +222,7 @@ def check_boost_settings(settings: dict[str, Any]) -> None:
         raise ValueError(f"input_transform = {shorten(settings['input_transform'])}: unknown "
                          f"transform; valid: {['none', *sorted(TRANSFORMS)]}")
     params = settings["basis_params"]
-    try:  # ranges (candidates drawn at random): both ends must be valid
+    try:  # tables to draw from: each range's ends and each choice must be valid
         ends = check_ranges(settings["basis"], params) if has_ranges(params) else [params]
     except SpaceError as exc:
         raise ValueError(str(exc)) from None
