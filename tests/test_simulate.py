@@ -205,3 +205,45 @@ def test_the_simulated_device_config_runs_as_documented(tmp_path, capsys):
     res = json.loads(out.read_text())
     assert res["n_train"] == 210 and res["n_test"] == 90
     assert res["model"]["test_mae_avg"] < res["prior"]["test_mae_avg"]
+
+
+def test_pinned_values_of_the_current_simulator():
+    """Numbers the simulator gave before measure() shared its physics: any refactor keeps them."""
+    d = simulate(5, 7, seed=3).data
+    sums = {"v_q1": 0.024524932, "v_c3": 0.977632862, "model_f2": 41973.356418756,
+            "model_g4": -139.241730479, "model_E1": -42321.006186408,
+            "measured_E1": -42306.020342683, "measured_E5": -41580.644049286}
+    np.testing.assert_allclose(d[list(sums)].sum().to_numpy(), list(sums.values()),
+                               rtol=0, atol=1e-8)
+    np.testing.assert_allclose(d.iloc[2].to_numpy(), [
+        0.008223144489309553, -0.003190056210174423, -0.014411987443451714,
+        0.0008324979964050988, -0.008843025226497363, 0.14678258487762635, 0.18479828933204615,
+        0.11057594125724629, 0.12027498069519968, 5977.11662958491, 5999.768427310657,
+        5982.938518460515, 6012.192027437908, 5989.956322836172, -18.615257816019707,
+        -46.93832944370361, -2.882447008943977, -5.913723071559096, -6042.344819115152,
+        -6013.65035290917, -5988.4896674782685, -5977.904098411203, -5939.582987716369,
+        -6039.9514544890635, -6012.357920373651, -5989.840723935878, -5978.172193460187,
+        -5940.731543592296], rtol=1e-12, atol=0)
+    grid = simulate(None, 4, seed=1, topology="grid", shape=(3, 3))
+    np.testing.assert_allclose(grid.data.filter(like="measured_E").sum().to_numpy(), [
+        -24330.456883837367, -24197.494771832604, -24126.808707688782, -24042.054374198637,
+        -23984.205174797487, -23907.590898299906, -23792.9279891536, -23690.842536547014,
+        -23566.454076465358], rtol=1e-12, atol=0)
+    np.testing.assert_allclose(grid.data.filter(like="model_E").iloc[1].to_numpy(), [
+        -6123.131589790042, -6056.01093868448, -6038.750024717391, -6023.280360878772,
+        -6006.994996285831, -5979.199151816335, -5935.8990581843445, -5928.290930774677,
+        -5878.351802471527], rtol=1e-12, atol=0)
+    np.testing.assert_allclose(grid.truth["mechanisms"]["next_nearest_coupling"]["eta"], [
+        0.01637961542011547, 0.020245066136928707, 0.02075396150170699, 0.03110916238715378,
+        0.028531166585141734, 0.043718831017606125, 0.043624540105999275,
+        0.03889638331405291], rtol=1e-12, atol=0)
+    bad = simulate(4, 12, seed=11, mismatch=Mismatch(misidentified_rate=0.3, noise_sd=0.3,
+                                                      drift=0.6))
+    peaks = bad.truth["mechanisms"]["misidentified_peaks"]
+    assert peaks["rows"] == [1, 6, 9, 10, 11] and peaks["level"] == [4, 1, 1, 3, 4]
+    np.testing.assert_allclose(peaks["shift_MHz"], [4.451520493109941, -9.068838111256635,
+                               5.838578633819728, -8.162310344559463, 9.795142402690537],
+                               rtol=1e-12, atol=0)
+    np.testing.assert_allclose(bad.data.filter(like="measured_E").sum().to_numpy(), [
+        -72453.99782001805, -71944.03263243735, -71615.54130196582, -71024.39304592136],
+        rtol=1e-12, atol=0)
