@@ -2,6 +2,7 @@
 
 import dataclasses
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -9,7 +10,7 @@ import pandas as pd
 import pytest
 
 import workbench
-from workbench.simulate import MECHANISMS, Mismatch, Simulation, simulate, write_simulation
+from workbench.simulate import MECHANISMS, Mismatch, Simulation, measure, simulate, write_simulation
 
 
 def _cols(d, prefix, n):
@@ -153,6 +154,96 @@ def test_base_boosting_beats_the_prior_on_simulated_data():
     assert boosted.mean() < prior.mean()
 
 
+# ---------------------------------------------------------------- measure(): chosen settings
+
+NO_READOUT = dataclasses.replace(Mismatch.default(), noise_sd=0.0, misidentified_rate=0.0)
+
+
+def test_measure_without_mismatch_reproduces_simulate_exactly():
+    sim = simulate(5, 40, seed=3, mismatch=Mismatch.none())
+    got = measure(sim.data, seed=3, mismatch=Mismatch.none())
+    pd.testing.assert_frame_equal(got.data, sim.data, check_exact=True)
+    assert got.truth == sim.truth
+
+
+@pytest.mark.parametrize("kw", [dict(n_sites=5), dict(n_sites=4, topology="ring"),
+                                dict(topology="grid", shape=(3, 3))])
+def test_measure_has_the_same_true_physics_as_simulate(kw):
+    sim = simulate(kw.get("n_sites"), 40, seed=4, mismatch=NO_READOUT,
+                   **{k: v for k, v in kw.items() if k != "n_sites"})
+    got = measure(sim.data[[c for c in sim.data.columns if c.startswith("v_")]], seed=4,
+                  mismatch=NO_READOUT, **kw)
+    assert list(got.data.columns) == list(sim.data.columns)
+    np.testing.assert_allclose(got.data.to_numpy(), sim.data.to_numpy(), rtol=0, atol=1e-9)
+    assert prior_mae(got) > 0.1  # the mismatch is on
+    assert got.truth["device"] == sim.truth["device"]
+    assert got.truth["mechanisms"] == sim.truth["mechanisms"]
+    # default mismatch: the same device as simulate(seed)'s
+    assert measure(sim.data, seed=4, **kw).truth["device"] == \
+        simulate(kw.get("n_sites"), 3, seed=4,
+                 **{k: v for k, v in kw.items() if k != "n_sites"}).truth["device"]
+
+
+def test_measure_keeps_row_order_and_index_and_ignores_other_columns():
+    sim = simulate(3, 12, seed=1, mismatch=NO_READOUT)
+    settings = sim.data.iloc[::-1].set_axis([f"r{i}" for i in range(12)]).assign(note="x")
+    got = measure(settings, seed=1, mismatch=NO_READOUT)
+    assert list(got.data.index) == list(settings.index)
+    np.testing.assert_allclose(got.data.to_numpy(), sim.data.iloc[::-1].to_numpy(), atol=1e-9)
+    assert got.truth["n_experiments"] == 12
+
+
+def test_measure_noise_is_repeatable_per_settings_and_independent_across_them():
+    settings = simulate(4, 20, seed=2).data
+    noisy = Mismatch.only("noise")
+    a, b = measure(settings, seed=2, mismatch=noisy), measure(settings, seed=2, mismatch=noisy)
+    pd.testing.assert_frame_equal(a.data, b.data, check_exact=True)
+    residual = _cols(a.data, "measured_E", 4) - _cols(a.data, "model_E", 4)
+    assert 0.1 < residual.std() < 0.6
+    other = settings.copy()
+    other.loc[19, "v_q1"] += 1e-4  # one row changed: every row's noise is new
+    c = measure(other, seed=2, mismatch=noisy)
+    residual_c = _cols(c.data, "measured_E", 4) - _cols(c.data, "model_E", 4)
+    assert not np.isclose(residual[:19], residual_c[:19]).any()
+    assert not np.allclose(measure(settings, seed=3, mismatch=noisy).data, a.data)
+    d = measure(settings, seed=2, mismatch=noisy, noise_seed=7)
+    e = measure(other, seed=2, mismatch=noisy, noise_seed=7)
+    pd.testing.assert_frame_equal(d.data, measure(settings, seed=2, mismatch=noisy,
+                                                  noise_seed=7).data, check_exact=True)
+    residual_e = _cols(e.data, "measured_E", 4) - _cols(e.data, "model_E", 4)
+    np.testing.assert_allclose(residual_e[:19], (_cols(d.data, "measured_E", 4)
+                                                 - _cols(d.data, "model_E", 4))[:19], atol=1e-9)
+
+
+def test_measure_records_its_misidentified_rows_and_allows_any_voltage():
+    settings = pd.DataFrame({"v_q1": np.linspace(-0.05, 0.05, 200), "v_q2": 0.03,
+                             "v_q3": -0.02, "v_c1": 0.3, "v_c2": np.linspace(0.0, 0.3, 200)})
+    got = measure(settings, seed=0, mismatch=Mismatch(misidentified_rate=0.2))
+    assert np.isfinite(got.data.to_numpy()).all()
+    peaks = got.truth["mechanisms"]["misidentified_peaks"]
+    rows = np.array(peaks["rows"])
+    assert 15 < len(rows) < 70 and got.truth["n_experiments"] == 200
+    err = np.abs(_cols(got.data, "model_E", 3) - _cols(got.data, "measured_E", 3)).sum(axis=1)
+    assert (err[rows] > 2.9).all() and np.delete(err, rows).max() < 1e-9
+
+
+@pytest.mark.parametrize("change, match", [
+    (lambda d: d.drop(columns=["v_c2", "v_q4"]),
+     "v_q4, v_c2: the device has 5 sites (v_q1..v_q5) and 4 couplings (v_c1..v_c4)"),
+    (lambda d: d.assign(v_q2=np.nan), "v_q2 hold NaN or infinite"),
+    (lambda d: d.assign(v_c1=np.inf), "v_c1 hold NaN or infinite"),
+    (lambda d: d.iloc[:0], "no rows"),
+    (lambda d: d.assign(v_q3="a"), "v_q3 are not numeric"),
+])
+def test_measure_rejects_bad_settings(change, match):
+    settings = simulate(5, 4, seed=0).data
+    with pytest.raises(ValueError, match=re.escape(match)):
+        measure(change(settings), n_sites=5)
+    with pytest.raises(ValueError, match=re.escape("v_q1, v_q2, ... (a chain of >= 2 sites); "
+                                                   "found 0")):
+        measure(pd.DataFrame({"x": [1.0]}))
+
+
 # ---------------------------------------------------------------- the command line
 
 def test_simulate_command_mismatch_choices(tmp_path, capsys):
@@ -247,3 +338,64 @@ def test_pinned_values_of_the_current_simulator():
     np.testing.assert_allclose(bad.data.filter(like="measured_E").sum().to_numpy(), [
         -72453.99782001805, -71944.03263243735, -71615.54130196582, -71024.39304592136],
         rtol=1e-12, atol=0)
+
+
+def test_simulate_command_measures_settings(tmp_path, capsys):
+    from workbench.experiment.cli import main
+
+    first, again = tmp_path / "first.csv", tmp_path / "again.csv"
+    common = ["--seed", "5", "--mismatch", "drift", "crosstalk"]
+    assert main(["simulate", "--sites", "4", "--experiments", "30", *common,
+                 "--out", str(first)]) == 0
+    capsys.readouterr()
+    assert main(["simulate", "--settings", str(first), *common, "--out", str(again)]) == 0
+    line = capsys.readouterr().out
+    assert "measured 30 settings, 4 sites, chain; prior MAE" in line
+    a, b = pd.read_csv(first), pd.read_csv(again)
+    assert list(a.columns) == list(b.columns)
+    np.testing.assert_allclose(_cols(b, "model_E", 4), _cols(a, "model_E", 4), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(_cols(b, "measured_E", 4), _cols(a, "measured_E", 4), rtol=0,
+                               atol=1e-9)
+    assert np.abs(_cols(b, "measured_E", 4) - _cols(b, "model_E", 4)).mean() > 0.01
+    truth_a = json.loads((tmp_path / "first.truth.json").read_text())
+    truth_b = json.loads((tmp_path / "again.truth.json").read_text())
+    assert truth_b["device"] == truth_a["device"] and truth_b["n_experiments"] == 30
+    noisy = tmp_path / "noisy.csv"
+    for _ in range(2):
+        assert main(["simulate", "--settings", str(first), "--seed", "5", "--noise-seed", "9",
+                     "--out", str(noisy)]) == 0
+        assert np.isfinite(pd.read_csv(noisy).to_numpy()).all()
+
+
+@pytest.mark.parametrize("content, extra, match", [
+    (None, ["--experiments", "10"], "--settings measures the rows of its CSV; drop --experiments"),
+    ("", [], "cannot read it as a CSV"),
+    ("v_q1,v_q2,v_c1\n", [], "settings have no rows"),
+    ("v_q1,v_q2,v_c1\n0,0,0.1\n0,0,0.1,5,6\n", [], "cannot read it as a CSV"),
+    ("v_q1,v_q2,v_q3\n0,0,0\n", [], "v_c1, v_c2: the device has 3 sites (v_q1..v_q3) and 2 "
+     "couplings"),
+    ("v_q1,v_q2,v_c1\n0,0,0.1\n0,,0.1\n", [], "v_q2 hold NaN"),
+    ("v_q1,v_q2,v_c1\n0,0,0.1\n", ["--sites", "3"], "lack the bias column(s) v_q3, v_c2"),
+    ("v_q1,v_q2,v_c1\n0,0,0.1\n", ["--noise-seed", "-1"],
+     "noise_seed must be an integer >= 0, got -1"),
+    ("v_q1,v_q2,v_c1\n0,0,0.1\n", ["--settings", "missing.csv"], "No such file"),
+])
+def test_simulate_command_bad_settings_are_one_line(tmp_path, capsys, content, extra, match):
+    from workbench.experiment.cli import main
+
+    settings = tmp_path / "settings.csv"
+    if content is not None:
+        settings.write_text(content)
+    out = tmp_path / "x.csv"
+    assert main(["simulate", "--settings", str(settings), *extra, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("workbench: error:") and match in err[0], err
+    assert not out.exists() and not (tmp_path / "x.truth.json").exists()
+
+
+def test_simulate_command_noise_seed_needs_settings(tmp_path, capsys):
+    from workbench.experiment.cli import main
+
+    assert main(["simulate", "--noise-seed", "1", "--out", str(tmp_path / "x.csv")]) == 2
+    assert "--noise-seed needs --settings" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())

@@ -7,11 +7,17 @@ edge) to a tight-binding Hamiltonian: transmon frequencies ``f_i`` on the diagon
 model's own builder). The prior is ``eigvalsh(sign * H_model)`` (sign = -1). The
 *true device* departs from the model in named, switchable ways (:class:`Mismatch`); its
 eigenvalues, plus noise and occasional misidentified peaks, are the measured targets.
+
+The seed fixes the device (control-model constants and every hidden mismatch draw: drift,
+crosstalk, kappa, Delta_c, eta). :func:`simulate` measures random bias settings on it;
+:func:`measure` measures settings the caller chooses (e.g. an active-learning loop) on the
+same device, through the same physics.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,7 +28,8 @@ import pandas as pd
 from ._io import atomic_write
 from .hamiltonian import CouplingGraph, graph_spectrum, make_graph
 
-__all__ = ["MECHANISMS", "Mismatch", "Simulation", "simulate", "write_simulation"]
+__all__ = ["MECHANISMS", "Mismatch", "Simulation", "bias_columns", "measure", "simulate",
+           "write_simulation"]
 
 SIGN = -1
 Q_RANGE, C_RANGE = (-0.015, 0.015), (0.10, 0.22)  # uniform bias ranges (V)
@@ -137,46 +144,63 @@ def default_parasitic(graph: CouplingGraph) -> str:
     return "diagonal" if graph.topology == "grid" else "next_nearest"
 
 
-def simulate(n_sites: int | None = 5, n_experiments: int = 136, *, seed: int | None = 0,
-             mismatch: Mismatch | None = None, topology: str = "chain", shape=None,
-             edges=None, parasitic=None) -> Simulation:
-    """Simulate ``n_experiments`` random bias settings of a device of ``n_sites`` sites.
+@dataclass
+class _Device:
+    """One seeded device: graph, parasitic pairs, control model and the unit-size draws of
+    every mismatch mechanism (scaled by a :class:`Mismatch` in :func:`_experiments`)."""
 
-    ``topology`` "chain" (default), "ring" or "grid" (``shape = (rows, cols)``; ``n_sites``
-    may be None or must equal rows * cols), or an explicit ``edges`` list. ``parasitic``
-    (None: :func:`default_parasitic`; "next_nearest", "diagonal", "none" or a list of site
-    pairs) chooses where the next_nearest_coupling mismatch puts its parasitic couplings.
+    graph: CouplingGraph
+    pairs: list
+    seed: int | None
+    ctrl: dict
+    z: dict
+    xt: np.ndarray
+    kappa: np.ndarray
+    delta_c: np.ndarray
+    eta: np.ndarray
 
-    All random draws are made in a fixed order whatever the mismatch, so the same seed gives
-    the same device and voltages and only the switched-on mechanisms change the targets.
-    """
+
+def _build_device(n_sites, topology, shape, edges, parasitic,
+                  seed) -> tuple[_Device, np.random.Generator]:
+    """The device of ``seed``, and the generator after its draws (simulate() draws on)."""
     if n_sites is not None and (int(n_sites) != n_sites or n_sites < 2):
         raise ValueError(f"n_sites must be an integer >= 2, got {n_sites!r}")
-    if int(n_experiments) != n_experiments or n_experiments < 1:
-        raise ValueError(f"n_experiments must be an integer >= 1, got {n_experiments!r}")
     graph = make_graph(None if n_sites is None else int(n_sites), topology, shape, edges)
     if isinstance(parasitic, str) or parasitic is None:
         pairs = graph.parasitic_edges(default_parasitic(graph) if parasitic is None
                                       else parasitic)
     else:
         pairs = list(graph.with_edges(parasitic).edges[graph.n_edges:])
-    n, m, E = graph.n_sites, int(n_experiments), graph.n_edges
-    ea = np.array([e[0] for e in graph.edges], dtype=int)
-    eb = np.array([e[1] for e in graph.edges], dtype=int)
-    mm = Mismatch.default() if mismatch is None else mismatch
+    n, E = graph.n_sites, graph.n_edges
     rng = np.random.default_rng(seed)
     ctrl = _device(rng, n, E)
-    # unit-size draws of every mechanism, scaled by the mismatch strengths below
+    # unit-size draws of every mechanism, scaled by the mismatch strengths in _experiments
     z = {k: rng.standard_normal(v.shape) for k, v in ctrl.items()}
     xt = rng.uniform(0.5, 1.5, (4, E)) * rng.choice([-1.0, 1.0], (4, E))
     kappa = rng.uniform(0.5, 1.5, E) * rng.choice([-1.0, 1.0], E)
     delta_c = rng.uniform(800, 1200, E)
     eta = rng.uniform(0.5, 1.5, len(pairs))
-    vq = rng.uniform(*Q_RANGE, (m, n))
-    vc = rng.uniform(*C_RANGE, (m, E))
+    device = _Device(graph, pairs, None if seed is None else int(seed), ctrl, z, xt, kappa,
+                     delta_c, eta)
+    return device, rng
+
+
+def _readout_draws(rng: np.random.Generator, m: int, n: int) -> tuple:
+    """Per-experiment noise and misidentified-peak draws of ``m`` experiments."""
     noise = rng.standard_normal((m, n))
     bad_u, bad_level = rng.random(m), rng.integers(0, n, m)
     bad_shift = rng.uniform(3, 10, m) * rng.choice([-1.0, 1.0], m)
+    return noise, bad_u, bad_level, bad_shift
+
+
+def _experiments(dev: _Device, mm: Mismatch, vq, vc, draws, index=None) -> Simulation:
+    """The prior and the true device's measured eigenvalues at the biases ``vq`` (m, N) and
+    ``vc`` (m, E), with the :func:`_readout_draws` ``draws``; ``index`` labels the rows."""
+    graph, pairs, ctrl = dev.graph, dev.pairs, dev.ctrl
+    noise, bad_u, bad_level, bad_shift = draws
+    n, m, E = graph.n_sites, len(vq), graph.n_edges
+    ea = np.array([e[0] for e in graph.edges], dtype=int)
+    eb = np.array([e[1] for e in graph.edges], dtype=int)
 
     # control model and its prior
     f_model = transmon_frequency(vq, ctrl["f_max"], ctrl["v0"], ctrl["period"])
@@ -186,9 +210,10 @@ def simulate(n_sites: int | None = 5, n_experiments: int = 136, *, seed: int | N
     # true device
     sd = dict(f_max=1.5, v0=2e-4, period=0.003, g_max=0.03, v_half=1e-3, width=0.02)
     rel = {"period", "g_max", "width"}
-    true = {k: v * (1 + mm.drift * sd[k] * z[k]) if k in rel else v + mm.drift * sd[k] * z[k]
-            for k, v in ctrl.items()}
-    xt = mm.crosstalk * xt  # rows, edge e = (a, b): q_b <- q_a, q_a <- q_b, q_a <- c_e, q_b <- c_e
+    true = {k: v * (1 + mm.drift * sd[k] * dev.z[k]) if k in rel
+            else v + mm.drift * sd[k] * dev.z[k] for k, v in ctrl.items()}
+    # rows of xt, edge e = (a, b): q_b <- q_a, q_a <- q_b, q_a <- c_e, q_b <- c_e
+    xt = mm.crosstalk * dev.xt
     v_eff = vq.copy()
     v_eff_b = np.zeros_like(vq)
     np.add.at(v_eff_b.T, eb, (xt[0] * vq[:, ea] + xt[3] * (vc - V_CAL)).T)
@@ -198,8 +223,8 @@ def simulate(n_sites: int | None = 5, n_experiments: int = 136, *, seed: int | N
     v_eff += v_eff_a
     f_true = transmon_frequency(v_eff, true["f_max"], true["v0"], true["period"])
     g_true = coupler_coupling(vc, true["g_max"], true["v_half"], true["width"])
-    g_true = g_true + mm.coupler_nonlinearity * kappa * ((vc - V_CAL) / 0.06) ** 2
-    shift_coef = mm.coupler_frequency_shift / delta_c  # per MHz, frequencies pulled down
+    g_true = g_true + mm.coupler_nonlinearity * dev.kappa * ((vc - V_CAL) / 0.06) ** 2
+    shift_coef = mm.coupler_frequency_shift / dev.delta_c  # per MHz, frequencies pulled down
     pull = g_true**2 * shift_coef
     pull_a, pull_b = np.zeros_like(f_true), np.zeros_like(f_true)
     np.add.at(pull_a.T, ea, pull.T)  # coupler e = (a, b) pulls qubits a and b
@@ -211,22 +236,23 @@ def simulate(n_sites: int | None = 5, n_experiments: int = 136, *, seed: int | N
         paths = graph.paths2(i, j)
         bridge[:, k] = np.mean([np.sqrt(np.abs(g_true[:, a] * g_true[:, b])) for a, b in paths],
                                axis=0) if paths else 0.0
-    nnn = -mm.next_nearest_coupling * eta * bridge
+    nnn = -mm.next_nearest_coupling * dev.eta * bridge
     e_true = _eigenvalues(f_true, g_true, graph, nnn, pairs)
     measured = e_true + mm.noise_sd * noise
     bad = np.flatnonzero(bad_u < mm.misidentified_rate)  # one wrong peak in these rows
     measured[bad, bad_level[bad]] += bad_shift[bad]
     measured.sort(axis=1)
 
-    names = ([f"v_q{k}" for k in range(1, n + 1)] + [f"v_c{k}" for k in range(1, E + 1)]
-             + [f"model_f{k}" for k in range(1, n + 1)] + [f"model_g{k}" for k in range(1, E + 1)]
+    names = (bias_columns(n, E) + [f"model_f{k}" for k in range(1, n + 1)]
+             + [f"model_g{k}" for k in range(1, E + 1)]
              + [f"model_E{k}" for k in range(1, n + 1)]
              + [f"measured_E{k}" for k in range(1, n + 1)])
-    data = pd.DataFrame(np.hstack([vq, vc, f_model, g_model, e_model, measured]), columns=names)
+    data = pd.DataFrame(np.hstack([vq, vc, f_model, g_model, e_model, measured]), columns=names,
+                        index=index)
 
     edge_ab = list(zip(ea.tolist(), eb.tolist()))
     truth = {
-        "n_sites": n, "n_experiments": m, "seed": None if seed is None else int(seed),
+        "n_sites": n, "n_experiments": m, "seed": dev.seed,
         "graph": graph.to_dict(),
         "sign": SIGN, "units": "MHz, V", "mismatch": mm.to_dict(),
         "voltage_ranges": {"qubit": list(Q_RANGE), "coupler": list(C_RANGE)},
@@ -240,14 +266,15 @@ def simulate(n_sites: int | None = 5, n_experiments: int = 136, *, seed: int | N
                 "qubit_from_coupler": [[a, e, float(xt[2, e])] for e, (a, b) in enumerate(edge_ab)]
                 + [[b, e, float(xt[3, e])] for e, (a, b) in enumerate(edge_ab)],
                 "formula": "V_eff = V_q + C_qq V_q + C_qc (V_c - 0.16)"},
-            "coupler_nonlinearity": {"kappa_MHz": (mm.coupler_nonlinearity * kappa).tolist(),
+            "coupler_nonlinearity": {"kappa_MHz": (mm.coupler_nonlinearity * dev.kappa).tolist(),
                                      "formula": "g += kappa ((V_c - 0.16) / 0.06)^2"},
             "coupler_frequency_shift": {
-                "sign": -1, "coef_per_MHz": shift_coef.tolist(), "delta_c_MHz": delta_c.tolist(),
+                "sign": -1, "coef_per_MHz": shift_coef.tolist(),
+                "delta_c_MHz": dev.delta_c.tolist(),
                 "formula": "f_a and f_b += sign * coef_e * g_e^2 (true g, edge e = (a, b))"},
             "next_nearest_coupling": {
                 "pairs": [list(p) for p in pairs],
-                "eta": (mm.next_nearest_coupling * eta).tolist(),
+                "eta": (mm.next_nearest_coupling * dev.eta).tolist(),
                 "formula": "H[i, j] = -eta_ij mean over paths i-m-j of sqrt(|g_im g_mj|) "
                            "(true g; pairs are 0-based sites)"},
             "noise": {"sd_MHz": mm.noise_sd},
@@ -258,6 +285,95 @@ def simulate(n_sites: int | None = 5, n_experiments: int = 136, *, seed: int | N
         },
     }
     return Simulation(data=data, truth=json.loads(json.dumps(truth)))
+
+
+def bias_columns(n_sites: int, n_edges: int) -> list[str]:
+    """The bias columns of a device: ``v_q1..v_qN`` then ``v_c1..v_cE``."""
+    return ([f"v_q{k}" for k in range(1, n_sites + 1)]
+            + [f"v_c{k}" for k in range(1, n_edges + 1)])
+
+
+def simulate(n_sites: int | None = 5, n_experiments: int = 136, *, seed: int | None = 0,
+             mismatch: Mismatch | None = None, topology: str = "chain", shape=None,
+             edges=None, parasitic=None) -> Simulation:
+    """Simulate ``n_experiments`` random bias settings of a device of ``n_sites`` sites.
+
+    ``topology`` "chain" (default), "ring" or "grid" (``shape = (rows, cols)``; ``n_sites``
+    may be None or must equal rows * cols), or an explicit ``edges`` list. ``parasitic``
+    (None: :func:`default_parasitic`; "next_nearest", "diagonal", "none" or a list of site
+    pairs) chooses where the next_nearest_coupling mismatch puts its parasitic couplings.
+
+    All random draws are made in a fixed order whatever the mismatch (the device first, then
+    the voltages, uniform in Q_RANGE and C_RANGE, then noise and misidentified peaks), so the
+    same seed gives the same device and voltages and only the switched-on mechanisms change
+    the targets. :func:`measure` measures chosen settings on the same device.
+    """
+    if int(n_experiments) != n_experiments or n_experiments < 1:
+        raise ValueError(f"n_experiments must be an integer >= 1, got {n_experiments!r}")
+    dev, rng = _build_device(n_sites, topology, shape, edges, parasitic, seed)
+    n, m, E = dev.graph.n_sites, int(n_experiments), dev.graph.n_edges
+    vq = rng.uniform(*Q_RANGE, (m, n))
+    vc = rng.uniform(*C_RANGE, (m, E))
+    return _experiments(dev, Mismatch.default() if mismatch is None else mismatch, vq, vc,
+                        _readout_draws(rng, m, n))
+
+
+def measure(settings: pd.DataFrame, *, seed: int | None = 0, mismatch: Mismatch | None = None,
+            topology: str = "chain", n_sites: int | None = None, shape=None, edges=None,
+            parasitic=None, noise_seed: int | None = None) -> Simulation:
+    """Measure the bias ``settings`` (rows of ``v_q1..v_qN``, ``v_c1..v_cE``; other columns
+    are ignored) on the device :func:`simulate` makes with the same ``seed``, ``topology``,
+    ``n_sites``, ``shape``, ``edges``, ``parasitic`` and ``mismatch``.
+
+    ``n_sites`` None with a chain or ring: the number of ``v_q`` columns. Voltages outside
+    Q_RANGE and C_RANGE are allowed. The rows come back in the order and with the index of
+    ``settings``, in simulate()'s columns; ``truth`` is simulate()'s for this device with
+    ``n_experiments`` the rows measured here and the misidentified rows (0-based positions)
+    of this call. Noise and misidentified peaks come from ``noise_seed``, or (None) from a
+    seed derived from ``seed`` and the settings' values: the same settings measure the same,
+    different settings get independent noise (``seed`` None: a fresh device and fresh
+    noise). Raises ValueError on a missing column, a non-numeric, NaN or infinite bias, or
+    no rows.
+    """
+    if not isinstance(settings, pd.DataFrame):
+        raise TypeError(f"settings must be a pandas DataFrame, got {type(settings).__name__}")
+    if noise_seed is not None and (int(noise_seed) != noise_seed or noise_seed < 0):
+        raise ValueError(f"noise_seed must be an integer >= 0, got {noise_seed!r}")
+    if n_sites is None and edges is None and topology in ("chain", "ring"):
+        n_sites = 0
+        while f"v_q{n_sites + 1}" in settings.columns:
+            n_sites += 1
+        if n_sites < 2:
+            raise ValueError(f"settings need the qubit bias columns v_q1, v_q2, ... (a "
+                             f"{topology} of >= 2 sites); found {n_sites}")
+    dev, _ = _build_device(n_sites, topology, shape, edges, parasitic, seed)
+    n, E = dev.graph.n_sites, dev.graph.n_edges
+    columns = bias_columns(n, E)
+    missing = [c for c in columns if c not in settings.columns]
+    if missing:
+        listed = ", ".join(missing[:8]) + (f" and {len(missing) - 8} more" if len(missing) > 8
+                                           else "")
+        raise ValueError(f"settings lack the bias column(s) {listed}: the device has {n} sites "
+                         f"(v_q1..v_q{n}) and {E} couplings (v_c1..v_c{E})")
+    if len(settings) == 0:
+        raise ValueError("settings have no rows")
+    twice = [c for c in columns if (settings.columns == c).sum() > 1]
+    if twice:
+        raise ValueError(f"settings have the column(s) {', '.join(twice[:8])} more than once")
+    text = [c for c in columns if not pd.api.types.is_numeric_dtype(settings[c])]
+    if text:
+        raise ValueError(f"settings column(s) {', '.join(text[:8])} are not numeric")
+    values = np.ascontiguousarray(settings[columns].to_numpy(dtype=float))
+    bad = [c for c, ok in zip(columns, np.isfinite(values).all(axis=0)) if not ok]
+    if bad:
+        raise ValueError(f"settings column(s) {', '.join(bad[:8])} hold NaN or infinite values")
+    source: int | np.random.SeedSequence | None = noise_seed
+    if noise_seed is None and seed is not None:
+        digest = hashlib.sha256(values.tobytes()).digest()
+        source = np.random.SeedSequence([int(seed), int.from_bytes(digest[:16], "little")])
+    draws = _readout_draws(np.random.default_rng(source), len(values), n)
+    return _experiments(dev, Mismatch.default() if mismatch is None else mismatch,
+                        values[:, :n], values[:, n:], draws, index=settings.index)
 
 
 def write_simulation(sim: Simulation, out: str | Path) -> tuple[Path, Path]:

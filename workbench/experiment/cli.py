@@ -376,8 +376,12 @@ def _wall() -> float:
 
 
 def _cmd_simulate(args) -> int:
-    from ..simulate import Mismatch, simulate, write_simulation
+    from ..simulate import Mismatch, measure, simulate, write_simulation
 
+    if args.settings is not None and args.experiments is not None:
+        raise UsageError("--settings measures the rows of its CSV; drop --experiments")
+    if args.noise_seed is not None and args.settings is None:
+        raise UsageError("--noise-seed needs --settings (simulate's noise follows --seed)")
     try:
         if args.mismatch is None:
             mismatch = Mismatch.default()
@@ -391,15 +395,30 @@ def _cmd_simulate(args) -> int:
             if not (sep and rows.isdigit() and cols.isdigit()):
                 raise ValueError(f"--shape must be RxC (e.g. 3x3), got {args.shape!r}")
             shape = (int(rows), int(cols))
-        sites = args.sites if args.sites is not None or args.topology == "grid" else 5
-        sim = simulate(sites, args.experiments, seed=args.seed, mismatch=mismatch,
-                       topology=args.topology, shape=shape, parasitic=args.parasitic)
+        if args.settings is None:
+            sites = args.sites if args.sites is not None or args.topology == "grid" else 5
+            sim = simulate(sites, 136 if args.experiments is None else args.experiments,
+                           seed=args.seed, mismatch=mismatch, topology=args.topology,
+                           shape=shape, parasitic=args.parasitic)
+        else:
+            import pandas as pd
+
+            try:
+                settings = pd.read_csv(args.settings)
+            except (ValueError, OSError) as exc:
+                raise ValueError(f"--settings {args.settings}: cannot read it as a CSV "
+                                 f"({exc})") from None
+            sim = measure(settings, seed=args.seed, mismatch=mismatch, topology=args.topology,
+                          n_sites=args.sites, shape=shape, parasitic=args.parasitic,
+                          noise_seed=args.noise_seed)
         csv_path, truth_path = write_simulation(sim, args.out)
     except (ValueError, OSError) as exc:
         raise UsageError(str(exc)) from None
     prior = sim.data.filter(like="model_E").to_numpy()
     measured = sim.data.filter(like="measured_E").to_numpy()
-    print(f"wrote {csv_path} ({len(sim.data)} experiments, {sim.truth['n_sites']} sites, "
+    rows = (f"{len(sim.data)} experiments" if args.settings is None
+            else f"measured {len(sim.data)} settings")
+    print(f"wrote {csv_path} ({rows}, {sim.truth['n_sites']} sites, "
           f"{sim.truth['graph']['topology']}; prior MAE "
           f"{abs(prior - measured).mean():.3f} MHz) and {truth_path}")
     return 0
@@ -559,16 +578,28 @@ def build_parser() -> argparse.ArgumentParser:
     ui.set_defaults(func=_cmd_ui)
 
     sim = sub.add_parser("simulate", help="simulate a device of coupled qubits and write a CSV "
-                         "(plus a .truth.json sidecar with the graph and injected mismatches)")
+                         "(plus a .truth.json sidecar with the graph and injected mismatches); "
+                         "with --settings, measure given bias settings on the seed's device")
     sim.add_argument("--sites", type=int, default=None,
-                     help="qubits in the chain or ring (>= 2; default 5; grid: rows x cols)")
+                     help="qubits in the chain or ring (>= 2; default 5, with --settings the "
+                     "number of v_q columns; grid: rows x cols)")
     sim.add_argument("--topology", choices=("chain", "ring", "grid"), default="chain")
     sim.add_argument("--shape", default=None, metavar="RxC", help="grid rows x columns")
     sim.add_argument("--parasitic", choices=("next_nearest", "diagonal", "none"), default=None,
                      help="where parasitic couplings go (default: grid diagonal, else "
                      "next-nearest)")
-    sim.add_argument("--experiments", type=int, default=136, help="rows to simulate")
-    sim.add_argument("--seed", type=int, default=0)
+    sim.add_argument("--experiments", type=int, default=None,
+                     help="random bias settings to simulate (default 136; not with --settings)")
+    sim.add_argument("--settings", metavar="SETTINGS.csv", default=None,
+                     help="measure these rows instead (columns v_q1..v_qN, v_c1..v_cE, others "
+                     "ignored) on the device --seed and the options above make; voltages "
+                     "outside the simulated ranges are allowed")
+    sim.add_argument("--noise-seed", type=int, default=None,
+                     help="with --settings: seed of the noise and misidentified peaks (default: "
+                     "derived from --seed and the settings, so the same settings measure the "
+                     "same)")
+    sim.add_argument("--seed", type=int, default=0, help="the device (and, without --settings, "
+                     "the settings and noise)")
     sim.add_argument("--mismatch", nargs="+", metavar="NAME", default=None,
                      help="mechanisms to switch on (default: all at realistic sizes; 'none': "
                      "the control model is exact)")
