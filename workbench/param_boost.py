@@ -698,6 +698,27 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
                                      covariate_sd=float(sd)))
         return pd.DataFrame(rows, columns=["parameter", "covariate", "coef", "covariate_sd"])
 
+    def coef_jacobian(self, X) -> np.ndarray:
+        """``d predict(X)[j, k] / d coef[d]`` at the fitted coefficients, shape ``(n, N, D)``
+        (coefficients in :attr:`coef_`'s order): the Hellmann-Feynman Jacobian of the
+        eigenvalues times each parameter's covariates, the rows of the Gauss-Newton
+        design matrix."""
+        self._check_X(X)
+        theta0, variables = self._variables(X)
+        phis = self._design(variables, len(theta0), fitting=False)
+        jac = self._spectrum(self._theta(theta0, phis, self._coef))[1]
+        return np.concatenate([jac[:, :, p, None] * phi[:, None, :]
+                               for p, phi in enumerate(phis)], axis=2)
+
+    def information(self, X) -> np.ndarray:
+        """The Gauss-Newton information of the coefficients from the rows of ``X``:
+        ``A^T A + alpha P`` (``A`` = :meth:`coef_jacobian`, ``P`` the ridge penalty's
+        diagonal: 0 for the intercepts), in units of the measurement noise's variance."""
+        A = self.coef_jacobian(X)
+        penalty = np.ones(A.shape[2])
+        penalty[[s.start for s in self._slices]] = 0.0
+        return np.einsum("nkd,nke->de", A, A) + self.alpha * np.diag(penalty)
+
     def _slice_of(self, p: str) -> slice:
         return self._slices[self.parameter_names_.index(p)]
 

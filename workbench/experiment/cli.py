@@ -365,6 +365,23 @@ def _cmd_predict(args) -> int:
     return 0
 
 
+def _cmd_design(args) -> int:
+    from .config import load_config
+    from .design import design_csv
+
+    cfg = load_config(args.config)
+    if args.jobs is not None:
+        cfg = dataclasses.replace(cfg, n_jobs=args.jobs)
+    from ..parallel import worker_pool
+
+    with worker_pool(cfg.jobs, eager=True):
+        done = design_csv(cfg, args.candidates, args.n, args.out, args.criterion)
+    print(f"wrote {args.out}: {len(done.chosen)} of {done.n_candidates} candidates "
+          f"({'I' if args.criterion == 'i' else 'D'}-optimal for {done.problem.what}; model "
+          f"fitted on {done.n_rows} training rows; {_wall():.1f} s)")
+    return 0
+
+
 _START = [0.0]
 
 
@@ -576,6 +593,23 @@ def build_parser() -> argparse.ArgumentParser:
                     "URL) with optuna-dashboard (default: mlruns/optuna.journal if present)")
     ui.add_argument("--dashboard-port", type=int, default=8080)
     ui.set_defaults(func=_cmd_ui)
+
+    des = sub.add_parser("design", help="choose the settings to measure next: the candidates "
+                         "whose measurement would most lower the model's uncertainty")
+    des.add_argument("config", help="experiment config (TOML); its model is fitted on the "
+                     "config's training rows")
+    des.add_argument("--candidates", required=True, metavar="CANDIDATES.csv",
+                     help="settings that could be measured: the model's input columns (features, "
+                     "the control model's prediction, Hamiltonian parameters), no measurement")
+    des.add_argument("--n", type=_count, required=True, help="how many to choose (a batch)")
+    des.add_argument("--out", required=True, metavar="NEXT.csv",
+                     help="the chosen rows, in the order chosen, with the reason for each")
+    des.add_argument("--criterion", choices=("i", "d"), default="i",
+                     help="i: lower the average predictive variance over the candidates "
+                     "(default); d: most information about the model's coefficients (log det)")
+    des.add_argument("--jobs", type=_count, default=None, help="worker processes (default: "
+                     "the config's n_jobs)")
+    des.set_defaults(func=_cmd_design)
 
     sim = sub.add_parser("simulate", help="simulate a device of coupled qubits and write a CSV "
                          "(plus a .truth.json sidecar with the graph and injected mismatches); "

@@ -16,6 +16,7 @@ from sklearn.base import clone
 from sklearn.exceptions import ConvergenceWarning
 
 from ..._io import atomic_write
+from ...design import DesignProblem, ensemble_blocks, robust_sd
 from ..errors import listing
 from ..figures import save_figure
 from ..results import ModelScores, Scores, mae, mse
@@ -29,6 +30,9 @@ __all__ = ["ALL_TARGETS", "Artifacts", "ModelFamily", "Report"]
 
 #: The study unit of a family whose one model predicts every target.
 ALL_TARGETS = "all"
+
+#: Fold models whose spread is a family's default uncertainty for ``workbench design``.
+DESIGN_FOLDS = 5
 
 #: ``report(fold, mae, prior_mae)``: called by an objective after each inner fold.
 Report = Callable[[int, float, float], None]
@@ -188,6 +192,34 @@ class ModelFamily:
         """The unfitted model a sweep refits on all training rows (``cfg`` holds its
         choices, from :meth:`chosen_config`)."""
         return self.build(cfg, ds)
+
+    # ------------------------------------------------------------------ design
+    def design_problem(self, cfg: ExperimentConfig, model, X: pd.DataFrame, Y: pd.DataFrame,
+                       candidates: pd.DataFrame) -> DesignProblem:
+        """What the ``model`` fitted on ``X``, ``Y`` does not know at the ``candidates``
+        (frames of :meth:`inputs`' columns), for ``workbench design``.
+
+        Default: the spread of :data:`DESIGN_FOLDS` fold models (the fitted model's choices
+        kept, :meth:`fixed_choices`, each refitted without one fold of the rows), with each
+        target's noise sd the robust sd of the fold models' out-of-fold residuals
+        (:func:`~workbench.design.ensemble_blocks`)."""
+        from sklearn.model_selection import KFold
+
+        folds = KFold(min(DESIGN_FOLDS, len(X)), shuffle=True,
+                      random_state=cfg.random_state or 0)
+        preds, resid = [], np.empty(Y.shape)
+        for train, val in folds.split(X):
+            fold = quiet_fit(self.fixed_choices(model), X.iloc[train], Y.iloc[train])
+            preds.append(np.asarray(fold.predict(candidates), dtype=float))
+            resid[val] = Y.iloc[val].to_numpy(dtype=float) - np.asarray(
+                fold.predict(X.iloc[val]), dtype=float)
+        noise = robust_sd(resid, axis=0)
+        blocks, information = ensemble_blocks(np.stack(preds), noise)
+        k = len(preds)
+        names = [str(t) for t in Y.columns for _ in range(k)]
+        return DesignProblem(blocks, information, noise, names,
+                             f"the spread of {k} fold models",
+                             informs="the fold models' spread of {name} falls {fraction:.0%}")
 
     # ------------------------------------------------------------------ results
     def selected(self, model, targets: list[str]) -> list[str]:

@@ -26,11 +26,13 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, cast
 
+import numpy as np
 import pandas as pd
 from pydantic import Field
 from sklearn.base import clone
 from sklearn.model_selection import KFold
 
+from ...design import DesignProblem, robust_sd
 from ...fitted_prior import FittedPriorBoost
 from ...param_boost import HamiltonianParameterRegressor, default_library
 from ...param_select import HamiltonianSelectionCV, candidate_pool
@@ -226,6 +228,36 @@ class HamiltonianFamily(ModelFamily):
                                 "path": _records(selection.path),
                                 "seconds": selection.seconds}
         return prior, scores, {"hamiltonian": ham}
+
+    def design_problem(self, cfg, model, X, Y, candidates) -> DesignProblem:
+        """The Fisher information of the parameter-space model's correction coefficients
+        (Gauss-Newton: the Hellmann-Feynman Jacobian of the eigenvalues times the
+        covariates, :meth:`~workbench.param_boost.HamiltonianParameterRegressor.coef_jacobian`,
+        plus the ridge penalty as the coefficients' prior), one noise sd for every
+        eigenvalue: the robust sd of the model's training residuals.
+
+        The coefficients are those of every covariate the selection could choose, not only
+        the chosen ones (at the fitted model, the others at 0; DuMouchel and Jones's
+        "potential terms"): a design for the chosen covariates alone piles its points where
+        they have leverage and starves the terms the selection has not taken yet. The
+        boosting stage on top is not part of it."""
+        regressor = physics_regressor(model)
+        physics = model.physics_
+        library = {p: [c for c in names if c != "intercept"]
+                   for p, names in regressor.covariate_names_.items()}
+        for p, names in (getattr(physics, "candidates", None) or {}).items():
+            library[p] = list(dict.fromkeys(library.get(p, []) + list(names)))
+        full = clone(regressor).set_params(covariates=library, features=None, max_iter=0)
+        full.fit(X, Y, coef_init=regressor.coef_dict())
+        sigma = float(robust_sd(Y.to_numpy(dtype=float) - regressor.predict(X)))
+        names = [f"{p}:{c}" for p, c in full.coef_.index]
+        return DesignProblem(full.coef_jacobian(candidates) / sigma,
+                             full.information(X) / sigma**2,
+                             np.full(Y.shape[1], sigma), names,
+                             f"the {len(names)} correction coefficients of the Hamiltonian "
+                             "the selection could use",
+                             informs="the variance of the coefficient {name} falls "
+                                     "{fraction:.0%}")
 
     def outputs(self, model, ds: Dataset, setting: str | None = None) -> Artifacts:
         """The tables and figures of a fitted model, from one computation of the corrected

@@ -1,0 +1,189 @@
+"""Which experiments next: greedy optimal batches for a model that is (locally) linear in its
+coefficients.
+
+Every candidate setting ``x`` contributes a *block* ``B(x)`` of shape ``(q, D)``: the
+derivatives of its ``q`` predicted outputs with respect to the model's ``D`` coefficients,
+divided by the measurement noise's sd. With ``G`` the inverse of the current information
+matrix ``F`` (the measured rows' ``sum B^T B`` plus the prior's precision, e.g. a ridge
+penalty), the model's predictive covariance at ``x`` is ``B G B^T`` (in noise units), and
+measuring ``x`` adds ``B^T B`` to ``F``:
+
+* D-optimal: the gain of ``x`` is ``log det(I + B G B^T)`` (nats of information about the
+  coefficients; the determinant lemma);
+* I-optimal: the gain is the fall of the average predictive variance over *reference*
+  settings (``tr(G M)``, ``M`` the mean of the reference blocks' ``B^T B``), which is
+  ``tr(S^-1 B G M G B^T)`` with ``S = I + B G B^T``.
+
+A batch is chosen greedily: the best candidate, then ``G`` updated as if it had been
+measured (Woodbury; its outcome does not matter for a linear model), then the next. So a
+batch of N is not N copies of one setting: a chosen setting's information lowers the gain of
+the settings like it. For a linear model the result is the textbook design (the two ends of
+an interval for a straight line; -1, 0, 1 for a parabola).
+
+:func:`ensemble_blocks` turns the predictions of several models (e.g. cross-validation fold
+models) into blocks: their spread is treated as a Gaussian over functions with the
+ensemble's covariance, the same machinery then picks diverse, uncertain settings.
+
+Core module: numpy only.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["CRITERIA", "Batch", "DesignProblem", "ensemble_blocks", "greedy_design",
+           "robust_sd"]
+
+#: Design criteria of :func:`greedy_design`.
+CRITERIA = ("d", "i")
+
+
+@dataclass
+class Batch:
+    """A greedy batch (positions into the candidates, in the order chosen).
+
+    ``gain``: each pick's criterion gain given the measured rows and the earlier picks (nats
+    for D, noise-variance units of the average predictive variance for I); ``sd``: each
+    pick's predictive sd per output at the time it was chosen (noise sd units); ``sd_before``:
+    every candidate's predictive sd per output before the batch; ``informs`` and
+    ``informs_fraction``: the coefficient whose variance each pick lowers most, relatively,
+    and by what fraction.
+    """
+
+    index: np.ndarray
+    gain: np.ndarray
+    sd: np.ndarray
+    sd_before: np.ndarray
+    informs: np.ndarray
+    informs_fraction: np.ndarray
+    criterion: str
+
+
+@dataclass
+class DesignProblem:
+    """What a fitted model knows, for :func:`greedy_design`: the candidates' ``blocks``
+    ``(m, q, D)`` and the ``information`` ``(D, D)`` in noise units, the noise sd of each
+    output (``noise_sd``, targets' units: an sd in noise units times it is in the targets'
+    units), the coefficients' names, what they are (``what``) and how to say that a pick
+    lowers one's variance (``informs``, formatted with ``name`` and ``fraction``)."""
+
+    blocks: np.ndarray
+    information: np.ndarray
+    noise_sd: np.ndarray
+    coefficients: list[str]
+    what: str
+    informs: str = "the variance of {name} falls {fraction:.0%}"
+
+
+def robust_sd(residuals, axis=None) -> np.ndarray:
+    """1.4826 x the median absolute deviation from the median (the sd for Gaussian
+    residuals, unmoved by a few wild ones), floored at 1e-12."""
+    r = np.asarray(residuals, dtype=float)
+    med = np.median(r, axis=axis, keepdims=True)
+    return np.maximum(1.4826 * np.median(np.abs(r - med), axis=axis), 1e-12)
+
+
+def _inverse(information: np.ndarray) -> np.ndarray:
+    F = np.asarray(information, dtype=float)
+    F = 0.5 * (F + F.T)
+    try:
+        G = np.linalg.inv(np.linalg.cholesky(F))
+        return G.T @ G
+    except np.linalg.LinAlgError:
+        raise ValueError("the information matrix is not positive definite: the measured rows "
+                         "and the prior do not determine every coefficient (add a ridge "
+                         "penalty or more rows)") from None
+
+
+def _check(blocks, information, n, criterion, reference, repeats):
+    B = np.asarray(blocks, dtype=float)
+    if B.ndim != 3:
+        raise ValueError(f"blocks must have shape (n_candidates, n_outputs, n_coefficients), "
+                         f"got {B.shape}")
+    m, _, D = B.shape
+    F = np.asarray(information, dtype=float)
+    if F.shape != (D, D):
+        raise ValueError(f"information must be ({D}, {D}) for {D} coefficients, got {F.shape}")
+    if criterion not in CRITERIA:
+        raise ValueError(f"unknown design criterion {criterion!r}; valid: {', '.join(CRITERIA)}")
+    if isinstance(n, bool) or int(n) != n or not 1 <= n <= (np.inf if repeats else m):
+        raise ValueError(f"n must be an integer from 1 to the number of candidates ({m}), "
+                         f"got {n!r}")
+    for name, a in (("blocks", B), ("information", F)):
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"{name} contain NaN or infinite values")
+    R = B if reference is None else np.asarray(reference, dtype=float)
+    if R.ndim != 3 or R.shape[2] != D or not np.all(np.isfinite(R)):
+        raise ValueError(f"reference must be finite blocks (n_reference, n_outputs, {D}), got "
+                         f"shape {R.shape}")
+    return B, F, R
+
+
+def greedy_design(blocks, information, n: int, *, criterion: str = "d", reference=None,
+                  repeats: bool = False) -> Batch:
+    """Choose ``n`` of the candidates' ``blocks`` (shape ``(m, q, D)``) greedily by the D- or
+    I-criterion (``criterion`` "d" or "i"), given the current ``information`` ``(D, D)``.
+
+    ``reference``: blocks of the settings whose average predictive variance the I-criterion
+    lowers (default: the candidates themselves). Each candidate is chosen at most once
+    unless ``repeats`` (a setting may then be measured again: replicates).
+    """
+    B, F, R = _check(blocks, information, n, criterion, reference, repeats)
+    m, q, D = B.shape
+    G = _inverse(F)
+    M = np.einsum("rqd,rqe->de", R, R) / len(R) if criterion == "i" else None
+    eye = np.eye(q)
+    sd_before = np.sqrt(np.maximum(np.einsum("mqd,de,mqe->mq", B, G, B), 0.0))
+    free = np.ones(m, dtype=bool)
+    index, gains, sds, informs, fractions = [], [], [], [], []
+    for _ in range(int(n)):
+        U = B @ G  # (m, q, D)
+        C = U @ np.swapaxes(B, 1, 2)  # predictive covariance (m, q, q)
+        S = C + eye
+        if M is None:
+            gain = np.linalg.slogdet(S)[1]
+        else:
+            T = U @ M @ np.swapaxes(U, 1, 2)
+            gain = np.trace(np.linalg.solve(S, T), axis1=1, axis2=2)
+        gain = np.where(free, gain, -np.inf)
+        c = int(np.argmax(gain))
+        u = U[c]
+        drop = u.T @ np.linalg.solve(S[c], u)  # G - G' (Woodbury)
+        ratio = np.diag(drop) / np.maximum(np.diag(G), np.finfo(float).tiny)
+        index.append(c)
+        gains.append(float(gain[c]))
+        sds.append(np.sqrt(np.maximum(np.diag(C[c]), 0.0)))
+        informs.append(int(np.argmax(ratio)))
+        fractions.append(float(np.max(ratio)))
+        G = G - drop
+        G = 0.5 * (G + G.T)
+        free[c] = repeats
+    return Batch(index=np.asarray(index), gain=np.asarray(gains), sd=np.asarray(sds),
+                 sd_before=sd_before, informs=np.asarray(informs),
+                 informs_fraction=np.asarray(fractions), criterion=criterion)
+
+
+def ensemble_blocks(predictions, noise_sd) -> tuple[np.ndarray, np.ndarray]:
+    """Blocks and information for the spread of an ensemble's predictions.
+
+    ``predictions``: shape ``(K, m, q)``, K models' predictions of q outputs at m settings;
+    ``noise_sd``: the measurement noise's sd per output (shape ``(q,)`` or a number). Output
+    ``t`` is modelled as ``mean + E_t(x) . w_t`` with ``w_t ~ N(0, I_K)`` and ``E_t`` the
+    deviations from the ensemble mean over ``sqrt(K - 1)`` (so the predictive variance is the
+    ensemble's variance). Returns ``(blocks (m, q, K q), information = I)``.
+    """
+    P = np.asarray(predictions, dtype=float)
+    if P.ndim != 3 or P.shape[0] < 2:
+        raise ValueError(f"predictions must have shape (n_models >= 2, n_settings, n_outputs), "
+                         f"got {P.shape}")
+    K, m, q = P.shape
+    sd = np.broadcast_to(np.asarray(noise_sd, dtype=float), (q,))
+    if not np.all(np.isfinite(sd) & (sd > 0)):
+        raise ValueError(f"noise_sd must be finite and > 0, got {noise_sd!r}")
+    E = (P - P.mean(axis=0)) / np.sqrt(K - 1)  # (K, m, q)
+    blocks = np.zeros((m, q, K * q))
+    for t in range(q):
+        blocks[:, t, t * K:(t + 1) * K] = E[:, :, t].T / sd[t]
+    return blocks, np.eye(K * q)

@@ -1,0 +1,214 @@
+"""``workbench design CONFIG --candidates CANDIDATES.csv --n N --out NEXT.csv``: which
+settings to measure next.
+
+The config's model is fitted on its training rows (the measurements so far; the test rows
+stay unseen), then ``N`` of the candidate settings (rows with the model's inputs: features,
+the control model's prediction and, for the parameter-space family, its Hamiltonian
+parameters; no measurement) are chosen greedily by how much measuring them would teach the
+model (:func:`workbench.design.greedy_design`): the family says what the model is unsure of
+(:meth:`~workbench.experiment.families.base.ModelFamily.design_problem`: for the
+parameter-space model the Fisher information of its correction coefficients through the
+Hellmann-Feynman Jacobian; for the others the spread of fold models). Criterion "i" (the
+default) lowers the model's average predictive variance over the candidates, "d" maximises
+the information about the coefficients (log det).
+
+The output holds the chosen candidates' rows as given (every column, text unchanged), in the
+order chosen, then ``design_rank``, ``design_gain``, the model's prediction and predictive sd
+of each target (``<target>_predicted``, ``<target>_sd``: at the time of the pick, given the
+measured rows and the earlier picks), and ``design_reason``, a sentence on why the row was
+chosen.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..datasets.csv import DatasetError, _read
+from ..design import CRITERIA, Batch, DesignProblem, greedy_design
+from .config import ExperimentConfig, load_dataset
+from .errors import UsageError
+from .families.base import quiet_fit
+from .outputs import check_file, write_file
+from .serving import InputError, check_inputs
+
+__all__ = ["ARMS", "Acquisition", "Design", "acquisition_loop", "choose", "design",
+           "design_columns", "design_csv"]
+
+log = logging.getLogger("workbench")
+
+@dataclass
+class Design:
+    """A chosen batch: ``chosen`` the design columns of the picks (rank order, indexed like
+    the candidates), ``batch`` the greedy batch, ``problem`` what the model was unsure of."""
+
+    chosen: pd.DataFrame
+    batch: Batch
+    problem: DesignProblem
+    n_rows: int
+    n_candidates: int
+    seconds: float = 0.0
+    notes: list[str] = field(default_factory=list)
+
+
+def _reasons(batch: Batch, problem: DesignProblem, targets: list[str]) -> list[str]:
+    out = []
+    for r, (gain, sd, k, frac) in enumerate(zip(batch.gain, batch.sd, batch.informs,
+                                               batch.informs_fraction), start=1):
+        if batch.criterion == "d":
+            why = f"D-optimal pick {r}: {gain:.3g} nats of information about {problem.what}"
+        else:
+            why = (f"I-optimal pick {r}: lowers the average predictive variance over the "
+                   f"candidates by {gain:.3g} noise variances ({problem.what})")
+        sd_units = sd * problem.noise_sd
+        t = int(np.argmax(sd_units))
+        after = ("the measured rows" if r == 1 else "the measured rows and pick 1" if r == 2
+                 else f"the measured rows and picks 1-{r - 1}")
+        informs = problem.informs.format(name=problem.coefficients[k], fraction=frac)
+        out.append(f"{why}; predicted sd {sd_units[t]:.3g} for {targets[t]} given {after}; "
+                   f"{informs}")
+    return out
+
+
+def choose(cfg: ExperimentConfig, model, X: pd.DataFrame, Y: pd.DataFrame,
+           candidates: pd.DataFrame, n: int, criterion: str = "i") -> Design:
+    """Choose ``n`` of the ``candidates`` (a frame of the family's input columns) for the
+    config's ``model`` fitted on ``X``, ``Y`` (no file is read or written)."""
+    start = time.perf_counter()
+    if criterion not in CRITERIA:
+        raise UsageError(f"unknown design criterion {criterion!r}; valid: {', '.join(CRITERIA)}")
+    if not 1 <= n <= len(candidates):
+        raise UsageError(f"--n {n}: choose between 1 and the {len(candidates)} candidates")
+    problem = cfg.family.design_problem(cfg, model, X, Y, candidates)
+    batch = greedy_design(problem.blocks, problem.information, n, criterion=criterion)
+    rows = candidates.iloc[batch.index]
+    targets = [str(t) for t in Y.columns]
+    pred = np.asarray(model.predict(rows), dtype=float).reshape(len(rows), len(targets))
+    sd = batch.sd * problem.noise_sd
+    columns: dict[str, object] = {"design_rank": np.arange(1, n + 1),
+                                  "design_gain": batch.gain}
+    for j, t in enumerate(targets):
+        columns[f"{t}_predicted"] = pred[:, j]
+        columns[f"{t}_sd"] = sd[:, j]
+    columns["design_reason"] = _reasons(batch, problem, targets)
+    chosen = pd.DataFrame(columns, index=rows.index)
+    return Design(chosen=chosen, batch=batch, problem=problem, n_rows=len(X),
+                  n_candidates=len(candidates), seconds=time.perf_counter() - start)
+
+
+def _checked(cfg: ExperimentConfig, candidates: pd.DataFrame):
+    ds = load_dataset(cfg)
+    X_all = cfg.family.inputs(cfg, ds)
+    try:
+        C = check_inputs(candidates, list(X_all.columns), where="candidates")
+    except InputError as exc:
+        raise UsageError(str(exc)) from None
+    return ds, X_all, C
+
+
+def _design(cfg, ds, X_all, C, n, criterion) -> Design:
+    X, Y = X_all.loc[ds.train_index], ds.targets.loc[ds.train_index]
+    log.info("[%s] fitting on %d training rows, then choosing %d of %d candidates", cfg.name,
+             len(X), n, len(C))
+    model = quiet_fit(cfg.family.build(cfg, ds), X, Y)
+    return choose(cfg, model, X, Y, C, n, criterion)
+
+
+def design(cfg: ExperimentConfig, candidates: pd.DataFrame, n: int,
+           criterion: str = "i") -> Design:
+    """Fit the config's model on its training rows and choose ``n`` of the ``candidates``
+    (any frame holding the family's input columns by name; checked like a served model's
+    input)."""
+    ds, X_all, C = _checked(cfg, candidates)
+    return _design(cfg, ds, X_all, C, n, criterion)
+
+
+def design_columns(targets: list[str]) -> list[str]:
+    """The columns ``workbench design`` adds to the chosen rows."""
+    return ["design_rank", "design_gain", *(f"{t}_{s}" for t in targets
+                                            for s in ("predicted", "sd")), "design_reason"]
+
+
+def design_csv(cfg: ExperimentConfig, candidates: str | Path, n: int, out: str | Path,
+               criterion: str = "i") -> Design:
+    """:func:`design` from a candidates CSV; writes the chosen rows (see the module
+    docstring) to ``out`` atomically. Every input is checked before the model is fitted."""
+    check_file(out, "--out")
+    try:
+        text = _read(Path(candidates))
+    except DatasetError as exc:
+        raise UsageError(f"--candidates: {exc}") from None
+    ds, X_all, C = _checked(cfg, text)
+    clash = [c for c in design_columns(ds.target_names) if c in text.columns]
+    if clash:
+        raise UsageError(f"--candidates: column(s) {clash} are names design writes; rename "
+                         "them")
+    if not 1 <= n <= len(C):
+        raise UsageError(f"--n {n}: choose between 1 and the {len(C)} candidates")
+    done = _design(cfg, ds, X_all, C, n, criterion)
+    table = pd.concat([text.loc[done.chosen.index], done.chosen], axis=1)
+    write_file(out, table.to_csv(index=False), "--out")
+    return done
+
+
+ARMS = ("design", "random")
+
+
+@dataclass
+class Acquisition:
+    """One closed loop: the test MAE (average over targets) after each batch."""
+
+    arm: str
+    seed: int
+    n_measured: list[int]
+    test_mae: list[float]
+    chosen: list = field(default_factory=list)
+    seconds: float = 0.0
+
+
+def acquisition_loop(cfg: ExperimentConfig, ds, pool, test, *, arm: str = "design",
+                     seed: int = 0, start: int = 20, batch: int = 10, stop: int = 200,
+                     criterion: str = "i", progress=None) -> Acquisition:
+    """Calibrate from ``start`` random rows of ``pool`` (index labels of ``ds`` whose targets
+    are revealed only when chosen) to ``stop`` in batches of ``batch``: each batch chosen by
+    :func:`choose` (``arm="design"``) or at random (``"random"``); after each batch the
+    config's model is refitted on the chosen rows and scored on the ``test`` rows.
+
+    The starting rows depend on ``seed`` only, so both arms of a seed start alike."""
+    if arm not in ARMS:
+        raise ValueError(f"unknown arm {arm!r}; valid: {', '.join(ARMS)}")
+    t0 = time.perf_counter()
+    family = cfg.family
+    X_all, Y_all = family.inputs(cfg, ds), ds.targets
+    pool = list(pool)
+    rng = np.random.default_rng(seed)
+    chosen = [pool[i] for i in rng.choice(len(pool), min(start, len(pool)), replace=False)]
+    X_test, y_test = X_all.loc[test], Y_all.loc[test].to_numpy(dtype=float)
+    out = Acquisition(arm=arm, seed=seed, n_measured=[], test_mae=[])
+    while True:
+        X, Y = X_all.loc[chosen], Y_all.loc[chosen]
+        model = quiet_fit(family.build(cfg, ds), X, Y)
+        pred = np.asarray(model.predict(X_test), dtype=float).reshape(y_test.shape)
+        out.n_measured.append(len(chosen))
+        out.test_mae.append(float(np.mean(np.abs(y_test - pred))))
+        if progress is not None:
+            progress(out)
+        taken = set(chosen)
+        rest = [i for i in pool if i not in taken]
+        k = min(batch, stop - len(chosen), len(rest))
+        if k <= 0:
+            break
+        if arm == "random":
+            picks = [rest[i] for i in rng.choice(len(rest), k, replace=False)]
+        else:
+            picks = [rest[i] for i in choose(cfg, model, X, Y, X_all.loc[rest], k,
+                                             criterion).batch.index]
+        chosen += picks
+    out.chosen = chosen
+    out.seconds = time.perf_counter() - t0
+    return out
