@@ -49,7 +49,7 @@ SIMULATED = {"chain": dict(n_sites=5, topology="chain", shape=None),
 POOL, TEST = 600, 400
 
 
-def simulated_config(name: str, seed: int, base: Path, tmp: Path) -> Path:
+def simulated_config(name: str, seed: int, base: Path, tmp: Path, pool: int = POOL) -> Path:
     """A CSV of the seed's device (pool rows "train", test rows "test") and ``base`` with
     its ``[data]`` pointed at it."""
     from peers import write_config
@@ -57,9 +57,9 @@ def simulated_config(name: str, seed: int, base: Path, tmp: Path) -> Path:
     from workbench.simulate import simulate, write_simulation
 
     spec = SIMULATED[name]
-    sim = simulate(spec["n_sites"], POOL + TEST, seed=seed, topology=spec["topology"],
+    sim = simulate(spec["n_sites"], pool + TEST, seed=seed, topology=spec["topology"],
                    shape=spec["shape"])
-    sim.data["split"] = ["train"] * POOL + ["test"] * TEST
+    sim.data["split"] = ["train"] * pool + ["test"] * TEST
     csv = tmp / f"{name}_{seed}.csv"
     write_simulation(sim, csv)
     n, E = sim.truth["n_sites"], len(sim.truth["graph"]["edges"])
@@ -175,6 +175,8 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
     parser.add_argument("--google-seeds", type=int, nargs="+", default=list(range(10)))
     parser.add_argument("--stop", type=int, default=200)
+    parser.add_argument("--pool", type=int, default=POOL,
+                        help=f"candidate settings of a simulated device (default {POOL})")
     parser.add_argument("--criterion", choices=("i", "d"), default="i")
     parser.add_argument("--config", default=str(ROOT / "experiments" / "design_loop.toml"))
     parser.add_argument("--workers", type=int, default=2)
@@ -199,7 +201,8 @@ def main() -> None:
                 configs = {s: str(base) for s in seeds}
             else:
                 seeds, stop = args.seeds, args.stop
-                configs = {s: str(simulated_config(name, s, base, Path(tmp))) for s in seeds}
+                configs = {s: str(simulated_config(name, s, base, Path(tmp), args.pool))
+                           for s in seeds}
             jobs = {(arm, s): pool.submit(one_loop, configs[s], arm, s, stop, args.criterion)
                     for s in seeds for arm in ("design", "random")}
             loops = []

@@ -54,6 +54,33 @@ def test_first_pick_is_the_brute_force_optimum_for_both_criteria():
     np.testing.assert_allclose(i.gain[0], np.trace(np.linalg.solve(F, M)) - min(avg_var))
 
 
+def _naive(B, F, n, criterion):
+    """The greedy batch recomputed from the inverse information at every pick."""
+    M = np.einsum("nqd,nqe->de", B, B) / len(B)
+    chosen = []
+    for _ in range(n):
+        G = np.linalg.inv(F)
+        gains = []
+        for c in range(len(B)):
+            Fc = F + B[c].T @ B[c]
+            gains.append(-np.inf if c in chosen else
+                         np.linalg.slogdet(Fc)[1] - np.linalg.slogdet(F)[1] if criterion == "d"
+                         else np.trace(G @ M) - np.trace(np.linalg.solve(Fc, M)))
+        c = int(np.argmax(gains))
+        chosen.append(c)
+        F = F + B[c].T @ B[c]
+    return chosen
+
+
+@pytest.mark.parametrize("criterion", ["d", "i"])
+def test_a_whole_batch_matches_recomputing_the_inverse_at_every_pick(criterion):
+    rng = np.random.default_rng(3)
+    B = rng.normal(size=(30, 2, 5))
+    F = 0.5 * np.eye(5)
+    assert greedy_design(B, F, 8, criterion=criterion).index.tolist() == _naive(B, F, 8,
+                                                                               criterion)
+
+
 def test_i_optimal_parabola_weights_the_middle_most():
     """I-optimal for a parabola over a uniform reference weights 0 about twice each end;
     the greedy batch after one point at each of -1, 0, 1 takes 0 first and most often."""

@@ -135,22 +135,27 @@ def greedy_design(blocks, information, n: int, *, criterion: str = "d", referenc
     G = _inverse(F)
     M = np.einsum("rqd,rqe->de", R, R) / len(R) if criterion == "i" else None
     eye = np.eye(q)
-    sd_before = np.sqrt(np.maximum(np.einsum("mqd,de,mqe->mq", B, G, B), 0.0))
     free = np.ones(m, dtype=bool)
     index, gains, sds, informs, fractions = [], [], [], [], []
+    # U = B G, C = B G B^T (and UM = U M for I) for every candidate, updated by the rank-q
+    # Woodbury term of each pick instead of recomputed: O(m q^2 D) per pick, not O(m q D^2)
+    U = B @ G  # (m, q, D)
+    Bt = np.swapaxes(B, 1, 2)
+    C = U @ Bt  # predictive covariance (m, q, q)
+    sd_before = np.sqrt(np.maximum(np.diagonal(C, axis1=1, axis2=2), 0.0))
+    UM = None if M is None else U @ M
     for _ in range(int(n)):
-        U = B @ G  # (m, q, D)
-        C = U @ np.swapaxes(B, 1, 2)  # predictive covariance (m, q, q)
         S = C + eye
-        if M is None:
+        if UM is None:
             gain = np.linalg.slogdet(S)[1]
         else:
-            T = U @ M @ np.swapaxes(U, 1, 2)
+            T = UM @ np.swapaxes(U, 1, 2)
             gain = np.trace(np.linalg.solve(S, T), axis1=1, axis2=2)
         gain = np.where(free, gain, -np.inf)
         c = int(np.argmax(gain))
-        u = U[c]
-        drop = u.T @ np.linalg.solve(S[c], u)  # G - G' (Woodbury)
+        u = U[c]  # (q, D): G B_c^T transposed
+        Sinv_u = np.linalg.solve(S[c], u)
+        drop = u.T @ Sinv_u  # G - G' (Woodbury)
         ratio = np.diag(drop) / np.maximum(np.diag(G), np.finfo(float).tiny)
         index.append(c)
         gains.append(float(gain[c]))
@@ -158,7 +163,11 @@ def greedy_design(blocks, information, n: int, *, criterion: str = "d", referenc
         informs.append(int(np.argmax(ratio)))
         fractions.append(float(np.max(ratio)))
         G = G - drop
-        G = 0.5 * (G + G.T)
+        P = B @ u.T  # (m, q, q): B G B_c^T
+        U = U - P @ Sinv_u
+        C = U @ Bt
+        if UM is not None:
+            UM = UM - P @ (Sinv_u @ M)
         free[c] = repeats
     return Batch(index=np.asarray(index), gain=np.asarray(gains), sd=np.asarray(sds),
                  sd_before=sd_before, informs=np.asarray(informs),
