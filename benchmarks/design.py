@@ -157,11 +157,10 @@ def track(summary: dict, fig, params: dict, tracking_uri: str | None) -> str:
                for n, v in zip(summary["n"], summary[arm][stat])]
     metrics += [Metric("design_over_random_median", float(v), now, int(n))
                 for n, v in summary["median_ratio"].items()]
-    client.log_batch(run.info.run_id, metrics=metrics[:1000])
-    for start in range(1000, len(metrics), 1000):
-        client.log_batch(run.info.run_id, metrics=metrics[start:start + 1000])
     client.log_batch(run.info.run_id, params=[
         mlflow.entities.Param(k, str(v)[:500]) for k, v in params.items()])
+    for start in range(0, len(metrics), 1000):  # MLflow takes 1000 metrics per batch
+        client.log_batch(run.info.run_id, metrics=metrics[start:start + 1000])
     client.log_figure(run.info.run_id, fig, f"acquisition_{summary['dataset']}.png")
     client.log_dict(run.info.run_id, summary, f"acquisition_{summary['dataset']}.json")
     client.set_terminated(run.info.run_id)
