@@ -53,7 +53,11 @@ class Design:
     n_rows: int
     n_candidates: int
     seconds: float = 0.0
-    notes: list[str] = field(default_factory=list)
+
+
+def _check_n(n: int, m: int) -> None:
+    if not 1 <= n <= m:
+        raise UsageError(f"--n {n}: choose between 1 and the {m} candidates")
 
 
 def _reasons(batch: Batch, problem: DesignProblem, targets: list[str]) -> list[str]:
@@ -82,8 +86,7 @@ def choose(cfg: ExperimentConfig, model, X: pd.DataFrame, Y: pd.DataFrame,
     start = time.perf_counter()
     if criterion not in CRITERIA:
         raise UsageError(f"unknown design criterion {criterion!r}; valid: {', '.join(CRITERIA)}")
-    if not 1 <= n <= len(candidates):
-        raise UsageError(f"--n {n}: choose between 1 and the {len(candidates)} candidates")
+    _check_n(n, len(candidates))
     problem = cfg.family.design_problem(cfg, model, X, Y, candidates)
     batch = greedy_design(problem.blocks, problem.information, n, criterion=criterion)
     rows = candidates.iloc[batch.index]
@@ -148,8 +151,7 @@ def design_csv(cfg: ExperimentConfig, candidates: str | Path, n: int, out: str |
     if clash:
         raise UsageError(f"--candidates: column(s) {clash} are names design writes; rename "
                          "them")
-    if not 1 <= n <= len(C):
-        raise UsageError(f"--n {n}: choose between 1 and the {len(C)} candidates")
+    _check_n(n, len(C))  # before the fit
     done = _design(cfg, ds, X_all, C, n, criterion)
     table = pd.concat([text.loc[done.chosen.index], done.chosen], axis=1)
     write_file(out, table.to_csv(index=False), "--out")
