@@ -584,9 +584,13 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         sizes = [phi.shape[1] for phi in phis]
         ends = np.cumsum(sizes)
         self._slices = [slice(e - s, e) for s, e in zip(sizes, ends)]
-        penalty = np.ones(ends[-1])
-        penalty[ends - np.asarray(sizes)] = 0.0  # intercepts are not penalised
-        return theta0, y, phis, index, penalty
+        return theta0, y, phis, index, self._penalty()
+
+    def _penalty(self) -> np.ndarray:
+        """The ridge and L1 penalties' weight of each coefficient: 0 for the intercepts."""
+        penalty = np.ones(self._slices[-1].stop)
+        penalty[[s.start for s in self._slices]] = 0.0
+        return penalty
 
     def fit(self, X, y, coef_init=None):
         """Fit the coefficients on ``X`` (DataFrame) and ``y`` (n, N ascending eigenvalues).
@@ -715,9 +719,7 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         ``A^T A + alpha P`` (``A`` = :meth:`coef_jacobian`, ``P`` the ridge penalty's
         diagonal: 0 for the intercepts), in units of the measurement noise's variance."""
         A = self.coef_jacobian(X)
-        penalty = np.ones(A.shape[2])
-        penalty[[s.start for s in self._slices]] = 0.0
-        return np.einsum("nkd,nke->de", A, A) + self.alpha * np.diag(penalty)
+        return np.einsum("nkd,nke->de", A, A) + self.alpha * np.diag(self._penalty())
 
     def _slice_of(self, p: str) -> slice:
         return self._slices[self.parameter_names_.index(p)]
