@@ -369,16 +369,20 @@ def test_simulate_command_measures_settings(tmp_path, capsys):
 
 @pytest.mark.parametrize("content, extra, match", [
     (None, ["--experiments", "10"], "--settings measures the rows of its CSV; drop --experiments"),
-    ("", [], "cannot read it as a CSV"),
-    ("v_q1,v_q2,v_c1\n", [], "settings have no rows"),
-    ("v_q1,v_q2,v_c1\n0,0,0.1\n0,0,0.1,5,6\n", [], "cannot read it as a CSV"),
+    ("", [], "settings.csv is empty: expected a header row"),
+    ("v_q1,v_q2,v_c1\n", [], "settings.csv has a header but no rows"),
+    ("v_q1,v_q2,v_c1\n0,0,0.1\n0,0,0.1,5,6\n", [], "is not a well-formed CSV file"),
+    ("v_q1;v_q2;v_c1\n0;0;0.1\n", [], "wrong delimiter?"),
+    ("\x00\x93binary\n", [], "does not look like a CSV file"),
+    ("v_q1,v_q2,v_c1\n0,0,0.1\n0,zero,0.1\n", [], "column 'v_q2' has non-numeric values"),
     ("v_q1,v_q2,v_q3\n0,0,0\n", [], "v_c1, v_c2: the device has 3 sites (v_q1..v_q3) and 2 "
      "couplings"),
-    ("v_q1,v_q2,v_c1\n0,0,0.1\n0,,0.1\n", [], "v_q2 hold NaN"),
+    ("v_q1,v_q2,v_c1\n0,0,0.1\n0,,0.1\n", [],
+     "NaN or infinite values in column(s) ['v_q2'] at line 3"),
     ("v_q1,v_q2,v_c1\n0,0,0.1\n", ["--sites", "3"], "lack the bias column(s) v_q3, v_c2"),
     ("v_q1,v_q2,v_c1\n0,0,0.1\n", ["--noise-seed", "-1"],
      "noise_seed must be an integer >= 0, got -1"),
-    ("v_q1,v_q2,v_c1\n0,0,0.1\n", ["--settings", "missing.csv"], "No such file"),
+    ("v_q1,v_q2,v_c1\n0,0,0.1\n", ["--settings", "missing.csv"], "CSV file not found"),
 ])
 def test_simulate_command_bad_settings_are_one_line(tmp_path, capsys, content, extra, match):
     from workbench.experiment.cli import main

@@ -418,13 +418,16 @@ def _cmd_simulate(args) -> int:
                            seed=args.seed, mismatch=mismatch, topology=args.topology,
                            shape=shape, parasitic=args.parasitic)
         else:
-            import pandas as pd
+            import re
 
-            try:
-                settings = pd.read_csv(args.settings)
-            except (ValueError, OSError) as exc:
-                raise ValueError(f"--settings {args.settings}: cannot read it as a CSV "
-                                 f"({exc})") from None
+            from ..datasets.csv import _numeric, _read
+
+            # the CSV checks of every data file (empty, not a CSV, wrong delimiter, ragged
+            # rows), then the bias columns as numbers; measure() says which are missing
+            path = Path(args.settings)
+            frame = _read(path, min_columns=2)
+            bias = [c for c in frame.columns if re.fullmatch(r"v_[qc][1-9][0-9]*", c)]
+            settings = _numeric(frame, bias, path)
             sim = measure(settings, seed=args.seed, mismatch=mismatch, topology=args.topology,
                           n_sites=args.sites, shape=shape, parasitic=args.parasitic,
                           noise_seed=args.noise_seed)
