@@ -120,17 +120,25 @@ def _experiment_views(uri: str, port: int) -> list[tuple[str, str]]:
 
 
 def _cmd_ui(args) -> int:
-    from .tracking.uris import resolve_tracking_uri, ui_url
+    from .tracking.uris import check_store_uri, resolve_tracking_uri, ui_url
 
     uri = resolve_tracking_uri(args.tracking_uri, None, Path.cwd())
+    # the stores checked as every command checks them, before a server starts (which would
+    # print a traceback, or sit on a store it cannot read)
+    check_store_uri(uri)
+    storage = args.storage or "mlruns/optuna.journal"
+    serve_studies = args.storage is not None or (Path.cwd() / storage).is_file()
+    if serve_studies:
+        from .sweep.storage import check_storage
+
+        check_storage(storage, Path.cwd())
     cmds = [ui_command(uri, args.port)]
     print(f"MLflow UI for {redact(uri)} at {ui_url(args.port)}", flush=True)
     for name, url in _experiment_views(uri, args.port):
         print(f"  {name}: {url}", flush=True)
     print("  (a run's own page opens in MLflow's GenAI view until the sidebar's \"Model "
           "training\" switch is clicked once; the browser remembers it)", flush=True)
-    storage = args.storage or "mlruns/optuna.journal"
-    if args.storage or (Path.cwd() / storage).is_file():  # the studies beside the runs
+    if serve_studies:  # the studies beside the runs
         from .sweep.storage import dashboard_command
 
         cmds.append(dashboard_command(storage, args.dashboard_port, Path.cwd()))
