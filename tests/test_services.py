@@ -126,7 +126,7 @@ def test_two_sweep_processes_share_postgres_and_mlflow_server(services, tmp_path
     killed = [t for t in uncounted if not t.user_attrs.get("surplus")]
     assert len(killed) == 1 and killed[0].user_attrs["worker"].endswith(f":{a.pid}"), [
         (t.number, t.user_attrs) for t in uncounted]
-    assert killed[0].user_attrs.get("stale")  # failed by a process that found a dead
+    assert killed[0].user_attrs.get("stale")  # failed as stale: its worker was found dead
 
     client, runs = _runs(server)
     assert not [r for r in runs if r.info.status == "RUNNING"]
