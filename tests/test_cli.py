@@ -313,6 +313,18 @@ def test_ui_command_serves_the_local_store_on_loopback(tmp_path):
     assert "--default-artifact-root" not in memory
 
 
+def test_ui_servers_run_without_mlflow_server_jobs_unless_asked(monkeypatch):
+    from workbench.experiment.cli import ui_env
+
+    monkeypatch.delenv("MLFLOW_SERVER_ENABLE_JOB_EXECUTION", raising=False)
+    monkeypatch.setenv("WORKBENCH_SOME_SETTING", "kept")
+    env = ui_env()
+    assert env["MLFLOW_SERVER_ENABLE_JOB_EXECUTION"] == "false"
+    assert env["WORKBENCH_SOME_SETTING"] == "kept"  # the rest of the environment as is
+    monkeypatch.setenv("MLFLOW_SERVER_ENABLE_JOB_EXECUTION", "true")  # the user's choice wins
+    assert ui_env()["MLFLOW_SERVER_ENABLE_JOB_EXECUTION"] == "true"
+
+
 def test_corrupt_store_is_a_clean_error_and_left_untouched(tmp_path, capsys, google_5q_dir,
                                                           monkeypatch):
     monkeypatch.setenv("WORKBENCH_DATA_DIR", str(google_5q_dir))

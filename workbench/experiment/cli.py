@@ -145,7 +145,7 @@ def _cmd_ui(args) -> int:
         print(f"Optuna dashboard for {redact(storage)} at "
               f"http://127.0.0.1:{args.dashboard_port}", flush=True)
     print("Ctrl-C stops", "them" if len(cmds) > 1 else "it", flush=True)
-    procs = [subprocess.Popen(cmd) for cmd in cmds]
+    procs = [subprocess.Popen(cmd, env=ui_env()) for cmd in cmds]
     try:
         while all(p.poll() is None for p in procs):
             time.sleep(0.5)
@@ -161,6 +161,18 @@ def _cmd_ui(args) -> int:
                 p.wait(timeout=10)
             except subprocess.TimeoutExpired:
                 p.kill()
+
+
+def ui_env() -> dict[str, str]:
+    """The environment of the servers ``workbench ui`` starts: this one, with MLflow's server
+    jobs off unless ``MLFLOW_SERVER_ENABLE_JOB_EXECUTION`` is set (they serve MLflow's GenAI
+    features, which workbench does not use: a job runner and seven worker processes, each
+    importing MLflow, started with every server)."""
+    import os
+
+    env = dict(os.environ)
+    env.setdefault("MLFLOW_SERVER_ENABLE_JOB_EXECUTION", "false")
+    return env
 
 
 def ui_command(tracking_uri: str, port: int) -> list[str]:
