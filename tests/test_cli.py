@@ -304,6 +304,8 @@ def test_ui_command_serves_the_local_store_on_loopback(tmp_path):
     assert cmd[1:4] == ["-m", "mlflow", "server"]
     assert cmd[cmd.index("--host") + 1] == "127.0.0.1"
     assert cmd[cmd.index("--port") + 1] == "5055"
+    assert cmd[cmd.index("--workers") + 1] == "1"  # one process serves a user's browser
+    assert ui_command(uri, 5055, 3)[cmd.index("--workers") + 1] == "3"
     assert cmd[cmd.index("--backend-store-uri") + 1] == uri
     artifacts = (tmp_path / "mlruns" / "artifacts").as_uri()
     assert cmd[cmd.index("--default-artifact-root") + 1] == artifacts
