@@ -75,6 +75,12 @@ class Postgres:
         self.server.cleanup()
 
 
+#: ``mlflow server`` without MLflow's job execution (its GenAI jobs: a job runner and seven
+#: huey consumer processes, each importing MLflow; workbench starts no server job). The
+#: tracking server itself is unchanged; about 8 s and 15 s of CPU less per start.
+NO_SERVER_JOBS = {"MLFLOW_SERVER_ENABLE_JOB_EXECUTION": "false"}
+
+
 class MlflowServer:
     """``mlflow server`` on 127.0.0.1 at a free port, on ``backend_uri`` with artifacts in
     ``artifacts``; :attr:`uri` is its http URL."""
@@ -83,7 +89,7 @@ class MlflowServer:
         self.port = free_port()
         self.uri = f"http://127.0.0.1:{self.port}"
         artifacts.mkdir(parents=True, exist_ok=True)
-        env = dict(os.environ, MLFLOW_DISABLE_TELEMETRY="true")
+        env = dict(os.environ, MLFLOW_DISABLE_TELEMETRY="true", **NO_SERVER_JOBS)
         self._log = open(log, "w")
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "mlflow", "server", "--backend-store-uri", backend_uri,
