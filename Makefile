@@ -46,9 +46,10 @@ browser:
 
 # Default test suite after the lint and type checks (slow checks: `$(PY) -m pytest -m slow`).
 # Two workers; a file's tests stay on one worker, so module-scoped fixtures (a reproduce run,
-# a sweep) run once.
+# a sweep) run once. Files go to the workers in the order tests/conftest.py collects them
+# (the longest first), not xdist's default (the files with the most tests first).
 test: lint browser
-	$(THREADS) $(PY) -m pytest -n 2 --dist loadfile
+	$(THREADS) $(PY) -m pytest -n 2 --dist loadfile --no-loadscope-reorder
 
 # Regenerate requirements.lock: the newest versions pyproject.toml allows (with the dev
 # extra), resolved in a throwaway venv by $(PYTHON) (3.11, the oldest Python the project

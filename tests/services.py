@@ -75,6 +75,14 @@ class Postgres:
         self.server.cleanup()
 
 
+#: The environment of an ``mlflow server`` a test starts: no job execution (MLflow's GenAI
+#: jobs: a job runner and seven huey consumer processes, each importing MLflow; workbench
+#: starts no server job) and one worker process (MLflow's default: four, each importing the
+#: server; one serves a test's requests). The tracking server itself is unchanged; on 2 cores
+#: it answers after 8 s instead of 23 s, with 9 s of CPU instead of 30 s.
+TEST_SERVER_ENV = {"MLFLOW_SERVER_ENABLE_JOB_EXECUTION": "false", "MLFLOW_WORKERS": "1"}
+
+
 class MlflowServer:
     """``mlflow server`` on 127.0.0.1 at a free port, on ``backend_uri`` with artifacts in
     ``artifacts``; :attr:`uri` is its http URL."""
@@ -83,7 +91,7 @@ class MlflowServer:
         self.port = free_port()
         self.uri = f"http://127.0.0.1:{self.port}"
         artifacts.mkdir(parents=True, exist_ok=True)
-        env = dict(os.environ, MLFLOW_DISABLE_TELEMETRY="true")
+        env = dict(os.environ, MLFLOW_DISABLE_TELEMETRY="true", **TEST_SERVER_ENV)
         self._log = open(log, "w")
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "mlflow", "server", "--backend-store-uri", backend_uri,

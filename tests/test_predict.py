@@ -76,7 +76,9 @@ class FullDisk:
 
 
 def _no_figures(self, *args, **kwargs):
-    return Artifacts()
+    """``begin_artifacts`` of a family without its learning curves and SHAP figures:
+    ``record`` calls it (not ``artifacts``), so nothing is fitted or drawn for them."""
+    return lambda emit=None: Artifacts()
 
 
 CONFIG = """\
@@ -236,7 +238,7 @@ def bench(google_5q_dir, tmp_path_factory):
     uri = f"sqlite:///{root}/mlruns/mlflow.db"
     config = write_config(root, google_5q_dir)
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(EigenvalueFamily, "artifacts", _no_figures)
+        mp.setattr(EigenvalueFamily, "begin_artifacts", _no_figures)
         res = run_main("evaluate", config, "--tracking-uri", uri, "--register", NAME,
                        "--json", root / "eval.json")
     assert res.rc == 0, res.err
@@ -357,7 +359,7 @@ def test_sweep_register_then_predict_the_test_rows(bench, tmp_path, monkeypatch)
     config = tiny_sweep(tmp_path, trials=2)
     monkeypatch.chdir(tmp_path)
     uri = bench.uri  # the module's store (created once)
-    monkeypatch.setattr(EigenvalueFamily, "artifacts", _no_figures)
+    monkeypatch.setattr(EigenvalueFamily, "begin_artifacts", _no_figures)
     res = run_main("sweep", config, "--tracking-uri", uri, "--register", "tiny")
     assert res.rc == 0, res.err
     assert "registered tiny version 1 (models:/tiny@champion)" in res.out
@@ -579,7 +581,7 @@ def test_evaluate_on_a_full_disk_leaves_nothing_and_the_run_failed(google_5q_dir
 
     _, uri = fresh_store
     config = write_config(tmp_path, google_5q_dir)
-    monkeypatch.setattr(EigenvalueFamily, "artifacts", _no_figures)
+    monkeypatch.setattr(EigenvalueFamily, "begin_artifacts", _no_figures)
     monkeypatch.setattr(workbench._io, "os", FullDisk())
     out = tmp_path / "results" / "r.json"
     res = run_main("evaluate", config, "--tracking-uri", uri, "--json", out)

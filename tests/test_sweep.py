@@ -30,8 +30,15 @@ def project(tmp_path, monkeypatch, google_5q_dir):
 
 
 @pytest.fixture
-def smoke_run(project, tmp_path, capsys):
-    """The smoke sweep (3 trials per study) with tracking in a temporary store."""
+def smoke_run(project, tmp_path, capsys, monkeypatch):
+    """The smoke sweep (3 trials per study) with tracking in a temporary store, without the
+    family's learning curves and SHAP figures (about half the command's CPU time; a sweep's
+    are checked by test_services.py on the same ``record``, an evaluate's by test_cli.py)."""
+    from workbench.experiment.families import Artifacts
+    from workbench.experiment.families.eigenvalue import EigenvalueFamily
+
+    monkeypatch.setattr(EigenvalueFamily, "begin_artifacts",
+                        lambda *args, **kwargs: lambda emit=None: Artifacts())
     out = tmp_path / "out.json"
     uri = f"sqlite:///{tmp_path / 'store' / 'mlflow.db'}"
     assert main(["sweep", str(project), "--trials", "3", "--json", str(out),
