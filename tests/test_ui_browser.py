@@ -24,7 +24,6 @@ from workbench.experiment.systems import SYSTEM_TAG
 from workbench.experiment.tracking.runs import Tracker, metric_view
 
 from services import (
-    TEST_SERVER_ENV,
     command_env,
     free_port,
     stop_process_group,
@@ -83,10 +82,10 @@ def ui(tmp_path_factory):
     uri = os.environ.get("WORKBENCH_UI_STORE") or _store(root)
     port = free_port()
     log = root / "ui.log"
-    with open(log, "w") as out:
+    with open(log, "w") as out:  # workbench ui's own server settings (one worker, no jobs)
         proc = subprocess.Popen(workbench_cmd("ui", "--tracking-uri", uri, "--port", str(port)),
                                 cwd=root, stdout=out, stderr=subprocess.STDOUT,
-                                env=command_env(**TEST_SERVER_ENV), start_new_session=True)
+                                env=command_env(), start_new_session=True)
     try:
         wait_until_answering(f"http://127.0.0.1:{port}/health", proc, log, timeout=180)
         yield log.read_text(), root
