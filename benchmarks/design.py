@@ -167,12 +167,17 @@ def track(summary: dict, fig, params: dict, tracking_uri: str | None) -> str:
     return run.info.run_id
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def dataset_arguments(parser: argparse.ArgumentParser) -> None:
+    """The datasets and seeds options (this script's and design_bound.py's)."""
     parser.add_argument("--datasets", nargs="+", default=["chain", "grid", "google"],
                         choices=["chain", "grid", "google"])
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
     parser.add_argument("--google-seeds", type=int, nargs="+", default=list(range(10)))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    dataset_arguments(parser)
     parser.add_argument("--stop", type=int, default=200)
     parser.add_argument("--pool", type=int, default=POOL,
                         help=f"candidate settings of a simulated device (default {POOL})")

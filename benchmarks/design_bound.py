@@ -149,11 +149,10 @@ def report(name: str, seed: int, c: dict, sigma: float, q: int, floor: float = 0
 
 
 def main() -> None:
+    from design import dataset_arguments, simulated_config
+
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--datasets", nargs="+", default=["chain", "grid", "google"],
-                        choices=["chain", "grid", "google"])
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
-    parser.add_argument("--google-seeds", type=int, nargs="+", default=list(range(10)))
+    dataset_arguments(parser)
     parser.add_argument("--draws", type=int, default=5)
     parser.add_argument("--exchange", type=int, default=0)
     parser.add_argument("--exchange-at", type=int, default=None,
@@ -161,8 +160,6 @@ def main() -> None:
     parser.add_argument("--config", default=str(ROOT / "experiments" / "design_loop.toml"))
     parser.add_argument("--out", default=str(ROOT / "reports" / "design"))
     args = parser.parse_args()
-    from design import simulated_config
-
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
