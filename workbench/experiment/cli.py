@@ -10,6 +10,7 @@ import argparse
 import dataclasses
 import json
 import logging
+import os
 import subprocess
 import sys
 import time
@@ -168,8 +169,6 @@ def ui_env() -> dict[str, str]:
     jobs off unless ``MLFLOW_SERVER_ENABLE_JOB_EXECUTION`` is set (they serve MLflow's GenAI
     features, which workbench does not use: a job runner and seven worker processes, each
     importing MLflow, started with every server)."""
-    import os
-
     env = dict(os.environ)
     env.setdefault("MLFLOW_SERVER_ENABLE_JOB_EXECUTION", "false")
     return env
