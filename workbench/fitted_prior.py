@@ -15,6 +15,8 @@ physics model would learn from residuals that are smaller than the ones it meets
 
 from __future__ import annotations
 
+from numbers import Integral
+
 import numpy as np
 import pandas as pd
 from sklearn.base import BaseEstimator, MetaEstimatorMixin, RegressorMixin, clone
@@ -23,14 +25,26 @@ from sklearn.utils._param_validation import HasMethods
 from sklearn.utils.validation import check_is_fitted
 
 from .multitarget import MultiTargetBaseBoost, check_targets
+from .parallel import Task, map_tasks
 
 __all__ = ["FittedPriorBoost"]
 
 
 def _refittable(fitted):
     """An unfitted estimator with the fitted model's choices fixed (``estimator_`` of a
-    selection wrapper such as HamiltonianSelectionCV, else the model itself)."""
-    return clone(getattr(fitted, "estimator_", fitted))
+    selection wrapper such as HamiltonianSelectionCV, else the model itself), and the fit
+    parameters that warm-start it from the fitted model: ``coef_init`` for a model that
+    takes it and whose fitted form has ``coef_dict`` (e.g.
+    :class:`~workbench.param_boost.HamiltonianParameterRegressor`)."""
+    chosen = getattr(fitted, "estimator_", fitted)
+    start = getattr(chosen, "coef_dict", None)
+    return clone(chosen), ({"coef_init": start()} if callable(start) else {})
+
+
+def _fold_prediction(model, fit_params, X, Y, train, val) -> np.ndarray:
+    """``model`` fitted on the rows ``train`` and predicting the rows ``val``."""
+    model.fit(X.iloc[train], Y[train], **fit_params)
+    return np.asarray(model.predict(X.iloc[val]), dtype=float)
 
 
 class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
@@ -48,10 +62,19 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         The prior of target ``t`` is added to ``X`` as column ``prior_prefix + t``; the
         boosting stage's ``basis_features`` may name these columns.
     cv : int or CV splitter, default=5
-        Folds of the out-of-fold prior on the training rows.
+        Folds of the out-of-fold prior on the training rows. Each fold refits the physics
+        model with its choices fixed, warm-started from the fit on all rows where the model
+        takes ``coef_init``.
     boost_stage : bool, default=True
-        ``False`` fits the physics model alone (``predict`` is its prediction; its
-        out-of-fold prior is still computed: ``cv_predictions_``).
+        ``False`` fits the physics model alone (``predict`` is its prediction).
+    cv_predictions : bool, default=True
+        Without a stage and without ``fallback``, whether ``fit`` still computes the
+        out-of-fold prior (``cv_predictions_``, e.g. for out-of-fold prediction intervals);
+        ``False`` saves its ``cv`` refits (``cv_predictions_`` then raises). A stage or a
+        fallback always needs it.
+    n_jobs : int, default=None
+        Processes for the out-of-fold refits (:mod:`workbench.parallel`; ``None``: 1,
+        ``-1``: every core). The results do not depend on it.
     fallback : list of str, default=None
         Columns of ``X`` holding the control model's own prediction of each target. If given,
         a target keeps the physics model only where its out-of-fold MAE on the training rows
@@ -66,7 +89,8 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         (all true without ``fallback``)
     boost_ : the fitted MultiTargetBaseBoost (``boost_stage=True``)
     prior_columns_ : list of str
-    oof_prior_ : DataFrame, the out-of-fold prior on the training rows
+    oof_prior_ : DataFrame, the out-of-fold prior on the training rows (not set when nothing
+        needs it: no stage, no fallback, ``cv_predictions=False``)
     prior_folds_ : ndarray (n_samples,), the fold of each row in ``oof_prior_``
     target_names_ : list of str
     """
@@ -78,16 +102,20 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         "cv": ["cv_object"],
         "boost_stage": ["boolean"],
         "fallback": [None, list, tuple],
+        "cv_predictions": ["boolean"],
+        "n_jobs": [None, Integral],
     }
 
     def __init__(self, physics=None, boost=None, *, prior_prefix="prior_", cv=5,
-                 boost_stage=True, fallback=None):
+                 boost_stage=True, fallback=None, cv_predictions=True, n_jobs=None):
         self.physics = physics
         self.boost = boost
         self.prior_prefix = prior_prefix
         self.cv = cv
         self.boost_stage = boost_stage
         self.fallback = fallback
+        self.cv_predictions = cv_predictions
+        self.n_jobs = n_jobs
 
     def _with_prior(self, X: pd.DataFrame, prior: np.ndarray) -> pd.DataFrame:
         clash = [c for c in self.prior_columns_ if c in X.columns]
@@ -112,11 +140,16 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
                              f"{len(names)} targets")
         # the out-of-fold prior: the stage's training prior, the fallback's evidence, and
         # (without a stage) the model's own out-of-fold predictions (cv_predictions_)
+        if not (self.boost_stage or self.fallback is not None or self.cv_predictions):
+            return self
+        model, fit_params = _refittable(self.physics_)
+        splits = list(check_cv(self.cv).split(X))
+        preds = map_tasks([Task(_fold_prediction, model, fit_params, X, Y_arr, train, val)
+                           for train, val in splits], self.n_jobs)
         oof = np.empty_like(Y_arr)
         folds = np.full(len(X), -1, dtype=int)
-        for k, (train, val) in enumerate(check_cv(self.cv).split(X)):
-            model = _refittable(self.physics_).fit(X.iloc[train], Y_arr[train])
-            oof[val] = model.predict(X.iloc[val])
+        for k, ((_, val), pred) in enumerate(zip(splits, preds, strict=True)):
+            oof[val] = pred
             folds[val] = k
         self.prior_folds_ = folds
         if self.fallback is not None:
@@ -161,6 +194,9 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         check_is_fitted(self)
         if self.boost_stage:
             return self.boost_.cv_predictions_
+        if not hasattr(self, "oof_prior_"):
+            raise AttributeError("no out-of-fold predictions: fitted with "
+                                 "cv_predictions=False (and neither a stage nor a fallback)")
         return self.oof_prior_.to_numpy()
 
     @property
@@ -170,6 +206,9 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         check_is_fitted(self)
         if self.boost_stage:
             return self.boost_.cv_folds_
+        if not hasattr(self, "prior_folds_"):
+            raise AttributeError("no out-of-fold predictions: fitted with "
+                                 "cv_predictions=False (and neither a stage nor a fallback)")
         return self.prior_folds_
 
     @property

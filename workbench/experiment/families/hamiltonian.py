@@ -180,7 +180,16 @@ class HamiltonianFamily(ModelFamily):
                                 cv=KFold(h.prior_cv, shuffle=True,
                                          random_state=cfg.random_state or 0),
                                 boost_stage=h.boost_stage,
-                                fallback=list(ds.prior_names) if h.fallback else None)
+                                fallback=list(ds.prior_names) if h.fallback else None,
+                                cv_predictions=self._needs_oof(cfg), n_jobs=cfg.jobs)
+
+    @staticmethod
+    def _needs_oof(cfg: ExperimentConfig) -> bool:
+        """Whether the model without a stage must keep its out-of-fold predictions: only for
+        out-of-fold prediction intervals. Its CV MAE comes from them, so without a stage or
+        such intervals the model's CV MAE is NaN rather than paid for with ``prior_cv``
+        refits; ``[evaluation] cv_repeats`` estimates it when asked."""
+        return cfg.intervals.enabled and cfg.intervals.method == "oof"
 
     def fixed_choices(self, model):
         """Keep the selected covariates (refitting the selection would remake it)."""
