@@ -6,7 +6,7 @@ PY     := $(VENV)/bin/python
 export MLFLOW_DISABLE_TELEMETRY := true
 export MPLCONFIGDIR := $(CURDIR)/.cache/matplotlib
 
-.PHONY: run test lint lock clean browser
+.PHONY: run test lint lock clean browser bench
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -28,6 +28,16 @@ THREADS := OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1
 # Main job: reproduce the paper (figures, tables, report in reports/; runs in mlruns/).
 run: $(VENV)/.installed
 	$(VENV)/bin/workbench reproduce --out reports
+
+# Benchmarks (about 15 minutes; run alone on a quiet machine): the scaling, bootstrap and
+# reference figures as JSON under benchmarks/results/, then README's tables remade from them
+# (benchmarks/tables.py; a test checks README against the JSON). The reference side runs
+# where its virtualenv exists (bash ../shared/bench/reference/setup.sh /tmp/reference-venv).
+bench: $(VENV)/.installed
+	$(PY) benchmarks/scaling.py --max-rows 30000 --json benchmarks/results/scaling.json
+	$(PY) benchmarks/bootstrap.py --json benchmarks/results/bootstrap.json
+	$(PY) benchmarks/vs_reference.py --json benchmarks/results/reference.json
+	$(PY) benchmarks/tables.py
 
 # Lint (ruff) and type check (mypy), on the paths pyproject.toml's [tool.ruff] and
 # [tool.mypy] cover.

@@ -2,7 +2,7 @@
 and what each costs (prints a table; no assertions).
 
     python benchmarks/bootstrap.py            # simulated and IBM gate errors, 500 ... 9,000 rows
-    python benchmarks/bootstrap.py --json F   # the table as JSON too
+    python benchmarks/bootstrap.py --json F   # the rows as JSON too (make bench)
 
 Above ``results.BOOTSTRAP_EXACT_ROWS`` test rows, ``evaluate`` computes the bootstrap
 intervals of the test errors without resampling: the Cornish-Fisher expansion (to second
@@ -27,7 +27,6 @@ mean's skewness or excess kurtosis exceeds ``results.CORNISH_FISHER_LIMIT``).
 from __future__ import annotations
 
 import argparse
-import json
 import subprocess
 import sys
 import time
@@ -36,6 +35,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from scaling import write_json  # noqa: E402
 
 from workbench.experiment.results import (  # noqa: E402
     BOOTSTRAP_EXACT_ROWS,
@@ -113,8 +114,8 @@ def main() -> None:
     parser.add_argument("--sizes", nargs="+", type=int, default=SIZES)
     parser.add_argument("--json", type=Path, help="also write the rows as JSON here")
     args = parser.parse_args()
-    load = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
-    print(f"load before: {load}")
+    before = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+    print(f"load before: {before}")
     print(f"{BOOTSTRAP_RESAMPLES:,} resamples, level {BOOTSTRAP_LEVEL}; evaluate resamples up "
           f"to {BOOTSTRAP_EXACT_ROWS:,} rows. Differences of the intervals' ends in units of "
           "the percentile interval's half-width (largest over all statistics).")
@@ -134,10 +135,10 @@ def main() -> None:
                   f"{r['seed_vs_seed']:>12.3f}{r['largest_abs_difference']:>20.2e}"
                   f"{r['percentile_s']:>8.2f}{r['cornish_fisher_s']:>8.4f}  {r['evaluate_uses']}",
                   flush=True)
-    load = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
-    print(f"load after:  {load}")
+    after = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+    print(f"load after:  {after}")
     if args.json:
-        args.json.write_text(json.dumps({"load": load, "rows": rows}, indent=1))
+        write_json(args.json, {"rows": rows}, before, after)
 
 
 if __name__ == "__main__":

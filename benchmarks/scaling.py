@@ -127,14 +127,17 @@ def _point(case: str, n_rows: int, n_sites: int) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def _row(case: str, n_rows: int, n_sites: int) -> None:
+def _row(case: str, n_rows: int, n_sites: int) -> dict:
     p = _point(case, n_rows, n_sites)
+    p.update(case=case, sites=n_sites, rows=n_rows)
     if "error" in p:
         print(f"{case:<13}{n_sites:>6}{n_rows:>8,}  failed: {p['error']}", flush=True)
-        return
+        return p
     per = p["wall"] / n_rows * 1000
+    p["per_1k_rows"] = per
     print(f"{case:<13}{n_sites:>6}{n_rows:>8,}{p['wall']:>9.2f}{per:>11.3f}{p['peak_mib']:>10.0f}"
           f"{p['mae']:>9.3f}{p['prior_mae']:>9.3f}  {'; '.join(p['notes'])}", flush=True)
+    return p
 
 
 def main() -> None:
@@ -144,6 +147,9 @@ def main() -> None:
     parser.add_argument("--max-rows", type=int, default=10_000,
                         help="largest row count of the default list (30000 for the full run)")
     parser.add_argument("--sites", nargs="+", type=int, default=SITES)
+    parser.add_argument("--json", type=Path,
+                        help="also write the points as JSON (benchmarks/results/scaling.json "
+                             "is what README's table is made from: make bench)")
     parser.add_argument("--child", nargs=3, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
@@ -151,19 +157,36 @@ def main() -> None:
         _child(case, int(n_rows), int(n_sites))
         return
     rows = args.rows or [r for r in ROWS if r <= args.max_rows]
-    load = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
-    print(f"load before: {load}\ncases {args.only}; rows {rows}; sites {args.sites}")
+    before = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+    print(f"load before: {before}\ncases {args.only}; rows {rows}; sites {args.sites}")
     print(f"{'case':<13}{'sites':>6}{'rows':>8}{'wall s':>9}{'s/1k rows':>11}{'peak MiB':>10}"
           f"{'MAE':>9}{'prior':>9}  notes")
+    points = []
     for case in args.only:
         for n_rows in rows:
-            _row(case, n_rows, 5)
+            points.append(_row(case, n_rows, 5))
         if case in ROWS_FOR_SITES:
             for n_sites in args.sites:
                 if n_sites != 5 or ROWS_FOR_SITES[case] not in rows:
-                    _row(case, ROWS_FOR_SITES[case], n_sites)
-    load = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
-    print(f"load after:  {load}")
+                    points.append(_row(case, ROWS_FOR_SITES[case], n_sites))
+    after = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+    print(f"load after:  {after}")
+    if args.json:
+        write_json(args.json, {"points": points}, before, after)
+
+
+def write_json(path: Path, payload: dict, load_before: str, load_after: str) -> None:
+    """A benchmark's figures with the machine, date, commit and load they were measured on."""
+    import platform
+    from datetime import date
+
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                            text=True, cwd=ROOT).stdout.strip()
+    meta = {"date": date.today().isoformat(), "commit": commit, "cores": os.cpu_count(),
+            "machine": platform.machine(), "python": platform.python_version(),
+            "load_before": load_before, "load_after": load_after}
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps({"measured": meta, **payload}, indent=1) + "\n")
 
 
 if __name__ == "__main__":

@@ -138,6 +138,7 @@ def main() -> None:
     parser.add_argument("--reference-venv", default=os.environ.get("REFERENCE_VENV",
                                                                      "/tmp/reference-venv"))
     parser.add_argument("--only", choices=("paper", "default", "curve"), default=None)
+    parser.add_argument("--json", type=Path, help="also write the medians as JSON (make bench)")
     parser.add_argument("--workbench-args", nargs=argparse.REMAINDER, default=[],
                         help="extra arguments of the workbench evaluate (e.g. --jobs 1)")
     args = parser.parse_args()
@@ -166,10 +167,11 @@ def main() -> None:
         "curve": ([sys.executable, "-c", WORKBENCH_CURVE],
                   [str(ref_python), "-c", REFERENCE_CURVE]),
     }
-    print(f"load before: {_uptime()}")
+    before = _uptime()
+    print(f"load before: {before}")
     print(f"{os.cpu_count()} CPUs; {args.repeats} paired runs per job; one BLAS/OpenMP thread "
           "per process", flush=True)
-    summary = []
+    summary, medians = [], []
     for name, (wb_argv, ref_argv) in jobs.items():
         if args.only and name != args.only:
             continue
@@ -193,14 +195,23 @@ def main() -> None:
                       flush=True)
         w, wc = statistics.median(walls["workbench"]), statistics.median(cpus["workbench"])
         line = f"{name}: median wall workbench {w:.1f} s"
+        row = {"job": name, "runs": args.repeats, "workbench_wall": w, "workbench_cpu": wc}
         if walls["reference"]:
             r, rc = statistics.median(walls["reference"]), statistics.median(cpus["reference"])
             line += (f", reference {r:.1f} s; reference / workbench = {r / w:.2f} "
                      f"(CPU: {wc:.1f} s vs {rc:.1f} s, {rc / wc:.2f})")
+            row.update(reference_wall=r, reference_cpu=rc)
         summary.append(line)
+        medians.append(row)
         print(line, flush=True)
-    print(f"load after:  {_uptime()}")
+    after = _uptime()
+    print(f"load after:  {after}")
     print("\n".join(["summary:", *summary]))
+    if args.json:
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        from scaling import write_json
+
+        write_json(args.json, {"jobs": medians}, before, after)
 
 
 if __name__ == "__main__":

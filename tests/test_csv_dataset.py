@@ -53,6 +53,32 @@ def test_seeded_test_fraction(csv_file):
     assert set(a.test_index).isdisjoint(a.train_index)
 
 
+def test_numbers_read_at_once_equal_the_text_reading(tmp_path, monkeypatch):
+    """A clean file is read by pandas' parser at once; its dataset is the one the checked text
+    reading (which names problems) makes, to the last bit; ragged spaces and cells such as
+    "nan" or "" fall back to the text reading and its messages."""
+    from workbench.datasets import csv as csv_module
+
+    path = tmp_path / "sim.csv"
+    write_simulation(simulate(3, 200, seed=1), path)
+    args = dict(prior=["model_E1", "model_E2", "model_E3"],
+                targets=["measured_E1", "measured_E2", "measured_E3"],
+                features=["v_q1", "v_q2", "v_q3", "v_c1", "v_c2"], test_fraction=0.3)
+    fast = load_csv_dataset(path, **args)
+    monkeypatch.setattr(csv_module, "_read_numbers", lambda *a: None)
+    slow = load_csv_dataset(path, **args)
+    for part in ("features", "prior", "targets"):
+        pd.testing.assert_frame_equal(getattr(fast, part), getattr(slow, part),
+                                      check_exact=True)
+    np.testing.assert_array_equal(fast.test_index, slow.test_index)
+    monkeypatch.undo()
+    assert csv_module._read_numbers(path, ["v_q1"], []) is not None
+    frame = _frame()
+    frame.loc[3, "p1"] = np.nan  # written as an empty cell: not a number, no fast read
+    frame.to_csv(path, index=False)
+    assert csv_module._read_numbers(path, PRIOR, ["split"]) is None
+
+
 def _write(tmp_path, text):
     path = tmp_path / "bad.csv"
     path.write_text(text)

@@ -144,3 +144,47 @@ def test_fallback_keeps_the_control_prediction_where_the_physics_model_does_not_
     assert np.abs(pred[:, 0] - Y[:, 0]).mean() < np.abs(control[:, 0] - Y[:, 0]).mean()
     without = FittedPriorBoost(Physics(), boost_stage=False).fit(X, Y)
     assert without.physics_selected_.all()
+
+
+def test_out_of_fold_refits_only_when_something_uses_them(crosstalk, monkeypatch):
+    """Without a stage or a fallback, cv_predictions=False fits the physics model once (no
+    fold refits) and has no out-of-fold predictions; the default keeps them."""
+    train, test = crosstalk
+    fits = []
+    original = HamiltonianParameterRegressor.fit
+
+    def counting(self, X, y, coef_init=None):
+        fits.append(coef_init is not None)
+        return original(self, X, y, coef_init=coef_init)
+
+    monkeypatch.setattr(HamiltonianParameterRegressor, "fit", counting)
+    lean = FittedPriorBoost(_physics(), boost_stage=False, cv_predictions=False, cv=3)
+    lean.fit(train, train[MEASURED])
+    assert fits == [False]  # the fit on all rows, cold
+    assert not hasattr(lean, "oof_prior_")
+    with pytest.raises(AttributeError, match="cv_predictions=False"):
+        _ = lean.cv_predictions_
+    fits.clear()
+    full = FittedPriorBoost(_physics(), boost_stage=False, cv=3).fit(train, train[MEASURED])
+    # the fold refits start from the fit on all rows (coef_init)
+    assert fits == [False, True, True, True]
+    assert full.cv_predictions_.shape == (len(train), N)
+    np.testing.assert_allclose(lean.predict(test), full.predict(test))
+
+
+def test_fold_refits_give_the_same_numbers_on_several_processes(crosstalk):
+    train, _ = crosstalk
+    one = FittedPriorBoost(_physics(), boost_stage=False, cv=3, n_jobs=1)
+    two = clone(one).set_params(n_jobs=2)
+    a = one.fit(train, train[MEASURED]).cv_predictions_
+    b = two.fit(train, train[MEASURED]).cv_predictions_
+    np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(one.cv_folds_, two.cv_folds_)
+    # warm starts end where cold starts do, to the fit's tolerance (here within 0.003, a
+    # fraction of the noise sd 0.05)
+    cold = np.empty_like(a)
+    for k in range(3):
+        rows = one.prior_folds_ == k
+        model = _physics().fit(train[~rows], train[MEASURED].to_numpy()[~rows])
+        cold[rows] = model.predict(train[rows])
+    np.testing.assert_allclose(a, cold, atol=0.01)

@@ -22,8 +22,8 @@ it unchanged.
 from __future__ import annotations
 
 import math
-from statistics import NormalDist
 from dataclasses import asdict, dataclass, field, fields
+from statistics import NormalDist
 from typing import Any, NamedTuple
 
 import numpy as np

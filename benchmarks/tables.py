@@ -1,0 +1,142 @@
+"""README's benchmark tables, made from the JSON the benchmark scripts write (``make bench``).
+
+    python benchmarks/tables.py           # README.md's tables remade from benchmarks/results
+    python benchmarks/tables.py --check   # exit 1 if README.md's tables differ from the JSON
+
+Each table sits in README.md between ``<!-- bench:NAME -->`` and ``<!-- /bench:NAME -->`` and
+is made from ``benchmarks/results/NAME.json`` (written by ``scaling.py --json``,
+``bootstrap.py --json``, ``vs_reference.py --json``) with the date, commit, machine and load
+it was measured on. A number in those tables is never typed by hand: a slower or faster run
+changes the table (and tests/test_readme.py fails until README.md is remade).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "benchmarks" / "results"
+README = ROOT / "README.md"
+
+SCALING_LABELS = {
+    "ridge": "eigenvalue, ridge basis",
+    "lightgbm": "eigenvalue, LightGBM (100 trees)",
+    "kernel_ridge": "eigenvalue, kernel ridge (`simulated_device.toml`'s basis)",
+    "hamiltonian": "parameter space, fixed covariates",
+}
+
+
+def _measured(meta: dict) -> str:
+    load = meta["load_before"].split("load average:")[-1].strip()
+    return (f"Measured {meta['date']} at commit {meta['commit']} on {meta['cores']} cores "
+            f"({meta['machine']}, Python {meta['python']}; load average before: {load}).")
+
+
+def _num(x: float) -> str:
+    return f"{x:.3f}" if x < 0.1 else f"{x:.2f}"
+
+
+def scaling(data: dict) -> str:
+    """Seconds per 1,000 rows against rows (5 sites), then seconds against sites."""
+    points = [p for p in data["points"] if "error" not in p]
+    rows = sorted({p["rows"] for p in points if p["sites"] == 5})
+    cases = list(dict.fromkeys(p["case"] for p in points))
+    top = max(rows)
+    lines = ["| config | " + " | ".join(f"{r:,}" for r in rows)
+             + f" rows | peak MiB at {top:,} |",
+             "|---" * (len(rows) + 2) + "|"]
+    for case in cases:
+        by_rows = {p["rows"]: p for p in points if p["case"] == case and p["sites"] == 5}
+        cells = [_num(by_rows[r]["per_1k_rows"]) if r in by_rows else "" for r in rows]
+        peak = f"{by_rows[top]['peak_mib']:.0f}" if top in by_rows else ""
+        lines.append(f"| {SCALING_LABELS.get(case, case)} | " + " | ".join(cells)
+                     + f" | {peak} |")
+    lines.append("")
+    lines.append("Seconds of `evaluate` against sites:")
+    lines.append("")
+    sites = sorted({p["sites"] for p in points})
+    lines.append("| config | rows | " + " | ".join(f"{s} sites" for s in sites) + " |")
+    lines.append("|---" * (len(sites) + 2) + "|")
+    for case in cases:
+        at = {p["rows"] for p in points if p["case"] == case and p["sites"] != 5}
+        for n in sorted(at):
+            by_sites = {p["sites"]: p for p in points if p["case"] == case and p["rows"] == n}
+            cells = [f"{by_sites[s]['wall']:.2f}" if s in by_sites else "" for s in sites]
+            lines.append(f"| {SCALING_LABELS.get(case, case)} | {n:,} | " + " | ".join(cells)
+                         + " |")
+    return "\n".join([_measured(data["measured"]), "", *lines])
+
+
+def bootstrap(data: dict) -> str:
+    """Cornish-Fisher against the percentile bootstrap, per data set and size."""
+    lines = ["| data | test rows | largest CF - percentile | two seeds' largest difference "
+             "| percentile s | CF s | evaluate uses |", "|---" * 7 + "|"]
+    for r in data["rows"]:
+        lines.append(f"| {r['data']} | {r['rows']:,} | {r['cf_vs_percentile']:.3f} | "
+                     f"{r['seed_vs_seed']:.3f} | {r['percentile_s']:.2f} | "
+                     f"{r['cornish_fisher_s']:.3f} | {r['evaluate_uses'].replace('_', '-')} |")
+    return "\n".join([_measured(data["measured"]), "", *lines])
+
+
+REFERENCE_JOBS = {
+    "paper": "paper settings on the benchmark, whole process (`evaluate paper_main_body.toml "
+             "--no-track --no-intervals`)",
+    "default": "the default command, `evaluate paper_main_body.toml` (tracked: 90% intervals, "
+               "curves, SHAP, figures, model)",
+    "curve": "augmented learning curve of Y3, 7 sizes x 5 folds, whole process",
+}
+
+
+def reference(data: dict) -> str:
+    """The workbench against the paper's reference implementation (medians of paired runs)."""
+    lines = ["| job | workbench wall / CPU s | reference wall / CPU s | reference / workbench "
+             "(wall) |", "|---" * 4 + "|"]
+    for r in data["jobs"]:
+        ref = (f"{r['reference_wall']:.1f} / {r['reference_cpu']:.1f}"
+               if "reference_wall" in r else "not run")
+        ratio = (f"{r['reference_wall'] / r['workbench_wall']:.2f}"
+                 if "reference_wall" in r else "")
+        lines.append(f"| {REFERENCE_JOBS.get(r['job'], r['job'])} ({r['runs']} paired runs) | "
+                     f"{r['workbench_wall']:.1f} / {r['workbench_cpu']:.1f} | {ref} | {ratio} |")
+    return "\n".join([_measured(data["measured"]), "", *lines])
+
+
+TABLES: dict[str, Callable[[dict], str]] = {"scaling": scaling, "bootstrap": bootstrap,
+                                            "reference": reference}
+
+
+def render(text: str) -> str:
+    """``text`` with every ``<!-- bench:NAME -->`` block remade from its JSON."""
+    for name, make in TABLES.items():
+        pattern = re.compile(rf"(<!-- bench:{name} -->\n).*?(<!-- /bench:{name} -->)", re.S)
+        if not pattern.search(text):
+            continue
+        table = make(json.loads((RESULTS / f"{name}.json").read_text()))
+        text = pattern.sub(lambda m, t=table: m.group(1) + t + "\n" + m.group(2), text)
+    return text
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--check", action="store_true",
+                        help="only check: exit 1 where README.md's tables are not the JSON's")
+    args = parser.parse_args()
+    old = README.read_text()
+    new = render(old)
+    if args.check:
+        if new != old:
+            print("README.md's benchmark tables differ from benchmarks/results/*.json: run "
+                  "python benchmarks/tables.py", file=sys.stderr)
+            return 1
+        return 0
+    README.write_text(new)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
