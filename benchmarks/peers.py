@@ -1,7 +1,7 @@
 """The peer every claim is measured against: LightGBM boosted from the prior, tuned by CV.
 
     python benchmarks/peers.py [--datasets google ibm ibm_devices chain grid none]
-                               [--seeds 0 1 2] [--trials 50] [--peer-objective]
+                               [--seeds 0 1 2] [--trials 50] [--squared-peer]
                                [--config experiments/generic.toml]
 
 For each dataset (and seed) on its train/test split:
@@ -10,9 +10,9 @@ For each dataset (and seed) on its train/test split:
 * **peer** (``workbench.experiment.peer``): per target, ``LGBMRegressor`` fitted with
   ``init_score`` = the prior column, on the prior columns and the dataset's features, its
   hyperparameters tuned by 5-fold CV on the training rows (Optuna TPE, ``--trials`` per
-  target, seeded, one LightGBM thread per fit and a trial's folds on both cores, squared
-  loss; ``--peer-objective`` lets the search choose LightGBM's objective too, among l2, l1
-  and huber); it predicts ``prior + booster``;
+  target, seeded, one LightGBM thread per fit and a trial's folds on both cores; the search
+  chooses LightGBM's objective too, among l2, l1 and huber: the strongest peer;
+  ``--squared-peer`` keeps squared error); it predicts ``prior + booster``;
 * **workbench**: ``workbench evaluate`` of one config (``--config``; only its ``[data]`` is
   pointed at each dataset: a benchmark's ``source`` and split, or a simulated CSV with its
   columns and coupling graph);
@@ -125,7 +125,7 @@ def _ci(low_high) -> str:
 def run(name: str, seed: int, args, tmp: Path) -> dict:
     from workbench.experiment.config import load_config, load_dataset
     from workbench.experiment.evaluate import evaluate
-    from workbench.experiment.peer import peer_predict
+    from workbench.experiment.peer import PEER_OBJECTIVES, peer_predict
     from workbench.experiment.results import bootstrap_error_interval
 
     true = None
@@ -138,8 +138,7 @@ def run(name: str, seed: int, args, tmp: Path) -> dict:
         seed = cfg.random_state or 0
     ds = load_dataset(cfg)
     X_train, X_test, y_train, y_test = ds.split()
-    objectives = ("regression", "regression_l1", "huber") if args.peer_objective else \
-        ("regression",)
+    objectives = ("regression",) if args.squared_peer else PEER_OBJECTIVES
     fitted = peer_predict(X_train, y_train, X_test, ds.prior_names, ds.feature_names,
                           trials=args.trials, seed=seed, objectives=objectives, n_jobs=2)
     peer, peer_s = fitted.predictions, fitted.seconds
@@ -168,13 +167,14 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, nargs="+", default=None,
                         help="default: chain 0-4, grid 0-2, none 0-2, ibm_devices 0-2")
     parser.add_argument("--trials", type=int, default=50)
-    parser.add_argument("--peer-objective", action="store_true",
-                        help="the peer's search chooses LightGBM's objective too")
+    parser.add_argument("--squared-peer", action="store_true",
+                        help="the peer with squared error only (default: its search chooses "
+                             "LightGBM's objective among l2, l1 and huber)")
     parser.add_argument("--config", default=str(ROOT / "experiments" / "generic.toml"))
     args = parser.parse_args()
     rows = []
     print(f"config {args.config}; peer: {args.trials} trials per target"
-          + (", objective searched" if args.peer_objective else "")
+          + (", squared error only" if args.squared_peer else ", objective searched")
           + "; test MAE (average over targets) [95% bootstrap interval]", flush=True)
     with tempfile.TemporaryDirectory() as tmp:
         for name in args.datasets:

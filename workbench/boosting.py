@@ -8,6 +8,13 @@ fitted greedily (the paper's Alg. 1): at stage k the basis regressor ``b_k`` is 
 pseudo-residuals of ``y`` against the current model ``h_{k-1}``, and ``coef_k`` is the exact
 minimiser of ``line_loss(y, h_{k-1} + a * b_k) + penalty * |a|``. ``T`` is an optional
 transform of the basis inputs; it never touches the prior term.
+
+With ``link="log"`` the same expansion runs on the log scale, for positive quantities whose
+prior is a scale or a limit (error rates, lifetimes, cross sections)::
+
+    h(X) = prior(X) * exp(sum_{k=1..K} coef_k * b_k(T(X[:, basis_features])))
+
+so the stages learn a relative correction; losses and line search act on ``log y``.
 """
 
 from __future__ import annotations
@@ -26,8 +33,12 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 from .line_search import line_search
 from .losses import LOSSES, Loss, get_loss
 
-__all__ = ["BaseBoostRegressor", "CachedParamNames", "PriorModel", "check_predictions",
-           "seed_estimator"]
+__all__ = ["LINKS", "BaseBoostRegressor", "CachedParamNames", "PriorModel",
+           "check_predictions", "seed_estimator"]
+
+#: The links between prior and target: ``"identity"`` (the stages add to the prior) and
+#: ``"log"`` (they multiply it: boosting on ``log y`` from ``log prior``).
+LINKS = ("identity", "log")
 
 
 def seed_estimator(estimator, seed: int):
@@ -184,6 +195,10 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
     random_state : int, RandomState or None, default=None
         Seeds the transform and each stage's basis (every nested ``random_state``). ``None``
         leaves the basis's own ``random_state`` values as they are.
+    link : {"identity", "log"}, default="identity"
+        How the stages combine with the prior: ``"identity"`` adds them; ``"log"`` boosts
+        ``log y`` from ``log prior`` and predicts ``prior * exp(sum ...)`` (targets and prior
+        must be positive: a value that is not is a ValueError naming its rows).
 
     Attributes
     ----------
@@ -213,11 +228,13 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
         "input_transform": [None, HasMethods(["fit", "transform"])],
         "alpha": [Interval(numbers.Real, 0, 1, closed="neither")],
         "random_state": ["random_state"],
+        "link": [StrOptions(set(LINKS))],
     }
 
     def __init__(self, prior=None, basis=None, n_stages=1, loss="squared_error",
                  line_search_loss="absolute_error", line_search_penalty=0.1,
-                 basis_features=None, input_transform=None, alpha=0.9, random_state=None):
+                 basis_features=None, input_transform=None, alpha=0.9, random_state=None,
+                 link="identity"):
         self.prior = prior
         self.basis = basis
         self.n_stages = n_stages
@@ -228,6 +245,7 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
         self.input_transform = input_transform
         self.alpha = alpha
         self.random_state = random_state
+        self.link = link
 
     def _check_params(self):
         """The parameters checked against ``_parameter_constraints`` (scikit-learn's
@@ -272,6 +290,8 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
             self.prior_model_.feature_names_in_ = self.feature_names_in_
         self.prior_model_._fit_validated(X_raw, X, y)
         self.prior_values_ = self.prior_model_._predict_validated(X_raw, X)
+        start = self._to_link(self.prior_values_, "the prior")
+        y = self._to_link(y, "the target y")
         self.basis_columns_ = self._basis_columns(X.shape[1])
         self.input_transform_ = None
         if self.input_transform is not None:
@@ -281,7 +301,7 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
             self.input_transform_ = transform.fit(X[:, self.basis_columns_])
         Z = self._basis_inputs(X)
 
-        current = self.prior_values_.copy()
+        current = start.copy()
         self.estimators_, coefs, scores = [], [], [loss(y, current)]
         for k in range(self.n_stages):
             residual = loss.negative_gradient(y, current)
@@ -300,17 +320,34 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
         self.train_score_ = np.asarray(scores)
         return self
 
+    def _to_link(self, values: np.ndarray, what: str) -> np.ndarray:
+        """``values`` on the link's scale (``log`` for ``link="log"``, refusing values that
+        are not positive)."""
+        if self.link == "identity":
+            return values
+        bad = np.flatnonzero(values <= 0)
+        if bad.size:
+            raise ValueError(f"link='log' needs positive values, but {what} has {bad.size} "
+                             f"value(s) <= 0 (rows {bad[:10].tolist()}); use "
+                             f"link='identity' for quantities that can be 0 or negative")
+        return np.log(values)
+
+    def _from_link(self, values: np.ndarray) -> np.ndarray:
+        return values if self.link == "identity" else np.exp(values)
+
     def predict_prior(self, X) -> np.ndarray:
         """The prior term alone for ``X``."""
         check_is_fitted(self)
         return self.prior_model_.predict(X)
 
     def predict_correction(self, X) -> np.ndarray:
-        """What the stages add to the prior for ``X``, ``sum_k coef_k * b_k(T(X))``: the
-        learned correction, ``predict(X) - predict_prior(X)`` up to rounding (exactly 0 where
-        every coefficient is 0; a stage whose coefficient is 0 is not evaluated)."""
+        """What the stages add to the prior for ``X``, in the target's units: the learned
+        correction, ``predict(X) - predict_prior(X)`` up to rounding (exactly 0 where every
+        coefficient is 0; a stage whose coefficient is 0 is not evaluated). With the identity
+        link it is ``sum_k coef_k * b_k(T(X))``; with the log link
+        ``prior(X) * (exp(sum_k ...) - 1)``."""
         check_is_fitted(self)
-        X = validate_data(self, X, reset=False, dtype=float)
+        X_raw, X = X, validate_data(self, X, reset=False, dtype=float)
         out = np.zeros(X.shape[0])
         if not np.any(self.coefs_):
             return out
@@ -318,19 +355,23 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
         for est, coef in zip(self.estimators_, self.coefs_):
             if coef != 0:
                 out = out + coef * np.asarray(est.predict(Z), dtype=float).ravel()
-        return out
+        if self.link == "identity":
+            return out
+        prior = self.prior_model_._predict_validated(X_raw, X)
+        return prior * np.expm1(out)
 
     def staged_predict(self, X):
         """Yield the prediction after each stage ``k = 1..n_stages``."""
         check_is_fitted(self)
         X_raw, X = X, validate_data(self, X, reset=False, dtype=float)
-        pred = self.prior_model_._predict_validated(X_raw, X)
+        pred = self._to_link(self.prior_model_._predict_validated(X_raw, X), "the prior")
         Z = self._basis_inputs(X)
         for est, coef in zip(self.estimators_, self.coefs_):
             pred = pred + coef * np.asarray(est.predict(Z), dtype=float).ravel()
-            yield pred
+            yield self._from_link(pred)
 
     def predict(self, X) -> np.ndarray:
-        """``prior(X) + sum_k coef_k * b_k(T(X))``."""
+        """``prior(X) + sum_k coef_k * b_k(T(X))`` (``link="log"``: ``prior(X) *
+        exp(sum_k ...)``)."""
         (pred,) = deque(self.staged_predict(X), maxlen=1)  # the last stage's (n_stages >= 1)
         return pred

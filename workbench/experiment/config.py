@@ -156,8 +156,9 @@ _Boost = ParameterOf(BaseBoostRegressor)
 class BoostSettings(Section):
     """The eigenvalue-space boosting settings of one target (``[model]``, or a
     ``[model.targets.<target>]`` override, where every key is optional). ``n_stages``,
-    ``loss``, ``line_search_loss``, ``line_search_penalty`` and ``alpha`` are
-    BaseBoostRegressor's parameters, checked against its ``_parameter_constraints``."""
+    ``loss``, ``line_search_loss``, ``line_search_penalty``, ``alpha`` and ``link`` are
+    BaseBoostRegressor's parameters, checked against its ``_parameter_constraints``; a list
+    of losses or of links makes candidates that CV chooses among per target."""
 
     basis: str | list[str] | None = None
     basis_params: dict[str, Any] | None = None
@@ -168,6 +169,8 @@ class BoostSettings(Section):
     line_search_loss: Annotated[str, _Boost] | None = None
     line_search_penalty: Annotated[float, _Boost] | None = None
     alpha: Annotated[float, _Boost] | None = None
+    # "identity": the stages add to the prior; "log": they multiply it (positive quantities)
+    link: Annotated[str, _Boost] | list[Annotated[str, _Boost]] | None = None
     basis_inputs: Literal["prior", "prior+features"] | None = None
     input_transform: str | None = None
     input_transform_params: dict[str, Any] | None = None
@@ -178,7 +181,7 @@ class BoostSettings(Section):
 #: ``[model]`` defaults (the paper's settings).
 MODEL_DEFAULTS: dict[str, Any] = dict(
     basis="paper_stacking", basis_params={}, n_stages=1, loss="squared_error", draws=20,
-    line_search_loss="absolute_error", line_search_penalty=0.1, alpha=0.9,
+    line_search_loss="absolute_error", line_search_penalty=0.1, alpha=0.9, link="identity",
     basis_inputs="prior", input_transform="quantile_normal", input_transform_params={},
 )
 
@@ -195,13 +198,14 @@ def check_boost_settings(settings: dict[str, Any]) -> None:
     """Resolve a target's merged settings the way a fit will (basis and transform names,
     their parameters against the estimators' own constraints, losses): ``ValueError`` with
     the offending key first."""
-    if isinstance(settings["loss"], list):  # candidates chosen by CV per target
-        losses = settings["loss"]
-        if not losses or len(set(losses)) != len(losses):
-            raise ValueError(f"loss = {shorten(losses)}: give distinct loss names")
-        for loss in losses:
-            check_boost_settings({**settings, "loss": loss})
-        return
+    for key in ("loss", "link"):
+        if isinstance(settings[key], list):  # candidates chosen by CV per target
+            values = settings[key]
+            if not values or len(set(values)) != len(values):
+                raise ValueError(f"{key} = {shorten(values)}: give distinct {key} names")
+            for value in values:
+                check_boost_settings({**settings, key: value})
+            return
     if isinstance(settings["basis"], list):  # candidates chosen by CV per target
         names = settings["basis"]
         if not names or len(set(names)) != len(names):

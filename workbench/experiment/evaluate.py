@@ -187,6 +187,13 @@ def format_table(result: Result) -> str:
                      f"{', '.join(f'{c:.0%}' for c in model.test_coverage)}), mean width "
                      f"{model.avg('test_width'):.3f}; CV coverage "
                      f"{model.avg('cv_coverage'):.1%}, width {model.avg('cv_width'):.3f}")
+    for target, choice in result.details.get("candidates", {}).items():
+        scores = choice["cv_mae"]
+        best = sorted(scores, key=scores.get)[:3]
+        lines.append(f"{target}: CV chose {choice['chosen']} (CV MAE "
+                     f"{scores[choice['chosen']]:.4g}); lowest CV MAE "
+                     + ", ".join(f"{name} {scores[name]:.4g}" for name in best)
+                     + f" of {len(scores)} (the prior included)")
     if result.repeated_cv is not None:
         r = result.repeated_cv
         lines.append(f"repeated CV on the training rows ({r.repeats} x {r.folds} folds): "

@@ -25,6 +25,7 @@ from .results import (
     ModelScores,
     Result,
     Scores,
+    bootstrap_description,
     bootstrap_error_interval,
     bootstrap_test_scores,
     mae,
@@ -43,7 +44,8 @@ GATE_SYSTEMS = {
     "gates_peer": ("IBM gates: LightGBM from the prior, tuned by CV",
                    "The peer: LightGBM boosted from the coherence limit (init_score) on the "
                    "prior and the features, 50 Optuna trials of 5-fold CV on the training "
-                   "rows (workbench.experiment.peer)."),
+                   "rows, LightGBM's objective (squared, absolute, Huber) searched too "
+                   "(workbench.experiment.peer)."),
     "gates_generic": ("IBM gates: base boosting, generic config",
                       "The recommended generic config (`experiments/generic.toml`): per "
                       "target a ridge stage, one of the LightGBM stages drawn from the peer's "
@@ -87,7 +89,7 @@ def gates_benchmark(configs: Path, seed: int, quick: bool, say) -> Gates:
     X_train, X_test, y_train, y_test = ds.split()
     trials = 2 if quick else PEER_TRIALS
     say(f"IBM two-qubit gates: the peer (LightGBM from the prior, {trials} trials of 5-fold "
-        "CV)")
+        "CV, objective searched)")
     with watches["gates_peer"]:
         peer = peer_predict(X_train, y_train, X_test, ds.prior_names, ds.feature_names,
                             trials=trials, seed=seed, n_jobs=2)
@@ -158,7 +160,7 @@ split holds out the snapshots taken from 2025 on: {len(ds.test_index)} gates of
 training gates of {n_dev_train} devices. Every choice is made by CV on the training rows.
 
 Test mean absolute error (percentage points of gate error), with 95% bootstrap intervals
-over the test rows:
+over the test rows ({bootstrap_description(gates.peer.bootstrap)}):
 
 {head}
 {chr(10).join(rows)}

@@ -30,8 +30,9 @@ import numpy as np
 
 __all__ = ["BOOTSTRAP_EXACT_ROWS", "BOOTSTRAP_LEVEL", "BOOTSTRAP_RESAMPLES",
            "CORNISH_FISHER_LIMIT", "CVEstimate", "ErrorInterval", "ModelScores", "OuterFold",
-           "Result", "Scores", "SweepSummary", "bootstrap_error_interval", "bootstrap_method",
-           "bootstrap_test_scores", "mae", "mse"]
+           "Result", "Scores", "SweepSummary", "bootstrap_description",
+           "bootstrap_error_interval", "bootstrap_method", "bootstrap_test_scores", "mae",
+           "mse"]
 
 #: The level of the test errors' bootstrap intervals.
 BOOTSTRAP_LEVEL = 0.95
@@ -323,6 +324,16 @@ def bootstrap_test_scores(prior: Scores, model: ModelScores, y, prior_pred, pred
         settings["n_resamples"] = n_resamples
     settings.update(random_state=random_state, n_rows=len(y))
     return settings
+
+
+def bootstrap_description(settings: dict[str, Any]) -> str:
+    """In words, how a result's bootstrap intervals were computed (its ``bootstrap`` section,
+    :func:`bootstrap_test_scores`' return), for reports."""
+    if settings.get("method") == "cornish_fisher":
+        return (f"{settings['n_rows']:,} rows: the percentiles of the bootstrap distribution "
+                "from its Cornish-Fisher expansion, without resampling")
+    return (f"percentile bootstrap, {settings.get('n_resamples', BOOTSTRAP_RESAMPLES):,} "
+            "resamples of the rows")
 
 
 @dataclass

@@ -26,7 +26,14 @@ from ..explain import target_shap_values
 from ..figures import correction_shap_figure, learning_curve_figure, shap_figure
 from ..results import ModelScores, Scores, mae, mse
 from .base import Artifacts, ModelFamily, quiet_fit
-from .stage import booster_cv, make_booster, per_target_boost, stage_scores, target_inputs
+from .stage import (
+    booster_cv,
+    candidate_choices,
+    make_booster,
+    per_target_boost,
+    stage_scores,
+    target_inputs,
+)
 
 if TYPE_CHECKING:
     from ...datasets import Dataset
@@ -91,7 +98,7 @@ class EigenvalueFamily(ModelFamily):
                              cv_mae=s["cv_mae"], cv_mse=s["cv_mse"],
                              selected=s["selected"], coefs=s["coefs"],
                              extra={"cv_mae_boosted": s["boosted_cv_mae"]})
-        return prior, scores, {}
+        return prior, scores, candidate_choices(ds.target_names, model.estimators_)
 
     def artifacts(self, cfg, ds, model, setting, quick=False) -> Artifacts:
         return self.begin_artifacts(cfg, ds, model, setting, quick)()

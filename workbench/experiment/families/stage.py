@@ -23,7 +23,7 @@ if TYPE_CHECKING:
     from ...datasets import Dataset
     from ..config import ExperimentConfig
 
-__all__ = ["booster_cv", "candidate_settings", "cv_mse", "has_candidates", "make_booster",
+__all__ = ["booster_cv", "candidate_choices", "candidate_settings", "cv_mse", "has_candidates", "make_booster",
            "per_target_boost", "selection_cv", "stage_scores", "target_inputs"]
 
 
@@ -34,29 +34,30 @@ def make_booster(settings: dict[str, Any], prior, inputs: list[str] | None):
         n_stages=settings["n_stages"], loss=settings["loss"],
         line_search_loss=settings["line_search_loss"],
         line_search_penalty=settings["line_search_penalty"], alpha=settings["alpha"],
-        basis_features=inputs,
+        link=settings["link"], basis_features=inputs,
         input_transform=make_transform(settings["input_transform"],
                                        **settings["input_transform_params"]))
 
 
 def has_candidates(settings: dict[str, Any]) -> bool:
     """Whether a target's settings describe several candidates for CV to choose from: a list
-    of bases or of losses, or ranges in a basis's ``basis_params``."""
+    of bases, losses or links, or ranges in a basis's ``basis_params``."""
     params = settings["basis_params"]
     tables = list(params.values()) if isinstance(settings["basis"], list) else [params]
-    return (isinstance(settings["basis"], list) or isinstance(settings["loss"], list)
+    return (any(isinstance(settings[k], list) for k in ("basis", "loss", "link"))
             or any(isinstance(t, dict) and has_ranges(t) for t in tables))
 
 
 def candidate_settings(settings: dict[str, Any],
                        seed: int | None) -> list[tuple[str, dict[str, Any]]]:
     """The candidates of settings for which :func:`has_candidates`: one per basis, drawn
-    setting and loss (bases outer). A basis whose ``basis_params`` hold ranges gives
-    ``draws`` settings drawn at random (``seed``; the same draws for every target and loss),
-    named ``basis#i``. A name joins what varies: the basis (or draw) and the loss, e.g.
-    ``"ridge"``, ``"huber"``, ``"lightgbm#07/huber"``."""
-    bases, losses = settings["basis"], settings["loss"]
+    setting, loss and link (bases outer). A basis whose ``basis_params`` hold ranges gives
+    ``draws`` settings drawn at random (``seed``; the same draws for every target, loss and
+    link), named ``basis#i``. A name joins what varies: the basis (or draw), the loss and the
+    link, e.g. ``"ridge"``, ``"huber"``, ``"lightgbm#07/huber"``, ``"ridge/log"``."""
+    bases, losses, links = settings["basis"], settings["loss"], settings["link"]
     many_bases, many_losses = isinstance(bases, list), isinstance(losses, list)
+    many_links = isinstance(links, list)
     out = []
     for basis in (bases if many_bases else [bases]):
         params = settings["basis_params"].get(basis, {}) if many_bases else \
@@ -66,10 +67,12 @@ def candidate_settings(settings: dict[str, Any],
                  if has_ranges(params) else [(basis, params)])
         for label, values in drawn:
             for loss in (losses if many_losses else [losses]):
-                parts = ([label] if many_bases or label != basis else []) + \
-                    ([loss] if many_losses else [])
-                out.append(("/".join(parts), {**settings, "basis": basis,
-                                              "basis_params": values, "loss": loss}))
+                for link in (links if many_links else [links]):
+                    parts = ([label] if many_bases or label != basis else []) + \
+                        ([loss] if many_losses else []) + ([link] if many_links else [])
+                    out.append(("/".join(parts), {**settings, "basis": basis,
+                                                  "basis_params": values, "loss": loss,
+                                                  "link": link}))
     return out
 
 
@@ -103,7 +106,7 @@ def per_target_boost(cfg: ExperimentConfig, ds: Dataset, priors: list[str], *,
     _warn_quadratic_bases(cfg, names, len(ds.train_index))
     per_target = {}
     for target, prior in zip(names, priors):
-        s = cfg.model_for(target)
+        s = _positive_links(cfg, ds, target, prior, cfg.model_for(target))
         start = prior if boost_from_prior else None
         inputs = target_inputs(s, ds, priors)
         if has_candidates(s):  # the basis family, its settings or the loss too by CV
@@ -119,6 +122,31 @@ def per_target_boost(cfg: ExperimentConfig, ds: Dataset, priors: list[str], *,
                                          return_train_score=True)
     return MultiTargetBaseBoost(target_estimators=per_target, n_jobs=cfg.jobs,
                                 random_state=cfg.random_state)
+
+
+def _positive_links(cfg: ExperimentConfig, ds: Dataset, target: str, prior: str,
+                    settings: dict[str, Any]) -> dict[str, Any]:
+    """``settings`` whose ``link`` can fit ``target``: the log link needs positive targets and
+    priors on the training rows. A "log" among several links is left out (a note in the log)
+    where they are not; a lone ``link = "log"`` is a ConfigError naming the target."""
+    links = settings["link"] if isinstance(settings["link"], list) else [settings["link"]]
+    if "log" not in links:
+        return settings
+    rows = ds.train_index
+    columns = {target: ds.targets.loc[rows, target]}
+    if prior in ds.prior.columns:  # a prior computed during the fit is checked there
+        columns[prior] = ds.prior.loc[rows, prior]
+    bad = {name: int((values <= 0).sum()) for name, values in columns.items()
+           if (values <= 0).any()}
+    if not bad:
+        return settings
+    what = ", ".join(f"{name} has {n} value(s) <= 0" for name, n in bad.items())
+    if len(links) == 1:
+        raise ConfigError(f"link = \"log\" needs positive targets and priors; on the "
+                          f"training rows {what}: use link = \"identity\"")
+    logging.getLogger("workbench").info("[%s] %s: link \"log\" left out (%s)", cfg.name,
+                                        target, what)
+    return {**settings, "link": [link for link in links if link != "log"]}
 
 
 def _warn_quadratic_bases(cfg: ExperimentConfig, targets: list[str], n_rows: int) -> None:
@@ -142,6 +170,22 @@ def booster_cv(cfg: ExperimentConfig, ds: Dataset, target: str, settings: dict[s
                                                                         ds.prior_names))
     return BaseBoostCV(booster, cv=cv, scoring=cfg.selection.scoring,
                        random_state=cfg.random_state, **kwargs)
+
+
+def candidate_choices(targets: list[str], cvs) -> dict[str, Any]:
+    """What CV chose among candidates (:class:`~workbench.selection.BasisChoiceCV`), per
+    target: the winning candidate's name (basis or draw, loss, link; ``"prior"`` when the
+    prior alone won) and every candidate's CV MAE, as the result's ``candidates`` section
+    (empty where no target had candidates)."""
+    out = {}
+    for target, est in zip(targets, cvs):
+        if isinstance(est, BasisChoiceCV):
+            out[target] = {
+                "chosen": est.selected_candidate_ or "prior",
+                "cv_mae": {"prior": float(-np.mean(est.cv_scores_prior_)),
+                           **{name: float(-np.mean(scores))
+                              for name, scores in est.candidate_scores_.items()}}}
+    return {"candidates": out} if out else {}
 
 
 def cv_mse(y, predictions) -> float:

@@ -1,0 +1,130 @@
+"""The link between prior and target: additive (identity) or multiplicative (log), in the core
+estimator and as candidates CV chooses among (config)."""
+
+import numpy as np
+import pandas as pd
+import pytest
+from sklearn.base import clone
+from sklearn.linear_model import Ridge
+
+from workbench import BaseBoostRegressor
+from workbench.selection import BasisChoiceCV
+
+
+def _multiplicative(n=400, seed=0):
+    """A positive target whose prior is off by a factor that depends on x (a rate whose limit
+    the prior gives): y = prior * exp(0.8 x) * noise."""
+    rng = np.random.default_rng(seed)
+    x = rng.uniform(-1, 1, n)
+    prior = np.exp(rng.normal(0, 1.5, n))  # over four decades
+    y = prior * np.exp(0.8 * x) * np.exp(rng.normal(0, 0.05, n))
+    return pd.DataFrame({"x": x, "prior": prior}), y
+
+
+def _booster(link):
+    return BaseBoostRegressor(prior="prior", basis=Ridge(1e-3), basis_features=["x"],
+                              line_search_penalty=0.0, link=link)
+
+
+def test_log_link_multiplies_the_prior():
+    X, y = _multiplicative()
+    model = _booster("log").fit(X, y)
+    # exactly prior * exp(sum of the stages), the stages fitted on log y from log prior
+    stage = model.coefs_[0] * model.estimators_[0].predict(X[["x"]].to_numpy())
+    np.testing.assert_allclose(model.predict(X), X["prior"] * np.exp(stage), rtol=1e-12)
+    np.testing.assert_allclose(model.predict_correction(X), model.predict(X) - X["prior"],
+                               rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(model.estimators_[0].coef_ * model.coefs_[0], [0.8], atol=0.02)
+    # on a quantity spread over decades the additive link cannot express a relative error
+    additive = _booster("identity").fit(X, y)
+    X_new, y_new = _multiplicative(seed=1)
+    err = {m.link: np.mean(np.abs(m.predict(X_new) - y_new)) for m in (model, additive)}
+    assert err["log"] < 0.5 * err["identity"]
+    staged = list(model.staged_predict(X))
+    np.testing.assert_allclose(staged[-1], model.predict(X))
+
+
+def test_identity_link_is_the_default_and_unchanged():
+    X, y = _multiplicative()
+    default = BaseBoostRegressor(prior="prior", basis=Ridge(1e-3), basis_features=["x"])
+    assert default.get_params()["link"] == "identity"
+    explicit = clone(default).set_params(link="identity")
+    np.testing.assert_array_equal(default.fit(X, y).predict(X), explicit.fit(X, y).predict(X))
+
+
+def test_log_link_refuses_values_that_are_not_positive():
+    X, y = _multiplicative(n=50)
+    y = y.copy()
+    y[[3, 7]] = [0.0, -1.0]
+    with pytest.raises(ValueError, match=r"the target y has 2 value\(s\) <= 0 \(rows \[3, 7\]\)"):
+        _booster("log").fit(X, y)
+    X2, y2 = _multiplicative(n=50)
+    model = _booster("log").fit(X2, y2)
+    bad = X2.copy()
+    bad.loc[5, "prior"] = 0.0
+    with pytest.raises(ValueError, match=r"the prior has 1 value\(s\) <= 0 \(rows \[5\]\)"):
+        model.predict(bad)
+    with pytest.raises(ValueError, match="link"):
+        _booster("logit").fit(X2, y2)
+
+
+def test_cv_chooses_the_link_per_target():
+    X, y = _multiplicative()
+    choice = BasisChoiceCV([("identity", _booster("identity")), ("log", _booster("log"))],
+                           cv=5).fit(X, y)
+    assert choice.selected_candidate_ == "log"
+
+
+def _csv_config(tmp_path, link, y_shift=0.0):
+    X, y = _multiplicative(n=120)
+    frame = X.assign(y=y + y_shift)
+    frame.to_csv(tmp_path / "rates.csv", index=False)
+    (tmp_path / "c.toml").write_text(
+        f'name = "rates"\nrandom_state = 0\n[data]\ncsv = "{tmp_path / "rates.csv"}"\n'
+        'prior = ["prior"]\ntargets = ["y"]\nfeatures = ["x"]\ntest_fraction = 0.25\n'
+        f'[model]\nbasis = "ridge"\nbasis_inputs = "prior+features"\nlink = {link}\n'
+        'input_transform = "standard"\nline_search_penalty = 0.0\n[intervals]\n'
+        'enabled = false\n')
+    return tmp_path / "c.toml"
+
+
+def test_config_links_are_candidates_and_the_result_says_which_won(tmp_path):
+    from workbench.experiment.config import load_config, load_dataset
+    from workbench.experiment.evaluate import evaluate
+    from workbench.experiment.families.stage import per_target_boost
+
+    cfg = load_config(_csv_config(tmp_path, '["identity", "log"]'))
+    assert cfg.model_for("y")["link"] == ["identity", "log"]
+    ds = load_dataset(cfg)
+    boost = per_target_boost(cfg, ds, ds.prior_names)
+    assert [n for n, _ in boost.target_estimators["y"].candidates] == ["identity", "log"]
+    result = evaluate(cfg)
+    assert result.model.selected == ["boosted"]
+    choice = result.details["candidates"]["y"]
+    assert choice["chosen"] == "log"
+    assert set(choice["cv_mae"]) == {"prior", "identity", "log"}
+    assert choice["cv_mae"]["log"] < choice["cv_mae"]["identity"] < choice["cv_mae"]["prior"]
+    assert result.to_json()["candidates"]["y"]["chosen"] == "log"
+    from workbench.experiment.evaluate import format_table
+
+    assert "y: CV chose log (CV MAE" in format_table(result)
+    assert result.model.test_mae[0] < 0.5 * result.prior.test_mae[0]
+
+
+def test_config_log_link_on_values_that_are_not_positive(tmp_path, caplog):
+    from workbench.experiment.config import ConfigError, load_config, load_dataset
+    from workbench.experiment.families.stage import per_target_boost
+
+    cfg = load_config(_csv_config(tmp_path, '"log"', y_shift=-5.0))
+    ds = load_dataset(cfg)
+    with pytest.raises(ConfigError, match=r'link = "log" needs positive targets and priors; '
+                                          r"on the training rows y has \d+ value"):
+        per_target_boost(cfg, ds, ds.prior_names)
+    cfg = load_config(_csv_config(tmp_path, '["identity", "log"]', y_shift=-5.0))
+    with caplog.at_level("INFO", logger="workbench"):
+        boost = per_target_boost(cfg, ds, ds.prior_names)
+    assert [n for n, _ in boost.target_estimators["y"].candidates] == ["identity"]
+    assert 'link "log" left out' in caplog.text
+    (tmp_path / "bad.toml").write_text('[model]\nlink = "logit"\n')
+    with pytest.raises(ConfigError, match="link"):
+        load_config(tmp_path / "bad.toml")
