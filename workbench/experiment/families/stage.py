@@ -23,8 +23,8 @@ if TYPE_CHECKING:
     from ...datasets import Dataset
     from ..config import ExperimentConfig
 
-__all__ = ["booster_cv", "candidate_choices", "candidate_settings", "cv_mse", "has_candidates", "make_booster",
-           "per_target_boost", "selection_cv", "stage_scores", "target_inputs"]
+__all__ = ["booster_cv", "candidate_choices", "candidate_settings", "cv_mse", "has_candidates",
+           "make_booster", "per_target_boost", "selection_cv", "stage_scores", "target_inputs"]
 
 
 def make_booster(settings: dict[str, Any], prior, inputs: list[str] | None):
