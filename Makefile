@@ -6,7 +6,7 @@ PY     := $(VENV)/bin/python
 export MLFLOW_DISABLE_TELEMETRY := true
 export MPLCONFIGDIR := $(CURDIR)/.cache/matplotlib
 
-.PHONY: run test lint lock clean browser bench
+.PHONY: run test lint lock clean browser bench bench-peers
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -37,6 +37,13 @@ bench: $(VENV)/.installed
 	$(PY) benchmarks/scaling.py --max-rows 30000 --json benchmarks/results/scaling.json
 	$(PY) benchmarks/bootstrap.py --json benchmarks/results/bootstrap.json
 	$(PY) benchmarks/vs_reference.py --json benchmarks/results/reference.json
+	$(PY) benchmarks/tables.py
+
+# The recommended config against the peer on every benchmark split (about 25 minutes):
+# benchmarks/results/peers.json and README's table made from it.
+bench-peers: $(VENV)/.installed
+	$(PY) benchmarks/peers.py --datasets ibm ibm_devices google chain \
+	  --seeds 0 1 2 3 4 5 --json benchmarks/results/peers.json
 	$(PY) benchmarks/tables.py
 
 # Lint (ruff) and type check (mypy), on the paths pyproject.toml's [tool.ruff] and

@@ -129,6 +129,7 @@ def run(name: str, seed: int, args, tmp: Path) -> dict:
     from workbench.experiment.results import bootstrap_error_interval
 
     true = None
+    split_seed = seed
     if name in BENCHMARKS:
         data = BENCHMARKS[name](seed)
     else:
@@ -153,10 +154,12 @@ def run(name: str, seed: int, args, tmp: Path) -> dict:
              if true is not None else None)
     ci = {k: bootstrap_error_interval(e).average
           for k, e in (("prior", prior_err), ("peer", peer_err), ("workbench", wb_err))}
-    return dict(dataset=name, seed=seed, prior=float(np.mean(np.abs(prior_err))),
+    return dict(dataset=name, seed=seed, split_seed=split_seed,
+                prior=float(np.mean(np.abs(prior_err))),
                 peer=float(np.mean(np.abs(peer_err))), workbench=float(np.mean(np.abs(wb_err))),
                 ci=ci, diff=bootstrap_error_interval(wb_err, baseline=peer_err).average,
                 floor=floor, selected=res.model.selected, peer_s=peer_s, workbench_s=wb_s,
+                chosen=[c["chosen"] for c in res.details.get("candidates", {}).values()],
                 test_rows=len(y))
 
 
@@ -171,8 +174,18 @@ def main() -> None:
                         help="the peer with squared error only (default: its search chooses "
                              "LightGBM's objective among l2, l1 and huber)")
     parser.add_argument("--config", default=str(ROOT / "experiments" / "generic.toml"))
+    parser.add_argument("--json", type=Path,
+                        help="also write the rows as JSON (benchmarks/results/peers.json is "
+                             "what README's table is made from)")
     args = parser.parse_args()
     rows = []
+    import subprocess
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from scaling import write_json
+
+    before = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
     print(f"config {args.config}; peer: {args.trials} trials per target"
           + (", squared error only" if args.squared_peer else ", objective searched")
           + "; test MAE (average over targets) [95% bootstrap interval]", flush=True)
@@ -197,6 +210,11 @@ def main() -> None:
         if ratios:
             print(f"{name}: workbench / peer median {statistics.median(ratios):.3f}, "
                   f"worst {max(ratios):.3f} over {len(ratios)} seed(s)")
+    after = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+    if args.json:
+        write_json(args.json, {"config": Path(args.config).name, "trials": args.trials,
+                               "peer_objectives": "squared" if args.squared_peer else "searched",
+                               "rows": rows}, before, after)
 
 
 if __name__ == "__main__":

@@ -5,9 +5,10 @@
 
 Each table sits in README.md between ``<!-- bench:NAME -->`` and ``<!-- /bench:NAME -->`` and
 is made from ``benchmarks/results/NAME.json`` (written by ``scaling.py --json``,
-``bootstrap.py --json``, ``vs_reference.py --json``) with the date, commit, machine and load
-it was measured on. A number in those tables is never typed by hand: a slower or faster run
-changes the table (and tests/test_readme.py fails until README.md is remade).
+``bootstrap.py --json``, ``vs_reference.py --json``, ``peers.py --json``) with the date,
+commit, machine and load it was measured on. A number in those tables is never typed by
+hand: a slower or faster run changes the table (and tests/test_readme.py fails until
+README.md is remade).
 """
 
 from __future__ import annotations
@@ -106,8 +107,50 @@ def reference(data: dict) -> str:
     return "\n".join([_measured(data["measured"]), "", *lines])
 
 
+PEER_DATASETS = {
+    "ibm": "IBM gates, time split (honest)",
+    "ibm_devices": "IBM gates, 30% of devices held out",
+    "google": "Google 5 qubits, paper split",
+    "chain": "simulated 5-site chain, 400 experiments",
+    "grid": "simulated 3x3 grid, 600 experiments",
+    "none": "simulated chain, exact control model",
+}
+
+
+def peers(data: dict) -> str:
+    """The recommended config against the peer (``benchmarks/peers.py``), per split, and the
+    sum per data set."""
+    def ci(pair) -> str:
+        return f"({pair[0]:.3f}-{pair[1]:.3f})"
+
+    lines = ["| data set, split | seed | test rows | prior | peer | generic config "
+             "| generic / peer | generic - peer | CV chose | seconds: peer, generic |",
+             "|---" * 10 + "|"]
+    for r in data["rows"]:
+        chosen = ", ".join(sorted(set(r.get("chosen") or r["selected"])))
+        lines.append(
+            f"| {PEER_DATASETS.get(r['dataset'], r['dataset'])} | "
+            f"{r.get('split_seed', r['seed'])} | "
+            f"{r['test_rows']:,} | {r['prior']:.3f} {ci(r['ci']['prior'])} | "
+            f"{r['peer']:.3f} {ci(r['ci']['peer'])} | "
+            f"{r['workbench']:.3f} {ci(r['ci']['workbench'])} | "
+            f"{r['workbench'] / r['peer']:.3f} | {r['diff'][0]:+.3f} to {r['diff'][1]:+.3f} | "
+            f"{chosen} | {r['peer_s']:.0f}, {r['workbench_s']:.0f} |")
+    sums = ["", "| data set | splits | peer, summed | generic, summed | generic / peer |",
+            "|---" * 5 + "|"]
+    for name in dict.fromkeys(r["dataset"] for r in data["rows"]):
+        rows = [r for r in data["rows"] if r["dataset"] == name]
+        peer = sum(r["peer"] for r in rows)
+        generic = sum(r["workbench"] for r in rows)
+        sums.append(f"| {PEER_DATASETS.get(name, name)} | {len(rows)} | {peer:.3f} | "
+                    f"{generic:.3f} | {generic / peer:.3f} |")
+    head = (f"Config `{data['config']}`; the peer: {data['trials']} Optuna trials per target, "
+            f"LightGBM's objective {data['peer_objectives']}.")
+    return "\n".join([_measured(data["measured"]), head, "", *lines, *sums])
+
+
 TABLES: dict[str, Callable[[dict], str]] = {"scaling": scaling, "bootstrap": bootstrap,
-                                            "reference": reference}
+                                            "reference": reference, "peers": peers}
 
 
 def render(text: str) -> str:

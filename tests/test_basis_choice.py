@@ -131,3 +131,51 @@ def test_a_boosted_stage_whose_coefficients_are_all_zero_is_reported_as_the_prio
     s = stage_scores(cvs, np.zeros((4, 3)))
     assert s["selected"] == ["prior", "boosted", "prior"]
     assert s["coefs"] == [[0.0, 0.0, 0.0], [0.0, 0.4], []]  # the coefficients stay visible
+
+
+def _mixed(n=300, seed=0):
+    """A correction with a part in x1 and a part in x0, for candidates that see one input
+    each (:func:`_halves`): neither has it all, their mean has half of each."""
+    rng = np.random.default_rng(seed)
+    x = rng.uniform(-2, 2, size=(n, 2))
+    prior = 3 * x[:, 0]
+    y = prior + 0.8 * x[:, 1] + 1.2 * (x[:, 0] > 0.5) + 0.05 * rng.standard_normal(n)
+    return pd.DataFrame({"prior": prior, "x0": x[:, 0], "x1": x[:, 1]}), y
+
+
+def _halves():
+    def booster(name, column, **params):
+        return BaseBoostRegressor(prior="prior", basis=make_basis(name, **params),
+                                  basis_features=[column], line_search_penalty=0.0)
+    return [("ridge_x1", booster("ridge", "x1", alpha=1e-3)),
+            ("trees_x0", booster("lightgbm", "x0", n_estimators=60, min_child_samples=5))]
+
+
+def test_the_mean_of_the_best_candidates_wins_where_cv_says_it_helps():
+    from workbench.selection import CandidateMean
+
+    X, y = _mixed()
+    single = BasisChoiceCV(_halves(), cv=5, random_state=0).fit(X, y)
+    model = BasisChoiceCV(_halves(), cv=5, random_state=0, ensemble=2).fit(X, y)
+    assert model.selected_candidate_ == "mean of 2"
+    assert isinstance(model.estimator_, CandidateMean)
+    assert set(model.candidate_scores_) == {"ridge_x1", "trees_x0", "mean of 2"}
+    # scored on the shared folds from the members' out-of-fold predictions
+    np.testing.assert_allclose(model.cv_score_, model.candidate_scores_["mean of 2"].mean())
+    assert model.cv_score_ > single.cv_score_
+    assert all(np.isfinite(model.cv_predictions_))
+    # the refit is the mean of the members refitted on all rows
+    mean = model.best_estimator_
+    np.testing.assert_allclose(
+        mean.predict(X), np.mean([m.predict(X) for m in mean.members_], axis=0))
+    np.testing.assert_allclose(mean.predict_correction(X), mean.predict(X) - X["prior"],
+                               atol=1e-9)
+    assert len(mean.coefs_) == 2
+    # where one candidate has it all, the mean does not win
+    X, y = _data("linear")
+    alone = BasisChoiceCV(_candidates(), cv=5, random_state=0, ensemble=2).fit(X, y)
+    assert alone.selected_candidate_ == "ridge"
+    assert "mean of 2" in alone.candidate_scores_
+    with pytest.raises(ValueError, match="scoring name"):
+        BasisChoiceCV(_candidates(), cv=5, ensemble=2,
+                      scoring=lambda est, X, y: 0.0).fit(X, y)

@@ -208,6 +208,23 @@ def test_group_column(data, tmp_path):
     assert not (tmp_path / "h.toml").exists()
 
 
+def test_a_column_that_repeats_names_is_proposed_as_the_group_column(data, tmp_path):
+    """Without --group-column, a text column whose values repeat (the device) is proposed,
+    not forced: the config is written without it and the note says how to keep groups whole;
+    the split column (two values) is not proposed, nor a column of unique names."""
+    from workbench.experiment.init import group_columns
+
+    assert group_columns(data, ["split"]) == {"device": 3}
+    rc, out, err = run("init", data, *TARGET_ARGS, "--split-column", "split", "--out", "n.toml")
+    assert rc == 0, err
+    assert "note: column 'device' repeats 3 values" in out and "--group-column device" in out
+    assert "group_column" not in tomllib.loads((tmp_path / "n.toml").read_text())["data"]
+    rc, out, _ = run("init", data, *TARGET_ARGS, "--group-column", "device", "--out", "m.toml")
+    assert rc == 0 and "note:" not in out
+    unique = write_csv(tmp_path / "u.csv", run_id=[f"r{i}" for i in range(120)])
+    assert "run_id" not in group_columns(unique, ["split"])
+
+
 def test_test_fraction_and_seed(data, tmp_path):
     rc, out, err = run("init", data, *TARGET_ARGS, "--test-fraction", "0.25", "--split-seed",
                        "7", "--out", "f.toml")

@@ -128,3 +128,28 @@ def test_config_log_link_on_values_that_are_not_positive(tmp_path, caplog):
     (tmp_path / "bad.toml").write_text('[model]\nlink = "logit"\n')
     with pytest.raises(ConfigError, match="link"):
         load_config(tmp_path / "bad.toml")
+
+
+def test_spline_basis_extrapolates_linearly_where_trees_stay_flat():
+    """A correction linear in x, learned on x in [-1, 1]: the spline basis carries it on to
+    x = 2, a tree ensemble stays at its edge value; its parameters are checked like any
+    basis's (config)."""
+    from workbench import make_basis
+
+    rng = np.random.default_rng(0)
+    x = rng.uniform(-1, 1, 200)
+    X = pd.DataFrame({"x": x, "prior": np.zeros_like(x)})
+    y = 0.5 * x + rng.normal(0, 0.01, 200)
+    new = pd.DataFrame({"x": [2.0], "prior": [0.0]})
+    spline = BaseBoostRegressor(prior="prior", basis=make_basis("spline", alpha=1e-3),
+                                basis_features=["x"], line_search_penalty=0.0).fit(X, y)
+    trees = BaseBoostRegressor(prior="prior", basis=make_basis("lightgbm", n_estimators=50),
+                               basis_features=["x"], line_search_penalty=0.0).fit(X, y)
+    assert spline.predict(new)[0] == pytest.approx(1.0, abs=0.05)
+    assert trees.predict(new)[0] < 0.6
+    from workbench.experiment.config import check_boost_settings
+
+    settings = {"basis": "spline", "basis_params": {"n_knots": 1}, "loss": "squared_error",
+                "link": "identity", "input_transform": "none", "input_transform_params": {}}
+    with pytest.raises(ValueError, match="n_knots"):
+        check_boost_settings(settings)

@@ -26,8 +26,8 @@ from sklearn.kernel_approximation import Nystroem
 from sklearn.kernel_ridge import KernelRidge
 from sklearn.linear_model import Ridge
 from sklearn.neural_network import MLPRegressor
-from sklearn.pipeline import make_pipeline
-from sklearn.preprocessing import QuantileTransformer, StandardScaler
+from sklearn.pipeline import Pipeline, make_pipeline
+from sklearn.preprocessing import QuantileTransformer, SplineTransformer, StandardScaler
 from sklearn.utils._param_validation import Interval
 from sklearn.utils.validation import check_is_fitted
 
@@ -337,6 +337,17 @@ def gaussian_process(*, length_scale=1.0, noise_level=1.0, **params) -> Gaussian
     return GaussianProcessRegressor(**{"kernel": kernel, "normalize_y": True, **params})
 
 
+def spline(*, n_knots=5, degree=3, knots="quantile", alpha=1.0) -> Pipeline:
+    """An additive spline basis: each input's cubic B-splines (``SplineTransformer``, knots at
+    the inputs' quantiles) and a ridge on them. Smooth in every input and linear beyond the
+    training range (``extrapolation="linear"``), where trees stay flat: a basis for a
+    correction that must carry on past the rows it was fitted on (later dates, other
+    devices). Linear in rows."""
+    return Pipeline([("splines", SplineTransformer(n_knots=n_knots, degree=degree, knots=knots,
+                                                   extrapolation="linear")),
+                     ("ridge", Ridge(alpha=alpha))])
+
+
 #: Basis factories by name.
 BASES: dict[str, Callable[..., Any]] = {
     "paper_stacking": paper_stacking,
@@ -345,6 +356,7 @@ BASES: dict[str, Callable[..., Any]] = {
     "lightgbm": lightgbm,
     "mlp": mlp,
     "gaussian_process": gaussian_process,
+    "spline": spline,
 }
 
 

@@ -11,14 +11,14 @@ from sklearn.exceptions import FitFailedWarning
 from sklearn.metrics import check_scoring
 from sklearn.model_selection import BaseCrossValidator, GroupKFold, check_cv
 from sklearn.utils import _safe_indexing, check_random_state
-from sklearn.utils._param_validation import HasMethods
+from sklearn.utils._param_validation import HasMethods, Interval
 from sklearn.utils.metaestimators import _BaseComposition
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .boosting import BaseBoostRegressor, CachedParamNames, PriorModel, seed_estimator
 from .parallel import Task, gather, run_plans
 
-__all__ = ["BaseBoostCV", "BasisChoiceCV", "LabelGroupKFold", "find_prior"]
+__all__ = ["BaseBoostCV", "BasisChoiceCV", "CandidateMean", "LabelGroupKFold", "find_prior"]
 
 
 def find_prior(estimator):
@@ -264,6 +264,69 @@ class BaseBoostCV(CachedParamNames, MetaEstimatorMixin, RegressorMixin, BaseEsti
         return hasattr(self, "selected_")
 
 
+class CandidateMean(_BaseComposition, RegressorMixin, BaseEstimator):
+    """The mean of several regressors' predictions: :class:`BasisChoiceCV`'s ensemble of its
+    best candidates (all boosting from the same prior).
+
+    Parameters
+    ----------
+    members : list of (str, regressor) tuples
+        Cloned and fitted on the same rows; their parameters are nested as
+        ``<name>__<param>``, as in a Pipeline.
+
+    Attributes
+    ----------
+    members_ : list of fitted regressors
+    coefs_ : ndarray
+        The members' stage coefficients one after another (all 0: the model is the prior).
+    """
+
+    _parameter_constraints: dict = {"members": [list]}
+
+    def __init__(self, members=None):
+        self.members = members
+
+    def get_params(self, deep=True):
+        return self._get_params("members", deep=deep)
+
+    def set_params(self, **params):
+        self._set_params("members", **params)
+        return self
+
+    def fit(self, X, y):
+        self._validate_params()
+        if not self.members:
+            raise ValueError("members must be a non-empty list of (name, regressor) tuples")
+        self.members_ = [clone(est).fit(X, y) for _, est in self.members]
+        first = self.members_[0]
+        for attr in ("n_features_in_", "feature_names_in_"):
+            if hasattr(first, attr):
+                setattr(self, attr, getattr(first, attr))
+        return self
+
+    def predict(self, X) -> np.ndarray:
+        check_is_fitted(self)
+        return np.mean([np.asarray(m.predict(X), dtype=float) for m in self.members_], axis=0)
+
+    def predict_prior(self, X) -> np.ndarray:
+        """The members' common prior for ``X``."""
+        check_is_fitted(self)
+        return self.members_[0].predict_prior(X)
+
+    def predict_correction(self, X) -> np.ndarray:
+        """What the mean adds to the prior, in the target's units."""
+        check_is_fitted(self)
+        return np.mean([m.predict_correction(X) for m in self.members_], axis=0)
+
+    @property
+    def coefs_(self) -> np.ndarray:
+        check_is_fitted(self)
+        return np.concatenate([np.ravel(getattr(m, "coefs_", [1.0])) for m in self.members_])
+
+    def __sklearn_is_fitted__(self):
+        return hasattr(self, "members_")
+
+
 class BasisChoiceCV(_BaseComposition, BaseBoostCV):
     """The prior alone against several boosted candidates (e.g. one per basis family), all
     scored on the same CV folds of the training rows: the candidate with the best mean score
@@ -280,16 +343,25 @@ class BasisChoiceCV(_BaseComposition, BaseBoostCV):
         nested as ``<name>__<param>``, as in a Pipeline.
     incumbent, cv, scoring, refit, n_jobs, random_state :
         As in :class:`BaseBoostCV` (one seed reaches every candidate).
+    ensemble : int, default=1
+        Above 1, the mean of the ``ensemble`` best candidates (:class:`CandidateMean`) is a
+        candidate too, scored on the same folds from their out-of-fold predictions (no
+        extra fit): it wins where its CV score beats the best single candidate's (and the
+        prior's). Averaging several good candidates removes part of the variance that
+        choosing one of many on a few folds adds. Needs a scoring name (a metric of the
+        predictions).
 
     Attributes
     ----------
     selected_ : {"prior", "boosted"}
     selected_candidate_ : str or None
-        The winning candidate's name (``None`` when the prior is selected).
+        The winning candidate's name (``None`` when the prior is selected); the ensemble's
+        is ``"mean of <k>"``.
     candidate_scores_ : dict of str -> ndarray of shape (n_splits,)
-        Every candidate's fold scores.
+        Every candidate's fold scores (and the ensemble's, with ``ensemble`` > 1).
     estimator_ : regressor
-        The winning candidate (the first one when the prior is selected), unfitted.
+        The winning candidate (the first one when the prior is selected), unfitted: a
+        :class:`CandidateMean` when the ensemble won.
     cv_scores_prior_, cv_scores_boosted_, cv_predictions_prior_, cv_predictions_boosted_,
     cv_splits_, fit_errors_, best_estimator_ :
         As in :class:`BaseBoostCV`, the boosted ones of the winning candidate.
@@ -299,11 +371,14 @@ class BasisChoiceCV(_BaseComposition, BaseBoostCV):
         **{k: v for k, v in BaseBoostCV._parameter_constraints.items()
            if k not in ("estimator", "return_train_score")},
         "candidates": [list],
+        "ensemble": [Interval(numbers.Integral, 1, None, closed="left")],
     }
 
     def __init__(self, candidates=None, *, incumbent=None, cv=5,
-                 scoring="neg_mean_absolute_error", refit=True, n_jobs=None, random_state=None):
+                 scoring="neg_mean_absolute_error", refit=True, n_jobs=None, random_state=None,
+                 ensemble=1):
         self.candidates = candidates
+        self.ensemble = ensemble
         self.incumbent = incumbent
         self.cv = cv
         self.scoring = scoring
@@ -358,15 +433,19 @@ class BasisChoiceCV(_BaseComposition, BaseBoostCV):
                 setattr(self, attr, getattr(chosen, attr))
         if hasattr(chosen, "feature_names_in_"):
             self.feature_names_in_ = chosen.feature_names_in_
-        wins = best is not None and chosen.cv_scores_boosted_.mean() > \
-            chosen.cv_scores_prior_.mean()
+        self.estimator_ = candidates[best if best is not None else next(iter(runs))]
+        mean = self._ensemble(ok, candidates, X, y) if best is not None else None
+        if mean is not None and mean[1].mean() > chosen.cv_scores_boosted_.mean():
+            best, scores, oof, self.estimator_ = mean
+            self.cv_scores_boosted_, self.cv_predictions_boosted_ = scores, oof
+        wins = best is not None and self.cv_scores_boosted_.mean() > \
+            self.cv_scores_prior_.mean()
         self.selected_ = "boosted" if wins else "prior"
         self.selected_candidate_ = best if wins else None
-        self.estimator_ = candidates[best if best is not None else next(iter(runs))]
         if self.refit:
             refit = BaseBoostCV(self.estimator_, incumbent=self.incumbent, cv=self.cv,
                                 scoring=self.scoring, random_state=self.random_state)
-            incumbent = (PriorModel(prior=find_prior(refit._candidate()))
+            incumbent = (PriorModel(prior=find_prior(candidates[next(iter(candidates))]))
                          if self.incumbent is None else self.incumbent)
             X_all = X if hasattr(X, "iloc") else np.asarray(X)
             if wins:
@@ -381,6 +460,28 @@ class BasisChoiceCV(_BaseComposition, BaseBoostCV):
             if self.selected_ == "prior":
                 self.best_estimator_ = clone(incumbent).fit(X_all, np.ravel(y))
         return self
+
+    def _ensemble(self, ok, candidates, X, y):
+        """``(name, fold scores, out-of-fold predictions, CandidateMean)`` of the mean of the
+        ``ensemble`` best candidates, from their out-of-fold predictions on the shared
+        folds; ``None`` without ``ensemble`` > 1 or two good candidates."""
+        if self.ensemble < 2 or len(ok) < 2:
+            return None
+        if not isinstance(self.scoring, str):
+            raise ValueError("ensemble > 1 needs a scoring name (a metric of the "
+                             f"predictions), got {self.scoring!r}")
+        top = sorted(ok, key=lambda n: ok[n].cv_scores_boosted_.mean(),
+                     reverse=True)[:self.ensemble]
+        oof = np.mean([ok[n].cv_predictions_boosted_ for n in top], axis=0)
+        y = np.ravel(np.asarray(y, dtype=float))
+        scorer = check_scoring(candidates[top[0]], scoring=self.scoring)
+        X_arr = X if hasattr(X, "iloc") else np.asarray(X)
+        splits = ok[top[0]].cv_splits_
+        scores = np.array([scorer(_Predicted(oof[test]), _safe_indexing(X_arr, test), y[test])
+                           for _, test in splits])
+        name = f"mean of {len(top)}"
+        self.candidate_scores_[name] = scores
+        return name, scores, oof, CandidateMean([(n, candidates[n]) for n in top])
 
 
 class LabelGroupKFold(BaseCrossValidator):

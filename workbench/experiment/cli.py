@@ -371,6 +371,10 @@ def _cmd_init(args) -> int:
         print(f"features: {', '.join(done.features) or '(none)'} (every other numeric column"
               f"{left if done.skipped else ''}; --features chooses)")
     print(f"wrote {done.path} ({done.n_train} training rows, {done.n_test} test rows)")
+    for column, n in done.group_hints.items():
+        print(f"note: column {column!r} repeats {n} values over the rows; if rows that share "
+              f"one are alike (a device, a date), --group-column {shlex.quote(column)} keeps "
+              f"each whole in one CV fold (plain folds reward what only repeats within it)")
     print(f"next: workbench evaluate {shlex.quote(str(done.path))}\n      workbench ui")
     return 0
 

@@ -294,12 +294,15 @@ def _validate_estimator(estimator) -> None:
 
 class SelectionConfig(Section):
     """``[selection]``: BaseBoostCV's folds (contiguous unless ``shuffle``; whole groups of rows
-    when the dataset has groups, unless ``groups = false``) and scoring."""
+    when the dataset has groups, unless ``groups = false``) and scoring; with candidates,
+    ``ensemble``: the mean of that many best candidates is a candidate too
+    (:class:`~workbench.selection.BasisChoiceCV`; 1: none)."""
 
     cv: int = Field(default=5, ge=2, le=10_000)
     shuffle: bool = False
     scoring: str = "neg_mean_absolute_error"
     groups: bool = True  # whole groups per fold when the dataset has groups (e.g. devices)
+    ensemble: int = Field(default=1, ge=1, le=1_000)
 
     @model_validator(mode="after")
     def _scorer(self) -> SelectionConfig:

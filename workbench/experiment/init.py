@@ -27,8 +27,9 @@ from .config import load_dataset, parse_config
 from .errors import ConfigError, UsageError
 from .outputs import check_file, write_file
 
-__all__ = ["DEFAULT_TEST_FRACTION", "TEMPLATE", "InitResult", "csv_entry", "init_config",
-           "numeric_columns", "render_config", "split_template", "template_text"]
+__all__ = ["DEFAULT_TEST_FRACTION", "TEMPLATE", "InitResult", "csv_entry", "group_columns",
+           "init_config", "numeric_columns", "render_config", "split_template",
+           "template_text"]
 
 #: The template every generated config copies below its ``[data]`` section.
 TEMPLATE = "generic.toml"
@@ -52,6 +53,9 @@ class InitResult:
     skipped: dict[str, str] = field(default_factory=dict)
     n_train: int = 0
     n_test: int = 0
+    #: Without a group column: text columns whose values repeat (e.g. a device or a date),
+    #: with their number of distinct values: candidates for ``--group-column``.
+    group_hints: dict[str, int] = field(default_factory=dict)
 
 
 def template_text(name: str = TEMPLATE) -> str:
@@ -95,6 +99,26 @@ def numeric_columns(path: str | os.PathLike[str], exclude: Sequence[str]
         else:
             taken.append(column)
     return taken, skipped
+
+
+def group_columns(path: str | os.PathLike[str], exclude: Sequence[str]) -> dict[str, int]:
+    """The text columns of the CSV ``path`` (other than ``exclude``) whose values repeat, each
+    with its number of distinct values: between 2 and half the rows, e.g. the device or the
+    cooldown a row was measured in. Rows that share such a value are often alike, so plain
+    K-fold CV, which puts some of them on each side of a fold, rewards what only repeats
+    within a group; ``[data] group_column`` keeps each group whole in one fold."""
+    frame = pd.read_csv(path, dtype=str, keep_default_na=False)
+    out = {}
+    for column in frame.columns:
+        if column in exclude:
+            continue
+        raw = frame[column].str.strip()
+        if pd.to_numeric(raw, errors="coerce").notna().all():
+            continue  # a number: a feature, not a name
+        n = raw.nunique()
+        if 2 <= n <= len(raw) // 2:
+            out[column] = int(n)
+    return out
 
 
 def _string(value: str) -> str:
@@ -264,6 +288,8 @@ def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str], targets: S
                      split_seed=split_seed or 0, group_column=group_column, name=name)
     skipped: dict[str, str] = {}
     defaulted = features is None
+    hints = {} if group_column else group_columns(
+        path, [*prior, *targets, *([split_column] if split_column else [])])
     if features is None:
         features, skipped = numeric_columns(
             path, [*prior, *targets, *([split_column] if split_column else []),
@@ -280,4 +306,4 @@ def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str], targets: S
     write_file(out, text, "--out")  # atomic_write: all or nothing, a failure in one line
     return InitResult(path=out, text=text, features=features, defaulted=defaulted,
                       skipped=skipped, n_train=len(dataset.train_index),
-                      n_test=len(dataset.test_index))
+                      n_test=len(dataset.test_index), group_hints=hints)

@@ -113,7 +113,8 @@ def per_target_boost(cfg: ExperimentConfig, ds: Dataset, priors: list[str], *,
             candidates = [(name, make_booster(settings, prior=start, inputs=inputs))
                           for name, settings in candidate_settings(s, cfg.random_state)]
             per_target[target] = BasisChoiceCV(candidates, cv=selection_cv(cfg, ds),
-                                               scoring=cfg.selection.scoring)
+                                               scoring=cfg.selection.scoring,
+                                               ensemble=cfg.selection.ensemble)
             continue
         # training scores: the learning curves reuse the folds (family artifacts)
         per_target[target] = BaseBoostCV(make_booster(s, prior=start, inputs=inputs),
