@@ -267,7 +267,8 @@ def test_the_delegated_keys_and_their_defaults():
     from workbench.param_select import HamiltonianSelectionCV as HSCV
 
     boost = {k: (BaseBoostRegressor, k)
-             for k in ("n_stages", "loss", "line_search_loss", "line_search_penalty", "alpha")}
+             for k in ("n_stages", "loss", "line_search_loss", "line_search_penalty", "alpha",
+                       "link")}
     assert parameters_of(BoostSettings) == boost
     assert parameters_of(IntervalsConfig) == {
         k: (ConformalRegressor, k) for k in ("alpha", "method", "cv", "calibration_fraction")}

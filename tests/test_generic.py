@@ -130,9 +130,12 @@ def test_generic_config_is_the_init_template() -> None:
     assert cfg.data.source == "ibm_gates" and cfg.data.split == "time"
     s = cfg.model_for("gate_error")
     assert s["basis"] == ["ridge", "lightgbm"] and s["loss"] == "squared_error"
+    assert s["link"] == ["identity", "log"]
     names = [n for n, _ in candidate_settings(s, cfg.random_state)]
-    assert names == ["ridge", *(f"lightgbm#{i:02d}" for i in range(s["draws"]))]
-    assert cfg.selection.groups and cfg.selection.shuffle
+    assert names == [f"{b}/{link}" for b in ["ridge", *(f"lightgbm#{i:02d}"
+                                                        for i in range(s["draws"]))]
+                     for link in ("identity", "log")]
+    assert cfg.selection.groups and cfg.selection.shuffle and cfg.selection.ensemble == 5
     template = ROOT / "workbench" / "experiment" / "templates" / "generic.toml"
     ours = tomllib.loads((ROOT / "experiments" / "generic.toml").read_text())
     theirs = tomllib.loads(template.read_text())  # what `workbench init` writes

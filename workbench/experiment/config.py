@@ -199,7 +199,7 @@ def check_boost_settings(settings: dict[str, Any]) -> None:
     their parameters against the estimators' own constraints, losses): ``ValueError`` with
     the offending key first."""
     for key in ("loss", "link"):
-        if isinstance(settings[key], list):  # candidates chosen by CV per target
+        if isinstance(settings.get(key), list):  # candidates chosen by CV per target
             values = settings[key]
             if not values or len(set(values)) != len(values):
                 raise ValueError(f"{key} = {shorten(values)}: give distinct {key} names")

@@ -34,7 +34,7 @@ def make_booster(settings: dict[str, Any], prior, inputs: list[str] | None):
         n_stages=settings["n_stages"], loss=settings["loss"],
         line_search_loss=settings["line_search_loss"],
         line_search_penalty=settings["line_search_penalty"], alpha=settings["alpha"],
-        link=settings["link"], basis_features=inputs,
+        link=settings.get("link", "identity"), basis_features=inputs,
         input_transform=make_transform(settings["input_transform"],
                                        **settings["input_transform_params"]))
 
@@ -55,7 +55,7 @@ def candidate_settings(settings: dict[str, Any],
     ``draws`` settings drawn at random (``seed``; the same draws for every target, loss and
     link), named ``basis#i``. A name joins what varies: the basis (or draw), the loss and the
     link, e.g. ``"ridge"``, ``"huber"``, ``"lightgbm#07/huber"``, ``"ridge/log"``."""
-    bases, losses, links = settings["basis"], settings["loss"], settings["link"]
+    bases, losses, links = settings["basis"], settings["loss"], settings.get("link", "identity")
     many_bases, many_losses = isinstance(bases, list), isinstance(losses, list)
     many_links = isinstance(links, list)
     out = []
@@ -130,7 +130,8 @@ def _positive_links(cfg: ExperimentConfig, ds: Dataset, target: str, prior: str,
     """``settings`` whose ``link`` can fit ``target``: the log link needs positive targets and
     priors on the training rows. A "log" among several links is left out (a note in the log)
     where they are not; a lone ``link = "log"`` is a ConfigError naming the target."""
-    links = settings["link"] if isinstance(settings["link"], list) else [settings["link"]]
+    link = settings.get("link", "identity")
+    links = link if isinstance(link, list) else [link]
     if "log" not in links:
         return settings
     rows = ds.train_index
