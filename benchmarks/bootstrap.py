@@ -4,7 +4,7 @@ and what each costs (prints a table; no assertions).
     python benchmarks/bootstrap.py            # simulated and IBM gate errors, 500 ... 9,000 rows
     python benchmarks/bootstrap.py --json F   # the rows as JSON too (make bench)
 
-Above ``results.BOOTSTRAP_EXACT_ROWS`` test rows, ``evaluate`` computes the bootstrap
+Above ``bootstrap.BOOTSTRAP_EXACT_ROWS`` test rows, ``evaluate`` computes the bootstrap
 intervals of the test errors without resampling: the Cornish-Fisher expansion (to second
 order) of the resampled mean's distribution, whose variance, skewness and kurtosis follow
 exactly from the rows. This script computes both for every statistic ``evaluate`` reports
@@ -20,8 +20,8 @@ exactly from the rows. This script computes both for every statistic ``evaluate`
 For each it prints the largest difference between the two intervals' ends, as a fraction of
 the percentile interval's half-width, beside the percentile bootstrap's own Monte Carlo error
 (the largest difference between two seeds of 10,000 resamples), both methods' time and
-which one ``evaluate`` uses (``results.bootstrap_method``: resampling where a resampled
-mean's skewness or excess kurtosis exceeds ``results.CORNISH_FISHER_LIMIT``).
+which one ``evaluate`` uses (``bootstrap.bootstrap_method``: resampling where a resampled
+mean's skewness or excess kurtosis exceeds ``bootstrap.CORNISH_FISHER_LIMIT``).
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from scaling import write_json  # noqa: E402
 
-from workbench.experiment.results import (  # noqa: E402
+from workbench.experiment.bootstrap import (  # noqa: E402
     BOOTSTRAP_EXACT_ROWS,
     BOOTSTRAP_LEVEL,
     BOOTSTRAP_RESAMPLES,

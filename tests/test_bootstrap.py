@@ -1,24 +1,20 @@
 """Bootstrap intervals of the test errors: per target, the average over targets, and the
-paired difference model - prior (experiment layer, results.py)."""
+paired difference model - prior (experiment layer, bootstrap.py)."""
 
 import json
 
 import numpy as np
 import pytest
 
-from workbench.experiment.results import (
+from workbench.experiment.bootstrap import (
     BOOTSTRAP_EXACT_ROWS,
     ErrorInterval,
-    ModelScores,
-    Result,
-    Scores,
     _intervals,
     bootstrap_error_interval,
     bootstrap_method,
     bootstrap_test_scores,
-    mae,
-    mse,
 )
+from workbench.experiment.results import ModelScores, Result, Scores, mae, mse
 
 
 def _errors(n, targets=3, seed=0, scale=1.0):

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 from sklearn.model_selection import KFold, RepeatedKFold, cross_val_predict
 
+from .bootstrap import bootstrap_test_scores
 from .config import ExperimentConfig, load_dataset
 from .intervals import (
     family_model,
@@ -24,7 +25,7 @@ from .intervals import (
     interval_settings,
     with_intervals,
 )
-from .results import CVEstimate, Result, bootstrap_test_scores, mae, mse
+from .results import CVEstimate, Result, mae, mse
 
 __all__ = ["Evaluation", "evaluate", "fit_and_score", "format_table", "has_outputs",
            "nested_cv_all", "outputs", "repeated_cv"]

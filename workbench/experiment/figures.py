@@ -175,7 +175,7 @@ def mae_bars(targets: Sequence[str], prior, model, *, metric: str = "MAE", unit:
         ``(n_targets, 2)`` is enough. Either may be given alone.
     ci_note : str or None
         With error bars, a note under the axis saying what they are (``None``: none); the
-        default describes :func:`~workbench.experiment.results.bootstrap_test_scores`'
+        default describes :func:`~workbench.experiment.bootstrap.bootstrap_test_scores`'
         intervals, give another for other intervals.
     """
     names = [str(t) for t in targets]

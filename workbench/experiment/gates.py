@@ -15,22 +15,14 @@ from typing import Any
 
 import numpy as np
 
+from .bootstrap import bootstrap_description, bootstrap_error_interval, bootstrap_test_scores
 from .config import ExperimentConfig, load_config
 from .evaluate import evaluate
 from .families.stage import candidate_settings
 from .figures import model_comparison_bars
 from .intervals import family_model
 from .peer import PEER_TRIALS, peer_predict
-from .results import (
-    ModelScores,
-    Result,
-    Scores,
-    bootstrap_description,
-    bootstrap_error_interval,
-    bootstrap_test_scores,
-    mae,
-    mse,
-)
+from .results import ModelScores, Result, Scores, mae, mse
 from .systems import Stopwatch
 
 __all__ = ["GATE_SYSTEMS", "Gates", "gates_benchmark", "gates_section"]

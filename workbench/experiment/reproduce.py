@@ -27,6 +27,7 @@ from .._io import atomic_write
 from ..bases import NormalQuantileTransformer
 from ..curves import learning_curve_plan
 from ..parallel import Task, map_tasks, run_plans
+from .bootstrap import bootstrap_error_interval
 from .config import ExperimentConfig, load_config
 from .errors import UsageError, redact
 from .evaluate import evaluate
@@ -45,7 +46,7 @@ from .figures import (
 from .gates import GATE_SYSTEMS, Gates, gates_benchmark, gates_figure, gates_section
 from .intervals import family_model
 from .record import NOTE_TAG, log_inputs, result_metrics, run_params, run_tags, score_metrics
-from .results import Result, Scores, bootstrap_error_interval
+from .results import Result, Scores
 from .sweep.search import run_sweep
 from .systems import SYSTEM_TAG, Stopwatch, System, log_systems, summary_table
 from .tracking.runs import Tracker, metric_view
