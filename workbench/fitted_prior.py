@@ -184,6 +184,12 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
             return pd.DataFrame(prior, columns=self.target_names_, index=X.index)
         return self.boost_.predict(self._with_prior(X, prior))
 
+    def _check_oof(self) -> None:
+        """Raise where fit computed no out-of-fold prior (``cv_predictions=False``)."""
+        if not hasattr(self, "prior_folds_"):
+            raise AttributeError("no out-of-fold predictions: fitted with "
+                                 "cv_predictions=False (and neither a stage nor a fallback)")
+
     @property
     def cv_predictions_(self) -> np.ndarray:
         """Out-of-fold predictions on the training rows, ``(n_samples, n_targets)``: the
@@ -194,9 +200,7 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         check_is_fitted(self)
         if self.boost_stage:
             return self.boost_.cv_predictions_
-        if not hasattr(self, "oof_prior_"):
-            raise AttributeError("no out-of-fold predictions: fitted with "
-                                 "cv_predictions=False (and neither a stage nor a fallback)")
+        self._check_oof()
         return self.oof_prior_.to_numpy()
 
     @property
@@ -206,9 +210,7 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         check_is_fitted(self)
         if self.boost_stage:
             return self.boost_.cv_folds_
-        if not hasattr(self, "prior_folds_"):
-            raise AttributeError("no out-of-fold predictions: fitted with "
-                                 "cv_predictions=False (and neither a stage nor a fallback)")
+        self._check_oof()
         return self.prior_folds_
 
     @property
