@@ -44,7 +44,7 @@ def has_candidates(settings: dict[str, Any]) -> bool:
     of bases, losses or links, or ranges in a basis's ``basis_params``."""
     params = settings["basis_params"]
     tables = list(params.values()) if isinstance(settings["basis"], list) else [params]
-    return (any(isinstance(settings[k], list) for k in ("basis", "loss", "link"))
+    return (any(isinstance(settings.get(k), list) for k in ("basis", "loss", "link"))
             or any(isinstance(t, dict) and has_ranges(t) for t in tables))
 
 
