@@ -23,6 +23,7 @@ _EXPORTS = {
     "line_search": "line_search",
     "LOSSES": "losses", "get_loss": "losses",
     "MultiTargetBaseBoost": "multitarget",
+    "PriorDerivedInputs": "derived",
     "BaseBoostCV": "selection",
 }
 

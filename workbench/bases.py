@@ -32,6 +32,7 @@ from sklearn.utils._param_validation import Interval
 from sklearn.utils.validation import check_is_fitted
 
 from .boosting import CachedParamNames
+from .derived import PriorDerivedInputs
 
 __all__ = [
     "BASES",
@@ -439,8 +440,17 @@ class NormalQuantileTransformer(CachedParamNames, TransformerMixin, BaseEstimato
         return self.transformer_.transform(X)
 
 
+def derived(*, n_priors: int = 1, kinds: list[str] | None = None) -> PriorDerivedInputs:
+    """The basis inputs with physics-derived columns appended (the priors' differences,
+    ratios and logs, prior x feature products: :class:`~workbench.derived.PriorDerivedInputs`),
+    then standardised. ``n_priors`` (the leading prior columns) is set by the experiment
+    layer from the basis inputs it builds."""
+    return PriorDerivedInputs(n_priors=n_priors, kinds=kinds, then=StandardScaler())
+
+
 #: Basis-input transforms by name.
 TRANSFORMS: dict[str, Callable[..., Any]] = {
+    "derived": derived,
     "quantile_normal": NormalQuantileTransformer,
     "standard": StandardScaler,
 }

@@ -158,7 +158,7 @@ class BoostSettings(Section):
     ``[model.targets.<target>]`` override, where every key is optional). ``n_stages``,
     ``loss``, ``line_search_loss``, ``line_search_penalty``, ``alpha`` and ``link`` are
     BaseBoostRegressor's parameters, checked against its ``_parameter_constraints``; a list
-    of losses or of links makes candidates that CV chooses among per target."""
+    of losses, links or input transforms makes candidates that CV chooses among per target."""
 
     basis: str | list[str] | None = None
     basis_params: dict[str, Any] | None = None
@@ -172,7 +172,8 @@ class BoostSettings(Section):
     # "identity": the stages add to the prior; "log": they multiply it (positive quantities)
     link: Annotated[str, _Boost] | list[Annotated[str, _Boost]] | None = None
     basis_inputs: Literal["prior", "prior+features"] | None = None
-    input_transform: str | None = None
+    # a list: candidates that CV chooses among per target
+    input_transform: str | list[str] | None = None
     input_transform_params: dict[str, Any] | None = None
     # how many settings are drawn for a basis whose basis_params hold ranges
     draws: int | None = Field(default=None, ge=1, le=10_000)
@@ -198,7 +199,7 @@ def check_boost_settings(settings: dict[str, Any]) -> None:
     """Resolve a target's merged settings the way a fit will (basis and transform names,
     their parameters against the estimators' own constraints, losses): ``ValueError`` with
     the offending key first."""
-    for key in ("loss", "link"):
+    for key in ("loss", "link", "input_transform"):
         if isinstance(settings.get(key), list):  # candidates chosen by CV per target
             values = settings[key]
             if not values or len(set(values)) != len(values):

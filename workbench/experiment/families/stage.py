@@ -27,37 +27,45 @@ __all__ = ["booster_cv", "candidate_choices", "candidate_settings", "cv_mse", "h
            "make_booster", "per_target_boost", "selection_cv", "stage_scores", "target_inputs"]
 
 
-def make_booster(settings: dict[str, Any], prior, inputs: list[str] | None):
-    """The :class:`~workbench.BaseBoostRegressor` that one target's settings describe."""
+def make_booster(settings: dict[str, Any], prior, inputs: list[str] | None,
+                 n_priors: int = 1):
+    """The :class:`~workbench.BaseBoostRegressor` that one target's settings describe;
+    ``inputs`` are its basis inputs, of which the first ``n_priors`` are prior columns (what
+    a transform with an ``n_priors`` parameter, such as ``"derived"``, is told)."""
+    transform = make_transform(settings["input_transform"], **settings["input_transform_params"])
+    if transform is not None and "n_priors" in transform.get_params():
+        transform.set_params(n_priors=n_priors)
     return BaseBoostRegressor(
         prior=prior, basis=make_basis(settings["basis"], **settings["basis_params"]),
         n_stages=settings["n_stages"], loss=settings["loss"],
         line_search_loss=settings["line_search_loss"],
         line_search_penalty=settings["line_search_penalty"], alpha=settings["alpha"],
         link=settings.get("link", "identity"), basis_features=inputs,
-        input_transform=make_transform(settings["input_transform"],
-                                       **settings["input_transform_params"]))
+        input_transform=transform)
 
 
 def has_candidates(settings: dict[str, Any]) -> bool:
     """Whether a target's settings describe several candidates for CV to choose from: a list
-    of bases, losses or links, or ranges in a basis's ``basis_params``."""
+    of bases, losses, links or input transforms, or ranges in a basis's ``basis_params``."""
     params = settings["basis_params"]
     tables = list(params.values()) if isinstance(settings["basis"], list) else [params]
-    return (any(isinstance(settings.get(k), list) for k in ("basis", "loss", "link"))
+    return (any(isinstance(settings.get(k), list)
+                for k in ("basis", "loss", "link", "input_transform"))
             or any(isinstance(t, dict) and has_ranges(t) for t in tables))
 
 
 def candidate_settings(settings: dict[str, Any],
                        seed: int | None) -> list[tuple[str, dict[str, Any]]]:
     """The candidates of settings for which :func:`has_candidates`: one per basis, drawn
-    setting, loss and link (bases outer). A basis whose ``basis_params`` hold ranges gives
-    ``draws`` settings drawn at random (``seed``; the same draws for every target, loss and
-    link), named ``basis#i``. A name joins what varies: the basis (or draw), the loss and the
-    link, e.g. ``"ridge"``, ``"huber"``, ``"lightgbm#07/huber"``, ``"ridge/log"``."""
+    setting, loss, link and input transform (bases outer). A basis whose ``basis_params``
+    hold ranges gives ``draws`` settings drawn at random (``seed``; the same draws for every
+    target, loss, link and transform), named ``basis#i``. A name joins what varies: the basis
+    (or draw), the loss, the link and the transform, e.g. ``"ridge"``, ``"huber"``,
+    ``"lightgbm#07/huber"``, ``"ridge/log"``, ``"lightgbm#03/identity/derived"``."""
     bases, losses, links = settings["basis"], settings["loss"], settings.get("link", "identity")
+    transforms = settings["input_transform"]
     many_bases, many_losses = isinstance(bases, list), isinstance(losses, list)
-    many_links = isinstance(links, list)
+    many_links, many_transforms = isinstance(links, list), isinstance(transforms, list)
     out = []
     for basis in (bases if many_bases else [bases]):
         params = settings["basis_params"].get(basis, {}) if many_bases else \
@@ -68,11 +76,14 @@ def candidate_settings(settings: dict[str, Any],
         for label, values in drawn:
             for loss in (losses if many_losses else [losses]):
                 for link in (links if many_links else [links]):
-                    parts = ([label] if many_bases or label != basis else []) + \
-                        ([loss] if many_losses else []) + ([link] if many_links else [])
-                    out.append(("/".join(parts), {**settings, "basis": basis,
-                                                  "basis_params": values, "loss": loss,
-                                                  "link": link}))
+                    for transform in (transforms if many_transforms else [transforms]):
+                        parts = ([label] if many_bases or label != basis else []) + \
+                            ([loss] if many_losses else []) + \
+                            ([link] if many_links else []) + \
+                            ([str(transform)] if many_transforms else [])
+                        out.append(("/".join(parts), {
+                            **settings, "basis": basis, "basis_params": values, "loss": loss,
+                            "link": link, "input_transform": transform}))
     return out
 
 
@@ -110,14 +121,16 @@ def per_target_boost(cfg: ExperimentConfig, ds: Dataset, priors: list[str], *,
         start = prior if boost_from_prior else None
         inputs = target_inputs(s, ds, priors)
         if has_candidates(s):  # the basis family, its settings or the loss too by CV
-            candidates = [(name, make_booster(settings, prior=start, inputs=inputs))
+            candidates = [(name, make_booster(settings, prior=start, inputs=inputs,
+                                              n_priors=len(priors)))
                           for name, settings in candidate_settings(s, cfg.random_state)]
             per_target[target] = BasisChoiceCV(candidates, cv=selection_cv(cfg, ds),
                                                scoring=cfg.selection.scoring,
                                                ensemble=cfg.selection.ensemble)
             continue
         # training scores: the learning curves reuse the folds (family artifacts)
-        per_target[target] = BaseBoostCV(make_booster(s, prior=start, inputs=inputs),
+        per_target[target] = BaseBoostCV(make_booster(s, prior=start, inputs=inputs,
+                                                      n_priors=len(priors)),
                                          cv=selection_cv(cfg, ds),
                                          scoring=cfg.selection.scoring,
                                          return_train_score=True)
@@ -169,7 +182,8 @@ def booster_cv(cfg: ExperimentConfig, ds: Dataset, target: str, settings: dict[s
     """One target's BaseBoostCV of a sweep (inner folds ``cv``)."""
     prior = ds.prior_names[ds.target_names.index(target)]
     booster = make_booster(settings, prior=prior, inputs=target_inputs(settings, ds,
-                                                                        ds.prior_names))
+                                                                        ds.prior_names),
+                           n_priors=len(ds.prior_names))
     return BaseBoostCV(booster, cv=cv, scoring=cfg.selection.scoring,
                        random_state=cfg.random_state, **kwargs)
 
