@@ -24,6 +24,7 @@ _EXPORTS = {
     "LOSSES": "losses", "get_loss": "losses",
     "MultiTargetBaseBoost": "multitarget",
     "PriorDerivedInputs": "derived",
+    "ARDGaussianProcess": "gp",
     "BaseBoostCV": "selection",
 }
 

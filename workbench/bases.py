@@ -33,6 +33,7 @@ from sklearn.utils.validation import check_is_fitted
 
 from .boosting import CachedParamNames
 from .derived import PriorDerivedInputs
+from .gp import ARDGaussianProcess
 
 __all__ = [
     "BASES",
@@ -338,6 +339,13 @@ def gaussian_process(*, length_scale=1.0, noise_level=1.0, **params) -> Gaussian
     return GaussianProcessRegressor(**{"kernel": kernel, "normalize_y": True, **params})
 
 
+def gp_ard(**params) -> ARDGaussianProcess:
+    """A Gaussian process with one length scale per input, fitted by marginal likelihood, on
+    at most ``max_rows`` (default 1,000) rows (:class:`~workbench.gp.ARDGaussianProcess`):
+    smooth, with the inputs that matter found by the fit."""
+    return ARDGaussianProcess(**params)
+
+
 def spline(*, n_knots=5, degree=3, knots="quantile", alpha=1.0) -> Pipeline:
     """An additive spline basis: each input's cubic B-splines (``SplineTransformer``, knots at
     the inputs' quantiles) and a ridge on them. Smooth in every input and linear beyond the
@@ -357,6 +365,7 @@ BASES: dict[str, Callable[..., Any]] = {
     "lightgbm": lightgbm,
     "mlp": mlp,
     "gaussian_process": gaussian_process,
+    "gp_ard": gp_ard,
     "spline": spline,
 }
 
