@@ -1,4 +1,5 @@
-"""Datasets: the shared :class:`Dataset` type and the loaders."""
+"""Datasets: the shared :class:`Dataset` type, the loaders and the data-source registry
+(:mod:`.sources`: the names ``[data] source`` takes)."""
 
 from . import google_5q, ibm_gates
 from .base import Dataset, Hamiltonian

@@ -11,7 +11,7 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal, overload
 
 import numpy as np
 from sklearn.model_selection import KFold, RepeatedKFold, cross_val_predict
@@ -44,6 +44,16 @@ class Evaluation:
     result: Result
     model: Any
     dataset: Any
+
+
+@overload
+def evaluate(cfg: ExperimentConfig, return_model: Literal[False] = False, *,
+             dataset: Dataset | None = None) -> Result: ...
+
+
+@overload
+def evaluate(cfg: ExperimentConfig, return_model: Literal[True], *,
+             dataset: Dataset | None = None) -> Evaluation: ...
 
 
 def evaluate(cfg: ExperimentConfig, return_model: bool = False, *,

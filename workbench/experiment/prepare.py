@@ -117,7 +117,8 @@ def _error(where: str, text: str) -> ConfigError:
 
 def _family(where: str, model_table: dict[str, Any]) -> tuple[ModelFamily, Any]:
     """The family ``[model] family`` names, and its ``[model.<family>]`` table (taken out of
-    ``model_table``); a table of another family is an error."""
+    ``model_table``); a table of another family is an error.
+    """
     discover_families()
     family_name = model_table.get("family", "eigenvalue")
     if family_name not in FAMILIES:
@@ -154,7 +155,8 @@ def _family_parts(where: str, family: ModelFamily, table: Any, search: dict[str,
 
 def _intervals(where: str, family: ModelFamily, intervals: IntervalsConfig) -> IntervalsConfig:
     """``[intervals]`` with the family's default method; ``"oof"`` only where the family
-    keeps out-of-fold predictions."""
+    keeps out-of-fold predictions.
+    """
     if intervals.method is None:
         return intervals.model_copy(update={"method": family.interval_method})
     if intervals.method == "oof" and family.interval_method != "oof":

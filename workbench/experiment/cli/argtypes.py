@@ -1,5 +1,6 @@
 """The types of the command line's values: each parses one string or raises
-``argparse.ArgumentTypeError`` with what was expected and what was given (shortened)."""
+``argparse.ArgumentTypeError`` with what was expected and what was given (shortened).
+"""
 
 from __future__ import annotations
 

@@ -1,6 +1,7 @@
 """The handlers of the commands that run a config: ``evaluate``, ``sweep``, ``design`` and
 ``reproduce``. Each checks everything first (:mod:`.preflight`), loads the config's data
-once (:func:`~workbench.experiment.prepare.prepare`) and hands that run down."""
+once (:func:`~workbench.experiment.prepare.prepare`) and hands that run down.
+"""
 
 from __future__ import annotations
 
@@ -50,7 +51,8 @@ def _write_json(path: str, payload: dict[str, Any]) -> None:
 
 def _prefetch(modules: Iterable[str]) -> None:
     """Import ``modules`` in a background thread (errors ignored: the real import reports
-    them); call it once the worker processes are forked (no fork while it runs)."""
+    them); call it once the worker processes are forked (no fork while it runs).
+    """
     def load() -> None:
         for name in modules:
             try:
@@ -148,7 +150,8 @@ def sweep(args: argparse.Namespace) -> int:
     # output is written
     processes = max(effective_n_jobs(cfg.jobs), cfg.study.workers)
     with worker_pool(processes, eager=True), command_run(tracker, "sweep", cfg.name) as run_id:
-        done = run_sweep(cfg, on_trial=TrialRecorder(tracker, run_id) if run_id else None,
+        recorder = TrialRecorder(tracker, run_id) if tracker is not None and run_id else None
+        done = run_sweep(cfg, on_trial=recorder,
                          dataset=prepared.dataset)
         result = done.result
         if not args.no_track:

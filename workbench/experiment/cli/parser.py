@@ -1,5 +1,6 @@
 """The command line of ``workbench``: one function per command adds its subparser, whose
-``func`` is the command's handler (:mod:`.commands`, :mod:`.tools`, :mod:`.ui`)."""
+``func`` is the command's handler (:mod:`.commands`, :mod:`.tools`, :mod:`.ui`).
+"""
 
 from __future__ import annotations
 
@@ -19,7 +20,8 @@ Subparsers = argparse._SubParsersAction
 
 class _Parser(argparse.ArgumentParser):
     """Bad arguments end in one line, ``workbench: error: ...`` (exit code 2), without the
-    usage block (``--help`` shows it); the command's subparsers are of this class too."""
+    usage block (``--help`` shows it); the command's subparsers are of this class too.
+    """
 
     def error(self, message: str) -> NoReturn:
         """Exit with one line naming the problem (and the commands, when none was given)."""

@@ -1,6 +1,7 @@
 """The checks every command makes before any work: its outputs can be written, the MLflow
 store and the Optuna storage can be used (a damaged journal repaired first with
-``--repair``); nothing is written until every check has passed."""
+``--repair``); nothing is written until every check has passed.
+"""
 
 from __future__ import annotations
 

@@ -1,5 +1,6 @@
 """The handlers of the commands around a model run: ``init`` (a first config for a CSV),
-``predict`` (a logged model on new rows) and ``simulate`` (a simulated device's CSV)."""
+``predict`` (a logged model on new rows) and ``simulate`` (a simulated device's CSV).
+"""
 
 from __future__ import annotations
 
@@ -91,7 +92,8 @@ def _shape(text: str | None) -> tuple[int, int] | None:
 
 def _simulation(args: argparse.Namespace) -> Any:
     """The simulation ``simulate``'s arguments ask for: random settings, or ``--settings``
-    measured on the seed's device."""
+    measured on the seed's device.
+    """
     from ...simulate import measure
     from ...simulate import simulate as run
 

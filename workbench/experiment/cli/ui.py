@@ -1,5 +1,6 @@
 """``workbench ui``: the MLflow UI over the tracking store and, beside it, optuna-dashboard
-over the sweeps' studies, both on 127.0.0.1, until Ctrl-C."""
+over the sweeps' studies, both on 127.0.0.1, until Ctrl-C.
+"""
 
 from __future__ import annotations
 
@@ -21,7 +22,8 @@ log = logging.getLogger("workbench")
 def _experiment_views(uri: str, port: int) -> list[tuple[str, str]]:
     """The UI's address of each experiment in the store that has the workbench's runs view
     (its runs' test MAE per target side by side); none if the store cannot be read now (the
-    UI reports that itself)."""
+    UI reports that itself).
+    """
     from ..tracking.runs import RUNS_VIEW, SHARED_VIEW_PREFIX
     from ..tracking.uris import sqlite_path, ui_url
 
@@ -42,7 +44,8 @@ def _experiment_views(uri: str, port: int) -> list[tuple[str, str]]:
 def _commands(args: argparse.Namespace) -> list[list[str]]:
     """The servers' command lines, their addresses printed; the stores checked as every
     command checks them first (a server would print a traceback, or sit on a store it
-    cannot read)."""
+    cannot read).
+    """
     from ..tracking.uris import check_store_uri, resolve_tracking_uri, ui_url
 
     uri = resolve_tracking_uri(args.tracking_uri, None, Path.cwd())

@@ -1,6 +1,7 @@
 """``[data]``: where a config's data come from (:class:`DataConfig`, with the Hamiltonian's
 columns in :class:`HamiltonianData`); ``source`` names a loader of the data-source registry
-(:mod:`workbench.datasets.sources`)."""
+(:mod:`workbench.datasets.sources`).
+"""
 
 from __future__ import annotations
 
@@ -22,7 +23,8 @@ class HamiltonianData(Section):
     ``(i, i+1)``), "ring", "grid" with ``shape = [rows, cols]``, or an explicit ``edges``
     list of 0-based site pairs, one per coupling column.
     ``qubit_features``/``coupler_features``: the features acting on each site and on each
-    coupling, in site and edge order."""
+    coupling, in site and edge order.
+    """
 
     onsite: list[str]
     couplings: list[str]
@@ -57,7 +59,8 @@ class DataConfig(Section):
     (optional ``data_dir``, ``split = "time"`` or ``"devices"`` with ``split_seed``), or a CSV
     of your own (``csv``, one ``prior`` column per ``targets`` column, ``features``, and either
     ``test_fraction`` or ``split_column``). ``source`` is a name in the data-source registry
-    (:data:`workbench.datasets.SOURCES`)."""
+    (:data:`workbench.datasets.SOURCES`).
+    """
 
     source: str = "google_5q"
     split: Literal["time", "devices"] | None = None

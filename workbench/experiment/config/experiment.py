@@ -1,5 +1,6 @@
 """The checked config: :class:`ExperimentConfig`, its sections typed, and the merged
-boosting settings of each target (:meth:`ExperimentConfig.model_for`)."""
+boosting settings of each target (:meth:`ExperimentConfig.model_for`).
+"""
 
 from __future__ import annotations
 
@@ -64,7 +65,8 @@ class ExperimentConfig:
     @property
     def jobs(self) -> int:
         """Processes for independent work (``n_jobs``; unset: every core). Results do not
-        depend on it (:mod:`workbench.parallel`)."""
+        depend on it (:mod:`workbench.parallel`).
+        """
         return -1 if self.n_jobs is None else self.n_jobs
 
     def model_for(self, target: str | None) -> dict[str, Any]:

@@ -1,6 +1,7 @@
 """Loading a config's dataset: through the data-source registry
 (:func:`workbench.datasets.load_source`), then checked against the config's folds and
-prediction intervals."""
+prediction intervals.
+"""
 
 from __future__ import annotations
 

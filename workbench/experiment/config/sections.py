@@ -1,6 +1,7 @@
 """The sections of a config besides ``[data]``: the boosting settings (``[model]``,
 ``[model.targets.<target>]``), ``[selection]``, ``[evaluation]``, ``[intervals]``, ``[cv]``,
-``[study]``, ``[tracking]``, and the top level that holds them (:class:`TopLevel`)."""
+``[study]``, ``[tracking]``, and the top level that holds them (:class:`TopLevel`).
+"""
 
 from __future__ import annotations
 
@@ -26,7 +27,8 @@ class BoostSettings(Section):
     ``[model.targets.<target>]`` override, where every key is optional). ``n_stages``,
     ``loss``, ``line_search_loss``, ``line_search_penalty``, ``alpha`` and ``link`` are
     BaseBoostRegressor's parameters, checked against its ``_parameter_constraints``; a list
-    of losses or of links makes candidates that CV chooses among per target."""
+    of losses or of links makes candidates that CV chooses among per target.
+    """
 
     basis: str | list[str] | None = None
     basis_params: dict[str, Any] | None = None
@@ -56,7 +58,8 @@ MODEL_DEFAULTS: dict[str, Any] = dict(
 
 class ModelConfig(BoostSettings):
     """``[model]``: the family (a name in :data:`~workbench.experiment.families.FAMILIES`),
-    the boosting settings shared by every target, and per-target overrides."""
+    the boosting settings shared by every target, and per-target overrides.
+    """
 
     family: str = "eigenvalue"
     targets: dict[str, BoostSettings] = {}
@@ -66,7 +69,8 @@ class SelectionConfig(Section):
     """``[selection]``: BaseBoostCV's folds (contiguous unless ``shuffle``; whole groups of rows
     when the dataset has groups, unless ``groups = false``) and scoring; with candidates,
     ``ensemble``: the mean of that many best candidates is a candidate too
-    (:class:`~workbench.selection.BasisChoiceCV`; 1: none)."""
+    (:class:`~workbench.selection.BasisChoiceCV`; 1: none).
+    """
 
     cv: int = Field(default=5, ge=2, le=10_000)
     shuffle: bool = False
@@ -86,7 +90,8 @@ class SelectionConfig(Section):
 class EvaluationConfig(Section):
     """``[evaluation]``: ``cv_repeats`` > 0 adds a repeated ``cv_folds``-fold CV of the chosen
     model on the training rows (``RepeatedKFold`` seeded by ``cv_seed``); ``nested_folds`` > 0
-    adds a nested CV over all rows, every choice remade inside each outer fold."""
+    adds a nested CV over all rows, every choice remade inside each outer fold.
+    """
 
     cv_folds: int = Field(default=5, ge=2, le=10_000)
     cv_repeats: int = Field(default=0, ge=0, le=10_000)
@@ -117,7 +122,8 @@ class IntervalsConfig(Section):
     ``+- q`` on the model fitted on all rows (not widened by the fold models'
     disagreement); "split" holds out ``calibration_fraction`` of the training rows.
     On unless ``enabled = false``. ``alpha``, ``method``, ``cv`` and ``calibration_fraction``
-    are ConformalRegressor's parameters, checked against its ``_parameter_constraints``."""
+    are ConformalRegressor's parameters, checked against its ``_parameter_constraints``.
+    """
 
     enabled: bool = True
     alpha: Annotated[float, _Conformal] = 0.1
@@ -138,7 +144,8 @@ class CVConfig(Section):
 
 class StudyConfig(Section):
     """``[study]``: the Optuna studies of a sweep. ``storage``: a journal file path (one
-    machine, several processes) or an RDB URL such as ``postgresql://...`` (machines)."""
+    machine, several processes) or an RDB URL such as ``postgresql://...`` (machines).
+    """
 
     trials: int = Field(default=20, ge=1, le=1_000_000)
     timeout: float | None = Field(default=None, gt=0)
@@ -152,7 +159,8 @@ class StudyConfig(Section):
 
 class TrackingConfig(Section):
     """``[tracking]``: MLflow; ``tracking_uri`` None means $MLFLOW_TRACKING_URI or
-    ``sqlite:///mlruns/mlflow.db``; ``experiment`` None means the config's name."""
+    ``sqlite:///mlruns/mlflow.db``; ``experiment`` None means the config's name.
+    """
 
     tracking_uri: str | None = None
     experiment: str | None = None

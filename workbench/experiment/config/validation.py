@@ -1,6 +1,7 @@
 """Checks of a target's boosting settings against the estimators they make: basis and
 transform names, and their parameters against each estimator's own constraints
-(scikit-learn's ``_parameter_constraints``, read by ``validate_parameter_constraints``)."""
+(scikit-learn's ``_parameter_constraints``, read by ``validate_parameter_constraints``).
+"""
 
 from __future__ import annotations
 

@@ -40,7 +40,8 @@ def open_storage(storage: str, root: Path, *, stale_after_s: float = 600,
     and one retry of a stale trial), else a journal file (relative to ``root``), checked for
     damage before anything is appended (:class:`JournalDamaged`; ``hint``: the command that
     repairs it). Problems end in a :class:`StorageError` of one line (without the URL's
-    password)."""
+    password).
+    """
     if "://" in storage:
         return rdb_storage(storage, stale_after_s)
     path = journal_file(storage, root)
@@ -65,7 +66,8 @@ def check_storage(storage: str, root: Path, *, hint: str | None = None) -> None:
     """Before any work, writing nothing: the Optuna storage can be used. A journal file that
     exists is checked as :func:`open_storage` checks it; a missing one must be creatable (it
     is not created here); a database must accept a connection (its tables are not created
-    here). Raises :class:`StorageError` (one line, no password)."""
+    here). Raises :class:`StorageError` (one line, no password).
+    """
     if "://" in storage:
         check_rdb(storage)
         return
@@ -84,7 +86,8 @@ def check_storage(storage: str, root: Path, *, hint: str | None = None) -> None:
 
 def dashboard_command(storage: str, port: int, root: Path) -> list[str]:
     """The ``optuna-dashboard`` command line serving the studies of ``storage`` (a journal
-    file, relative to ``root``, or an RDB URL) on 127.0.0.1."""
+    file, relative to ``root``, or an RDB URL) on 127.0.0.1.
+    """
     cmd = [sys.executable, "-c", "from optuna_dashboard._cli import main; main()",
            "--host", "127.0.0.1", "--port", str(port)]  # the package has no __main__
     if "://" in storage:

@@ -2,7 +2,8 @@
 attribute on the journal file (Optuna's ``JournalStorage`` has no heartbeat), and the one
 retry of a trial whose worker died. The scheduler's access to what Optuna keeps private (a
 study's storage, its id, a trial's id) is here and in the other modules of this package,
-nowhere else (tests/test_layering.py checks)."""
+nowhere else (tests/test_layering.py checks).
+"""
 
 from __future__ import annotations
 
@@ -28,7 +29,8 @@ def heartbeat_interval(stale_after_s: float) -> int:
 class _Retry(optuna.storages.RetryFailedTrialCallback):
     """Optuna's retry of a failed trial (same parameters, ``retry_history`` in its system
     attributes), without the dead attempt's own user attributes: its ``worker`` (host:pid of
-    a dead process) would get the retry failed again the moment another process looks."""
+    a dead process) would get the retry failed again the moment another process looks.
+    """
 
     def __call__(self, study: optuna.Study, trial: FrozenTrial) -> None:
         trial = copy.deepcopy(trial)
@@ -53,7 +55,8 @@ def retry_callback() -> _Retry:
 
 def heartbeat_enabled(study: optuna.Study) -> bool:
     """Whether ``study``'s storage has Optuna's own heartbeat (an RDB storage opened by
-    :func:`open_storage`); the journal file has none."""
+    :func:`open_storage`); the journal file has none.
+    """
     storage = study._storage
     return isinstance(storage, optuna.storages.RDBStorage) \
         and storage.get_heartbeat_interval() is not None
@@ -61,7 +64,8 @@ def heartbeat_enabled(study: optuna.Study) -> bool:
 
 def beat(study: optuna.Study, trial: optuna.Trial) -> None:
     """One heartbeat of a running trial: Optuna's own on an RDB storage, a user attribute on
-    the journal file."""
+    the journal file.
+    """
     storage = study._storage
     if isinstance(storage, optuna.storages.RDBStorage) and heartbeat_enabled(study):
         storage.record_heartbeat(trial._trial_id)
@@ -78,6 +82,7 @@ def set_trial_attr(study: optuna.Study, number: int, key: str, value) -> None:
 
 def retry(study: optuna.Study, number: int) -> None:
     """Queue failed trial ``number`` once more with its parameters (Optuna's
-    ``RetryFailedTrialCallback``, without the dead attempt's own attributes)."""
+    ``RetryFailedTrialCallback``, without the dead attempt's own attributes).
+    """
     retry_callback()(study, study.get_trials(deepcopy=False)[number])
 

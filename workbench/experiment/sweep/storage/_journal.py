@@ -16,7 +16,7 @@ import json
 import os
 from pathlib import Path
 
-import optuna
+from optuna.storages.journal import JournalFileBackend
 from optuna.storages.journal._file import get_lock_file
 from optuna.storages.journal._storage import JournalOperation, JournalStorageReplayResult
 
@@ -37,7 +37,8 @@ _STATES = {0: "a trial started", 1: "a trial completed", 2: "a trial pruned",
 
 class JournalDamaged(StorageError):
     """An Optuna journal file with a damaged line: a torn (incomplete) record, bytes that are
-    not a JSON record, or a record Optuna cannot replay. Nothing was appended to it."""
+    not a JSON record, or a record Optuna cannot replay. Nothing was appended to it.
+    """
 
     def __init__(self, shown: str, line: int, total: int, why: str, last_good: str,
                  hint: str | None = None):
@@ -88,7 +89,8 @@ def read_lines(path: Path):
 
 def replay_records(records: list[dict]) -> tuple[int | None, str]:
     """``(index, why)`` of the first record Optuna's replay raises on, else ``(None, "")``
-    (replayed as a process that wrote none of them, as Optuna replays others' records)."""
+    (replayed as a process that wrote none of them, as Optuna replays others' records).
+    """
     replay = JournalStorageReplayResult("workbench-check-")
     for i, record in enumerate(records):
         try:
@@ -102,7 +104,8 @@ def id_gap(records: list[dict]) -> int | None:
     """Index of the first record naming a study or trial that no earlier record created,
     else ``None``. Optuna numbers studies and trials by their creation records, so in a
     sound journal this never happens; after a lost creation record the ids shift and the
-    records of the last trials point past the end (or at the wrong trial)."""
+    records of the last trials point past the end (or at the wrong trial).
+    """
     studies: dict[int, str] = {}
     next_study = n_trials = 0
     for i, r in enumerate(records):
@@ -128,7 +131,8 @@ def find_damage(path: Path, shown: str, hint: str | None = None,
                  replay: bool = False) -> JournalDamaged | None:
     """The file's first damaged line as a :class:`JournalDamaged`, else ``None`` (with
     ``replay``, records that Optuna cannot replay count as damaged too). Without the file's
-    lock, another process's append in progress can look like a torn last line."""
+    lock, another process's append in progress can look like a torn last line.
+    """
     first = None
     last_good, total, records, numbers = "none", 0, [], []
     for number, _, record, why in read_lines(path):
@@ -167,7 +171,7 @@ def holding(lock, shown: str):
         lock.release()
 
 
-class JournalFile(optuna.storages.journal.JournalFileBackend):
+class JournalFile(JournalFileBackend):
     """Optuna's journal file, flushed to disk (fsync) only when the appended operations
     create or delete a study, create a trial or set a trial's state, instead of after every
     append (a trial's parameters, reports, heartbeats and attributes: ~20 fsyncs of ~3.5 ms
@@ -178,7 +182,8 @@ class JournalFile(optuna.storages.journal.JournalFileBackend):
 
     Fails safe: :meth:`check` finds a damaged line before anything is appended; an append
     after a torn last line is refused (it would glue a good record to the torn one); a read
-    that meets a damaged line ends in a :class:`JournalDamaged` of one line."""
+    that meets a damaged line ends in a :class:`JournalDamaged` of one line.
+    """
 
     def __init__(self, file_path: str, shown: str | None = None):
         super().__init__(file_path)
@@ -187,7 +192,8 @@ class JournalFile(optuna.storages.journal.JournalFileBackend):
     def check(self, hint: str | None = None) -> None:
         """Raise :class:`JournalDamaged` at the first damaged line. Damage found is checked
         again under the file lock (another process's append in progress looks like a torn
-        last line), so an intact file is read without taking the lock."""
+        last line), so an intact file is read without taking the lock.
+        """
         path = Path(self._file_path)
         if find_damage(path, self._shown, hint) is None:
             return

@@ -1,5 +1,6 @@
 """Database (RDB) storages: opened with Optuna's heartbeat, a grace period and one retry of
-a stale trial; checked before any work; problems as one line without the password."""
+a stale trial; checked before any work; problems as one line without the password.
+"""
 
 from __future__ import annotations
 
@@ -55,7 +56,8 @@ def _sqlite_file(url: str, shown: str) -> Path | None:
 
 def check_rdb(url: str) -> None:
     """The database accepts a connection (nothing is created; a new SQLite file's directory
-    must be writable)."""
+    must be writable).
+    """
     import sqlalchemy  # (b) SQLAlchemy: database storages only, not a journal
 
     shown = redact(url)

@@ -1,6 +1,7 @@
 """Repairing a damaged Optuna journal file (``workbench sweep --repair``): every complete
 record is recovered into a new file that must replay before it replaces the original, which
-is kept beside it."""
+is kept beside it.
+"""
 
 from __future__ import annotations
 
@@ -57,7 +58,8 @@ def repair_journal(storage: str, root: Path) -> Repair | None:
     trials) before it is moved into place atomically. When the complete records do not
     replay as written without the damaged lines (a lost record created a study or trial, so
     later ids would shift), only the records before the first damaged line are kept. Run it
-    while no sweep works on the file."""
+    while no sweep works on the file.
+    """
     if "://" in storage:
         raise StorageError(f"--repair repairs an Optuna journal file; {redact(storage)} is a "
                            "database")
@@ -117,7 +119,8 @@ def _write_temp(path: Path, data: bytes) -> Path:
 
 def _verify(path: Path, n_records: int) -> tuple[int, int]:
     """``(studies, trials)`` of a journal file replayed by Optuna itself; raises unless every
-    one of its ``n_records`` lines was read."""
+    one of its ``n_records`` lines was read.
+    """
     storage = optuna.storages.JournalStorage(
         optuna.storages.journal.JournalFileBackend(str(path)))
     if storage._replay_result.log_number_read != n_records:
@@ -130,7 +133,8 @@ def _verify(path: Path, n_records: int) -> tuple[int, int]:
 
 def _keep_original(path: Path) -> Path:
     """A second name for the damaged file, ``<file>.damaged`` or ``<file>.damaged-N``, that
-    keeps its bytes once the repaired file replaces it (a hard link, else a copy)."""
+    keeps its bytes once the repaired file replaces it (a hard link, else a copy).
+    """
     for n in range(10_000):
         copy = path.with_name(f"{path.name}.damaged" + (f"-{n}" if n else ""))
         if os.path.lexists(copy):
