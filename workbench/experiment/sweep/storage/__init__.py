@@ -35,7 +35,7 @@ __all__ = ["JournalDamaged", "Repair", "StorageError", "beat", "check_storage",
 
 
 def open_storage(storage: str, root: Path, *, stale_after_s: float = 600,
-                 hint: str | None = None):
+                 hint: str | None = None) -> optuna.storages.BaseStorage:
     """An Optuna storage: an RDB URL (with Optuna's heartbeat, grace period ``stale_after_s``
     and one retry of a stale trial), else a journal file (relative to ``root``), checked for
     damage before anything is appended (:class:`JournalDamaged`; ``hint``: the command that

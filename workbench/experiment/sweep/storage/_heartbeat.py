@@ -10,6 +10,7 @@ from __future__ import annotations
 import copy
 import time
 import warnings
+from typing import Any
 
 import optuna
 from optuna.trial import FrozenTrial
@@ -73,7 +74,7 @@ def beat(study: optuna.Study, trial: optuna.Trial) -> None:
         trial.set_user_attr("heartbeat", time.time())
 
 
-def set_trial_attr(study: optuna.Study, number: int, key: str, value) -> None:
+def set_trial_attr(study: optuna.Study, number: int, key: str, value: Any) -> None:
     """Set a user attribute of trial ``number``, which another process may be running."""
     storage = study._storage
     trial_id = storage.get_trial_id_from_study_id_trial_number(study._study_id, number)

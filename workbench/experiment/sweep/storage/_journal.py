@@ -14,7 +14,9 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+from collections.abc import Generator, Iterator
 from pathlib import Path
+from typing import Any
 
 from optuna.storages.journal import JournalFileBackend
 from optuna.storages.journal._file import get_lock_file
@@ -80,7 +82,7 @@ def parse_line(line: bytes) -> tuple[dict | None, str]:
     return record, ""
 
 
-def read_lines(path: Path):
+def read_lines(path: Path) -> Iterator[tuple[int, bytes, Any, str]]:
     """``(number, bytes, record or None, why)`` for each line of the file (from 1)."""
     with open(path, "rb") as fh:
         for number, line in enumerate(fh, start=1):
@@ -157,7 +159,7 @@ def find_damage(path: Path, shown: str, hint: str | None = None,
 
 
 @contextlib.contextmanager
-def holding(lock, shown: str):
+def holding(lock: Any, shown: str) -> Iterator[None]:
     """The journal file's lock (Optuna's: every append takes it), or a one-line error."""
     try:
         lock.acquire()
@@ -202,7 +204,7 @@ class JournalFile(JournalFileBackend):
         if damage is not None:
             raise damage
 
-    def read_logs(self, log_number_from: int):
+    def read_logs(self, log_number_from: int) -> Generator[dict[str, Any], None, None]:
         try:
             yield from super().read_logs(log_number_from)
         except ValueError as exc:  # JSONDecodeError, UnicodeDecodeError, "Invalid log format."

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import contextlib
 import warnings
+from collections.abc import Iterator
 from pathlib import Path
 
 import optuna
@@ -19,7 +20,7 @@ __all__ = ["check_rdb", "rdb_storage"]
 
 
 @contextlib.contextmanager
-def _rdb_errors(shown: str):
+def _rdb_errors(shown: str) -> Iterator[None]:
     """Database problems as one :class:`StorageError` line (without the password)."""
     import sqlalchemy.exc  # (b) SQLAlchemy: database storages only, not a journal
 
@@ -78,7 +79,7 @@ def check_rdb(url: str) -> None:
             engine.dispose()
 
 
-def rdb_storage(url: str, stale_after_s: float):
+def rdb_storage(url: str, stale_after_s: float) -> optuna.storages.RDBStorage:
     shown = redact(url)
     db = _sqlite_file(url, shown)
     if db is not None:
