@@ -78,8 +78,9 @@ def one_loop(config: str, arm: str, seed: int, stop: int, criterion: str) -> dic
     """One loop in this process (one BLAS thread): its curve as a dict."""
     from threadpoolctl import threadpool_limits
 
-    from workbench.experiment.config import load_config, load_dataset
+    from workbench.experiment.config import load_dataset
     from workbench.experiment.design import acquisition_loop
+    from workbench.experiment.prepare import load_config
 
     with threadpool_limits(1):
         cfg = load_config(config)

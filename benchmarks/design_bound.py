@@ -58,8 +58,9 @@ def oracle(config: str):
     rows (candidates) and the test rows (reference), and the prior's information."""
     from threadpoolctl import threadpool_limits
 
-    from workbench.experiment.config import load_config, load_dataset
+    from workbench.experiment.config import load_dataset
     from workbench.experiment.families.base import quiet_fit
+    from workbench.experiment.prepare import load_config
 
     with threadpool_limits(1):
         cfg = load_config(config)
@@ -68,7 +69,7 @@ def oracle(config: str):
         X, Y = family.inputs(cfg, ds), ds.targets
         train, test = list(ds.train_index), list(ds.test_index)
         model = quiet_fit(family.build(cfg, ds), X.loc[train], Y.loc[train])
-        problem = family.design_problem(cfg, model, X.loc[train], Y.loc[train],
+        problem = family.design_problem(model, X.loc[train], Y.loc[train],
                                         X.loc[train + test])
         pred = np.asarray(model.predict(X.loc[test]), dtype=float)
     mae = float(np.mean(np.abs(Y.loc[test].to_numpy(dtype=float) - pred.reshape(len(test), -1))))

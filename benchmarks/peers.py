@@ -124,9 +124,10 @@ def _ci(low_high) -> str:
 
 def run(name: str, seed: int, args, tmp: Path) -> dict:
     from workbench.experiment.bootstrap import bootstrap_error_interval
-    from workbench.experiment.config import load_config, load_dataset
+    from workbench.experiment.config import load_dataset
     from workbench.experiment.evaluate import evaluate
     from workbench.experiment.peer import PEER_OBJECTIVES, peer_predict
+    from workbench.experiment.prepare import load_config
 
     true = None
     split_seed = seed

@@ -64,7 +64,7 @@ def _commands(args) -> None:
 
 
 def _trials(args) -> None:
-    from workbench.experiment.config import load_config
+    from workbench.experiment.prepare import load_config
     from workbench.experiment.sweep.search import run_search, study_names
     from workbench.experiment.sweep.workers import search_in_workers
 

@@ -14,7 +14,8 @@ from sklearn.model_selection import KFold
 
 from workbench.bases import BASES, PAPER_PARAMS, TRANSFORMS, NormalQuantileTransformer
 from workbench.boosting import BaseBoostRegressor
-from workbench.experiment.config import ConfigError, load_config, load_dataset
+from workbench.experiment.config import ConfigError, load_dataset
+from workbench.experiment.prepare import load_config
 from workbench.losses import LOSSES
 from workbench.multitarget import MultiTargetBaseBoost
 from workbench.selection import BaseBoostCV

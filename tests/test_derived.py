@@ -91,7 +91,7 @@ def test_candidates_and_n_priors():
 
 
 def test_config_list_and_unknown_name():
-    from workbench.experiment.config import parse_config
+    from workbench.experiment.prepare import parse_config
     from workbench.experiment.errors import ConfigError
 
     raw = {"name": "t", "data": {"source": "google_5q"},

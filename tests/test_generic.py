@@ -10,8 +10,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from workbench.experiment.config import ConfigError, load_config
+from workbench.experiment.config import ConfigError
 from workbench.experiment.families.stage import candidate_settings, has_candidates
+from workbench.experiment.prepare import load_config
 from workbench.experiment.space import draw_params
 from workbench.selection import BasisChoiceCV
 

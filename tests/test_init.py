@@ -21,8 +21,9 @@ import pytest
 
 from workbench.experiment import init as init_module
 from workbench.experiment.cli import main
-from workbench.experiment.config import load_config, load_dataset
+from workbench.experiment.config import load_dataset
 from workbench.experiment.init import csv_entry, split_template, template_text
+from workbench.experiment.prepare import load_config
 
 ROOT = Path(__file__).resolve().parents[1]
 PRIOR = ["model_E1", "model_E2"]

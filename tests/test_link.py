@@ -89,9 +89,10 @@ def _csv_config(tmp_path, link, y_shift=0.0):
 
 
 def test_config_links_are_candidates_and_the_result_says_which_won(tmp_path):
-    from workbench.experiment.config import load_config, load_dataset
+    from workbench.experiment.config import load_dataset
     from workbench.experiment.evaluate import evaluate
     from workbench.experiment.families.stage import per_target_boost
+    from workbench.experiment.prepare import load_config
 
     cfg = load_config(_csv_config(tmp_path, '["identity", "log"]'))
     assert cfg.model_for("y")["link"] == ["identity", "log"]
@@ -112,8 +113,9 @@ def test_config_links_are_candidates_and_the_result_says_which_won(tmp_path):
 
 
 def test_config_log_link_on_values_that_are_not_positive(tmp_path, caplog):
-    from workbench.experiment.config import ConfigError, load_config, load_dataset
+    from workbench.experiment.config import ConfigError, load_dataset
     from workbench.experiment.families.stage import per_target_boost
+    from workbench.experiment.prepare import load_config
 
     cfg = load_config(_csv_config(tmp_path, '"log"', y_shift=-5.0))
     ds = load_dataset(cfg)

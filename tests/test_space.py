@@ -9,8 +9,8 @@ import pytest
 from optuna.trial import FixedTrial
 
 from workbench.bases import BASES
-from workbench.experiment.config import load_config
 from workbench.experiment.families.eigenvalue import make_booster
+from workbench.experiment.prepare import load_config
 from workbench.experiment.space import SearchSpace, SpaceError
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"

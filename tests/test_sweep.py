@@ -283,7 +283,7 @@ def test_a_storage_with_older_stream_studies_still_sweeps(tmp_path):
                                                storage=journal).get_trials()] == [0.0]
 
 
-def _fake_search(cfg, storage_url, progress=False, worker=0, on_trial=None):
+def _fake_search(cfg, storage_url, progress=False, worker=0, on_trial=None, dataset=None):
     """Records where it runs, then waits (up to 30 s) until the other search runs too: two
     searches at once, as a sweep's workers are."""
     import time

@@ -12,10 +12,11 @@ import pytest
 from optuna.trial import FixedTrial, TrialState
 
 from workbench.experiment.cli import main
-from workbench.experiment.config import ConfigError, load_config, load_dataset
+from workbench.experiment.config import ConfigError, load_dataset
 from workbench.experiment.evaluate import evaluate
 from workbench.experiment.families import FAMILIES
 from workbench.experiment.intervals import family_model
+from workbench.experiment.prepare import load_config
 from workbench.experiment.sweep.scheduler import is_counted, run_study
 from workbench.experiment.sweep.search import StudySpec, run_sweep, study_names, study_objective
 from workbench.experiment.sweep.storage import open_storage

@@ -25,7 +25,7 @@ import pandas as pd
 from ..hamiltonian import make_graph
 from .base import Dataset, Hamiltonian
 
-__all__ = ["DatasetError", "load_csv_dataset"]
+__all__ = ["DatasetError", "load_csv_dataset", "read_numeric_columns"]
 
 
 class DatasetError(ValueError):
@@ -192,6 +192,39 @@ def _split(frame: pd.DataFrame, path: Path, test_fraction, split_column, split_s
     if len(train) == 0:
         raise DatasetError(f"{path}: the training split is empty")
     return np.asarray(train), np.asarray(test)
+
+
+def read_numeric_columns(path: str | Path, pattern: str, *,
+                         min_columns: int = 2) -> pd.DataFrame:
+    """The columns of a CSV file whose names match ``pattern``, as numbers.
+
+    The file gets the checks of every data file (exists, UTF-8, a header of at least
+    ``min_columns`` names, no duplicated names, well formed, not empty), then the matching
+    columns are read as finite numbers.
+
+    Parameters
+    ----------
+    path : str or Path
+        The CSV file.
+    pattern : str
+        A regular expression a column's whole name must match.
+    min_columns : int, default=2
+        Fewer names in the header is an error (another delimiter, or not a CSV).
+
+    Returns
+    -------
+    DataFrame
+        The matching columns, in the file's order, as floats (possibly none).
+
+    Raises
+    ------
+    DatasetError
+        Naming the file, the column and the lines of what is wrong.
+    """
+    path = Path(path)
+    frame = _read(path, min_columns=min_columns)
+    columns = [c for c in frame.columns if re.fullmatch(pattern, c)]
+    return _numeric(frame, columns, path)
 
 
 def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequence[str],

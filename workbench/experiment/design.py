@@ -87,7 +87,7 @@ def choose(cfg: ExperimentConfig, model, X: pd.DataFrame, Y: pd.DataFrame,
     if criterion not in CRITERIA:
         raise UsageError(f"unknown design criterion {criterion!r}; valid: {', '.join(CRITERIA)}")
     _check_n(n, len(candidates))
-    problem = cfg.family.design_problem(cfg, model, X, Y, candidates)
+    problem = cfg.family.design_problem(model, X, Y, candidates, cfg.random_state)
     batch = greedy_design(problem.blocks, problem.information, n, criterion=criterion)
     rows = candidates.iloc[batch.index]
     targets = [str(t) for t in Y.columns]

@@ -11,7 +11,7 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any, Literal, overload
 
 import numpy as np
 from sklearn.model_selection import KFold, RepeatedKFold, cross_val_predict
@@ -26,6 +26,9 @@ from .intervals import (
     with_intervals,
 )
 from .results import CVEstimate, Result, mae, mse
+
+if TYPE_CHECKING:
+    from ..datasets import Dataset
 
 __all__ = ["Evaluation", "evaluate", "fit_and_score", "format_table", "has_outputs",
            "nested_cv_all", "outputs", "repeated_cv"]
@@ -43,12 +46,39 @@ class Evaluation:
     dataset: Any
 
 
-def evaluate(cfg: ExperimentConfig, return_model: bool = False):
+@overload
+def evaluate(cfg: ExperimentConfig, return_model: Literal[False] = False, *,
+             dataset: Dataset | None = None) -> Result: ...
+
+
+@overload
+def evaluate(cfg: ExperimentConfig, return_model: Literal[True], *,
+             dataset: Dataset | None = None) -> Evaluation: ...
+
+
+def evaluate(cfg: ExperimentConfig, return_model: bool = False, *,
+             dataset: Dataset | None = None) -> Result | Evaluation:
     """Fit on the training rows (every choice by CV on those rows), then score prior and
-    model on the test rows. Returns the :class:`Result` (with ``return_model``, an
-    :class:`Evaluation` holding the fitted model and the dataset too)."""
+    model on the test rows.
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The checked config.
+    return_model : bool, default=False
+        Whether to return the fitted model and the dataset with the result.
+    dataset : Dataset, optional
+        The config's dataset, already loaded and checked
+        (:func:`~workbench.experiment.prepare.prepare`); loaded here when not given.
+
+    Returns
+    -------
+    Result or Evaluation
+        The :class:`Result` (with ``return_model``, an :class:`Evaluation` holding the
+        fitted model and the dataset too).
+    """
     start = time.perf_counter()
-    ds = load_dataset(cfg)
+    ds = dataset if dataset is not None else load_dataset(cfg)
     family = cfg.family
     log.info("[%s] fitting %d targets on %d training rows (test rows: %d)", cfg.name,
              len(ds.target_names), len(ds.train_index), len(ds.test_index))
@@ -119,7 +149,7 @@ def fit_and_score(cfg: ExperimentConfig, ds, model) -> tuple[Result, Any]:
     model.fit(X_train, y_train)
     pred = np.asarray(model.predict(X_test), dtype=float)
     prior_test = ds.prior.loc[ds.test_index].to_numpy()
-    prior, scores, details = family.scores(cfg, ds, family_model(model), y_train, prior_test,
+    prior, scores, details = family.scores(ds, family_model(model), y_train, prior_test,
                                            y_test, pred)
     for key, values in interval_scores(model, X_test, y_test).items():
         setattr(scores, key, values)

@@ -16,12 +16,13 @@ from typing import Any
 import numpy as np
 
 from .bootstrap import bootstrap_description, bootstrap_error_interval, bootstrap_test_scores
-from .config import ExperimentConfig, load_config
+from .config import ExperimentConfig
 from .evaluate import evaluate
 from .families.stage import candidate_settings
 from .figures import model_comparison_bars
 from .intervals import family_model
 from .peer import PEER_TRIALS, peer_predict
+from .prepare import load_config
 from .results import ModelScores, Result, Scores, mae, mse
 from .systems import Stopwatch
 

@@ -23,9 +23,10 @@ import numpy as np
 import pandas as pd
 
 from ..datasets import load_csv_dataset
-from .config import load_dataset, parse_config
+from .config import load_dataset
 from .errors import ConfigError, UsageError
 from .outputs import check_file, write_file
+from .prepare import parse_config
 
 __all__ = ["DEFAULT_TEST_FRACTION", "TEMPLATE", "InitResult", "csv_entry", "group_columns",
            "init_config", "numeric_columns", "render_config", "split_template",

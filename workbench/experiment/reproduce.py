@@ -28,7 +28,7 @@ from ..bases import NormalQuantileTransformer
 from ..curves import learning_curve_plan
 from ..parallel import Task, map_tasks, run_plans
 from .bootstrap import bootstrap_error_interval
-from .config import ExperimentConfig, load_config
+from .config import ExperimentConfig
 from .errors import UsageError, redact
 from .evaluate import evaluate
 from .explain import shap_values, target_shap_values
@@ -45,6 +45,7 @@ from .figures import (
 )
 from .gates import GATE_SYSTEMS, Gates, gates_benchmark, gates_figure, gates_section
 from .intervals import family_model
+from .prepare import load_config
 from .record import NOTE_TAG, log_inputs, result_metrics, run_params, run_tags, score_metrics
 from .results import Result, Scores
 from .sweep.search import run_sweep

@@ -3,28 +3,58 @@
 A family (:class:`~workbench.experiment.families.base.ModelFamily`) knows how to build its
 estimator from a config, what its ``[model.<family>]`` settings and ``[search.<family>]``
 space are, what a sweep's study unit is and how a trial is scored, how its result is
-assembled, and which extra artifacts and report section it has. Nothing outside a family's
-own module looks at a family's name: ``[model] family = "<name>"`` is resolved here.
+assembled, and which extra artifacts it has. Nothing outside a family's own module looks at
+a family's name: ``[model] family = "<name>"`` is resolved here.
 
-Today: ``eigenvalue`` (base boosting per target from the control program's eigenvalues) and
-``hamiltonian`` (the parameter-space model). A new family is a module with a
-:class:`ModelFamily` subclass, added with :func:`register_family`.
+Built in: ``eigenvalue`` (base boosting per target from the control program's eigenvalues)
+and ``hamiltonian`` (the parameter-space model). A new family is a module with a
+:class:`ModelFamily` subclass, added with :func:`register_family` or, from another package,
+through an entry point of the group :data:`ENTRY_POINT_GROUP` (MLflow's plug-in
+convention)::
+
+    [project.entry-points."workbench.families"]
+    my_family = "my_package.family:MyFamily"
 """
 
 from __future__ import annotations
+
+import importlib.metadata
+import logging
 
 from .base import Artifacts, ModelFamily
 from .eigenvalue import EigenvalueFamily
 from .hamiltonian import HamiltonianFamily
 
-__all__ = ["FAMILIES", "Artifacts", "ModelFamily", "get_family", "register_family"]
+__all__ = ["ENTRY_POINT_GROUP", "FAMILIES", "Artifacts", "ModelFamily", "discover_families",
+           "register_family"]
 
 #: Families by name.
 FAMILIES: dict[str, ModelFamily] = {}
 
+#: The entry-point group other packages add families through.
+ENTRY_POINT_GROUP = "workbench.families"
+
+_discovered: set[str] = set()
+
 
 def register_family(family: ModelFamily) -> ModelFamily:
-    """Add ``family`` (an instance) to :data:`FAMILIES` under ``family.name``."""
+    """Add ``family`` (an instance) to :data:`FAMILIES` under ``family.name``.
+
+    Parameters
+    ----------
+    family : ModelFamily
+        The family.
+
+    Returns
+    -------
+    ModelFamily
+        ``family``.
+
+    Raises
+    ------
+    ValueError
+        For a name that is not an identifier or is a ``[model]`` key.
+    """
     if not family.name or not family.name.isidentifier():
         raise ValueError(f"a family needs an identifier as its name, got {family.name!r}")
     if family.name in ("family", "targets"):
@@ -33,12 +63,34 @@ def register_family(family: ModelFamily) -> ModelFamily:
     return family
 
 
-def get_family(name: str) -> ModelFamily:
-    """The family called ``name``; an unknown name is an error listing the valid ones."""
-    try:
-        return FAMILIES[name]
-    except KeyError:
-        raise ValueError(f"unknown model family {name!r}; valid: {sorted(FAMILIES)}") from None
+def discover_families() -> list[str]:
+    """Register the families other packages declare as entry points of
+    :data:`ENTRY_POINT_GROUP`, each once.
+
+    An entry point names a :class:`ModelFamily` subclass (instantiated without arguments)
+    or an instance. One that cannot be loaded is logged and left out: a broken plug-in
+    does not stop the built-in families.
+
+    Returns
+    -------
+    list of str
+        The names of the families registered by this call.
+    """
+    added = []
+    for entry in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
+        if entry.value in _discovered:
+            continue
+        _discovered.add(entry.value)
+        try:
+            found = entry.load()
+            family = found() if isinstance(found, type) else found
+            if not isinstance(family, ModelFamily):
+                raise TypeError(f"{entry.value} is not a ModelFamily")
+            added.append(register_family(family).name)
+        except Exception as exc:  # a broken plug-in: reported, the others still load
+            logging.getLogger("workbench").warning(
+                "model family entry point %r (%s) not loaded: %s", entry.name, entry.value, exc)
+    return added
 
 
 register_family(EigenvalueFamily())

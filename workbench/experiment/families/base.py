@@ -79,13 +79,17 @@ class ModelFamily:
     #: Whether ``[evaluation]``'s repeated CV gives the model's CV figures in the result
     #: (false when the model cross-validates itself).
     cv_from_repeats: ClassVar[bool] = True
-    #: Whether :meth:`outputs` has tables and figures for ``evaluate --out``.
-    writes_outputs: ClassVar[bool] = False
     #: ``[intervals] method`` when the config gives none: "oof" (no extra fit) where the
     #: family's fitted model keeps out-of-fold predictions of its own (``cv_predictions_``
     #: and ``cv_folds_``, see :class:`~workbench.conformal.ConformalRegressor`), else
     #: "cv_plus" (the model refitted once per fold).
     interval_method: ClassVar[str] = "cv_plus"
+
+    @property
+    def writes_outputs(self) -> bool:
+        """Whether :meth:`outputs` has tables and figures for ``evaluate --out`` (the family
+        overrides it)."""
+        return type(self).outputs is not ModelFamily.outputs
 
     # ------------------------------------------------------------------ config
     def parse_settings(self, table: dict[str, Any] | None) -> BaseModel | None:
@@ -148,7 +152,7 @@ class ModelFamily:
         return clone(model)
 
     # ------------------------------------------------------------------ sweeps
-    def units(self, cfg: ExperimentConfig, targets: list[str]) -> dict[str, list[str]]:
+    def units(self, targets: list[str]) -> dict[str, list[str]]:
         """A sweep's study units: unit name -> the targets its studies choose for."""
         return {ALL_TARGETS: list(targets)}
 
@@ -182,7 +186,7 @@ class ModelFamily:
         completed trial keeps the config's own settings)."""
         from optuna.trial import FixedTrial  # (b) Optuna: not for evaluate
 
-        for unit, targets in self.units(cfg, ds.target_names).items():
+        for unit, targets in self.units(ds.target_names).items():
             params = best.get(unit)
             if params is not None:
                 cfg = self.with_trial(cfg, FixedTrial(params), targets)
@@ -194,8 +198,9 @@ class ModelFamily:
         return self.build(cfg, ds)
 
     # ------------------------------------------------------------------ design
-    def design_problem(self, cfg: ExperimentConfig, model, X: pd.DataFrame, Y: pd.DataFrame,
-                       candidates: pd.DataFrame) -> DesignProblem:
+    def design_problem(self, model, X: pd.DataFrame, Y: pd.DataFrame,
+                       candidates: pd.DataFrame, random_state: int | None = None
+                       ) -> DesignProblem:
         """What the ``model`` fitted on ``X``, ``Y`` does not know at the ``candidates``
         (frames of :meth:`inputs`' columns), for ``workbench design``.
 
@@ -206,7 +211,7 @@ class ModelFamily:
         from sklearn.model_selection import KFold
 
         folds = KFold(min(DESIGN_FOLDS, len(X)), shuffle=True,
-                      random_state=cfg.random_state or 0)
+                      random_state=random_state or 0)
         preds, resid = [], np.empty(Y.shape)
         for train, val in folds.split(X):
             fold = quiet_fit(self.fixed_choices(model), X.iloc[train], Y.iloc[train])
@@ -226,7 +231,7 @@ class ModelFamily:
         """What the fitted model chose per target (default: its ``selected_`` or "model")."""
         return list(getattr(model, "selected_", ["model"] * len(targets)))
 
-    def scores(self, cfg: ExperimentConfig, ds: Dataset, model, Y_train: pd.DataFrame,
+    def scores(self, ds: Dataset, model, Y_train: pd.DataFrame,
                prior_test, y_test, pred) -> tuple[Scores, ModelScores, dict[str, Any]]:
         """Prior and model scores of a fitted model, and the family's JSON-ready details.
 
@@ -242,21 +247,37 @@ class ModelFamily:
                              selected=self.selected(model, ds.target_names))
         return prior, scores, {}
 
-    def artifacts(self, cfg: ExperimentConfig, ds: Dataset, model, setting: str,
-                  quick: bool = False) -> Artifacts:
-        """Figures and tables logged with a run (beside the MAE/MSE bars every run has)."""
-        return Artifacts()
-
     def begin_artifacts(self, cfg: ExperimentConfig, ds: Dataset, model, setting: str,
                         quick: bool = False) -> Callable[..., Artifacts]:
-        """:meth:`artifacts` in two halves: start what can run on the worker processes
-        (e.g. learning-curve fits) and return a function ``finish(emit=None)`` that waits
-        for it, draws the figures and returns the :class:`Artifacts`, so the run's other
-        records are written meanwhile. ``emit(name, figure)``, if given, receives every
-        figure as soon as it is drawn (e.g. to log it while later ones are computed).
-        Default: nothing started, :meth:`artifacts` called by ``finish``."""
+        """The figures and tables logged with a run (beside the MAE/MSE bars every run has).
+
+        In two halves: start what can run on the worker processes (e.g. learning-curve
+        fits) and return a function ``finish(emit=None)`` that waits for it, draws the
+        figures and returns the :class:`Artifacts`, so the run's other records are written
+        meanwhile. ``emit(name, figure)``, if given, receives every figure as soon as it is
+        drawn (e.g. to log it while later ones are computed).
+
+        Parameters
+        ----------
+        cfg : ExperimentConfig
+            The run's config.
+        ds : Dataset
+            The run's dataset.
+        model : estimator
+            The family's fitted model.
+        setting : str
+            What the figures' titles say the run was.
+        quick : bool, default=False
+            Fewer points and rows (tests).
+
+        Returns
+        -------
+        callable
+            ``finish(emit=None) -> Artifacts``. Default: nothing started; ``finish``
+            returns :meth:`outputs` (or nothing).
+        """
         def finish(emit=None) -> Artifacts:
-            out = self.artifacts(cfg, ds, model, setting, quick)
+            out = self.outputs(model, ds, setting) or Artifacts()
             for name, fig in out.figures.items():
                 if emit is not None:
                     emit(name, fig)
@@ -267,7 +288,3 @@ class ModelFamily:
     def outputs(self, model, ds: Dataset, setting: str) -> Artifacts | None:
         """What ``evaluate --out DIR`` writes (``None``: the family writes nothing)."""
         return None
-
-    def report_section(self, result, artifacts: Artifacts, figures: dict[str, str]) -> str:
-        """A Markdown section of the ``reproduce`` report for this family's row."""
-        return ""

@@ -64,7 +64,7 @@ class EigenvalueFamily(ModelFamily):
     def build(self, cfg: ExperimentConfig, ds: Dataset):
         return per_target_boost(cfg, ds, ds.prior_names)
 
-    def units(self, cfg: ExperimentConfig, targets: list[str]) -> dict[str, list[str]]:
+    def units(self, targets: list[str]) -> dict[str, list[str]]:
         return {t: [t] for t in targets}
 
     def objective(self, cfg, ds, targets, X, Y, trial, cv, report) -> None:
@@ -90,7 +90,7 @@ class EigenvalueFamily(ModelFamily):
                           return_train_score=True)  # the curves reuse its folds
             for t in ds.target_names}, random_state=cfg.random_state, n_jobs=cfg.jobs)
 
-    def scores(self, cfg, ds, model, Y_train, prior_test, y_test, pred):
+    def scores(self, ds, model, Y_train, prior_test, y_test, pred):
         s = stage_scores(model.estimators_, Y_train.to_numpy(dtype=float))
         prior = Scores(test_mae=mae(y_test, prior_test), test_mse=mse(y_test, prior_test),
                        cv_mae=s["prior_cv_mae"], cv_mse=s["prior_cv_mse"])
@@ -99,9 +99,6 @@ class EigenvalueFamily(ModelFamily):
                              selected=s["selected"], coefs=s["coefs"],
                              extra={"cv_mae_boosted": s["boosted_cv_mae"]})
         return prior, scores, candidate_choices(ds.target_names, model.estimators_)
-
-    def artifacts(self, cfg, ds, model, setting, quick=False) -> Artifacts:
-        return self.begin_artifacts(cfg, ds, model, setting, quick)()
 
     def begin_artifacts(self, cfg, ds, model, setting, quick=False):
         """An augmented learning curve and two SHAP summaries per target.
@@ -125,26 +122,11 @@ class EigenvalueFamily(ModelFamily):
                  "(%d processes)", cfg.name, sizes, len(ds.target_names),
                  effective_n_jobs(cfg.jobs))
         results: queue.Queue = queue.Queue()
-        plans = []
         n_targets = len(ds.target_names)
-        for j, (target, est) in enumerate(zip(ds.target_names, model.estimators_)):
-            y = y_train[target].to_numpy()
-            if isinstance(est, BaseBoostCV) and not isinstance(est, BasisChoiceCV):
-                # its own folds (a sweep's final model: the inner folds)
-                own = curve_sizes(len(X_train), len(est.cv_splits_))
-                curve = selection_curve_plan(est, X_train, y, train_sizes=own,
-                                             random_state=cfg.random_state)
-            else:  # BasisChoiceCV: its chosen candidate on fresh folds
-                candidate = getattr(est, "estimator_", None) or est.estimator
-                curve = learning_curve_plan(candidate, X_train, y, train_sizes=sizes,
-                                            cv=cfg.selection.cv, random_state=cfg.random_state)
-            # the whole prediction's and the correction's SHAP values, one task
-            shap = Task(target_shap_values, est.best_estimator_, X_train,
-                        random_state=cfg.random_state or 0)
-            shap.priority = 10 ** 6  # a long task: start it early
-            # target j's tasks before target j + 1's: its figures can be drawn early
-            plans.append(prioritised(_reported(gather([curve, _all([shap])]), j, results),
-                                     (n_targets - j) * 10 ** 7))
+        plans = [prioritised(_reported(_target_plan(cfg, est, X_train, y_train[target].to_numpy(),
+                                                    sizes), j, results),
+                             (n_targets - j) * 10 ** 7)  # target j's tasks before j + 1's
+                 for j, (target, est) in enumerate(zip(ds.target_names, model.estimators_))]
 
         def work():
             try:
@@ -184,6 +166,24 @@ class EigenvalueFamily(ModelFamily):
             return out
 
         return finish
+
+
+def _target_plan(cfg: ExperimentConfig, est, X_train, y, sizes: list[int]):
+    """One target's learning curve and SHAP values, as a plan (:mod:`workbench.parallel`)."""
+    if isinstance(est, BaseBoostCV) and not isinstance(est, BasisChoiceCV):
+        # its own folds (a sweep's final model: the inner folds)
+        own = curve_sizes(len(X_train), len(est.cv_splits_))
+        curve = selection_curve_plan(est, X_train, y, train_sizes=own,
+                                     random_state=cfg.random_state)
+    else:  # BasisChoiceCV: its chosen candidate on fresh folds
+        candidate = getattr(est, "estimator_", None) or est.estimator
+        curve = learning_curve_plan(candidate, X_train, y, train_sizes=sizes,
+                                    cv=cfg.selection.cv, random_state=cfg.random_state)
+    # the whole prediction's and the correction's SHAP values, one task
+    shap = Task(target_shap_values, est.best_estimator_, X_train,
+                random_state=cfg.random_state or 0)
+    shap.priority = 10 ** 6  # a long task: start it early
+    return gather([curve, _all([shap])])
 
 
 def _reported(plan, key, results):

@@ -157,7 +157,6 @@ class HamiltonianFamily(ModelFamily):
 
     name = "hamiltonian"
     settings: ClassVar = HamiltonianSettings
-    writes_outputs = True
     interval_method = "oof"  # FittedPriorBoost keeps its out-of-fold predictions
 
     def check_data(self, data: DataConfig) -> None:
@@ -206,7 +205,7 @@ class HamiltonianFamily(ModelFamily):
         return [f"{b}+{getattr(e, 'selected_candidate_', None) or 'boosted'}"
                 if s == "boosted" else b for b, s, e in zip(base, model.selected_, stages)]
 
-    def scores(self, cfg, ds, model, Y_train, prior_test, y_test, pred):
+    def scores(self, ds, model, Y_train, prior_test, y_test, pred):
         """``model.cv_mae``: the boosting stage's CV (NaN without a stage; the repeated CV of
         ``[evaluation]`` replaces it when asked); ``cv_mae_hamiltonian``: the parameter-space
         model's out-of-fold CV MAE."""
@@ -238,7 +237,7 @@ class HamiltonianFamily(ModelFamily):
                                 "seconds": selection.seconds}
         return prior, scores, {"hamiltonian": ham}
 
-    def design_problem(self, cfg, model, X, Y, candidates) -> DesignProblem:
+    def design_problem(self, model, X, Y, candidates, random_state=None) -> DesignProblem:
         """The Fisher information of the parameter-space model's correction coefficients
         (Gauss-Newton: the Hellmann-Feynman Jacobian of the eigenvalues times the
         covariates, :meth:`~workbench.param_boost.HamiltonianParameterRegressor.coef_jacobian`,
@@ -296,8 +295,3 @@ class HamiltonianFamily(ModelFamily):
                 selection.path, title=f"Forward covariate selection ({selection.n_rows} "
                                       "training rows, CV MAE over all targets)", setting=setting)
         return out
-
-    def artifacts(self, cfg, ds, model, setting, quick=False) -> Artifacts:
-        """The parameter-space model's own tables and figures (the per-target learning curves
-        and SHAP summaries need single-target models, which this family does not have)."""
-        return self.outputs(model, ds, setting)

@@ -24,7 +24,7 @@ import logging
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 import optuna
@@ -39,6 +39,9 @@ from ..results import OuterFold, Result, SweepSummary
 from .scheduler import is_counted, open_study, pruner, run_studies, sampler
 from .storage import open_storage
 from .workers import search_in_workers
+
+if TYPE_CHECKING:
+    from ...datasets import Dataset
 
 __all__ = ["Sweep", "run_search", "run_sweep", "study_attrs", "study_names", "sweep_name"]
 
@@ -87,7 +90,7 @@ def study_names(cfg: ExperimentConfig, targets: list[str]) -> list[StudySpec]:
     base = sweep_name(cfg)
     n_outer = cfg.cv.outer_folds * cfg.cv.repeats
     out = []
-    for unit, unit_targets in cfg.family.units(cfg, targets).items():
+    for unit, unit_targets in cfg.family.units(targets).items():
         out += [StudySpec(f"{base}.{unit}.outer{k}", unit, unit_targets, k)
                 for k in range(n_outer)]
         out.append(StudySpec(f"{base}.{unit}.final", unit, unit_targets, None))
@@ -167,11 +170,26 @@ def study_objective(cfg: ExperimentConfig, ds, spec: StudySpec) -> Callable:
 
 
 def run_search(cfg: ExperimentConfig, storage_url: str, *, progress: bool = False,
-               worker: int = 0, on_trial: Callable | None = None) -> None:
-    """Run (or resume) every study of the sweep in this process (``worker``: its index, which
-    changes nothing: the studies' samplers are seeded per trial; ``on_trial(study, trial)``
-    after each trial it finishes)."""
-    ds = load_dataset(cfg)
+               worker: int = 0, on_trial: Callable | None = None,
+               dataset: Dataset | None = None) -> None:
+    """Run (or resume) every study of the sweep in this process.
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The sweep's config.
+    storage_url : str
+        The Optuna storage (journal file or RDB URL).
+    progress : bool, default=False
+        A line per trial through the ``workbench`` logger.
+    worker : int, default=0
+        This process's index, which changes nothing: the samplers are seeded per trial.
+    on_trial : callable, optional
+        ``on_trial(study, trial)`` after each trial this process finishes.
+    dataset : Dataset, optional
+        The config's dataset, already loaded (loaded here when not given).
+    """
+    ds = dataset if dataset is not None else load_dataset(cfg)
     storage = open_storage(storage_url, _root(), stale_after_s=cfg.study.stale_after_s)
     studies = []
     for spec in study_names(cfg, ds.target_names):
@@ -186,47 +204,30 @@ def _best_params(study: optuna.Study) -> dict[str, Any] | None:
     return min(done, key=lambda t: (t.value, t.number)).params if done else None
 
 
-def run_sweep(cfg: ExperimentConfig, *, progress: bool = True,
-              on_trial: Callable | None = None) -> Sweep:
-    """Search, then evaluate the chosen configuration once on the test rows
-    (``on_trial(study, trial)`` after each trial this process finishes, e.g. to log it;
-    ``progress``: a line per trial through the ``workbench`` logger)."""
-    start = time.perf_counter()
-    storage_url = cfg.study.storage
-    workers = cfg.study.workers
-    ds = load_dataset(cfg)
-    specs = study_names(cfg, ds.target_names)
-    log.info("[%s] sweep: %d studies x %d trials, %d worker(s), storage %s", cfg.name,
-             len(specs), cfg.study.trials, workers, redact(storage_url))
-    search_in_workers(run_search, cfg, storage_url, workers, bool(progress),
-                      [s.name for s in specs], _root(), on_trial=on_trial,
-                      attrs={s.name: study_attrs(cfg, s) for s in specs})
-
+def _outer_folds(cfg: ExperimentConfig, ds: Dataset, specs: list[StudySpec],
+                 params_of: dict[str, dict[str, Any] | None]
+                 ) -> tuple[list[OuterFold], dict[str, list[float]], dict[str, list[float]]]:
+    """The outer folds' refits of each study's best settings (independent, on the
+    command's worker processes) scored on their validation rows: the folds, and per target
+    the model's and the prior's MAE in each fold (the prior stands where no trial
+    completed)."""
     family = cfg.family
-    storage = open_storage(storage_url, _root(), stale_after_s=cfg.study.stale_after_s)
-    studies = {s.name: optuna.load_study(study_name=s.name, storage=storage,
-                                         sampler=sampler(cfg), pruner=pruner(cfg))
-               for s in specs}
     X_all = family.inputs(cfg, ds).loc[ds.train_index]
     Y_all = ds.targets.loc[ds.train_index]
     prior_all = ds.prior.loc[ds.train_index].to_numpy()
     outer = outer_splits(cfg, len(X_all))
+    refits = [spec for spec in specs
+              if spec.fold is not None and params_of[spec.name] is not None]
+    refitted = dict(zip((spec.name for spec in refits), map_tasks(
+        [Task(family.refit_predict, cfg, ds, spec.targets, params_of[spec.name], X_all, Y_all,
+              *outer[spec.fold]) for spec in refits if spec.fold is not None], cfg.jobs)))
     nested: dict[str, list[float]] = {}
     nested_prior: dict[str, list[float]] = {}
     folds: list[OuterFold] = []
-    best: dict[str, dict[str, Any] | None] = {}
-    params_of = {spec.name: _best_params(studies[spec.name]) for spec in specs}
-    # the outer folds' refits: independent, on the command's worker processes
-    refits = [(spec, spec.fold) for spec in specs
-              if spec.fold is not None and params_of[spec.name]]
-    refitted = dict(zip((spec.name for spec, _ in refits), map_tasks(
-        [Task(family.refit_predict, cfg, ds, spec.targets, params_of[spec.name], X_all, Y_all,
-              *outer[fold]) for spec, fold in refits], cfg.jobs)))
     for spec in specs:
-        params = params_of[spec.name]
         if spec.fold is None:
-            best[spec.unit] = params
             continue
+        params = params_of[spec.name]
         train, val = outer[spec.fold]
         cols = [ds.target_names.index(t) for t in spec.targets]
         y_val = Y_all[spec.targets].to_numpy()[val]
@@ -246,10 +247,53 @@ def run_sweep(cfg: ExperimentConfig, *, progress: bool = True,
                                selected=selected, n_train=len(train), n_val=len(val),
                                params=params, target_mae=dict(zip(spec.targets, maes)),
                                target_prior_mae=dict(zip(spec.targets, prior_maes))))
+    return folds, nested, nested_prior
+
+
+def run_sweep(cfg: ExperimentConfig, *, progress: bool = True,
+              on_trial: Callable | None = None, dataset: Dataset | None = None) -> Sweep:
+    """Search, then evaluate the chosen configuration once on the test rows.
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The sweep's config.
+    progress : bool, default=True
+        A line per trial through the ``workbench`` logger.
+    on_trial : callable, optional
+        ``on_trial(study, trial)`` after each trial this process finishes (e.g. to log it).
+    dataset : Dataset, optional
+        The config's dataset, already loaded and checked (loaded here when not given); the
+        search's worker processes receive it rather than loading it again.
+
+    Returns
+    -------
+    Sweep
+        The result, the final model and the studies.
+    """
+    start = time.perf_counter()
+    storage_url = cfg.study.storage
+    workers = cfg.study.workers
+    ds = dataset if dataset is not None else load_dataset(cfg)
+    specs = study_names(cfg, ds.target_names)
+    log.info("[%s] sweep: %d studies x %d trials, %d worker(s), storage %s", cfg.name,
+             len(specs), cfg.study.trials, workers, redact(storage_url))
+    search_in_workers(run_search, cfg, storage_url, workers, bool(progress),
+                      [s.name for s in specs], _root(), on_trial=on_trial,
+                      attrs={s.name: study_attrs(cfg, s) for s in specs}, dataset=ds)
+
+    family = cfg.family
+    storage = open_storage(storage_url, _root(), stale_after_s=cfg.study.stale_after_s)
+    studies = {s.name: optuna.load_study(study_name=s.name, storage=storage,
+                                         sampler=sampler(cfg), pruner=pruner(cfg))
+               for s in specs}
+    params_of = {spec.name: _best_params(studies[spec.name]) for spec in specs}
+    best = {spec.unit: params_of[spec.name] for spec in specs if spec.fold is None}
+    folds, nested, nested_prior = _outer_folds(cfg, ds, specs, params_of)
 
     chosen = family.chosen_config(cfg, ds, best)
     result, fitted = fit_and_score(chosen, ds, family.final_model(chosen, ds))
-    unit_of = {t: unit for unit, ts in family.units(cfg, ds.target_names).items() for t in ts}
+    unit_of = {t: unit for unit, ts in family.units(ds.target_names).items() for t in ts}
     counted = sum(sum(is_counted(t) for t in s.get_trials(deepcopy=False))
                   for s in studies.values())
     result.sweep = SweepSummary(

@@ -1,0 +1,156 @@
+"""The prepared run: a command loads its config's data once; data sources and model families
+are found through registries (families through entry points too)."""
+
+from __future__ import annotations
+
+import importlib.metadata
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+from sklearn.base import BaseEstimator, RegressorMixin
+
+from workbench.datasets import SOURCES, Dataset, DatasetError, get_source, register_source
+from workbench.experiment import families
+from workbench.experiment.cli import main
+from workbench.experiment.config import ConfigError
+from workbench.experiment.families import FAMILIES, ModelFamily
+from workbench.experiment.prepare import load_config, parse_config, prepare
+
+
+class PriorModel(RegressorMixin, BaseEstimator):
+    """Predicts each target's prior column (nothing learned: the cheapest model)."""
+
+    def __init__(self, priors=None, targets=None):
+        self.priors = priors
+        self.targets = targets
+
+    def fit(self, X, Y):
+        self.selected_ = ["prior"] * len(self.targets)
+        return self
+
+    def predict(self, X):
+        return pd.DataFrame(X[self.priors].to_numpy(float), index=X.index,
+                            columns=self.targets)
+
+
+class PluginFamily(ModelFamily):
+    """A family another package would declare as an entry point."""
+
+    name = "plugin_prior"
+
+    def build(self, cfg, ds):
+        return PriorModel(priors=ds.prior_names, targets=ds.target_names)
+
+
+@pytest.fixture
+def registries(monkeypatch):
+    """FAMILIES and the entry points seen, restored after the test."""
+    monkeypatch.setattr(families, "_discovered", set())
+    saved = dict(FAMILIES)
+    yield
+    FAMILIES.clear()
+    FAMILIES.update(saved)
+
+
+def _entry_points(group=None, **kwargs):
+    points = [importlib.metadata.EntryPoint(name="plugin_prior", group=families.ENTRY_POINT_GROUP,
+                                            value=f"{__name__}:PluginFamily")]
+    return [p for p in points if group in (None, p.group)]
+
+
+def test_a_family_is_found_through_its_entry_point(registries, monkeypatch, tmp_path):
+    monkeypatch.setattr(importlib.metadata, "entry_points", _entry_points)
+    assert "plugin_prior" not in FAMILIES
+    cfg = parse_config({"model": {"family": "plugin_prior"}}, tmp_path / "c.toml")
+    assert isinstance(cfg.family, PluginFamily)
+    assert families.discover_families() == []  # each entry point is loaded once
+
+
+def test_a_broken_entry_point_is_left_out(registries, monkeypatch, tmp_path, caplog):
+    broken = importlib.metadata.EntryPoint(name="broken", group=families.ENTRY_POINT_GROUP,
+                                           value="no_such_module_here:Family")
+    monkeypatch.setattr(importlib.metadata, "entry_points", lambda group=None: [broken])
+    assert families.discover_families() == []
+    assert "broken" in caplog.text
+    with pytest.raises(ConfigError, match=r"model\.family = 'broken': unknown family; valid: "
+                                          r"\['eigenvalue', 'hamiltonian'\]"):
+        parse_config({"model": {"family": "broken"}}, tmp_path / "c.toml")
+
+
+def test_an_unknown_data_source_lists_the_registered_ones(tmp_path):
+    with pytest.raises(DatasetError, match=r"unknown data source 'nope'; valid: \['google_5q', "
+                                           r"'ibm_gates', 'csv'\]"):
+        get_source("nope")
+    with pytest.raises(ConfigError, match=r"data\.source = 'nope': unknown data source; valid: "
+                                          r"'google_5q', 'ibm_gates' or 'csv'"):
+        parse_config({"data": {"source": "nope"}}, tmp_path / "c.toml")
+
+
+def _tiny(options, base, name) -> Dataset:
+    rng = np.random.default_rng(0)
+    prior = pd.DataFrame({"p": rng.normal(size=40)})
+    return Dataset(name=name, features=pd.DataFrame(index=prior.index), prior=prior,
+                   targets=pd.DataFrame({"y": prior["p"] + 0.1}),
+                   train_index=np.arange(30), test_index=np.arange(30, 40))
+
+
+def test_a_registered_data_source_feeds_a_config(monkeypatch, tmp_path):
+    monkeypatch.setitem(SOURCES, "tiny", SOURCES["csv"])  # restored after the test
+    register_source("tiny", _tiny)
+    cfg = parse_config({"name": "t", "data": {"source": "tiny"}}, tmp_path / "c.toml")
+    run = prepare(cfg)
+    assert run.dataset.target_names == ["y"] and run.family is cfg.family
+
+
+@pytest.fixture
+def counted(monkeypatch, registries, google_5q_dir, tmp_path):
+    """The benchmark's loader, counting its calls in a file (worker processes count too);
+    the cheap family registered."""
+    log = tmp_path / "loads.txt"
+    log.touch()
+    source = SOURCES["google_5q"]
+
+    def load(options, base, name):
+        with open(log, "a") as fh:
+            fh.write(name + "\n")
+        return source.load(options, base, name)
+
+    monkeypatch.setitem(SOURCES, "google_5q", source)
+    register_source("google_5q", load)
+    families.register_family(PluginFamily())
+    path = tmp_path / "c.toml"
+    path.write_text(f'name = "once"\nrandom_state = 0\n[data]\ndata_dir = "{google_5q_dir}"\n'
+                    '[model]\nfamily = "plugin_prior"\n[intervals]\nenabled = false\n'
+                    "[cv]\nouter_folds = 2\ninner_folds = 2\n"
+                    f'[study]\ntrials = 2\nstorage = "{tmp_path / "s.journal"}"\n')
+    return path, log
+
+
+def test_evaluate_loads_the_dataset_once(counted, tmp_path):
+    path, log = counted
+    assert main(["evaluate", str(path), "--no-track"]) == 0
+    assert log.read_text().split() == ["once"]
+
+
+def test_sweep_loads_the_dataset_once(counted, tmp_path):
+    path, log = counted
+    out = tmp_path / "sweep.json"
+    assert main(["sweep", str(path), "--no-track", "--json", str(out)]) == 0
+    assert json.loads(out.read_text())["trials"]["studies"] == 3
+    assert log.read_text().split() == ["once"]
+
+
+def test_sweep_workers_receive_the_dataset(counted, tmp_path):
+    """The search's worker processes get the loaded dataset with their task: none loads it."""
+    path, log = counted
+    assert main(["sweep", str(path), "--no-track", "--workers", "2"]) == 0
+    assert log.read_text().split() == ["once"]
+
+
+def test_a_loaded_config_resolves_its_family(tmp_path, google_5q_dir):
+    path = tmp_path / "c.toml"
+    path.write_text(f'[data]\ndata_dir = "{google_5q_dir}"\n')
+    cfg = load_config(path)
+    assert cfg.family is FAMILIES["eigenvalue"]

@@ -1,0 +1,120 @@
+"""The types of the command line's values: each parses one string or raises
+``argparse.ArgumentTypeError`` with what was expected and what was given (shortened).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+__all__ = ["count", "fraction", "nested_folds", "seed"]
+
+
+def count(value: str) -> int:
+    """A count: an integer >= 1.
+
+    Parameters
+    ----------
+    value : str
+        The command-line text.
+
+    Returns
+    -------
+    int
+        The count.
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        For anything else.
+    """
+    try:
+        number = int(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {value[:40]!r}") from None
+    if number < 1:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {number}")
+    return number
+
+
+def fraction(value: str) -> float:
+    """``--test-fraction``: a number strictly between 0 and 1.
+
+    Parameters
+    ----------
+    value : str
+        The command-line text.
+
+    Returns
+    -------
+    float
+        The fraction.
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        For anything else.
+    """
+    try:
+        number = float(value)
+    except ValueError:
+        number = float("nan")
+    if not 0.0 < number < 1.0:
+        raise argparse.ArgumentTypeError(f"expected a number between 0 and 1 (exclusive), got "
+                                         f"{value[:40]!r}")
+    return number
+
+
+def seed(value: str) -> int:
+    """``--split-seed``: an integer >= 0.
+
+    Parameters
+    ----------
+    value : str
+        The command-line text.
+
+    Returns
+    -------
+    int
+        The seed.
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        For anything else.
+    """
+    try:
+        number = int(value)
+    except ValueError:
+        number = -1
+    if number < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {value[:40]!r}")
+    return number
+
+
+def nested_folds(value: str) -> int:
+    """``--nested``: 0 (none) or a number of outer folds >= 2.
+
+    Parameters
+    ----------
+    value : str
+        The command-line text.
+
+    Returns
+    -------
+    int
+        The number of folds.
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        For anything else.
+    """
+    try:
+        number = int(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected 0 or an integer >= 2, got "
+                                         f"{value[:40]!r}") from None
+    if number < 0 or number == 1:
+        raise argparse.ArgumentTypeError(f"expected 0 (none) or an integer >= 2 outer folds, "
+                                         f"got {number}")
+    return number

@@ -1,0 +1,284 @@
+"""The handlers of the commands that run a config: ``evaluate``, ``sweep``, ``design`` and
+``reproduce``. Each checks everything first (:mod:`.preflight`), loads the config's data
+once (:func:`~workbench.experiment.prepare.prepare`) and hands that run down.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import importlib
+import json
+import threading
+import time
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+from ..errors import UsageError
+from .preflight import check_before_work, check_outputs, check_stores, repair_hint
+
+__all__ = ["RECORD_MODULES", "design", "evaluate", "mark_start", "reproduce", "sweep", "wall"]
+
+#: Modules the MLflow records of a run import (SHAP's plots, MLflow's datasets and models).
+RECORD_MODULES = ("shap", "mlflow.data.pandas_dataset", "mlflow.pyfunc", "mlflow.models",
+                  "workbench.experiment.serving")
+
+_START = [0.0]
+
+
+def mark_start() -> None:
+    """Start the command's clock (:func:`wall`)."""
+    _START[0] = time.perf_counter()
+
+
+def wall() -> float:
+    """The whole command's wall time so far.
+
+    Returns
+    -------
+    float
+        Seconds since :func:`mark_start`.
+    """
+    return time.perf_counter() - _START[0]
+
+
+def _write_json(path: str, payload: dict[str, Any]) -> None:
+    from ..outputs import write_file
+
+    write_file(path, json.dumps(payload, indent=2) + "\n", "--json")  # never half-written
+
+
+def _prefetch(modules: Iterable[str]) -> None:
+    """Import ``modules`` in a background thread (errors ignored: the real import reports
+    them); call it once the worker processes are forked (no fork while it runs).
+    """
+    def load() -> None:
+        for name in modules:
+            try:
+                importlib.import_module(name)
+            except Exception:
+                pass
+
+    threading.Thread(target=load, name="workbench-prefetch", daemon=True).start()
+
+
+def _print_registered(result: Any) -> None:
+    if "registered_model" in result.mlflow:
+        m = result.mlflow
+        print(f"registered {m['registered_model']} version {m['registered_version']} "
+              f"({m['registered_uri']})")
+
+
+def reproduce(args: argparse.Namespace) -> int:
+    """``workbench reproduce``: the paper's results and figures.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command's arguments.
+
+    Returns
+    -------
+    int
+        The exit code (0).
+    """
+    from ...parallel import worker_pool
+    from ..outputs import check_dir
+    from ..reproduce import experiments_dir
+    from ..reproduce import reproduce as run
+
+    configs = experiments_dir(args.experiments)  # its configs, before anything else
+    check_dir(args.out, "--out")
+    tracker = None
+    if not args.no_track:  # every store checked before any work, nothing written until then
+        from ..tracking.runs import Tracker
+        from ..tracking.uris import resolve_tracking_uri
+
+        tracker = Tracker(resolve_tracking_uri(args.tracking_uri, None, Path.cwd()),
+                          "paper-reproduction")
+    storage = args.storage
+    if storage is None:  # the search's own (relative to the working directory)
+        from ..prepare import load_config
+
+        storage = load_config(configs / "paper_search.toml").study.storage
+    check_stores(tracker, storage, args.repair, repair_hint(args))
+    with worker_pool(-1, eager=True):  # forked before any thread of this process
+        res = run(args.out, tracking_uri=args.tracking_uri, storage=args.storage,
+                  quick=args.quick, track=not args.no_track, seed=args.seed,
+                  experiments=configs)
+    s = res.settings
+    print(f"paper settings: average test MAE {s['paper'].model.avg('test_mae'):.3f} MHz "
+          f"(control program {s['paper'].prior.avg('test_mae'):.3f}); improved "
+          f"{s['improved'].model.avg('test_mae'):.3f}; nested-CV search "
+          f"{s['search'].model.avg('test_mae'):.3f}")
+    written = len({path for paths in res.figures.values() for path in paths})
+    print(f"wrote {Path(args.out) / 'README.md'} and {written} figures (of {len(res.figures)} "
+          f"numbered figures) in {res.wall_s:.0f} s")
+    return 0
+
+
+def sweep(args: argparse.Namespace) -> int:
+    """``workbench sweep``: the nested-CV search, then the chosen model's evaluation.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command's arguments.
+
+    Returns
+    -------
+    int
+        The exit code (0).
+    """
+    from ..config import without_intervals
+    from ..evaluate import format_table
+    from ..prepare import load_config, prepare
+    from ..sweep.search import run_sweep  # imports Optuna only for sweeps
+
+    cfg = without_intervals(load_config(args.config).with_study(
+        trials=args.trials, workers=args.workers, storage=args.storage), args.no_intervals)
+    check_outputs(args)
+    prepared = prepare(cfg)
+    tracker = check_before_work(cfg, args, cfg.study.storage, repair_hint(args))
+    from ...parallel import effective_n_jobs, worker_pool
+    from ..lifecycle import TrialRecorder, command_run
+
+    # worker processes for the sweep's workers (--workers), the trials' fits, the refits,
+    # the curves and the figures, forked before this process starts any thread (the run's
+    # heartbeat); the run is visible while it searches and ends FINISHED only once every
+    # output is written
+    processes = max(effective_n_jobs(cfg.jobs), cfg.study.workers)
+    with worker_pool(processes, eager=True), command_run(tracker, "sweep", cfg.name) as run_id:
+        recorder = TrialRecorder(tracker, run_id) if tracker is not None and run_id else None
+        done = run_sweep(cfg, on_trial=recorder,
+                         dataset=prepared.dataset)
+        result = done.result
+        if not args.no_track:
+            from ..record import record
+
+            # logged with the chosen configuration (the family's chosen settings too)
+            result.mlflow = record(done.config, result, done.model, done.dataset,
+                                   kind="sweep", tracking_uri=args.tracking_uri, sweep=done,
+                                   run_id=run_id, register=args.register)
+        result.wall_s = wall()
+        if run_id is not None:  # the same figure in MLflow, the output and --json
+            from ..record import record_wall_time
+
+            record_wall_time(done.config, result, tracking_uri=args.tracking_uri,
+                             run_id=run_id)
+        if args.json:
+            _write_json(args.json, result.to_json())
+    print(format_table(result))
+    _print_registered(result)
+    if args.json:
+        print(f"wrote {args.json}")
+    return 0
+
+
+def _evaluate_config(args: argparse.Namespace) -> Any:
+    """The config ``evaluate`` runs: the file's, with the command line's overrides."""
+    from ..config import without_intervals
+    from ..evaluate import has_outputs
+    from ..prepare import load_config
+
+    cfg = without_intervals(load_config(args.config), args.no_intervals)
+    if args.jobs is not None:
+        cfg = dataclasses.replace(cfg, n_jobs=args.jobs)
+    if args.nested is not None:
+        cfg = dataclasses.replace(cfg, evaluation=cfg.evaluation.model_copy(
+            update={"nested_folds": args.nested}))
+    if args.out is not None and not has_outputs(cfg):
+        raise UsageError(f"--out writes a model family's tables and figures and the "
+                         f"prediction intervals'; family {cfg.family.name!r} has none and "
+                         f"[intervals] is off ({args.config})")
+    return cfg
+
+
+def evaluate(args: argparse.Namespace) -> int:
+    """``workbench evaluate``: fit a config's model, score it on the test rows.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command's arguments.
+
+    Returns
+    -------
+    int
+        The exit code (0).
+    """
+    from ..evaluate import evaluate as run_evaluate
+    from ..evaluate import format_table, outputs
+    from ..prepare import prepare
+
+    cfg = _evaluate_config(args)
+    check_outputs(args)
+    prepared = prepare(cfg)
+    tracker = check_before_work(cfg, args)
+    from ...parallel import worker_pool
+    from ..lifecycle import command_run
+
+    # one set of worker processes for the fit, the curves and the figures, forked before
+    # this process starts any thread (the run's heartbeat, the prefetch); the run ends
+    # FINISHED only once every output is written
+    with worker_pool(cfg.jobs, eager=True), \
+            command_run(tracker, "evaluate", cfg.name) as run_id:
+        if tracker is not None:  # what the records need, loaded while the model fits
+            _prefetch(RECORD_MODULES)
+        run = run_evaluate(cfg, return_model=True, dataset=prepared.dataset)
+        result = run.result
+        if args.out is not None:
+            from ..outputs import write_artifacts
+
+            extra = outputs(cfg, run.model, run.dataset, f"evaluate of {cfg.name}")
+            result.outputs = {k: str(v) for k, v in write_artifacts(extra, args.out).items()}
+        if not args.no_track:
+            from ..record import record
+
+            result.mlflow = record(cfg, result, run.model, run.dataset, kind="evaluate",
+                                   tracking_uri=args.tracking_uri, run_id=run_id,
+                                   register=args.register)
+        result.wall_s = wall()
+        if run_id is not None:  # the same figure in MLflow, the output and --json
+            from ..record import record_wall_time
+
+            record_wall_time(cfg, result, tracking_uri=args.tracking_uri, run_id=run_id)
+        if args.json:
+            _write_json(args.json, result.to_json())
+    print(format_table(result))
+    _print_registered(result)
+    if args.out is not None:
+        print(f"wrote {', '.join(sorted(Path(p).name for p in result.outputs.values()))} "
+              f"to {args.out}")
+    if args.json:
+        print(f"wrote {args.json}")
+    return 0
+
+
+def design(args: argparse.Namespace) -> int:
+    """``workbench design``: the candidates to measure next.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command's arguments.
+
+    Returns
+    -------
+    int
+        The exit code (0).
+    """
+    from ...parallel import worker_pool
+    from ..design import design_csv
+    from ..prepare import load_config
+
+    cfg = load_config(args.config)
+    if args.jobs is not None:
+        cfg = dataclasses.replace(cfg, n_jobs=args.jobs)
+    with worker_pool(cfg.jobs, eager=True):
+        done = design_csv(cfg, args.candidates, args.n, args.out, args.criterion)
+    print(f"wrote {args.out}: {len(done.chosen)} of {done.n_candidates} candidates "
+          f"({'I' if args.criterion == 'i' else 'D'}-optimal for {done.problem.what}; model "
+          f"fitted on {done.n_rows} training rows; {wall():.1f} s)")
+    return 0

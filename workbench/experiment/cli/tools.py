@@ -1,0 +1,152 @@
+"""The handlers of the commands around a model run: ``init`` (a first config for a CSV),
+``predict`` (a logged model on new rows) and ``simulate`` (a simulated device's CSV).
+"""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+from pathlib import Path
+from typing import Any
+
+from ..errors import UsageError
+
+__all__ = ["init", "predict", "simulate"]
+
+
+def init(args: argparse.Namespace) -> int:
+    """``workbench init``: write a first config for a CSV of one's own.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command's arguments.
+
+    Returns
+    -------
+    int
+        The exit code (0).
+    """
+    from ..init import init_config
+
+    done = init_config(args.data, prior=args.prior, targets=args.target, features=args.features,
+                       split_column=args.split_column, test_fraction=args.test_fraction,
+                       split_seed=args.split_seed, name=args.name, out=args.out,
+                       force=args.force, group_column=args.group_column)
+    if done.defaulted:
+        left = "; not taken: " + ", ".join(f"{c!r} ({why})" for c, why in done.skipped.items())
+        print(f"features: {', '.join(done.features) or '(none)'} (every other numeric column"
+              f"{left if done.skipped else ''}; --features chooses)")
+    print(f"wrote {done.path} ({done.n_train} training rows, {done.n_test} test rows)")
+    for column, n in done.group_hints.items():
+        print(f"note: column {column!r} repeats {n} values over the rows; if rows that share "
+              f"one are alike (a device, a date), --group-column {shlex.quote(column)} keeps "
+              f"each whole in one CV fold (plain folds reward what only repeats within it)")
+    print(f"next: workbench evaluate {shlex.quote(str(done.path))}\n      workbench ui")
+    return 0
+
+
+def predict(args: argparse.Namespace) -> int:
+    """``workbench predict``: a logged or registered model on the rows of a CSV.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command's arguments.
+
+    Returns
+    -------
+    int
+        The exit code (0).
+    """
+    from ..predict import predict_csv
+    from ..tracking.uris import resolve_tracking_uri
+
+    uri = resolve_tracking_uri(args.tracking_uri, None, Path.cwd())
+    done = predict_csv(args.model, args.data, args.out, tracking_uri=uri)
+    print(f"wrote {done.path} ({done.rows} rows: {', '.join(done.targets)}"
+          f"{' with intervals' if done.intervals else ''})")
+    return 0
+
+
+def _mismatch(names: list[str] | None) -> Any:
+    """The simulation's mismatch mechanisms ``--mismatch`` names."""
+    from ...simulate import Mismatch
+
+    if names is None:
+        return Mismatch.default()
+    if names == ["none"]:
+        return Mismatch.none()
+    return Mismatch.only(*names)
+
+
+def _shape(text: str | None) -> tuple[int, int] | None:
+    """``--shape RxC`` as ``(rows, cols)``."""
+    if text is None:
+        return None
+    rows, sep, cols = text.lower().partition("x")
+    if not (sep and rows.isdigit() and cols.isdigit()):
+        raise ValueError(f"--shape must be RxC (e.g. 3x3), got {text!r}")
+    return int(rows), int(cols)
+
+
+def _simulation(args: argparse.Namespace) -> Any:
+    """The simulation ``simulate``'s arguments ask for: random settings, or ``--settings``
+    measured on the seed's device.
+    """
+    from ...simulate import measure
+    from ...simulate import simulate as run
+
+    mismatch, shape = _mismatch(args.mismatch), _shape(args.shape)
+    if args.settings is None:
+        sites = args.sites if args.sites is not None or args.topology == "grid" else 5
+        return run(sites, 136 if args.experiments is None else args.experiments,
+                   seed=args.seed, mismatch=mismatch, topology=args.topology,
+                   shape=shape, parasitic=args.parasitic)
+    from ...datasets import read_numeric_columns
+
+    # the CSV checks of every data file (empty, not a CSV, wrong delimiter, ragged rows),
+    # then the bias columns as numbers; measure() says which are missing
+    settings = read_numeric_columns(args.settings, r"v_[qc][1-9][0-9]*")
+    return measure(settings, seed=args.seed, mismatch=mismatch, topology=args.topology,
+                   n_sites=args.sites, shape=shape, parasitic=args.parasitic,
+                   noise_seed=args.noise_seed)
+
+
+def simulate(args: argparse.Namespace) -> int:
+    """``workbench simulate``: simulate a device and write its CSV and truth sidecar.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command's arguments.
+
+    Returns
+    -------
+    int
+        The exit code (0).
+
+    Raises
+    ------
+    UsageError
+        For contradictory options or values the simulation refuses.
+    """
+    from ...simulate import write_simulation
+
+    if args.settings is not None and args.experiments is not None:
+        raise UsageError("--settings measures the rows of its CSV; drop --experiments")
+    if args.noise_seed is not None and args.settings is None:
+        raise UsageError("--noise-seed needs --settings (simulate's noise follows --seed)")
+    try:
+        sim = _simulation(args)
+        csv_path, truth_path = write_simulation(sim, args.out)
+    except (ValueError, OSError) as exc:
+        raise UsageError(str(exc)) from None
+    prior = sim.data.filter(like="model_E").to_numpy()
+    measured = sim.data.filter(like="measured_E").to_numpy()
+    rows = (f"{len(sim.data)} experiments" if args.settings is None
+            else f"measured {len(sim.data)} settings")
+    print(f"wrote {csv_path} ({rows}, {sim.truth['n_sites']} sites, "
+          f"{sim.truth['graph']['topology']}; prior MAE "
+          f"{abs(prior - measured).mean():.3f} MHz) and {truth_path}")
+    return 0

@@ -1,0 +1,154 @@
+"""``workbench ui``: the MLflow UI over the tracking store and, beside it, optuna-dashboard
+over the sweeps' studies, both on 127.0.0.1, until Ctrl-C.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from ..errors import redact
+
+__all__ = ["run", "ui_command", "ui_env"]
+
+log = logging.getLogger("workbench")
+
+
+def _experiment_views(uri: str, port: int) -> list[tuple[str, str]]:
+    """The UI's address of each experiment in the store that has the workbench's runs view
+    (its runs' test MAE per target side by side); none if the store cannot be read now (the
+    UI reports that itself).
+    """
+    from ..tracking.runs import RUNS_VIEW, SHARED_VIEW_PREFIX
+    from ..tracking.uris import sqlite_path, ui_url
+
+    path = sqlite_path(uri)
+    if uri.startswith("sqlite:") and (path is None or not path.is_file()):
+        return []  # nothing stored yet; reading would create the database
+    try:
+        from mlflow import MlflowClient
+
+        experiments = MlflowClient(uri).search_experiments()
+    except Exception as exc:  # a locked or unreachable store: the UI shows the problem
+        log.debug("could not list the experiments of %s: %s", redact(uri), exc)
+        return []
+    return [(e.name, ui_url(port, e.experiment_id, RUNS_VIEW)) for e in experiments
+            if SHARED_VIEW_PREFIX + RUNS_VIEW in e.tags]
+
+
+def _commands(args: argparse.Namespace) -> list[list[str]]:
+    """The servers' command lines, their addresses printed; the stores checked as every
+    command checks them first (a server would print a traceback, or sit on a store it
+    cannot read).
+    """
+    from ..tracking.uris import check_store_uri, resolve_tracking_uri, ui_url
+
+    uri = resolve_tracking_uri(args.tracking_uri, None, Path.cwd())
+    check_store_uri(uri)
+    storage = args.storage or "mlruns/optuna.journal"
+    serve_studies = args.storage is not None or (Path.cwd() / storage).is_file()
+    if serve_studies:
+        from ..sweep.storage import check_storage
+
+        check_storage(storage, Path.cwd())
+    cmds = [ui_command(uri, args.port, args.workers)]
+    print(f"MLflow UI for {redact(uri)} at {ui_url(args.port)}", flush=True)
+    for name, url in _experiment_views(uri, args.port):
+        print(f"  {name}: {url}", flush=True)
+    print("  (a run's own page opens in MLflow's GenAI view until the sidebar's \"Model "
+          "training\" switch is clicked once; the browser remembers it)", flush=True)
+    if serve_studies:  # the studies beside the runs
+        from ..sweep.storage import dashboard_command
+
+        cmds.append(dashboard_command(storage, args.dashboard_port, Path.cwd()))
+        print(f"Optuna dashboard for {redact(storage)} at "
+              f"http://127.0.0.1:{args.dashboard_port}", flush=True)
+    return cmds
+
+
+def run(args: argparse.Namespace) -> int:
+    """``workbench ui``: start the servers and wait for Ctrl-C or a server's end.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command's arguments.
+
+    Returns
+    -------
+    int
+        0 after Ctrl-C, else the largest exit code of the servers.
+    """
+    cmds = _commands(args)
+    print("Ctrl-C stops", "them" if len(cmds) > 1 else "it", flush=True)
+    procs = [subprocess.Popen(cmd, env=ui_env()) for cmd in cmds]
+    try:
+        while all(p.poll() is None for p in procs):
+            time.sleep(0.5)
+        return max(p.returncode or 0 for p in procs)
+    except KeyboardInterrupt:
+        return 0
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.terminate()
+        for p in procs:
+            try:
+                p.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                p.kill()
+
+
+def ui_env() -> dict[str, str]:
+    """The environment of the servers ``workbench ui`` starts.
+
+    This process's, with MLflow's server jobs off unless
+    ``MLFLOW_SERVER_ENABLE_JOB_EXECUTION`` is set: they serve MLflow's GenAI features, which
+    workbench does not use, and start a job runner and seven worker processes, each
+    importing MLflow, with every server.
+
+    Returns
+    -------
+    dict
+        The environment variables.
+    """
+    env = dict(os.environ)
+    env.setdefault("MLFLOW_SERVER_ENABLE_JOB_EXECUTION", "false")
+    return env
+
+
+def ui_command(tracking_uri: str, port: int, workers: int = 1) -> list[str]:
+    """The ``mlflow server`` command line serving ``tracking_uri`` on 127.0.0.1.
+
+    One server process is the default: it serves a user's browser and starts in about half
+    the time of MLflow's default of four on a small machine.
+
+    Parameters
+    ----------
+    tracking_uri : str
+        The store to serve.
+    port : int
+        The port.
+    workers : int, default=1
+        Server processes.
+
+    Returns
+    -------
+    list of str
+        The command line (with the artifact root beside an SQLite store).
+    """
+    cmd = [sys.executable, "-m", "mlflow", "server", "--backend-store-uri", tracking_uri,
+           "--host", "127.0.0.1", "--port", str(port), "--workers", str(workers)]
+    if tracking_uri.startswith("sqlite:///"):
+        from ..tracking.uris import sqlite_path
+
+        path = sqlite_path(tracking_uri)  # None for an in-memory database: no folder
+        if path is not None:
+            root = path.parent / "artifacts"
+            cmd += ["--default-artifact-root", root.resolve().as_uri()]
+    return cmd

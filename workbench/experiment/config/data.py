@@ -1,0 +1,119 @@
+"""``[data]``: where a config's data come from (:class:`DataConfig`, with the Hamiltonian's
+columns in :class:`HamiltonianData`); ``source`` names a loader of the data-source registry
+(:mod:`workbench.datasets.sources`).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import Field, field_validator, model_validator
+from pydantic_core import PydanticCustomError
+
+from ...datasets import source_names
+from ...hamiltonian import make_graph
+from ..schema import Section, Seed
+
+__all__ = ["DataConfig", "HamiltonianData"]
+
+
+class HamiltonianData(Section):
+    """``[data.hamiltonian]``: the Hamiltonian's columns. ``sign``: the prior is the sorted
+    eigenvalues of ``sign * H``. The coupling graph: ``topology`` "chain" (N - 1 couplings
+    ``(i, i+1)``), "ring", "grid" with ``shape = [rows, cols]``, or an explicit ``edges``
+    list of 0-based site pairs, one per coupling column.
+    ``qubit_features``/``coupler_features``: the features acting on each site and on each
+    coupling, in site and edge order.
+    """
+
+    onsite: list[str]
+    couplings: list[str]
+    sign: Literal[-1, 1] = -1
+    topology: Literal["chain", "ring", "grid"] = "chain"
+    shape: list[int] | None = None
+    edges: list[list[int]] | None = None
+    qubit_features: list[str] | None = None
+    coupler_features: list[str] | None = None
+
+    @model_validator(mode="after")
+    def _graph(self) -> HamiltonianData:
+        if self.shape is not None and self.topology != "grid":
+            raise ValueError(f"shape applies to topology = \"grid\" only (topology is "
+                             f"{self.topology!r})")
+        if self.edges is not None and self.topology != "chain":
+            raise ValueError("give either topology (with shape) or edges, not both")
+        try:
+            graph = make_graph(len(self.onsite), self.topology,
+                               None if self.shape is None else tuple(self.shape), self.edges)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"coupling graph: {exc}") from None
+        if len(self.couplings) != graph.n_edges:
+            raise ValueError(f"couplings: the {graph.topology} graph of {len(self.onsite)} "
+                             f"sites has {graph.n_edges} edges, got {len(self.couplings)} "
+                             f"column(s)")
+        return self
+
+
+class DataConfig(Section):
+    """``[data]``: ``source = "google_5q"`` (optional ``data_dir``), ``source = "ibm_gates"``
+    (optional ``data_dir``, ``split = "time"`` or ``"devices"`` with ``split_seed``), or a CSV
+    of your own (``csv``, one ``prior`` column per ``targets`` column, ``features``, and either
+    ``test_fraction`` or ``split_column``). ``source`` is a name in the data-source registry
+    (:data:`workbench.datasets.SOURCES`).
+    """
+
+    source: str = "google_5q"
+    split: Literal["time", "devices"] | None = None
+    data_dir: str | None = None
+    csv: str | None = None
+    prior: list[str] | None = None
+    targets: list[str] | None = None
+    features: list[str] = []
+    test_fraction: float | None = Field(default=None, gt=0, lt=1)
+    split_column: str | None = None
+    split_seed: int = Seed()
+    group_column: str | None = None
+    hamiltonian: HamiltonianData | None = None
+
+    @field_validator("source")
+    @classmethod
+    def _registered(cls, name: str) -> str:
+        names = source_names()
+        if name not in names:
+            valid = ", ".join(repr(n) for n in names[:-1]) + f" or {names[-1]!r}"
+            raise PydanticCustomError("unknown_source", "unknown data source; valid: {valid}",
+                                      {"valid": valid})
+        return name
+
+    @model_validator(mode="before")
+    @classmethod
+    def _csv_source(cls, data: Any) -> Any:
+        if isinstance(data, dict) and "csv" in data and "source" not in data:
+            data = {**data, "source": "csv"}
+        return data
+
+    @model_validator(mode="after")
+    def _consistent(self) -> DataConfig:
+        csv_keys = sorted(k for k in ("csv", "prior", "targets", "test_fraction",
+                                      "split_column", "group_column", "hamiltonian")
+                          if getattr(self, k) is not None) + (["features"] if self.features
+                                                              else [])
+        if self.source != "csv":
+            if csv_keys:
+                raise ValueError(f"{csv_keys} apply to source = \"csv\" only")
+            if self.split is not None and self.source != "ibm_gates":
+                raise ValueError("'split' applies to source = \"ibm_gates\" only")
+            return self
+        if self.split is not None:
+            raise ValueError("'split' applies to source = \"ibm_gates\" only (a CSV's split "
+                             "is test_fraction or split_column)")
+        for key in ("csv", "prior", "targets"):
+            if getattr(self, key) is None:
+                raise ValueError(f"source = \"csv\" needs {key!r}")
+        assert self.prior is not None and self.targets is not None  # checked just above
+        if len(self.prior) != len(self.targets):
+            raise ValueError(f"{len(self.prior)} prior column(s) for {len(self.targets)} "
+                             f"target(s): give one prior column per target")
+        if (self.test_fraction is None) == (self.split_column is None):
+            raise ValueError("give exactly one of test_fraction or split_column")
+        return self

@@ -1,0 +1,144 @@
+"""The checked config: :class:`ExperimentConfig`, its sections typed, and the merged
+boosting settings of each target (:meth:`ExperimentConfig.model_for`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel
+
+from ..space import SearchSpace
+from .data import DataConfig
+from .sections import (
+    MODEL_DEFAULTS,
+    CVConfig,
+    EvaluationConfig,
+    IntervalsConfig,
+    ModelConfig,
+    SelectionConfig,
+    StudyConfig,
+    TrackingConfig,
+)
+
+__all__ = ["ExperimentConfig", "without_intervals"]
+
+
+@dataclass(frozen=True)
+class ExperimentConfig:
+    """A checked config, as :func:`workbench.experiment.prepare.parse_config` makes it.
+
+    Sections are typed (frozen pydantic models); ``family_settings`` is the family's
+    ``[model.<family>]`` (its own schema), ``search`` the ``[search]`` space, ``chosen`` the
+    per-target settings a search chose (target -> full settings, over ``[model]``).
+    ``family`` is the :class:`~workbench.experiment.families.base.ModelFamily` that
+    ``[model] family`` names, resolved by the loader: the config package sits below the
+    families and imports none of them, so the attribute is typed ``Any`` here.
+    """
+
+    path: Path | None
+    name: str
+    random_state: int | None
+    n_jobs: int | None
+    data: DataConfig
+    model: ModelConfig
+    selection: SelectionConfig = SelectionConfig()
+    evaluation: EvaluationConfig = EvaluationConfig()
+    intervals: IntervalsConfig = IntervalsConfig()
+    search: SearchSpace = field(default_factory=SearchSpace)
+    cv: CVConfig = CVConfig()
+    study: StudyConfig = StudyConfig()
+    tracking: TrackingConfig = TrackingConfig()
+    family_settings: BaseModel | None = None
+    description: str = ""
+    chosen: dict[str, dict[str, Any]] = field(default_factory=dict)
+    family: Any = field(default=None, compare=False, repr=False)
+
+    @property
+    def label(self) -> str:
+        """The config's file, for messages (``"config"`` when it has none)."""
+        return str(self.path) if self.path else "config"
+
+    @property
+    def jobs(self) -> int:
+        """Processes for independent work (``n_jobs``; unset: every core). Results do not
+        depend on it (:mod:`workbench.parallel`).
+        """
+        return -1 if self.n_jobs is None else self.n_jobs
+
+    def model_for(self, target: str | None) -> dict[str, Any]:
+        """The boosting settings of one target.
+
+        Defaults < ``[model]`` < its ``[model.targets.<target>]`` table (< a search's choice
+        for it). ``basis_params`` (``input_transform_params``) merge over the parent's while
+        the target keeps the parent's basis (transform), and start afresh when it names
+        another one.
+
+        Parameters
+        ----------
+        target : str or None
+            A target's name (``None``: the ``[model]`` settings every target shares).
+
+        Returns
+        -------
+        dict
+            Every boosting key with its value.
+        """
+        if target in self.chosen:
+            return dict(self.chosen[target])
+        merged = {**MODEL_DEFAULTS, **_set(self.model)}
+        override = _set(self.model.targets[target]) if target in self.model.targets else {}
+        for key, params in (("basis", "basis_params"),
+                            ("input_transform", "input_transform_params")):
+            if key in override and override[key] != merged[key]:
+                merged[params] = {}
+            merged[params] = {**merged[params], **override.get(params, {})}
+        merged.update({k: v for k, v in override.items() if not k.endswith("_params")})
+        return merged
+
+    def with_study(self, **updates: Any) -> ExperimentConfig:
+        """This config with ``[study]`` values replaced.
+
+        Parameters
+        ----------
+        **updates
+            ``[study]`` keys and their new values (``None`` values ignored).
+
+        Returns
+        -------
+        ExperimentConfig
+            The updated copy.
+        """
+        updates = {k: v for k, v in updates.items() if v is not None}
+        return dataclasses.replace(self, study=self.study.model_copy(update=updates))
+
+
+def _set(section: BaseModel) -> dict[str, Any]:
+    """The boosting keys a section sets (``None``: not given)."""
+    return {k: v for k, v in section.model_dump(exclude={"family", "targets"}).items()
+            if v is not None}
+
+
+
+def without_intervals(cfg: ExperimentConfig, off: bool = True) -> ExperimentConfig:
+    """``cfg`` with ``[intervals]`` switched off (``--no-intervals``, or a run that needs none).
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The config.
+    off : bool, default=True
+        Whether to switch them off (``False``: ``cfg`` unchanged).
+
+    Returns
+    -------
+    ExperimentConfig
+        The config, its ``[intervals] enabled`` false when ``off``.
+    """
+    if not off:
+        return cfg
+    return dataclasses.replace(cfg, intervals=cfg.intervals.model_copy(
+        update={"enabled": False}))

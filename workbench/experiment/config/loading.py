@@ -1,0 +1,81 @@
+"""Loading a config's dataset: through the data-source registry
+(:func:`workbench.datasets.load_source`), then checked against the config's folds and
+prediction intervals.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ...conformal import min_calibration_rows
+from ...datasets import Dataset, DatasetError, load_source
+from .experiment import ExperimentConfig
+
+__all__ = ["check_training_rows", "load_dataset"]
+
+
+def load_dataset(cfg: ExperimentConfig) -> Dataset:
+    """The dataset named by the config's ``[data]`` section (paths relative to the config).
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The checked config.
+
+    Returns
+    -------
+    Dataset
+        The data, loaded by the ``[data] source``'s loader
+        (:func:`workbench.datasets.load_source`).
+
+    Raises
+    ------
+    DatasetError
+        For unusable data, including a training split too small for the configured CV
+        folds or prediction intervals.
+    """
+    base = cfg.path.parent if cfg.path is not None else Path.cwd()
+    ds = load_source(cfg.data.source, cfg.data.model_dump(), base, cfg.name)
+    check_training_rows(cfg, len(ds.train_index))
+    return ds
+
+
+def check_training_rows(cfg: ExperimentConfig, n_train: int) -> None:
+    """Raise :class:`~workbench.datasets.DatasetError` when ``n_train`` training rows are
+    too few for ``[selection]``'s folds or ``[intervals]``' calibration.
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The checked config.
+    n_train : int
+        The dataset's training rows.
+
+    Raises
+    ------
+    DatasetError
+        Naming the section, its values and the rows they need.
+    """
+    folds = cfg.selection.cv
+    if n_train < 2 * folds:
+        raise DatasetError(f"the training split has {n_train} rows, too few for "
+                           f"[selection] cv = {folds} (each fold needs at least 2 rows: "
+                           f"at least {2 * folds} training rows)")
+    iv = cfg.intervals
+    if not iv.enabled:
+        return
+    # CV+ calibrates on every training row (each fold needs 2); split on its held-out
+    # share (rounded up, as train_test_split does)
+    need = min_calibration_rows(iv.alpha)
+    if iv.method == "oof":  # every training row is held out once by the model's CV
+        least, how = need, "the model's own folds"
+    elif iv.method != "split":
+        least, how = max(2 * iv.cv, need), f"cv = {iv.cv}"
+    else:
+        least = int((need - 1) / iv.calibration_fraction) + 1  # ceil(frac n) >= need
+        how = f"calibration_fraction = {iv.calibration_fraction}"
+    if n_train < least:
+        raise DatasetError(f"the training split has {n_train} rows, too few "
+                           f"for [intervals] method = {iv.method!r} with {how} and alpha "
+                           f"= {iv.alpha} (at least {least}); set a larger alpha or "
+                           f"[intervals] enabled = false")

@@ -1,0 +1,192 @@
+"""The sections of a config besides ``[data]``: the boosting settings (``[model]``,
+``[model.targets.<target>]``), ``[selection]``, ``[evaluation]``, ``[intervals]``, ``[cv]``,
+``[study]``, ``[tracking]``, and the top level that holds them (:class:`TopLevel`).
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from pydantic import Field, model_validator
+from sklearn.metrics import get_scorer_names
+
+from ...boosting import BaseBoostRegressor
+from ...conformal import ConformalRegressor
+from ..errors import shorten
+from ..schema import MAX_INT, ParameterOf, Section, Seed
+
+__all__ = ["MODEL_DEFAULTS", "BoostSettings", "CVConfig", "EvaluationConfig", "IntervalsConfig",
+           "ModelConfig", "SelectionConfig", "StudyConfig", "TopLevel", "TrackingConfig"]
+
+#: A key whose value :class:`~workbench.BaseBoostRegressor`'s constraints check.
+_Boost = ParameterOf(BaseBoostRegressor)
+
+
+class BoostSettings(Section):
+    """The eigenvalue-space boosting settings of one target (``[model]``, or a
+    ``[model.targets.<target>]`` override, where every key is optional). ``n_stages``,
+    ``loss``, ``line_search_loss``, ``line_search_penalty``, ``alpha`` and ``link`` are
+    BaseBoostRegressor's parameters, checked against its ``_parameter_constraints``; a list
+    of losses, links or input transforms makes candidates that CV chooses among per target.
+    """
+
+    basis: str | list[str] | None = None
+    basis_params: dict[str, Any] | None = None
+    # le: a cap no estimator declares (each stage fits the basis once more): a typo such as
+    # 1e6 stages is refused at load instead of running for days
+    n_stages: Annotated[int, _Boost] | None = Field(default=None, le=10_000)
+    loss: Annotated[str, _Boost] | list[Annotated[str, _Boost]] | None = None
+    line_search_loss: Annotated[str, _Boost] | None = None
+    line_search_penalty: Annotated[float, _Boost] | None = None
+    alpha: Annotated[float, _Boost] | None = None
+    # "identity": the stages add to the prior; "log": they multiply it (positive quantities)
+    link: Annotated[str, _Boost] | list[Annotated[str, _Boost]] | None = None
+    basis_inputs: Literal["prior", "prior+features"] | None = None
+    # a list: candidates that CV chooses among per target
+    input_transform: str | list[str] | None = None
+    input_transform_params: dict[str, Any] | None = None
+    # how many settings are drawn for a basis whose basis_params hold ranges
+    draws: int | None = Field(default=None, ge=1, le=10_000)
+
+
+#: ``[model]`` defaults (the paper's settings).
+MODEL_DEFAULTS: dict[str, Any] = dict(
+    basis="paper_stacking", basis_params={}, n_stages=1, loss="squared_error", draws=20,
+    line_search_loss="absolute_error", line_search_penalty=0.1, alpha=0.9, link="identity",
+    basis_inputs="prior", input_transform="quantile_normal", input_transform_params={},
+)
+
+
+class ModelConfig(BoostSettings):
+    """``[model]``: the family (a name in :data:`~workbench.experiment.families.FAMILIES`),
+    the boosting settings shared by every target, and per-target overrides.
+    """
+
+    family: str = "eigenvalue"
+    targets: dict[str, BoostSettings] = {}
+
+
+class SelectionConfig(Section):
+    """``[selection]``: BaseBoostCV's folds (contiguous unless ``shuffle``; whole groups of rows
+    when the dataset has groups, unless ``groups = false``) and scoring; with candidates,
+    ``ensemble``: the mean of that many best candidates is a candidate too
+    (:class:`~workbench.selection.BasisChoiceCV`; 1: none).
+    """
+
+    cv: int = Field(default=5, ge=2, le=10_000)
+    shuffle: bool = False
+    scoring: str = "neg_mean_absolute_error"
+    groups: bool = True  # whole groups per fold when the dataset has groups (e.g. devices)
+    ensemble: int = Field(default=1, ge=1, le=1_000)
+
+    @model_validator(mode="after")
+    def _scorer(self) -> SelectionConfig:
+        if self.scoring not in get_scorer_names():
+            raise ValueError(f"scoring = {shorten(self.scoring)}: unknown scorer; see "
+                             "sklearn.metrics.get_scorer_names(), e.g. "
+                             "'neg_mean_absolute_error'")
+        return self
+
+
+class EvaluationConfig(Section):
+    """``[evaluation]``: ``cv_repeats`` > 0 adds a repeated ``cv_folds``-fold CV of the chosen
+    model on the training rows (``RepeatedKFold`` seeded by ``cv_seed``); ``nested_folds`` > 0
+    adds a nested CV over all rows, every choice remade inside each outer fold.
+    """
+
+    cv_folds: int = Field(default=5, ge=2, le=10_000)
+    cv_repeats: int = Field(default=0, ge=0, le=10_000)
+    cv_seed: int = Field(default=1000, ge=0, le=MAX_INT)
+    nested_folds: int = Field(default=0, ge=0, le=10_000)
+    nested_seed: int = Seed()
+
+    @model_validator(mode="after")
+    def _nested(self) -> EvaluationConfig:
+        if self.nested_folds == 1:
+            raise ValueError("nested_folds = 1: give 0 (off) or >= 2 folds")
+        return self
+
+
+#: A key whose value :class:`~workbench.conformal.ConformalRegressor`'s constraints check.
+_Conformal = ParameterOf(ConformalRegressor)
+
+
+class IntervalsConfig(Section):
+    """``[intervals]``: conformal prediction intervals around the fitted model
+    (:class:`~workbench.conformal.ConformalRegressor`), ``1 - alpha`` per target. ``method``
+    "oof" takes the out-of-fold residuals of the CV the model already ran to make its
+    choices and centres ``+- q`` on the model fitted on all rows: no extra fit (``cv`` is
+    then unused: the model's own folds count); absent, the family's default
+    (:attr:`~workbench.experiment.families.base.ModelFamily.interval_method`: "oof" for a
+    family whose model cross-validates itself, else "cv_plus"); "cv_plus" refits the whole model
+    (every choice remade) once per ``cv`` fold; "cv" uses the same refits but centres
+    ``+- q`` on the model fitted on all rows (not widened by the fold models'
+    disagreement); "split" holds out ``calibration_fraction`` of the training rows.
+    On unless ``enabled = false``. ``alpha``, ``method``, ``cv`` and ``calibration_fraction``
+    are ConformalRegressor's parameters, checked against its ``_parameter_constraints``.
+    """
+
+    enabled: bool = True
+    alpha: Annotated[float, _Conformal] = 0.1
+    method: Annotated[str, _Conformal] | None = None
+    # le: a cap ConformalRegressor does not declare (each fold refits the whole model)
+    cv: Annotated[int, _Conformal] = Field(default=5, le=10_000)
+    calibration_fraction: Annotated[float, _Conformal] = 0.25
+
+
+class CVConfig(Section):
+    """``[cv]``: the nested cross-validation of a sweep (``repeats``: ``RepeatedKFold``)."""
+
+    outer_folds: int = Field(default=5, ge=2, le=10_000)
+    inner_folds: int = Field(default=5, ge=2, le=10_000)
+    repeats: int = Field(default=1, ge=1, le=1000)
+    seed: int = Seed()
+
+
+class StudyConfig(Section):
+    """``[study]``: the Optuna studies of a sweep. ``storage``: a journal file path (one
+    machine, several processes) or an RDB URL such as ``postgresql://...`` (machines).
+    """
+
+    trials: int = Field(default=20, ge=1, le=1_000_000)
+    timeout: float | None = Field(default=None, gt=0)
+    sampler: Literal["tpe", "random"] = "tpe"
+    pruner: Literal["none", "median", "wilcoxon"] = "median"
+    storage: str = "mlruns/optuna.journal"
+    study_name: str | None = None
+    workers: int = Field(default=1, ge=1, le=1024)
+    stale_after_s: float = Field(default=600, gt=0)
+
+
+class TrackingConfig(Section):
+    """``[tracking]``: MLflow; ``tracking_uri`` None means $MLFLOW_TRACKING_URI or
+    ``sqlite:///mlruns/mlflow.db``; ``experiment`` None means the config's name.
+    """
+
+    tracking_uri: str | None = None
+    experiment: str | None = None
+
+
+class TopLevel(Section):
+    """The top level of a config file (sections validated on their own)."""
+
+    name: str | None = None
+    description: str = ""
+    random_state: int | None = Field(default=None, ge=0, le=MAX_INT)
+    n_jobs: int | None = Field(default=None, ge=-1, le=1024)
+    data: dict[str, Any] = {}
+    model: dict[str, Any] = {}
+    selection: SelectionConfig = SelectionConfig()
+    evaluation: EvaluationConfig = EvaluationConfig()
+    intervals: IntervalsConfig = IntervalsConfig()
+    search: dict[str, Any] = {}
+    cv: CVConfig = CVConfig()
+    study: StudyConfig = StudyConfig()
+    tracking: TrackingConfig = TrackingConfig()
+
+    @model_validator(mode="after")
+    def _jobs(self) -> TopLevel:
+        if self.n_jobs == 0:
+            raise ValueError("n_jobs = 0: give a number of processes >= 1, or -1 for all cores")
+        return self
+

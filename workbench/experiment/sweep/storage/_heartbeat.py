@@ -1,0 +1,89 @@
+"""Heartbeats and retries of running trials: Optuna's own on an RDB storage, a user
+attribute on the journal file (Optuna's ``JournalStorage`` has no heartbeat), and the one
+retry of a trial whose worker died. The scheduler's access to what Optuna keeps private (a
+study's storage, its id, a trial's id) is here and in the other modules of this package,
+nowhere else (tests/test_layering.py checks).
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+import warnings
+from typing import Any
+
+import optuna
+from optuna.trial import FrozenTrial
+
+__all__ = ["beat", "heartbeat_enabled", "heartbeat_interval", "retry", "retry_callback",
+           "set_trial_attr"]
+
+#: User attributes that belong to one attempt at a trial, not to its configuration.
+_ATTEMPT_ATTRS = ("worker", "heartbeat", "finished_by", "error", "surplus", "stale")
+
+
+def heartbeat_interval(stale_after_s: float) -> int:
+    """Seconds between heartbeats: a quarter of the grace period, 1 to 10 s."""
+    return int(max(1, min(10, stale_after_s // 4)))
+
+
+class _Retry(optuna.storages.RetryFailedTrialCallback):
+    """Optuna's retry of a failed trial (same parameters, ``retry_history`` in its system
+    attributes), without the dead attempt's own user attributes: its ``worker`` (host:pid of
+    a dead process) would get the retry failed again the moment another process looks.
+    """
+
+    def __call__(self, study: optuna.Study, trial: FrozenTrial) -> None:
+        trial = copy.deepcopy(trial)
+        trial.user_attrs = {k: v for k, v in trial.user_attrs.items()
+                            if k not in _ATTEMPT_ATTRS}
+        super().__call__(study, trial)
+
+
+def retry_callback() -> _Retry:
+    """Optuna's retry of a failed trial, once, without the dead attempt's own attributes.
+
+    Returns
+    -------
+    RetryFailedTrialCallback
+        The callback (Optuna's, its experimental warning silenced).
+    """
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # experimental / renamed in 4.9: same behaviour
+        return _Retry(max_retry=1)
+
+
+
+def heartbeat_enabled(study: optuna.Study) -> bool:
+    """Whether ``study``'s storage has Optuna's own heartbeat (an RDB storage opened by
+    :func:`open_storage`); the journal file has none.
+    """
+    storage = study._storage
+    return isinstance(storage, optuna.storages.RDBStorage) \
+        and storage.get_heartbeat_interval() is not None
+
+
+def beat(study: optuna.Study, trial: optuna.Trial) -> None:
+    """One heartbeat of a running trial: Optuna's own on an RDB storage, a user attribute on
+    the journal file.
+    """
+    storage = study._storage
+    if isinstance(storage, optuna.storages.RDBStorage) and heartbeat_enabled(study):
+        storage.record_heartbeat(trial._trial_id)
+    else:
+        trial.set_user_attr("heartbeat", time.time())
+
+
+def set_trial_attr(study: optuna.Study, number: int, key: str, value: Any) -> None:
+    """Set a user attribute of trial ``number``, which another process may be running."""
+    storage = study._storage
+    trial_id = storage.get_trial_id_from_study_id_trial_number(study._study_id, number)
+    storage.set_trial_user_attr(trial_id, key, value)
+
+
+def retry(study: optuna.Study, number: int) -> None:
+    """Queue failed trial ``number`` once more with its parameters (Optuna's
+    ``RetryFailedTrialCallback``, without the dead attempt's own attributes).
+    """
+    retry_callback()(study, study.get_trials(deepcopy=False)[number])
+
