@@ -1,0 +1,131 @@
+"""How far ahead of the peer can any choice among the generic config's candidates get? An oracle.
+
+    python benchmarks/peer_bound.py [--datasets google ibm ibm_devices chain] [--seeds 0 1 2]
+                                    [--config experiments/generic.toml]
+                                    [--peers benchmarks/results/peers.json] [--json OUT]
+
+``benchmarks/peers.py`` measures the config (candidates chosen by CV on the training rows)
+against the peer (LightGBM from the prior, tuned by CV, its objective searched). This script
+asks what a perfect chooser could do with the same candidates: per target, every candidate of
+the config (each basis draw, link and transform) is refitted on the training rows and scored
+on the test rows, and two oracles pick with the test scores, which no honest method may see:
+
+* **best single**: the candidate with the lowest test MAE;
+* **best mean**: the mean of the ``k`` candidates with the lowest test MAEs, ``k`` from 1
+  to 10 chosen on the test rows too (CV's "mean of 5" is one of these).
+
+Printed per dataset and seed: the peer's test MAE (from ``--peers``, the JSON
+``peers.py --json`` wrote for the same splits; its tuning is seeded), the config's CV choice
+refitted here, and the two oracles, each also as a ratio to the peer. Where an oracle's ratio
+is above a goal, no way of choosing among these candidates (by CV or otherwise) reaches the
+goal: only new candidates can.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from sklearn.base import clone
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+sys.path.insert(0, str(HERE))
+
+from peers import BENCHMARKS, DEFAULT_SEEDS, simulated, write_config  # noqa: E402
+
+TOP = 10
+
+
+def oracles(est, X_train, y, X_test, y_test) -> dict:
+    """Test MAE of the CV choice and of the two oracles, for one target's fitted
+    ``BasisChoiceCV`` ``est``."""
+    predictions = {name: clone(cand).fit(X_train, y).predict(X_test)
+                   for name, cand in est.candidates}
+    mae = {name: float(np.mean(np.abs(y_test - p))) for name, p in predictions.items()}
+    ranked = sorted(mae, key=mae.get)
+    means = [float(np.mean(np.abs(y_test - np.mean([predictions[n] for n in ranked[:k]],
+                                                    axis=0))))
+             for k in range(1, min(TOP, len(ranked)) + 1)]
+    return dict(cv=float(np.mean(np.abs(y_test - est.predict(X_test)))),
+                chosen=est.selected_candidate_ or "prior", best_single=mae[ranked[0]],
+                best_single_name=ranked[0], best_mean=min(means),
+                best_mean_k=int(np.argmin(means)) + 1, candidates=len(mae))
+
+
+def _with_ratio(row: dict, key: str) -> str:
+    """``row[key]`` and, where the peer is known, its ratio to the peer's."""
+    if row["peer"] is None:
+        return "n/a" if key == "peer" else f"{row[key]:.3f}"
+    return f"{row[key]:.3f}" + ("" if key == "peer" else f" ({row[key] / row['peer']:.3f})")
+
+
+def run(name: str, seed: int, config: Path, tmp: Path) -> dict:
+    from workbench.experiment.config import load_dataset
+    from workbench.experiment.families.stage import per_target_boost
+    from workbench.experiment.prepare import load_config
+
+    data = BENCHMARKS[name](seed) if name in BENCHMARKS else simulated(name, seed, tmp)[0]
+    cfg = load_config(write_config(config, data, tmp / f"{name}_{seed}.toml"))
+    ds = load_dataset(cfg)
+    X_train, X_test, Y_train, Y_test = ds.split()
+    model = per_target_boost(cfg, ds, ds.prior_names).fit(X_train, Y_train)
+    per_target = {}
+    for target, est in zip(ds.target_names, model.estimators_):
+        per_target[target] = oracles(est, X_train, Y_train[target].to_numpy(), X_test,
+                                     Y_test[target].to_numpy())
+    avg = {k: float(np.mean([t[k] for t in per_target.values()]))
+           for k in ("cv", "best_single", "best_mean")}
+    return dict(dataset=name, seed=seed, **avg, targets=per_target)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--datasets", nargs="+", default=["google", "ibm", "ibm_devices"])
+    parser.add_argument("--seeds", type=int, nargs="+", default=None)
+    parser.add_argument("--config", type=Path, default=ROOT / "experiments" / "generic.toml")
+    parser.add_argument("--peers", type=Path, default=HERE / "results" / "peers.json")
+    parser.add_argument("--json", type=Path)
+    args = parser.parse_args()
+    import subprocess
+
+    from scaling import write_json
+
+    peers = {(r["dataset"], r["split_seed"]): r["peer"]
+             for r in json.loads(args.peers.read_text())["rows"]}
+    before = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+    rows = []
+    print(f"config {args.config.name}; test MAE (average over targets); / peer", flush=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in args.datasets:
+            for seed in (args.seeds if args.seeds is not None else DEFAULT_SEEDS[name]):
+                if name in ("google", "ibm") and seed != 0:
+                    continue
+                r = run(name, seed, args.config, Path(tmp))
+                r["peer"] = peers.get((name, seed))
+                rows.append(r)
+                print(f"{name} seed {seed}: peer " + _with_ratio(r, "peer") + ", CV choice "
+                      + _with_ratio(r, "cv") + ", oracle single "
+                      + _with_ratio(r, "best_single") + ", oracle mean "
+                      + _with_ratio(r, "best_mean"), flush=True)
+    for name in args.datasets:
+        these = [r for r in rows if r["dataset"] == name and r["peer"]]
+        if these:
+            peer = sum(r["peer"] for r in these)
+            print(f"{name}: summed over {len(these)} split(s), / peer: CV choice "
+                  f"{sum(r['cv'] for r in these) / peer:.3f}, oracle single "
+                  f"{sum(r['best_single'] for r in these) / peer:.3f}, oracle mean "
+                  f"{sum(r['best_mean'] for r in these) / peer:.3f}; median oracle-mean "
+                  f"ratio {statistics.median(r['best_mean'] / r['peer'] for r in these):.3f}")
+    after = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+    if args.json:
+        write_json(args.json, {"config": args.config.name, "rows": rows}, before, after)
+
+
+if __name__ == "__main__":
+    main()
