@@ -111,6 +111,7 @@ class DataConfig(Section):
     split_column: str | None = None
     split_seed: int = Seed()
     group_column: str | None = None
+    unit: str | None = None
     hamiltonian: HamiltonianData | None = None
 
     @model_validator(mode="before")
@@ -123,7 +124,7 @@ class DataConfig(Section):
     @model_validator(mode="after")
     def _consistent(self) -> DataConfig:
         csv_keys = sorted(k for k in ("csv", "prior", "targets", "test_fraction",
-                                      "split_column", "group_column", "hamiltonian")
+                                      "split_column", "group_column", "hamiltonian", "unit")
                           if getattr(self, k) is not None) + (["features"] if self.features
                                                               else [])
         if self.source != "csv":
@@ -608,7 +609,7 @@ def load_dataset(cfg: ExperimentConfig):
             shape=ham.shape if ham else None, edges=ham.edges if ham else None,
             qubit_features=ham.qubit_features if ham else None,
             coupler_features=ham.coupler_features if ham else None,
-            group_column=data.group_column, name=cfg.name)
+            group_column=data.group_column, name=cfg.name, unit=data.unit)
     folds = cfg.selection.cv
     if len(ds.train_index) < 2 * folds:
         raise DatasetError(f"the training split has {len(ds.train_index)} rows, too few for "

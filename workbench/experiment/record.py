@@ -24,7 +24,7 @@ from .config import ExperimentConfig
 from .errors import redact, redact_config
 from .figures import mae_bars
 from .intervals import family_model, interval_artifacts
-from .results import INTERVAL_KEYS, Result, Scores
+from .results import INTERVAL_KEYS, Result, Scores, squared
 from .serving import prediction_frame
 from .tracking.models import CHAMPION
 from .tracking.records import dataset_hash, git_commit
@@ -196,6 +196,10 @@ def log_inputs(tracker: Tracker, run_id: str, cfg: ExperimentConfig, ds, X_train
 NOTE_TAG = "mlflow.note.content"
 
 
+#: How a summary names the errors' unit when the data name none.
+UNITS = "the targets' units"
+
+
 def _description(cfg: ExperimentConfig, ds, kind: str, result: Result) -> str:
     """The run page's description: what ran on which rows, and how to read the metrics."""
     source = f"`{cfg.path}`" if cfg.path else f"config {cfg.name!r}"
@@ -203,7 +207,7 @@ def _description(cfg: ExperimentConfig, ds, kind: str, result: Result) -> str:
             f"on {result.n_train} training rows, every choice by CV on them; the "
             f"{result.n_test} test rows scored once. Metrics `test_mae/<target>`, "
             "`test_mae_avg`, `cv_mae/<target>`, ... (the control program's: `prior_...`) in "
-            "the targets' units (MHz for the Google 5-qubit data; MSE squared).")
+            f"{ds.unit or UNITS} (MSE: squared).")
 
 
 def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
@@ -247,7 +251,7 @@ def record(cfg: ExperimentConfig, result: Result, model, ds, *, kind: str,
             fig = mae_bars(result.targets, getattr(result.prior, key),
                            getattr(result.model, key), metric=metric,
                            prior_ci=result.prior.ci(key), model_ci=result.model.ci(key),
-                           unit="MHz" if metric == "MAE" else "MHz²",
+                           unit=ds.unit if metric == "MAE" else squared(ds.unit),
                            title=f"Test {metric} per target", setting=setting)
             tracker.log_figure(run_id, fig, f"plots/{name}.png")
         intervals = interval_artifacts(cfg, ds, model, setting)

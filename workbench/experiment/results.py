@@ -26,19 +26,93 @@ from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 __all__ = ["CVEstimate", "ModelScores", "OuterFold", "Result", "Scores", "SweepSummary", "mae",
-           "mse"]
+           "mse", "squared", "unit_suffix", "with_unit"]
 
 
-def mae(y, pred) -> list[float]:
-    """Per-column mean absolute error."""
+def mae(y: ArrayLike, pred: ArrayLike) -> list[float]:
+    """Per-column mean absolute error.
+
+    Parameters
+    ----------
+    y, pred : array-like of shape (n_rows, n_targets) or (n_rows,)
+        The measured values and their predictions.
+
+    Returns
+    -------
+    list of float
+        The mean absolute error of each column.
+    """
     return np.mean(np.abs(np.asarray(y, float) - np.asarray(pred, float)), axis=0).tolist()
 
 
-def mse(y, pred) -> list[float]:
-    """Per-column mean squared error."""
+def mse(y: ArrayLike, pred: ArrayLike) -> list[float]:
+    """Per-column mean squared error.
+
+    Parameters
+    ----------
+    y, pred : array-like of shape (n_rows, n_targets) or (n_rows,)
+        The measured values and their predictions.
+
+    Returns
+    -------
+    list of float
+        The mean squared error of each column.
+    """
     return np.mean((np.asarray(y, float) - np.asarray(pred, float)) ** 2, axis=0).tolist()
+
+
+def with_unit(label: str, unit: str | None) -> str:
+    """A label followed by its unit in parentheses, as axes and table columns show it.
+
+    Parameters
+    ----------
+    label : str
+        What is labelled, e.g. ``"MAE"``.
+    unit : str or None
+        The unit, e.g. a dataset's :attr:`~workbench.datasets.Dataset.unit`; ``None`` (or
+        empty): no unit is shown.
+
+    Returns
+    -------
+    str
+        ``"<label> (<unit>)"``, or ``label`` alone without a unit.
+    """
+    return f"{label} ({unit})" if unit else label
+
+
+def unit_suffix(unit: str | None) -> str:
+    """The unit as it follows a number in a sentence.
+
+    Parameters
+    ----------
+    unit : str or None
+        The unit; ``None`` (or empty): no unit.
+
+    Returns
+    -------
+    str
+        ``" <unit>"`` (e.g. ``" MHz"``), or ``""`` without a unit.
+    """
+    return f" {unit}" if unit else ""
+
+
+def squared(unit: str | None) -> str | None:
+    """The unit of a squared error (an MSE).
+
+    Parameters
+    ----------
+    unit : str or None
+        The targets' unit.
+
+    Returns
+    -------
+    str or None
+        ``"<unit>²"`` (``"MHz²"`` for ``"MHz"``), or ``None`` without a unit.
+    """
+    return f"{unit}²" if unit else None
 
 
 def _avg(values: list[float]) -> float:
@@ -225,11 +299,15 @@ class Result:
     outputs: dict[str, str] = field(default_factory=dict)
     mlflow: dict[str, str] = field(default_factory=dict)
     wall_s: float = math.nan
+    #: The targets' unit (the dataset's; ``None``: none), which every error shares (MSE: its
+    #: square).
+    unit: str | None = None
 
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {
             "name": self.name, "config": self.config, "family": self.family,
-            "targets": self.targets, "n_train": self.n_train, "n_test": self.n_test,
+            "targets": self.targets, "unit": self.unit, "n_train": self.n_train,
+            "n_test": self.n_test,
             "prior": self.prior.to_json(), "model": self.model.to_json(), **self.details}
         for key in ("repeated_cv", "nested_cv_all", "sweep"):
             part = getattr(self, key)
