@@ -193,7 +193,7 @@ def ui_command(tracking_uri: str, port: int, workers: int = 1) -> list[str]:
 def _cmd_reproduce(args) -> int:
     from ..parallel import worker_pool
     from .outputs import check_dir
-    from .reproduce import experiments_dir, reproduce
+    from .paper import experiments_dir, reproduce
 
     configs = experiments_dir(args.experiments)  # its configs, before anything else
     check_dir(args.out, "--out")

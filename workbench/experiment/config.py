@@ -97,8 +97,8 @@ class HamiltonianData(Section):
 class DataConfig(Section):
     """``[data]``: ``source = "google_5q"`` (optional ``data_dir``), ``source = "ibm_gates"``
     (optional ``data_dir``, ``split = "time"`` or ``"devices"`` with ``split_seed``), or a CSV
-    of your own (``csv``, one ``prior`` column per ``targets`` column, ``features``, and either
-    ``test_fraction`` or ``split_column``)."""
+    of your own (``csv``, one ``prior`` column per ``targets`` column, ``features``, either
+    ``test_fraction`` or ``split_column``, and optionally the targets' ``unit``)."""
 
     source: Literal["google_5q", "ibm_gates", "csv"] = "google_5q"
     split: Literal["time", "devices"] | None = None

@@ -26,6 +26,7 @@ from .intervals import (
     with_intervals,
 )
 from .results import CVEstimate, Result, mae, mse
+from .units import unit_name
 
 __all__ = ["Evaluation", "evaluate", "fit_and_score", "format_table", "has_outputs",
            "nested_cv_all", "outputs", "repeated_cv"]
@@ -170,8 +171,7 @@ def format_table(result: Result) -> str:
     lines.append(rule)
     lines.append(f"{'average':<{w}}{result.prior.avg('test_mae'):>11.3f}"
                  f"{result.model.avg('test_mae'):>11.3f}{result.model.avg('cv_mae'):>14.3f}")
-    unit = result.unit or "the targets' units"
-    lines.append(f"test MAE in {unit}; "
+    lines.append(f"test MAE in {unit_name(result.unit)}; "
                  f"wall time {result.wall_s:.1f} s")
     if result.model.test_mae_diff_avg_ci:
         boot = result.bootstrap

@@ -22,7 +22,7 @@ from ..figures.style import (
     style_axes,
     with_setting,
 )
-from ..results import unit_suffix, with_unit
+from ..units import unit_suffix, with_unit
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure

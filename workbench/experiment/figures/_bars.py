@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..results import with_unit
+from ..units import with_unit
 from .style import (
     MODEL_COLOR,
     OTHER_SYSTEM_COLORS,
@@ -120,7 +120,7 @@ def mae_bars(targets: Sequence[str], prior: Sequence[float], model: Sequence[flo
         The error's name on the axis.
     unit : str, optional
         The error's unit: axis label ``"<metric> (<unit>)"``; give the squared unit
-        (:func:`~workbench.experiment.results.squared`) for an MSE. ``None``: no unit shown.
+        (:func:`~workbench.experiment.units.squared`) for an MSE. ``None``: no unit shown.
     title : str, optional
         Default: ``"Test <metric> per target: <labels[0]> vs <labels[1]>"``.
     labels : (str, str)
@@ -231,6 +231,22 @@ def _comparison_values(values: Any, n_targets: int, log: bool,
     return systems, arrays
 
 
+def _comparison_errors(intervals: Mapping[str, Any] | None, systems: list[str],
+                       arrays: list[np.ndarray], n_targets: int, average: bool
+                       ) -> list[np.ndarray | None]:
+    """Check the intervals of :func:`model_comparison_bars` and turn them into error bars.
+
+    One entry per system: its ``yerr``, or ``None`` for a system without intervals.
+    """
+    bounds = dict(intervals or {})
+    unknown = sorted(set(map(str, bounds)) - set(systems))
+    if unknown:
+        raise ValueError(f"intervals of unknown systems {unknown}; the systems are {systems}")
+    return [None if bounds.get(system) is None
+            else _intervals(f"intervals[{system!r}]", bounds[system], arr, n_targets, average)
+            for system, arr in zip(systems, arrays)]
+
+
 def _value_axis(ax: Axes, every: np.ndarray, *, metric: str, unit: str | None,
                 log: bool) -> None:
     """Label and scale the y axis of :func:`model_comparison_bars`.
@@ -326,15 +342,7 @@ def model_comparison_bars(targets: Sequence[str], values: Mapping[str, Sequence[
     colors = _system_colors(systems)
     if average:
         names = [*names, "average"]
-    bounds = dict(intervals or {})
-    unknown = sorted(set(map(str, bounds)) - set(systems))
-    if unknown:
-        raise ValueError(f"intervals of unknown systems {unknown}; the systems are {systems}")
-    errors = [None if bounds.get(system) is None
-              else _intervals(f"intervals[{system!r}]", bounds[system], arr, n_targets,
-                              average)
-              for system, arr in zip(systems, arrays)]
-
+    errors = _comparison_errors(intervals, systems, arrays, n_targets, average)
     n = len(systems)
     fig = new_figure(max(5.0, (0.42 * n + 0.15) * len(names) + 1.8), 4.4)
     ax = fig.add_subplot()

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ...curves import LearningCurve
-from ..results import squared, with_unit
+from ..units import squared, with_unit
 from .style import INCUMBENT_COLOR, MODEL_COLOR, TRAIN_COLOR, new_figure, style_axes, with_setting
 
 if TYPE_CHECKING:

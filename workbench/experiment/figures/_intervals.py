@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pandas as pd
 
-from ..results import unit_suffix, with_unit
+from ..units import unit_suffix, with_unit
 from .style import INCUMBENT_COLOR, MODEL_COLOR, new_figure, style_axes, with_setting
 
 if TYPE_CHECKING:

@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from ..explain import ShapValues, check_shap_frame, shap_values
-from ..results import unit_suffix, with_unit
+from ..units import unit_suffix, with_unit
 from .style import new_figure, with_setting
 
 if TYPE_CHECKING:
