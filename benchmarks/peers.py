@@ -7,7 +7,7 @@
 For each dataset (and seed) on its train/test split:
 
 * **prior**: the physics model's prediction;
-* **peer** (``workbench.experiment.peer``): per target, ``LGBMRegressor`` fitted with
+* **peer** (``workbench.experiment.paper.peer``): per target, ``LGBMRegressor`` fitted with
   ``init_score`` = the prior column, on the prior columns and the dataset's features, its
   hyperparameters tuned by 5-fold CV on the training rows (Optuna TPE, ``--trials`` per
   target, seeded, one LightGBM thread per fit and a trial's folds on both cores; the search
@@ -126,7 +126,7 @@ def run(name: str, seed: int, args, tmp: Path) -> dict:
     from workbench.experiment.bootstrap import bootstrap_error_interval
     from workbench.experiment.config import load_dataset
     from workbench.experiment.evaluate import evaluate
-    from workbench.experiment.peer import PEER_OBJECTIVES, peer_predict
+    from workbench.experiment.paper.peer import PEER_OBJECTIVES, peer_predict
     from workbench.experiment.prepare import load_config
 
     true = None

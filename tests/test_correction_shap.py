@@ -105,7 +105,7 @@ def test_a_model_that_is_its_prior_has_no_correction_to_explain(tmp_path):
 
     # the figure says so instead of a beeswarm of zeros
     fig = figures.correction_shap_figure(None, target="Y2", note=prior_reason(flat),
-                                         setting="paper settings")
+                                         unit="MHz", setting="paper settings")
     ax = fig.axes[0]
     assert not ax.axison and not ax.collections
     text = " ".join(t.get_text() for t in ax.texts)
@@ -121,19 +121,22 @@ def test_figures_name_what_they_explain_with_units(tmp_path):
     out = target_shap_values(_boosted(X, y), X)
     whole = out.prediction
     fig = figures.shap_figure(whole.values, whole.expected, whole.rows, target="Y1",
-                              explained="prediction", setting="s")
+                              unit="MHz", explained="prediction", setting="s")
     ax = fig.axes[0]
     assert ax.get_xlabel() == "SHAP value: effect on the whole prediction of Y1 (MHz)"
     assert "SHAP summary of the whole prediction: Y1" in ax.get_title()
-    fig = figures.correction_shap_figure(out.correction, target="Y1", setting="s")
+    fig = figures.correction_shap_figure(out.correction, target="Y1", unit="MHz", setting="s")
     ax = fig.axes[0]
     assert ax.get_xlabel() == "SHAP value: effect on the correction (model − prior) of Y1 (MHz)"
     assert "SHAP summary of the correction (model − prior): Y1" in ax.get_title()
     assert {t.get_text() for t in ax.get_yticklabels()} == {"p", "a", "b"}
     figures.save_figure(fig, tmp_path / "correction.png")
     # without explained=, the label of a model without a prior, as before
-    fig = figures.shap_figure(whole.values, whole.expected, whole.rows, target="Y1")
+    fig = figures.shap_figure(whole.values, whole.expected, whole.rows, target="Y1", unit="MHz")
     assert fig.axes[0].get_xlabel() == "SHAP value: effect on predicted Y1 (MHz)"
+    # data without a unit: none shown
+    fig = figures.shap_figure(whole.values, whole.expected, whole.rows, target="Y1")
+    assert fig.axes[0].get_xlabel() == "SHAP value: effect on predicted Y1"
     with pytest.raises(ValueError, match="explained must be one of"):
         figures.shap_figure(whole.values, whole.expected, whole.rows, target="Y1",
                             explained="prior")

@@ -220,10 +220,10 @@ def test_mae_bars(tmp_path):
     from matplotlib.figure import Figure
 
     fig = figures.mae_bars(["Y1", "Y2", "Y3", "Y4", "Y5"], PRIOR_MAE, MODEL_MAE,
-                           setting="paper settings")
+                           unit="MHz", setting="paper settings")
     assert isinstance(fig, Figure)
     ax = fig.axes[0]
-    assert "MHz" in ax.get_ylabel() and "MAE" in ax.get_ylabel()
+    assert ax.get_ylabel() == "MAE (MHz)"
     assert [t.get_text() for t in ax.get_xticklabels()][-1] == "average"
     legend = ax.get_legend()
     assert legend is not None
@@ -297,9 +297,10 @@ def test_mae_bars_refuses_bad_intervals(ci, match):
 
 
 def test_learning_curve_figure(curve, tmp_path):
-    fig = figures.learning_curve_figure(curve, target="eeig3", setting="ridge basis")
+    fig = figures.learning_curve_figure(curve, target="eeig3", unit="MHz", setting="ridge basis")
     ax = fig.axes[0]
     assert "MHz" in ax.get_ylabel() and "MAE" in ax.get_ylabel()
+    assert figures.learning_curve_figure(curve, target="eeig3").axes[0].get_ylabel() == "MAE"
     assert "rows" in ax.get_xlabel()
     assert "eeig3" in ax.get_title() and "ridge basis" in ax.get_title()
     labels = [t.get_text() for t in ax.get_legend().get_texts()]
@@ -339,7 +340,8 @@ def test_shap_summary(google_5q, tmp_path):
 
     with warnings.catch_warnings():
         warnings.simplefilter("error", UserWarning)  # e.g. feature-name mismatches
-        fig, values = figures.shap_summary(predict, X, target="eeig3", setting="ridge on voltages")
+        fig, values = figures.shap_summary(predict, X, target="eeig3", unit="MHz",
+                                           setting="ridge on voltages")
     assert set(seen) == {np.ndarray}  # plain arrays, as documented
     assert values.shape == (len(X), 9) and np.isfinite(values).all()
     # a linear model's SHAP values are coef_j * (x_j - background mean): the row sums differ

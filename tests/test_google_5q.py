@@ -41,7 +41,7 @@ def ds(shared_data: Path) -> Dataset:
 
 
 def test_shapes_and_index(ds: Dataset) -> None:
-    assert ds.name == "google_5q"
+    assert ds.name == "google_5q" and ds.unit == "MHz"
     assert ds.features.shape == (136, 9) and ds.prior.shape == (136, 5)
     assert ds.targets.shape == (136, 5)
     assert ds.feature_names == ([f"qvolt{i}" for i in range(5, 10)]

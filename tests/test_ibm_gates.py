@@ -60,6 +60,7 @@ def test_time_split(ibm_gates_dir: Path) -> None:
     ds = load_ibm_gates(ibm_gates_dir, download=False)
     assert (len(ds.train_index), len(ds.test_index)) == (1935, 4713)
     assert ds.target_names == [ibm.TARGET] and ds.prior_names == [ibm.PRIOR]
+    assert ds.unit == "%"  # the gate error in percent: figures and summaries say so
     assert ds.feature_names == ibm.FEATURES
     assert ds.groups is not None
     train, test = set(ds.groups[ds.train_index]), set(ds.groups[ds.test_index])

@@ -136,7 +136,7 @@ def test_voltage_boxplots_refuses_unknown_columns():
 
 def test_prior_target_boxplots_pairs_each_eigenenergy(train, tmp_path):
     _, prior, targets = train
-    fig = figures.prior_target_boxplots(prior, targets, title="Fig. S3")
+    fig = figures.prior_target_boxplots(prior, targets, unit="MHz", title="Fig. S3")
     assert isinstance(fig, Figure)
     ax = fig.axes[0]
     boxes = _boxes(ax)
@@ -176,7 +176,7 @@ def test_prior_target_boxplots_refuses_mismatched_frames(train):
 
 
 def test_model_comparison_bars_heights_are_the_values(tmp_path):
-    fig = figures.model_comparison_bars(SHORT, SYSTEMS, log=True, setting="seed 0")
+    fig = figures.model_comparison_bars(SHORT, SYSTEMS, unit="MHz", log=True, setting="seed 0")
     assert isinstance(fig, Figure)
     ax = fig.axes[0]
     assert len(ax.containers) == 3

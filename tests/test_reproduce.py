@@ -10,8 +10,8 @@ import matplotlib.image
 import pytest
 
 from workbench.experiment.cli import main
-from workbench.experiment.gates import GATE_SYSTEMS
-from workbench.experiment.reproduce import SYSTEMS
+from workbench.experiment.paper.gates import GATE_SYSTEMS
+from workbench.experiment.paper.systems import SYSTEMS
 
 FIGURE_IDS = ["fig2_mae_bars", "fig3_correlation", "fig4_learning_curve_Y3", "fig5_shap_Y1",
               "figS2_voltage_boxplots", "figS3_prior_target_boxplots", "figS4_mse_bars",
@@ -120,7 +120,7 @@ def test_figures_show_the_json_numbers_and_mlflow_has_them(quick_run, tmp_path):
                                              paper["prior"]["test_mae_avg_ci"]],
                                    model_ci=[*paper["model"]["test_mae_ci"],
                                              paper["model"]["test_mae_avg_ci"]],
-                                   title="Test MAE per eigenenergy (Fig. 2)",
+                                   unit=res["unit"], title="Test MAE per eigenenergy (Fig. 2)",
                                    setting="paper settings"), tmp_path / "fig2.png")
     assert redrawn.read_bytes() == (out / "figures" / "fig2_mae_bars.png").read_bytes()
     client = MlflowClient(uri)
@@ -194,6 +194,9 @@ def test_second_benchmark_in_the_report(quick_run):
     gates = res["ibm_gates"]
     text = (out / "README.md").read_text()
     assert "## A second benchmark: IBM two-qubit gates" in text
+    # each benchmark's errors in its data's unit
+    assert res["unit"] == "MHz" and "## Test mean absolute error (MHz)" in text
+    assert gates["generic"]["unit"] == gates["peer"]["unit"] == "%"
     generic, peer = gates["generic"], gates["peer"]
     assert generic["n_train"] == 1935 and generic["n_test"] == 4713
     assert generic["prior"]["test_mae_avg"] == pytest.approx(0.5779, abs=1e-4)

@@ -19,8 +19,8 @@ from pathlib import Path
 
 import pytest
 
-from workbench.experiment.record import NOTE_TAG
-from workbench.experiment.systems import SYSTEM_TAG
+from workbench.experiment.paper.runs import SYSTEM_TAG
+from workbench.experiment.run_fields import NOTE_TAG
 from workbench.experiment.tracking.runs import Tracker, metric_view
 
 from services import (

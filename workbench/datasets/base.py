@@ -49,7 +49,9 @@ class Dataset:
 
     All frames share one row index. ``train_index`` and ``test_index`` hold index labels.
     ``groups`` optionally names each row's group (e.g. the device it was measured on): rows of
-    one group share conditions a model must not learn from the test rows.
+    one group share conditions a model must not learn from the test rows. ``unit`` is the
+    targets' (and priors') unit, as figures and summaries label it (e.g. ``"MHz"``); ``None``:
+    no unit is shown.
     """
 
     name: str
@@ -60,6 +62,7 @@ class Dataset:
     test_index: np.ndarray
     hamiltonian: Hamiltonian | None = None
     groups: pd.Series | None = None
+    unit: str | None = None
 
     @property
     def target_names(self) -> list[str]:

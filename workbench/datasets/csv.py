@@ -235,7 +235,8 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
                      coupler_features: Sequence[str] | None = None,
                      topology: str = "chain", shape: Sequence[int] | None = None,
                      edges: Sequence[Sequence[int]] | None = None,
-                     group_column: str | None = None, name: str | None = None) -> Dataset:
+                     group_column: str | None = None, name: str | None = None,
+                     unit: str | None = None) -> Dataset:
     """Read a CSV of experiments into a :class:`Dataset`.
 
     ``prior[j]`` is the scientific model's prediction of ``targets[j]``. ``onsite`` (N
@@ -247,7 +248,8 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
     ``qubit_features`` (N) and ``coupler_features`` (one per edge), columns among
     ``features``, name what acts on each site and coupling (e.g. bias voltages).
     ``group_column`` names each row's group (any text, e.g. the device or the cooldown it
-    was measured in): the dataset's ``groups``, which CV folds then keep whole.
+    was measured in): the dataset's ``groups``, which CV folds then keep whole. ``unit``: the
+    targets' unit (e.g. ``"meV"``), which figures and summaries show; ``None``: none shown.
     """
     path = Path(path)
     prior, targets, features = list(prior), list(targets), list(features)
@@ -332,4 +334,4 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
                                f"{_rows(frame.index[empty])}")
     return Dataset(name=name or path.stem, features=data[features], prior=data[prior],
                    targets=data[targets], train_index=train, test_index=test,
-                   hamiltonian=hamiltonian, groups=groups)
+                   hamiltonian=hamiltonian, groups=groups, unit=unit)

@@ -109,6 +109,7 @@ def load_google_5q(data_dir: str | os.PathLike[str] | None = None, *,
                     f"{sorted(set(X.columns[X.isna().any()]) | set(y.columns[y.isna().any()]))}")
     return Dataset(
         name="google_5q",
+        unit="MHz",
         features=X[FEATURES].copy(),
         prior=X[PRIOR].copy(),
         targets=y[TARGETS].copy(),

@@ -26,6 +26,7 @@ from .intervals import (
     with_intervals,
 )
 from .results import CVEstimate, Result, mae, mse
+from .units import unit_name
 
 if TYPE_CHECKING:
     from ..datasets import Dataset
@@ -160,7 +161,7 @@ def fit_and_score(cfg: ExperimentConfig, ds, model) -> tuple[Result, Any]:
     result = Result(name=cfg.name, config=str(cfg.path) if cfg.path else None,
                     family=family.name, targets=list(ds.target_names), n_train=len(y_train),
                     n_test=len(y_test), prior=prior, model=scores, details=details,
-                    intervals=interval_settings(cfg), bootstrap=bootstrap)
+                    intervals=interval_settings(cfg), bootstrap=bootstrap, unit=ds.unit)
     return result, model
 
 
@@ -200,7 +201,7 @@ def format_table(result: Result) -> str:
     lines.append(rule)
     lines.append(f"{'average':<{w}}{result.prior.avg('test_mae'):>11.3f}"
                  f"{result.model.avg('test_mae'):>11.3f}{result.model.avg('cv_mae'):>14.3f}")
-    lines.append(f"test MAE in the targets' units; "
+    lines.append(f"test MAE in {unit_name(result.unit)}; "
                  f"wall time {result.wall_s:.1f} s")
     if result.model.test_mae_diff_avg_ci:
         boot = result.bootstrap

@@ -101,7 +101,7 @@ def interval_artifacts(cfg: ExperimentConfig, ds: Dataset, model,
     if not isinstance(model, ConformalRegressor):
         return Artifacts()
     table = interval_table(model, ds, cfg.family.inputs(cfg, ds))
-    fig = interval_figure(table, level=1 - model.alpha,
+    fig = interval_figure(table, level=1 - model.alpha, unit=ds.unit,
                           title=f"{1 - model.alpha:.0%} conformal intervals "
                                 f"({model.method}), test rows", setting=setting)
     return Artifacts(figures={"intervals": fig}, tables={"test_intervals": table})

@@ -26,18 +26,41 @@ from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 __all__ = ["CVEstimate", "ModelScores", "OuterFold", "Result", "Scores", "SweepSummary", "mae",
            "mse"]
 
 
-def mae(y, pred) -> list[float]:
-    """Per-column mean absolute error."""
+def mae(y: ArrayLike, pred: ArrayLike) -> list[float]:
+    """Per-column mean absolute error.
+
+    Parameters
+    ----------
+    y, pred : array-like of shape (n_rows, n_targets) or (n_rows,)
+        The measured values and their predictions.
+
+    Returns
+    -------
+    list of float
+        The mean absolute error of each column.
+    """
     return np.mean(np.abs(np.asarray(y, float) - np.asarray(pred, float)), axis=0).tolist()
 
 
-def mse(y, pred) -> list[float]:
-    """Per-column mean squared error."""
+def mse(y: ArrayLike, pred: ArrayLike) -> list[float]:
+    """Per-column mean squared error.
+
+    Parameters
+    ----------
+    y, pred : array-like of shape (n_rows, n_targets) or (n_rows,)
+        The measured values and their predictions.
+
+    Returns
+    -------
+    list of float
+        The mean squared error of each column.
+    """
     return np.mean((np.asarray(y, float) - np.asarray(pred, float)) ** 2, axis=0).tolist()
 
 
@@ -47,10 +70,12 @@ def _avg(values: list[float]) -> float:
 
 @dataclass
 class Scores:
-    """Per-target test and CV errors of one system (the prior, or the model), and the
-    bootstrap intervals of the test errors (:func:`~.bootstrap.bootstrap_test_scores`; empty: not
-    computed): ``test_mae_ci`` one ``[low, high]`` per target, ``test_mae_avg_ci`` the
-    average over targets' ``[low, high]``; the same for ``test_mse``."""
+    """Per-target test and CV errors of one system (the prior, or the model).
+
+    With the bootstrap intervals of the test errors (:func:`~.bootstrap.bootstrap_test_scores`;
+    empty: not computed): ``test_mae_ci`` one ``[low, high]`` per target, ``test_mae_avg_ci``
+    the average over targets' ``[low, high]``; the same for ``test_mse``.
+    """
 
     test_mae: list[float]
     test_mse: list[float]
@@ -62,19 +87,47 @@ class Scores:
     test_mse_avg_ci: list[float] = field(default_factory=list)
 
     def avg(self, key: str) -> float:
-        """The average over targets of ``key`` (``"test_mae"``, ``"cv_mse"``, ...)."""
+        """Average ``key`` over the targets.
+
+        Parameters
+        ----------
+        key : str
+            ``"test_mae"``, ``"cv_mse"``, ...
+
+        Returns
+        -------
+        float
+            The mean (NaN for an empty list).
+        """
         return _avg(getattr(self, key))
 
     def ci(self, key: str) -> list[list[float]] | None:
-        """The bootstrap intervals of ``key`` (``"test_mae"``, ``"test_mse"``; a model's
-        ``"test_mae_diff"`` too): one ``[low, high]`` per target, then the average's, the
-        rows :func:`~workbench.experiment.figures.mae_bars` takes (``None``: not computed)."""
+        """Gather the bootstrap intervals of ``key``.
+
+        Parameters
+        ----------
+        key : str
+            ``"test_mae"``, ``"test_mse"`` (a model's ``"test_mae_diff"`` too).
+
+        Returns
+        -------
+        list of [low, high], or None
+            One ``[low, high]`` per target, then the average's: the rows
+            :func:`~workbench.experiment.figures.mae_bars` takes (``None``: not computed).
+        """
         per_target, average = getattr(self, f"{key}_ci"), getattr(self, f"{key}_avg_ci")
         if not per_target or not average:
             return None
         return [*map(list, per_target), list(average)]
 
     def to_json(self) -> dict[str, Any]:
+        """Write the scores as JSON, with each list's average.
+
+        Returns
+        -------
+        dict
+            Every field (intervals only when computed) and ``<key>_avg`` of each error.
+        """
         out: dict[str, Any] = {}
         for f in fields(self):
             value = getattr(self, f.name)
@@ -92,12 +145,15 @@ INTERVAL_KEYS = ("test_coverage", "test_width", "cv_coverage", "cv_width")
 
 @dataclass
 class ModelScores(Scores):
-    """The model's scores plus what it chose per target; ``extra``: family-specific per-target
-    figures (e.g. ``cv_mae_boosted``). With prediction intervals: per target the fraction of
-    test rows inside their interval (``test_coverage``) and the mean width (``test_width``),
-    and the same estimated by CV on the training rows (``cv_coverage``, ``cv_width``). With
-    bootstrap intervals, those of model - prior test MAE (``test_mae_diff_ci``,
-    ``test_mae_diff_avg_ci``), paired: both systems' errors on the same resampled rows."""
+    """The model's scores plus what it chose per target.
+
+    ``extra``: family-specific per-target figures (e.g. ``cv_mae_boosted``). With prediction
+    intervals: per target the fraction of test rows inside their interval (``test_coverage``)
+    and the mean width (``test_width``), and the same estimated by CV on the training rows
+    (``cv_coverage``, ``cv_width``). With bootstrap intervals, those of model - prior test
+    MAE (``test_mae_diff_ci``, ``test_mae_diff_avg_ci``), paired: both systems' errors on the
+    same resampled rows.
+    """
 
     selected: list[str] = field(default_factory=list)
     coefs: list[list[float]] = field(default_factory=list)
@@ -113,6 +169,13 @@ class ModelScores(Scores):
     test_mae_diff_avg_ci: list[float] = field(default_factory=list)
 
     def to_json(self) -> dict[str, Any]:
+        """Write the scores as JSON (:meth:`Scores.to_json`), the family's figures inline.
+
+        Returns
+        -------
+        dict
+            The scores; the interval figures and their averages only when computed.
+        """
         out = super().to_json()
         out.update(out.pop("extra"))
         for key in INTERVAL_KEYS:
@@ -125,8 +188,11 @@ class ModelScores(Scores):
 
 @dataclass
 class CVEstimate:
-    """A cross-validated estimate of the chosen model: repeated K-fold CV on the training rows
-    (``repeats`` > 0) or nested CV over all rows (``n_rows``)."""
+    """A cross-validated estimate of the chosen model.
+
+    Repeated K-fold CV on the training rows (``repeats`` > 0) or nested CV over all rows
+    (``n_rows``).
+    """
 
     folds: int
     seed: int
@@ -139,13 +205,22 @@ class CVEstimate:
 
     @property
     def model_mae_avg(self) -> float:
+        """The model's MAE averaged over the targets."""
         return _avg(self.model_mae)
 
     @property
     def prior_mae_avg(self) -> float:
+        """The prior's MAE averaged over the targets."""
         return _avg(self.prior_mae)
 
     def to_json(self) -> dict[str, Any]:
+        """Write the estimate as JSON.
+
+        Returns
+        -------
+        dict
+            The fields set and the averages over targets.
+        """
         out = {k: v for k, v in asdict(self).items() if v is not None}
         out.update(model_mae_avg=self.model_mae_avg, model_mse_avg=_avg(self.model_mse),
                    prior_mae_avg=self.prior_mae_avg)
@@ -171,8 +246,11 @@ class OuterFold:
 
 @dataclass
 class SweepSummary:
-    """What a sweep adds to a result: nested-CV estimates, the chosen parameters per target
-    (a unit's choice repeated for each of its targets), the trial counts."""
+    """What a sweep adds to a result.
+
+    Nested-CV estimates, the chosen parameters per target (a unit's choice repeated for each
+    of its targets), the trial counts.
+    """
 
     nested_cv_mae: list[float]
     nested_cv_prior_mae: list[float]
@@ -184,13 +262,22 @@ class SweepSummary:
 
     @property
     def nested_cv_mae_avg(self) -> float:
+        """The model's nested-CV MAE averaged over the targets."""
         return _avg(self.nested_cv_mae)
 
     @property
     def nested_cv_prior_mae_avg(self) -> float:
+        """The prior's nested-CV MAE averaged over the targets."""
         return _avg(self.nested_cv_prior_mae)
 
     def to_json(self) -> dict[str, Any]:
+        """Write the summary as JSON (keys at the result's top level).
+
+        Returns
+        -------
+        dict
+            The nested-CV estimates and averages, the chosen parameters, the trial counts.
+        """
         return {"nested_cv_mae": self.nested_cv_mae, "nested_cv_mae_avg": self.nested_cv_mae_avg,
                 "nested_cv_prior_mae": self.nested_cv_prior_mae,
                 "nested_cv_prior_mae_avg": self.nested_cv_prior_mae_avg,
@@ -201,9 +288,12 @@ class SweepSummary:
 
 @dataclass
 class Result:
-    """One ``evaluate`` (or a sweep's final evaluation): the model fitted on the training rows
-    and scored once on the test rows. ``details``: the family's own JSON-ready section (e.g.
-    ``{"hamiltonian": {...}}``); ``wall_s``: the whole command's wall time."""
+    """One ``evaluate`` (or a sweep's final evaluation).
+
+    The model fitted on the training rows and scored once on the test rows. ``details``: the
+    family's own JSON-ready section (e.g. ``{"hamiltonian": {...}}``); ``wall_s``: the whole
+    command's wall time; ``unit``: the targets' (the dataset's).
+    """
 
     name: str
     config: str | None
@@ -225,11 +315,22 @@ class Result:
     outputs: dict[str, str] = field(default_factory=dict)
     mlflow: dict[str, str] = field(default_factory=dict)
     wall_s: float = math.nan
+    #: The targets' unit (the dataset's; ``None``: none), which every error shares (MSE: its
+    #: square).
+    unit: str | None = None
 
     def to_json(self) -> dict[str, Any]:
+        """Write the result as the JSON ``--json`` writes (see the module docstring).
+
+        Returns
+        -------
+        dict
+            The result; optional sections only when present.
+        """
         out: dict[str, Any] = {
             "name": self.name, "config": self.config, "family": self.family,
-            "targets": self.targets, "n_train": self.n_train, "n_test": self.n_test,
+            "targets": self.targets, "unit": self.unit, "n_train": self.n_train,
+            "n_test": self.n_test,
             "prior": self.prior.to_json(), "model": self.model.to_json(), **self.details}
         for key in ("repeated_cv", "nested_cv_all", "sweep"):
             part = getattr(self, key)

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import UsageError
+from ..units import unit_suffix
 from .preflight import check_before_work, check_outputs, check_stores, repair_hint
 
 __all__ = ["RECORD_MODULES", "design", "evaluate", "mark_start", "reproduce", "sweep", "wall"]
@@ -85,8 +86,8 @@ def reproduce(args: argparse.Namespace) -> int:
     """
     from ...parallel import worker_pool
     from ..outputs import check_dir
-    from ..reproduce import experiments_dir
-    from ..reproduce import reproduce as run
+    from ..paper import experiments_dir
+    from ..paper import reproduce as run
 
     configs = experiments_dir(args.experiments)  # its configs, before anything else
     check_dir(args.out, "--out")
@@ -108,7 +109,8 @@ def reproduce(args: argparse.Namespace) -> int:
                   quick=args.quick, track=not args.no_track, seed=args.seed,
                   experiments=configs)
     s = res.settings
-    print(f"paper settings: average test MAE {s['paper'].model.avg('test_mae'):.3f} MHz "
+    print(f"paper settings: average test MAE {s['paper'].model.avg('test_mae'):.3f}"
+          f"{unit_suffix(s['paper'].unit)} "
           f"(control program {s['paper'].prior.avg('test_mae'):.3f}); improved "
           f"{s['improved'].model.avg('test_mae'):.3f}; nested-CV search "
           f"{s['search'].model.avg('test_mae'):.3f}")

@@ -57,9 +57,9 @@ class HamiltonianData(Section):
 class DataConfig(Section):
     """``[data]``: ``source = "google_5q"`` (optional ``data_dir``), ``source = "ibm_gates"``
     (optional ``data_dir``, ``split = "time"`` or ``"devices"`` with ``split_seed``), or a CSV
-    of your own (``csv``, one ``prior`` column per ``targets`` column, ``features``, and either
-    ``test_fraction`` or ``split_column``). ``source`` is a name in the data-source registry
-    (:data:`workbench.datasets.SOURCES`).
+    of your own (``csv``, one ``prior`` column per ``targets`` column, ``features``, either
+    ``test_fraction`` or ``split_column``, and optionally the targets' ``unit``). ``source``
+    is a name in the data-source registry (:data:`workbench.datasets.SOURCES`).
     """
 
     source: str = "google_5q"
@@ -73,6 +73,7 @@ class DataConfig(Section):
     split_column: str | None = None
     split_seed: int = Seed()
     group_column: str | None = None
+    unit: str | None = None
     hamiltonian: HamiltonianData | None = None
 
     @field_validator("source")
@@ -95,7 +96,7 @@ class DataConfig(Section):
     @model_validator(mode="after")
     def _consistent(self) -> DataConfig:
         csv_keys = sorted(k for k in ("csv", "prior", "targets", "test_fraction",
-                                      "split_column", "group_column", "hamiltonian")
+                                      "split_column", "group_column", "hamiltonian", "unit")
                           if getattr(self, k) is not None) + (["features"] if self.features
                                                               else [])
         if self.source != "csv":

@@ -147,13 +147,13 @@ class EigenvalueFamily(ModelFamily):
                 target = ds.target_names[j]
                 whole = explained.prediction
                 figs = {f"learning_curve_{target}": learning_curve_figure(
-                            curve, target=target, setting=setting),
+                            curve, target=target, unit=ds.unit, setting=setting),
                         f"shap_{target}": shap_figure(whole.values, whole.expected, whole.rows,
-                                                      target=target, setting=setting,
-                                                      explained="prediction"),
+                                                      target=target, unit=ds.unit,
+                                                      setting=setting, explained="prediction"),
                         f"shap_correction_{target}": correction_shap_figure(
-                            explained.correction, target=target, note=explained.note,
-                            setting=setting)}
+                            explained.correction, target=target, unit=ds.unit,
+                            note=explained.note, setting=setting)}
                 for name, fig in figs.items():
                     if emit is not None:
                         emit(name, fig)

@@ -17,9 +17,8 @@ What the model learned is written as tables and figures:
   value and correction, and whether the row is a training or a test row;
 * ``selection_path``: the forward selection's CV MAE after each added covariate;
 
-with the figures :func:`~workbench.experiment.figures.parameter_corrections` and
-:func:`~workbench.experiment.figures.selection_path_figure` (``evaluate --out DIR``, and the
-MLflow run's artifacts).
+with the figures of :mod:`~workbench.experiment.families.hamiltonian_figures` (``evaluate
+--out DIR``, and the MLflow run's artifacts).
 """
 
 from __future__ import annotations
@@ -37,10 +36,10 @@ from ...fitted_prior import FittedPriorBoost
 from ...param_boost import HamiltonianParameterRegressor, default_library
 from ...param_select import HamiltonianSelectionCV, candidate_pool
 from ..errors import ConfigError
-from ..figures import parameter_corrections, selection_path_figure
 from ..results import ModelScores, Scores, mae, mse
 from ..schema import ParameterOf, Section
 from .base import Artifacts, ModelFamily
+from .hamiltonian_figures import parameter_corrections, selection_path_figure
 from .stage import per_target_boost, stage_scores
 
 if TYPE_CHECKING:
@@ -287,11 +286,13 @@ class HamiltonianFamily(ModelFamily):
                                 "corrected_parameters": pd.DataFrame(columns)})
         out.figures["parameter_corrections"] = parameter_corrections(
             control, corrected, groups={"training rows": ds.train_index,
-                                        "test rows": ds.test_index}, setting=setting)
+                                        "test rows": ds.test_index}, unit=ds.unit,
+            setting=setting)
         selection = getattr(model.physics_, "selection_", None)
         if selection is not None:
             out.tables["selection_path"] = selection.path
             out.figures["selection_path"] = selection_path_figure(
                 selection.path, title=f"Forward covariate selection ({selection.n_rows} "
-                                      "training rows, CV MAE over all targets)", setting=setting)
+                                      "training rows, CV MAE over all targets)", unit=ds.unit,
+                setting=setting)
         return out

@@ -17,9 +17,11 @@ import logging
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import optuna
+import pandas as pd
 from lightgbm import LGBMRegressor
 from sklearn.model_selection import KFold
 
@@ -41,16 +43,26 @@ SPACE = {"n_estimators": (20, 600, True), "learning_rate": (0.01, 0.3, True),
 
 @dataclass
 class Peer:
-    """The peer's test predictions (rows x targets), the settings it chose per target, and
-    the seconds its tuning and final fits took."""
+    """The peer's predictions and settings.
+
+    Parameters
+    ----------
+    predictions : numpy.ndarray of shape (n_rows, n_targets)
+        Its test predictions.
+    params : list of dict
+        The settings it chose per target.
+    seconds : float
+        The seconds its tuning and final fits took.
+    """
 
     predictions: np.ndarray
-    params: list[dict]
+    params: list[dict[str, Any]]
     seconds: float
 
 
-def _suggest(trial: optuna.Trial, objectives: tuple[str, ...]) -> dict:
-    params: dict = {}
+def _suggest(trial: optuna.Trial, objectives: tuple[str, ...]) -> dict[str, Any]:
+    """Draw one setting of the peer's search space (and objective, if several)."""
+    params: dict[str, Any] = {}
     for name, (low, high, log_scale) in SPACE.items():
         if isinstance(low, int):
             params[name] = trial.suggest_int(name, low, int(high), log=log_scale)
@@ -61,18 +73,43 @@ def _suggest(trial: optuna.Trial, objectives: tuple[str, ...]) -> dict:
     return params
 
 
-def peer_predict(X_train, y_train, X_test, priors: list[str], features: list[str], *,
-                 trials: int = PEER_TRIALS, seed: int = 0,
-                 objectives: tuple[str, ...] = PEER_OBJECTIVES, n_jobs: int = 1) -> Peer:
-    """The peer (module docstring) fitted on ``X_train``/``y_train`` (frames; ``priors[j]``
-    is target ``j``'s prior column), predicting ``X_test``."""
+def peer_predict(X_train: pd.DataFrame, y_train: pd.DataFrame, X_test: pd.DataFrame,
+                 priors: list[str], features: list[str], *, trials: int = PEER_TRIALS,
+                 seed: int = 0, objectives: tuple[str, ...] = PEER_OBJECTIVES,
+                 n_jobs: int = 1) -> Peer:
+    """Tune and fit the peer (see the module docstring) per target, and predict the test rows.
+
+    Parameters
+    ----------
+    X_train, y_train : pandas.DataFrame
+        The training rows' inputs and targets.
+    X_test : pandas.DataFrame
+        The rows to predict.
+    priors : list of str
+        ``priors[j]``: target ``j``'s prior column.
+    features : list of str
+        The other input columns.
+    trials : int, default=PEER_TRIALS
+        Optuna trials per target.
+    seed : int, default=0
+        Seeds the folds, the sampler and LightGBM.
+    objectives : tuple of str, default=PEER_OBJECTIVES
+        The LightGBM objectives the search chooses among.
+    n_jobs : int, default=1
+        Threads for a trial's folds.
+
+    Returns
+    -------
+    Peer
+        The test predictions, the chosen settings and the seconds taken.
+    """
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     start = time.perf_counter()
     cols = list(dict.fromkeys(list(priors) + list(features)))
     folds = list(KFold(5, shuffle=True, random_state=seed).split(X_train))
     out, chosen = [], []
 
-    def make(params: dict) -> LGBMRegressor:
+    def make(params: dict[str, Any]) -> LGBMRegressor:
         return LGBMRegressor(n_jobs=1, verbose=-1, random_state=seed, subsample_freq=1,
                              **params)
 
@@ -82,13 +119,15 @@ def peer_predict(X_train, y_train, X_test, priors: list[str], features: list[str
             y = y_train[target].to_numpy(dtype=float)
             base = X_train[priors[j]].to_numpy(dtype=float)
 
-            def fold_error(params, rows, X=X, y=y, base=base) -> float:
+            def fold_error(params: dict[str, Any], rows: tuple[np.ndarray, np.ndarray],
+                           X: np.ndarray = X, y: np.ndarray = y,
+                           base: np.ndarray = base) -> float:
                 fit_rows, val_rows = rows
                 model = make(params).fit(X[fit_rows], y[fit_rows], init_score=base[fit_rows])
                 pred = base[val_rows] + model.predict(X[val_rows])
                 return float(np.mean(np.abs(y[val_rows] - pred)))
 
-            def objective(trial, fold_error=fold_error) -> float:
+            def objective(trial: optuna.Trial, fold_error: Any = fold_error) -> float:
                 params = _suggest(trial, objectives)
                 return float(np.mean(list(pool.map(lambda r: fold_error(params, r), folds))))
 

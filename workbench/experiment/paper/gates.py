@@ -9,24 +9,29 @@ each system's gain over the prior and of the generic config's over the peer.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .bootstrap import bootstrap_description, bootstrap_error_interval, bootstrap_test_scores
-from .config import ExperimentConfig
-from .evaluate import evaluate
-from .families.stage import candidate_settings
-from .figures import model_comparison_bars
-from .intervals import family_model
+from ...datasets import Dataset
+from ..bootstrap import bootstrap_error_interval, bootstrap_test_scores
+from ..config import ExperimentConfig
+from ..evaluate import evaluate
+from ..figures import model_comparison_bars
+from ..intervals import family_model
+from ..prepare import load_config
+from ..results import ModelScores, Result, Scores, mae, mse
+from ..run_fields import result_metrics, run_params, score_metrics
 from .peer import PEER_TRIALS, peer_predict
-from .prepare import load_config
-from .results import ModelScores, Result, Scores, mae, mse
-from .systems import Stopwatch
+from .systems import Stopwatch, System
 
-__all__ = ["GATE_SYSTEMS", "Gates", "gates_benchmark", "gates_section"]
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+__all__ = ["GATE_SYSTEMS", "Gates", "gate_systems", "gates_benchmark", "gates_figure"]
 
 
 #: The benchmark's systems: key -> (its MLflow run's and table row's name, its description).
@@ -38,7 +43,7 @@ GATE_SYSTEMS = {
                    "The peer: LightGBM boosted from the coherence limit (init_score) on the "
                    "prior and the features, 50 Optuna trials of 5-fold CV on the training "
                    "rows, LightGBM's objective (squared, absolute, Huber) searched too "
-                   "(workbench.experiment.peer)."),
+                   "(workbench.experiment.paper.peer)."),
     "gates_generic": ("IBM gates: base boosting, generic config",
                       "The recommended generic config (`experiments/generic.toml`): per "
                       "target a ridge stage, one of the LightGBM stages drawn from the peer's "
@@ -49,9 +54,26 @@ GATE_SYSTEMS = {
 
 @dataclass
 class Gates:
-    """The benchmark's results: the generic config's and the peer's (the peer's ``model``
-    scores, its ``prior`` the coherence limit's), the peer's chosen settings, the paired
-    interval of generic - peer test MAE, and each system's stopwatch."""
+    """The IBM benchmark's results.
+
+    Parameters
+    ----------
+    generic, peer : Result
+        The generic config's and the peer's (the peer's ``model`` scores, its ``prior`` the
+        coherence limit's).
+    peer_params : list of dict
+        The peer's chosen settings per target.
+    generic_minus_peer : list of float
+        The paired 95% interval of generic - peer test MAE.
+    chosen : list of str
+        What the generic config's CV chose per target.
+    config : ExperimentConfig
+        The generic config, as run.
+    dataset : Dataset
+        The IBM gates.
+    watches : dict of str to Stopwatch
+        Each system's time.
+    """
 
     generic: Result
     peer: Result
@@ -59,17 +81,42 @@ class Gates:
     generic_minus_peer: list[float]
     chosen: list[str]
     config: ExperimentConfig
-    dataset: Any
+    dataset: Dataset
     watches: dict[str, Stopwatch] = field(default_factory=dict)
 
     def to_json(self) -> dict[str, Any]:
+        """Write the benchmark's results as JSON (``results.json``'s ``ibm_gates``).
+
+        Returns
+        -------
+        dict
+            The generic config's and the peer's results, the peer's settings, what the
+            generic config chose and the paired interval of generic - peer.
+        """
         return {"generic": self.generic.to_json(), "peer": self.peer.to_json(),
                 "peer_params": self.peer_params, "generic_chosen": self.chosen,
                 "generic_minus_peer_test_mae_avg_ci": self.generic_minus_peer}
 
 
-def gates_benchmark(configs: Path, seed: int, quick: bool, say) -> Gates:
-    """Fit the generic config and the peer on the training rows, score both once."""
+def gates_benchmark(configs: Path, seed: int, quick: bool, say: Callable[[str], None]) -> Gates:
+    """Fit the generic config and the peer on the training rows, score both once.
+
+    Parameters
+    ----------
+    configs : Path
+        The folder holding ``generic.toml``.
+    seed : int
+        Seeds the config, the peer's search and the bootstrap.
+    quick : bool
+        3 draws of the generic config's candidates and 2 trials of the peer's search.
+    say : callable
+        Shows a progress line.
+
+    Returns
+    -------
+    Gates
+        The benchmark's results.
+    """
     watches = {key: Stopwatch() for key in GATE_SYSTEMS}
     cfg = load_config(configs / "generic.toml")
     model = cfg.model if not quick else cfg.model.model_copy(update={"draws": 3})
@@ -96,7 +143,8 @@ def gates_benchmark(configs: Path, seed: int, quick: bool, say) -> Gates:
                                  random_state=seed)
     peer_result = Result(name="peer", config=None, family="lightgbm peer",
                          targets=ds.target_names, n_train=len(X_train), n_test=len(X_test),
-                         prior=prior, model=scores, bootstrap=boot, wall_s=peer.seconds)
+                         prior=prior, model=scores, bootstrap=boot, wall_s=peer.seconds,
+                         unit=ds.unit)
     generic_pred = np.asarray(run.model.predict(X_test), dtype=float).reshape(y.shape)
     diff = bootstrap_error_interval(y - generic_pred, baseline=y - peer.predictions,
                                     random_state=seed).average
@@ -111,58 +159,65 @@ def gates_benchmark(configs: Path, seed: int, quick: bool, say) -> Gates:
                  watches=watches)
 
 
-def gates_figure(gates: Gates):
-    """Test MAE of the three systems with their 95% intervals."""
+def gates_figure(gates: Gates) -> Figure:
+    """Draw the test MAE of the three systems with their 95% intervals.
+
+    Parameters
+    ----------
+    gates : Gates
+        The benchmark's results.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The bars.
+    """
     g, p = gates.generic, gates.peer
     names = [GATE_SYSTEMS[k][0].removeprefix("IBM gates: ") for k in GATE_SYSTEMS]
     values = dict(zip(names, (g.prior.test_mae, p.model.test_mae, g.model.test_mae)))
     intervals = dict(zip(names, (g.prior.ci("test_mae"), p.model.ci("test_mae"),
                                  g.model.ci("test_mae"))))
     return model_comparison_bars(
-        g.targets, values, metric="MAE", unit="% error",
+        g.targets, values, metric="MAE", unit=gates.dataset.unit,
         intervals={k: v for k, v in intervals.items() if v is not None},
         title="IBM two-qubit gates, newer devices held out: test MAE")
 
 
-def gates_section(gates: Gates, row, figure: str) -> str:
-    """The report's section on the benchmark; ``row(name, result_or_scores...)`` draws a
-    table row as the Google table does."""
-    g, p = gates.generic, gates.peer
-    ds = gates.dataset
-    n_dev_train = ds.groups[ds.train_index].nunique()
-    n_dev_test = ds.groups[ds.test_index].nunique()
-    d = gates.generic_minus_peer
-    head = ("| system | gate error | average | model - coherence limit, average |\n"
-            "|---|---|---|---|")
-    rows = [row("coherence limit (prior)", g.prior.test_mae, ci=g.prior.ci("test_mae")),
-            row("LightGBM from the prior, tuned by CV (peer)", p.model.test_mae,
-                ci=p.model.ci("test_mae"), diff=p.model.test_mae_diff_avg_ci or None),
-            row("workbench, generic config", g.model.test_mae, ci=g.model.ci("test_mae"),
-                diff=g.model.test_mae_diff_avg_ci or None)]
-    ratio = g.model.avg("test_mae") / p.model.avg("test_mae")
-    n_candidates = len(candidate_settings(gates.config.model_for(g.targets[0]), 0))
-    return f"""## A second benchmark: IBM two-qubit gates
+def gate_systems(gates: Gates, figures: list[Path]) -> list[System]:
+    """Gather the IBM benchmark's systems (:data:`GATE_SYSTEMS`) in the shared schema.
 
-The calibration snapshots of {ds.groups.nunique()} IBM Quantum devices (2020-2026, shipped
-in `qiskit-ibm-runtime`'s fake provider; Apache-2.0): one row per two-qubit gate, the target
-its measured error (percent), the prior the error that the two qubits' T1 and T2 alone cause
-during the gate (the coherence limit), the features the qubits' T1, T2, readout and
-single-qubit gate errors, the gate's length, the device's size and the gate type. The honest
-split holds out the snapshots taken from 2025 on: {len(ds.test_index)} gates of
-{n_dev_test} devices never seen in training, on later dates, against {len(ds.train_index)}
-training gates of {n_dev_train} devices. Every choice is made by CV on the training rows.
+    Parameters
+    ----------
+    gates : Gates
+        The benchmark's results.
+    figures : list of Path
+        The benchmark's figure (the peer's and the generic config's runs log it).
 
-Test mean absolute error (percentage points of gate error), with 95% bootstrap intervals
-over the test rows ({bootstrap_description(gates.peer.bootstrap)}):
-
-{head}
-{chr(10).join(rows)}
-
-The generic config's error is {ratio:.3f} of the peer's (paired 95% interval of the
-difference, generic - peer: {d[0]:+.3f} to {d[1]:+.3f}). Both learn from the same rows and
-features. CV chose {", ".join(gates.chosen)} among {n_candidates} candidates and the
-prior alone. `benchmarks/peers.py` repeats the comparison on the devices split (30% of the
-devices held out at random) and on the other benchmarks.
-
-{figure}
-"""
+    Returns
+    -------
+    list of System
+        The coherence limit, the peer and the generic config.
+    """
+    out = []
+    targets, g, p = gates.generic.targets, gates.generic, gates.peer
+    for key, (name, description) in GATE_SYSTEMS.items():
+        watch = gates.watches[key]
+        system = System(key, name, watch.started, watch.ended,
+                        description=f"{description} Test rows scored once; errors in "
+                                    "percentage points of gate error.",
+                        figures=list(figures) if key != "gates_prior" else [])
+        base = {"n_train": g.n_train, "n_test": g.n_test}
+        if key == "gates_prior":
+            system.metrics = score_metrics(targets, g.prior)
+            system.params = {"system": "coherence limit", **base}
+        elif key == "gates_peer":
+            system.result, system.metrics = p, result_metrics(p, wall=False)
+            system.params = {"system": "peer", **base,
+                             **{f"{t}.{k}": v for t, params in zip(targets, gates.peer_params)
+                                for k, v in params.items()}}
+        else:
+            system.config, system.result = gates.config, g
+            system.metrics = result_metrics(g, wall=False)
+            system.params = run_params(gates.config, targets, g.n_train, g.n_test)
+        out.append(system)
+    return out
