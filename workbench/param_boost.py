@@ -21,7 +21,6 @@ import numbers
 
 import numpy as np
 import pandas as pd
-from scipy.linalg.blas import dsyrk as _dsyrk
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils._param_validation import Interval, Options, StrOptions
 from sklearn.utils.validation import check_is_fitted
@@ -261,11 +260,6 @@ def _normal_equations(jac, w, r, Phi, sel, chunk_elements=8_000_000, wr=None):
             H[lo:hi, lo:] += F[:, lo:hi].T @ (M[:, p, pidx[lo:]] * F[:, lo:])
     H = np.triu(H) + np.triu(H, 1).T
     return H, g
-
-
-def _syrk(A, C):
-    """``C + A^T A`` (upper triangle; BLAS dsyrk)."""
-    return _dsyrk(1.0, A, beta=1.0, c=C, trans=1, lower=0, overwrite_c=1)
 
 
 class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):

@@ -17,7 +17,6 @@ import numpy as np
 import pandas as pd
 from mlflow.entities import LoggedModelOutput
 from mlflow.exceptions import MlflowException
-from mlflow.pyfunc import PythonModel  # not mlflow.pyfunc.PythonModel: mypy sees a LazyLoader
 
 import workbench
 
@@ -67,22 +66,6 @@ def _quiet(logger_name: str, *texts: str) -> Iterator[None]:
         yield
     finally:
         log.removeFilter(flt)
-
-
-class LegacyPyfuncModel(PythonModel):
-    """An MLflow pyfunc wrapper holding a fitted model (pickled with cloudpickle by MLflow;
-    the ``workbench`` package travels with it as ``code_paths``). Kept so that models logged
-    before :class:`~workbench.experiment.serving.WorkbenchModel` still load (their pickles
-    name ``workbench.experiment.tracking._PyfuncModel``, which the package resolves to this
-    class); new models use the latter."""
-
-    def __init__(self, model):
-        self.model = model
-
-    # A DataFrame type hint: MLflow then neither infers a schema from it nor warns about a
-    # missing hint; the logged signature (inferred from the input example) validates inputs.
-    def predict(self, context, model_input: pd.DataFrame, params: dict[str, Any] | None = None):
-        return self.model.predict(model_input)
 
 
 class ModelRecords:
