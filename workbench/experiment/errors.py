@@ -13,7 +13,7 @@ import importlib.util
 import re
 from collections.abc import Iterable
 
-__all__ = ["ConfigError", "StorageError", "TrackingError", "UsageError", "driver_hint",
+__all__ = ["ConfigError", "StorageError", "TrackingError", "UsageError", "clip", "driver_hint",
            "listing", "redact", "redact_config", "redact_urls", "shorten", "unknown_keys"]
 
 
@@ -32,6 +32,31 @@ class StorageError(ValueError):
 
 class TrackingError(RuntimeError):
     """The tracking store cannot be used (locked, corrupt, unreachable, ...)."""
+
+
+def clip(text: str, limit: int) -> str:
+    """Cut ``text`` to at most ``limit`` characters, ending in ``...`` when cut.
+
+    Parameters
+    ----------
+    text : str
+        The text to shorten.
+    limit : int
+        The longest result, ``...`` included (at least 3).
+
+    Returns
+    -------
+    str
+        ``text`` itself if it fits, else its first ``limit - 3`` characters and ``...``.
+
+    Examples
+    --------
+    >>> clip("abcdefgh", 6)
+    'abc...'
+    >>> clip("abc", 6)
+    'abc'
+    """
+    return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
 def shorten(value, limit: int = 60) -> str:
@@ -66,7 +91,7 @@ def listing(names: Iterable, budget: int = 140, width: int = 30) -> str:
     shown: list[str] = []
     used = 0
     for name in names:
-        item = repr(name if len(name) <= width else name[:width - 3] + "...")
+        item = repr(clip(name, width))
         if shown and used + len(item) + 2 > budget:
             break
         shown.append(item)

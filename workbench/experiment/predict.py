@@ -29,7 +29,7 @@ import pandas as pd
 from mlflow.exceptions import MlflowException
 
 from ..datasets.csv import _read
-from .errors import UsageError
+from .errors import UsageError, clip
 from .outputs import check_file, write_file
 from .serving import InputError, check_inputs
 from .tracking.runs import Tracker
@@ -57,7 +57,7 @@ class Prediction:
 def _short(exc) -> str:
     text = str(getattr(exc, "message", None) or exc).strip().splitlines()
     line = text[0] if text else type(exc).__name__
-    return line if len(line) <= 200 else line[:197] + "..."
+    return clip(line, 200)
 
 
 def resolve_model(spec: str, tracking_uri: str) -> str:

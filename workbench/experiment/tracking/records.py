@@ -12,6 +12,8 @@ from typing import Any
 
 import pandas as pd
 
+from ..errors import clip
+
 __all__ = ["MAX_PARAM_LENGTH", "dataset_hash", "git_commit", "now_ms", "param_value",
            "tag_value"]
 
@@ -65,4 +67,4 @@ def param_value(key: str, value: Any) -> tuple[str, bool]:
 
 def tag_value(value: Any) -> str:
     text = str(value)
-    return text if len(text) <= _MAX_TAG_LENGTH else text[:_MAX_TAG_LENGTH - 3] + "..."
+    return clip(text, _MAX_TAG_LENGTH)
