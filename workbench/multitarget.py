@@ -92,7 +92,7 @@ class MultiTargetBaseBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
     }
 
     def __init__(self, estimator: Any = None, *, priors: Sequence[Any] | None = None,
-                 target_estimators: Mapping[str | int, Any] | None = None,
+                 target_estimators: Mapping[Any, Any] | None = None,
                  n_jobs: int | None = None,
                  random_state: int | np.random.RandomState | None = None) -> None:
         self.estimator = estimator

@@ -12,6 +12,7 @@ import difflib
 import importlib.util
 import re
 from collections.abc import Iterable
+from typing import Any
 
 __all__ = ["ConfigError", "StorageError", "TrackingError", "UsageError", "clip", "driver_hint",
            "listing", "redact", "redact_config", "redact_urls", "shorten", "unknown_keys"]
@@ -27,7 +28,8 @@ class UsageError(ValueError):
 
 class StorageError(ValueError):
     """The Optuna storage cannot be used (bad path, missing driver, unreachable server, a
-    damaged journal)."""
+    damaged journal).
+    """
 
 
 class TrackingError(RuntimeError):
@@ -59,7 +61,7 @@ def clip(text: str, limit: int) -> str:
     return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
-def shorten(value, limit: int = 60) -> str:
+def shorten(value: Any, limit: int = 60) -> str:
     """``repr(value)`` cut to ``limit`` characters (a million-digit number stays one short line)."""
     try:
         text = repr(value)
@@ -76,7 +78,8 @@ _DRIVER_PACKAGES = {"psycopg": "psycopg[binary]", "psycopg2": "psycopg2-binary",
 
 def driver_hint(exc: ImportError) -> str:
     """What to do about a database driver that is not installed (SQLAlchemy 2.1 maps
-    ``postgresql://`` to psycopg 3; ``postgresql+psycopg2://`` names psycopg2)."""
+    ``postgresql://`` to psycopg 3; ``postgresql+psycopg2://`` names psycopg2).
+    """
     name = (exc.name or "").split(".")[0]
     hint = f"pip install {_DRIVER_PACKAGES.get(name, name or 'the driver')}"
     if name == "psycopg" and importlib.util.find_spec("psycopg2"):
@@ -86,7 +89,8 @@ def driver_hint(exc: ImportError) -> str:
 
 def listing(names: Iterable, budget: int = 140, width: int = 30) -> str:
     """``'a', 'b', ...`` for an error line: each name cut to ``width`` characters, as many as
-    fit in ``budget`` characters, then ``... (N in all)``."""
+    fit in ``budget`` characters, then ``... (N in all)``.
+    """
     names = [str(n) for n in names]
     shown: list[str] = []
     used = 0
@@ -120,7 +124,7 @@ _SECRET_QUERY = re.compile(r"(?i)([?&;](?:password|passwd|pwd|secret|token|acces
 _URL_TOKEN = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*://[^\s\"'`]+")
 
 
-def redact(url) -> str:
+def redact(url: object) -> str:
     """``url`` with its password (``scheme://user:password@host``) and any credential in its
     query (``?password=...``) replaced by ``***``: safe to print, log or store. Text that is
     not a ``scheme://`` URL (a journal file path) is returned as given.
@@ -128,7 +132,8 @@ def redact(url) -> str:
     The password is everything between the first ``:`` of the user part and the *last*
     ``@``, so a password holding ``/``, ``?``, ``#`` or ``@`` (unescaped, as people paste
     them) is hidden too; a URL with an ``@`` in its path may be redacted more than needed,
-    never less."""
+    never less.
+    """
     text = str(url)
     head, sep, rest = text.partition("://")
     if not sep or not _SCHEME.fullmatch(head):
@@ -143,11 +148,12 @@ def redact(url) -> str:
 
 def redact_urls(text: str) -> str:
     """``text`` with :func:`redact` applied to every ``scheme://...`` in it (up to a space or
-    a quote)."""
+    a quote).
+    """
     return _URL_TOKEN.sub(lambda m: redact(m.group(0)), str(text))
 
 
-def _strings(value) -> Iterable[str]:
+def _strings(value: object) -> Iterable[str]:
     if isinstance(value, str):
         yield value
     elif isinstance(value, dict):
@@ -172,7 +178,8 @@ def redact_config(text: str, name: str = "the config") -> str:
     ``[study] storage`` and ``[tracking] tracking_uri``, and URLs in comments), the rest of
     the file as written. When a credential-bearing value cannot be found in the text (an
     unusual escape), the whole text is replaced by a one-line note: it is never logged with
-    the secret."""
+    the secret.
+    """
     import tomllib  # (c) stdlib, 5 ms: `workbench --help` loads this module
 
     try:

@@ -44,7 +44,8 @@ _OWN_KEYS = ("name", "random_state", "data")
 @dataclass(frozen=True)
 class InitResult:
     """What :func:`init_config` wrote: the config file, its text, the feature columns (and,
-    when they were chosen by default, the columns not taken and why), the split's sizes."""
+    when they were chosen by default, the columns not taken and why), the split's sizes.
+    """
 
     path: Path
     text: str
@@ -60,7 +61,8 @@ class InitResult:
 
 def template_text(name: str = TEMPLATE) -> str:
     """The text of a config template shipped with the package (package data, read through
-    :mod:`importlib.resources`: an installed wheel carries it)."""
+    :mod:`importlib.resources`: an installed wheel carries it).
+    """
     source = resources.files("workbench.experiment") / "templates" / name
     return source.read_text(encoding="utf-8")
 
@@ -68,7 +70,8 @@ def template_text(name: str = TEMPLATE) -> str:
 def csv_entry(csv: str | os.PathLike[str], config: str | os.PathLike[str]) -> str:
     """``[data] csv`` for the file ``csv`` in the config ``config``: relative to the config's
     directory (as the config parser reads it), or absolute where no relative path leads
-    there (another drive). Forward slashes, which every platform reads."""
+    there (another drive). Forward slashes, which every platform reads.
+    """
     target = Path(csv).resolve()
     base = Path(config).resolve().parent
     try:
@@ -82,7 +85,8 @@ def numeric_columns(path: str | os.PathLike[str], exclude: Sequence[str]
     """The columns of the CSV ``path`` (other than ``exclude``) whose every cell is a finite
     number, in the file's order, and the others with the reason they were left out. Cells
     are read as the loader reads them (text, stripped; empty, ``nan``, ``na``, ``null``
-    missing); call it once the loader has read the file."""
+    missing); call it once the loader has read the file.
+    """
     frame = pd.read_csv(path, dtype=str, keep_default_na=False)
     taken: list[str] = []
     skipped: dict[str, str] = {}
@@ -106,7 +110,8 @@ def group_columns(path: str | os.PathLike[str], exclude: Sequence[str]) -> dict[
     with its number of distinct values: between 2 and half the rows, e.g. the device or the
     cooldown a row was measured in. Rows that share such a value are often alike, so plain
     K-fold CV, which puts some of them on each side of a fold, rewards what only repeats
-    within a group; ``[data] group_column`` keeps each group whole in one fold."""
+    within a group; ``[data] group_column`` keeps each group whole in one fold.
+    """
     frame = pd.read_csv(path, dtype=str, keep_default_na=False)
     out = {}
     for column in frame.columns:
@@ -163,7 +168,8 @@ def render_config(*, name: str, csv: str, prior: Sequence[str], targets: Sequenc
                   group_column: str | None = None) -> str:
     """The config's text: a header comment (what wrote it, from which CSV, what to run
     next), ``name``, ``random_state``, ``[data]``, then the ``template``'s text as is (top-level
-    keys of the template, if any, above ``[data]``: :func:`split_template`)."""
+    keys of the template, if any, above ``[data]``: :func:`split_template`).
+    """
     header = [
         f"# A first config for the data set {_comment(repr(name))}, written by `workbench "
         f"init` from {_comment(source)}.",
@@ -203,7 +209,8 @@ _TABLE = re.compile(r"\s*\[\[?[^\[\]]+\]\]?\s*(#.*)?")
 def split_template(template: str) -> tuple[str, str]:
     """The template's top-level keys (with the comments among them) and the rest, from its
     first table on (with the comment lines just above that table): the first part goes
-    above ``[data]``, where its keys stay top-level; ``("", template)`` when it has none."""
+    above ``[data]``, where its keys stay top-level; ``("", template)`` when it has none.
+    """
     lines = template.splitlines(keepends=True)
     for i, line in enumerate(lines):
         head = "".join(lines[:i])
@@ -235,7 +242,8 @@ def _check_template(template: str) -> dict[str, Any]:
 
 def _parse(text: str, template: dict[str, Any]) -> dict[str, Any]:
     """The generated text read back: its keys beyond init's own must be the template's,
-    unchanged (the last guard of :func:`split_template`)."""
+    unchanged (the last guard of :func:`split_template`).
+    """
     raw = tomllib.loads(text)
     if {k: v for k, v in raw.items() if k not in _OWN_KEYS} != template:
         raise ConfigError(f"template {TEMPLATE}: its settings change when written below "

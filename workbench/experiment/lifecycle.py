@@ -24,7 +24,7 @@ import os
 import socket
 import threading
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from typing import TYPE_CHECKING, Any
 
 from ..parallel import pid_alive
@@ -33,6 +33,9 @@ from .signals import interrupts_deferred
 from .tracking.uris import check_store_uri, sqlite_path
 
 if TYPE_CHECKING:  # mlflow is imported only where a run is touched
+    from optuna.study import Study
+    from optuna.trial import FrozenTrial
+
     from .tracking.runs import Tracker
 
 __all__ = ["TrialRecorder", "command_run", "live_run", "prepare_store", "reap_stale_runs"]
@@ -73,7 +76,8 @@ def prepare_store(tracker: Tracker) -> str:
     """Create (and migrate) the tracking store and the experiment, one process at a time;
     returns the experiment id. Raises :class:`~workbench.experiment.errors.TrackingError`
     (before anything is written when the store cannot be used: an unknown scheme, a missing
-    database driver, a read-only directory, an unreachable server)."""
+    database driver, a read-only directory, an unreachable server).
+    """
     check_store_uri(tracker.tracking_uri)
     # a Ctrl-C waits for a new store's migration (a half-migrated database would not open)
     with interrupts_deferred(), _first_use_lock(tracker.tracking_uri):
@@ -87,7 +91,8 @@ def reap_stale_runs(tracker: Tracker, grace_s: float | None = None) -> list[str]
     """Mark ``FAILED`` the RUNNING runs of the tracker's experiment whose process is gone:
     same host and dead pid, or a heartbeat older than ``grace_s`` (default
     :data:`RUN_GRACE_S`); and RUNNING children of runs that are no longer running. Returns
-    the run ids marked."""
+    the run ids marked.
+    """
     grace = RUN_GRACE_S if grace_s is None else grace_s
     client, host, now = tracker.client, socket.gethostname(), time.time()
     with tracker._errors():
@@ -118,10 +123,12 @@ def reap_stale_runs(tracker: Tracker, grace_s: float | None = None) -> list[str]
 
 
 @contextlib.contextmanager
-def every(interval: float, beat, name: str = "heartbeat") -> Iterator[None]:
+def every(interval: float, beat: Callable[..., object], name: str = "heartbeat"
+          ) -> Iterator[None]:
     """Call ``beat()`` every ``interval`` seconds from a daemon thread while the block runs
     (a heartbeat that beats while the work goes on). A failed beat is skipped: the grace
-    periods that read heartbeats cover several."""
+    periods that read heartbeats cover several.
+    """
     stop = threading.Event()
 
     def loop() -> None:
@@ -145,7 +152,8 @@ def live_run(tracker: Tracker, name: str, *, tags: Mapping[str, Any] | None = No
              interval: float | None = None) -> Iterator[str]:
     """:meth:`Tracker.run` (ended ``FINISHED``, ``KILLED`` on ``KeyboardInterrupt``,
     ``FAILED`` otherwise) with this process's host and pid and a heartbeat tag that a
-    background thread refreshes while the block runs (:func:`reap_stale_runs` reads them)."""
+    background thread refreshes while the block runs (:func:`reap_stale_runs` reads them).
+    """
     all_tags = dict(tags or {})
     all_tags.update({HOST_TAG: socket.gethostname(), PID_TAG: str(os.getpid()),
                      HEARTBEAT_TAG: f"{time.time():.0f}"})
@@ -159,7 +167,8 @@ def live_run(tracker: Tracker, name: str, *, tags: Mapping[str, Any] | None = No
 def command_run(tracker: Tracker | None, kind: str, name: str,
                 tags: Mapping[str, Any] | None = None) -> Iterator[str | None]:
     """The parent run of one ``evaluate``/``sweep`` (``None`` without tracking): the store is
-    prepared, stale runs are reaped, then the run lives while the block runs."""
+    prepared, stale runs are reaped, then the run lives while the block runs.
+    """
     if tracker is None:
         yield None
         return
@@ -172,12 +181,13 @@ def command_run(tracker: Tracker | None, kind: str, name: str,
 
 class TrialRecorder:
     """``recorder(study, trial)``: one finished trial as a child run of ``parent_run_id``
-    (picklable, for worker processes)."""
+    (picklable, for worker processes).
+    """
 
     def __init__(self, tracker: Tracker, parent_run_id: str):
         self.tracker, self.parent_run_id = tracker, parent_run_id
 
-    def __call__(self, study, trial) -> None:
+    def __call__(self, study: Study, trial: FrozenTrial) -> None:
         """Three requests per trial (create, one batch, end): it runs between trials."""
         from mlflow.entities import Metric, Param  # (b) MLflow: not for evaluate --no-track
 

@@ -17,11 +17,18 @@ import os
 import shutil
 import tempfile
 from pathlib import Path
+from typing import Any, Protocol
 
 from .._io import atomic_write
 from .errors import UsageError
 
 __all__ = ["OutputError", "check_dir", "check_file", "write_artifacts", "write_file"]
+
+
+class _Writable(Protocol):
+    """What :func:`write_artifacts` writes: a family's ``Artifacts`` (tables and figures)."""
+
+    def write(self, directory: Path) -> dict[str, Any]: ...
 
 
 class OutputError(UsageError):
@@ -40,9 +47,10 @@ def _existing_ancestor(path: Path) -> Path:
     return path
 
 
-def _check_writable_dir(directory: Path, flag: str, target) -> None:
+def _check_writable_dir(directory: Path, flag: str, target: str | os.PathLike) -> None:
     """``directory`` (or its nearest existing ancestor, where the missing directories will be
-    created) accepts a new file."""
+    created) accepts a new file.
+    """
     existing = _existing_ancestor(directory)
     if not existing.is_dir():
         raise OutputError(f"{flag} {target}: {existing} is a file, not a directory")
@@ -65,7 +73,8 @@ def check_file(path: str | os.PathLike, flag: str) -> Path:
 
 def check_dir(path: str | os.PathLike, flag: str) -> Path:
     """Raise :class:`OutputError` unless ``path`` is, or can be created as, a writable
-    directory."""
+    directory.
+    """
     p = Path(path)
     if os.path.lexists(p) and not p.is_dir():
         raise OutputError(f"{flag} {path}: is a file; give a directory")
@@ -81,11 +90,12 @@ def write_file(path: str | os.PathLike, data: str | bytes, flag: str) -> Path:
         raise OutputError(f"{flag} {path}: cannot write: {_why(exc)}") from None
 
 
-def write_artifacts(artifacts, directory: str | os.PathLike, flag: str = "--out"
+def write_artifacts(artifacts: _Writable, directory: str | os.PathLike, flag: str = "--out"
                     ) -> dict[str, Path]:
     """``artifacts.write`` (:class:`~.families.base.Artifacts`) into ``directory``, all or
     nothing: everything is written into a staging directory inside ``directory`` first and
-    renamed into place once complete. Returns name -> path."""
+    renamed into place once complete. Returns name -> path.
+    """
     directory = Path(directory)
     created = [p for p in (directory, *directory.parents) if not os.path.lexists(p)]
     stage = None

@@ -6,7 +6,8 @@ A section checks structure: types, required and unknown keys, and the values tha
 config's own (paths, names, study settings). A key that is an estimator's parameter is
 marked :class:`ParameterOf` and its value is checked against that estimator's
 ``_parameter_constraints`` by scikit-learn's machinery (:func:`check_values`), at load
-time, without data: the config restates no range or choice of its own."""
+time, without data: the config restates no range or choice of its own.
+"""
 
 from __future__ import annotations
 
@@ -44,7 +45,7 @@ class Section(BaseModel):
         return data
 
 
-def Seed():  # noqa: N802  (a field, like pydantic's Field)
+def Seed() -> Any:  # noqa: N802  (a field, like pydantic's Field)
     return Field(default=0, ge=0, le=MAX_INT)
 
 
@@ -57,7 +58,8 @@ def check_values(estimator: type, values: dict[str, Any],
     estimator declares (``_parameter_constraints``, read now), with scikit-learn's
     ``validate_parameter_constraints``: its ``InvalidParameterError`` (a ``ValueError``) with
     scikit-learn's message, the value shortened. A parameter the estimator does not declare
-    is a bug, not a bad config: ``TypeError``."""
+    is a bug, not a bad config: ``TypeError``.
+    """
     constraints = estimator._parameter_constraints  # type: ignore[attr-defined]
     for key, value in values.items():
         param = (rename or {}).get(key, key)
@@ -81,7 +83,8 @@ class ParameterOf:
     key). Its value, once of the field's type, is checked by :func:`check_values`; an invalid
     one is a validation error of type ``"parameter"`` with scikit-learn's message (the
     config's error line then names the file, ``section.key`` and the value). Use it as
-    ``Annotated[float, ParameterOf(Estimator)]``; keep the default beside the field."""
+    ``Annotated[float, ParameterOf(Estimator)]``; keep the default beside the field.
+    """
 
     estimator: type
     name: str | None = None

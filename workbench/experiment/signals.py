@@ -15,6 +15,7 @@ import contextlib
 import signal
 import threading
 from collections.abc import Iterator
+from types import FrameType
 
 __all__ = ["Interrupted", "MESSAGE", "handle_signals", "ignoring_signals",
            "interrupts_deferred"]
@@ -40,7 +41,8 @@ def interrupts_deferred() -> Iterator[None]:
     inside the block is raised once the outermost block is left (bookkeeping that must not
     stop half-way: a trial asked from the storage but not yet running, or run but not yet
     told; an append to the Optuna journal under its file lock; a new store's migration).
-    In other threads the block does nothing (signals interrupt the main thread only)."""
+    In other threads the block does nothing (signals interrupt the main thread only).
+    """
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -59,10 +61,11 @@ def handle_signals() -> Iterator[None]:
     signals are ignored while the command cleans up), or, inside
     :func:`interrupts_deferred`, when that block is left. Any other code (e.g. MLflow's
     requests and their retries, a database call) is interrupted where it is: its stores
-    roll back what was not committed."""
+    roll back what was not committed.
+    """
     fired: list[int] = []
 
-    def handler(signum, frame):
+    def handler(signum: int, frame: FrameType | None) -> None:
         if fired:
             return
         if _DEFERRING[0]:

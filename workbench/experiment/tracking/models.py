@@ -1,5 +1,6 @@
 """Models in the store: a fitted model logged as an MLflow pyfunc model (the ``workbench``
-package travels with it), registered with an alias, and loaded back."""
+package travels with it), registered with an alias, and loaded back.
+"""
 
 from __future__ import annotations
 
@@ -26,6 +27,7 @@ from .records import tag_value
 
 if TYPE_CHECKING:
     from mlflow import MlflowClient
+    from mlflow.pyfunc import PyFuncModel
 
 __all__ = ["CHAMPION", "MODEL_REQUIREMENTS", "ModelRecords"]
 
@@ -70,7 +72,8 @@ def _quiet(logger_name: str, *texts: str) -> Iterator[None]:
 
 class ModelRecords:
     """The model half of :class:`~workbench.experiment.tracking.runs.Tracker` (which gives
-    it ``client``, ``experiment_id`` and ``_errors``)."""
+    it ``client``, ``experiment_id`` and ``_errors``).
+    """
 
     @property
     def client(self) -> MlflowClient:
@@ -83,7 +86,7 @@ class ModelRecords:
     def _errors(self) -> contextlib.AbstractContextManager[None]:
         raise NotImplementedError
 
-    def log_model(self, run_id: str, model, input_example: pd.DataFrame,
+    def log_model(self, run_id: str, model: Any, input_example: pd.DataFrame,
                   name: str = "model", *, targets: list[str] | None = None,
                   texts: Mapping[str, str] | None = None) -> str:
         """Log a fitted model (``predict(DataFrame)`` -> DataFrame or array; optionally
@@ -100,7 +103,8 @@ class ModelRecords:
         (default: the columns of ``model.predict``). ``texts``: file name -> text written
         in the model directory (e.g. ``{"config.toml": ...}``, credentials redacted by the
         caller). Requirements are pinned from the installed versions (no inference
-        subprocess)."""
+        subprocess).
+        """
         example = pd.DataFrame(input_example)
         if targets is None:
             pred = model.predict(example.head(2))
@@ -149,7 +153,8 @@ class ModelRecords:
                        alias: str = CHAMPION) -> str:
         """Register ``models:/<model_id>`` (from :meth:`log_model`) as a new version of the
         registered model ``name`` (created if missing) in this store's Model Registry, with
-        ``tags``, and point ``alias`` at it; returns the version."""
+        ``tags``, and point ``alias`` at it; returns the version.
+        """
         model_id = model_uri.removeprefix("models:/")
         with self._errors():
             try:
@@ -172,12 +177,13 @@ class ModelRecords:
 
     def model_artifact_uri(self, model_uri: str) -> str:
         """The artifact location of ``models:/<model_id>`` (loadable without a tracking
-        URI, e.g. ``mlflow.pyfunc.load_model(tracker.model_artifact_uri(uri))``)."""
+        URI, e.g. ``mlflow.pyfunc.load_model(tracker.model_artifact_uri(uri))``).
+        """
         model_id = model_uri.removeprefix("models:/").split("/")[0]
         with self._errors():
             return self.client.get_logged_model(model_id).artifact_location
 
-    def load_model(self, model_uri: str):
+    def load_model(self, model_uri: str) -> PyFuncModel:
         """``mlflow.pyfunc.load_model`` for a model of this store (no global state used)."""
         if model_uri.startswith("models:/"):
             model_uri = self.model_artifact_uri(model_uri)

@@ -1,5 +1,6 @@
 """What a run's records are made of: the code's commit, a data set's hash, params and tags
-cut to MLflow's limits."""
+cut to MLflow's limits.
+"""
 
 from __future__ import annotations
 
@@ -39,7 +40,8 @@ def git_commit(root: Path) -> str | None:
 
 def dataset_hash(*frames: pd.DataFrame | pd.Series) -> str:
     """SHA-256 over the values, index, column names and dtypes of each frame (stable across
-    processes: ``pandas.util.hash_pandas_object`` uses a fixed key)."""
+    processes: ``pandas.util.hash_pandas_object`` uses a fixed key).
+    """
     h = hashlib.sha256()
     for i, frame in enumerate(frames):
         h.update(f"frame{i}:{type(frame).__name__}:{frame.shape}\n".encode())

@@ -1,6 +1,7 @@
 """Runs in the store: :class:`Tracker`, an explicit :class:`mlflow.MlflowClient` bound to
 one tracking URI and one experiment (runs, nested runs, params, metrics, tags, artifacts,
-input datasets; its models from :class:`~.models.ModelRecords`)."""
+input datasets; its models from :class:`~.models.ModelRecords`).
+"""
 
 from __future__ import annotations
 
@@ -10,9 +11,9 @@ import logging
 import math
 import os
 import warnings
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pandas as pd
 from mlflow import MlflowClient
@@ -30,6 +31,9 @@ from .uris import (
     prepare_store_location,
     sqlite_path,
 )
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 __all__ = ["RUNS_VIEW", "SHARED_VIEW_PREFIX", "Tracker", "ensure_store", "metric_view"]
 
@@ -82,7 +86,7 @@ class Tracker(ModelRecords):
         return (f"Tracker({redact(self.tracking_uri)!r}, {self.experiment_name!r}, "
                 f"artifact_root={self.artifact_root!r})")
 
-    def __getstate__(self):  # picklable for worker processes; the client is rebuilt there
+    def __getstate__(self) -> dict[str, Any]:  # picklable for worker processes; the client is rebuilt there
         state = self.__dict__.copy()
         state["_client"] = None
         return state
@@ -153,7 +157,8 @@ class Tracker(ModelRecords):
                   start_time: float | None = None) -> str:
         """Create a run (a child of ``parent_run_id`` if given) and return its id.
         ``start_time``: when the run's work began (seconds since the epoch; default now), for
-        a run logged after the work it records."""
+        a run logged after the work it records.
+        """
         all_tags = {str(k): tag_value(v) for k, v in (tags or {}).items()}
         if parent_run_id:
             all_tags[PARENT_TAG] = parent_run_id
@@ -170,7 +175,8 @@ class Tracker(ModelRecords):
     def end_run(self, run_id: str, status: str = "FINISHED",
                 end_time: float | None = None) -> None:
         """Mark the run ``FINISHED``, ``FAILED`` or ``KILLED``; ``end_time``: when its work
-        ended (seconds since the epoch; default now)."""
+        ended (seconds since the epoch; default now).
+        """
         if status not in _RUN_STATUSES:
             raise ValueError(f"status must be one of {_RUN_STATUSES}, got {status!r}")
         with self._errors():
@@ -183,7 +189,8 @@ class Tracker(ModelRecords):
             tags: Mapping[str, Any] | None = None,
             params: Mapping[str, Any] | None = None) -> Iterator[str]:
         """``with tracker.run("fold-0", parent_run_id=pid) as run_id:`` ... ends the run
-        ``FINISHED``, or ``FAILED`` (``KILLED`` on ``KeyboardInterrupt``) and re-raises."""
+        ``FINISHED``, or ``FAILED`` (``KILLED`` on ``KeyboardInterrupt``) and re-raises.
+        """
         run_id = self.start_run(name, parent_run_id=parent_run_id, tags=tags, params=params)
         try:
             yield run_id
@@ -201,7 +208,8 @@ class Tracker(ModelRecords):
 
     # ----------------------------------------------------------------- params, metrics, tags
 
-    def _log_batch(self, run_id: str, *, metrics=(), params=(), tags=()) -> None:
+    def _log_batch(self, run_id: str, *, metrics: Sequence[Metric] = (),
+                   params: Sequence[Param] = (), tags: Sequence[RunTag] = ()) -> None:
         # MlflowClient.log_batch splits into the store's batch limits itself
         with self._errors():
             self.client.log_batch(run_id, metrics=list(metrics), params=list(params),
@@ -209,7 +217,8 @@ class Tracker(ModelRecords):
 
     def log_params(self, run_id: str, params: Mapping[str, Any]) -> None:
         """Log params (values as strings; longer than 6000 characters: truncated, with a note
-        in the value and the key in the tag ``workbench.truncated_params``)."""
+        in the value and the key in the tag ``workbench.truncated_params``).
+        """
         items, truncated = [], []
         for key, value in params.items():
             text, cut = param_value(str(key), value)
@@ -224,7 +233,8 @@ class Tracker(ModelRecords):
         """Log metrics in one batch, each to :data:`METRIC_DIGITS` significant digits (MLflow's
         runs table then shows it whole, not cut to ``0.31870539...``; ``result.json`` keeps
         every digit); NaN/inf values are skipped and their names recorded in the tag
-        ``workbench.skipped_metrics``."""
+        ``workbench.skipped_metrics``.
+        """
         ts, items, skipped = now_ms(), [], []
         for key, value in metrics.items():
             value = float(value)
@@ -246,7 +256,8 @@ class Tracker(ModelRecords):
         the runs page's URL has ``?viewStateShareKey=<key>``; see
         :func:`~.uris.ui_url`): ``state`` as the UI keeps it, e.g. ``selectedColumns``
         (``"metrics.`test_mae_avg`"``, ...), ``searchFilter``, ``orderByKey``,
-        ``orderByAsc``. Replaces the view of the same key."""
+        ``orderByAsc``. Replaces the view of the same key.
+        """
         name, value = SHARED_VIEW_PREFIX + key, json.dumps(dict(state))
         with self._errors():
             try:
@@ -285,7 +296,7 @@ class Tracker(ModelRecords):
             else:
                 self.client.log_artifact(run_id, str(path), artifact_path)
 
-    def log_figure(self, run_id: str, fig, artifact_file: str) -> None:
+    def log_figure(self, run_id: str, fig: Figure, artifact_file: str) -> None:
         """A matplotlib figure, saved in the format of ``artifact_file``'s suffix (PNG)."""
         with self._errors():
             self.client.log_figure(run_id, fig, artifact_file)
@@ -294,7 +305,8 @@ class Tracker(ModelRecords):
                     source: str | None = None, targets: str | None = None) -> str:
         """Record ``frame`` as an input dataset of the run (MLflow's name, digest and schema;
         the runs table's "Dataset" column), with ``mlflow.data.context`` = ``context``;
-        returns MLflow's digest."""
+        returns MLflow's digest.
+        """
         with warnings.catch_warnings():  # a local path "can be interpreted in multiple ways"
             warnings.simplefilter("ignore", UserWarning)
             # its hint omits None, its default (None: "the code location")
@@ -319,7 +331,8 @@ class Tracker(ModelRecords):
 def ensure_store(tracking_uri: str, experiment_name: str,
                  artifact_root: str | None = None) -> str:
     """Create the store (schema) and the experiment once, e.g. before starting parallel
-    workers; returns the experiment id."""
+    workers; returns the experiment id.
+    """
     return Tracker(tracking_uri, experiment_name, artifact_root).experiment_id
 
 
@@ -327,7 +340,8 @@ def metric_view(targets: list[str], metric: str = "test_mae",
                 search_filter: str = "") -> dict[str, Any]:
     """The runs view :meth:`Tracker.share_view` stores by default: the columns ``<metric>/<t>``
     per target and ``<metric>_avg``, the runs ordered by that average (best first), and
-    ``search_filter`` (MLflow's run search syntax; empty: every run)."""
+    ``search_filter`` (MLflow's run search syntax; empty: every run).
+    """
     columns = [f"metrics.`{metric}/{t}`" for t in targets] + [f"metrics.`{metric}_avg`"]
     return {"selectedColumns": columns, "searchFilter": search_filter,
             "orderByKey": f"metrics.`{metric}_avg`", "orderByAsc": True}

@@ -1,5 +1,6 @@
 """MLflow's and the databases' errors as one-line :class:`TrackingError` s naming the store
-(a locked or corrupt SQLite file, an old schema, an unreachable server, a missing driver)."""
+(a locked or corrupt SQLite file, an old schema, an unreachable server, a missing driver).
+"""
 
 from __future__ import annotations
 
@@ -50,7 +51,8 @@ def translate(exc: BaseException, uri: str) -> TrackingError | None:
 
 def duplicate_row(exc: BaseException) -> bool:
     """Whether ``exc`` is a database's unique-constraint violation (SQLite, PostgreSQL,
-    MySQL): a row another process inserted first."""
+    MySQL): a row another process inserted first.
+    """
     text = f"{exc} {exc.__cause__ or exc.__context__ or ''}".lower()
     return any(s in text for s in ("unique constraint", "duplicate key", "duplicate entry",
                                    "integrityerror"))

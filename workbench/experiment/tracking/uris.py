@@ -1,7 +1,8 @@
 """Where the MLflow store is: tracking URIs (the default SQLite store in the project, a
 relative path resolved where the user typed it) and the checks run before any work (a scheme
 MLflow has a store for, an installed database driver, a writable SQLite location, a server
-that answers). Light: MLflow and SQLAlchemy are imported only by the checks that need them."""
+that answers). Light: MLflow and SQLAlchemy are imported only by the checks that need them.
+"""
 
 from __future__ import annotations
 
@@ -32,7 +33,8 @@ def default_artifact_root(root: Path) -> str:
 
 def _split_sqlite(uri: str) -> tuple[str, str] | None:
     """``(path, query)`` of a ``sqlite:///`` URI (``path`` relative unless it starts with
-    ``/``), ``None`` for other URIs and in-memory databases."""
+    ``/``), ``None`` for other URIs and in-memory databases.
+    """
     if not uri.startswith("sqlite:///"):
         return None
     path, sep, query = uri.removeprefix("sqlite:///").partition("?")
@@ -54,7 +56,8 @@ def resolve_tracking_uri(cli: str | None, config: str | None, root: Path) -> str
     """The tracking URI to use: the CLI flag, else ``$MLFLOW_TRACKING_URI``, else the config
     value, else :func:`default_tracking_uri`. A relative sqlite path in the config
     (``sqlite:///mlruns/mlflow.db``) is relative to ``root``; in the CLI flag or the
-    environment it is relative to the current directory, as the user typed it there."""
+    environment it is relative to the current directory, as the user typed it there.
+    """
     if cli:
         return _absolute_sqlite(cli, Path.cwd())
     env = os.environ.get("MLFLOW_TRACKING_URI")
@@ -67,7 +70,8 @@ def resolve_tracking_uri(cli: str | None, config: str | None, root: Path) -> str
 
 def sqlite_path(uri: str) -> Path | None:
     """The database file of a ``sqlite:///`` URI (``None`` for other stores and in-memory
-    databases)."""
+    databases).
+    """
     parts = _split_sqlite(uri)
     return Path(parts[0]) if parts else None
 
@@ -80,7 +84,8 @@ def describe_store(uri: str) -> str:
 
 def prepare_store_location(uri: str) -> None:
     """:func:`check_store_uri`, then the directory of a SQLite store created (what a client
-    needs before its first use of the store)."""
+    needs before its first use of the store).
+    """
     check_store_uri(uri)
     path = sqlite_path(uri)
     if path is None:
@@ -95,7 +100,8 @@ def prepare_store_location(uri: str) -> None:
 def _check_sqlite_location(path: Path) -> None:
     """Without writing anything: ``path`` is not a directory, and its directory (or the
     nearest existing one, where it would be created) accepts new files: SQLite writes its
-    journal and the first-use lock beside the database, even for an existing one."""
+    journal and the first-use lock beside the database, even for an existing one.
+    """
     if path.is_dir():
         raise TrackingError(f"SQLite database {path} is a directory, not a database file")
     existing = Path(os.path.abspath(path)).parent
@@ -142,7 +148,8 @@ def _store_schemes() -> list[str]:
 
 def _check_scheme_and_driver(uri: str) -> None:
     """Without connecting: MLflow has a store for the URI's scheme, and a database URI's
-    driver is installed."""
+    driver is installed.
+    """
     from mlflow.store.db.db_types import DATABASE_ENGINES  # (b) MLflow: not for evaluate --no-track
 
     shown = redact(uri)
@@ -180,7 +187,8 @@ def check_store_uri(uri: str) -> None:
     """Before any work, writing nothing: the tracking store at ``uri`` can be used. Its
     scheme has an MLflow store, a database's driver is installed, a SQLite database's
     directory can be written (and the file is SQLite), a server accepts connections.
-    Raises :class:`TrackingError` (one line, no password)."""
+    Raises :class:`TrackingError` (one line, no password).
+    """
     _check_scheme_and_driver(uri)
     path = sqlite_path(uri)
     if path is not None:
@@ -191,7 +199,8 @@ def check_store_uri(uri: str) -> None:
 
 def _check_server(uri: str, timeout: float = 5.0) -> None:
     """Fail fast when an http(s) tracking server does not accept connections (MLflow itself
-    retries for minutes)."""
+    retries for minutes).
+    """
     parts = urlsplit(uri)
     if parts.scheme not in ("http", "https") or not parts.hostname:
         return
@@ -210,7 +219,8 @@ def ui_url(port: int, experiment_id: str | None = None, view: str | None = None,
     experiment's runs (with ``view``, the runs view stored under that key, see
     :meth:`~.runs.Tracker.share_view`). MLflow 3 (3.17) opens its GenAI view unless the URL
     says ``workflowType=machine_learning`` (or the user's browser remembers the toggle):
-    the experiment's ``mlflow.experimentKind`` tag does not decide it any more."""
+    the experiment's ``mlflow.experimentKind`` tag does not decide it any more.
+    """
     from urllib.parse import urlencode
 
     query = {"workflowType": "machine_learning"}
