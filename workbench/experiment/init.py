@@ -43,8 +43,25 @@ _OWN_KEYS = ("name", "random_state", "data")
 
 @dataclass(frozen=True)
 class InitResult:
-    """What :func:`init_config` wrote: the config file, its text, the feature columns (and,
-    when they were chosen by default, the columns not taken and why), the split's sizes.
+    """What :func:`init_config` wrote.
+
+    Attributes
+    ----------
+    path : Path
+        The config file.
+    text : str
+        Its text.
+    features : list of str
+        The feature columns it names.
+    defaulted : bool
+        Whether the features were chosen by default (every other numeric column).
+    skipped : dict of str to str
+        When defaulted: the columns not taken, with the reason.
+    n_train, n_test : int
+        The split's sizes.
+    group_hints : dict of str to int
+        Without a group column: text columns whose values repeat (e.g. a device or a date),
+        with their number of distinct values: candidates for ``--group-column``.
     """
 
     path: Path
@@ -60,17 +77,40 @@ class InitResult:
 
 
 def template_text(name: str = TEMPLATE) -> str:
-    """The text of a config template shipped with the package (package data, read through
-    :mod:`importlib.resources`: an installed wheel carries it).
+    """Read a config template shipped with the package.
+
+    Package data, read through :mod:`importlib.resources`: an installed wheel carries it.
+
+    Parameters
+    ----------
+    name : str, default=TEMPLATE
+        The template's file name under ``workbench/experiment/templates/``.
+
+    Returns
+    -------
+    str
+        Its text.
     """
     source = resources.files("workbench.experiment") / "templates" / name
     return source.read_text(encoding="utf-8")
 
 
 def csv_entry(csv: str | os.PathLike[str], config: str | os.PathLike[str]) -> str:
-    """``[data] csv`` for the file ``csv`` in the config ``config``: relative to the config's
-    directory (as the config parser reads it), or absolute where no relative path leads
-    there (another drive). Forward slashes, which every platform reads.
+    """Write the ``[data] csv`` entry for the file ``csv`` in the config ``config``.
+
+    Parameters
+    ----------
+    csv : path-like
+        The data file.
+    config : path-like
+        The config file that will name it.
+
+    Returns
+    -------
+    str
+        The path relative to the config's directory (as the config parser reads it), or
+        absolute where no relative path leads there (another drive); forward slashes, which
+        every platform reads.
     """
     target = Path(csv).resolve()
     base = Path(config).resolve().parent
@@ -82,10 +122,24 @@ def csv_entry(csv: str | os.PathLike[str], config: str | os.PathLike[str]) -> st
 
 def numeric_columns(path: str | os.PathLike[str], exclude: Sequence[str]
                     ) -> tuple[list[str], dict[str, str]]:
-    """The columns of the CSV ``path`` (other than ``exclude``) whose every cell is a finite
-    number, in the file's order, and the others with the reason they were left out. Cells
-    are read as the loader reads them (text, stripped; empty, ``nan``, ``na``, ``null``
+    """Split the CSV's columns into the numeric ones and the others.
+
+    Cells are read as the loader reads them (text, stripped; empty, ``nan``, ``na``, ``null``
     missing); call it once the loader has read the file.
+
+    Parameters
+    ----------
+    path : path-like
+        The CSV file.
+    exclude : sequence of str
+        Columns not considered.
+
+    Returns
+    -------
+    taken : list of str
+        The columns whose every cell is a finite number, in the file's order.
+    skipped : dict of str to str
+        The others, with the reason they were left out.
     """
     frame = pd.read_csv(path, dtype=str, keep_default_na=False)
     taken: list[str] = []
@@ -106,11 +160,23 @@ def numeric_columns(path: str | os.PathLike[str], exclude: Sequence[str]
 
 
 def group_columns(path: str | os.PathLike[str], exclude: Sequence[str]) -> dict[str, int]:
-    """The text columns of the CSV ``path`` (other than ``exclude``) whose values repeat, each
-    with its number of distinct values: between 2 and half the rows, e.g. the device or the
-    cooldown a row was measured in. Rows that share such a value are often alike, so plain
-    K-fold CV, which puts some of them on each side of a fold, rewards what only repeats
-    within a group; ``[data] group_column`` keeps each group whole in one fold.
+    """Find the text columns whose values repeat, candidates for ``[data] group_column``.
+
+    Rows that share such a value (the device or the cooldown a row was measured in) are often
+    alike, so plain K-fold CV, which puts some of them on each side of a fold, rewards what
+    only repeats within a group; ``[data] group_column`` keeps each group whole in one fold.
+
+    Parameters
+    ----------
+    path : path-like
+        The CSV file.
+    exclude : sequence of str
+        Columns not considered.
+
+    Returns
+    -------
+    dict of str to int
+        Each such column with its number of distinct values (between 2 and half the rows).
     """
     frame = pd.read_csv(path, dtype=str, keep_default_na=False)
     out = {}
@@ -127,7 +193,7 @@ def group_columns(path: str | os.PathLike[str], exclude: Sequence[str]) -> dict[
 
 
 def _string(value: str) -> str:
-    """``value`` as a TOML basic string."""
+    """Write ``value`` as a TOML basic string."""
     out = []
     for ch in value:
         if ch in '"\\':
@@ -142,7 +208,7 @@ def _string(value: str) -> str:
 
 
 def _strings(key: str, values: Sequence[str], width: int = 92) -> str:
-    """``key = ["a", "b"]``, wrapped over several lines when it is long."""
+    """Write ``key = ["a", "b"]``, wrapped over several lines when it is long."""
     items = [_string(v) for v in values]
     line = f"{key} = [{', '.join(items)}]"
     if len(line) <= width:
@@ -158,7 +224,7 @@ def _strings(key: str, values: Sequence[str], width: int = 92) -> str:
 
 
 def _comment(text: str) -> str:
-    """``text`` fit for a TOML comment (no control characters)."""
+    """Make ``text`` fit for a TOML comment (no control characters)."""
     return "".join(ch if ch.isprintable() else "?" for ch in text)
 
 
@@ -166,9 +232,39 @@ def render_config(*, name: str, csv: str, prior: Sequence[str], targets: Sequenc
                   features: Sequence[str], split_column: str | None, test_fraction: float | None,
                   split_seed: int, out: str, source: str, template: str,
                   group_column: str | None = None) -> str:
-    """The config's text: a header comment (what wrote it, from which CSV, what to run
-    next), ``name``, ``random_state``, ``[data]``, then the ``template``'s text as is (top-level
-    keys of the template, if any, above ``[data]``: :func:`split_template`).
+    """Write the config's text.
+
+    A header comment (what wrote it, from which CSV, what to run next), ``name``,
+    ``random_state``, ``[data]``, then the ``template``'s text as is (top-level keys of the
+    template, if any, above ``[data]``: :func:`split_template`).
+
+    Parameters
+    ----------
+    name : str
+        The data set's name.
+    csv : str
+        The ``[data] csv`` entry (:func:`csv_entry`).
+    prior, targets, features : sequence of str
+        The columns of ``[data]``.
+    split_column : str or None
+        The train/test column, or ``None`` for a random split.
+    test_fraction : float or None
+        The random split's test share (when ``split_column`` is ``None``).
+    split_seed : int
+        The random split's seed.
+    out : str
+        The config's path, for the header's next command.
+    source : str
+        Where the CSV came from, for the header.
+    template : str
+        The template's text.
+    group_column : str, default=None
+        The column whose groups CV folds keep whole.
+
+    Returns
+    -------
+    str
+        The config's text.
     """
     header = [
         f"# A first config for the data set {_comment(repr(name))}, written by `workbench "
@@ -207,9 +303,23 @@ _TABLE = re.compile(r"\s*\[\[?[^\[\]]+\]\]?\s*(#.*)?")
 
 
 def split_template(template: str) -> tuple[str, str]:
-    """The template's top-level keys (with the comments among them) and the rest, from its
-    first table on (with the comment lines just above that table): the first part goes
-    above ``[data]``, where its keys stay top-level; ``("", template)`` when it has none.
+    """Split a template into its top-level keys and the rest.
+
+    The first part holds the top-level keys (with the comments among them) and goes above
+    ``[data]``, where its keys stay top-level; the rest starts at the first table (with the
+    comment lines just above it).
+
+    Parameters
+    ----------
+    template : str
+        The template's text.
+
+    Returns
+    -------
+    top : str
+        The top-level part (``""`` when the template has none).
+    rest : str
+        The template from its first table on.
     """
     lines = template.splitlines(keepends=True)
     for i, line in enumerate(lines):
@@ -229,7 +339,7 @@ def split_template(template: str) -> tuple[str, str]:
 
 
 def _check_template(template: str) -> dict[str, Any]:
-    """The template's tables; it must be valid TOML and leave the keys init writes alone."""
+    """Return the template's tables; it must be valid TOML and leave the keys init writes alone."""
     try:
         tables = tomllib.loads(template)
     except tomllib.TOMLDecodeError as exc:
@@ -241,8 +351,10 @@ def _check_template(template: str) -> dict[str, Any]:
 
 
 def _parse(text: str, template: dict[str, Any]) -> dict[str, Any]:
-    """The generated text read back: its keys beyond init's own must be the template's,
-    unchanged (the last guard of :func:`split_template`).
+    """Read the generated text back and check it against the template.
+
+    Its keys beyond init's own must be the template's, unchanged (the last guard of
+    :func:`split_template`).
     """
     raw = tomllib.loads(text)
     if {k: v for k, v in raw.items() if k not in _OWN_KEYS} != template:
@@ -258,14 +370,44 @@ def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str], targets: S
                 force: bool = False, group_column: str | None = None) -> InitResult:
     """Write a first config for the CSV ``csv`` and return what was written.
 
-    ``features``: ``None`` takes every other numeric column (not the prior, target and
-    split columns, nor ``group_column``: each row's group, e.g. its device, which CV folds
-    keep whole). The split is ``split_column`` (values train/test) or a random
-    ``test_fraction`` (default :data:`DEFAULT_TEST_FRACTION`) drawn with ``split_seed``
-    (default 0). ``name`` defaults to the CSV's stem, ``out`` to ``<name>.toml``; an
-    existing ``out`` is an error unless ``force``. Bad data raise the loader's
-    :class:`~workbench.datasets.DatasetError`, as ``workbench evaluate`` would; nothing is
-    written then.
+    Parameters
+    ----------
+    csv : path-like
+        The data file.
+    prior, targets : sequence of str
+        One prior column per target, and the targets, in the same order.
+    features : sequence of str, default=None
+        The basis' inputs; ``None`` takes every other numeric column (not the prior, target
+        and split columns, nor ``group_column``).
+    split_column : str, default=None
+        A column of ``train``/``test`` values giving the split.
+    test_fraction : float, default=None
+        Without ``split_column``: the random split's test share
+        (:data:`DEFAULT_TEST_FRACTION` when ``None``).
+    split_seed : int, default=None
+        The random split's seed (0 when ``None``).
+    name : str, default=None
+        The data set's name; the CSV's stem when ``None``.
+    out : path-like, default=None
+        The config to write; ``<name>.toml`` when ``None``.
+    force : bool, default=False
+        Overwrite an existing ``out``.
+    group_column : str, default=None
+        Each row's group (e.g. its device), kept whole by the CV folds.
+
+    Returns
+    -------
+    InitResult
+        What was written.
+
+    Raises
+    ------
+    UsageError
+        Contradictory options, or an existing ``out`` without ``force``.
+    DatasetError
+        Bad data, as ``workbench evaluate`` would report them; nothing is written then.
+    ConfigError
+        A template that does not combine with the generated ``[data]``.
     """
     csv = Path(csv)
     name = csv.stem if name is None else name

@@ -1,8 +1,7 @@
-"""The logged model: an MLflow pyfunc ``PythonModel`` that checks its input table by column
-name and returns a table of predictions (and prediction intervals when the fitted model has
-them).
+"""The logged model: an MLflow pyfunc ``PythonModel`` that checks its input table by name.
 
-Used three ways, all with the same numbers:
+It returns a table of predictions (and prediction intervals when the fitted model has
+them). Used three ways, all with the same numbers:
 
 * ``workbench predict MODEL DATA.csv --out predictions.csv`` (:mod:`.predict`);
 * ``mlflow.pyfunc.load_model(uri).predict(frame)`` in Python;
@@ -10,12 +9,11 @@ Used three ways, all with the same numbers:
 
 Inputs are checked by the model itself, so each problem is one short line naming the column
 (and the row): no rows at all, a missing column, a non-numeric value, a NaN or infinite
-value. Integer
-columns are accepted (cast to float); extra columns are ignored. The signature therefore
-declares the input columns by name without MLflow types (``Any``, optional): MLflow's own
-enforcement would reject ``int64`` columns and report a missing column after a dump of the
-whole table. The outputs are declared as doubles: one column per target, then
-``<target>_lower`` and ``<target>_upper`` per target when the fitted model has
+value. Integer columns are accepted (cast to float); extra columns are ignored. The
+signature therefore declares the input columns by name without MLflow types (``Any``,
+optional): MLflow's own enforcement would reject ``int64`` columns and report a missing
+column after a dump of the whole table. The outputs are declared as doubles: one column per
+target, then ``<target>_lower`` and ``<target>_upper`` per target when the fitted model has
 ``predict_interval``.
 
 ``predict_interval(X)`` is duck-typed; it may return a DataFrame with ``<target>_lower`` /

@@ -1,5 +1,7 @@
-"""What a command sets up first, kept light (no heavy imports) so that any module may use
-it: the progress lines of the ``workbench`` logger (to standard error).
+"""What a command sets up first: the progress lines of the ``workbench`` logger.
+
+Kept light (no heavy imports) so that any module may use it; the lines go to standard
+error.
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ class _Stderr(logging.StreamHandler):
 
 
 def setup_logging() -> None:
-    """Progress lines of the ``workbench`` logger to standard error (once per process)."""
+    """Send the ``workbench`` logger's progress lines to standard error (once per process)."""
     logger = logging.getLogger("workbench")
     if not any(isinstance(h, _Stderr) for h in logger.handlers):
         handler = _Stderr()

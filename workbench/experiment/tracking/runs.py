@@ -1,6 +1,7 @@
-"""Runs in the store: :class:`Tracker`, an explicit :class:`mlflow.MlflowClient` bound to
-one tracking URI and one experiment (runs, nested runs, params, metrics, tags, artifacts,
-input datasets; its models from :class:`~.models.ModelRecords`).
+"""Runs in the store: :class:`Tracker`, an explicit MLflow client bound to one experiment.
+
+One tracking URI and one experiment: runs, nested runs, params, metrics, tags, artifacts,
+input datasets; its models from :class:`~.models.ModelRecords`.
 """
 
 from __future__ import annotations
@@ -59,6 +60,8 @@ RUNS_VIEW = "workbench"
 class Tracker(ModelRecords):
     """Log runs of one experiment to one tracking store through an explicit client.
 
+    The client is created on first use; constructing a ``Tracker`` touches nothing.
+
     Parameters
     ----------
     tracking_uri : str
@@ -68,11 +71,10 @@ class Tracker(ModelRecords):
     artifact_root : str, default=None
         Artifact location for a new experiment. ``None``: ``artifacts/`` next to a SQLite
         database file, the server's default otherwise. An existing experiment keeps its own.
-
-    The client is created on first use; constructing a ``Tracker`` touches nothing.
     """
 
-    def __init__(self, tracking_uri: str, experiment_name: str, artifact_root: str | None = None):
+    def __init__(self, tracking_uri: str, experiment_name: str,
+                 artifact_root: str | None = None) -> None:
         self.tracking_uri = str(tracking_uri)
         self.experiment_name = experiment_name
         if artifact_root is None and (path := sqlite_path(self.tracking_uri)):
@@ -83,10 +85,12 @@ class Tracker(ModelRecords):
         self._skipped: dict[str, set[str]] = {}
 
     def __repr__(self) -> str:
+        """Show the store (password redacted), the experiment and the artifact root."""
         return (f"Tracker({redact(self.tracking_uri)!r}, {self.experiment_name!r}, "
                 f"artifact_root={self.artifact_root!r})")
 
-    def __getstate__(self) -> dict[str, Any]:  # picklable for worker processes; the client is rebuilt there
+    def __getstate__(self) -> dict[str, Any]:
+        """Drop the client for pickling: worker processes rebuild it on first use."""
         state = self.__dict__.copy()
         state["_client"] = None
         return state
@@ -106,7 +110,13 @@ class Tracker(ModelRecords):
 
     @property
     def client(self) -> MlflowClient:
-        """The :class:`mlflow.MlflowClient` (created, with its store, on first use)."""
+        """The :class:`mlflow.MlflowClient`, created (with its store) on first use.
+
+        Raises
+        ------
+        TrackingError
+            The store cannot be used.
+        """
         if self._client is None:
             prepare_store_location(self.tracking_uri)
             with self._errors():
@@ -115,7 +125,13 @@ class Tracker(ModelRecords):
 
     @property
     def experiment_id(self) -> str:
-        """The experiment's id; the experiment is created if it does not exist."""
+        """The experiment's id; the experiment is created if it does not exist.
+
+        Raises
+        ------
+        TrackingError
+            The experiment cannot be created, or is deleted.
+        """
         if self._experiment_id is None:
             client = self.client
             with self._errors():
@@ -142,7 +158,7 @@ class Tracker(ModelRecords):
                     f"{describe_store(self.tracking_uri)} is deleted; restore it "
                     f"('mlflow experiments restore --experiment-id {exp.experiment_id}') or use "
                     "another name")
-            if EXPERIMENT_KIND_TAG not in exp.tags:  # an experiment from before the tag
+            if EXPERIMENT_KIND_TAG not in exp.tags:  # else MLflow's UI opens its GenAI view
                 with self._errors():
                     client.set_experiment_tag(exp.experiment_id, EXPERIMENT_KIND_TAG,
                                               EXPERIMENT_KIND)
@@ -156,8 +172,23 @@ class Tracker(ModelRecords):
                   params: Mapping[str, Any] | None = None,
                   start_time: float | None = None) -> str:
         """Create a run (a child of ``parent_run_id`` if given) and return its id.
-        ``start_time``: when the run's work began (seconds since the epoch; default now), for
-        a run logged after the work it records.
+
+        Parameters
+        ----------
+        name : str
+            The run's name.
+        parent_run_id : str, default=None
+            The parent run.
+        tags, params : mapping, default=None
+            Tags and params to log with it.
+        start_time : float, default=None
+            When the run's work began (seconds since the epoch; ``None``: now), for a run logged
+            after the work it records.
+
+        Returns
+        -------
+        str
+            The run id.
         """
         all_tags = {str(k): tag_value(v) for k, v in (tags or {}).items()}
         if parent_run_id:
@@ -174,8 +205,21 @@ class Tracker(ModelRecords):
 
     def end_run(self, run_id: str, status: str = "FINISHED",
                 end_time: float | None = None) -> None:
-        """Mark the run ``FINISHED``, ``FAILED`` or ``KILLED``; ``end_time``: when its work
-        ended (seconds since the epoch; default now).
+        """Mark the run ``FINISHED``, ``FAILED`` or ``KILLED``.
+
+        Parameters
+        ----------
+        run_id : str
+            The run.
+        status : str, default="FINISHED"
+            Its final status.
+        end_time : float, default=None
+            When its work ended (seconds since the epoch; ``None``: now).
+
+        Raises
+        ------
+        ValueError
+            An unknown status.
         """
         if status not in _RUN_STATUSES:
             raise ValueError(f"status must be one of {_RUN_STATUSES}, got {status!r}")
@@ -188,8 +232,24 @@ class Tracker(ModelRecords):
     def run(self, name: str, parent_run_id: str | None = None,
             tags: Mapping[str, Any] | None = None,
             params: Mapping[str, Any] | None = None) -> Iterator[str]:
-        """``with tracker.run("fold-0", parent_run_id=pid) as run_id:`` ... ends the run
-        ``FINISHED``, or ``FAILED`` (``KILLED`` on ``KeyboardInterrupt``) and re-raises.
+        """Run a block inside a run: ``with tracker.run("fold-0", parent_run_id=pid) as run_id:``.
+
+        The run ends ``FINISHED``, or ``FAILED`` (``KILLED`` on ``KeyboardInterrupt``) and the
+        error is re-raised.
+
+        Parameters
+        ----------
+        name : str
+            The run's name.
+        parent_run_id : str, default=None
+            The parent run.
+        tags, params : mapping, default=None
+            Tags and params to log with it.
+
+        Yields
+        ------
+        str
+            The run id.
         """
         run_id = self.start_run(name, parent_run_id=parent_run_id, tags=tags, params=params)
         try:
@@ -211,13 +271,23 @@ class Tracker(ModelRecords):
     def _log_batch(self, run_id: str, *, metrics: Sequence[Metric] = (),
                    params: Sequence[Param] = (), tags: Sequence[RunTag] = ()) -> None:
         # MlflowClient.log_batch splits into the store's batch limits itself
+        """Log metrics, params and tags in one request (MLflow splits it to the store's limits)."""
         with self._errors():
             self.client.log_batch(run_id, metrics=list(metrics), params=list(params),
                                   tags=list(tags))
 
     def log_params(self, run_id: str, params: Mapping[str, Any]) -> None:
-        """Log params (values as strings; longer than 6000 characters: truncated, with a note
-        in the value and the key in the tag ``workbench.truncated_params``).
+        """Log params, values as strings.
+
+        A value longer than 6000 characters is truncated, with a note in the value and the key
+        in the tag ``workbench.truncated_params``.
+
+        Parameters
+        ----------
+        run_id : str
+            The run.
+        params : mapping
+            Name to value.
         """
         items, truncated = [], []
         for key, value in params.items():
@@ -230,10 +300,20 @@ class Tracker(ModelRecords):
 
     def log_metrics(self, run_id: str, metrics: Mapping[str, float],
                     step: int | None = None) -> None:
-        """Log metrics in one batch, each to :data:`METRIC_DIGITS` significant digits (MLflow's
-        runs table then shows it whole, not cut to ``0.31870539...``; ``result.json`` keeps
-        every digit); NaN/inf values are skipped and their names recorded in the tag
+        """Log metrics in one batch, each to :data:`METRIC_DIGITS` significant digits.
+
+        MLflow's runs table then shows it whole, not cut to ``0.31870539...``; ``result.json``
+        keeps every digit. NaN/inf values are skipped and their names recorded in the tag
         ``workbench.skipped_metrics``.
+
+        Parameters
+        ----------
+        run_id : str
+            The run.
+        metrics : mapping
+            Name to value.
+        step : int, default=None
+            The metrics' step (0 when ``None``).
         """
         ts, items, skipped = now_ms(), [], []
         for key, value in metrics.items():
@@ -252,11 +332,18 @@ class Tracker(ModelRecords):
         self._log_batch(run_id, metrics=items, tags=tags)
 
     def share_view(self, state: Mapping[str, Any], key: str = RUNS_VIEW) -> None:
-        """Store a runs view of the experiment for MLflow's UI (an experiment tag read when
-        the runs page's URL has ``?viewStateShareKey=<key>``; see
-        :func:`~.uris.ui_url`): ``state`` as the UI keeps it, e.g. ``selectedColumns``
-        (``"metrics.`test_mae_avg`"``, ...), ``searchFilter``, ``orderByKey``,
-        ``orderByAsc``. Replaces the view of the same key.
+        """Store a runs view of the experiment for MLflow's UI.
+
+        An experiment tag, read when the runs page's URL has ``?viewStateShareKey=<key>`` (see
+        :func:`~.uris.ui_url`). Replaces the view of the same key.
+
+        Parameters
+        ----------
+        state : mapping
+            The view as the UI keeps it, e.g. ``selectedColumns`` (``"metrics.`test_mae_avg`"``,
+            ...), ``searchFilter``, ``orderByKey``, ``orderByAsc``.
+        key : str, default=RUNS_VIEW
+            The view's key.
         """
         name, value = SHARED_VIEW_PREFIX + key, json.dumps(dict(state))
         with self._errors():
@@ -272,23 +359,62 @@ class Tracker(ModelRecords):
                 self.client.set_experiment_tag(self.experiment_id, name, value)
 
     def set_tags(self, run_id: str, tags: Mapping[str, Any]) -> None:
-        """Set tags (values as strings)."""
+        """Set tags of a run, values as strings.
+
+        Parameters
+        ----------
+        run_id : str
+            The run.
+        tags : mapping
+            Name to value.
+        """
         self._log_batch(run_id, tags=[RunTag(str(k), tag_value(v)) for k, v in tags.items()])
 
     # ----------------------------------------------------------------- artifacts
 
     def log_dict(self, run_id: str, obj: Any, artifact_file: str) -> None:
-        """``obj`` as JSON (``.json``) or YAML (``.yaml``/``.yml``)."""
+        """Log ``obj`` as JSON (``.json``) or YAML (``.yaml``/``.yml``).
+
+        Parameters
+        ----------
+        run_id : str
+            The run.
+        obj : object
+            JSON-ready data.
+        artifact_file : str
+            Its path among the run's artifacts.
+        """
         with self._errors():
             self.client.log_dict(run_id, obj, artifact_file)
 
     def log_text(self, run_id: str, text: str, artifact_file: str) -> None:
+        """Log ``text`` as an artifact file.
+
+        Parameters
+        ----------
+        run_id : str
+            The run.
+        text : str
+            The file's text.
+        artifact_file : str
+            Its path among the run's artifacts.
+        """
         with self._errors():
             self.client.log_text(run_id, text, artifact_file)
 
     def log_file(self, run_id: str, path: str | os.PathLike,
                  artifact_path: str | None = None) -> None:
-        """Copy a local file (or directory) into the run's artifacts under ``artifact_path``."""
+        """Copy a local file (or directory) into the run's artifacts.
+
+        Parameters
+        ----------
+        run_id : str
+            The run.
+        path : path-like
+            The file or directory.
+        artifact_path : str, default=None
+            The directory among the run's artifacts (``None``: the top).
+        """
         path = Path(path)
         with self._errors():
             if path.is_dir():
@@ -297,15 +423,46 @@ class Tracker(ModelRecords):
                 self.client.log_artifact(run_id, str(path), artifact_path)
 
     def log_figure(self, run_id: str, fig: Figure, artifact_file: str) -> None:
-        """A matplotlib figure, saved in the format of ``artifact_file``'s suffix (PNG)."""
+        """Log a matplotlib figure, saved in the format of ``artifact_file``'s suffix (PNG).
+
+        Parameters
+        ----------
+        run_id : str
+            The run.
+        fig : matplotlib.figure.Figure
+            The figure.
+        artifact_file : str
+            Its path among the run's artifacts.
+        """
         with self._errors():
             self.client.log_figure(run_id, fig, artifact_file)
 
     def log_dataset(self, run_id: str, frame: pd.DataFrame, *, name: str, context: str,
                     source: str | None = None, targets: str | None = None) -> str:
-        """Record ``frame`` as an input dataset of the run (MLflow's name, digest and schema;
-        the runs table's "Dataset" column), with ``mlflow.data.context`` = ``context``;
-        returns MLflow's digest.
+        """Record ``frame`` as an input dataset of the run.
+
+        MLflow's name, digest and schema (the runs table's "Dataset" column), tagged
+        ``mlflow.data.context``.
+
+        Parameters
+        ----------
+        run_id : str
+            The run.
+        frame : DataFrame
+            The data.
+        name : str
+            The dataset's name.
+        context : str
+            Its role, e.g. ``train`` or ``test``.
+        source : str, default=None
+            Where it came from.
+        targets : str, default=None
+            Its target column.
+
+        Returns
+        -------
+        str
+            MLflow's digest of the data.
         """
         with warnings.catch_warnings():  # a local path "can be interpreted in multiple ways"
             warnings.simplefilter("ignore", UserWarning)
@@ -330,17 +487,42 @@ class Tracker(ModelRecords):
 
 def ensure_store(tracking_uri: str, experiment_name: str,
                  artifact_root: str | None = None) -> str:
-    """Create the store (schema) and the experiment once, e.g. before starting parallel
-    workers; returns the experiment id.
+    """Create the store (schema) and the experiment once, e.g. before starting parallel workers.
+
+    Parameters
+    ----------
+    tracking_uri : str
+        The store.
+    experiment_name : str
+        The experiment.
+    artifact_root : str, default=None
+        As in :class:`Tracker`.
+
+    Returns
+    -------
+    str
+        The experiment id.
     """
     return Tracker(tracking_uri, experiment_name, artifact_root).experiment_id
 
 
 def metric_view(targets: list[str], metric: str = "test_mae",
                 search_filter: str = "") -> dict[str, Any]:
-    """The runs view :meth:`Tracker.share_view` stores by default: the columns ``<metric>/<t>``
-    per target and ``<metric>_avg``, the runs ordered by that average (best first), and
-    ``search_filter`` (MLflow's run search syntax; empty: every run).
+    """Build the runs view :meth:`Tracker.share_view` stores by default.
+
+    Parameters
+    ----------
+    targets : list of str
+        The targets.
+    metric : str, default="test_mae"
+        The metric shown: columns ``<metric>/<target>`` per target and ``<metric>_avg``.
+    search_filter : str, default=""
+        MLflow's run search syntax; empty: every run.
+
+    Returns
+    -------
+    dict
+        The view, runs ordered by the average (best first).
     """
     columns = [f"metrics.`{metric}/{t}`" for t in targets] + [f"metrics.`{metric}_avg`"]
     return {"selectedColumns": columns, "searchFilter": search_filter,
