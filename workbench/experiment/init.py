@@ -363,6 +363,37 @@ def _parse(text: str, template: dict[str, Any]) -> dict[str, Any]:
     return raw
 
 
+def _features(path: Path, prior: list[str], targets: list[str], features: Sequence[str] | None,
+              split_column: str | None, group_column: str | None
+              ) -> tuple[list[str], dict[str, str], dict[str, int]]:
+    """Choose the feature columns, and without a group column the candidates for one.
+
+    The features as given, or every other numeric column (with the columns skipped and why).
+    """
+    skipped: dict[str, str] = {}
+    hints = {} if group_column else group_columns(
+        path, [*prior, *targets, *([split_column] if split_column else [])])
+    if features is None:
+        features, skipped = numeric_columns(
+            path, [*prior, *targets, *([split_column] if split_column else []),
+                   *([group_column] if group_column else [])])
+    return list(features), skipped, hints
+
+
+def _output(name: str, out: str | os.PathLike[str] | None, force: bool) -> Path:
+    """Check ``--name`` and choose the config file to write (``<name>.toml`` by default)."""
+    if not name.strip():
+        raise UsageError("--name: give a non-empty name")
+    if out is None:
+        if any(sep in name for sep in "/\\"):
+            raise UsageError(f"--name {name!r} holds a path separator: give --out too")
+        out = f"{name}.toml"
+    path = check_file(out, "--out")  # a file name, in a folder that can be written
+    if path.exists() and not force:
+        raise UsageError(f"{path} exists: nothing written (--force overwrites it)")
+    return path
+
+
 def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str], targets: Sequence[str],
                 features: Sequence[str] | None = None, split_column: str | None = None,
                 test_fraction: float | None = None, split_seed: int | None = None,
@@ -411,15 +442,7 @@ def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str], targets: S
     """
     csv = Path(csv)
     name = csv.stem if name is None else name
-    if not name.strip():
-        raise UsageError("--name: give a non-empty name")
-    if out is None:
-        if any(sep in name for sep in "/\\"):
-            raise UsageError(f"--name {name!r} holds a path separator: give --out too")
-        out = f"{name}.toml"
-    out = check_file(out, "--out")  # a file name, in a folder that can be written
-    if out.exists() and not force:
-        raise UsageError(f"{out} exists: nothing written (--force overwrites it)")
+    out = _output(name, out, force)
     if split_column is not None:
         if test_fraction is not None:
             raise UsageError("give either --split-column or --test-fraction, not both")
@@ -436,15 +459,9 @@ def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str], targets: S
     load_csv_dataset(path, prior=prior, targets=targets, features=features or (),
                      test_fraction=test_fraction, split_column=split_column,
                      split_seed=split_seed or 0, group_column=group_column, name=name)
-    skipped: dict[str, str] = {}
     defaulted = features is None
-    hints = {} if group_column else group_columns(
-        path, [*prior, *targets, *([split_column] if split_column else [])])
-    if features is None:
-        features, skipped = numeric_columns(
-            path, [*prior, *targets, *([split_column] if split_column else []),
-                   *([group_column] if group_column else [])])
-    features = list(features)
+    features, skipped, hints = _features(path, prior, targets, features, split_column,
+                                         group_column)
     template = template_text()
     tables = _check_template(template)
     text = render_config(name=name, csv=entry, prior=prior, targets=targets, features=features,

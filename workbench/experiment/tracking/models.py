@@ -28,6 +28,7 @@ from .records import tag_value
 
 if TYPE_CHECKING:
     from mlflow import MlflowClient
+    from mlflow.models import ModelSignature
     from mlflow.pyfunc import PyFuncModel
 
 __all__ = ["CHAMPION", "MODEL_REQUIREMENTS", "ModelRecords"]
@@ -69,6 +70,33 @@ def _quiet(logger_name: str, *texts: str) -> Iterator[None]:
         yield
     finally:
         log.removeFilter(flt)
+
+
+def _save_model(tmp: Path, wrapped: WorkbenchModel, meta: mlflow.models.Model,
+                signature: ModelSignature, example: pd.DataFrame,
+                texts: Mapping[str, str] | None) -> Path:
+    """Save ``wrapped`` as a pyfunc model directory in ``tmp``, the package as its code.
+
+    The first 5 rows of ``example`` are the input example; ``texts`` (file name -> text) are
+    written beside ``MLmodel``. Returns the model directory.
+    """
+    code = tmp / "code" / "workbench"
+    shutil.copytree(Path(workbench.__file__).parent, code,
+                    ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+    local = tmp / "model"
+    # cloudpickle is the deliberate choice here (the docs' "models from code" would need a
+    # script per model): silence MLflow's notice about it for this call.
+    with _quiet("mlflow.pyfunc", "serialized using CloudPickle", "Validating input example"):
+        mlflow.pyfunc.save_model(
+            str(local), python_model=wrapped, mlflow_model=meta,
+            signature=signature, input_example=example.head(5),
+            metadata={"workbench": {"inputs": wrapped.columns,
+                                    "targets": wrapped.targets,
+                                    "outputs": wrapped.outputs}},
+            pip_requirements=_requirements(), code_paths=[str(code)])
+    for file_name, text in (texts or {}).items():  # config.toml beside MLmodel
+        (local / file_name).write_text(text, encoding="utf-8")
+    return local
 
 
 class ModelRecords:
@@ -143,25 +171,9 @@ class ModelRecords:
                                                      source_run_id=run_id)
         try:
             with tempfile.TemporaryDirectory(prefix="workbench-model-") as tmp:
-                code = Path(tmp) / "code" / "workbench"
-                shutil.copytree(Path(workbench.__file__).parent, code,
-                                ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
-                local = Path(tmp) / "model"
-                # cloudpickle is the deliberate choice here (the docs' "models from code" would
-                # need a script per model): silence MLflow's notice about it for this call.
                 meta = mlflow.models.Model(artifact_path=logged.artifact_location, run_id=run_id,
                                            model_uuid=logged.model_id, model_id=logged.model_id)
-                with _quiet("mlflow.pyfunc", "serialized using CloudPickle",
-                            "Validating input example"):
-                    mlflow.pyfunc.save_model(
-                        str(local), python_model=wrapped, mlflow_model=meta,
-                        signature=signature, input_example=example.head(5),
-                        metadata={"workbench": {"inputs": wrapped.columns,
-                                                "targets": wrapped.targets,
-                                                "outputs": wrapped.outputs}},
-                        pip_requirements=_requirements(), code_paths=[str(code)])
-                for file_name, text in (texts or {}).items():  # config.toml beside MLmodel
-                    (local / file_name).write_text(text, encoding="utf-8")
+                local = _save_model(Path(tmp), wrapped, meta, signature, example, texts)
                 with self._errors():
                     self.client.log_model_artifacts(logged.model_id, str(local))
             with self._errors():
