@@ -4,24 +4,16 @@ For a model ``f`` of ``M`` features, a row ``x`` and a background set ``B``, the
 interventional value of a coalition ``S`` is ``v(S) = mean_b f(x_S, b_rest)`` and the SHAP
 value of feature ``i`` is its Shapley value
 ``phi_i = sum_{S without i} |S|! (M - |S| - 1)! / M! * (v(S + i) - v(S))``. With ``M`` up to
-about ten, all ``2^M`` coalitions are cheap to enumerate: this is what
-``shap.KernelExplainer`` does at its default ``nsamples`` (its weighted regression over every
-coalition has these values as solution), but it calls the model once per explained row and
-solves a regression per row. Here the model sees every row's coalitions at once (in chunks
-of ``chunk_rows`` rows), so a model with a large fixed cost per call (a 1000-tree LightGBM in
-a stacking) is called a handful of times instead of once per row.
+about ten, all ``2^M`` coalitions are cheap to enumerate: ``shap.KernelExplainer`` finds the
+same values at its default ``nsamples`` but calls the model once per row; here the model
+sees every row's coalitions at once, so a model with a large fixed cost per call (a
+1000-tree LightGBM in a stacking) is called a handful of times. :func:`shap_values` picks
+the method (exact, or the kernel explainer for many features); exact values import neither
+SHAP nor matplotlib (they run in worker processes too).
 
-:func:`shap_values` picks the method (exact, or the kernel explainer for many features). No
-SHAP or matplotlib import for exact values (they run in worker processes too); the beeswarm
-figure is :func:`workbench.experiment.figures.shap_figure`.
-
-A fitted per-target base-boosting model predicts ``prior(X) + correction(X)``; the SHAP values
-of its whole prediction are dominated by the prior (on the benchmark a column of ``X`` spread
-over +-50 MHz, against a correction of a few MHz). :func:`target_shap_values` explains both,
-each computed from its own function on the same rows over the same background: the whole
-prediction and the correction alone (:func:`correction_predictor`: what the boosted stages add
-to the prior, ``None`` when the model is the prior). Exact Shapley values are linear in the
-model, so the whole prediction's values are the prior's plus the correction's (to rounding).
+A per-target model predicts ``prior(X) + correction(X)``; :func:`target_shap_values` explains
+the whole prediction (dominated by the prior) and the correction alone on the same rows over
+the same background (exact values: the first is the prior's plus the second).
 """
 
 from __future__ import annotations
@@ -55,25 +47,20 @@ def shap_sample(n_rows: int, n_features: int, background: int = 30) -> tuple[int
 
     Every row and ``background`` background rows when they fit; else the background shrinks
     (to :data:`MIN_BACKGROUND`), then the explained rows (to :data:`MIN_ROWS`, a seeded
-    sample). The paper's benchmark (95 rows, 5 prior columns) keeps all 95 rows and 30
-    background rows; 1,650 rows of 10 features are summarised on 100 rows over a 10-row
-    background (without the cap, 50 million model rows: 7 minutes of a kernel ridge).
+    sample): 1,650 rows of 10 features are summarised on 100 rows over a 10-row background.
 
     Parameters
     ----------
-    n_rows : int
-        Rows to summarise.
-    n_features : int
-        Features explained (exact values up to ten, else 256 sampled coalitions per row).
+    n_rows, n_features : int
+        Rows to summarise, and features explained (exact values up to ten, else 256 sampled
+        coalitions per row).
     background : int, default=30
         Background rows wanted.
 
     Returns
     -------
-    rows : int
-        Rows to explain.
-    background : int
-        Background rows to use.
+    rows, background : int
+        Rows to explain, and background rows to use.
     """
     # coalitions per row: all 2^M when exact, else the kernel explainer's 256 samples
     per_row = 2 ** n_features if n_features <= MAX_EXACT_FEATURES else 256
@@ -90,16 +77,13 @@ def sample_background(data: np.ndarray, size: int, random_state: int = 0) -> np.
     Parameters
     ----------
     data : ndarray of shape (n_rows, n_features)
-        The rows to draw from.
-    size : int
-        Rows wanted; all of ``data`` when it has no more.
-    random_state : int, default=0
-        Seed of the draw.
+        The rows to draw from (all returned when there are no more than ``size``).
+    size, random_state : int
+        Rows wanted, and the seed (``shap.sample(data, size, random_state)``'s rows).
 
     Returns
     -------
     ndarray
-        The same rows as ``shap.sample(data, size, random_state)``.
     """
     if size >= len(data):
         return data
@@ -125,14 +109,13 @@ def exact_shap_values(predict: Callable[[np.ndarray], np.ndarray], data: np.ndar
     Returns
     -------
     values : ndarray of shape (n_rows, n_features)
-        SHAP value of each feature at each row.
     expected : float
         ``mean f(background)``.
 
     Raises
     ------
     ValueError
-        More than :data:`MAX_EXACT_FEATURES` features, or a background of another width.
+        Too many features, or a background of another width.
     """
     data = np.asarray(data, dtype=float)
     background = np.asarray(background, dtype=float)
@@ -166,11 +149,6 @@ def exact_shap_values(predict: Callable[[np.ndarray], np.ndarray], data: np.ndar
 
 def check_shap_frame(X: object) -> None:
     """Check that ``X`` is a non-empty DataFrame (its columns name the features).
-
-    Parameters
-    ----------
-    X : object
-        The rows to explain.
 
     Raises
     ------
@@ -210,7 +188,6 @@ def shap_values(predict: Callable[[np.ndarray], np.ndarray], X: pd.DataFrame, *,
     Returns
     -------
     values : ndarray of shape (n_rows, n_features)
-        The SHAP values.
     expected : float
         The explained function's mean over the background.
     """
@@ -238,7 +215,6 @@ class ShapValues(NamedTuple):
     Attributes
     ----------
     values : ndarray of shape (n_rows, n_features)
-        SHAP value of each feature at each row.
     expected : float
         The explained function's mean over the background.
     rows : DataFrame
@@ -255,10 +231,9 @@ class TargetShap(NamedTuple):
 
     Attributes
     ----------
-    prediction : ShapValues or None
-        Of the whole prediction.
-    correction : ShapValues or None
-        Of the correction (model - prior); ``None`` when the model is the prior.
+    prediction, correction : ShapValues or None
+        Of the whole prediction, and of the correction (model - prior; ``None`` when the
+        model is the prior).
     note : str
         Why the correction is ``None`` (empty otherwise).
     """
@@ -274,18 +249,18 @@ def _fitted_model(estimator: Any) -> Any:
 
 
 def prior_reason(estimator: Any) -> str:
-    """Say why a fitted per-target model is its prior exactly.
+    """Say why a fitted per-target model (a BaseBoostCV, or the model it selected) is its prior.
 
     Parameters
     ----------
     estimator : estimator
-        A fitted BaseBoostCV, or the model it selected.
+        The fitted model.
 
     Returns
     -------
     str
-        The reason (the prior was selected by CV, or every boosted stage's coefficient is 0),
-        or ``""`` when the model is not the prior.
+        The prior was selected by CV, or every boosted stage's coefficient is 0; ``""`` when
+        the model is not its prior exactly.
     """
     model = _fitted_model(estimator)
     if isinstance(model, PriorModel):
@@ -301,15 +276,13 @@ def correction_predictor(estimator: Any) -> Callable[[pd.DataFrame], np.ndarray]
     Parameters
     ----------
     estimator : estimator
-        A BaseBoostCV or BasisChoiceCV (the model it selected), a BaseBoostRegressor (its
-        :meth:`~workbench.BaseBoostRegressor.predict_correction`), a PriorModel, or any
-        regressor with ``predict_prior``.
+        A BaseBoostCV or BasisChoiceCV (the model it selected), a BaseBoostRegressor, a
+        PriorModel, or any regressor with ``predict_prior``.
 
     Returns
     -------
     callable or None
-        ``X -> model(X) - prior(X)`` for a frame of the columns the model was fitted on;
-        ``None`` when the model is the prior exactly (:func:`prior_reason`).
+        ``X -> model(X) - prior(X)``; ``None`` when the model is the prior exactly.
 
     Raises
     ------
@@ -334,7 +307,7 @@ def model_columns(estimator: Any, X: pd.DataFrame) -> list[str]:
     Parameters
     ----------
     estimator : estimator
-        A fitted per-target model.
+        The fitted model.
     X : DataFrame
         The frame it was fitted on.
 
@@ -358,11 +331,9 @@ def target_shap_values(estimator: Any, X: pd.DataFrame, *, random_state: int = 0
     """Compute SHAP values of a fitted per-target model's prediction and correction.
 
     Both on the rows of ``X`` over the columns the model reads (:func:`model_columns`; the
-    others fixed at the first row's values), on the same rows over the same background, so
-    the two summaries are comparable. Where every row would send more than
-    :data:`MAX_MODEL_ROWS` rows through the model, a seeded sample of the rows and a smaller
-    background (:func:`shap_sample`). Exact values up to ten columns, else the kernel
-    explainer with 256 coalitions per row.
+    others fixed at the first row's values), over the same background, so the two summaries
+    are comparable; rows and background sized by :func:`shap_sample`. Exact values up to ten
+    columns, else the kernel explainer with 256 coalitions per row.
 
     Parameters
     ----------
@@ -417,14 +388,8 @@ def correction_shap_values(estimator: Any, X: pd.DataFrame, *, random_state: int
 
     Parameters
     ----------
-    estimator : estimator
-        A fitted per-target model.
-    X : DataFrame
-        Rows of the columns it was fitted on.
-    random_state : int, default=0
-        Seed, as in :func:`target_shap_values`.
-    background : int, default=30
-        Background rows wanted.
+    estimator, X, random_state, background
+        As in :func:`target_shap_values`.
 
     Returns
     -------

@@ -11,7 +11,6 @@ project's own config parser; the file is then written all or nothing.
 from __future__ import annotations
 
 import os
-import re
 import shlex
 import tomllib
 from dataclasses import dataclass, field
@@ -26,10 +25,10 @@ from ..datasets import load_csv_dataset
 from .config import load_dataset, parse_config
 from .errors import ConfigError, UsageError
 from .outputs import check_file, write_file
+from .toml_text import split_template, toml_comment, toml_string, toml_strings
 
 __all__ = ["DEFAULT_TEST_FRACTION", "TEMPLATE", "InitResult", "csv_entry", "group_columns",
-           "init_config", "numeric_columns", "render_config", "split_template",
-           "template_text"]
+           "init_config", "numeric_columns", "render_config", "template_text"]
 
 #: The template every generated config copies below its ``[data]`` section.
 TEMPLATE = "generic.toml"
@@ -192,42 +191,6 @@ def group_columns(path: str | os.PathLike[str], exclude: Sequence[str]) -> dict[
     return out
 
 
-def _string(value: str) -> str:
-    """Write ``value`` as a TOML basic string."""
-    out = []
-    for ch in value:
-        if ch in '"\\':
-            out.append("\\" + ch)
-        elif ch in "\b\t\n\f\r":
-            out.append({"\b": "\\b", "\t": "\\t", "\n": "\\n", "\f": "\\f", "\r": "\\r"}[ch])
-        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
-            out.append(f"\\u{ord(ch):04x}")
-        else:
-            out.append(ch)
-    return '"' + "".join(out) + '"'
-
-
-def _strings(key: str, values: Sequence[str], width: int = 92) -> str:
-    """Write ``key = ["a", "b"]``, wrapped over several lines when it is long."""
-    items = [_string(v) for v in values]
-    line = f"{key} = [{', '.join(items)}]"
-    if len(line) <= width:
-        return line
-    lines, current = [], "    "
-    for item in items:
-        if current.strip() and len(current) + len(item) + 1 > width:
-            lines.append(current.rstrip())
-            current = "    "
-        current += item + ", "
-    lines.append(current.rstrip())
-    return f"{key} = [\n" + "\n".join(lines) + "\n]"
-
-
-def _comment(text: str) -> str:
-    """Make ``text`` fit for a TOML comment (no control characters)."""
-    return "".join(ch if ch.isprintable() else "?" for ch in text)
-
-
 def render_config(*, name: str, csv: str, prior: Sequence[str], targets: Sequence[str],
                   features: Sequence[str], split_column: str | None, test_fraction: float | None,
                   split_seed: int, out: str, source: str, template: str,
@@ -236,7 +199,7 @@ def render_config(*, name: str, csv: str, prior: Sequence[str], targets: Sequenc
 
     A header comment (what wrote it, from which CSV, what to run next), ``name``,
     ``random_state``, ``[data]``, then the ``template``'s text as is (top-level keys of the
-    template, if any, above ``[data]``: :func:`split_template`).
+    template, if any, above ``[data]``: :func:`~.toml_text.split_template`).
 
     Parameters
     ----------
@@ -267,75 +230,36 @@ def render_config(*, name: str, csv: str, prior: Sequence[str], targets: Sequenc
         The config's text.
     """
     header = [
-        f"# A first config for the data set {_comment(repr(name))}, written by `workbench "
-        f"init` from {_comment(source)}.",
+        f"# A first config for the data set {toml_comment(repr(name))}, written by `workbench "
+        f"init` from {toml_comment(source)}.",
         "# [data] names the CSV's columns (its csv path is relative to this file); the sections",
         f"# after it are the template {TEMPLATE} (workbench/experiment/templates/), to edit.",
         "# Next:",
-        f"#   workbench evaluate {_comment(shlex.quote(out))}",
+        f"#   workbench evaluate {toml_comment(shlex.quote(out))}",
         "#   workbench ui",
     ]
     data = [
         "[data]",
-        f"csv = {_string(csv)}",
+        f"csv = {toml_string(csv)}",
         "# one prior column per target, in the same order",
-        _strings("prior", prior),
-        _strings("targets", targets),
+        toml_strings("prior", prior),
+        toml_strings("targets", targets),
         "# the basis' inputs besides the prior",
-        _strings("features", features),
+        toml_strings("features", features),
     ]
     if split_column is not None:
-        data.append(f"split_column = {_string(split_column)}   # its values: train, test")
+        data.append(f"split_column = {toml_string(split_column)}   # its values: train, test")
     else:
         assert test_fraction is not None  # one of the two (init_config)
         data += [f"test_fraction = {test_fraction!r}   # of the rows, drawn at random with "
                  "split_seed", f"split_seed = {split_seed}"]
     if group_column is not None:
-        data.append(f"group_column = {_string(group_column)}   # CV folds keep each group whole")
+        data.append(f"group_column = {toml_string(group_column)}"
+                    "   # CV folds keep each group whole")
     top, rest = split_template(template)
-    head = [*header, "", f"name = {_string(name)}", "random_state = 0"]
+    head = [*header, "", f"name = {toml_string(name)}", "random_state = 0"]
     return "\n".join(head) + "\n" + (top and top.rstrip("\n") + "\n") + "\n" \
         + "\n".join(data) + "\n\n" + rest
-
-
-#: A line opening a table (``[name]``, ``[[name]]``), possibly after spaces, with a comment.
-_TABLE = re.compile(r"\s*\[\[?[^\[\]]+\]\]?\s*(#.*)?")
-
-
-def split_template(template: str) -> tuple[str, str]:
-    """Split a template into its top-level keys and the rest.
-
-    The first part holds the top-level keys (with the comments among them) and goes above
-    ``[data]``, where its keys stay top-level; the rest starts at the first table (with the
-    comment lines just above it).
-
-    Parameters
-    ----------
-    template : str
-        The template's text.
-
-    Returns
-    -------
-    top : str
-        The top-level part (``""`` when the template has none).
-    rest : str
-        The template from its first table on.
-    """
-    lines = template.splitlines(keepends=True)
-    for i, line in enumerate(lines):
-        head = "".join(lines[:i])
-        if not _TABLE.fullmatch(line.rstrip("\r\n")):
-            continue
-        try:  # a line like a table inside a multi-line string or array is not one
-            keys = tomllib.loads(head)
-        except tomllib.TOMLDecodeError:
-            continue
-        if not keys:
-            return "", template
-        while i > 0 and lines[i - 1].lstrip().startswith("#"):
-            i -= 1
-        return "".join(lines[:i]), "".join(lines[i:])
-    return template, ""
 
 
 def _check_template(template: str) -> dict[str, Any]:
@@ -354,7 +278,7 @@ def _parse(text: str, template: dict[str, Any]) -> dict[str, Any]:
     """Read the generated text back and check it against the template.
 
     Its keys beyond init's own must be the template's, unchanged (the last guard of
-    :func:`split_template`).
+    :func:`~.toml_text.split_template`).
     """
     raw = tomllib.loads(text)
     if {k: v for k, v in raw.items() if k not in _OWN_KEYS} != template:

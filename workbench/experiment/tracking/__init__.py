@@ -30,5 +30,6 @@ import os
 os.environ.setdefault("MLFLOW_SUPPRESS_PRINTING_URL_TO_STDOUT", "true")
 
 # The package's rooms: uris (where the store is, checked before any work), translate (store
-# errors as one line), runs (Tracker), models (logged, registered, loaded models), records
-# (hashes, commits, MLflow's value limits). Import from them.
+# errors as one line), runs (Tracker), models (logged, registered, loaded models), artifacts
+# (files, figures, input datasets), records (hashes, commits, MLflow's value limits). Import
+# from them.

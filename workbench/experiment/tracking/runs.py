@@ -1,7 +1,8 @@
 """Runs in the store: :class:`Tracker`, an explicit MLflow client bound to one experiment.
 
 One tracking URI and one experiment: runs, nested runs, params, metrics, tags, artifacts,
-input datasets; its models from :class:`~.models.ModelRecords`.
+input datasets; its models from :class:`~.models.ModelRecords`, its artifacts from
+:class:`~.artifacts.ArtifactRecords`.
 """
 
 from __future__ import annotations
@@ -10,20 +11,16 @@ import contextlib
 import json
 import logging
 import math
-import os
-import warnings
 from collections.abc import Iterator, Mapping, Sequence
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import pandas as pd
 from mlflow import MlflowClient
-from mlflow.data.pandas_dataset import from_pandas  # mlflow.data.from_pandas: no stub sees it
-from mlflow.entities import DatasetInput, InputTag, Metric, Param, RunTag
+from mlflow.entities import Metric, Param, RunTag
 from mlflow.exceptions import MlflowException
 
 from ..errors import TrackingError, redact
 from ..signals import ignoring_signals
+from .artifacts import ArtifactRecords
 from .models import ModelRecords
 from .records import now_ms, param_value, tag_value
 from .translate import duplicate_row, translate
@@ -34,7 +31,7 @@ from .uris import (
 )
 
 if TYPE_CHECKING:
-    from matplotlib.figure import Figure
+    pass
 
 __all__ = ["RUNS_VIEW", "SHARED_VIEW_PREFIX", "Tracker", "ensure_store", "metric_view"]
 
@@ -57,7 +54,7 @@ SHARED_VIEW_PREFIX = "mlflow.sharedViewState."
 RUNS_VIEW = "workbench"
 
 
-class Tracker(ModelRecords):
+class Tracker(ModelRecords, ArtifactRecords):
     """Log runs of one experiment to one tracking store through an explicit client.
 
     The client is created on first use; constructing a ``Tracker`` touches nothing.
@@ -188,7 +185,6 @@ class Tracker(ModelRecords):
         Returns
         -------
         str
-            The run id.
         """
         all_tags = {str(k): tag_value(v) for k, v in (tags or {}).items()}
         if parent_run_id:
@@ -205,16 +201,9 @@ class Tracker(ModelRecords):
 
     def end_run(self, run_id: str, status: str = "FINISHED",
                 end_time: float | None = None) -> None:
-        """Mark the run ``FINISHED``, ``FAILED`` or ``KILLED``.
+        """Mark the run ``FINISHED``, ``FAILED`` or ``KILLED`` (``status``).
 
-        Parameters
-        ----------
-        run_id : str
-            The run.
-        status : str, default="FINISHED"
-            Its final status.
-        end_time : float, default=None
-            When its work ended (seconds since the epoch; ``None``: now).
+        ``end_time``: when its work ended (seconds since the epoch; ``None``: now).
 
         Raises
         ------
@@ -235,16 +224,7 @@ class Tracker(ModelRecords):
         """Run a block inside a run: ``with tracker.run("fold-0", parent_run_id=pid) as run_id:``.
 
         The run ends ``FINISHED``, or ``FAILED`` (``KILLED`` on ``KeyboardInterrupt``) and the
-        error is re-raised.
-
-        Parameters
-        ----------
-        name : str
-            The run's name.
-        parent_run_id : str, default=None
-            The parent run.
-        tags, params : mapping, default=None
-            Tags and params to log with it.
+        error is re-raised. The arguments are :meth:`start_run`'s.
 
         Yields
         ------
@@ -370,120 +350,6 @@ class Tracker(ModelRecords):
         """
         self._log_batch(run_id, tags=[RunTag(str(k), tag_value(v)) for k, v in tags.items()])
 
-    # ----------------------------------------------------------------- artifacts
-
-    def log_dict(self, run_id: str, obj: Any, artifact_file: str) -> None:
-        """Log ``obj`` as JSON (``.json``) or YAML (``.yaml``/``.yml``).
-
-        Parameters
-        ----------
-        run_id : str
-            The run.
-        obj : object
-            JSON-ready data.
-        artifact_file : str
-            Its path among the run's artifacts.
-        """
-        with self._errors():
-            self.client.log_dict(run_id, obj, artifact_file)
-
-    def log_text(self, run_id: str, text: str, artifact_file: str) -> None:
-        """Log ``text`` as an artifact file.
-
-        Parameters
-        ----------
-        run_id : str
-            The run.
-        text : str
-            The file's text.
-        artifact_file : str
-            Its path among the run's artifacts.
-        """
-        with self._errors():
-            self.client.log_text(run_id, text, artifact_file)
-
-    def log_file(self, run_id: str, path: str | os.PathLike,
-                 artifact_path: str | None = None) -> None:
-        """Copy a local file (or directory) into the run's artifacts.
-
-        Parameters
-        ----------
-        run_id : str
-            The run.
-        path : path-like
-            The file or directory.
-        artifact_path : str, default=None
-            The directory among the run's artifacts (``None``: the top).
-        """
-        path = Path(path)
-        with self._errors():
-            if path.is_dir():
-                self.client.log_artifacts(run_id, str(path), artifact_path)
-            else:
-                self.client.log_artifact(run_id, str(path), artifact_path)
-
-    def log_figure(self, run_id: str, fig: Figure, artifact_file: str) -> None:
-        """Log a matplotlib figure, saved in the format of ``artifact_file``'s suffix (PNG).
-
-        Parameters
-        ----------
-        run_id : str
-            The run.
-        fig : matplotlib.figure.Figure
-            The figure.
-        artifact_file : str
-            Its path among the run's artifacts.
-        """
-        with self._errors():
-            self.client.log_figure(run_id, fig, artifact_file)
-
-    def log_dataset(self, run_id: str, frame: pd.DataFrame, *, name: str, context: str,
-                    source: str | None = None, targets: str | None = None) -> str:
-        """Record ``frame`` as an input dataset of the run.
-
-        MLflow's name, digest and schema (the runs table's "Dataset" column), tagged
-        ``mlflow.data.context``.
-
-        Parameters
-        ----------
-        run_id : str
-            The run.
-        frame : DataFrame
-            The data.
-        name : str
-            The dataset's name.
-        context : str
-            Its role, e.g. ``train`` or ``test``.
-        source : str, default=None
-            Where it came from.
-        targets : str, default=None
-            Its target column.
-
-        Returns
-        -------
-        str
-            MLflow's digest of the data.
-        """
-        with warnings.catch_warnings():  # a local path "can be interpreted in multiple ways"
-            warnings.simplefilter("ignore", UserWarning)
-            # its hint omits None, its default (None: "the code location")
-            dataset = from_pandas(frame, source=source,  # type: ignore[arg-type]
-                                  name=name, targets=targets)
-        inputs = [DatasetInput(dataset._to_mlflow_entity(),
-                               tags=[InputTag("mlflow.data.context", context)])]
-        with self._errors():
-            try:
-                self.client.log_inputs(run_id, inputs)
-            except MlflowException as exc:
-                if not duplicate_row(exc):
-                    raise
-                # Another process created the same dataset row (experiment, name, digest)
-                # between MLflow's lookup and its insert (two first runs at once): the row
-                # exists now, and the second attempt links this run to it.
-                _logger.debug("log_inputs raced another process (%s); trying again", exc)
-                self.client.log_inputs(run_id, inputs)
-        return dataset.digest
-
 
 def ensure_store(tracking_uri: str, experiment_name: str,
                  artifact_root: str | None = None) -> str:
@@ -491,11 +357,7 @@ def ensure_store(tracking_uri: str, experiment_name: str,
 
     Parameters
     ----------
-    tracking_uri : str
-        The store.
-    experiment_name : str
-        The experiment.
-    artifact_root : str, default=None
+    tracking_uri, experiment_name, artifact_root
         As in :class:`Tracker`.
 
     Returns
