@@ -22,8 +22,9 @@ import pytest
 from workbench.experiment import init as init_module
 from workbench.experiment.cli import main
 from workbench.experiment.config import load_dataset
-from workbench.experiment.init import csv_entry, split_template, template_text
+from workbench.experiment.init import csv_entry, template_text
 from workbench.experiment.prepare import load_config
+from workbench.experiment.toml_text import split_template, toml_string
 
 ROOT = Path(__file__).resolve().parents[1]
 PRIOR = ["model_E1", "model_E2"]
@@ -348,7 +349,7 @@ def test_odd_column_names_are_written_as_toml_strings(tmp_path, monkeypatch):
     cfg = load_config(tmp_path / "odd name.toml")
     assert cfg.data.features == ['v "1"', "v\\2", "λ 3"]
     strings = ['a "b" \\ c', "tab\there", "line\nbreak", "\x00\x1f\x7f", "λ", ""]
-    assert tomllib.loads("\n".join(f"k{i} = {init_module._string(s)}"
+    assert tomllib.loads("\n".join(f"k{i} = {toml_string(s)}"
                                    for i, s in enumerate(strings))) \
         == {f"k{i}": s for i, s in enumerate(strings)}
 

@@ -20,7 +20,8 @@ import pandas as pd
 import pytest
 
 from workbench.experiment.cli import main
-from workbench.experiment.errors import redact, redact_config
+from workbench.experiment.errors import clip, listing, redact, redact_config
+from workbench.experiment.metrics import mean_absolute_error
 from workbench.simulate import simulate
 
 SECRET = "s3cret"
@@ -323,3 +324,16 @@ def test_redact_config_keeps_the_file_but_the_passwords():
                                    "[tracking]\ntracking_uri = 'http://u:***@h:5000'\n")
     odd = '[study]\nstorage = "postgresql://u:\\u0070w@h/db"\n'  # an escape not undone here
     assert "pw" not in redact_config(odd) and "\\u0070" not in redact_config(odd)
+
+
+def test_clip_cuts_to_the_limit_with_an_ellipsis():
+    assert clip("abc", 3) == "abc"
+    assert clip("abcd", 3) == "..."
+    assert clip("x" * 500, 200) == "x" * 197 + "..."
+    assert listing(["a" * 40, "b"]) == f"'{'a' * 27}...', 'b'"
+
+
+def test_mean_absolute_error_pools_every_entry():
+    y = [[1.0, 2.0], [3.0, 4.0]]
+    assert mean_absolute_error(y, [[1.0, 2.0], [3.0, 8.0]]) == 1.0
+    assert isinstance(mean_absolute_error([1], [2]), float)

@@ -6,8 +6,8 @@ import pandas as pd
 import pytest
 from mlflow import MlflowClient
 
-from workbench.experiment.config import load_config
 from workbench.experiment.evaluate import evaluate, format_table
+from workbench.experiment.prepare import load_config
 from workbench.experiment.record import record
 from workbench.experiment.run_fields import NOTE_TAG
 from workbench.experiment.tracking.runs import Tracker
@@ -88,7 +88,7 @@ def test_data_without_a_unit_show_none(tmp_path, drawn):
 
 
 def test_the_unit_is_a_csv_key_only(tmp_path):
-    from workbench.experiment.config import parse_config
+    from workbench.experiment.prepare import parse_config
     from workbench.experiment.errors import ConfigError
 
     with pytest.raises(ConfigError, match="unit"):

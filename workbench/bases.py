@@ -9,8 +9,9 @@ folds, trials or targets run in parallel) and ``verbose=-1``.
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable, Iterable
 from numbers import Integral
-from typing import Any, Callable
+from typing import Any, Self
 
 import lightgbm.sklearn as _lgb_sklearn
 import numpy as np
@@ -52,7 +53,7 @@ _KEEP = threading.local()
 _PATCH = threading.Lock()
 
 
-def _train(*args, **kwargs):
+def _train(*args: Any, **kwargs: Any) -> Any:
     """``lightgbm.sklearn``'s ``train``: keeps the training booster inside
     :meth:`LeanLGBMRegressor.fit` (and records its dataset), LightGBM's own elsewhere."""
     if not getattr(_KEEP, "on", False):
@@ -68,7 +69,10 @@ class LeanLGBMRegressor(CachedParamNames, LGBMRegressor):
     prediction, are the same; pickling still stores the model as LightGBM's text. The fitted
     model keeps its binned training set (the booster refers to it) until it is pickled."""
 
-    def fit(self, X, y, *args, **kwargs):
+    #: ``(id of the booster, its compiled trees)``, cached by :meth:`_numpy_trees`.
+    _trees: tuple[int, list[_Tree] | None] | None
+
+    def fit(self, X: Any, y: Any, *args: Any, **kwargs: Any) -> Self:
         if _lgb_sklearn.train is not _train:
             with _PATCH:  # once per process; thread-safe: the flag is per thread
                 _lgb_sklearn.train = _train
@@ -91,8 +95,10 @@ class LeanLGBMRegressor(CachedParamNames, LGBMRegressor):
             min(self.num_leaves, rows // max(1, self.min_child_samples))
         return most <= NUMPY_PREDICT_LEAVES
 
-    def predict(self, X, raw_score=False, start_iteration=0, num_iteration=None,
-                pred_leaf=False, pred_contrib=False, validate_features=False, **kwargs):
+    def predict(self, X: Any, raw_score: bool = False, start_iteration: int = 0,
+                num_iteration: int | None = None, pred_leaf: bool = False,
+                pred_contrib: bool = False, validate_features: bool = False,
+                **kwargs: Any) -> Any:
         """LightGBM's prediction. On many rows (at least :data:`NUMPY_PREDICT_ROWS`) of a
         regression whose output is the raw sum of small trees (:meth:`_small_trees`), the
         trees are evaluated with numpy, node by node over all rows at once, and summed in
@@ -105,14 +111,14 @@ class LeanLGBMRegressor(CachedParamNames, LGBMRegressor):
                 and start_iteration == 0 and num_iteration is None):
             trees = self._numpy_trees()
             values = None if trees is None else _finite_matrix(X, self.n_features_in_)
-            if values is not None:
+            if trees is not None and values is not None:
                 return _sum_trees(trees, values)
         return super().predict(X, raw_score=raw_score, start_iteration=start_iteration,
                                num_iteration=num_iteration, pred_leaf=pred_leaf,
                                pred_contrib=pred_contrib, validate_features=validate_features,
                                **kwargs)
 
-    def _numpy_trees(self):
+    def _numpy_trees(self) -> list[_Tree] | None:
         """The fitted trees as nested ``(feature, threshold, left, right)`` tuples (leaves:
         floats), or ``None`` where LightGBM's own prediction is needed."""
         booster = self.booster_
@@ -133,7 +139,7 @@ class LeanLGBMRegressor(CachedParamNames, LGBMRegressor):
         self._trees = (key, trees)
         return trees
 
-    def __getstate__(self):
+    def __getstate__(self) -> dict[str, Any]:
         state = super().__getstate__()
         state.pop("_train_set", None)  # the booster is stored as text without it
         state.pop("_trees", None)
@@ -153,11 +159,15 @@ _RAW_SUM_OBJECTIVES = {"regression", "regression_l1", "huber", "fair", "quantile
 _ZERO = float(np.float32(1e-35))
 
 
+#: A compiled tree: a leaf value, or ``(feature, threshold, left, right)``.
+_Tree = float | tuple[int, float, Any, Any]
+
+
 class _Unsupported(Exception):
     pass
 
 
-def _compile_tree(node):
+def _compile_tree(node: dict[str, Any]) -> _Tree:
     if "leaf_value" in node:
         if "leaf_coeff" in node:  # linear trees
             raise _Unsupported
@@ -168,7 +178,7 @@ def _compile_tree(node):
             _compile_tree(node["left_child"]), _compile_tree(node["right_child"]))
 
 
-def _finite_matrix(X, n_features):
+def _finite_matrix(X: Any, n_features: int) -> np.ndarray | None:
     """``X`` as a float array of ``n_features`` finite columns (column-major), or ``None``."""
     try:
         values = np.asarray(X, dtype=float)
@@ -181,14 +191,14 @@ def _finite_matrix(X, n_features):
     return values
 
 
-def _tree_value(node, X):
+def _tree_value(node: _Tree, X: np.ndarray) -> float | np.ndarray:
     if isinstance(node, float):
         return node
     feature, threshold, left, right = node
     return np.where(X[:, feature] <= threshold, _tree_value(left, X), _tree_value(right, X))
 
 
-def _sum_trees(trees, X, chunk=200_000):
+def _sum_trees(trees: list[_Tree], X: np.ndarray, chunk: int = 200_000) -> np.ndarray:
     out = np.zeros(len(X))
     for start in range(0, len(X), chunk):
         part, total = X[start:start + chunk], out[start:start + chunk]
@@ -218,9 +228,12 @@ PAPER_PARAMS: dict[str, dict[str, Any]] = {
 }
 
 
-def paper_stacking(*, mlp_hidden=(10,), mlp_alpha=10.0, mlp_max_iter=4000,
-                   lgbm_n_estimators=500, final_hidden=(10,), final_alpha=10.0,
-                   final_max_iter=4000, cv=5, random_state=None) -> StackingRegressor:
+def paper_stacking(*, mlp_hidden: Iterable[int] = (10,), mlp_alpha: float = 10.0,
+                   mlp_max_iter: int = 4000, lgbm_n_estimators: int = 500,
+                   final_hidden: Iterable[int] = (10,), final_alpha: float = 10.0,
+                   final_max_iter: int = 4000, cv: Any = 5,
+                   random_state: int | np.random.RandomState | None = None
+                   ) -> StackingRegressor:
     """The paper's basis: stacking of [tanh L-BFGS MLP, LightGBM] -> tanh L-BFGS MLP."""
     first = MLPRegressor(hidden_layer_sizes=tuple(mlp_hidden), activation="tanh",
                          solver="lbfgs", alpha=mlp_alpha, max_iter=mlp_max_iter,
@@ -234,7 +247,8 @@ def paper_stacking(*, mlp_hidden=(10,), mlp_alpha=10.0, mlp_max_iter=4000,
                              final_estimator=final, cv=cv, passthrough=True)
 
 
-def paper_basis(target: str | int, random_state=None) -> StackingRegressor:
+def paper_basis(target: str | int,
+                random_state: int | np.random.RandomState | None = None) -> StackingRegressor:
     """The paper's stacking basis for target ``"Y1"``..``"Y5"`` (or position 0..4)."""
     key = f"Y{target + 1}" if isinstance(target, int) else target
     if key not in PAPER_PARAMS:
@@ -242,7 +256,7 @@ def paper_basis(target: str | int, random_state=None) -> StackingRegressor:
     return paper_stacking(**PAPER_PARAMS[key], random_state=random_state)
 
 
-def ridge(**params) -> Ridge:
+def ridge(**params: Any) -> Ridge:
     return Ridge(**params)
 
 
@@ -271,9 +285,11 @@ class ScalableKernelRidge(CachedParamNames, RegressorMixin, BaseEstimator):
         "random_state": ["random_state"],
     }
 
-    def __init__(self, alpha=1.0, *, kernel="rbf", gamma=None, degree=3, coef0=1,
-                 kernel_params=None, exact_max_rows=KERNEL_EXACT_ROWS, n_components=300,
-                 random_state=None):
+    def __init__(self, alpha: float = 1.0, *, kernel: str | Callable = "rbf",
+                 gamma: float | None = None, degree: float = 3, coef0: float = 1,
+                 kernel_params: dict[str, Any] | None = None,
+                 exact_max_rows: int = KERNEL_EXACT_ROWS, n_components: int = 300,
+                 random_state: int | np.random.RandomState | None = None) -> None:
         self.alpha = alpha
         self.kernel = kernel
         self.gamma = gamma
@@ -284,7 +300,7 @@ class ScalableKernelRidge(CachedParamNames, RegressorMixin, BaseEstimator):
         self.n_components = n_components
         self.random_state = random_state
 
-    def fit(self, X, y):
+    def fit(self, X: Any, y: Any) -> Self:
         self._validate_params()
         kernel = dict(kernel=self.kernel, gamma=self.gamma, degree=self.degree,
                       coef0=self.coef0, kernel_params=self.kernel_params)
@@ -300,12 +316,12 @@ class ScalableKernelRidge(CachedParamNames, RegressorMixin, BaseEstimator):
         self.n_features_in_ = getattr(self.estimator_, "n_features_in_", np.shape(X)[1])
         return self
 
-    def predict(self, X):
+    def predict(self, X: Any) -> Any:
         check_is_fitted(self)
         return self.estimator_.predict(X)
 
 
-def kernel_ridge(**params) -> ScalableKernelRidge:
+def kernel_ridge(**params: Any) -> ScalableKernelRidge:
     """An RBF kernel ridge basis (:class:`ScalableKernelRidge`: exact up to
     :data:`KERNEL_EXACT_ROWS` training rows, Nystroem features above)."""
     return ScalableKernelRidge(**{"kernel": "rbf", **params})
@@ -322,11 +338,11 @@ def quadratic_basis_warning(name: str, n_rows: int) -> str | None:
     return None
 
 
-def lightgbm(**params) -> LeanLGBMRegressor:
+def lightgbm(**params: Any) -> LeanLGBMRegressor:
     return LeanLGBMRegressor(**{"n_jobs": 1, "verbose": -1, **params})
 
 
-def mlp(**params) -> MLPRegressor:
+def mlp(**params: Any) -> MLPRegressor:
     """An MLP basis (tanh, L-BFGS by default); an int ``hidden_layer_sizes`` is one layer."""
     if "hidden_layer_sizes" in params:
         sizes = params["hidden_layer_sizes"]
@@ -334,19 +350,21 @@ def mlp(**params) -> MLPRegressor:
     return MLPRegressor(**{"activation": "tanh", "solver": "lbfgs", "max_iter": 2000, **params})
 
 
-def gaussian_process(*, length_scale=1.0, noise_level=1.0, **params) -> GaussianProcessRegressor:
+def gaussian_process(*, length_scale: float = 1.0, noise_level: float = 1.0,
+                     **params: Any) -> GaussianProcessRegressor:
     kernel = ConstantKernel() * RBF(length_scale=length_scale) + WhiteKernel(noise_level)
     return GaussianProcessRegressor(**{"kernel": kernel, "normalize_y": True, **params})
 
 
-def gp_ard(**params) -> ARDGaussianProcess:
+def gp_ard(**params: Any) -> ARDGaussianProcess:
     """A Gaussian process with one length scale per input, fitted by marginal likelihood, on
     at most ``max_rows`` (default 1,000) rows (:class:`~workbench.gp.ARDGaussianProcess`):
     smooth, with the inputs that matter found by the fit."""
     return ARDGaussianProcess(**params)
 
 
-def spline(*, n_knots=5, degree=3, knots="quantile", alpha=1.0) -> Pipeline:
+def spline(*, n_knots: int = 5, degree: int = 3, knots: Any = "quantile",
+           alpha: float = 1.0) -> Pipeline:
     """An additive spline basis: each input's cubic B-splines (``SplineTransformer``, knots at
     the inputs' quantiles) and a ridge on them. Smooth in every input and linear beyond the
     training range (``extrapolation="linear"``), where trees stay flat: a basis for a
@@ -370,7 +388,7 @@ BASES: dict[str, Callable[..., Any]] = {
 }
 
 
-def make_basis(name: str, **params):
+def make_basis(name: str, **params: Any) -> Any:
     """Build the basis ``name`` of :data:`BASES` with ``params``."""
     if name not in BASES:
         raise ValueError(f"unknown basis {name!r}; valid names are: {', '.join(sorted(BASES))}")
@@ -384,7 +402,8 @@ class _NormalQuantiles(CachedParamNames, QuantileTransformer):
     the same numbers, ``_transform_col`` otherwise as scikit-learn 1.9 writes it (a test
     compares the two)."""
 
-    def _transform_col(self, X_col, quantiles, inverse):
+    def _transform_col(self, X_col: np.ndarray, quantiles: np.ndarray,
+                       inverse: bool) -> np.ndarray:
         if inverse or self.output_distribution != "normal":
             return super()._transform_col(X_col, quantiles, inverse)
         with np.errstate(invalid="ignore"):  # hide NaN comparison warnings
@@ -431,12 +450,13 @@ class NormalQuantileTransformer(CachedParamNames, TransformerMixin, BaseEstimato
     the number of rows, so small training sets fit without a warning (and its normal
     mapping without ``scipy.stats``' per-call overhead; the same numbers)."""
 
-    def __init__(self, n_quantiles=1000, subsample=10_000, random_state=None):
+    def __init__(self, n_quantiles: int = 1000, subsample: int = 10_000,
+                 random_state: int | np.random.RandomState | None = None) -> None:
         self.n_quantiles = n_quantiles
         self.subsample = subsample
         self.random_state = random_state
 
-    def fit(self, X, y=None):
+    def fit(self, X: Any, y: Any = None) -> Self:
         n_rows = len(X)
         self.transformer_ = _NormalQuantiles(
             n_quantiles=max(1, min(self.n_quantiles, n_rows)), output_distribution="normal",
@@ -444,7 +464,7 @@ class NormalQuantileTransformer(CachedParamNames, TransformerMixin, BaseEstimato
         self.n_features_in_ = self.transformer_.n_features_in_
         return self
 
-    def transform(self, X):
+    def transform(self, X: Any) -> np.ndarray:
         check_is_fitted(self)
         return self.transformer_.transform(X)
 
@@ -465,7 +485,7 @@ TRANSFORMS: dict[str, Callable[..., Any]] = {
 }
 
 
-def make_transform(name: str | None, **params):
+def make_transform(name: str | None, **params: Any) -> Any:
     """Build the input transform ``name`` of :data:`TRANSFORMS` (``None``/"none": no transform)."""
     if name is None or name == "none":
         return None

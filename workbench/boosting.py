@@ -21,9 +21,11 @@ from __future__ import annotations
 
 import numbers
 from collections import deque
-from typing import Any
+from collections.abc import Iterable, Iterator
+from typing import Any, Self
 
 import numpy as np
+from numpy.typing import ArrayLike
 from sklearn.base import BaseEstimator, RegressorMixin, clone
 from sklearn.tree import DecisionTreeRegressor
 from sklearn.utils import check_random_state
@@ -41,7 +43,7 @@ __all__ = ["LINKS", "BaseBoostRegressor", "CachedParamNames", "PriorModel",
 LINKS = ("identity", "log")
 
 
-def seed_estimator(estimator, seed: int):
+def seed_estimator(estimator: Any, seed: int) -> Any:
     """Set every ``random_state`` parameter of ``estimator`` (nested ones too) to ``seed``."""
     keys = [k for k in estimator.get_params(deep=True)
             if k == "random_state" or k.endswith("__random_state")]
@@ -59,7 +61,7 @@ class CachedParamNames:
     ``inspect.signature`` is a visible share of the time)."""
 
     @classmethod
-    def _get_param_names(cls):
+    def _get_param_names(cls) -> list[str]:
         names = _PARAM_NAMES.get(cls)
         if names is None:
             after: Any = super(CachedParamNames, cls)  # a BaseEstimator, later in the MRO
@@ -67,11 +69,12 @@ class CachedParamNames:
         return list(names)
 
 
-def _is_column(prior) -> bool:
+def _is_column(prior: object) -> bool:
     return isinstance(prior, (str, numbers.Integral)) and not isinstance(prior, bool)
 
 
-def _column_index(key, feature_names, n_features: int, what: str) -> int:
+def _column_index(key: str | int, feature_names: Iterable[str] | None, n_features: int,
+                  what: str) -> int:
     if isinstance(key, str):
         if feature_names is None:
             raise ValueError(f"{what} {key!r} is a column name, but X has no column names "
@@ -85,7 +88,7 @@ def _column_index(key, feature_names, n_features: int, what: str) -> int:
     return int(key) % n_features
 
 
-def check_predictions(values, n: int, what: str) -> np.ndarray:
+def check_predictions(values: ArrayLike, n: int, what: str) -> np.ndarray:
     """``values`` as a finite float array of shape ``(n,)``, or a ValueError naming ``what``."""
     arr = np.asarray(values, dtype=float)
     if arr.ndim == 2 and arr.shape[1] == 1:
@@ -116,17 +119,17 @@ class PriorModel(CachedParamNames, RegressorMixin, BaseEstimator):
         "prior": [None, str, numbers.Integral, HasMethods(["fit", "predict"]), callable],
     }
 
-    def __init__(self, prior=None):
+    def __init__(self, prior: Any = None) -> None:
         self.prior = prior
 
-    def fit(self, X, y):
+    def fit(self, X: Any, y: Any) -> Self:
         self._validate_params()
         X_raw = X
         X, y = validate_data(self, X, y, y_numeric=True, dtype=float,
                              ensure_all_finite=not callable(self.prior))
         return self._fit_validated(X_raw, X, y)
 
-    def _fit_validated(self, X_raw, X, y):
+    def _fit_validated(self, X_raw: Any, X: np.ndarray, y: np.ndarray) -> Self:
         """:meth:`fit` after validation (``X``, ``y``: the validated arrays; the
         ``n_features_in_``/``feature_names_in_`` attributes already set)."""
         prior = self.prior
@@ -144,14 +147,14 @@ class PriorModel(CachedParamNames, RegressorMixin, BaseEstimator):
                             f"callable; got {type(prior).__name__}")
         return self
 
-    def predict(self, X):
+    def predict(self, X: Any) -> np.ndarray:
         check_is_fitted(self)
         X_raw = X
         X = validate_data(self, X, reset=False, dtype=float,
                           ensure_all_finite=not callable(self.prior))
         return self._predict_validated(X_raw, X)
 
-    def _predict_validated(self, X_raw, X):
+    def _predict_validated(self, X_raw: Any, X: np.ndarray) -> np.ndarray:
         """:meth:`predict` of an ``X`` already validated (as ``X_raw`` was given)."""
         n = X.shape[0]
         if hasattr(self, "constant_"):
@@ -162,7 +165,7 @@ class PriorModel(CachedParamNames, RegressorMixin, BaseEstimator):
             return check_predictions(self.estimator_.predict(X_raw), n, "prior estimator output")
         return check_predictions(self.prior(X_raw), n, "prior callable output")
 
-    def __sklearn_is_fitted__(self):
+    def __sklearn_is_fitted__(self) -> bool:
         return hasattr(self, "n_features_in_")
 
 
@@ -231,10 +234,13 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
         "link": [StrOptions(set(LINKS))],
     }
 
-    def __init__(self, prior=None, basis=None, n_stages=1, loss="squared_error",
-                 line_search_loss="absolute_error", line_search_penalty=0.1,
-                 basis_features=None, input_transform=None, alpha=0.9, random_state=None,
-                 link="identity"):
+    def __init__(self, prior: Any = None, basis: Any = None, n_stages: int = 1,
+                 loss: str | Loss = "squared_error",
+                 line_search_loss: str | Loss = "absolute_error",
+                 line_search_penalty: float = 0.1, basis_features: Any = None,
+                 input_transform: Any = None, alpha: float = 0.9,
+                 random_state: int | np.random.RandomState | None = None,
+                 link: str = "identity") -> None:
         self.prior = prior
         self.basis = basis
         self.n_stages = n_stages
@@ -247,7 +253,7 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
         self.random_state = random_state
         self.link = link
 
-    def _check_params(self):
+    def _check_params(self) -> tuple[Loss, Loss, Any]:
         """The parameters checked against ``_parameter_constraints`` (scikit-learn's
         ``InvalidParameterError``, a ValueError and TypeError); returns the losses and the
         basis."""
@@ -274,7 +280,7 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
             Z = self.input_transform_.transform(Z)
         return Z
 
-    def fit(self, X, y):
+    def fit(self, X: Any, y: Any) -> Self:
         """Fit the prior and ``n_stages`` stages on ``(X, y)``; returns ``self``."""
         loss, line_loss, basis = self._check_params()
         X_raw = X
@@ -335,12 +341,12 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
     def _from_link(self, values: np.ndarray) -> np.ndarray:
         return values if self.link == "identity" else np.exp(values)
 
-    def predict_prior(self, X) -> np.ndarray:
+    def predict_prior(self, X: Any) -> np.ndarray:
         """The prior term alone for ``X``."""
         check_is_fitted(self)
         return self.prior_model_.predict(X)
 
-    def predict_correction(self, X) -> np.ndarray:
+    def predict_correction(self, X: Any) -> np.ndarray:
         """What the stages add to the prior for ``X``, in the target's units: the learned
         correction, ``predict(X) - predict_prior(X)`` up to rounding (exactly 0 where every
         coefficient is 0; a stage whose coefficient is 0 is not evaluated). With the identity
@@ -360,7 +366,7 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
         prior = self.prior_model_._predict_validated(X_raw, X)
         return prior * np.expm1(out)
 
-    def staged_predict(self, X):
+    def staged_predict(self, X: Any) -> Iterator[np.ndarray]:
         """Yield the prediction after each stage ``k = 1..n_stages``."""
         check_is_fitted(self)
         X_raw, X = X, validate_data(self, X, reset=False, dtype=float)
@@ -370,7 +376,7 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
             pred = pred + coef * np.asarray(est.predict(Z), dtype=float).ravel()
             yield self._from_link(pred)
 
-    def predict(self, X) -> np.ndarray:
+    def predict(self, X: Any) -> np.ndarray:
         """``prior(X) + sum_k coef_k * b_k(T(X))`` (``link="log"``: ``prior(X) *
         exp(sum_k ...)``)."""
         (pred,) = deque(self.staged_predict(X), maxlen=1)  # the last stage's (n_stages >= 1)

@@ -69,10 +69,12 @@ from __future__ import annotations
 
 import math
 from numbers import Integral, Real
+from typing import Any, Self
 
 import numpy as np
 import pandas as pd
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
 from sklearn.base import BaseEstimator, MetaEstimatorMixin, RegressorMixin, clone
 from sklearn.model_selection import KFold, check_cv, train_test_split
 from sklearn.utils import _safe_indexing, get_tags
@@ -106,17 +108,17 @@ def min_calibration_rows(alpha: float) -> int:
     return n
 
 
-def _rows(data, index):
+def _rows(data: Any, index: ArrayLike) -> Any:
     """Rows ``index`` (positions) of an array, sparse matrix, DataFrame or Series."""
     return _safe_indexing(data, index)
 
 
-def _n_rows(data) -> int:
+def _n_rows(data: Any) -> int:
     shape = getattr(data, "shape", None)
     return int(shape[0]) if shape is not None else len(np.asarray(data))
 
 
-def _as_2d(values) -> np.ndarray:
+def _as_2d(values: ArrayLike) -> np.ndarray:
     arr = np.asarray(values, dtype=float)
     return arr.reshape(-1, 1) if arr.ndim == 1 else arr
 
@@ -126,7 +128,7 @@ def _kth_smallest(values: np.ndarray, k: int) -> np.ndarray:
     return np.partition(values, k - 1, axis=0)[k - 1]
 
 
-def interval_coverage(y, intervals) -> list[float]:
+def interval_coverage(y: ArrayLike, intervals: ArrayLike) -> list[float]:
     """Per target, the fraction of rows whose ``y`` lies in ``[lower, upper]`` (``intervals``
     as returned by :meth:`ConformalRegressor.predict_interval`)."""
     y = _as_2d(y)
@@ -135,7 +137,7 @@ def interval_coverage(y, intervals) -> list[float]:
     return np.mean(inside, axis=0).tolist()
 
 
-def interval_width(intervals) -> list[float]:
+def interval_width(intervals: ArrayLike) -> list[float]:
     """Per target, the mean width ``upper - lower``."""
     iv = np.asarray(intervals, dtype=float)
     return np.mean(iv[..., 1] - iv[..., 0], axis=0).tolist()
@@ -197,8 +199,10 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         "n_jobs": [Integral, None],
     }
 
-    def __init__(self, estimator=None, *, method="cv_plus", alpha=0.1, cv=5,
-                 calibration_fraction=0.25, random_state=None, n_jobs=None):
+    def __init__(self, estimator: Any = None, *, method: str = "cv_plus", alpha: float = 0.1,
+                 cv: Any = 5, calibration_fraction: float = 0.25,
+                 random_state: int | np.random.RandomState | None = None,
+                 n_jobs: int | None = None) -> None:
         self.estimator = estimator
         self.method = method
         self.alpha = alpha
@@ -215,13 +219,13 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
                 raise ValueError(f"cv={self.cv} folds need at least {self.cv} rows; got "
                                  f"n_samples={n_rows}")
 
-    def _splitter(self):
+    def _splitter(self) -> Any:
         if isinstance(self.cv, Integral) and not isinstance(self.cv, bool):
             return KFold(int(self.cv), shuffle=True, random_state=self.random_state)
         return check_cv(self.cv)
 
     # ------------------------------------------------------------------ fit
-    def fit(self, X, y):
+    def fit(self, X: Any, y: Any) -> Self:
         """Fit ``estimator_`` on all rows, then the fold (or split) models, and keep the
         out-of-fold absolute residuals."""
         if y is None:
@@ -296,7 +300,7 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
                 setattr(self, attr, getattr(self.estimator_, attr))
         return self
 
-    def _fit_oof(self, X, y, Y):
+    def _fit_oof(self, X: Any, y: Any, Y: np.ndarray) -> Self:
         """``method="oof"``: the model on all rows, and its own out-of-fold residuals."""
         model = clone(self.estimator)
         if hasattr(model, "_fit_plan"):
@@ -348,7 +352,7 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
             out[j] = _kth_smallest(R, conformal_rank(len(R), self.alpha))
         return out
 
-    def _predict_2d(self, model, X) -> np.ndarray:
+    def _predict_2d(self, model: Any, X: Any) -> np.ndarray:
         pred = _as_2d(model.predict(X))
         if pred.shape != (_n_rows(X), self.n_targets_):
             raise ValueError(f"the estimator predicted shape {pred.shape}; expected "
@@ -356,13 +360,13 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         return pred
 
     # ------------------------------------------------------------------ predict
-    def predict(self, X):
+    def predict(self, X: Any) -> Any:
         """The point predictions of ``estimator_`` (same type and columns as without the
         wrapper)."""
         check_is_fitted(self)
         return self.estimator_.predict(X)
 
-    def predict_interval(self, X) -> np.ndarray:
+    def predict_interval(self, X: Any) -> np.ndarray:
         """Lower and upper bounds, shape ``(n_samples, n_targets, 2)``: ``[..., 0]`` the lower
         and ``[..., 1]`` the upper bound; targets in the order of :attr:`target_names_`
         (also for a 1-D ``y``: ``n_targets`` = 1)."""
@@ -388,7 +392,7 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
             out[block, :, 1] = _kth_smallest(mu + res, k)
         return out
 
-    def predict_frame(self, X) -> pd.DataFrame:
+    def predict_frame(self, X: Any) -> pd.DataFrame:
         """Point predictions and intervals as one frame (index of ``X`` when it has one):
         a column per target (``target_names_``), then ``<target>_lower`` and
         ``<target>_upper`` for each target."""
@@ -430,7 +434,7 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         ok = self.fold_of_row_ >= 0
         return self._cv_coverage(self.residuals_[ok], self.fold_of_row_[ok])
 
-    def _cv_coverage(self, R, folds) -> tuple[list[float], list[float]]:
+    def _cv_coverage(self, R: np.ndarray, folds: np.ndarray) -> tuple[list[float], list[float]]:
         covered = np.zeros(R.shape, dtype=bool)
         width = np.zeros(R.shape)
         if self.method == "split":
@@ -453,12 +457,12 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
                 width[inside] = 2 * q
         return np.mean(covered, axis=0).tolist(), np.mean(width, axis=0).tolist()
 
-    def __sklearn_tags__(self):
+    def __sklearn_tags__(self) -> Any:
         tags = super().__sklearn_tags__()
         tags.target_tags.multi_output = True
         if self.estimator is not None:
             tags.input_tags = get_tags(self.estimator).input_tags
         return tags
 
-    def __sklearn_is_fitted__(self):
+    def __sklearn_is_fitted__(self) -> bool:
         return hasattr(self, "estimator_")

@@ -40,10 +40,12 @@ from __future__ import annotations
 import math
 import numbers
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 from sklearn.base import clone
 from sklearn.exceptions import FitFailedWarning
 from sklearn.metrics import check_scoring
@@ -51,7 +53,7 @@ from sklearn.model_selection import KFold, check_cv
 from sklearn.utils import _safe_indexing, check_random_state
 
 from .boosting import PriorModel, seed_estimator
-from .parallel import Task, run_plans
+from .parallel import Plan, Task, run_plans
 from .selection import find_prior
 
 __all__ = ["LearningCurve", "augmented_learning_curve", "learning_curve_plan",
@@ -60,7 +62,7 @@ __all__ = ["LearningCurve", "augmented_learning_curve", "learning_curve_plan",
 _SEED_MAX = np.iinfo(np.int32).max
 
 
-def _readonly(values, dtype) -> np.ndarray:
+def _readonly(values: ArrayLike, dtype: Any) -> np.ndarray:
     arr = np.array(values, dtype=dtype)  # a copy the caller cannot alias
     arr.setflags(write=False)
     return arr
@@ -108,7 +110,7 @@ class LearningCurve:
     scoring: str = "neg_mean_absolute_error"
     fit_errors: tuple[str, ...] = field(default=())
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         sizes = _readonly(self.train_sizes, int)
         object.__setattr__(self, "train_sizes", sizes)
         rows = _readonly(self.n_train_rows, int)
@@ -184,7 +186,7 @@ class LearningCurve:
         }
 
 
-def _check_train_sizes(train_sizes) -> np.ndarray:
+def _check_train_sizes(train_sizes: ArrayLike) -> np.ndarray:
     sizes = np.atleast_1d(np.asarray(train_sizes))
     if sizes.ndim != 1 or sizes.size == 0:
         raise ValueError(f"train_sizes must be a non-empty 1-D sequence of row counts; got "
@@ -202,7 +204,7 @@ def _check_train_sizes(train_sizes) -> np.ndarray:
     return np.sort(sizes)
 
 
-def _check_cv(cv, y, random_state):
+def _check_cv(cv: Any, y: np.ndarray, random_state: int | None) -> Any:
     if isinstance(cv, numbers.Integral) and not isinstance(cv, bool):
         if cv < 2:
             raise ValueError(f"cv must be >= 2 folds; got {cv}")
@@ -216,11 +218,13 @@ def _rows(perm: np.ndarray, train: np.ndarray, size: int) -> np.ndarray:
     return train if size == len(train) else perm[:size]
 
 
-def _error_of(scorer, model, X, y) -> float:
+def _error_of(scorer: Callable, model: Any, X: Any, y: np.ndarray) -> float:
     return -float(scorer(model, X, y))
 
 
-def _one(estimator, incumbent, X, y, rows, val, size, fold, scorer):
+def _one(estimator: Any, incumbent: Any, X: Any, y: np.ndarray, rows: np.ndarray,
+         val: np.ndarray, size: int, fold: int,
+         scorer: Callable) -> tuple[int, float, float, float, str | None]:
     """Fit and score candidate and incumbent at one (size, fold)."""
     X_fit, y_fit = _safe_indexing(X, rows), y[rows]
     X_val, y_val = _safe_indexing(X, val), y[val]
@@ -236,9 +240,11 @@ def _one(estimator, incumbent, X, y, rows, val, size, fold, scorer):
     return len(rows), train_error, cv_error, inc_error, error
 
 
-def augmented_learning_curve(estimator, X, y, *, train_sizes, cv=5, incumbent=None,
-                             scoring="neg_mean_absolute_error", random_state=None,
-                             n_jobs=None) -> LearningCurve:
+def augmented_learning_curve(estimator: Any, X: Any, y: ArrayLike, *, train_sizes: ArrayLike,
+                             cv: Any = 5, incumbent: Any = None,
+                             scoring: str | Callable = "neg_mean_absolute_error",
+                             random_state: int | np.random.RandomState | None = None,
+                             n_jobs: int | None = None) -> LearningCurve:
     """The augmented learning curve of ``estimator`` against its incumbent (see module doc).
 
     Parameters
@@ -276,7 +282,8 @@ def augmented_learning_curve(estimator, X, y, *, train_sizes, cv=5, incumbent=No
     return run_plans([plan], n_jobs)[0]
 
 
-def _inputs(X, y, scoring, train_sizes):
+def _inputs(X: Any, y: ArrayLike, scoring: str | Callable,
+            train_sizes: ArrayLike) -> tuple[Any, np.ndarray, np.ndarray]:
     if isinstance(scoring, str) and not scoring.startswith("neg_"):
         raise ValueError(f"scoring must name an error scorer ('neg_...', reported as a positive "
                          f"error), got {scoring!r}")
@@ -291,7 +298,8 @@ def _inputs(X, y, scoring, train_sizes):
     return X, y, sizes
 
 
-def _check_sizes(sizes, folds, n_rows):
+def _check_sizes(sizes: np.ndarray, folds: list[tuple[np.ndarray, np.ndarray]],
+                 n_rows: int) -> None:
     if len(folds) == 0:
         raise ValueError("cv produced no folds")
     fold_sizes = [len(tr) for tr, _ in folds]
@@ -304,8 +312,10 @@ def _check_sizes(sizes, folds, n_rows):
             f"fold-training sizes {sorted(set(fold_sizes))}). Use train_sizes <= {max_size}.")
 
 
-def learning_curve_plan(estimator, X, y, *, train_sizes, cv=5, incumbent=None,
-                        scoring="neg_mean_absolute_error", random_state=None):
+def learning_curve_plan(estimator: Any, X: Any, y: ArrayLike, *, train_sizes: ArrayLike,
+                        cv: Any = 5, incumbent: Any = None,
+                        scoring: str | Callable = "neg_mean_absolute_error",
+                        random_state: int | np.random.RandomState | None = None) -> Plan:
     """:func:`augmented_learning_curve` as a plan (:mod:`workbench.parallel`)."""
     X, y, sizes = _inputs(X, y, scoring, train_sizes)
     rng = check_random_state(random_state)
@@ -325,8 +335,9 @@ def learning_curve_plan(estimator, X, y, *, train_sizes, cv=5, incumbent=None,
                               scoring, {}))
 
 
-def selection_learning_curve(model, X, y, *, train_sizes, random_state=None,
-                             n_jobs=None) -> LearningCurve:
+def selection_learning_curve(model: Any, X: Any, y: ArrayLike, *, train_sizes: ArrayLike,
+                             random_state: int | np.random.RandomState | None = None,
+                             n_jobs: int | None = None) -> LearningCurve:
     """The augmented learning curve of a fitted :class:`~workbench.BaseBoostCV` on its own
     folds (``X``, ``y``: the rows it was fitted on), with its candidate seeded as in its
     selection and its incumbent and scoring: where a size is a fold's whole training set
@@ -337,7 +348,8 @@ def selection_learning_curve(model, X, y, *, train_sizes, random_state=None,
                                            random_state=random_state)], n_jobs)[0]
 
 
-def selection_curve_plan(model, X, y, *, train_sizes, random_state=None):
+def selection_curve_plan(model: Any, X: Any, y: ArrayLike, *, train_sizes: ArrayLike,
+                         random_state: int | np.random.RandomState | None = None) -> Plan:
     """:func:`selection_learning_curve` as a plan (:mod:`workbench.parallel`)."""
     if not hasattr(model, "cv_splits_"):
         raise ValueError(f"{type(model).__name__} is not a fitted BaseBoostCV (no cv_splits_)")
@@ -366,7 +378,9 @@ def selection_curve_plan(model, X, y, *, train_sizes, random_state=None):
                               scoring, known))
 
 
-def _curve(estimator, incumbent, X, y, sizes, folds, perms, scorer, scoring, known):
+def _curve(estimator: Any, incumbent: Any, X: Any, y: np.ndarray, sizes: np.ndarray,
+           folds: list[tuple[np.ndarray, np.ndarray]], perms: list[np.ndarray], scorer: Callable,
+           scoring: str | Callable, known: dict[tuple[int, int], tuple]) -> Plan:
     """The (size, fold) fits not in ``known`` ((size, fold) -> point), as one batch of tasks;
     returns the curve."""
     points = [(i, j) for i in range(len(sizes)) for j in range(len(folds))]

@@ -32,6 +32,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 __all__ = ["CRITERIA", "Batch", "DesignProblem", "ensemble_blocks", "greedy_design",
            "robust_sd"]
@@ -77,7 +78,7 @@ class DesignProblem:
     informs: str = "the variance of {name} falls {fraction:.0%}"
 
 
-def robust_sd(residuals, axis=None) -> np.ndarray:
+def robust_sd(residuals: ArrayLike, axis: int | tuple[int, ...] | None = None) -> np.ndarray:
     """1.4826 x the median absolute deviation from the median (the sd for Gaussian
     residuals, unmoved by a few wild ones), floored at 1e-12."""
     r = np.asarray(residuals, dtype=float)
@@ -97,7 +98,9 @@ def _inverse(information: np.ndarray) -> np.ndarray:
                          "penalty or more rows)") from None
 
 
-def _check(blocks, information, n, criterion, reference, repeats):
+def _check(blocks: ArrayLike, information: ArrayLike, n: int, criterion: str,
+           reference: ArrayLike | None, repeats: bool
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     B = np.asarray(blocks, dtype=float)
     if B.ndim != 3:
         raise ValueError(f"blocks must have shape (n_candidates, n_outputs, n_coefficients), "
@@ -121,8 +124,8 @@ def _check(blocks, information, n, criterion, reference, repeats):
     return B, F, R
 
 
-def greedy_design(blocks, information, n: int, *, criterion: str = "d", reference=None,
-                  repeats: bool = False) -> Batch:
+def greedy_design(blocks: ArrayLike, information: ArrayLike, n: int, *, criterion: str = "d",
+                  reference: ArrayLike | None = None, repeats: bool = False) -> Batch:
     """Choose ``n`` of the candidates' ``blocks`` (shape ``(m, q, D)``) greedily by the D- or
     I-criterion (``criterion`` "d" or "i"), given the current ``information`` ``(D, D)``.
 
@@ -174,7 +177,7 @@ def greedy_design(blocks, information, n: int, *, criterion: str = "d", referenc
                  informs_fraction=np.asarray(fractions), criterion=criterion)
 
 
-def ensemble_blocks(predictions, noise_sd) -> tuple[np.ndarray, np.ndarray]:
+def ensemble_blocks(predictions: ArrayLike, noise_sd: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Blocks and information for the spread of an ensemble's predictions.
 
     ``predictions``: shape ``(K, m, q)``, K models' predictions of q outputs at m settings;

@@ -15,7 +15,9 @@ physics model would learn from residuals that are smaller than the ones it meets
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from numbers import Integral
+from typing import Any, Self
 
 import numpy as np
 import pandas as pd
@@ -30,7 +32,7 @@ from .parallel import Task, map_tasks
 __all__ = ["FittedPriorBoost"]
 
 
-def _refittable(fitted):
+def _refittable(fitted: Any) -> tuple[Any, dict[str, Any]]:
     """An unfitted estimator with the fitted model's choices fixed (``estimator_`` of a
     selection wrapper such as HamiltonianSelectionCV, else the model itself), and the fit
     parameters that warm-start it from the fitted model: ``coef_init`` for a model that
@@ -41,7 +43,8 @@ def _refittable(fitted):
     return clone(chosen), ({"coef_init": start()} if callable(start) else {})
 
 
-def _fold_prediction(model, fit_params, X, Y, train, val) -> np.ndarray:
+def _fold_prediction(model: Any, fit_params: dict[str, Any], X: pd.DataFrame, Y: np.ndarray,
+                     train: np.ndarray, val: np.ndarray) -> np.ndarray:
     """``model`` fitted on the rows ``train`` and predicting the rows ``val``."""
     model.fit(X.iloc[train], Y[train], **fit_params)
     return np.asarray(model.predict(X.iloc[val]), dtype=float)
@@ -106,8 +109,9 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         "n_jobs": [None, Integral],
     }
 
-    def __init__(self, physics=None, boost=None, *, prior_prefix="prior_", cv=5,
-                 boost_stage=True, fallback=None, cv_predictions=True, n_jobs=None):
+    def __init__(self, physics: Any = None, boost: Any = None, *, prior_prefix: str = "prior_",
+                 cv: Any = 5, boost_stage: bool = True, fallback: Sequence[str] | None = None,
+                 cv_predictions: bool = True, n_jobs: int | None = None) -> None:
         self.physics = physics
         self.boost = boost
         self.prior_prefix = prior_prefix
@@ -124,7 +128,7 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         added = pd.DataFrame(prior, columns=self.prior_columns_, index=X.index)
         return pd.concat([X, added], axis=1)
 
-    def fit(self, X, Y):
+    def fit(self, X: pd.DataFrame, Y: Any) -> Self:
         self._validate_params()
         if not isinstance(X, pd.DataFrame):
             raise ValueError(f"X must be a pandas DataFrame, got {type(X).__name__}")
@@ -166,7 +170,7 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         self.boost_ = boost.fit(self._with_prior(X, oof), Y_frame)
         return self
 
-    def predict_prior(self, X) -> np.ndarray:
+    def predict_prior(self, X: pd.DataFrame) -> np.ndarray:
         """The prior of the stage: the physics model's prediction (the control prediction for
         targets where it fell back), shape ``(n, n_targets)``."""
         check_is_fitted(self)
@@ -176,7 +180,7 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
                              X[list(self.fallback)].to_numpy(dtype=float))
         return prior
 
-    def predict(self, X) -> pd.DataFrame:
+    def predict(self, X: pd.DataFrame) -> pd.DataFrame:
         """Predictions as a DataFrame with one column per target."""
         check_is_fitted(self)
         prior = self.predict_prior(X)
@@ -221,5 +225,5 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
             return ["prior"] * len(self.target_names_)
         return self.boost_.selected_
 
-    def __sklearn_is_fitted__(self):
+    def __sklearn_is_fitted__(self) -> bool:
         return hasattr(self, "physics_")

@@ -21,9 +21,12 @@ They are always finite (eigh never returns NaN for finite input).
 from __future__ import annotations
 
 import numbers
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 __all__ = ["TOPOLOGIES", "CouplingGraph", "chain_hamiltonian", "chain_spectrum",
            "graph_hamiltonian", "graph_spectrum", "make_graph"]
@@ -34,7 +37,7 @@ TOPOLOGIES = ("chain", "ring", "grid")
 PARASITIC_KINDS = ("none", "next_nearest", "diagonal")
 
 
-def _int(value, what: str, low: int) -> int:
+def _int(value: Any, what: str, low: int) -> int:
     if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < low:
         raise ValueError(f"{what} must be an integer >= {low}, got {value!r}")
     return int(value)
@@ -80,7 +83,7 @@ class CouplingGraph:
         return cls(rows * cols, tuple(horizontal + vertical), "grid", (rows, cols))
 
     @classmethod
-    def from_edges(cls, n_sites: int, edges) -> CouplingGraph:
+    def from_edges(cls, n_sites: int, edges: Iterable[Sequence[int]]) -> CouplingGraph:
         """Any graph: ``edges`` a list of site pairs ``[i, j]`` (0-based)."""
         n = _int(n_sites, "n_sites", 2)
         graph = cls(n, _check_edges(n, edges), "edges")
@@ -143,7 +146,7 @@ class CouplingGraph:
                     out.append((i, j))
         return out
 
-    def with_edges(self, extra) -> CouplingGraph:
+    def with_edges(self, extra: Iterable[Sequence[int]]) -> CouplingGraph:
         """This graph plus the ``extra`` edges (appended, in order)."""
         return CouplingGraph(self.n_sites, _check_edges(self.n_sites, [*self.edges, *extra]),
                              "edges")
@@ -154,7 +157,7 @@ class CouplingGraph:
                 "edges": [list(e) for e in self.edges]}
 
 
-def _check_edges(n: int, edges) -> tuple[tuple[int, int], ...]:
+def _check_edges(n: int, edges: Any) -> tuple[tuple[int, int], ...]:
     if isinstance(edges, (str, bytes)) or not hasattr(edges, "__iter__"):
         raise ValueError(f"edges must be a list of site pairs [i, j], got {edges!r}")
     out, seen = [], set()
@@ -177,8 +180,9 @@ def _check_edges(n: int, edges) -> tuple[tuple[int, int], ...]:
     return tuple(out)
 
 
-def make_graph(n_sites: int | None = None, topology: str = "chain", shape=None,
-               edges=None) -> CouplingGraph:
+def make_graph(n_sites: int | None = None, topology: str = "chain",
+               shape: Any = None,
+               edges: Iterable[Sequence[int]] | None = None) -> CouplingGraph:
     """A graph from config-style settings: ``topology`` ("chain", "ring", "grid" with
     ``shape = (rows, cols)``) or an explicit ``edges`` list; ``n_sites`` (if given) must match."""
     if edges is not None:
@@ -205,7 +209,8 @@ def make_graph(n_sites: int | None = None, topology: str = "chain", shape=None,
     return graph
 
 
-def _check(onsite, couplings, graph) -> tuple[np.ndarray, np.ndarray, CouplingGraph]:
+def _check(onsite: ArrayLike, couplings: ArrayLike, graph: CouplingGraph | None
+           ) -> tuple[np.ndarray, np.ndarray, CouplingGraph]:
     f = np.asarray(onsite, dtype=float)
     g = np.asarray(couplings, dtype=float)
     if f.ndim != 2:
@@ -236,13 +241,14 @@ def _check(onsite, couplings, graph) -> tuple[np.ndarray, np.ndarray, CouplingGr
     return f, g, graph
 
 
-def _check_sign(sign) -> int:
+def _check_sign(sign: Any) -> int:
     if isinstance(sign, bool) or not isinstance(sign, numbers.Real) or sign not in (-1, 1):
         raise ValueError(f"sign must be -1 or 1, got {sign!r}")
     return 1 if sign == 1 else -1
 
 
-def _build(f, g, graph, out=None) -> np.ndarray:
+def _build(f: np.ndarray, g: np.ndarray, graph: CouplingGraph,
+           out: np.ndarray | None = None) -> np.ndarray:
     n, N = f.shape
     h = np.zeros((n, N, N)) if out is None else out
     d = np.arange(N)
@@ -255,15 +261,17 @@ def _build(f, g, graph, out=None) -> np.ndarray:
     return h
 
 
-def graph_hamiltonian(onsite, couplings, graph: CouplingGraph | None = None) -> np.ndarray:
+def graph_hamiltonian(onsite: ArrayLike, couplings: ArrayLike,
+                      graph: CouplingGraph | None = None) -> np.ndarray:
     """Hamiltonians, shape ``(n, N, N)``, from onsite ``(n, N)`` and couplings ``(n, E)``
     on ``graph`` (None: the chain)."""
     f, g, graph = _check(onsite, couplings, graph)
     return _build(f, g, graph)
 
 
-def graph_spectrum(onsite, couplings, graph: CouplingGraph | None = None, sign=-1, *,
-                   jacobian: bool = True, chunk_elements: int = 8_000_000, out=None):
+def graph_spectrum(onsite: ArrayLike, couplings: ArrayLike, graph: CouplingGraph | None = None,
+                   sign: int = -1, *, jacobian: bool = True, chunk_elements: int = 8_000_000,
+                   out: np.ndarray | None = None) -> Any:  # a pair when jacobian, else one
     """Ascending eigenvalues of ``sign * H`` and (``jacobian=True``) their Jacobian.
 
     Returns
@@ -302,7 +310,8 @@ def graph_spectrum(onsite, couplings, graph: CouplingGraph | None = None, sign=-
     return (lam, jac) if jacobian else lam
 
 
-def _hellmann_feynman(vec, sign, a, b, out, block_elements=1_000_000) -> np.ndarray:
+def _hellmann_feynman(vec: np.ndarray, sign: int, a: np.ndarray, b: np.ndarray, out: np.ndarray,
+                      block_elements: int = 1_000_000) -> np.ndarray:
     """``out[j, k, :] = d lambda_k / d theta`` from eigenvectors ``vec[j, i, k] = u_ik``:
     ``sign * u_ik^2`` for the onsite terms, ``2 sign u_ak u_bk`` for the couplings (a, b).
     Written through the transposed eigenvectors ``u[j, k, i]`` (contiguous in the site), so
@@ -320,13 +329,14 @@ def _hellmann_feynman(vec, sign, a, b, out, block_elements=1_000_000) -> np.ndar
     return out
 
 
-def chain_hamiltonian(onsite, couplings) -> np.ndarray:
+def chain_hamiltonian(onsite: ArrayLike, couplings: ArrayLike) -> np.ndarray:
     """Tridiagonal Hamiltonians, shape ``(n, N, N)``, from onsite ``(n, N)`` and couplings
     ``(n, N - 1)`` (arrays or DataFrames)."""
     return graph_hamiltonian(onsite, couplings, None)
 
 
-def chain_spectrum(onsite, couplings, sign=-1) -> tuple[np.ndarray, np.ndarray]:
+def chain_spectrum(onsite: ArrayLike, couplings: ArrayLike,
+                   sign: int = -1) -> tuple[np.ndarray, np.ndarray]:
     """Ascending eigenvalues of ``sign * H`` of a chain and their Jacobian, shape
     ``(n, N, 2N - 1)`` (see :func:`graph_spectrum`)."""
     return graph_spectrum(onsite, couplings, None, sign)

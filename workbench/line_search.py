@@ -11,14 +11,17 @@ are minimised in closed form. Cost: ``O(n log n)``. No starting point, no tolera
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .losses import Loss, get_loss
 
 __all__ = ["line_search"]
 
 
-def _vertex(obj, lo: float, hi: float) -> float | None:
+def _vertex(obj: Callable[[float], float], lo: float, hi: float) -> float | None:
     """Minimiser of the single quadratic piece ``obj`` on ``[lo, hi]`` (open ends allowed)."""
     if np.isfinite(lo) and np.isfinite(hi):
         x0, h = lo, (hi - lo) / 2.0
@@ -40,7 +43,8 @@ def _vertex(obj, lo: float, hi: float) -> float | None:
     return a if lo <= a <= hi else None
 
 
-def line_search(y, current, direction, loss: str | Loss = "absolute_error", penalty: float = 0.1,
+def line_search(y: ArrayLike, current: ArrayLike, direction: ArrayLike,
+                loss: str | Loss = "absolute_error", penalty: float = 0.1,
                 alpha: float = 0.9) -> float:
     """Coefficient ``a`` minimising ``loss(y, current + a * direction) + penalty * |a|``.
 

@@ -66,10 +66,10 @@ class SquaredError(Loss):
 
     name = "squared_error"
 
-    def elementwise(self, u):
+    def elementwise(self, u: np.ndarray) -> np.ndarray:
         return u * u
 
-    def psi(self, u):
+    def psi(self, u: np.ndarray) -> np.ndarray:
         return np.array(u, dtype=float, copy=True)
 
 
@@ -79,13 +79,13 @@ class AbsoluteError(Loss):
 
     name = "absolute_error"
 
-    def elementwise(self, u):
+    def elementwise(self, u: np.ndarray) -> np.ndarray:
         return np.abs(u)
 
-    def psi(self, u):
+    def psi(self, u: np.ndarray) -> np.ndarray:
         return np.sign(u).astype(float)
 
-    def kinks(self):
+    def kinks(self) -> tuple[float, ...]:
         return (0.0,)
 
 
@@ -101,37 +101,37 @@ class Huber(Loss):
     delta: float | None = None
     name = "huber"
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if not 0.0 < self.quantile <= 1.0:
             raise ValueError(f"huber quantile must be in (0, 1], got {self.quantile!r}")
         if self.delta is not None and not self.delta >= 0.0:
             raise ValueError(f"huber delta must be >= 0, got {self.delta!r}")
 
-    def bind(self, residual):
+    def bind(self, residual: np.ndarray) -> Loss:
         if self.delta is not None:
             return self
         delta = float(np.quantile(np.abs(residual), self.quantile)) if len(residual) else 0.0
         return Huber(quantile=self.quantile, delta=delta)
 
-    def _delta(self):
+    def _delta(self) -> float:
         if self.delta is None:
             raise RuntimeError("Huber loss is not bound to residuals: call bind(residual) first")
         return self.delta
 
-    def elementwise(self, u):
+    def elementwise(self, u: np.ndarray) -> np.ndarray:
         d = self._delta()
         a = np.abs(u)
         return np.where(a <= d, 0.5 * u * u, d * (a - 0.5 * d))
 
-    def psi(self, u):
+    def psi(self, u: np.ndarray) -> np.ndarray:
         d = self._delta()
         return np.clip(u, -d, d).astype(float)
 
-    def kinks(self):
+    def kinks(self) -> tuple[float, ...]:
         d = self._delta()
         return (-d, d) if d > 0 else (0.0,)
 
-    def __call__(self, y, pred):
+    def __call__(self, y: np.ndarray, pred: np.ndarray) -> float:
         u = np.asarray(y, dtype=float) - np.asarray(pred, dtype=float)
         return float(np.mean(self.bind(u).elementwise(u)))
 
@@ -144,17 +144,17 @@ class Quantile(Loss):
     alpha: float = 0.9
     name = "quantile"
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if not 0.0 < self.alpha < 1.0:
             raise ValueError(f"quantile alpha must be in (0, 1), got {self.alpha!r}")
 
-    def elementwise(self, u):
+    def elementwise(self, u: np.ndarray) -> np.ndarray:
         return np.where(u > 0, self.alpha * u, (self.alpha - 1.0) * u)
 
-    def psi(self, u):
+    def psi(self, u: np.ndarray) -> np.ndarray:
         return np.where(u > 0, self.alpha, self.alpha - 1.0).astype(float)
 
-    def kinks(self):
+    def kinks(self) -> tuple[float, ...]:
         return (0.0,)
 
 

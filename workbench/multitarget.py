@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import numbers
+from collections.abc import Mapping, Sequence
+from typing import Any, Self
 
 import numpy as np
 import pandas as pd
@@ -12,13 +14,13 @@ from sklearn.utils._param_validation import HasMethods
 from sklearn.utils.validation import check_is_fitted
 
 from .boosting import seed_estimator
-from .parallel import Task, gather, run_plans
+from .parallel import Plan, Task, gather, run_plans
 from .selection import BaseBoostCV
 
 __all__ = ["MultiTargetBaseBoost", "check_targets"]
 
 
-def check_targets(X, Y) -> tuple[np.ndarray, list[str]]:
+def check_targets(X: Any, Y: Any) -> tuple[np.ndarray, list[str]]:
     """``Y`` (a DataFrame, or a 2-D array whose targets are named ``y0, y1, ...``) as a float
     array with ``len(X)`` rows, and the target names."""
     if isinstance(Y, pd.DataFrame):
@@ -34,7 +36,7 @@ def check_targets(X, Y) -> tuple[np.ndarray, list[str]]:
     return Y, names
 
 
-def _set_prior(estimator, prior):
+def _set_prior(estimator: Any, prior: Any) -> Any:
     """Set every ``prior`` parameter of ``estimator`` (nested ones too) to ``prior``."""
     keys = [k for k in estimator.get_params(deep=True) if k == "prior" or k.endswith("__prior")]
     if not keys:
@@ -42,11 +44,11 @@ def _set_prior(estimator, prior):
     return estimator.set_params(**{k: prior for k in keys})
 
 
-def _fit_one(estimator, X, y):
+def _fit_one(estimator: Any, X: Any, y: Any) -> Any:
     return estimator.fit(X, y)
 
 
-def _fit_plan(estimator, X, y):
+def _fit_plan(estimator: Any, X: Any, y: Any) -> Plan:
     """A target's fit as a plan: the estimator's own (folds, refit) when it has one, else one
     task."""
     if hasattr(estimator, "_fit_plan"):
@@ -89,8 +91,10 @@ class MultiTargetBaseBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         "random_state": ["random_state"],
     }
 
-    def __init__(self, estimator=None, *, priors=None, target_estimators=None, n_jobs=None,
-                 random_state=None):
+    def __init__(self, estimator: Any = None, *, priors: Sequence[Any] | None = None,
+                 target_estimators: Mapping[Any, Any] | None = None,
+                 n_jobs: int | None = None,
+                 random_state: int | np.random.RandomState | None = None) -> None:
         self.estimator = estimator
         self.priors = priors
         self.target_estimators = target_estimators
@@ -120,11 +124,11 @@ class MultiTargetBaseBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
             ests.append(est)
         return ests
 
-    def fit(self, X, Y):
+    def fit(self, X: Any, Y: Any) -> Self:
         """Fit each target's estimator on ``(X, Y[:, j])``; returns ``self``."""
         return run_plans([self._fit_plan(X, Y)], self.n_jobs)[0]
 
-    def _fit_plan(self, X, Y):
+    def _fit_plan(self, X: Any, Y: Any) -> Plan:
         """:meth:`fit` as a plan (:mod:`workbench.parallel`): every target's folds and refit
         side by side (so several such fits, e.g. conformal fold models, can share the
         worker processes)."""
@@ -139,7 +143,7 @@ class MultiTargetBaseBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
             self.feature_names_in_ = np.asarray([str(c) for c in X.columns], dtype=object)
         return self
 
-    def predict(self, X) -> pd.DataFrame:
+    def predict(self, X: Any) -> pd.DataFrame:
         """Predictions as a DataFrame with one column per target (``X``'s index if any)."""
         check_is_fitted(self)
         pred = np.column_stack([est.predict(X) for est in self.estimators_])
@@ -168,7 +172,7 @@ class MultiTargetBaseBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         return np.column_stack([_own_cv(est, "cv_folds_") for est in self.estimators_])
 
 
-def _own_cv(estimator, attr: str) -> np.ndarray:
+def _own_cv(estimator: Any, attr: str) -> np.ndarray:
     if not hasattr(estimator, attr):
         raise AttributeError(f"{type(estimator).__name__} has no {attr} (it does not "
                              "cross-validate itself)")

@@ -61,11 +61,11 @@ class Task:
 
     __slots__ = ("func", "args", "kwargs", "priority")
 
-    def __init__(self, func: Callable, *args, **kwargs):
+    def __init__(self, func: Callable, *args: Any, **kwargs: Any) -> None:
         self.func, self.args, self.kwargs = func, args, kwargs
         self.priority = 0
 
-    def __call__(self):
+    def __call__(self) -> Any:
         return self.func(*self.args, **self.kwargs)
 
     def __repr__(self) -> str:
@@ -147,7 +147,7 @@ def init_worker(parent: int) -> None:
         pass
 
 
-def _call(task: Task):
+def _call(task: Task) -> tuple[Any, list[tuple[str, type[Warning], str, int]]]:
     """Run a task in a worker: its result, and the warnings it raised."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -168,7 +168,7 @@ def _module_of(filename: str) -> str | None:
     return _MODULES.get(filename)
 
 
-def _reissue(caught) -> None:
+def _reissue(caught: Iterable[tuple[str, type[Warning], str, int]]) -> None:
     for message, category, filename, lineno in caught:
         module = _module_of(filename) or os.path.splitext(os.path.basename(filename))[0]
         warnings.warn_explicit(message, category, filename, lineno, module=module,
@@ -178,7 +178,7 @@ def _reissue(caught) -> None:
 class _Pool:
     """Forked worker processes (created on first use)."""
 
-    def __init__(self, n_jobs: int):
+    def __init__(self, n_jobs: int) -> None:
         self.n_jobs = n_jobs
         self._executor: ProcessPoolExecutor | None = None
 
@@ -249,14 +249,15 @@ def start_workers(n_jobs: int | None) -> None:
 # --------------------------------------------------------------------------- plans
 
 
-def _advance(plan: Plan, results=None, error: BaseException | None = None):
+def _advance(plan: Plan, results: Any = None,
+             error: BaseException | None = None) -> list:
     """Send results (or throw an error) into a plan: its next batch, or ``StopIteration``."""
     if error is not None:
         return plan.throw(error)
     return plan.send(results)
 
 
-def _check_batch(batch) -> list[Task]:
+def _check_batch(batch: Iterable[Task]) -> list[Task]:
     batch = list(batch)
     if not batch or not all(isinstance(t, Task) for t in batch):
         raise TypeError(f"a plan must yield a non-empty list of Task objects, got {batch!r}")
@@ -276,7 +277,7 @@ def _first_batches(plans: list[Plan]) -> tuple[list, dict[int, list[Task]]]:
     return out, batches
 
 
-def _run_serial(plan: Plan):
+def _run_serial(plan: Plan) -> Any:
     try:
         batch = _check_batch(next(plan))
         while True:
@@ -347,14 +348,15 @@ def _drive(plans: list[Plan], executor: ProcessPoolExecutor, jobs: int) -> list:
     errors: dict[int, BaseException] = {}
     ready: list[tuple] = []  # (-stage, -priority, plan, position, task)
 
-    def push(i: int, batch) -> None:
+    def push(i: int, batch: Iterable[Task]) -> None:
         batch = _check_batch(batch)
         results[i] = [None] * len(batch)
         missing[i] = len(batch)
         for k, task in enumerate(batch):
             heapq.heappush(ready, (-stage[i], -task.priority, i, k, task))
 
-    def step(i: int, values=None, error=None, first=False) -> None:
+    def step(i: int, values: list | None = None, error: BaseException | None = None,
+             first: bool = False) -> None:
         try:
             batch = next(plans[i]) if first else _advance(plans[i], values, error)
         except StopIteration as stop:

@@ -18,10 +18,11 @@ parameter's correction, linear in covariates (by default the geometric means
 from __future__ import annotations
 
 import numbers
+from collections.abc import Collection, Container, Iterable, Sequence
+from typing import Any, Self
 
 import numpy as np
 import pandas as pd
-from scipy.linalg.blas import dsyrk as _dsyrk
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils._param_validation import Interval, Options, StrOptions
 from sklearn.utils.validation import check_is_fitted
@@ -33,17 +34,17 @@ __all__ = ["HamiltonianParameterRegressor", "PARAM_LOSSES", "default_library",
            "parasitic_names", "resolve_graph"]
 
 
-def _squared(r, delta):
+def _squared(r: np.ndarray, delta: float) -> tuple[np.ndarray, np.ndarray]:
     return 0.5 * SquaredError().elementwise(r), np.ones_like(r)
 
 
-def _absolute(r, delta):
+def _absolute(r: np.ndarray, delta: float) -> tuple[np.ndarray, np.ndarray]:
     a = AbsoluteError().elementwise(r)
     floor = 1e-4 * max(float(np.median(a)), 1e-12)  # IRLS weights 1/|r|, bounded
     return a, 1.0 / np.maximum(a, floor)
 
 
-def _huber(r, delta):
+def _huber(r: np.ndarray, delta: float) -> tuple[np.ndarray, np.ndarray]:
     """:class:`workbench.losses.Huber` with a fixed ``delta``; IRLS weight ``psi(r) / r``."""
     h = Huber(delta=float(delta))
     big = np.abs(r) > 1e-12
@@ -68,7 +69,8 @@ SOLVERS = ("irls", "newton")
 _NEWTON_SWITCH = 0.1
 
 
-def _weights(loss: str, r, delta, newton: bool):
+def _weights(loss: str, r: np.ndarray, delta: float,
+             newton: bool) -> tuple[np.ndarray, np.ndarray]:
     """Normal-equation weights and weighted residuals ``(w, w_r)``: ``w_r = psi(r)`` (the
     loss's negative gradient) always; ``w = psi(r) / r`` (IRLS) or, with ``newton`` and a
     loss with curvature, ``rho''(r)``."""
@@ -79,7 +81,7 @@ def _weights(loss: str, r, delta, newton: bool):
     return w, wr
 
 
-def _names(value, what: str) -> list[str]:
+def _names(value: Any, what: str) -> list[str]:
     if value is None:
         return []
     if isinstance(value, str):
@@ -112,7 +114,8 @@ def _columns(X: pd.DataFrame, names: list[str], what: str) -> np.ndarray:
     return values
 
 
-def resolve_graph(n_sites: int, edges=None, parasitic=None
+def resolve_graph(n_sites: int, edges: Iterable[Sequence[int]] | None = None,
+                  parasitic: str | Iterable[Sequence[int]] | None = None
                   ) -> tuple[CouplingGraph, list[tuple[int, int]]]:
     """The control model's graph (``edges`` None: the chain) and the parasitic site pairs
     (``parasitic``: None/"none", "next_nearest", "diagonal" or a list of pairs)."""
@@ -131,13 +134,13 @@ def resolve_graph(n_sites: int, edges=None, parasitic=None
     return graph, pairs
 
 
-def parasitic_names(onsite, pairs) -> list[str]:
+def parasitic_names(onsite: Iterable[str], pairs: Iterable[tuple[int, int]]) -> list[str]:
     """Names of parasitic couplings between sites ``(i, j)``: ``"<onsite_i>~<onsite_j>"``."""
     on = list(onsite)
     return [f"{on[i]}~{on[j]}" for i, j in pairs]
 
 
-def _detuning(on, i, j) -> str:
+def _detuning(on: Sequence[str], i: int, j: int) -> str:
     return f"{on[min(i, j)]}-{on[max(i, j)]}"
 
 
@@ -145,13 +148,16 @@ def _geomean(a: str, b: str) -> str:
     return f"sqrt|{a}*{b}|"
 
 
-def _bridges(graph, couplings, i, j) -> list[str]:
+def _bridges(graph: CouplingGraph, couplings: Iterable[str], i: int, j: int) -> list[str]:
     """``sqrt|g_a*g_b|`` of each two-edge path ``i - m - j`` of the control graph."""
     co = list(couplings)
     return [_geomean(co[a], co[b]) for a, b in graph.paths2(i, j)]
 
 
-def default_library(onsite, couplings, edges=None, parasitic=None) -> dict[str, list[str]]:
+def default_library(onsite: Iterable[str], couplings: Iterable[str],
+                    edges: Iterable[Sequence[int]] | None = None,
+                    parasitic: str | Iterable[Sequence[int]] | None = None
+                    ) -> dict[str, list[str]]:
     """The default covariates of each parameter (besides the intercept).
 
     Onsite ``f_i``: ``f_i``, ``f_i^2`` and each coupling touching site ``i`` with its square.
@@ -176,7 +182,7 @@ def default_library(onsite, couplings, edges=None, parasitic=None) -> dict[str, 
     return lib
 
 
-def product_factors(name: str, variables) -> tuple[str, str] | None:
+def product_factors(name: str, variables: Container[str]) -> tuple[str, str] | None:
     """``"a*b"`` -> ``(a, b)`` when ``a`` and ``b`` are both variables (a product
     covariate), else None. A name that is itself a variable is not a product."""
     if name in variables:
@@ -187,7 +193,7 @@ def product_factors(name: str, variables) -> tuple[str, str] | None:
     return None
 
 
-def _parse(name: str, variables) -> tuple[str, int]:
+def _parse(name: str, variables: Collection[str]) -> tuple[str, int]:
     """Covariate name -> (variable, power): ``"x"`` -> (x, 1), ``"x^2"`` -> (x, 2),
     ``"x*z"`` -> (x*z, 1) (a product of two variables)."""
     if name in variables or product_factors(name, variables):
@@ -202,11 +208,12 @@ def _parse(name: str, variables) -> tuple[str, int]:
                      f"X's columns are {sorted(v for v in variables)}")
 
 
-def _soft(z, t):
+def _soft(z: np.ndarray, t: np.ndarray | float) -> np.ndarray:
     return np.sign(z) * np.maximum(np.abs(z) - t, 0.0)
 
 
-def _lasso_quadratic(H, b, l1, x0, max_iter=20000, tol=1e-9):
+def _lasso_quadratic(H: np.ndarray, b: np.ndarray, l1: np.ndarray | float, x0: np.ndarray,
+                     max_iter: int = 20000, tol: float = 1e-9) -> np.ndarray:
     """argmin_x 0.5 x'Hx - b'x + sum(l1 * |x|) for positive semi-definite ``H`` (FISTA)."""
     lipschitz = max(float(np.linalg.eigvalsh(H)[-1]), 1e-300)
     x, z, t = x0.copy(), x0.copy(), 1.0
@@ -221,7 +228,9 @@ def _lasso_quadratic(H, b, l1, x0, max_iter=20000, tol=1e-9):
     return x
 
 
-def _normal_equations(jac, w, r, Phi, sel, chunk_elements=8_000_000, wr=None):
+def _normal_equations(jac: np.ndarray, w: np.ndarray, r: np.ndarray, Phi: np.ndarray,
+                      sel: np.ndarray, chunk_elements: int = 8_000_000,
+                      wr: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Gauss-Newton normal equations ``A^T W A`` and ``A^T W r`` (``A^T wr`` when ``wr``,
     the weighted residuals, is given).
 
@@ -261,11 +270,6 @@ def _normal_equations(jac, w, r, Phi, sel, chunk_elements=8_000_000, wr=None):
             H[lo:hi, lo:] += F[:, lo:hi].T @ (M[:, p, pidx[lo:]] * F[:, lo:])
     H = np.triu(H) + np.triu(H, 1).T
     return H, g
-
-
-def _syrk(A, C):
-    """``C + A^T A`` (upper triangle; BLAS dsyrk)."""
-    return _dsyrk(1.0, A, beta=1.0, c=C, trans=1, lower=0, overwrite_c=1)
 
 
 class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
@@ -380,10 +384,14 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         "solver": [StrOptions(set(SOLVERS))],
     }
 
-    def __init__(self, *, onsite=None, couplings=None, edges=None, parasitic=None, sign=-1,
-                 covariates="default", features=None, alpha=1.0, alpha_l1=0.0,
-                 loss="squared_error", huber_delta=1.0, max_iter=20, tol=1e-6,
-                 solver="irls"):
+    def __init__(self, *, onsite: Sequence[str] | None = None,
+                 couplings: Sequence[str] | None = None,
+                 edges: Iterable[Sequence[int]] | None = None,
+                 parasitic: str | Iterable[Sequence[int]] | None = None, sign: int = -1,
+                 covariates: str | dict[str, list[str]] = "default",
+                 features: Sequence[str] | None = None, alpha: float = 1.0,
+                 alpha_l1: float = 0.0, loss: str = "squared_error", huber_delta: float = 1.0,
+                 max_iter: int = 20, tol: float = 1e-6, solver: str = "irls") -> None:
         self.onsite = onsite
         self.couplings = couplings
         self.edges = edges
@@ -400,7 +408,8 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         self.solver = solver
 
     # ------------------------------------------------------------------ validation
-    def _check_params(self):
+    def _check_params(self) -> tuple[list[str], list[str], list[str], dict[str, list[str]],
+                                     CouplingGraph, list[str]]:
         self._validate_params()  # each value against _parameter_constraints
         onsite = _names(self.onsite, "onsite")
         couplings = _names(self.couplings, "couplings")
@@ -430,7 +439,8 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         return onsite, couplings, features, library, graph, [p for _, p in active]
 
     # ------------------------------------------------------------------ covariates
-    def _derived(self, onsite, couplings, graph) -> dict[str, tuple]:
+    def _derived(self, onsite: list[str], couplings: list[str],
+                 graph: CouplingGraph) -> dict[str, tuple]:
         """Derived variables: detunings of every site pair and geometric means of every two
         couplings sharing a site -> how to compute them from theta."""
         out = {}
@@ -445,7 +455,9 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
                         out[_geomean(couplings[a], couplings[b])] = ("gm", N + a, N + b)
         return out
 
-    def _resolve_library(self, X, onsite, couplings, features, library, extra):
+    def _resolve_library(self, X: pd.DataFrame, onsite: list[str], couplings: list[str],
+                         features: list[str], library: dict[str, list[str]], extra: list[str]
+                         ) -> tuple[dict[str, list[tuple[str, int]]], list[str]]:
         """(variable, power) terms of each parameter and the X columns they read."""
         params = onsite + couplings + extra
         internal = set(onsite + couplings) | set(self._derived_)
@@ -460,7 +472,7 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         columns = list(dict.fromkeys(v for v in plain if v not in internal))
         return terms, columns
 
-    def _variables(self, X) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    def _variables(self, X: pd.DataFrame) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """Control parameters ``theta0`` (n, N + E) and the variables the terms use."""
         control = self.onsite_ + self.couplings_
         theta = _columns(X, control, "parameter")
@@ -497,7 +509,7 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
             phis.append(np.column_stack([np.ones(n), z]))
         return phis
 
-    def _padded(self, phis) -> tuple[np.ndarray, np.ndarray]:
+    def _padded(self, phis: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         """``phis`` as one (n, P, K) array (zero-padded) and the flat positions of the
         coefficients in it."""
         n, K = len(phis[0]), max(phi.shape[1] for phi in phis)
@@ -509,26 +521,27 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         return Phi, np.asarray(sel)
 
     # ------------------------------------------------------------------ model
-    def _objective(self, r, c, penalty):
+    def _objective(self, r: np.ndarray, c: np.ndarray, penalty: np.ndarray) -> float:
         data = PARAM_LOSSES[self.loss](r, self.huber_delta)[0].sum()
         pc = penalty * c
         return float(data + 0.5 * self.alpha * np.sum(pc * c) + self.alpha_l1 * np.abs(pc).sum())
 
-    def _delta(self, phis, c):
+    def _delta(self, phis: list[np.ndarray], c: np.ndarray) -> np.ndarray:
         return np.column_stack([phi @ c[sl] for phi, sl in zip(phis, self._slices)])
 
-    def _theta(self, theta0, phis, c):
+    def _theta(self, theta0: np.ndarray, phis: list[np.ndarray], c: np.ndarray) -> np.ndarray:
         """Corrected parameters: control values (0 for parasitic couplings) plus corrections."""
         delta = self._delta(phis, c)
         delta[:, :theta0.shape[1]] += theta0
         return delta
 
-    def _spectrum(self, theta, jacobian=True, out=None):
+    def _spectrum(self, theta: np.ndarray, jacobian: bool = True,
+                  out: np.ndarray | None = None) -> Any:
         N = len(self.onsite_)
         return graph_spectrum(theta[:, :N], theta[:, N:], self.graph_, self.sign,
                               jacobian=jacobian, out=out)
 
-    def _initial(self, coef_init, index) -> np.ndarray:
+    def _initial(self, coef_init: Any, index: list[tuple[str, str]]) -> np.ndarray:
         c = np.zeros(len(index))
         if coef_init is None:
             return c
@@ -548,7 +561,8 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
                 c[j] = value
         return c
 
-    def _setup(self, X, y):
+    def _setup(self, X: pd.DataFrame, y: Any) -> tuple[np.ndarray, np.ndarray, list[np.ndarray],
+                                                     list[tuple[str, str]], np.ndarray]:
         """Validate, resolve the covariates and build the design of the training rows."""
         onsite, couplings, features, library, graph, extra = self._check_params()
         if not isinstance(X, pd.DataFrame):
@@ -575,7 +589,8 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         self.feature_names_in_ = np.asarray([str(c) for c in X.columns], dtype=object)
         self.n_features_in_ = X.shape[1]
         self.var_mean_ = {k: float(v.mean()) for k, v in variables.items()}
-        self.col_mean_, self.col_scale_ = {}, {}
+        self.col_mean_: dict[str, np.ndarray] = {}
+        self.col_scale_: dict[str, np.ndarray] = {}
         phis = self._design(variables, n, fitting=True)
         self.covariate_names_ = {
             p: ["intercept"] + [v if k == 1 else f"{v}^{k}" for v, k in self.terms_[p]]
@@ -592,7 +607,7 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         penalty[[s.start for s in self._slices]] = 0.0
         return penalty
 
-    def fit(self, X, y, coef_init=None):
+    def fit(self, X: pd.DataFrame, y: Any, coef_init: Any = None) -> Self:
         """Fit the coefficients on ``X`` (DataFrame) and ``y`` (n, N ascending eigenvalues).
 
         ``coef_init``: starting coefficients, e.g. another fit's ``coef_`` (or
@@ -662,24 +677,24 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         check_is_fitted(self)
         return dict(zip(self._index, self._coef.tolist()))
 
-    def _check_X(self, X):
+    def _check_X(self, X: Any) -> None:
         check_is_fitted(self)
         if not isinstance(X, pd.DataFrame):
             raise ValueError("X must be a pandas DataFrame holding the onsite, coupling and "
                              f"covariate columns by name, got {type(X).__name__}")
 
-    def _corrected(self, X) -> np.ndarray:
+    def _corrected(self, X: pd.DataFrame) -> np.ndarray:
         self._check_X(X)
         theta0, variables = self._variables(X)
         return self._theta(theta0, self._design(variables, len(theta0), fitting=False),
                            self._coef)
 
-    def corrected_parameters(self, X) -> pd.DataFrame:
+    def corrected_parameters(self, X: pd.DataFrame) -> pd.DataFrame:
         """``theta(X) + delta(X)``, columns named like the onsite and coupling inputs (and
         the active parasitic couplings)."""
         return pd.DataFrame(self._corrected(X), columns=self.parameter_names_, index=X.index)
 
-    def control_parameters(self, X) -> pd.DataFrame:
+    def control_parameters(self, X: pd.DataFrame) -> pd.DataFrame:
         """The control model's parameters ``theta(X)`` in :attr:`parameter_names_` order
         (0 for the parasitic couplings it lacks)."""
         self._check_X(X)
@@ -702,7 +717,7 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
                                      covariate_sd=float(sd)))
         return pd.DataFrame(rows, columns=["parameter", "covariate", "coef", "covariate_sd"])
 
-    def coef_jacobian(self, X) -> np.ndarray:
+    def coef_jacobian(self, X: pd.DataFrame) -> np.ndarray:
         """``d predict(X)[j, k] / d coef[d]`` at the fitted coefficients, shape ``(n, N, D)``
         (coefficients in :attr:`coef_`'s order): the Hellmann-Feynman Jacobian of the
         eigenvalues times each parameter's covariates, the rows of the Gauss-Newton
@@ -714,7 +729,7 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         return np.concatenate([jac[:, :, p, None] * phi[:, None, :]
                                for p, phi in enumerate(phis)], axis=2)
 
-    def information(self, X) -> np.ndarray:
+    def information(self, X: pd.DataFrame) -> np.ndarray:
         """The Gauss-Newton information of the coefficients from the rows of ``X``:
         ``A^T A + alpha P`` (``A`` = :meth:`coef_jacobian`, ``P`` the ridge penalty's
         diagonal: 0 for the intercepts), in units of the measurement noise's variance."""
@@ -724,9 +739,9 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
     def _slice_of(self, p: str) -> slice:
         return self._slices[self.parameter_names_.index(p)]
 
-    def predict(self, X) -> np.ndarray:
+    def predict(self, X: pd.DataFrame) -> np.ndarray:
         """Ascending eigenvalues of ``sign * H(theta(X) + delta(X))``, shape (n, N)."""
         return self._spectrum(self._corrected(X), jacobian=False)
 
-    def __sklearn_is_fitted__(self):
+    def __sklearn_is_fitted__(self) -> bool:
         return hasattr(self, "_coef")

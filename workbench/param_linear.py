@@ -13,7 +13,11 @@ the model (value 0) comes from the same eigenvectors (Hellmann-Feynman).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+import pandas as pd
+from numpy.typing import ArrayLike
 
 from .hamiltonian import _hellmann_feynman
 from .param_boost import (
@@ -30,7 +34,8 @@ from .param_boost import (
 __all__ = ["linear_scores"]
 
 
-def _eigvecs(est: HamiltonianParameterRegressor, X):
+def _eigvecs(est: HamiltonianParameterRegressor, X: pd.DataFrame
+             ) -> tuple[np.ndarray, np.ndarray]:
     """Eigenvalues and eigenvectors of ``sign * H`` at the fitted corrected parameters."""
     theta = est._corrected(X)
     N = len(est.onsite_)
@@ -43,7 +48,7 @@ def _eigvecs(est: HamiltonianParameterRegressor, X):
     return np.linalg.eigh(est.sign * h)
 
 
-def _jacobian(vec, sign, N, pairs) -> np.ndarray:
+def _jacobian(vec: np.ndarray, sign: int, N: int, pairs: list[tuple[int, int]]) -> np.ndarray:
     """``d lambda_k / d theta_p`` for the onsite terms and the couplings of ``pairs``."""
     a = np.array([i for i, _ in pairs], dtype=int)
     b = np.array([j for _, j in pairs], dtype=int)
@@ -55,17 +60,19 @@ class _Variables:
     centred by the fitted model's means, or for a new product by those of ``ref``, the
     fitting rows' variables)."""
 
-    def __init__(self, est, X, ref=None):
+    def __init__(self, est: HamiltonianParameterRegressor, X: pd.DataFrame,
+                 ref: _Variables | None = None) -> None:
         self.est, self.X, self.ref = est, X, ref
         self.theta = _columns(X, est.onsite_ + est.couplings_, "parameter")
         self.names = {n: j for j, n in enumerate(est.onsite_ + est.couplings_)}
-        self.cache, self.variables = {}, None
+        self.cache: dict[str, np.ndarray] = {}
+        self.variables: set[str] | None = None
 
-    def _mean(self, factor):
+    def _mean(self, factor: str) -> float:
         known = self.est.factor_mean_ or {}
         return known[factor] if factor in known else (self.ref or self)(factor).mean()
 
-    def __call__(self, name):
+    def __call__(self, name: str) -> np.ndarray:
         if name not in self.cache:
             if self.variables is None:
                 self.variables = (set(self.names) | set(self.est._derived_)
@@ -86,19 +93,33 @@ class _Variables:
         return self.cache[name]
 
 
-def linear_scores(est: HamiltonianParameterRegressor, X_fit, y_fit, X_val, y_val,
-                  candidates: list[tuple[str, str]], chunk_elements: int = 4_000_000
-                  ) -> np.ndarray:
-    """Held-out absolute-error sums after one Gauss-Newton step of ``est`` (fitted on
-    ``X_fit``) enlarged by each candidate ``(parameter, covariate)``.
+@dataclass
+class _Step:
+    """The fitted model's Gauss-Newton step at its solution, on the fitting and held-out
+    rows: what every candidate's bordered update reuses."""
 
-    The step's weights are those of ``est.solver`` (IRLS or the loss's curvature). Cost:
-    O(n D (P + C)) for the candidates' border columns, O(C D^2) for the Schur complements
-    and O(n_val (D_pad + N P) C) for the held-out predictions, C candidates, D coefficients
-    and P parameters; the held-out predictions are made for blocks of candidates of about
-    ``chunk_elements`` entries.
-    """
-    y_fit, y_val = np.asarray(y_fit, float), np.asarray(y_val, float)
+    col: dict[str, int]  # parameter name -> column of the full Jacobians
+    J_f: np.ndarray  # (n, N, P_all) Jacobian on the fitting rows
+    J_v: np.ndarray  # (nv, N, P_all) on the held-out rows
+    Ja_v: np.ndarray  # (nv, N, Pa) held-out Jacobian of the active parameters
+    w: np.ndarray  # (n, N) normal-equation weights
+    s: np.ndarray  # (n, P_all): sum_k J w r
+    Jw: np.ndarray  # (n, Pa, N) active Jacobian times the weights
+    flat_f: np.ndarray  # (n, D) the fitting rows' design at the coefficients' positions
+    PhiT_v: np.ndarray  # (Pa, nv, K) the held-out design, parameter first
+    sel: np.ndarray  # flat positions of the coefficients in the padded design
+    pidx: np.ndarray  # parameter of each coefficient
+    Hinv: np.ndarray  # (D, D) inverse of the penalised normal matrix
+    g: np.ndarray  # (D,) penalised gradient
+    base: np.ndarray  # (nv, N) held-out residuals after the model's own step
+    vf: _Variables  # the fitting rows' variables
+    vv: _Variables  # the held-out rows' variables
+
+
+def _current_step(est: HamiltonianParameterRegressor, X_fit: pd.DataFrame, y_fit: np.ndarray,
+                  X_val: pd.DataFrame, y_val: np.ndarray) -> _Step:
+    """The current design, normal equations and Newton step of ``est`` (as in fit, at the
+    solution)."""
     N = len(est.onsite_)
     _, all_pairs = resolve_graph(N, est.edges, est.parasitic)
     pairs = list(est.graph_.edges[:len(est.couplings_)]) + list(all_pairs)
@@ -124,7 +145,7 @@ def linear_scores(est: HamiltonianParameterRegressor, X_fit, y_fit, X_val, y_val
     var_v = {v: vv(v) for ts in est.terms_.values() for v, _ in ts}
     Phi_f, sel = est._padded(est._design(var_f, n, fitting=False))
     Phi_v, _ = est._padded(est._design(var_v, nv, fitting=False))
-    Pa, K = Phi_f.shape[1], Phi_f.shape[2]
+    K = Phi_f.shape[2]
     pidx = sel // K
     Ja_f = np.ascontiguousarray(J_f[:, :, active])
     Ja_v = np.ascontiguousarray(J_v[:, :, active])
@@ -147,65 +168,98 @@ def linear_scores(est: HamiltonianParameterRegressor, X_fit, y_fit, X_val, y_val
     # border of each candidate: sum_k J[j, k, p] w J[j, k, q] (p active, q the candidate's)
     Jw = np.ascontiguousarray(np.swapaxes(Ja_f * w[:, :, None], 1, 2))  # (n, Pa, N)
     s = np.matmul(wr[:, None, :], J_f)[:, 0, :]  # (n, P_all): sum_k J w r
+    return _Step(col=col, J_f=J_f, J_v=J_v, Ja_v=Ja_v, w=w, s=s, Jw=Jw, flat_f=flat_f,
+                 PhiT_v=PhiT_v, sel=sel, pidx=pidx, Hinv=Hinv, g=g, base=base, vf=vf, vv=vv)
+
+
+def _bordered_update(est: HamiltonianParameterRegressor, st: _Step, p: str,
+                     covariates: list[str], all_vars: set[str]
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """One Newton step of the model enlarged by each covariate of parameter ``p``: the
+    change of the current coefficients ``(D, Cq)`` and the held-out change of ``p`` itself
+    ``(nv, Cq)``, by the Schur complement of the bordered normal equations."""
+    vf, vv = st.vf, st.vv
+    n = len(st.w)
+    q = st.col[p]
+    is_new = p not in est.parameter_names_
+    zf, zv = [], []  # each candidate's standardised covariate: fit rows, held-out rows
+    for name in covariates:
+        v, k = _parse(name, all_vars)
+        raw_f = (vf(v) - vf(v).mean()) ** k
+        mu, sd = raw_f.mean(), raw_f.std()
+        sd = sd if sd > 0 else 1.0
+        zf.append((raw_f - mu) / sd)
+        zv.append(((vv(v) - vf(v).mean()) ** k - mu) / sd)
+    Zf, Zv = np.stack(zf, axis=1), np.stack(zv, axis=1)  # (n, Cq)
+    Cq = Zf.shape[1]
+    if is_new:  # the parasitic coupling's intercept enters with its first covariate
+        Zf = np.stack([np.ones_like(Zf), Zf], axis=2)
+        Zv = np.stack([np.ones_like(Zv), Zv], axis=2)
+        pen = np.array([0.0, 1.0])
+    else:
+        Zf, Zv, pen = Zf[:, :, None], Zv[:, :, None], np.array([1.0])
+    mq = Zf.shape[2]
+    Jq = np.ascontiguousarray(st.J_f[:, :, q])
+    Mq = np.matmul(st.Jw, Jq[:, :, None])[:, :, 0]  # (n, Pa)
+    G = st.flat_f * Mq[:, st.pidx]  # (n, D)
+    Bt = (Zf.reshape(n, Cq * mq).T @ G).reshape(Cq, mq, -1)  # b^T per candidate
+    HinvB = Bt @ st.Hinv  # (Cq, m, D)
+    bHb = np.einsum("cmd,cnd->cmn", Bt, HinvB)
+    Mqq = np.einsum("jk,jk,jk->j", Jq, st.w, Jq)
+    Hc = np.einsum("j,jcm,jcn->cmn", Mqq, Zf, Zf) + est.alpha * np.diag(pen)
+    gc = np.einsum("j,jcm->cm", st.s[:, q], Zf)
+    S = Hc - bHb
+    rhs = gc - HinvB @ st.g
+    try:
+        dca = np.linalg.solve(S, rhs[:, :, None])[:, :, 0]
+    except np.linalg.LinAlgError:
+        dca = np.einsum("cmn,cn->cm", np.linalg.pinv(S), rhs)
+    return -np.einsum("cmd,cm->dc", HinvB, dca), np.einsum("jcm,cm->jc", Zv, dca)
+
+
+def linear_scores(est: HamiltonianParameterRegressor, X_fit: pd.DataFrame, y_fit: ArrayLike,
+                  X_val: pd.DataFrame, y_val: ArrayLike,
+                  candidates: list[tuple[str, str]], chunk_elements: int = 4_000_000
+                  ) -> np.ndarray:
+    """Held-out absolute-error sums after one Gauss-Newton step of ``est`` (fitted on
+    ``X_fit``) enlarged by each candidate ``(parameter, covariate)``.
+
+    The step's weights are those of ``est.solver`` (IRLS or the loss's curvature). Cost:
+    O(n D (P + C)) for the candidates' border columns, O(C D^2) for the Schur complements
+    and O(n_val (D_pad + N P) C) for the held-out predictions, C candidates, D coefficients
+    and P parameters; the held-out predictions are made for blocks of candidates of about
+    ``chunk_elements`` entries.
+    """
+    y_fit, y_val = np.asarray(y_fit, float), np.asarray(y_val, float)
+    N = len(est.onsite_)
+    st = _current_step(est, X_fit, y_fit, X_val, y_val)
+    nv, Pa = len(st.base), st.PhiT_v.shape[0]
     by_param: dict[str, list[int]] = {}
     for m, (p, _) in enumerate(candidates):
         by_param.setdefault(p, []).append(m)
     C = len(candidates)
-    ddc = np.empty((len(sel), C))  # coefficient change of the current model's terms
+    ddc = np.empty((len(st.sel), C))  # coefficient change of the current model's terms
     direct = np.empty((nv, C))  # held-out change of the candidate's parameter itself
     qs = np.empty(C, dtype=int)
     all_vars = set(est._derived_) | set(est.onsite_ + est.couplings_) | \
         {str(v) for v in X_fit.columns}
     for p, members in by_param.items():
-        q = col[p]
-        is_new = p not in est.parameter_names_
-        zf, zv = [], []  # each candidate's standardised covariate: fit rows, held-out rows
-        for m in members:
-            v, k = _parse(candidates[m][1], all_vars)
-            raw_f = (vf(v) - vf(v).mean()) ** k
-            mu, sd = raw_f.mean(), raw_f.std()
-            sd = sd if sd > 0 else 1.0
-            zf.append((raw_f - mu) / sd)
-            zv.append(((vv(v) - vf(v).mean()) ** k - mu) / sd)
-        Zf, Zv = np.stack(zf, axis=1), np.stack(zv, axis=1)  # (n, Cq)
-        Cq = Zf.shape[1]
-        if is_new:  # the parasitic coupling's intercept enters with its first covariate
-            Zf = np.stack([np.ones_like(Zf), Zf], axis=2)
-            Zv = np.stack([np.ones_like(Zv), Zv], axis=2)
-            pen = np.array([0.0, 1.0])
-        else:
-            Zf, Zv, pen = Zf[:, :, None], Zv[:, :, None], np.array([1.0])
-        mq = Zf.shape[2]
-        Jq = np.ascontiguousarray(J_f[:, :, q])
-        Mq = np.matmul(Jw, Jq[:, :, None])[:, :, 0]  # (n, Pa)
-        G = flat_f * Mq[:, pidx]  # (n, D)
-        Bt = (Zf.reshape(n, Cq * mq).T @ G).reshape(Cq, mq, -1)  # b^T per candidate
-        HinvB = Bt @ Hinv  # (Cq, m, D)
-        bHb = np.einsum("cmd,cnd->cmn", Bt, HinvB)
-        Mqq = np.einsum("jk,jk,jk->j", Jq, w, Jq)
-        Hc = np.einsum("j,jcm,jcn->cmn", Mqq, Zf, Zf) + est.alpha * np.diag(pen)
-        gc = np.einsum("j,jcm->cm", s[:, q], Zf)
-        S = Hc - bHb
-        rhs = gc - HinvB @ g
-        try:
-            dca = np.linalg.solve(S, rhs[:, :, None])[:, :, 0]
-        except np.linalg.LinAlgError:
-            dca = np.einsum("cmn,cn->cm", np.linalg.pinv(S), rhs)
-        ddc[:, members] = -np.einsum("cmd,cm->dc", HinvB, dca)
-        direct[:, members] = np.einsum("jcm,cm->jc", Zv, dca)
-        qs[members] = q
+        ddc[:, members], direct[:, members] = _bordered_update(
+            est, st, p, [candidates[m][1] for m in members], all_vars)
+        qs[members] = st.col[p]
     out = np.empty(C)
     block = max(1, chunk_elements // max(1, nv * (N + Pa)))
     for a in range(0, C, block):
         b = min(C, a + block)
-        dlam = _predict_change(PhiT_v, Ja_v, sel, ddc[:, a:b])  # (nv, N, c)
-        dlam += J_v[:, :, qs[a:b]] * direct[:, None, a:b]
-        np.subtract(base[:, :, None], dlam, out=dlam)
+        dlam = _predict_change(st.PhiT_v, st.Ja_v, st.sel, ddc[:, a:b])  # (nv, N, c)
+        dlam += st.J_v[:, :, qs[a:b]] * direct[:, None, a:b]
+        np.subtract(st.base[:, :, None], dlam, out=dlam)
         out[a:b] = np.abs(dlam).sum(axis=(0, 1))
     return out
 
 
-def _predict_change(PhiT_v, Ja_v, sel, dc):
+def _predict_change(PhiT_v: np.ndarray, Ja_v: np.ndarray, sel: np.ndarray,
+                    dc: np.ndarray) -> np.ndarray:
     """Linearised held-out eigenvalue changes ``A_v dc``, (nv, N, C) for ``dc`` (D, C):
     the parameter changes ``T[j, p] = phi_p(x_j) . dc_p`` per parameter (one batched
     product over the padded design), then ``J_v T`` per row."""

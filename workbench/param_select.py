@@ -12,19 +12,22 @@ from __future__ import annotations
 import numbers
 import sys
 import time
+from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import nullcontext
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Any, Self
 
 import numpy as np
 import pandas as pd
+from numpy.typing import ArrayLike
 from sklearn.base import BaseEstimator, RegressorMixin, clone
 from sklearn.model_selection import RepeatedKFold
 from sklearn.utils import check_random_state
 from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted
 
+from .hamiltonian import CouplingGraph
 from .parallel import Task, effective_n_jobs, map_tasks
 from .param_boost import (
     HamiltonianParameterRegressor,
@@ -40,9 +43,31 @@ __all__ = ["HamiltonianSelectionCV", "SelectionResult", "candidate_pool", "cross
 
 # ---------------------------------------------------------------------- candidate pools
 
-def candidate_pool(onsite, couplings, qubit_features=None, coupler_features=None, *,
-                   squares=True, base="default", neighbours=True, edges=None,
-                   parasitic=None, crosstalk=False) -> dict[str, list[str]]:
+def _pool_features(on: list[str], co: list[str], qubit_features: Sequence[str] | None,
+                   coupler_features: Sequence[str] | None, graph: CouplingGraph,
+                   base: str | None) -> tuple[list[str], list[str]]:
+    """:func:`candidate_pool`'s names checked against the graph: the qubit and coupler
+    features as lists (empty when not given)."""
+    if len(co) != graph.n_edges:
+        raise ValueError(f"couplings needs {graph.n_edges} names (one per edge), got {len(co)}")
+    qf = list(qubit_features) if qubit_features is not None else []
+    cf = list(coupler_features) if coupler_features is not None else []
+    if qf and len(qf) != len(on):
+        raise ValueError(f"qubit_features needs {len(on)} names (one per site), got {len(qf)}")
+    if cf and len(cf) != len(co):
+        raise ValueError(f"coupler_features needs {len(co)} names (one per coupling), got "
+                         f"{len(cf)}")
+    if base not in ("default", None):
+        raise ValueError(f'base must be "default" or None, got {base!r}')
+    return qf, cf
+
+def candidate_pool(onsite: Sequence[str], couplings: Sequence[str],
+                   qubit_features: Sequence[str] | None = None,
+                   coupler_features: Sequence[str] | None = None, *, squares: bool = True,
+                   base: str | None = "default", neighbours: bool = True,
+                   edges: Iterable[Sequence[int]] | None = None,
+                   parasitic: str | Iterable[Sequence[int]] | None = None,
+                   crosstalk: bool = False) -> dict[str, list[str]]:
     """Physically meaningful candidate covariates of each Hamiltonian parameter.
 
     "Adjacent" and "neighbouring" are read from the coupling graph (``edges``; None: the
@@ -76,23 +101,13 @@ def candidate_pool(onsite, couplings, qubit_features=None, coupler_features=None
     """
     on, co = list(onsite), list(couplings)
     graph, pairs = resolve_graph(len(on), edges, parasitic)
-    if len(co) != graph.n_edges:
-        raise ValueError(f"couplings needs {graph.n_edges} names (one per edge), got {len(co)}")
-    qf = list(qubit_features) if qubit_features is not None else []
-    cf = list(coupler_features) if coupler_features is not None else []
-    if qf and len(qf) != len(on):
-        raise ValueError(f"qubit_features needs {len(on)} names (one per site), got {len(qf)}")
-    if cf and len(cf) != len(co):
-        raise ValueError(f"coupler_features needs {len(co)} names (one per coupling), got "
-                         f"{len(cf)}")
-    if base not in ("default", None):
-        raise ValueError(f'base must be "default" or None, got {base!r}')
+    qf, cf = _pool_features(on, co, qubit_features, coupler_features, graph, base)
     extra_names = parasitic_names(on, pairs)
     pool = (default_library(on, co, edges, pairs) if base == "default"
             else {p: [] for p in on + co + extra_names})
     pw = (1, 2) if squares else (1,)
 
-    def terms(*variables):
+    def terms(*variables: str) -> list[str]:
         return [v if k == 1 else f"{v}^{k}" for v in variables for k in pw]
 
     for i, p in enumerate(on):
@@ -124,8 +139,10 @@ def candidate_pool(onsite, couplings, qubit_features=None, coupler_features=None
     return pool
 
 
-def crosstalk_candidates(onsite, couplings, qubit_features, coupler_features, graph,
-                         neighbours=True) -> dict[str, list[str]]:
+def crosstalk_candidates(onsite: Sequence[str], couplings: Sequence[str],
+                         qubit_features: Sequence[str] | None,
+                         coupler_features: Sequence[str] | None, graph: CouplingGraph,
+                         neighbours: bool = True) -> dict[str, list[str]]:
     """The bias-product candidates of :func:`candidate_pool` (``crosstalk=True``) on
     ``graph`` (a :class:`~workbench.hamiltonian.CouplingGraph`)."""
     qf, cf = list(qubit_features or []), list(coupler_features or [])
@@ -146,19 +163,22 @@ def crosstalk_candidates(onsite, couplings, qubit_features, coupler_features, gr
 
 # ---------------------------------------------------------------------- CV scoring
 
-def _splits(n: int, cv: int, n_repeats: int, random_state: int):
+def _splits(n: int, cv: int, n_repeats: int,
+            random_state: int) -> list[tuple[np.ndarray, np.ndarray]]:
     """Repeated K-fold splits (``RepeatedKFold``: the first repeat is
     ``KFold(cv, shuffle=True, random_state=random_state)``)."""
     return list(RepeatedKFold(n_splits=cv, n_repeats=n_repeats,
                               random_state=random_state).split(np.arange(n)))
 
 
-def _sliced(X, y, splits):
+def _sliced(X: pd.DataFrame, y: np.ndarray,
+            splits: list[tuple[np.ndarray, np.ndarray]]) -> list[tuple]:
     """``(X_fit, y_fit, X_val, y_val)`` of each split, sliced once."""
     return [(X.iloc[f], y[f], X.iloc[v], y[v]) for f, v in splits]
 
 
-def cv_mae(estimator, X, y, *, cv=5, n_repeats=1, random_state=0) -> float:
+def cv_mae(estimator: Any, X: pd.DataFrame, y: ArrayLike, *, cv: int = 5, n_repeats: int = 1,
+           random_state: int = 0) -> float:
     """Repeated K-fold CV MAE of ``estimator`` on ``(X, y)`` (mean over all held-out
     values; RepeatedKFold seeded by ``random_state``)."""
     y = np.asarray(y, dtype=float)
@@ -170,7 +190,8 @@ def cv_mae(estimator, X, y, *, cv=5, n_repeats=1, random_state=0) -> float:
     return float(abs_sum / count)
 
 
-def _fit_splits(base, covariates, folds, warm, models=False):
+def _fit_splits(base: Any, covariates: dict[str, list[str]], folds: list[tuple], warm: list,
+                models: bool = False) -> tuple:
     """CV MAE of ``base`` with ``covariates`` over the sliced ``folds``, and each fold's
     coefficients (to warm-start the next fits); with ``models``, also the fitted models."""
     est = clone(base).set_params(covariates=covariates)
@@ -184,12 +205,14 @@ def _fit_splits(base, covariates, folds, warm, models=False):
     return (abs_sum / count, coefs, fits) if models else (abs_sum / count, coefs)
 
 
-def _linear_fold(est, fold, pool):
+def _linear_fold(est: HamiltonianParameterRegressor, fold: tuple,
+                 pool: list[tuple[str, str]]) -> np.ndarray:
     X_fit, y_fit, X_val, y_val = fold
     return linear_scores(est, X_fit, y_fit, X_val, y_val, pool)
 
 
-def _score_many(base, libraries, folds, warm) -> list[float]:
+def _score_many(base: Any, libraries: list[dict[str, list[str]]], folds: list[tuple],
+                warm: list) -> list[float]:
     return [_fit_splits(base, lib, folds, warm)[0] for lib in libraries]
 
 
@@ -220,7 +243,7 @@ class SelectionResult:
         """Pairs added by the selection, in order."""
         return [tuple(r) for r in self.path.iloc[1:][["parameter", "covariate"]].to_numpy()]
 
-    def estimator(self, **params) -> HamiltonianParameterRegressor:
+    def estimator(self, **params: Any) -> HamiltonianParameterRegressor:
         """An unfitted regressor with the selected covariates."""
         return HamiltonianParameterRegressor(covariates=self.covariates,
                                              **{**self.regressor_params, **params})
@@ -229,11 +252,12 @@ class SelectionResult:
 SELECTION_METHODS = ("refit", "linearised")
 
 
-def forward_select(X, y, *, candidates, cv=5, n_repeats=1, random_state=0, max_steps=30,
-                   min_improvement=1e-3, start=None, n_jobs=None, method="refit",
-                   shortlist=5, batch="auto",
-                   progress: Callable[[str], None] | None = None,
-                   **regressor_params) -> SelectionResult:
+def forward_select(X: pd.DataFrame, y: ArrayLike, *, candidates: dict[str, list[str]],
+                   cv: int = 5, n_repeats: int = 1, random_state: int = 0, max_steps: int = 30,
+                   min_improvement: float = 1e-3, start: dict[str, list[str]] | None = None,
+                   n_jobs: int | None = None, method: str = "refit", shortlist: int = 5,
+                   batch: int | str = "auto", progress: Callable[[str], None] | None = None,
+                   **regressor_params: Any) -> SelectionResult:
     """Greedy forward stepwise selection of (parameter, covariate) pairs by K-fold CV MAE.
 
     Starts from ``start`` (default: intercepts only); at each step tries adding every
@@ -272,6 +296,26 @@ def forward_select(X, y, *, candidates, cv=5, n_repeats=1, random_state=0, max_s
         (``onsite``, ``couplings``, ``sign``, ``alpha``, ``loss``, ...; not ``covariates``).
     """
     t0 = time.perf_counter()
+    y, base, current, pool = _selection_setup(X, y, candidates, start, max_steps, method,
+                                              shortlist, batch, regressor_params)
+    folds = _sliced(X, y, _splits(len(X), cv, n_repeats, random_state))
+    jobs = effective_n_jobs(n_jobs)  # scikit-learn's convention: None 1, -1 every core
+    if method == "linearised":
+        return _linearised_select(X, base, current, pool, folds, jobs, max_steps,
+                                  min_improvement, shortlist, batch, progress, t0,
+                                  regressor_params)
+    return _refit_select(X, base, current, pool, folds, jobs, max_steps, min_improvement,
+                         progress, t0, regressor_params)
+
+
+def _selection_setup(X: pd.DataFrame, y: ArrayLike, candidates: dict[str, list[str]],
+                     start: dict[str, list[str]] | None, max_steps: int, method: str,
+                     shortlist: int, batch: int | str, regressor_params: dict[str, Any]
+                     ) -> tuple[np.ndarray, HamiltonianParameterRegressor,
+                                dict[str, list[str]], list[tuple[str, str]]]:
+    """:func:`forward_select`'s arguments checked: ``y`` as floats, the base regressor, the
+    starting covariates of every parameter and the pool of ``(parameter, covariate)`` pairs
+    not in them."""
     if not isinstance(X, pd.DataFrame):
         raise ValueError("X must be a pandas DataFrame")
     if "covariates" in regressor_params:
@@ -302,19 +346,34 @@ def forward_select(X, y, *, candidates, cv=5, n_repeats=1, random_state=0, max_s
         raise ValueError(f"shortlist must be an integer >= 1, got {shortlist!r}")
     if batch != "auto" and not (isinstance(batch, numbers.Integral) and int(batch) >= 1):
         raise ValueError(f'batch must be "auto" or an integer >= 1, got {batch!r}')
-    folds = _sliced(X, y, _splits(len(X), cv, n_repeats, random_state))
-    jobs = effective_n_jobs(n_jobs)  # scikit-learn's convention: None 1, -1 every core
-    if method == "linearised":
-        return _linearised_select(X, base, current, pool, folds, jobs, max_steps,
-                                  min_improvement, shortlist, batch, progress, t0,
-                                  regressor_params)
+    return y, base, current, pool
 
-    def score(libraries, warm):
+
+def _selection_result(X: pd.DataFrame, current: dict[str, list[str]], rows: list[dict],
+                      best: float, regressor_params: dict[str, Any],
+                      t0: float) -> SelectionResult:
+    """The :class:`SelectionResult` of a finished selection (``t0``: its start time)."""
+    path = pd.DataFrame(rows, columns=["step", "parameter", "covariate", "cv_mae"])
+    return SelectionResult(covariates={p: v for p, v in current.items() if v}, path=path,
+                           cv_mae=float(best), n_rows=len(X), index=X.index.copy(),
+                           regressor_params=dict(regressor_params),
+                           seconds=time.perf_counter() - t0)
+
+
+def _refit_select(X: pd.DataFrame, base: HamiltonianParameterRegressor,
+                  current: dict[str, list[str]], pool: list[tuple[str, str]], folds: list,
+                  jobs: int, max_steps: int, min_improvement: float,
+                  progress: Callable[[str], None] | None, t0: float,
+                  regressor_params: dict[str, Any]) -> SelectionResult:
+    """Forward selection refitting every candidate on every fold (``method="refit"`` of
+    :func:`forward_select`)."""
+
+    def score(libraries: list[dict[str, list[str]]], warm: list) -> list:
         if jobs > 1 and len(libraries) > 1:
             chunks = [libraries[i::jobs] for i in range(jobs)]
             # the workbench's worker processes (workbench.parallel), the command's own pool
             res = map_tasks([Task(_score_many, base, ch, folds, warm) for ch in chunks], jobs)
-            out = [None] * len(libraries)
+            out: list = [None] * len(libraries)
             for i, r in enumerate(res):
                 out[i::jobs] = r
             return out
@@ -339,11 +398,7 @@ def forward_select(X, y, *, candidates, cv=5, n_repeats=1, random_state=0, max_s
         if progress:
             progress(f"step {step}: {p} <- {c}  cv_mae={best:.4f} "
                      f"({time.perf_counter() - t0:.0f} s)")
-    path = pd.DataFrame(rows, columns=["step", "parameter", "covariate", "cv_mae"])
-    return SelectionResult(covariates={p: v for p, v in current.items() if v}, path=path,
-                           cv_mae=float(best), n_rows=len(X), index=X.index.copy(),
-                           regressor_params=dict(regressor_params),
-                           seconds=time.perf_counter() - t0)
+    return _selection_result(X, current, rows, best, regressor_params, t0)
 
 
 #: Relative-objective tolerance of the fold refits inside the linearised selection (the
@@ -356,7 +411,8 @@ SELECTION_TOL = 1e-5
 SELECTION_SOLVER = "newton"
 
 
-def _fit_fold(est, lib, fold, init):
+def _fit_fold(est: HamiltonianParameterRegressor, lib: dict[str, list[str]], fold: tuple,
+              init: dict | None) -> tuple[float, int, dict, HamiltonianParameterRegressor]:
     """Fit ``est`` with covariates ``lib`` on one fold: held-out absolute-error sum, count,
     coefficients and the fitted model."""
     X_fit, y_fit, X_val, y_val = fold
@@ -365,8 +421,11 @@ def _fit_fold(est, lib, fold, init):
             fitted.coef_dict(), fitted)
 
 
-def _linearised_select(X, base, current, pool, folds, jobs, max_steps, min_improvement,
-                       shortlist, batch, progress, t0, regressor_params) -> SelectionResult:
+def _linearised_select(X: pd.DataFrame, base: HamiltonianParameterRegressor,
+                       current: dict[str, list[str]], pool: list[tuple[str, str]],
+                       folds: list[tuple], jobs: int, max_steps: int, min_improvement: float,
+                       shortlist: int, batch: int | str, progress: Callable[[str], None] | None,
+                       t0: float, regressor_params: dict[str, Any]) -> SelectionResult:
     """Forward selection with linearised candidate scores (see :func:`forward_select`).
 
     Everything runs in this process: the folds' data and fitted models stay in memory from
@@ -376,12 +435,12 @@ def _linearised_select(X, base, current, pool, folds, jobs, max_steps, min_impro
     est = clone(base).set_params(tol=max(float(base.tol), SELECTION_TOL),
                                  solver=SELECTION_SOLVER)
     with ThreadPoolExecutor(max_workers=jobs) if jobs > 1 else nullcontext() as executor:
-        def run(func, items):
+        def run(func: Callable, items: list[tuple]) -> list:
             if executor is None or len(items) < 2:
                 return [func(*it) for it in items]
             return list(executor.map(lambda it: func(*it), items))
 
-        def fit_libs(libs, warm):
+        def fit_libs(libs: list[dict[str, list[str]]], warm: list) -> list[tuple]:
             out = run(_fit_fold, [(est, lib, fold, init) for lib in libs
                                   for fold, init in zip(folds, warm)])
             k = len(folds)
@@ -441,11 +500,7 @@ def _linearised_select(X, base, current, pool, folds, jobs, max_steps, min_impro
                          f"({time.perf_counter() - t0:.0f} s)")
             current = lib
             pool = [pc for k, pc in enumerate(pool) if k not in set(ks)]
-    path = pd.DataFrame(rows, columns=["step", "parameter", "covariate", "cv_mae"])
-    return SelectionResult(covariates={p: v for p, v in current.items() if v}, path=path,
-                           cv_mae=float(best), n_rows=len(X), index=X.index.copy(),
-                           regressor_params=dict(regressor_params),
-                           seconds=time.perf_counter() - t0)
+    return _selection_result(X, current, rows, best, regressor_params, t0)
 
 
 def _print_progress(line: str) -> None:
@@ -505,9 +560,12 @@ class HamiltonianSelectionCV(RegressorMixin, BaseEstimator):
         "verbose": ["boolean"],
     }
 
-    def __init__(self, regressor=None, *, candidates=None, start=None, cv=5, n_repeats=1,
-                 max_steps=30, min_improvement=1e-3, random_state=None, n_jobs=None,
-                 method="refit", shortlist=5, batch="auto", verbose=False):
+    def __init__(self, regressor: Any = None, *, candidates: dict[str, list[str]] | None = None,
+                 start: dict[str, list[str]] | None = None, cv: int = 5, n_repeats: int = 1,
+                 max_steps: int = 30, min_improvement: float = 1e-3,
+                 random_state: int | np.random.RandomState | None = None,
+                 n_jobs: int | None = None, method: str = "refit", shortlist: int = 5,
+                 batch: int | str = "auto", verbose: bool = False) -> None:
         self.regressor = regressor
         self.candidates = candidates
         self.start = start
@@ -522,7 +580,7 @@ class HamiltonianSelectionCV(RegressorMixin, BaseEstimator):
         self.batch = batch
         self.verbose = verbose
 
-    def fit(self, X, y):
+    def fit(self, X: pd.DataFrame, y: ArrayLike) -> Self:
         self._validate_params()
         regressor = HamiltonianParameterRegressor() if self.regressor is None else self.regressor
         params = {k: v for k, v in regressor.get_params(deep=False).items() if k != "covariates"}
@@ -545,14 +603,14 @@ class HamiltonianSelectionCV(RegressorMixin, BaseEstimator):
         self.feature_names_in_ = self.estimator_.feature_names_in_
         return self
 
-    def predict(self, X):
+    def predict(self, X: pd.DataFrame) -> np.ndarray:
         check_is_fitted(self)
         return self.estimator_.predict(X)
 
-    def corrected_parameters(self, X) -> pd.DataFrame:
+    def corrected_parameters(self, X: pd.DataFrame) -> pd.DataFrame:
         """The refitted regressor's corrected Hamiltonian parameters."""
         check_is_fitted(self)
         return self.estimator_.corrected_parameters(X)
 
-    def __sklearn_is_fitted__(self):
+    def __sklearn_is_fitted__(self) -> bool:
         return hasattr(self, "estimator_")

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numbers
 import warnings
+from collections.abc import Callable, Iterator
+from typing import Any, Self
 
 import numpy as np
 from sklearn.base import BaseEstimator, MetaEstimatorMixin, RegressorMixin, clone
@@ -16,12 +18,12 @@ from sklearn.utils.metaestimators import _BaseComposition
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .boosting import BaseBoostRegressor, CachedParamNames, PriorModel, seed_estimator
-from .parallel import Task, gather, run_plans
+from .parallel import Plan, Task, gather, run_plans
 
 __all__ = ["BaseBoostCV", "BasisChoiceCV", "CandidateMean", "LabelGroupKFold", "find_prior"]
 
 
-def find_prior(estimator):
+def find_prior(estimator: Any) -> Any:
     """The ``prior`` parameter of ``estimator`` (or of the one it wraps, e.g. in a Pipeline)."""
     params = estimator.get_params(deep=True)
     if "prior" in params:
@@ -38,14 +40,15 @@ class _Predicted(RegressorMixin, BaseEstimator):
     input, so a fold's model predicts its held-out rows once, not once for the score and
     once for the out-of-fold predictions."""
 
-    def __init__(self, predictions=None):
+    def __init__(self, predictions: Any = None) -> None:
         self.predictions = predictions
 
-    def predict(self, X):
+    def predict(self, X: Any) -> Any:
         return self.predictions
 
 
-def _score_and_predict(scorer, model, X, y, by_metric):
+def _score_and_predict(scorer: Callable, model: Any, X: Any, y: np.ndarray,
+                       by_metric: bool) -> tuple[Any, Any]:
     """``(scorer(model, X, y), model.predict(X))``, predicting once when the scorer is a
     metric of the predictions (a scoring name)."""
     if not by_metric:
@@ -54,8 +57,10 @@ def _score_and_predict(scorer, model, X, y, by_metric):
     return scorer(_Predicted(pred), X, y), pred
 
 
-def _fold(incumbent, estimator, X, y, train, test, scorer, train_score=False,
-          by_metric=False):
+def _fold(incumbent: Any, estimator: Any, X: Any, y: np.ndarray, train: np.ndarray,
+          test: np.ndarray, scorer: Callable, train_score: bool | float = False,
+          by_metric: bool = False
+          ) -> tuple[float, float, str | None, np.ndarray, np.ndarray, float]:
     """Scores of both models on one fold, their predictions on its held-out rows, and the
     candidate's score on the fold's own training rows (NaN unless ``train_score``).
     ``by_metric``: the scorer is a metric of the predictions (a scoring name), so each model
@@ -75,7 +80,7 @@ def _fold(incumbent, estimator, X, y, train, test, scorer, train_score=False,
             float(train_score))
 
 
-def _refit(estimator, X, y):
+def _refit(estimator: Any, X: Any, y: Any) -> tuple[Any, str | None]:
     """``(estimator fitted on all rows, None)``, or ``(None, error message)``."""
     try:
         return estimator.fit(X, y), None
@@ -142,9 +147,11 @@ class BaseBoostCV(CachedParamNames, MetaEstimatorMixin, RegressorMixin, BaseEsti
         "return_train_score": ["boolean"],
     }
 
-    def __init__(self, estimator=None, *, incumbent=None, cv=5,
-                 scoring="neg_mean_absolute_error", refit=True, n_jobs=None, random_state=None,
-                 return_train_score=False):
+    def __init__(self, estimator: Any = None, *, incumbent: Any = None, cv: Any = 5,
+                 scoring: str | Callable = "neg_mean_absolute_error", refit: bool = True,
+                 n_jobs: int | None = None,
+                 random_state: int | np.random.RandomState | None = None,
+                 return_train_score: bool = False) -> None:
         self.estimator = estimator
         self.incumbent = incumbent
         self.cv = cv
@@ -154,13 +161,14 @@ class BaseBoostCV(CachedParamNames, MetaEstimatorMixin, RegressorMixin, BaseEsti
         self.random_state = random_state
         self.return_train_score = return_train_score
 
-    def _candidate(self):
+    def _candidate(self) -> Any:
         est = BaseBoostRegressor() if self.estimator is None else clone(self.estimator)
         if self.random_state is not None:
             seed_estimator(est, check_random_state(self.random_state).randint(2**31 - 1))
         return est
 
-    def fit(self, X, y, fold_callback=None):
+    def fit(self, X: Any, y: Any,
+            fold_callback: Callable[[int, float, float], None] | None = None) -> Self:
         """Score both models by CV, then (if ``refit``) refit the selected one; returns ``self``.
 
         ``fold_callback(fold, prior_score, boosted_score)``, if given, is called after each
@@ -172,7 +180,9 @@ class BaseBoostCV(CachedParamNames, MetaEstimatorMixin, RegressorMixin, BaseEsti
                               1 if fold_callback is not None else self.n_jobs)
         return fitted
 
-    def _fit_plan(self, X, y, fold_callback=None, warn=True):
+    def _fit_plan(self, X: Any, y: Any,
+                  fold_callback: Callable[[int, float, float], None] | None = None,
+                  warn: bool = True) -> Plan:
         """:meth:`fit` as a plan (:mod:`workbench.parallel`): the folds, then the refit
         (``warn=False``: no warning for failed candidate fits, e.g. one of several
         candidates)."""
@@ -253,14 +263,14 @@ class BaseBoostCV(CachedParamNames, MetaEstimatorMixin, RegressorMixin, BaseEsti
         scores = self.cv_scores_boosted_ if self.selected_ == "boosted" else self.cv_scores_prior_
         return float(np.mean(scores))
 
-    def predict(self, X):
+    def predict(self, X: Any) -> Any:
         check_is_fitted(self)
         if not hasattr(self, "best_estimator_"):
             raise AttributeError("BaseBoostCV was fitted with refit=False: it has fold scores "
                                  "but no model to predict with")
         return self.best_estimator_.predict(X)
 
-    def __sklearn_is_fitted__(self):
+    def __sklearn_is_fitted__(self) -> bool:
         return hasattr(self, "selected_")
 
 
@@ -283,17 +293,17 @@ class CandidateMean(_BaseComposition, RegressorMixin, BaseEstimator):
 
     _parameter_constraints: dict = {"members": [list]}
 
-    def __init__(self, members=None):
+    def __init__(self, members: list[tuple[str, Any]] | None = None) -> None:
         self.members = members
 
-    def get_params(self, deep=True):
+    def get_params(self, deep: bool = True) -> dict[str, Any]:
         return self._get_params("members", deep=deep)
 
-    def set_params(self, **params):
+    def set_params(self, **params: Any) -> Self:
         self._set_params("members", **params)
         return self
 
-    def fit(self, X, y):
+    def fit(self, X: Any, y: Any) -> Self:
         self._validate_params()
         if not self.members:
             raise ValueError("members must be a non-empty list of (name, regressor) tuples")
@@ -304,16 +314,16 @@ class CandidateMean(_BaseComposition, RegressorMixin, BaseEstimator):
                 setattr(self, attr, getattr(first, attr))
         return self
 
-    def predict(self, X) -> np.ndarray:
+    def predict(self, X: Any) -> np.ndarray:
         check_is_fitted(self)
         return np.mean([np.asarray(m.predict(X), dtype=float) for m in self.members_], axis=0)
 
-    def predict_prior(self, X) -> np.ndarray:
+    def predict_prior(self, X: Any) -> np.ndarray:
         """The members' common prior for ``X``."""
         check_is_fitted(self)
         return self.members_[0].predict_prior(X)
 
-    def predict_correction(self, X) -> np.ndarray:
+    def predict_correction(self, X: Any) -> np.ndarray:
         """What the mean adds to the prior, in the target's units."""
         check_is_fitted(self)
         return np.mean([m.predict_correction(X) for m in self.members_], axis=0)
@@ -323,7 +333,7 @@ class CandidateMean(_BaseComposition, RegressorMixin, BaseEstimator):
         check_is_fitted(self)
         return np.concatenate([np.ravel(getattr(m, "coefs_", [1.0])) for m in self.members_])
 
-    def __sklearn_is_fitted__(self):
+    def __sklearn_is_fitted__(self) -> bool:
         return hasattr(self, "members_")
 
 
@@ -374,9 +384,11 @@ class BasisChoiceCV(_BaseComposition, BaseBoostCV):
         "ensemble": [Interval(numbers.Integral, 1, None, closed="left")],
     }
 
-    def __init__(self, candidates=None, *, incumbent=None, cv=5,
-                 scoring="neg_mean_absolute_error", refit=True, n_jobs=None, random_state=None,
-                 ensemble=1):
+    def __init__(self, candidates: list[tuple[str, Any]] | None = None, *, incumbent: Any = None,
+                 cv: Any = 5, scoring: str | Callable = "neg_mean_absolute_error",
+                 refit: bool = True, n_jobs: int | None = None,
+                 random_state: int | np.random.RandomState | None = None,
+                 ensemble: int = 1) -> None:
         self.candidates = candidates
         self.ensemble = ensemble
         self.incumbent = incumbent
@@ -386,14 +398,15 @@ class BasisChoiceCV(_BaseComposition, BaseBoostCV):
         self.n_jobs = n_jobs
         self.random_state = random_state
 
-    def get_params(self, deep=True):
+    def get_params(self, deep: bool = True) -> dict[str, Any]:
         return self._get_params("candidates", deep=deep)
 
-    def set_params(self, **params):
+    def set_params(self, **params: Any) -> Self:
         self._set_params("candidates", **params)
         return self
 
-    def fit(self, X, y, fold_callback=None):
+    def fit(self, X: Any, y: Any,
+            fold_callback: Callable[[int, float, float], None] | None = None) -> Self:
         """Score the prior and every candidate on the same folds, then (if ``refit``) refit
         the selected model; returns ``self``. ``fold_callback`` is not supported (it would be
         called once per candidate and fold)."""
@@ -402,7 +415,9 @@ class BasisChoiceCV(_BaseComposition, BaseBoostCV):
         (fitted,) = run_plans([self._fit_plan(X, y)], self.n_jobs)
         return fitted
 
-    def _fit_plan(self, X, y, fold_callback=None, warn=True):
+    def _fit_plan(self, X: Any, y: Any,
+                  fold_callback: Callable[[int, float, float], None] | None = None,
+                  warn: bool = True) -> Plan:
         """:meth:`fit` as a plan (:mod:`workbench.parallel`): every candidate's folds side by
         side, then the refit. ``warn`` is :class:`BaseBoostCV`'s: here a failed candidate fit
         never warns (the candidate is simply not chosen)."""
@@ -461,7 +476,8 @@ class BasisChoiceCV(_BaseComposition, BaseBoostCV):
                 self.best_estimator_ = clone(incumbent).fit(X_all, np.ravel(y))
         return self
 
-    def _ensemble(self, ok, candidates, X, y):
+    def _ensemble(self, ok: dict[str, Any], candidates: dict[str, Any], X: Any,
+                  y: Any) -> tuple[str, np.ndarray, np.ndarray, CandidateMean] | None:
         """``(name, fold scores, out-of-fold predictions, CandidateMean)`` of the mean of the
         ``ensemble`` best candidates, from their out-of-fold predictions on the shared
         folds; ``None`` without ``ensemble`` > 1 or two good candidates."""
@@ -502,16 +518,18 @@ class LabelGroupKFold(BaseCrossValidator):
         As in ``GroupKFold`` (shuffled groups before they are dealt into folds).
     """
 
-    def __init__(self, groups=None, n_splits=5, *, shuffle=False, random_state=None):
+    def __init__(self, groups: Any = None, n_splits: int = 5, *, shuffle: bool = False,
+                 random_state: int | np.random.RandomState | None = None) -> None:
         self.groups = groups
         self.n_splits = n_splits
         self.shuffle = shuffle
         self.random_state = random_state
 
-    def get_n_splits(self, X=None, y=None, groups=None) -> int:
+    def get_n_splits(self, X: Any = None, y: Any = None, groups: Any = None) -> int:
         return self.n_splits
 
-    def split(self, X, y=None, groups=None):
+    def split(self, X: Any, y: Any = None,
+              groups: Any = None) -> Iterator[tuple[np.ndarray, np.ndarray]]:
         if not hasattr(X, "index"):
             raise TypeError("LabelGroupKFold looks the rows' groups up by label: X must be a "
                             "DataFrame with the dataset's row labels")
@@ -528,5 +546,6 @@ class LabelGroupKFold(BaseCrossValidator):
                            random_state=self.random_state if self.shuffle else None)
         yield from folds.split(X, y, labels)
 
-    def _iter_test_indices(self, X=None, y=None, groups=None):  # split is overridden
+    def _iter_test_indices(self, X: Any = None, y: Any = None,
+                           groups: Any = None) -> Iterator[np.ndarray]:  # split is overridden
         raise NotImplementedError

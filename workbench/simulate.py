@@ -19,8 +19,10 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -69,7 +71,7 @@ class Mismatch:
     noise_sd: float = 0.0
     misidentified_rate: float = 0.0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
             if not (np.isfinite(value) and value >= 0):
@@ -111,17 +113,21 @@ class Simulation:
     truth: dict
 
 
-def transmon_frequency(v, f_max, v0, period):
+def transmon_frequency(v: np.ndarray | float, f_max: np.ndarray | float, v0: np.ndarray | float,
+                       period: np.ndarray | float) -> np.ndarray:
     """Flux-tunable transmon: f = f_max sqrt(|cos(pi (V - V0) / period)|)."""
     return f_max * np.sqrt(np.abs(np.cos(np.pi * (v - v0) / period)))
 
 
-def coupler_coupling(v, g_max, v_half, width):
+def coupler_coupling(v: np.ndarray | float, g_max: np.ndarray | float,
+                     v_half: np.ndarray | float, width: np.ndarray | float) -> np.ndarray:
     """Tunable (gmon-like) coupler: g = -g_max / (1 + exp(-(V - V_half) / width)), monotone."""
     return -g_max / (1.0 + np.exp(-(v - v_half) / width))
 
 
-def _eigenvalues(f, g, graph: CouplingGraph, extra=None, pairs=()) -> np.ndarray:
+def _eigenvalues(f: np.ndarray, g: np.ndarray, graph: CouplingGraph,
+                 extra: np.ndarray | None = None,
+                 pairs: Sequence[tuple[int, int]] = ()) -> np.ndarray:
     """Ascending eigenvalues of sign * H per row (the model's builder), with the couplings
     ``extra`` on the parasitic ``pairs`` added to the graph's edges."""
     if extra is not None and len(pairs):
@@ -130,7 +136,7 @@ def _eigenvalues(f, g, graph: CouplingGraph, extra=None, pairs=()) -> np.ndarray
     return graph_spectrum(f, g, graph, SIGN, jacobian=False)
 
 
-def _device(rng, n, n_edges):
+def _device(rng: np.random.Generator, n: int, n_edges: int) -> dict[str, np.ndarray]:
     """Control-model constants of one device (so f ~ 5880-6025 MHz, g ~ -1..-70 MHz)."""
     return dict(f_max=rng.uniform(5995, 6025, n), v0=rng.uniform(-0.004, 0.004, n),
                 period=rng.uniform(0.22, 0.26, n), g_max=rng.uniform(62, 75, n_edges),
@@ -160,8 +166,10 @@ class _Device:
     eta: np.ndarray
 
 
-def _build_device(n_sites, topology, shape, edges, parasitic,
-                  seed) -> tuple[_Device, np.random.Generator]:
+def _build_device(n_sites: int | None, topology: str, shape: Any,
+                  edges: Iterable[Sequence[int]] | None,
+                  parasitic: str | Iterable[Sequence[int]] | None,
+                  seed: int | None) -> tuple[_Device, np.random.Generator]:
     """The device of ``seed``, and the generator after its draws (simulate() draws on)."""
     if n_sites is not None and (int(n_sites) != n_sites or n_sites < 2):
         raise ValueError(f"n_sites must be an integer >= 2, got {n_sites!r}")
@@ -193,21 +201,13 @@ def _readout_draws(rng: np.random.Generator, m: int, n: int) -> tuple:
     return noise, bad_u, bad_level, bad_shift
 
 
-def _experiments(dev: _Device, mm: Mismatch, vq, vc, draws, index=None) -> Simulation:
-    """The prior and the true device's measured eigenvalues at the biases ``vq`` (m, N) and
-    ``vc`` (m, E), with the :func:`_readout_draws` ``draws``; ``index`` labels the rows."""
+def _true_spectrum(dev: _Device, mm: Mismatch, vq: np.ndarray, vc: np.ndarray, ea: np.ndarray,
+                   eb: np.ndarray) -> tuple[dict, np.ndarray, np.ndarray, np.ndarray]:
+    """The true device at the biases ``vq`` and ``vc``: its constants (``true``), the
+    crosstalk matrix ``xt``, the coupler pull's ``shift_coef`` and its eigenvalues ``e_true``
+    (noise-free), every mechanism of ``mm`` applied to the control model of ``dev``."""
     graph, pairs, ctrl = dev.graph, dev.pairs, dev.ctrl
-    noise, bad_u, bad_level, bad_shift = draws
-    n, m, E = graph.n_sites, len(vq), graph.n_edges
-    ea = np.array([e[0] for e in graph.edges], dtype=int)
-    eb = np.array([e[1] for e in graph.edges], dtype=int)
-
-    # control model and its prior
-    f_model = transmon_frequency(vq, ctrl["f_max"], ctrl["v0"], ctrl["period"])
-    g_model = coupler_coupling(vc, ctrl["g_max"], ctrl["v_half"], ctrl["width"])
-    e_model = _eigenvalues(f_model, g_model, graph)
-
-    # true device
+    m = len(vq)
     sd = dict(f_max=1.5, v0=2e-4, period=0.003, g_max=0.03, v_half=1e-3, width=0.02)
     rel = {"period", "g_max", "width"}
     true = {k: v * (1 + mm.drift * sd[k] * dev.z[k]) if k in rel
@@ -238,6 +238,57 @@ def _experiments(dev: _Device, mm: Mismatch, vq, vc, draws, index=None) -> Simul
                                axis=0) if paths else 0.0
     nnn = -mm.next_nearest_coupling * dev.eta * bridge
     e_true = _eigenvalues(f_true, g_true, graph, nnn, pairs)
+    return true, xt, shift_coef, e_true
+
+
+def _mechanisms(dev: _Device, mm: Mismatch, true: dict, xt: np.ndarray, shift_coef: np.ndarray,
+                edge_ab: list[tuple[int, int]], bad: np.ndarray, bad_level: np.ndarray,
+                bad_shift: np.ndarray) -> dict:
+    """The ``truth["mechanisms"]`` record: each mismatch as injected, with its formula."""
+    ctrl = dev.ctrl
+    return {
+        "drift": {k: (np.asarray(true[k]) - ctrl[k]).tolist() for k in ctrl},
+        "crosstalk": {  # [qubit row, qubit/coupler column (0-based), value]
+            "qubit_from_qubit": [[b, a, float(xt[0, e])] for e, (a, b) in enumerate(edge_ab)]
+            + [[a, b, float(xt[1, e])] for e, (a, b) in enumerate(edge_ab)],
+            "qubit_from_coupler": [[a, e, float(xt[2, e])] for e, (a, b) in enumerate(edge_ab)]
+            + [[b, e, float(xt[3, e])] for e, (a, b) in enumerate(edge_ab)],
+            "formula": "V_eff = V_q + C_qq V_q + C_qc (V_c - 0.16)"},
+        "coupler_nonlinearity": {"kappa_MHz": (mm.coupler_nonlinearity * dev.kappa).tolist(),
+                                 "formula": "g += kappa ((V_c - 0.16) / 0.06)^2"},
+        "coupler_frequency_shift": {
+            "sign": -1, "coef_per_MHz": shift_coef.tolist(),
+            "delta_c_MHz": dev.delta_c.tolist(),
+            "formula": "f_a and f_b += sign * coef_e * g_e^2 (true g, edge e = (a, b))"},
+        "next_nearest_coupling": {
+            "pairs": [list(p) for p in dev.pairs],
+            "eta": (mm.next_nearest_coupling * dev.eta).tolist(),
+            "formula": "H[i, j] = -eta_ij mean over paths i-m-j of sqrt(|g_im g_mj|) "
+                       "(true g; pairs are 0-based sites)"},
+        "noise": {"sd_MHz": mm.noise_sd},
+        "misidentified_peaks": {
+            "rate": mm.misidentified_rate, "rows": bad.tolist(),
+            "level": (bad_level[bad] + 1).tolist(), "shift_MHz": bad_shift[bad].tolist(),
+            "note": "level k (1-based): the k-th ascending true eigenvalue + shift"},
+    }
+
+
+def _experiments(dev: _Device, mm: Mismatch, vq: np.ndarray, vc: np.ndarray, draws: tuple,
+                 index: pd.Index | None = None) -> Simulation:
+    """The prior and the true device's measured eigenvalues at the biases ``vq`` (m, N) and
+    ``vc`` (m, E), with the :func:`_readout_draws` ``draws``; ``index`` labels the rows."""
+    graph, ctrl = dev.graph, dev.ctrl
+    noise, bad_u, bad_level, bad_shift = draws
+    n, m, E = graph.n_sites, len(vq), graph.n_edges
+    ea = np.array([e[0] for e in graph.edges], dtype=int)
+    eb = np.array([e[1] for e in graph.edges], dtype=int)
+
+    # control model and its prior
+    f_model = transmon_frequency(vq, ctrl["f_max"], ctrl["v0"], ctrl["period"])
+    g_model = coupler_coupling(vc, ctrl["g_max"], ctrl["v_half"], ctrl["width"])
+    e_model = _eigenvalues(f_model, g_model, graph)
+
+    true, xt, shift_coef, e_true = _true_spectrum(dev, mm, vq, vc, ea, eb)
     measured = e_true + mm.noise_sd * noise
     bad = np.flatnonzero(bad_u < mm.misidentified_rate)  # one wrong peak in these rows
     measured[bad, bad_level[bad]] += bad_shift[bad]
@@ -258,31 +309,8 @@ def _experiments(dev: _Device, mm: Mismatch, vq, vc, draws, index=None) -> Simul
         "voltage_ranges": {"qubit": list(Q_RANGE), "coupler": list(C_RANGE)},
         "device": {"control": {k: v.tolist() for k, v in ctrl.items()},
                    "true": {k: v.tolist() for k, v in true.items()}},
-        "mechanisms": {
-            "drift": {k: (np.asarray(true[k]) - ctrl[k]).tolist() for k in ctrl},
-            "crosstalk": {  # [qubit row, qubit/coupler column (0-based), value]
-                "qubit_from_qubit": [[b, a, float(xt[0, e])] for e, (a, b) in enumerate(edge_ab)]
-                + [[a, b, float(xt[1, e])] for e, (a, b) in enumerate(edge_ab)],
-                "qubit_from_coupler": [[a, e, float(xt[2, e])] for e, (a, b) in enumerate(edge_ab)]
-                + [[b, e, float(xt[3, e])] for e, (a, b) in enumerate(edge_ab)],
-                "formula": "V_eff = V_q + C_qq V_q + C_qc (V_c - 0.16)"},
-            "coupler_nonlinearity": {"kappa_MHz": (mm.coupler_nonlinearity * dev.kappa).tolist(),
-                                     "formula": "g += kappa ((V_c - 0.16) / 0.06)^2"},
-            "coupler_frequency_shift": {
-                "sign": -1, "coef_per_MHz": shift_coef.tolist(),
-                "delta_c_MHz": dev.delta_c.tolist(),
-                "formula": "f_a and f_b += sign * coef_e * g_e^2 (true g, edge e = (a, b))"},
-            "next_nearest_coupling": {
-                "pairs": [list(p) for p in pairs],
-                "eta": (mm.next_nearest_coupling * dev.eta).tolist(),
-                "formula": "H[i, j] = -eta_ij mean over paths i-m-j of sqrt(|g_im g_mj|) "
-                           "(true g; pairs are 0-based sites)"},
-            "noise": {"sd_MHz": mm.noise_sd},
-            "misidentified_peaks": {
-                "rate": mm.misidentified_rate, "rows": bad.tolist(),
-                "level": (bad_level[bad] + 1).tolist(), "shift_MHz": bad_shift[bad].tolist(),
-                "note": "level k (1-based): the k-th ascending true eigenvalue + shift"},
-        },
+        "mechanisms": _mechanisms(dev, mm, true, xt, shift_coef, edge_ab, bad, bad_level,
+                                  bad_shift),
     }
     return Simulation(data=data, truth=json.loads(json.dumps(truth)))
 
@@ -294,8 +322,9 @@ def bias_columns(n_sites: int, n_edges: int) -> list[str]:
 
 
 def simulate(n_sites: int | None = 5, n_experiments: int = 136, *, seed: int | None = 0,
-             mismatch: Mismatch | None = None, topology: str = "chain", shape=None,
-             edges=None, parasitic=None) -> Simulation:
+             mismatch: Mismatch | None = None, topology: str = "chain", shape: Any = None,
+             edges: Iterable[Sequence[int]] | None = None,
+             parasitic: str | Iterable[Sequence[int]] | None = None) -> Simulation:
     """Simulate ``n_experiments`` random bias settings of a device of ``n_sites`` sites.
 
     ``topology`` "chain" (default), "ring" or "grid" (``shape = (rows, cols)``; ``n_sites``
@@ -319,8 +348,10 @@ def simulate(n_sites: int | None = 5, n_experiments: int = 136, *, seed: int | N
 
 
 def measure(settings: pd.DataFrame, *, seed: int | None = 0, mismatch: Mismatch | None = None,
-            topology: str = "chain", n_sites: int | None = None, shape=None, edges=None,
-            parasitic=None, noise_seed: int | None = None) -> Simulation:
+            topology: str = "chain", n_sites: int | None = None, shape: Any = None,
+            edges: Iterable[Sequence[int]] | None = None,
+            parasitic: str | Iterable[Sequence[int]] | None = None,
+            noise_seed: int | None = None) -> Simulation:
     """Measure the bias ``settings`` (rows of ``v_q1..v_qN``, ``v_c1..v_cE``; other columns
     are ignored) on the device :func:`simulate` makes with the same ``seed``, ``topology``,
     ``n_sites``, ``shape``, ``edges``, ``parasitic`` and ``mismatch``.

@@ -16,8 +16,9 @@ from __future__ import annotations
 import csv
 import re
 from collections import Counter
+from collections.abc import Iterable, Sequence
 from pathlib import Path
-from typing import Sequence
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -41,14 +42,14 @@ _NAME = re.compile(r"[^\W\d][\w .()\[\]%+/-]{0,63}")
 _DELIMITERS = {";": "semicolons", "\t": "tabs", "|": "vertical bars"}
 
 
-def _names(names, limit: int = 4, width: int = 30) -> str:
+def _names(names: Iterable[Any], limit: int = 4, width: int = 30) -> str:
     """``'a', 'b', ... (N in all)``: at most ``limit`` names, each cut to ``width``."""
     names = [str(n) for n in names]
     shown = [repr(n if len(n) <= width else n[:width - 3] + "...") for n in names[:limit]]
     return ", ".join(shown) + (f", ... ({len(names)} in all)" if len(names) > limit else "")
 
 
-def _is_header(names) -> bool:
+def _is_header(names: Sequence[object]) -> bool:
     """Whether ``names`` look like a CSV header (two or more column names)."""
     return len(names) >= 2 and all(_NAME.fullmatch(str(n).strip()) for n in names)
 
@@ -67,7 +68,7 @@ def _one_column(path: Path, name: str) -> str:
             f"header (one row per experiment, a header row naming the columns)")
 
 
-def _rows(labels, limit: int = 5) -> str:
+def _rows(labels: Sequence[int] | pd.Index, limit: int = 5) -> str:
     """Row labels as the lines of the file they come from (header is line 1)."""
     lines = [f"line {int(i) + 2}" for i in list(labels)[:limit]]
     more = len(labels) - limit
@@ -168,7 +169,8 @@ def _check_values(data: pd.DataFrame, columns: Sequence[str], path: Path) -> Non
                            f"score (squares overflow); check the units")
 
 
-def _split(frame: pd.DataFrame, path: Path, test_fraction, split_column, split_seed):
+def _split(frame: pd.DataFrame, path: Path, test_fraction: Any,
+           split_column: str | None, split_seed: int) -> tuple[np.ndarray, np.ndarray]:
     if (test_fraction is None) == (split_column is None):
         raise DatasetError("give exactly one of test_fraction or split_column")
     if split_column is not None:

@@ -41,6 +41,7 @@ from typing import Any, Literal
 
 import numpy as np
 import pandas as pd
+from numpy.typing import ArrayLike
 
 from .base import Dataset
 from .wheel import WheelData
@@ -141,13 +142,14 @@ UNITS = {"T1": ("us", "µs"), "T2": ("us", "µs"), "gate_length": ("ns",), "gate
          "readout_error": ("",)}
 
 
-def coherence_limit(length_ns, t1_a, t2_a, t1_b, t2_b):
+def coherence_limit(length_ns: ArrayLike, t1_a: ArrayLike, t2_a: ArrayLike, t1_b: ArrayLike,
+                    t2_b: ArrayLike) -> np.ndarray:
     """The average gate infidelity (a fraction) that T1 and T2 (us) of two qubits alone cause
     in a gate of ``length_ns``: ``4/5 (1 - F_a F_b)``, ``F = (1 + e^(-t/T1) + 2 e^(-t/T2))/4``,
     ``T2`` capped at ``2 T1``."""
     t = np.asarray(length_ns, dtype=float) * 1e-3
 
-    def fidelity(t1, t2):
+    def fidelity(t1: Any, t2: Any) -> np.ndarray:
         t1 = np.asarray(t1, dtype=float)
         t2 = np.minimum(np.asarray(t2, dtype=float), 2 * t1)
         return (1 + np.exp(-t / t1) + 2 * np.exp(-t / t2)) / 4

@@ -1,6 +1,7 @@
-"""Bootstrap intervals of the test errors over the test rows: per target, the average over
-targets, and the paired difference of two systems (a row is one experiment, shared by all its
-targets, so the rows are resampled jointly).
+"""Bootstrap intervals of the test errors over the test rows.
+
+Per target, the average over targets, and the paired difference of two systems (a row is
+one experiment, shared by all its targets, so the rows are resampled jointly).
 
 :func:`bootstrap_error_interval` computes them for one error matrix, :func:`bootstrap_test_scores`
 for a result's prior and model at once (one set of resamples for every statistic, each
@@ -15,9 +16,13 @@ from statistics import NormalDist
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 if TYPE_CHECKING:
     from .results import ModelScores, Scores
+
+#: A seed, or a generator drawn from.
+_Seed = int | np.random.Generator | None
 
 __all__ = ["BOOTSTRAP_EXACT_ROWS", "BOOTSTRAP_LEVEL", "BOOTSTRAP_RESAMPLES",
            "CORNISH_FISHER_LIMIT", "ErrorInterval", "bootstrap_description",
@@ -37,14 +42,21 @@ BOOTSTRAP_EXACT_ROWS = 2_000
 CORNISH_FISHER_LIMIT = 0.5
 
 class ErrorInterval(NamedTuple):
-    """Bootstrap intervals of a mean error: ``per_target`` one ``[low, high]`` per target,
-    ``average`` the ``[low, high]`` of the average over targets."""
+    """Bootstrap intervals of a mean error.
+
+    Attributes
+    ----------
+    per_target : list of [low, high]
+        One interval per target.
+    average : [low, high]
+        The interval of the average over targets.
+    """
 
     per_target: list[list[float]]
     average: list[float]
 
 
-def _error_matrix(name: str, errors) -> np.ndarray:
+def _error_matrix(name: str, errors: ArrayLike) -> np.ndarray:
     arr = np.asarray(errors, dtype=float)
     if arr.ndim == 1:
         arr = arr[:, None]
@@ -64,12 +76,15 @@ def _check_settings(level: float, n_resamples: int) -> None:
         raise ValueError(f"n_resamples must be a positive int; got {n_resamples!r}")
 
 
-def _percentile_means(stats: np.ndarray, n_resamples: int, random_state) -> np.ndarray:
-    """The mean of every column of ``stats`` (n_rows, m) over each of ``n_resamples``
-    resamples of the rows with replacement, shape ``(n_resamples, m)``: every column sees the
-    same resampled rows. A resample is a row of counts (how often each row was drawn), so all
-    the columns' means are one product ``counts @ stats``, in chunks of at most 2e6 counts.
-    The rows drawn depend only on ``n_rows``, ``n_resamples`` and ``random_state``."""
+def _percentile_means(stats: np.ndarray, n_resamples: int, random_state: _Seed
+                      ) -> np.ndarray:
+    """Mean of every column of ``stats`` (n_rows, m) over each of ``n_resamples`` resamples.
+
+    Rows are drawn with replacement, shape ``(n_resamples, m)``: every column sees the same
+    resampled rows. A resample is a row of counts (how often each row was drawn), so all the
+    columns' means are one product ``counts @ stats``, in chunks of at most 2e6 counts. The
+    rows drawn depend only on ``n_rows``, ``n_resamples`` and ``random_state``.
+    """
     n, m = stats.shape
     rng = np.random.default_rng(random_state)
     means = np.empty((n_resamples, m))
@@ -84,10 +99,12 @@ def _percentile_means(stats: np.ndarray, n_resamples: int, random_state) -> np.n
 
 
 def _cumulants(stats: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Per column of ``stats`` (n_rows, m): the mean, and the variance, skewness and excess
-    kurtosis of the bootstrap distribution of its mean (from the plug-in cumulants k2, k3,
-    k4 of the column: k2 / n, k3 / (k2^1.5 sqrt(n)), k4 / (k2^2 n); 0 for a constant
-    column)."""
+    """Moments of the bootstrap distribution of each column's mean.
+
+    Per column of ``stats`` (n_rows, m): the mean, and the variance, skewness and excess
+    kurtosis of the bootstrap distribution of its mean (from the plug-in cumulants k2, k3, k4
+    of the column: k2 / n, k3 / (k2^1.5 sqrt(n)), k4 / (k2^2 n); 0 for a constant column).
+    """
     n = stats.shape[0]
     mean = stats.mean(axis=0)
     c = stats - mean
@@ -101,10 +118,12 @@ def _cumulants(stats: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, n
 
 
 def _cornish_fisher(stats: np.ndarray, level: float) -> np.ndarray:
-    """Per column of ``stats`` (n_rows, m), the ``[low, high]`` percentiles (central
-    ``level``) of the bootstrap distribution of its mean, from that distribution's exact
-    cumulants (:func:`_cumulants`) through the Cornish-Fisher expansion to second order.
-    Shape ``(m, 2)``."""
+    """Percentiles of each column mean's bootstrap distribution by Cornish-Fisher.
+
+    Per column of ``stats`` (n_rows, m), the ``[low, high]`` percentiles (central ``level``)
+    of the bootstrap distribution of its mean, from that distribution's exact cumulants
+    (:func:`_cumulants`) through the Cornish-Fisher expansion to second order. Shape ``(m, 2)``.
+    """
     mean, var, g1, g2 = _cumulants(stats)
     z = np.array([[NormalDist().inv_cdf((1 - level) / 2),
                    NormalDist().inv_cdf((1 + level) / 2)]])
@@ -114,13 +133,23 @@ def _cornish_fisher(stats: np.ndarray, level: float) -> np.ndarray:
     return mean[:, None] + np.sqrt(var)[:, None] * w
 
 
-def bootstrap_method(stats) -> str:
-    """How :func:`bootstrap_error_interval` computes the intervals of the means of the columns
-    of ``stats`` (n_rows, m): ``"percentile"`` (resampling the rows) up to
-    :data:`BOOTSTRAP_EXACT_ROWS` rows, or where the resampled mean of some column is far from
-    normal (skewness or excess kurtosis above :data:`CORNISH_FISHER_LIMIT`, as for squared
-    errors with heavy tails); else ``"cornish_fisher"``: the same percentiles from the
-    Cornish-Fisher expansion of that distribution, without resampling."""
+def bootstrap_method(stats: ArrayLike) -> str:
+    """Choose how :func:`bootstrap_error_interval` computes the intervals of the column means.
+
+    Parameters
+    ----------
+    stats : array-like of shape (n_rows, m)
+        Per-row values whose column means get intervals.
+
+    Returns
+    -------
+    str
+        ``"percentile"`` (resampling the rows) up to :data:`BOOTSTRAP_EXACT_ROWS` rows, or
+        where the resampled mean of some column is far from normal (skewness or excess
+        kurtosis above :data:`CORNISH_FISHER_LIMIT`, as for squared errors with heavy tails);
+        else ``"cornish_fisher"``: the same percentiles from the Cornish-Fisher expansion of
+        that distribution, without resampling.
+    """
     stats = np.asarray(stats, dtype=float)
     if len(stats) <= BOOTSTRAP_EXACT_ROWS:
         return "percentile"
@@ -129,11 +158,13 @@ def bootstrap_method(stats) -> str:
     return "cornish_fisher" if near_normal else "percentile"
 
 
-def _intervals(stats: np.ndarray, level: float, n_resamples: int, random_state,
+def _intervals(stats: np.ndarray, level: float, n_resamples: int, random_state: _Seed,
                method: str | None = None) -> tuple[np.ndarray, str]:
-    """The bootstrap interval of every column's mean, shape ``(m, 2)``, and the method: the
-    percentile bootstrap or Cornish-Fisher, as ``method`` or else :func:`bootstrap_method`
-    says."""
+    """Bootstrap interval of every column's mean, shape ``(m, 2)``, and the method used.
+
+    The percentile bootstrap or Cornish-Fisher, as ``method`` or else
+    :func:`bootstrap_method` says.
+    """
     method = method or bootstrap_method(stats)
     if method == "cornish_fisher":
         return _cornish_fisher(stats, level), method
@@ -142,28 +173,25 @@ def _intervals(stats: np.ndarray, level: float, n_resamples: int, random_state,
 
 
 def _error_interval(stat: np.ndarray, level: float, n_resamples: int,
-                    random_state) -> tuple[np.ndarray, np.ndarray]:
+                    random_state: _Seed) -> tuple[np.ndarray, np.ndarray]:
     """Per-target and average intervals of the mean of ``stat`` (n_rows, n_targets)."""
     both, _ = _intervals(np.column_stack([stat, stat.mean(axis=1)]), level, n_resamples,
                          random_state)
     return both[:-1], both[-1]
 
 
-def bootstrap_error_interval(errors, *, baseline=None, squared: bool = False,
+def bootstrap_error_interval(errors: ArrayLike, *, baseline: ArrayLike | None = None,
+                             squared: bool = False,
                              level: float = BOOTSTRAP_LEVEL,
                              n_resamples: int = BOOTSTRAP_RESAMPLES,
                              random_state: int | np.random.Generator | None = 0
                              ) -> ErrorInterval:
     """Bootstrap intervals of the mean absolute (``squared``: squared) error.
 
-    ``errors``: shape ``(n_rows,)`` or ``(n_rows, n_targets)``, e.g. ``y - prediction`` on
-    the test rows. Each of ``n_resamples`` resamples draws ``n_rows`` rows with replacement,
-    the same rows for every target (a row is one experiment, measured for all its targets),
-    and computes each target's mean error and their average over targets; the interval is
-    the central ``level`` of those values (percentile bootstrap). With ``baseline`` (the
-    errors of another system on the same rows, same shape) the statistic is the difference
-    ``mean error(errors) - mean error(baseline)`` on each resample: the paired interval of
-    the difference (below 0: ``errors`` are the smaller).
+    Each of ``n_resamples`` resamples draws ``n_rows`` rows with replacement, the same rows
+    for every target (a row is one experiment, measured for all its targets), and computes
+    each target's mean error and their average over targets; the interval is the central
+    ``level`` of those values (percentile bootstrap).
 
     Above :data:`BOOTSTRAP_EXACT_ROWS` rows, where every resampled mean is near normal,
     nothing is resampled: the same percentiles come from the Cornish-Fisher expansion of the
@@ -175,7 +203,33 @@ def bootstrap_error_interval(errors, *, baseline=None, squared: bool = False,
     same seed gives the same numbers, and calls with the same seed on errors of the same rows
     (the prior's, the model's, their difference) see the same resamples.
 
-    Returns an :class:`ErrorInterval`: per target ``[low, high]`` and the average's.
+    Parameters
+    ----------
+    errors : array-like of shape (n_rows,) or (n_rows, n_targets)
+        E.g. ``y - prediction`` on the test rows.
+    baseline : array-like of the shape of ``errors``, default=None
+        The errors of another system on the same rows: the statistic is then the difference
+        ``mean error(errors) - mean error(baseline)`` on each resample, the paired interval of
+        the difference (below 0: ``errors`` are the smaller).
+    squared : bool, default=False
+        Squared errors instead of absolute ones.
+    level : float, default=BOOTSTRAP_LEVEL
+        Central probability of the intervals, in (0, 1).
+    n_resamples : int, default=BOOTSTRAP_RESAMPLES
+        Resamples of the rows.
+    random_state : int, Generator or None, default=0
+        Seed of the resamples.
+
+    Returns
+    -------
+    ErrorInterval
+        Per target ``[low, high]`` and the average's.
+
+    Raises
+    ------
+    ValueError
+        An empty or non-finite error matrix, a baseline of another shape, a level outside
+        (0, 1) or a non-positive number of resamples.
     """
     _check_settings(level, n_resamples)
     e = _error_matrix("errors", errors)
@@ -190,17 +244,46 @@ def bootstrap_error_interval(errors, *, baseline=None, squared: bool = False,
 
 
 
-def bootstrap_test_scores(prior: Scores, model: ModelScores, y, prior_pred, pred, *,
+def bootstrap_test_scores(prior: Scores, model: ModelScores, y: ArrayLike,
+                          prior_pred: ArrayLike, pred: ArrayLike, *,
                           level: float = BOOTSTRAP_LEVEL,
                           n_resamples: int = BOOTSTRAP_RESAMPLES,
                           random_state: int = 0) -> dict[str, Any]:
-    """Set the bootstrap intervals of ``prior``'s and ``model``'s test errors from the test
-    rows' targets ``y`` and the two systems' predictions (each of shape ``(n_rows,
-    n_targets)``): ``test_mae_ci``, ``test_mae_avg_ci``, ``test_mse_ci``, ``test_mse_avg_ci``
-    of both, and the model's paired ``test_mae_diff_ci``, ``test_mae_diff_avg_ci`` (model -
-    prior). Every interval is :func:`bootstrap_error_interval` with one ``random_state``, so
-    all of them see the same resampled rows. Returns the settings, a :class:`Result`'s
-    ``bootstrap`` section."""
+    """Set the bootstrap intervals of ``prior``'s and ``model``'s test errors.
+
+    Sets ``test_mae_ci``, ``test_mae_avg_ci``, ``test_mse_ci``, ``test_mse_avg_ci`` of both,
+    and the model's paired ``test_mae_diff_ci``, ``test_mae_diff_avg_ci`` (model - prior).
+    Every interval is :func:`bootstrap_error_interval` with one ``random_state``, so all of
+    them see the same resampled rows.
+
+    Parameters
+    ----------
+    prior : Scores
+        The prior's scores, updated in place.
+    model : ModelScores
+        The model's scores, updated in place.
+    y : array-like of shape (n_rows, n_targets)
+        The test rows' targets.
+    prior_pred, pred : array-like of shape (n_rows, n_targets)
+        The prior's and the model's predictions.
+    level : float, default=BOOTSTRAP_LEVEL
+        Central probability of the intervals.
+    n_resamples : int, default=BOOTSTRAP_RESAMPLES
+        Resamples of the rows (percentile bootstrap).
+    random_state : int, default=0
+        Seed of the resamples.
+
+    Returns
+    -------
+    dict
+        The settings used: a :class:`~workbench.experiment.results.Result`'s ``bootstrap``
+        section.
+
+    Raises
+    ------
+    ValueError
+        As :func:`bootstrap_error_interval`.
+    """
     _check_settings(level, n_resamples)
     y = _error_matrix("y", y)
     model_err = y - np.reshape(np.asarray(pred, dtype=float), y.shape)
@@ -225,8 +308,18 @@ def bootstrap_test_scores(prior: Scores, model: ModelScores, y, prior_pred, pred
 
 
 def bootstrap_description(settings: dict[str, Any]) -> str:
-    """In words, how a result's bootstrap intervals were computed (its ``bootstrap`` section,
-    :func:`bootstrap_test_scores`' return), for reports."""
+    """Say in words how a result's bootstrap intervals were computed, for reports.
+
+    Parameters
+    ----------
+    settings : dict
+        A result's ``bootstrap`` section (:func:`bootstrap_test_scores`' return).
+
+    Returns
+    -------
+    str
+        One phrase, e.g. ``percentile bootstrap, 10,000 resamples of the rows``.
+    """
     if settings.get("method") == "cornish_fisher":
         return (f"{settings['n_rows']:,} rows: the percentiles of the bootstrap distribution "
                 "from its Cornish-Fisher expansion, without resampling")

@@ -1,9 +1,8 @@
-"""Errors the ``workbench`` command reports as one ``workbench: error: ...`` line, exit code 2,
-and what keeps such lines short and free of secrets (:func:`shorten`, :func:`listing`,
-:func:`redact`).
+"""Errors the ``workbench`` command reports as one ``workbench: error: ...`` line, exit code 2.
 
-Kept in a module of their own (no heavy imports), so the command can catch them without
-loading MLflow, Optuna or the estimators.
+Also what keeps such lines short and free of secrets (:func:`clip`, :func:`shorten`,
+:func:`listing`, :func:`redact`). Kept in a module of their own (no heavy imports), so the
+command can catch them without loading MLflow, Optuna or the estimators.
 """
 
 from __future__ import annotations
@@ -12,8 +11,9 @@ import difflib
 import importlib.util
 import re
 from collections.abc import Iterable
+from typing import Any
 
-__all__ = ["ConfigError", "StorageError", "TrackingError", "UsageError", "driver_hint",
+__all__ = ["ConfigError", "StorageError", "TrackingError", "UsageError", "clip", "driver_hint",
            "listing", "redact", "redact_config", "redact_urls", "shorten", "unknown_keys"]
 
 
@@ -26,16 +26,58 @@ class UsageError(ValueError):
 
 
 class StorageError(ValueError):
-    """The Optuna storage cannot be used (bad path, missing driver, unreachable server, a
-    damaged journal)."""
+    """The Optuna storage cannot be used.
+
+    A bad path, a missing driver, an unreachable server, a damaged journal.
+    """
 
 
 class TrackingError(RuntimeError):
     """The tracking store cannot be used (locked, corrupt, unreachable, ...)."""
 
 
-def shorten(value, limit: int = 60) -> str:
-    """``repr(value)`` cut to ``limit`` characters (a million-digit number stays one short line)."""
+def clip(text: str, limit: int) -> str:
+    """Cut ``text`` to at most ``limit`` characters, ending in ``...`` when cut.
+
+    Parameters
+    ----------
+    text : str
+        The text to shorten.
+    limit : int
+        The longest result, ``...`` included (at least 3).
+
+    Returns
+    -------
+    str
+        ``text`` itself if it fits, else its first ``limit - 3`` characters and ``...``.
+
+    Examples
+    --------
+    >>> clip("abcdefgh", 6)
+    'abc...'
+    >>> clip("abc", 6)
+    'abc'
+    """
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def shorten(value: Any, limit: int = 60) -> str:
+    """Return ``repr(value)`` cut to ``limit`` characters.
+
+    A million-digit number stays one short line.
+
+    Parameters
+    ----------
+    value : object
+        The value to show.
+    limit : int, default=60
+        The longest result.
+
+    Returns
+    -------
+    str
+        The repr, with its length noted when cut.
+    """
     try:
         text = repr(value)
     except ValueError:  # an int beyond Python's str-conversion limit
@@ -50,8 +92,21 @@ _DRIVER_PACKAGES = {"psycopg": "psycopg[binary]", "psycopg2": "psycopg2-binary",
 
 
 def driver_hint(exc: ImportError) -> str:
-    """What to do about a database driver that is not installed (SQLAlchemy 2.1 maps
-    ``postgresql://`` to psycopg 3; ``postgresql+psycopg2://`` names psycopg2)."""
+    """Say what to do about a database driver that is not installed.
+
+    SQLAlchemy 2.1 maps ``postgresql://`` to psycopg 3; ``postgresql+psycopg2://`` names
+    psycopg2.
+
+    Parameters
+    ----------
+    exc : ImportError
+        The failed import of the driver.
+
+    Returns
+    -------
+    str
+        E.g. ``pip install psycopg[binary]``.
+    """
     name = (exc.name or "").split(".")[0]
     hint = f"pip install {_DRIVER_PACKAGES.get(name, name or 'the driver')}"
     if name == "psycopg" and importlib.util.find_spec("psycopg2"):
@@ -60,13 +115,27 @@ def driver_hint(exc: ImportError) -> str:
 
 
 def listing(names: Iterable, budget: int = 140, width: int = 30) -> str:
-    """``'a', 'b', ...`` for an error line: each name cut to ``width`` characters, as many as
-    fit in ``budget`` characters, then ``... (N in all)``."""
+    """List names for an error line: ``'a', 'b', ... (N in all)``.
+
+    Parameters
+    ----------
+    names : iterable
+        The names (shown as text).
+    budget : int, default=140
+        Characters the shown names may take.
+    width : int, default=30
+        Characters each name is cut to (:func:`clip`).
+
+    Returns
+    -------
+    str
+        As many names as fit, then how many there are in all.
+    """
     names = [str(n) for n in names]
     shown: list[str] = []
     used = 0
     for name in names:
-        item = repr(name if len(name) <= width else name[:width - 3] + "...")
+        item = repr(clip(name, width))
         if shown and used + len(item) + 2 > budget:
             break
         shown.append(item)
@@ -76,7 +145,20 @@ def listing(names: Iterable, budget: int = 140, width: int = 30) -> str:
 
 
 def unknown_keys(unknown: Iterable, valid: Iterable) -> str:
-    """``unknown key(s) ['x']; did you mean 'y'? valid keys are 'a', 'b', ...`` (shortened)."""
+    """Describe unknown keys: ``unknown key(s) ['x'] (did you mean 'y'?); valid keys are ...``.
+
+    Parameters
+    ----------
+    unknown : iterable
+        The keys not recognised.
+    valid : iterable
+        The keys allowed.
+
+    Returns
+    -------
+    str
+        One shortened line.
+    """
     unknown, valid = sorted(map(str, unknown)), sorted(map(str, valid))
     text = f"unknown key(s) [{listing(unknown, budget=60)}]"
     close = [m for key in unknown[:3] for m in difflib.get_close_matches(key, valid, n=1)]
@@ -95,15 +177,26 @@ _SECRET_QUERY = re.compile(r"(?i)([?&;](?:password|passwd|pwd|secret|token|acces
 _URL_TOKEN = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*://[^\s\"'`]+")
 
 
-def redact(url) -> str:
-    """``url`` with its password (``scheme://user:password@host``) and any credential in its
-    query (``?password=...``) replaced by ``***``: safe to print, log or store. Text that is
-    not a ``scheme://`` URL (a journal file path) is returned as given.
+def redact(url: object) -> str:
+    """Hide the credentials of a URL: its password and any credential in its query.
 
     The password is everything between the first ``:`` of the user part and the *last*
     ``@``, so a password holding ``/``, ``?``, ``#`` or ``@`` (unescaped, as people paste
     them) is hidden too; a URL with an ``@`` in its path may be redacted more than needed,
-    never less."""
+    never less.
+
+    Parameters
+    ----------
+    url : object
+        A URL (shown as text); text that is not a ``scheme://`` URL (a journal file path) is
+        returned as given.
+
+    Returns
+    -------
+    str
+        The URL with ``***`` for the password (``scheme://user:***@host``) and query
+        credentials (``?password=***``): safe to print, log or store.
+    """
     text = str(url)
     head, sep, rest = text.partition("://")
     if not sep or not _SCHEME.fullmatch(head):
@@ -117,12 +210,23 @@ def redact(url) -> str:
 
 
 def redact_urls(text: str) -> str:
-    """``text`` with :func:`redact` applied to every ``scheme://...`` in it (up to a space or
-    a quote)."""
+    """Apply :func:`redact` to every ``scheme://...`` in ``text`` (up to a space or a quote).
+
+    Parameters
+    ----------
+    text : str
+        Free text (a message, a TOML comment).
+
+    Returns
+    -------
+    str
+        The text with every URL's credentials hidden.
+    """
     return _URL_TOKEN.sub(lambda m: redact(m.group(0)), str(text))
 
 
-def _strings(value) -> Iterable[str]:
+def _strings(value: object) -> Iterable[str]:
+    """Yield every string in a parsed TOML value (tables and arrays walked)."""
     if isinstance(value, str):
         yield value
     elif isinstance(value, dict):
@@ -134,7 +238,7 @@ def _strings(value) -> Iterable[str]:
 
 
 def _toml_basic(text: str) -> str:
-    """``text`` as it appears inside a TOML basic string ("..."), common escapes."""
+    """Write ``text`` as it appears inside a TOML basic string ("..."), common escapes."""
     out = text.replace("\\", "\\\\").replace('"', '\\"')
     for char, escape in (("\b", "\\b"), ("\t", "\\t"), ("\n", "\\n"), ("\f", "\\f"),
                          ("\r", "\\r")):
@@ -143,12 +247,24 @@ def _toml_basic(text: str) -> str:
 
 
 def redact_config(text: str, name: str = "the config") -> str:
-    """A TOML config's text with every URL's credentials replaced by ``***`` (values such as
-    ``[study] storage`` and ``[tracking] tracking_uri``, and URLs in comments), the rest of
-    the file as written. When a credential-bearing value cannot be found in the text (an
-    unusual escape), the whole text is replaced by a one-line note: it is never logged with
-    the secret."""
-    import tomllib  # (c) stdlib, 5 ms: `workbench --help` loads this module
+    """Hide every URL's credentials in a TOML config's text, the rest as written.
+
+    Values such as ``[study] storage`` and ``[tracking] tracking_uri``, and URLs in comments.
+
+    Parameters
+    ----------
+    text : str
+        The config's text.
+    name : str, default="the config"
+        What the note names when the text cannot be redacted.
+
+    Returns
+    -------
+    str
+        The redacted text; a one-line note instead when a credential-bearing value cannot be
+        found in the text (an unusual escape): it is never logged with the secret.
+    """
+    import tomllib  # (c) stdlib: `workbench --help` loads this module
 
     try:
         values = [s for s in _strings(tomllib.loads(text)) if redact(s) != s]

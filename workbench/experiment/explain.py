@@ -4,30 +4,23 @@ For a model ``f`` of ``M`` features, a row ``x`` and a background set ``B``, the
 interventional value of a coalition ``S`` is ``v(S) = mean_b f(x_S, b_rest)`` and the SHAP
 value of feature ``i`` is its Shapley value
 ``phi_i = sum_{S without i} |S|! (M - |S| - 1)! / M! * (v(S + i) - v(S))``. With ``M`` up to
-about ten, all ``2^M`` coalitions are cheap to enumerate: this is what
-``shap.KernelExplainer`` does at its default ``nsamples`` (its weighted regression over every
-coalition has these values as solution), but it calls the model once per explained row and
-solves a regression per row. Here the model sees every row's coalitions at once (in chunks
-of ``chunk_rows`` rows), so a model with a large fixed cost per call (a 1000-tree LightGBM in
-a stacking) is called a handful of times instead of once per row.
+about ten, all ``2^M`` coalitions are cheap to enumerate: ``shap.KernelExplainer`` finds the
+same values at its default ``nsamples`` but calls the model once per row; here the model
+sees every row's coalitions at once, so a model with a large fixed cost per call (a
+1000-tree LightGBM in a stacking) is called a handful of times. :func:`shap_values` picks
+the method (exact, or the kernel explainer for many features); exact values import neither
+SHAP nor matplotlib (they run in worker processes too).
 
-:func:`shap_values` picks the method (exact, or the kernel explainer for many features). No
-SHAP or matplotlib import for exact values (they run in worker processes too); the beeswarm
-figure is :func:`workbench.experiment.figures.shap_figure`.
-
-A fitted per-target base-boosting model predicts ``prior(X) + correction(X)``; the SHAP values
-of its whole prediction are dominated by the prior (on the benchmark a column of ``X`` spread
-over +-50 MHz, against a correction of a few MHz). :func:`target_shap_values` explains both,
-each computed from its own function on the same rows over the same background: the whole
-prediction and the correction alone (:func:`correction_predictor`: what the boosted stages add
-to the prior, ``None`` when the model is the prior). Exact Shapley values are linear in the
-model, so the whole prediction's values are the prior's plus the correction's (to rounding).
+A per-target model predicts ``prior(X) + correction(X)``; :func:`target_shap_values` explains
+the whole prediction (dominated by the prior) and the correction alone on the same rows over
+the same background (exact values: the first is the prior's plus the second).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from math import factorial
-from typing import Callable, NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -50,14 +43,25 @@ MIN_ROWS, MIN_BACKGROUND = 100, 10
 
 
 def shap_sample(n_rows: int, n_features: int, background: int = 30) -> tuple[int, int]:
-    """``(explained rows, background rows)`` of a summary of ``n_rows`` rows over
-    ``n_features`` features (exact values up to ten, else 256 sampled coalitions), within
-    :data:`MAX_MODEL_ROWS` model rows: every row and ``background`` background rows when they
-    fit; else the background shrinks (to
-    :data:`MIN_BACKGROUND`), then the explained rows (to :data:`MIN_ROWS`, a seeded sample).
-    The paper's benchmark (95 rows, 5 prior columns) keeps all 95 rows and 30 background
-    rows; 1,650 rows of 10 features are summarised on 100 rows over a 10-row background
-    (without the cap, 50 million model rows: 7 minutes of a kernel ridge)."""
+    """Rows and background rows of a SHAP summary within :data:`MAX_MODEL_ROWS` model rows.
+
+    Every row and ``background`` background rows when they fit; else the background shrinks
+    (to :data:`MIN_BACKGROUND`), then the explained rows (to :data:`MIN_ROWS`, a seeded
+    sample): 1,650 rows of 10 features are summarised on 100 rows over a 10-row background.
+
+    Parameters
+    ----------
+    n_rows, n_features : int
+        Rows to summarise, and features explained (exact values up to ten, else 256 sampled
+        coalitions per row).
+    background : int, default=30
+        Background rows wanted.
+
+    Returns
+    -------
+    rows, background : int
+        Rows to explain, and background rows to use.
+    """
     # coalitions per row: all 2^M when exact, else the kernel explainer's 256 samples
     per_row = 2 ** n_features if n_features <= MAX_EXACT_FEATURES else 256
     bg = min(background, n_rows)
@@ -68,8 +72,19 @@ def shap_sample(n_rows: int, n_features: int, background: int = 30) -> tuple[int
 
 
 def sample_background(data: np.ndarray, size: int, random_state: int = 0) -> np.ndarray:
-    """``size`` rows of ``data`` without replacement (all of them if there are fewer): the
-    same rows as ``shap.sample(data, size, random_state)``."""
+    """Draw ``size`` rows of ``data`` without replacement, as ``shap.sample`` does.
+
+    Parameters
+    ----------
+    data : ndarray of shape (n_rows, n_features)
+        The rows to draw from (all returned when there are no more than ``size``).
+    size, random_state : int
+        Rows wanted, and the seed (``shap.sample(data, size, random_state)``'s rows).
+
+    Returns
+    -------
+    ndarray
+    """
     if size >= len(data):
         return data
     return shuffle(data, n_samples=size, random_state=random_state)
@@ -78,9 +93,30 @@ def sample_background(data: np.ndarray, size: int, random_state: int = 0) -> np.
 def exact_shap_values(predict: Callable[[np.ndarray], np.ndarray], data: np.ndarray,
                       background: np.ndarray, *, chunk_rows: int = 250_000
                       ) -> tuple[np.ndarray, float]:
-    """SHAP values of ``predict`` at every row of ``data`` (interventional, over the rows of
-    ``background``): an array of shape ``(n_rows, n_features)``, and the expected value
-    ``mean f(background)``. ``predict`` takes a 2-D float array of the same columns."""
+    """Compute exact interventional SHAP values by enumerating every coalition.
+
+    Parameters
+    ----------
+    predict : callable
+        The explained function; takes a 2-D float array of the columns of ``data``.
+    data : ndarray of shape (n_rows, n_features)
+        Rows to explain (at most :data:`MAX_EXACT_FEATURES` features).
+    background : ndarray of shape (k, n_features)
+        Background rows the absent features are drawn from.
+    chunk_rows : int, default=250_000
+        Rows of synthetic data per model call.
+
+    Returns
+    -------
+    values : ndarray of shape (n_rows, n_features)
+    expected : float
+        ``mean f(background)``.
+
+    Raises
+    ------
+    ValueError
+        Too many features, or a background of another width.
+    """
     data = np.asarray(data, dtype=float)
     background = np.asarray(background, dtype=float)
     n, m = data.shape
@@ -111,7 +147,16 @@ def exact_shap_values(predict: Callable[[np.ndarray], np.ndarray], data: np.ndar
     return phi, float(values[0, 0])
 
 
-def check_shap_frame(X) -> None:
+def check_shap_frame(X: object) -> None:
+    """Check that ``X`` is a non-empty DataFrame (its columns name the features).
+
+    Raises
+    ------
+    TypeError
+        ``X`` is not a DataFrame.
+    ValueError
+        ``X`` has no rows or no columns.
+    """
     if not isinstance(X, pd.DataFrame):
         raise TypeError(f"X must be a pandas DataFrame (its columns name the features); got "
                         f"{type(X).__name__}")
@@ -122,10 +167,30 @@ def check_shap_frame(X) -> None:
 def shap_values(predict: Callable[[np.ndarray], np.ndarray], X: pd.DataFrame, *,
                 background_size: int = 50, nsamples: int | str = "auto",
                 random_state: int = 0) -> tuple[np.ndarray, float]:
-    """SHAP values of ``predict`` on the rows of ``X`` (shape ``(n_rows, n_features)``) and
-    the expected value, over ``background_size`` rows of ``X`` sampled with
-    ``random_state``: exact for ``nsamples="auto"`` and up to ten features
-    (:func:`exact_shap_values`), else ``shap.KernelExplainer`` with ``nsamples``."""
+    """Compute SHAP values of ``predict`` on the rows of ``X``.
+
+    Exact for ``nsamples="auto"`` and up to ten features (:func:`exact_shap_values`), else
+    ``shap.KernelExplainer`` with ``nsamples``.
+
+    Parameters
+    ----------
+    predict : callable
+        The explained function of a 2-D float array of ``X``'s columns.
+    X : DataFrame
+        Rows to explain.
+    background_size : int, default=50
+        Rows of ``X`` sampled (with ``random_state``) as the background.
+    nsamples : int or "auto", default="auto"
+        Coalitions per row of the kernel explainer.
+    random_state : int, default=0
+        Seed of the background sample and the kernel explainer.
+
+    Returns
+    -------
+    values : ndarray of shape (n_rows, n_features)
+    expected : float
+        The explained function's mean over the background.
+    """
     check_shap_frame(X)
     data = X.to_numpy(dtype=float)
     background = sample_background(data, background_size, random_state)
@@ -145,8 +210,16 @@ def shap_values(predict: Callable[[np.ndarray], np.ndarray], X: pd.DataFrame, *,
 
 
 class ShapValues(NamedTuple):
-    """SHAP values (shape ``(n_rows, n_features)``), their expected value (the explained
-    function's mean over the background) and the explained rows (columns: the features)."""
+    """SHAP values of one explained function.
+
+    Attributes
+    ----------
+    values : ndarray of shape (n_rows, n_features)
+    expected : float
+        The explained function's mean over the background.
+    rows : DataFrame
+        The explained rows (columns: the features).
+    """
 
     values: np.ndarray
     expected: float
@@ -154,24 +227,41 @@ class ShapValues(NamedTuple):
 
 
 class TargetShap(NamedTuple):
-    """A per-target model's SHAP values on the same rows over the same background:
-    ``prediction`` of the whole prediction, ``correction`` of the correction (model - prior;
-    ``None`` when the model is the prior, ``note`` then says why)."""
+    """A per-target model's SHAP values on the same rows over the same background.
+
+    Attributes
+    ----------
+    prediction, correction : ShapValues or None
+        Of the whole prediction, and of the correction (model - prior; ``None`` when the
+        model is the prior).
+    note : str
+        Why the correction is ``None`` (empty otherwise).
+    """
 
     prediction: ShapValues | None
     correction: ShapValues | None
     note: str = ""
 
 
-def _fitted_model(estimator):
-    """The fitted model a selection predicts with (``best_estimator_``), or ``estimator``."""
+def _fitted_model(estimator: Any) -> Any:
+    """Return the fitted model a selection predicts with (``best_estimator_``), or itself."""
     return getattr(estimator, "best_estimator_", estimator)
 
 
-def prior_reason(estimator) -> str:
-    """Why the fitted per-target model ``estimator`` (a BaseBoostCV, or the model it
-    selected) is its prior exactly, or ``""`` when it is not: the prior was selected by CV,
-    or every boosted stage's coefficient is 0."""
+def prior_reason(estimator: Any) -> str:
+    """Say why a fitted per-target model (a BaseBoostCV, or the model it selected) is its prior.
+
+    Parameters
+    ----------
+    estimator : estimator
+        The fitted model.
+
+    Returns
+    -------
+    str
+        The prior was selected by CV, or every boosted stage's coefficient is 0; ``""`` when
+        the model is not its prior exactly.
+    """
     model = _fitted_model(estimator)
     if isinstance(model, PriorModel):
         return "cross-validation on the training rows selected the prior"
@@ -180,13 +270,25 @@ def prior_reason(estimator) -> str:
     return ""
 
 
-def correction_predictor(estimator) -> Callable[[pd.DataFrame], np.ndarray] | None:
-    """The correction a fitted per-target model adds to its prior, as a function of ``X`` (a
-    frame of the columns it was fitted on): ``model(X) - prior(X)``. ``estimator``: a
-    BaseBoostCV or BasisChoiceCV (the model it selected), a BaseBoostRegressor (its
-    :meth:`~workbench.BaseBoostRegressor.predict_correction`), a PriorModel, or any
-    regressor with ``predict_prior``. ``None`` when the model is the prior exactly
-    (:func:`prior_reason`): the correction is 0 everywhere."""
+def correction_predictor(estimator: Any) -> Callable[[pd.DataFrame], np.ndarray] | None:
+    """Return the correction a fitted per-target model adds to its prior, as a function of ``X``.
+
+    Parameters
+    ----------
+    estimator : estimator
+        A BaseBoostCV or BasisChoiceCV (the model it selected), a BaseBoostRegressor, a
+        PriorModel, or any regressor with ``predict_prior``.
+
+    Returns
+    -------
+    callable or None
+        ``X -> model(X) - prior(X)``; ``None`` when the model is the prior exactly.
+
+    Raises
+    ------
+    TypeError
+        The model's prior cannot be told apart.
+    """
     model = _fitted_model(estimator)
     if prior_reason(model):
         return None
@@ -199,9 +301,21 @@ def correction_predictor(estimator) -> Callable[[pd.DataFrame], np.ndarray] | No
                     "a BaseBoostCV, a BaseBoostRegressor, a PriorModel, or has predict_prior")
 
 
-def model_columns(estimator, X: pd.DataFrame) -> list[str]:
-    """The columns of ``X`` a fitted per-target model reads: its basis inputs and its prior
-    column (all of ``X``'s columns when it names none)."""
+def model_columns(estimator: Any, X: pd.DataFrame) -> list[str]:
+    """List the columns of ``X`` a fitted per-target model reads.
+
+    Parameters
+    ----------
+    estimator : estimator
+        The fitted model.
+    X : DataFrame
+        The frame it was fitted on.
+
+    Returns
+    -------
+    list of str
+        Its basis inputs and its prior column (all of ``X``'s columns when it names none).
+    """
     model = _fitted_model(estimator)
     names = list(X.columns)
     prior = getattr(model, "prior", None)
@@ -211,27 +325,40 @@ def model_columns(estimator, X: pd.DataFrame) -> list[str]:
     return cols or names
 
 
-def target_shap_values(estimator, X: pd.DataFrame, *, random_state: int = 0,
+def target_shap_values(estimator: Any, X: pd.DataFrame, *, random_state: int = 0,
                        prediction: bool = True, correction: bool = True,
                        background: int = 30) -> TargetShap:
-    """SHAP values of a fitted per-target model (see :func:`correction_predictor`) on the
-    rows of ``X`` (the columns it was fitted on), over the columns it reads
-    (:func:`model_columns`; the others fixed at the first row's values): of its whole
-    prediction and of its correction (model - prior), on the same rows over the same
-    ``background``-row background, so the two summaries are comparable. Where every row
-    would send more than :data:`MAX_MODEL_ROWS` rows through the model, a seeded sample of
-    the rows and a smaller background (:func:`shap_sample`). Exact values up to ten columns,
-    else the kernel explainer with 256 coalitions per row.
+    """Compute SHAP values of a fitted per-target model's prediction and correction.
 
-    ``prediction`` / ``correction``: which to compute (the other is ``None``). The
-    correction is ``None`` when the model is the prior (its correction is 0 everywhere),
-    with ``note`` saying why (:func:`prior_reason`)."""
+    Both on the rows of ``X`` over the columns the model reads (:func:`model_columns`; the
+    others fixed at the first row's values), over the same background, so the two summaries
+    are comparable; rows and background sized by :func:`shap_sample`. Exact values up to ten
+    columns, else the kernel explainer with 256 coalitions per row.
+
+    Parameters
+    ----------
+    estimator : estimator
+        A fitted per-target model (see :func:`correction_predictor`).
+    X : DataFrame
+        Rows of the columns the model was fitted on.
+    random_state : int, default=0
+        Seed of the row sample, the background and the kernel explainer.
+    prediction, correction : bool, default=True
+        Which to compute (the other is ``None``).
+    background : int, default=30
+        Background rows wanted.
+
+    Returns
+    -------
+    TargetShap
+        The correction is ``None`` when the model is the prior, ``note`` then says why.
+    """
     check_shap_frame(X)
     cols = model_columns(estimator, X)
     base = X.iloc[[0]].to_numpy()
 
-    def on_columns(f):
-        def predict(a):
+    def on_columns(f: Callable[[pd.DataFrame], Any]) -> Callable[[np.ndarray], Any]:
+        def predict(a: np.ndarray) -> Any:
             frame = pd.DataFrame(np.repeat(base, len(a), axis=0), columns=X.columns)
             frame[cols] = a
             return f(frame)
@@ -244,7 +371,7 @@ def target_shap_values(estimator, X: pd.DataFrame, *, random_state: int = 0,
         Xs = Xs.iloc[np.sort(keep)]
     nsamples: int | str = "auto" if len(cols) <= MAX_EXACT_FEATURES else 256
 
-    def explain(f) -> ShapValues:
+    def explain(f: Callable[[pd.DataFrame], Any]) -> ShapValues:
         values, expected = shap_values(on_columns(f), Xs, nsamples=nsamples,
                                        background_size=size, random_state=random_state)
         return ShapValues(values, expected, Xs)
@@ -255,10 +382,19 @@ def target_shap_values(estimator, X: pd.DataFrame, *, random_state: int = 0,
     return TargetShap(whole, None if f is None else explain(f), prior_reason(model))
 
 
-def correction_shap_values(estimator, X: pd.DataFrame, *, random_state: int = 0,
+def correction_shap_values(estimator: Any, X: pd.DataFrame, *, random_state: int = 0,
                            background: int = 30) -> ShapValues | None:
-    """SHAP values of the correction (model - prior) of a fitted per-target model on the rows
-    of ``X`` (:func:`target_shap_values` without the whole prediction's); ``None`` when the
-    model is the prior (:func:`prior_reason` says why)."""
+    """Compute SHAP values of the correction (model - prior) of a fitted per-target model.
+
+    Parameters
+    ----------
+    estimator, X, random_state, background
+        As in :func:`target_shap_values`.
+
+    Returns
+    -------
+    ShapValues or None
+        ``None`` when the model is the prior (:func:`prior_reason` says why).
+    """
     return target_shap_values(estimator, X, random_state=random_state, prediction=False,
                               background=background).correction

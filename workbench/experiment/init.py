@@ -11,7 +11,6 @@ project's own config parser; the file is then written all or nothing.
 from __future__ import annotations
 
 import os
-import re
 import shlex
 import tomllib
 from dataclasses import dataclass, field
@@ -27,10 +26,10 @@ from .config import load_dataset
 from .errors import ConfigError, UsageError
 from .outputs import check_file, write_file
 from .prepare import parse_config
+from .toml_text import split_template, toml_comment, toml_string, toml_strings
 
 __all__ = ["DEFAULT_TEST_FRACTION", "TEMPLATE", "InitResult", "csv_entry", "group_columns",
-           "init_config", "numeric_columns", "render_config", "split_template",
-           "template_text"]
+           "init_config", "numeric_columns", "render_config", "template_text"]
 
 #: The template every generated config copies below its ``[data]`` section.
 TEMPLATE = "generic.toml"
@@ -44,8 +43,26 @@ _OWN_KEYS = ("name", "random_state", "data")
 
 @dataclass(frozen=True)
 class InitResult:
-    """What :func:`init_config` wrote: the config file, its text, the feature columns (and,
-    when they were chosen by default, the columns not taken and why), the split's sizes."""
+    """What :func:`init_config` wrote.
+
+    Attributes
+    ----------
+    path : Path
+        The config file.
+    text : str
+        Its text.
+    features : list of str
+        The feature columns it names.
+    defaulted : bool
+        Whether the features were chosen by default (every other numeric column).
+    skipped : dict of str to str
+        When defaulted: the columns not taken, with the reason.
+    n_train, n_test : int
+        The split's sizes.
+    group_hints : dict of str to int
+        Without a group column: text columns whose values repeat (e.g. a device or a date),
+        with their number of distinct values: candidates for ``--group-column``.
+    """
 
     path: Path
     text: str
@@ -60,16 +77,41 @@ class InitResult:
 
 
 def template_text(name: str = TEMPLATE) -> str:
-    """The text of a config template shipped with the package (package data, read through
-    :mod:`importlib.resources`: an installed wheel carries it)."""
+    """Read a config template shipped with the package.
+
+    Package data, read through :mod:`importlib.resources`: an installed wheel carries it.
+
+    Parameters
+    ----------
+    name : str, default=TEMPLATE
+        The template's file name under ``workbench/experiment/templates/``.
+
+    Returns
+    -------
+    str
+        Its text.
+    """
     source = resources.files("workbench.experiment") / "templates" / name
     return source.read_text(encoding="utf-8")
 
 
 def csv_entry(csv: str | os.PathLike[str], config: str | os.PathLike[str]) -> str:
-    """``[data] csv`` for the file ``csv`` in the config ``config``: relative to the config's
-    directory (as the config parser reads it), or absolute where no relative path leads
-    there (another drive). Forward slashes, which every platform reads."""
+    """Write the ``[data] csv`` entry for the file ``csv`` in the config ``config``.
+
+    Parameters
+    ----------
+    csv : path-like
+        The data file.
+    config : path-like
+        The config file that will name it.
+
+    Returns
+    -------
+    str
+        The path relative to the config's directory (as the config parser reads it), or
+        absolute where no relative path leads there (another drive); forward slashes, which
+        every platform reads.
+    """
     target = Path(csv).resolve()
     base = Path(config).resolve().parent
     try:
@@ -80,10 +122,25 @@ def csv_entry(csv: str | os.PathLike[str], config: str | os.PathLike[str]) -> st
 
 def numeric_columns(path: str | os.PathLike[str], exclude: Sequence[str]
                     ) -> tuple[list[str], dict[str, str]]:
-    """The columns of the CSV ``path`` (other than ``exclude``) whose every cell is a finite
-    number, in the file's order, and the others with the reason they were left out. Cells
-    are read as the loader reads them (text, stripped; empty, ``nan``, ``na``, ``null``
-    missing); call it once the loader has read the file."""
+    """Split the CSV's columns into the numeric ones and the others.
+
+    Cells are read as the loader reads them (text, stripped; empty, ``nan``, ``na``, ``null``
+    missing); call it once the loader has read the file.
+
+    Parameters
+    ----------
+    path : path-like
+        The CSV file.
+    exclude : sequence of str
+        Columns not considered.
+
+    Returns
+    -------
+    taken : list of str
+        The columns whose every cell is a finite number, in the file's order.
+    skipped : dict of str to str
+        The others, with the reason they were left out.
+    """
     frame = pd.read_csv(path, dtype=str, keep_default_na=False)
     taken: list[str] = []
     skipped: dict[str, str] = {}
@@ -103,11 +160,24 @@ def numeric_columns(path: str | os.PathLike[str], exclude: Sequence[str]
 
 
 def group_columns(path: str | os.PathLike[str], exclude: Sequence[str]) -> dict[str, int]:
-    """The text columns of the CSV ``path`` (other than ``exclude``) whose values repeat, each
-    with its number of distinct values: between 2 and half the rows, e.g. the device or the
-    cooldown a row was measured in. Rows that share such a value are often alike, so plain
-    K-fold CV, which puts some of them on each side of a fold, rewards what only repeats
-    within a group; ``[data] group_column`` keeps each group whole in one fold."""
+    """Find the text columns whose values repeat, candidates for ``[data] group_column``.
+
+    Rows that share such a value (the device or the cooldown a row was measured in) are often
+    alike, so plain K-fold CV, which puts some of them on each side of a fold, rewards what
+    only repeats within a group; ``[data] group_column`` keeps each group whole in one fold.
+
+    Parameters
+    ----------
+    path : path-like
+        The CSV file.
+    exclude : sequence of str
+        Columns not considered.
+
+    Returns
+    -------
+    dict of str to int
+        Each such column with its number of distinct values (between 2 and half the rows).
+    """
     frame = pd.read_csv(path, dtype=str, keep_default_na=False)
     out = {}
     for column in frame.columns:
@@ -122,108 +192,79 @@ def group_columns(path: str | os.PathLike[str], exclude: Sequence[str]) -> dict[
     return out
 
 
-def _string(value: str) -> str:
-    """``value`` as a TOML basic string."""
-    out = []
-    for ch in value:
-        if ch in '"\\':
-            out.append("\\" + ch)
-        elif ch in "\b\t\n\f\r":
-            out.append({"\b": "\\b", "\t": "\\t", "\n": "\\n", "\f": "\\f", "\r": "\\r"}[ch])
-        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
-            out.append(f"\\u{ord(ch):04x}")
-        else:
-            out.append(ch)
-    return '"' + "".join(out) + '"'
-
-
-def _strings(key: str, values: Sequence[str], width: int = 92) -> str:
-    """``key = ["a", "b"]``, wrapped over several lines when it is long."""
-    items = [_string(v) for v in values]
-    line = f"{key} = [{', '.join(items)}]"
-    if len(line) <= width:
-        return line
-    lines, current = [], "    "
-    for item in items:
-        if current.strip() and len(current) + len(item) + 1 > width:
-            lines.append(current.rstrip())
-            current = "    "
-        current += item + ", "
-    lines.append(current.rstrip())
-    return f"{key} = [\n" + "\n".join(lines) + "\n]"
-
-
-def _comment(text: str) -> str:
-    """``text`` fit for a TOML comment (no control characters)."""
-    return "".join(ch if ch.isprintable() else "?" for ch in text)
-
-
 def render_config(*, name: str, csv: str, prior: Sequence[str], targets: Sequence[str],
                   features: Sequence[str], split_column: str | None, test_fraction: float | None,
                   split_seed: int, out: str, source: str, template: str,
                   group_column: str | None = None) -> str:
-    """The config's text: a header comment (what wrote it, from which CSV, what to run
-    next), ``name``, ``random_state``, ``[data]``, then the ``template``'s text as is (top-level
-    keys of the template, if any, above ``[data]``: :func:`split_template`)."""
+    """Write the config's text.
+
+    A header comment (what wrote it, from which CSV, what to run next), ``name``,
+    ``random_state``, ``[data]``, then the ``template``'s text as is (top-level keys of the
+    template, if any, above ``[data]``: :func:`~.toml_text.split_template`).
+
+    Parameters
+    ----------
+    name : str
+        The data set's name.
+    csv : str
+        The ``[data] csv`` entry (:func:`csv_entry`).
+    prior, targets, features : sequence of str
+        The columns of ``[data]``.
+    split_column : str or None
+        The train/test column, or ``None`` for a random split.
+    test_fraction : float or None
+        The random split's test share (when ``split_column`` is ``None``).
+    split_seed : int
+        The random split's seed.
+    out : str
+        The config's path, for the header's next command.
+    source : str
+        Where the CSV came from, for the header.
+    template : str
+        The template's text.
+    group_column : str, default=None
+        The column whose groups CV folds keep whole.
+
+    Returns
+    -------
+    str
+        The config's text.
+    """
     header = [
-        f"# A first config for the data set {_comment(repr(name))}, written by `workbench "
-        f"init` from {_comment(source)}.",
+        f"# A first config for the data set {toml_comment(repr(name))}, written by `workbench "
+        f"init` from {toml_comment(source)}.",
         "# [data] names the CSV's columns (its csv path is relative to this file); the sections",
         f"# after it are the template {TEMPLATE} (workbench/experiment/templates/), to edit.",
         "# Next:",
-        f"#   workbench evaluate {_comment(shlex.quote(out))}",
+        f"#   workbench evaluate {toml_comment(shlex.quote(out))}",
         "#   workbench ui",
     ]
     data = [
         "[data]",
-        f"csv = {_string(csv)}",
+        f"csv = {toml_string(csv)}",
         "# one prior column per target, in the same order",
-        _strings("prior", prior),
-        _strings("targets", targets),
+        toml_strings("prior", prior),
+        toml_strings("targets", targets),
         "# the basis' inputs besides the prior",
-        _strings("features", features),
+        toml_strings("features", features),
     ]
     if split_column is not None:
-        data.append(f"split_column = {_string(split_column)}   # its values: train, test")
+        data.append(f"split_column = {toml_string(split_column)}   # its values: train, test")
     else:
         assert test_fraction is not None  # one of the two (init_config)
         data += [f"test_fraction = {test_fraction!r}   # of the rows, drawn at random with "
                  "split_seed", f"split_seed = {split_seed}"]
     if group_column is not None:
-        data.append(f"group_column = {_string(group_column)}   # CV folds keep each group whole")
+        data.append(f"group_column = {toml_string(group_column)}"
+                    "   # CV folds keep each group whole")
     top, rest = split_template(template)
-    head = [*header, "", f"name = {_string(name)}", "random_state = 0"]
+    head = [*header, "", f"name = {toml_string(name)}", "random_state = 0"]
     return "\n".join(head) + "\n" + (top and top.rstrip("\n") + "\n") + "\n" \
         + "\n".join(data) + "\n\n" + rest
 
 
-#: A line opening a table (``[name]``, ``[[name]]``), possibly after spaces, with a comment.
-_TABLE = re.compile(r"\s*\[\[?[^\[\]]+\]\]?\s*(#.*)?")
-
-
-def split_template(template: str) -> tuple[str, str]:
-    """The template's top-level keys (with the comments among them) and the rest, from its
-    first table on (with the comment lines just above that table): the first part goes
-    above ``[data]``, where its keys stay top-level; ``("", template)`` when it has none."""
-    lines = template.splitlines(keepends=True)
-    for i, line in enumerate(lines):
-        head = "".join(lines[:i])
-        if not _TABLE.fullmatch(line.rstrip("\r\n")):
-            continue
-        try:  # a line like a table inside a multi-line string or array is not one
-            keys = tomllib.loads(head)
-        except tomllib.TOMLDecodeError:
-            continue
-        if not keys:
-            return "", template
-        while i > 0 and lines[i - 1].lstrip().startswith("#"):
-            i -= 1
-        return "".join(lines[:i]), "".join(lines[i:])
-    return template, ""
-
-
 def _check_template(template: str) -> dict[str, Any]:
-    """The template's tables; it must be valid TOML and leave the keys init writes alone."""
+    """Return the template's tables; it must be valid TOML and leave the keys init writes alone."""
     try:
         tables = tomllib.loads(template)
     except tomllib.TOMLDecodeError as exc:
@@ -235,13 +276,47 @@ def _check_template(template: str) -> dict[str, Any]:
 
 
 def _parse(text: str, template: dict[str, Any]) -> dict[str, Any]:
-    """The generated text read back: its keys beyond init's own must be the template's,
-    unchanged (the last guard of :func:`split_template`)."""
+    """Read the generated text back and check it against the template.
+
+    Its keys beyond init's own must be the template's, unchanged (the last guard of
+    :func:`~.toml_text.split_template`).
+    """
     raw = tomllib.loads(text)
     if {k: v for k, v in raw.items() if k not in _OWN_KEYS} != template:
         raise ConfigError(f"template {TEMPLATE}: its settings change when written below "
                           f"[data] (keys before its first table?)")
     return raw
+
+
+def _features(path: Path, prior: list[str], targets: list[str], features: Sequence[str] | None,
+              split_column: str | None, group_column: str | None
+              ) -> tuple[list[str], dict[str, str], dict[str, int]]:
+    """Choose the feature columns, and without a group column the candidates for one.
+
+    The features as given, or every other numeric column (with the columns skipped and why).
+    """
+    skipped: dict[str, str] = {}
+    hints = {} if group_column else group_columns(
+        path, [*prior, *targets, *([split_column] if split_column else [])])
+    if features is None:
+        features, skipped = numeric_columns(
+            path, [*prior, *targets, *([split_column] if split_column else []),
+                   *([group_column] if group_column else [])])
+    return list(features), skipped, hints
+
+
+def _output(name: str, out: str | os.PathLike[str] | None, force: bool) -> Path:
+    """Check ``--name`` and choose the config file to write (``<name>.toml`` by default)."""
+    if not name.strip():
+        raise UsageError("--name: give a non-empty name")
+    if out is None:
+        if any(sep in name for sep in "/\\"):
+            raise UsageError(f"--name {name!r} holds a path separator: give --out too")
+        out = f"{name}.toml"
+    path = check_file(out, "--out")  # a file name, in a folder that can be written
+    if path.exists() and not force:
+        raise UsageError(f"{path} exists: nothing written (--force overwrites it)")
+    return path
 
 
 def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str], targets: Sequence[str],
@@ -251,26 +326,48 @@ def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str], targets: S
                 force: bool = False, group_column: str | None = None) -> InitResult:
     """Write a first config for the CSV ``csv`` and return what was written.
 
-    ``features``: ``None`` takes every other numeric column (not the prior, target and
-    split columns, nor ``group_column``: each row's group, e.g. its device, which CV folds
-    keep whole). The split is ``split_column`` (values train/test) or a random
-    ``test_fraction`` (default :data:`DEFAULT_TEST_FRACTION`) drawn with ``split_seed``
-    (default 0). ``name`` defaults to the CSV's stem, ``out`` to ``<name>.toml``; an
-    existing ``out`` is an error unless ``force``. Bad data raise the loader's
-    :class:`~workbench.datasets.DatasetError`, as ``workbench evaluate`` would; nothing is
-    written then.
+    Parameters
+    ----------
+    csv : path-like
+        The data file.
+    prior, targets : sequence of str
+        One prior column per target, and the targets, in the same order.
+    features : sequence of str, default=None
+        The basis' inputs; ``None`` takes every other numeric column (not the prior, target
+        and split columns, nor ``group_column``).
+    split_column : str, default=None
+        A column of ``train``/``test`` values giving the split.
+    test_fraction : float, default=None
+        Without ``split_column``: the random split's test share
+        (:data:`DEFAULT_TEST_FRACTION` when ``None``).
+    split_seed : int, default=None
+        The random split's seed (0 when ``None``).
+    name : str, default=None
+        The data set's name; the CSV's stem when ``None``.
+    out : path-like, default=None
+        The config to write; ``<name>.toml`` when ``None``.
+    force : bool, default=False
+        Overwrite an existing ``out``.
+    group_column : str, default=None
+        Each row's group (e.g. its device), kept whole by the CV folds.
+
+    Returns
+    -------
+    InitResult
+        What was written.
+
+    Raises
+    ------
+    UsageError
+        Contradictory options, or an existing ``out`` without ``force``.
+    DatasetError
+        Bad data, as ``workbench evaluate`` would report them; nothing is written then.
+    ConfigError
+        A template that does not combine with the generated ``[data]``.
     """
     csv = Path(csv)
     name = csv.stem if name is None else name
-    if not name.strip():
-        raise UsageError("--name: give a non-empty name")
-    if out is None:
-        if any(sep in name for sep in "/\\"):
-            raise UsageError(f"--name {name!r} holds a path separator: give --out too")
-        out = f"{name}.toml"
-    out = check_file(out, "--out")  # a file name, in a folder that can be written
-    if out.exists() and not force:
-        raise UsageError(f"{out} exists: nothing written (--force overwrites it)")
+    out = _output(name, out, force)
     if split_column is not None:
         if test_fraction is not None:
             raise UsageError("give either --split-column or --test-fraction, not both")
@@ -287,15 +384,9 @@ def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str], targets: S
     load_csv_dataset(path, prior=prior, targets=targets, features=features or (),
                      test_fraction=test_fraction, split_column=split_column,
                      split_seed=split_seed or 0, group_column=group_column, name=name)
-    skipped: dict[str, str] = {}
     defaulted = features is None
-    hints = {} if group_column else group_columns(
-        path, [*prior, *targets, *([split_column] if split_column else [])])
-    if features is None:
-        features, skipped = numeric_columns(
-            path, [*prior, *targets, *([split_column] if split_column else []),
-                   *([group_column] if group_column else [])])
-    features = list(features)
+    features, skipped, hints = _features(path, prior, targets, features, split_column,
+                                         group_column)
     template = template_text()
     tables = _check_template(template)
     text = render_config(name=name, csv=entry, prior=prior, targets=targets, features=features,

@@ -19,10 +19,11 @@ intervals too narrow, so it is not used for them.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 import pandas as pd
+from numpy.typing import ArrayLike
 
 from ..conformal import ConformalRegressor, interval_coverage, interval_width
 from .families.base import Artifacts
@@ -36,24 +37,59 @@ __all__ = ["family_model", "interval_artifacts", "interval_scores", "interval_se
            "interval_table", "with_intervals"]
 
 
-def with_intervals(cfg: ExperimentConfig, model):
-    """``model`` (unfitted, built by the config's family) inside a ConformalRegressor as
-    ``[intervals]`` describes; ``model`` itself when intervals are off."""
+def with_intervals(cfg: ExperimentConfig, model: Any) -> Any:
+    """Wrap a family's model in a ConformalRegressor as ``[intervals]`` describes.
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The loaded config (its ``intervals`` method is resolved).
+    model : estimator
+        The unfitted model the config's family built.
+
+    Returns
+    -------
+    estimator
+        A :class:`~workbench.conformal.ConformalRegressor` around ``model``, or ``model``
+        itself when intervals are off.
+    """
     iv = cfg.intervals
     if not iv.enabled:
         return model
-    return ConformalRegressor(model, method=iv.method, alpha=iv.alpha, cv=iv.cv,
+    return ConformalRegressor(model, method=cast(str, iv.method), alpha=iv.alpha, cv=iv.cv,
                               calibration_fraction=iv.calibration_fraction,
                               random_state=cfg.random_state or 0, n_jobs=cfg.jobs)
 
 
-def family_model(model):
-    """The family's fitted model (inside a fitted ConformalRegressor, its ``estimator_``)."""
+def family_model(model: Any) -> Any:
+    """Return the family's fitted model, unwrapped from a fitted ConformalRegressor.
+
+    Parameters
+    ----------
+    model : estimator
+        A fitted model, conformal or not.
+
+    Returns
+    -------
+    estimator
+        Its ``estimator_`` inside a ConformalRegressor, else ``model``.
+    """
     return model.estimator_ if isinstance(model, ConformalRegressor) else model
 
 
 def interval_settings(cfg: ExperimentConfig) -> dict[str, Any]:
-    """The JSON-ready ``intervals`` section of a result (empty when intervals are off)."""
+    """Describe a config's intervals as a result's JSON-ready ``intervals`` section.
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The loaded config.
+
+    Returns
+    -------
+    dict
+        Method, alpha, level and the method's own setting; empty when intervals are off.
+    """
     iv = cfg.intervals
     if not iv.enabled:
         return {}
@@ -65,9 +101,25 @@ def interval_settings(cfg: ExperimentConfig) -> dict[str, Any]:
     return out
 
 
-def interval_scores(model, X_test, y_test) -> dict[str, list[float]]:
-    """Per-target coverage and mean width on the test rows and in CV (empty without
-    intervals): keys ``test_coverage``, ``test_width``, ``cv_coverage``, ``cv_width``."""
+def interval_scores(model: Any, X_test: pd.DataFrame,
+                    y_test: ArrayLike) -> dict[str, list[float]]:
+    """Score a fitted conformal model's intervals on the test rows and in CV.
+
+    Parameters
+    ----------
+    model : estimator
+        A fitted model; only a ConformalRegressor has intervals.
+    X_test : DataFrame
+        The test rows' inputs.
+    y_test : array-like of shape (n_test, n_targets)
+        Their targets.
+
+    Returns
+    -------
+    dict
+        Per target ``test_coverage``, ``test_width``, ``cv_coverage`` and ``cv_width``; empty
+        without intervals.
+    """
     if not isinstance(model, ConformalRegressor):
         return {}
     iv = model.predict_interval(X_test)
@@ -76,10 +128,24 @@ def interval_scores(model, X_test, y_test) -> dict[str, list[float]]:
             "cv_coverage": cv_coverage, "cv_width": cv_width}
 
 
-def interval_table(model, ds: Dataset, X: pd.DataFrame) -> pd.DataFrame:
-    """The test rows' measured values, predictions and intervals, one row per experiment
-    and target (columns ``experiment``, ``target``, ``measured``, ``predicted``, ``lower``,
-    ``upper``, ``covered``)."""
+def interval_table(model: Any, ds: Dataset, X: pd.DataFrame) -> pd.DataFrame:
+    """Tabulate the test rows' measured values, predictions and intervals.
+
+    Parameters
+    ----------
+    model : ConformalRegressor
+        The fitted model.
+    ds : Dataset
+        The dataset (its test rows and targets).
+    X : DataFrame
+        The model's inputs for every row of ``ds``.
+
+    Returns
+    -------
+    DataFrame
+        One row per experiment and target: ``experiment``, ``target``, ``measured``,
+        ``predicted``, ``lower``, ``upper``, ``covered``.
+    """
     X_test = X.loc[ds.test_index]
     pred = np.asarray(model.predict(X_test), dtype=float).reshape(len(X_test), -1)
     iv = model.predict_interval(X_test)
@@ -93,11 +159,29 @@ def interval_table(model, ds: Dataset, X: pd.DataFrame) -> pd.DataFrame:
     return pd.concat(parts, ignore_index=True)
 
 
-def interval_artifacts(cfg: ExperimentConfig, ds: Dataset, model,
+def interval_artifacts(cfg: ExperimentConfig, ds: Dataset, model: Any,
                        setting: str | None = None) -> Artifacts:
-    """The intervals' figure (measured against predicted with the interval of every test
-    row, a panel per target) and table (:func:`interval_table`); nothing without
-    intervals."""
+    """Make the intervals' figure and table.
+
+    The figure shows measured against predicted values with the interval of every test row,
+    a panel per target; the table is :func:`interval_table`.
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The loaded config (its family gives the inputs).
+    ds : Dataset
+        The dataset.
+    model : estimator
+        The fitted model.
+    setting : str, default=None
+        A line naming the setting, shown on the figure.
+
+    Returns
+    -------
+    Artifacts
+        ``intervals`` figure and ``test_intervals`` table; empty without intervals.
+    """
     if not isinstance(model, ConformalRegressor):
         return Artifacts()
     table = interval_table(model, ds, cfg.family.inputs(cfg, ds))

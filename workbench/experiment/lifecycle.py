@@ -24,7 +24,7 @@ import os
 import socket
 import threading
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from typing import TYPE_CHECKING, Any
 
 from ..parallel import pid_alive
@@ -33,6 +33,9 @@ from .signals import interrupts_deferred
 from .tracking.uris import check_store_uri, sqlite_path
 
 if TYPE_CHECKING:  # mlflow is imported only where a run is touched
+    from optuna.study import Study
+    from optuna.trial import FrozenTrial
+
     from .tracking.runs import Tracker
 
 __all__ = ["TrialRecorder", "command_run", "live_run", "prepare_store", "reap_stale_runs"]
@@ -48,7 +51,7 @@ HOST_TAG, PID_TAG, HEARTBEAT_TAG = "workbench.host", "workbench.pid", "workbench
 
 @contextlib.contextmanager
 def _first_use_lock(uri: str) -> Iterator[None]:
-    """An exclusive lock on ``<db>.lock`` beside a SQLite store (no-op for other stores)."""
+    """Hold an exclusive lock on ``<db>.lock`` beside a SQLite store (no-op for other stores)."""
     path = sqlite_path(uri)
     if path is None or path.is_dir():
         yield
@@ -70,10 +73,24 @@ def _first_use_lock(uri: str) -> Iterator[None]:
 
 
 def prepare_store(tracker: Tracker) -> str:
-    """Create (and migrate) the tracking store and the experiment, one process at a time;
-    returns the experiment id. Raises :class:`~workbench.experiment.errors.TrackingError`
-    (before anything is written when the store cannot be used: an unknown scheme, a missing
-    database driver, a read-only directory, an unreachable server)."""
+    """Create (and migrate) the tracking store and the experiment, one process at a time.
+
+    Parameters
+    ----------
+    tracker : Tracker
+        The store and experiment to prepare.
+
+    Returns
+    -------
+    str
+        The experiment id.
+
+    Raises
+    ------
+    TrackingError
+        Before anything is written when the store cannot be used (an unknown scheme, a
+        missing database driver, a read-only directory, an unreachable server).
+    """
     check_store_uri(tracker.tracking_uri)
     # a Ctrl-C waits for a new store's migration (a half-migrated database would not open)
     with interrupts_deferred(), _first_use_lock(tracker.tracking_uri):
@@ -84,10 +101,24 @@ def prepare_store(tracker: Tracker) -> str:
 
 
 def reap_stale_runs(tracker: Tracker, grace_s: float | None = None) -> list[str]:
-    """Mark ``FAILED`` the RUNNING runs of the tracker's experiment whose process is gone:
-    same host and dead pid, or a heartbeat older than ``grace_s`` (default
-    :data:`RUN_GRACE_S`); and RUNNING children of runs that are no longer running. Returns
-    the run ids marked."""
+    """Mark ``FAILED`` the RUNNING runs of the tracker's experiment whose process is gone.
+
+    A run's process is gone when it ran on this host under a pid that is dead, or when its
+    heartbeat is older than ``grace_s``; RUNNING children of runs that are no longer running
+    are marked too.
+
+    Parameters
+    ----------
+    tracker : Tracker
+        The store and experiment.
+    grace_s : float, default=None
+        Heartbeat age after which a run counts as dead; :data:`RUN_GRACE_S` when ``None``.
+
+    Returns
+    -------
+    list of str
+        The run ids marked.
+    """
     grace = RUN_GRACE_S if grace_s is None else grace_s
     client, host, now = tracker.client, socket.gethostname(), time.time()
     with tracker._errors():
@@ -118,10 +149,27 @@ def reap_stale_runs(tracker: Tracker, grace_s: float | None = None) -> list[str]
 
 
 @contextlib.contextmanager
-def every(interval: float, beat, name: str = "heartbeat") -> Iterator[None]:
-    """Call ``beat()`` every ``interval`` seconds from a daemon thread while the block runs
-    (a heartbeat that beats while the work goes on). A failed beat is skipped: the grace
-    periods that read heartbeats cover several."""
+def every(interval: float, beat: Callable[..., object], name: str = "heartbeat"
+          ) -> Iterator[None]:
+    """Call ``beat()`` every ``interval`` seconds from a daemon thread while the block runs.
+
+    A heartbeat that beats while the work goes on. A failed beat is skipped: the grace
+    periods that read heartbeats cover several.
+
+    Parameters
+    ----------
+    interval : float
+        Seconds between beats.
+    beat : callable
+        Called without arguments.
+    name : str, default="heartbeat"
+        The thread's name.
+
+    Yields
+    ------
+    None
+        While the block runs.
+    """
     stop = threading.Event()
 
     def loop() -> None:
@@ -143,9 +191,28 @@ def every(interval: float, beat, name: str = "heartbeat") -> Iterator[None]:
 @contextlib.contextmanager
 def live_run(tracker: Tracker, name: str, *, tags: Mapping[str, Any] | None = None,
              interval: float | None = None) -> Iterator[str]:
-    """:meth:`Tracker.run` (ended ``FINISHED``, ``KILLED`` on ``KeyboardInterrupt``,
-    ``FAILED`` otherwise) with this process's host and pid and a heartbeat tag that a
-    background thread refreshes while the block runs (:func:`reap_stale_runs` reads them)."""
+    """Run :meth:`Tracker.run` with this process's host, pid and a heartbeat tag.
+
+    The run ends ``FINISHED``, ``KILLED`` on ``KeyboardInterrupt``, ``FAILED`` otherwise; a
+    background thread refreshes the heartbeat while the block runs (:func:`reap_stale_runs`
+    reads the tags).
+
+    Parameters
+    ----------
+    tracker : Tracker
+        The store and experiment.
+    name : str
+        The run's name.
+    tags : mapping, default=None
+        More tags of the run.
+    interval : float, default=None
+        Seconds between heartbeats; :data:`RUN_HEARTBEAT_S` when ``None``.
+
+    Yields
+    ------
+    str
+        The run id.
+    """
     all_tags = dict(tags or {})
     all_tags.update({HOST_TAG: socket.gethostname(), PID_TAG: str(os.getpid()),
                      HEARTBEAT_TAG: f"{time.time():.0f}"})
@@ -158,8 +225,26 @@ def live_run(tracker: Tracker, name: str, *, tags: Mapping[str, Any] | None = No
 @contextlib.contextmanager
 def command_run(tracker: Tracker | None, kind: str, name: str,
                 tags: Mapping[str, Any] | None = None) -> Iterator[str | None]:
-    """The parent run of one ``evaluate``/``sweep`` (``None`` without tracking): the store is
-    prepared, stale runs are reaped, then the run lives while the block runs."""
+    """Run the parent run of one ``evaluate``/``sweep``.
+
+    The store is prepared, stale runs are reaped, then the run lives while the block runs.
+
+    Parameters
+    ----------
+    tracker : Tracker or None
+        The store and experiment; ``None`` without tracking.
+    kind : str
+        The command (``evaluate`` or ``sweep``), tagged ``workbench.kind``.
+    name : str
+        The config's name.
+    tags : mapping, default=None
+        More tags of the run.
+
+    Yields
+    ------
+    str or None
+        The run id (``None`` without tracking).
+    """
     if tracker is None:
         yield None
         return
@@ -171,14 +256,33 @@ def command_run(tracker: Tracker | None, kind: str, name: str,
 
 
 class TrialRecorder:
-    """``recorder(study, trial)``: one finished trial as a child run of ``parent_run_id``
-    (picklable, for worker processes)."""
+    """Record each finished trial as a child run of ``parent_run_id`` (an Optuna callback).
 
-    def __init__(self, tracker: Tracker, parent_run_id: str):
+    Picklable, for worker processes.
+
+    Parameters
+    ----------
+    tracker : Tracker
+        The store and experiment.
+    parent_run_id : str
+        The sweep's run.
+    """
+
+    def __init__(self, tracker: Tracker, parent_run_id: str) -> None:
         self.tracker, self.parent_run_id = tracker, parent_run_id
 
-    def __call__(self, study, trial) -> None:
-        """Three requests per trial (create, one batch, end): it runs between trials."""
+    def __call__(self, study: Study, trial: FrozenTrial) -> None:
+        """Log ``trial`` of ``study`` as a child run.
+
+        Three requests per trial (create, one batch, end): it runs between trials.
+
+        Parameters
+        ----------
+        study : optuna.study.Study
+            The sweep's study.
+        trial : optuna.trial.FrozenTrial
+            The finished trial.
+        """
         from mlflow.entities import Metric, Param  # (b) MLflow: not for evaluate --no-track
 
         t, now = trial, int(time.time() * 1000)

@@ -17,11 +17,18 @@ import os
 import shutil
 import tempfile
 from pathlib import Path
+from typing import Any, Protocol
 
 from .._io import atomic_write
 from .errors import UsageError
 
 __all__ = ["OutputError", "check_dir", "check_file", "write_artifacts", "write_file"]
+
+
+class _Writable(Protocol):
+    """What :func:`write_artifacts` writes: a family's ``Artifacts`` (tables and figures)."""
+
+    def write(self, directory: Path) -> dict[str, Any]: ...
 
 
 class OutputError(UsageError):
@@ -33,16 +40,18 @@ def _why(exc: OSError) -> str:
 
 
 def _existing_ancestor(path: Path) -> Path:
-    """The nearest ancestor of ``path`` (or ``path``) that exists (as anything)."""
+    """Return the nearest ancestor of ``path`` (or ``path``) that exists (as anything)."""
     path = Path(os.path.abspath(path))
     while not os.path.lexists(path):
         path = path.parent
     return path
 
 
-def _check_writable_dir(directory: Path, flag: str, target) -> None:
-    """``directory`` (or its nearest existing ancestor, where the missing directories will be
-    created) accepts a new file."""
+def _check_writable_dir(directory: Path, flag: str, target: str | os.PathLike) -> None:
+    """Check that ``directory`` accepts a new file.
+
+    Or its nearest existing ancestor, where the missing directories will be created.
+    """
     existing = _existing_ancestor(directory)
     if not existing.is_dir():
         raise OutputError(f"{flag} {target}: {existing} is a file, not a directory")
@@ -55,7 +64,25 @@ def _check_writable_dir(directory: Path, flag: str, target) -> None:
 
 
 def check_file(path: str | os.PathLike, flag: str) -> Path:
-    """Raise :class:`OutputError` unless ``path`` can be written as a file."""
+    """Check that ``path`` can be written as a file.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The output file.
+    flag : str
+        The option that gave it, named in the message.
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    OutputError
+        A directory, a path under a file, or a directory that cannot be written.
+    """
     p = Path(path)
     if str(path).endswith(os.sep) or p.is_dir():
         raise OutputError(f"{flag} {path}: is a directory; give a file name")
@@ -64,8 +91,25 @@ def check_file(path: str | os.PathLike, flag: str) -> Path:
 
 
 def check_dir(path: str | os.PathLike, flag: str) -> Path:
-    """Raise :class:`OutputError` unless ``path`` is, or can be created as, a writable
-    directory."""
+    """Check that ``path`` is, or can be created as, a writable directory.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The output directory.
+    flag : str
+        The option that gave it, named in the message.
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    OutputError
+        A file, or a directory that cannot be written.
+    """
     p = Path(path)
     if os.path.lexists(p) and not p.is_dir():
         raise OutputError(f"{flag} {path}: is a file; give a directory")
@@ -74,18 +118,59 @@ def check_dir(path: str | os.PathLike, flag: str) -> Path:
 
 
 def write_file(path: str | os.PathLike, data: str | bytes, flag: str) -> Path:
-    """Write ``data`` to ``path`` all or nothing; a failure is one :class:`OutputError` line."""
+    """Write ``data`` to ``path`` all or nothing.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file.
+    data : str or bytes
+        Its content.
+    flag : str
+        The option that gave the path, named in the message.
+
+    Returns
+    -------
+    Path
+        The file written.
+
+    Raises
+    ------
+    OutputError
+        One line, when the write fails (the old file, or none, is left).
+    """
     try:
         return atomic_write(path, data)
     except OSError as exc:
         raise OutputError(f"{flag} {path}: cannot write: {_why(exc)}") from None
 
 
-def write_artifacts(artifacts, directory: str | os.PathLike, flag: str = "--out"
+def write_artifacts(artifacts: _Writable, directory: str | os.PathLike, flag: str = "--out"
                     ) -> dict[str, Path]:
-    """``artifacts.write`` (:class:`~.families.base.Artifacts`) into ``directory``, all or
-    nothing: everything is written into a staging directory inside ``directory`` first and
-    renamed into place once complete. Returns name -> path."""
+    """Write a family's tables and figures into ``directory``, all or nothing.
+
+    Everything is written into a staging directory inside ``directory`` first and renamed
+    into place once complete.
+
+    Parameters
+    ----------
+    artifacts : Artifacts
+        A family's outputs (:class:`~.families.base.Artifacts`).
+    directory : str or path-like
+        Where they go (created if missing).
+    flag : str, default="--out"
+        The option that gave the directory, named in the message.
+
+    Returns
+    -------
+    dict of str to Path
+        Name -> path written.
+
+    Raises
+    ------
+    OutputError
+        One line, when a write fails; none of the files is left then.
+    """
     directory = Path(directory)
     created = [p for p in (directory, *directory.parents) if not os.path.lexists(p)]
     stage = None

@@ -1,11 +1,11 @@
-"""``workbench predict MODEL DATA.csv --out predictions.csv``: apply a logged or registered
-model to new settings.
+"""Apply a logged or registered model to new settings (``workbench predict``).
 
-``MODEL`` is a run id (the run's model), ``runs:/<run_id>/<name>``, ``models:/<model_id>``,
-``models:/NAME/VERSION``, ``models:/NAME@ALIAS`` (e.g. ``models:/device@champion``) or the
-path of a model directory. Names are looked up in the tracking store given like the other
-commands' (``--tracking-uri``, then ``$MLFLOW_TRACKING_URI``, then
-``sqlite:///mlruns/mlflow.db``); the store is never created or changed.
+``workbench predict MODEL DATA.csv --out predictions.csv``. ``MODEL`` is a run id (the
+run's model), ``runs:/<run_id>/<name>``, ``models:/<model_id>``, ``models:/NAME/VERSION``,
+``models:/NAME@ALIAS`` (e.g. ``models:/device@champion``) or the path of a model directory.
+Names are looked up in the tracking store given like the other commands'
+(``--tracking-uri``, then ``$MLFLOW_TRACKING_URI``, then ``sqlite:///mlruns/mlflow.db``);
+the store is never created or changed.
 
 Order of work: the output location is checked, the CSV is read, the model is found and
 loaded, the CSV's columns are checked by name against the model's inputs (missing columns, a
@@ -23,17 +23,23 @@ import logging
 import re
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import mlflow.pyfunc
 import pandas as pd
 from mlflow.exceptions import MlflowException
 
 from ..datasets.csv import _read
-from .errors import UsageError
+from .errors import UsageError, clip
 from .outputs import check_file, write_file
 from .serving import InputError, check_inputs
 from .tracking.runs import Tracker
 from .tracking.uris import describe_store, sqlite_path
+
+if TYPE_CHECKING:
+    from mlflow import MlflowClient
+    from mlflow.entities import Run
+    from mlflow.pyfunc import PyFuncModel
 
 __all__ = ["Prediction", "load_predictor", "predict_csv", "resolve_model"]
 
@@ -45,7 +51,21 @@ _NOT_FOUND = ("RESOURCE_DOES_NOT_EXIST", "NOT_FOUND", "INVALID_PARAMETER_VALUE")
 
 @dataclass
 class Prediction:
-    """What :func:`predict_csv` wrote."""
+    """What :func:`predict_csv` wrote.
+
+    Attributes
+    ----------
+    path : Path
+        The output file.
+    rows : int
+        Rows predicted.
+    targets : list of str
+        The predicted targets.
+    intervals : bool
+        Whether interval columns were written.
+    model : str
+        The model as given.
+    """
 
     path: Path
     rows: int
@@ -54,15 +74,33 @@ class Prediction:
     model: str
 
 
-def _short(exc) -> str:
+def _short(exc: BaseException) -> str:
+    """Return the first line of an error's message, at most 200 characters."""
     text = str(getattr(exc, "message", None) or exc).strip().splitlines()
     line = text[0] if text else type(exc).__name__
-    return line if len(line) <= 200 else line[:197] + "..."
+    return clip(line, 200)
 
 
 def resolve_model(spec: str, tracking_uri: str) -> str:
-    """The location ``mlflow.pyfunc.load_model`` can read for ``spec`` (see the module
-    docstring). Raises :class:`UsageError` (one line) when it names nothing."""
+    """Find the location ``mlflow.pyfunc.load_model`` can read for ``spec``.
+
+    Parameters
+    ----------
+    spec : str
+        The model as given (see the module docstring).
+    tracking_uri : str
+        The tracking store names are looked up in.
+
+    Returns
+    -------
+    str
+        A model directory or artifact location.
+
+    Raises
+    ------
+    UsageError
+        One line, when ``spec`` names nothing (or the store does not exist).
+    """
     if Path(spec).is_dir():
         return str(Path(spec).resolve())
     if not (_RUN_ID.match(spec) or spec.startswith(("runs:/", "models:/"))):
@@ -96,9 +134,12 @@ class _Location(str):
     """A model's artifact location (not a logged model's id)."""
 
 
-def _model_id(client, spec: str) -> str | None:
-    """The logged model's id for ``spec`` (``None``: ``runs:/`` naming a run artifact; a
-    :class:`_Location`: a registered version's artifact location)."""
+def _model_id(client: MlflowClient, spec: str) -> str | None:
+    """Look up the logged model's id for ``spec``.
+
+    ``None``: ``runs:/`` naming a run artifact; a :class:`_Location`: a registered version's
+    artifact location.
+    """
     if _RUN_ID.match(spec):
         run = client.get_run(spec)
         tagged = run.data.tags.get("model_uri", "")
@@ -130,13 +171,13 @@ def _model_id(client, spec: str) -> str | None:
     return _Location(source)  # the version's own artifact location
 
 
-def _logged_models(client, run, name: str | None) -> list:
+def _logged_models(client: MlflowClient, run: Run, name: str | None) -> list:
     return [m for m in client.search_logged_models(
         experiment_ids=[run.info.experiment_id],
         filter_string=f"source_run_id = '{run.info.run_id}'") if name is None or m.name == name]
 
 
-def _run_model(client, run, name: str | None, spec: str) -> str:
+def _run_model(client: MlflowClient, run: Run, name: str | None, spec: str) -> str:
     run_id = run.info.run_id
     found = _logged_models(client, run, name)
     if len(found) != 1:
@@ -150,7 +191,7 @@ def _run_model(client, run, name: str | None, spec: str) -> str:
 class _Predictor:
     """A loaded model: its input columns, targets and a ``predict(checked frame)``."""
 
-    def __init__(self, pyfunc, spec: str):
+    def __init__(self, pyfunc: PyFuncModel, spec: str) -> None:
         self.spec = spec
         impl = None
         try:
@@ -161,7 +202,7 @@ class _Predictor:
             self.columns, self.targets = list(impl.columns), list(impl.targets)
             self.outputs = list(impl.outputs)
             self._predict = impl.predict_checked
-        else:  # a model logged before the workbench model (a typed signature)
+        else:  # another pyfunc model: its typed signature names the columns
             schema = pyfunc.metadata.get_input_schema()
             if schema is None or not schema.has_input_names():
                 raise UsageError(f"model {spec!r} has no signature naming its input columns")
@@ -179,7 +220,25 @@ class _Predictor:
 
 
 def load_predictor(spec: str, tracking_uri: str) -> _Predictor:
-    """Resolve and load ``spec``; one-line errors."""
+    """Resolve and load the model ``spec``.
+
+    Parameters
+    ----------
+    spec : str
+        The model as given (see the module docstring).
+    tracking_uri : str
+        The tracking store names are looked up in.
+
+    Returns
+    -------
+    _Predictor
+        The loaded model with its input columns and targets.
+
+    Raises
+    ------
+    UsageError
+        One line, when the model is not found or cannot be loaded.
+    """
     location = resolve_model(spec, tracking_uri)
     try:
         pyfunc = mlflow.pyfunc.load_model(location)
@@ -194,7 +253,30 @@ def _read_csv(path: Path) -> pd.DataFrame:
 
 def predict_csv(spec: str, data: str | Path, out: str | Path, *,
                 tracking_uri: str) -> Prediction:
-    """Predict the rows of the CSV ``data`` with the model ``spec`` and write ``out``."""
+    """Predict the rows of the CSV ``data`` with the model ``spec`` and write ``out``.
+
+    Parameters
+    ----------
+    spec : str
+        The model (see the module docstring).
+    data : str or Path
+        The CSV of settings, one row per experiment.
+    out : str or Path
+        The CSV to write (atomically).
+    tracking_uri : str
+        The tracking store names are looked up in.
+
+    Returns
+    -------
+    Prediction
+        What was written.
+
+    Raises
+    ------
+    UsageError
+        One line: an unwritable ``out``, a model not found, or an input column missing or
+        not numeric (naming the column and the file's line).
+    """
     check_file(out, "--out")
     data = Path(data)
     frame = _read_csv(data)

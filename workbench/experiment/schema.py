@@ -1,12 +1,14 @@
-"""The base of every config table (:class:`Section`) and its shared field helpers, apart
-from :mod:`~workbench.experiment.config` so that a model family's settings (a section of
-their own) build on it without importing the config module, which finds the families.
+"""The base of every config table (:class:`Section`) and its shared field helpers.
+
+Apart from :mod:`~workbench.experiment.config` so that a model family's settings (a section
+of their own) build on it without importing the config module, which finds the families.
 
 A section checks structure: types, required and unknown keys, and the values that are the
 config's own (paths, names, study settings). A key that is an estimator's parameter is
 marked :class:`ParameterOf` and its value is checked against that estimator's
 ``_parameter_constraints`` by scikit-learn's machinery (:func:`check_values`), at load
-time, without data: the config restates no range or choice of its own."""
+time, without data: the config restates no range or choice of its own.
+"""
 
 from __future__ import annotations
 
@@ -44,7 +46,14 @@ class Section(BaseModel):
         return data
 
 
-def Seed():  # noqa: N802  (a field, like pydantic's Field)
+def Seed() -> Any:  # noqa: N802  (a field, like pydantic's Field)
+    """Declare a seed field: default 0, from 0 to :data:`MAX_INT` (numpy seeds are 32-bit).
+
+    Returns
+    -------
+    pydantic.fields.FieldInfo
+        The field, as ``pydantic.Field`` returns it.
+    """
     return Field(default=0, ge=0, le=MAX_INT)
 
 
@@ -52,12 +61,28 @@ def Seed():  # noqa: N802  (a field, like pydantic's Field)
 
 def check_values(estimator: type, values: dict[str, Any],
                  rename: dict[str, str] | None = None) -> None:
-    """Check config values that are parameters of ``estimator`` (``{key: value}``; ``rename``
-    maps a config key to the parameter's name where they differ) against the constraints the
-    estimator declares (``_parameter_constraints``, read now), with scikit-learn's
-    ``validate_parameter_constraints``: its ``InvalidParameterError`` (a ``ValueError``) with
-    scikit-learn's message, the value shortened. A parameter the estimator does not declare
-    is a bug, not a bad config: ``TypeError``."""
+    """Check config values that are parameters of ``estimator`` against its constraints.
+
+    The constraints are those the estimator declares (``_parameter_constraints``, read now),
+    checked with scikit-learn's ``validate_parameter_constraints``.
+
+    Parameters
+    ----------
+    estimator : type
+        The estimator class.
+    values : dict
+        Config key -> value.
+    rename : dict, default=None
+        Config key -> the parameter's name, where they differ.
+
+    Raises
+    ------
+    InvalidParameterError
+        A value the estimator does not allow (a ``ValueError``), with scikit-learn's message,
+        the value shortened.
+    TypeError
+        A parameter the estimator does not declare: a bug, not a bad config.
+    """
     constraints = estimator._parameter_constraints  # type: ignore[attr-defined]
     for key, value in values.items():
         param = (rename or {}).get(key, key)
@@ -77,17 +102,27 @@ def check_values(estimator: type, values: dict[str, Any],
 
 @dataclass(frozen=True)
 class ParameterOf:
-    """Field metadata: this config key is ``estimator``'s parameter ``name`` (default: the
-    key). Its value, once of the field's type, is checked by :func:`check_values`; an invalid
-    one is a validation error of type ``"parameter"`` with scikit-learn's message (the
-    config's error line then names the file, ``section.key`` and the value). Use it as
-    ``Annotated[float, ParameterOf(Estimator)]``; keep the default beside the field."""
+    """Field metadata: this config key is ``estimator``'s parameter ``name``.
+
+    Its value, once of the field's type, is checked by :func:`check_values`; an invalid one is
+    a validation error of type ``"parameter"`` with scikit-learn's message (the config's error
+    line then names the file, ``section.key`` and the value). Use it as
+    ``Annotated[float, ParameterOf(Estimator)]``; keep the default beside the field.
+
+    Attributes
+    ----------
+    estimator : type
+        The estimator class.
+    name : str or None
+        The parameter's name (``None``: the config key).
+    """
 
     estimator: type
     name: str | None = None
 
     def __get_pydantic_core_schema__(self, source: Any,
                                      handler: GetCoreSchemaHandler) -> core_schema.CoreSchema:
+        """Add the parameter check after pydantic's own validation of the field."""
         return core_schema.with_info_after_validator_function(self._check, handler(source))
 
     def _check(self, value: Any, info: core_schema.ValidationInfo) -> Any:
@@ -100,7 +135,18 @@ class ParameterOf:
 
 
 def parameters_of(section: type[BaseModel]) -> dict[str, tuple[type, str]]:
-    """The keys of ``section`` that are estimator parameters: ``{key: (estimator, param)}``."""
+    """Find the keys of ``section`` that are estimator parameters.
+
+    Parameters
+    ----------
+    section : type of pydantic.BaseModel
+        A config table's class.
+
+    Returns
+    -------
+    dict
+        ``{key: (estimator, param)}``.
+    """
     def found(annotation: Any, metadata: list) -> ParameterOf | None:
         for meta in metadata:
             if isinstance(meta, ParameterOf):

@@ -1,8 +1,7 @@
-"""The logged model: an MLflow pyfunc ``PythonModel`` that checks its input table by column
-name and returns a table of predictions (and prediction intervals when the fitted model has
-them).
+"""The logged model: an MLflow pyfunc ``PythonModel`` that checks its input table by name.
 
-Used three ways, all with the same numbers:
+It returns a table of predictions (and prediction intervals when the fitted model has
+them). Used three ways, all with the same numbers:
 
 * ``workbench predict MODEL DATA.csv --out predictions.csv`` (:mod:`.predict`);
 * ``mlflow.pyfunc.load_model(uri).predict(frame)`` in Python;
@@ -10,12 +9,11 @@ Used three ways, all with the same numbers:
 
 Inputs are checked by the model itself, so each problem is one short line naming the column
 (and the row): no rows at all, a missing column, a non-numeric value, a NaN or infinite
-value. Integer
-columns are accepted (cast to float); extra columns are ignored. The signature therefore
-declares the input columns by name without MLflow types (``Any``, optional): MLflow's own
-enforcement would reject ``int64`` columns and report a missing column after a dump of the
-whole table. The outputs are declared as doubles: one column per target, then
-``<target>_lower`` and ``<target>_upper`` per target when the fitted model has
+value. Integer columns are accepted (cast to float); extra columns are ignored. The
+signature therefore declares the input columns by name without MLflow types (``Any``,
+optional): MLflow's own enforcement would reject ``int64`` columns and report a missing
+column after a dump of the whole table. The outputs are declared as doubles: one column per
+target, then ``<target>_lower`` and ``<target>_upper`` per target when the fitted model has
 ``predict_interval``.
 
 ``predict_interval(X)`` is duck-typed; it may return a DataFrame with ``<target>_lower`` /
@@ -49,16 +47,19 @@ class InputError(ValueError):
     """An input table the model cannot use; the message is one line naming the column."""
 
 
-def _default_row(labels) -> Callable[[int], str]:
-    """``row <index label>`` (a text label quoted)."""
+def _default_row(labels: Any) -> Callable[[int], str]:
+    """Name a row as ``row <index label>`` (a text label quoted), by position."""
     values = list(labels.tolist() if hasattr(labels, "tolist") else labels)
     return lambda pos: (f"row {values[pos]!r}" if isinstance(values[pos], str)
                         else f"row {values[pos]}")
 
 
-def _as_float(value) -> float:
-    """One cell as a float (exact for numbers and for decimal text); ``ValueError`` if it is
-    not a number. An empty cell or ``None`` is NaN (reported as missing)."""
+def _as_float(value: object) -> float:
+    """Read one cell as a float (exact for numbers and for decimal text).
+
+    An empty cell or ``None`` is NaN (reported as missing); anything else that is not a number
+    raises ``ValueError``.
+    """
     if value is None:
         return math.nan
     if isinstance(value, (bool, np.bool_)):
@@ -73,12 +74,32 @@ def _as_float(value) -> float:
 
 def check_inputs(frame: pd.DataFrame, columns: Sequence[str], *, where: str = "input",
                  row_name: Callable[[int], str] | None = None) -> pd.DataFrame:
-    """The model's input ``columns`` of ``frame`` as a float frame (same index, the model's
-    column order); extra columns are ignored, integer columns cast to float.
+    """Check the model's input columns of ``frame`` and return them as floats.
 
-    Raises :class:`InputError` (one line, starting with ``where``) for a table without rows,
-    missing columns, a non-numeric value, or a missing, NaN or infinite value, naming the
-    column and the row (``row_name(position)``, default ``row <index label>``)."""
+    Extra columns are ignored, integer columns cast to float.
+
+    Parameters
+    ----------
+    frame : DataFrame
+        The input table (anything ``pd.DataFrame`` accepts).
+    columns : sequence of str
+        The columns the model reads, in its order.
+    where : str, default="input"
+        What the messages start with.
+    row_name : callable, default=None
+        Names a row by position in messages; ``None``: ``row <index label>``.
+
+    Returns
+    -------
+    DataFrame
+        ``columns`` of ``frame`` as floats, same index.
+
+    Raises
+    ------
+    InputError
+        One line, naming the column and the row: no rows, duplicated or missing columns, a
+        non-numeric value, or a missing, NaN or infinite value.
+    """
     if not isinstance(frame, pd.DataFrame):
         frame = pd.DataFrame(frame)
     if len(frame) == 0:  # the estimators' own message is a traceback's worth of text
@@ -126,12 +147,23 @@ def _listing(names: Sequence[str], limit: int = 8) -> str:
 
 
 def interval_columns(targets: Sequence[str]) -> list[str]:
-    """``<target>_lower``, ``<target>_upper`` for each target, in target order."""
+    """Name the interval columns of ``targets``.
+
+    Parameters
+    ----------
+    targets : sequence of str
+        The predicted targets.
+
+    Returns
+    -------
+    list of str
+        ``<target>_lower``, ``<target>_upper`` for each target, in target order.
+    """
     return [f"{t}{s}" for t in targets for s in (LOWER, UPPER)]
 
 
-def _intervals(raw, targets: list[str], index) -> pd.DataFrame:
-    """``predict_interval``'s result as a frame of :func:`interval_columns`."""
+def _intervals(raw: Any, targets: list[str], index: pd.Index) -> pd.DataFrame:
+    """Turn ``predict_interval``'s result into a frame of :func:`interval_columns`."""
     n, k = len(index), len(targets)
     wanted = interval_columns(targets)
     if isinstance(raw, pd.DataFrame) and set(wanted) <= set(map(str, raw.columns)):
@@ -154,10 +186,29 @@ def _intervals(raw, targets: list[str], index) -> pd.DataFrame:
     return pd.DataFrame(values, index=index, columns=wanted)
 
 
-def prediction_frame(model, X: pd.DataFrame, targets: Sequence[str]) -> pd.DataFrame:
-    """``model``'s predictions on ``X`` (already checked) as a frame indexed like ``X``: one
-    column per target, then :func:`interval_columns` when ``model`` has
-    ``predict_interval``."""
+def prediction_frame(model: Any, X: pd.DataFrame, targets: Sequence[str]) -> pd.DataFrame:
+    """Predict ``X`` with ``model`` as a frame indexed like ``X``.
+
+    Parameters
+    ----------
+    model : fitted estimator
+        ``predict(X)`` gives one column per target; optionally ``predict_interval(X)``.
+    X : DataFrame
+        Inputs already through :func:`check_inputs`.
+    targets : sequence of str
+        The targets, in the order of ``model.predict``'s columns.
+
+    Returns
+    -------
+    DataFrame
+        One column per target, then :func:`interval_columns` when ``model`` has
+        ``predict_interval``.
+
+    Raises
+    ------
+    TypeError
+        ``predict_interval`` returned a shape it cannot be read from.
+    """
     targets = [str(t) for t in targets]
     pred = model.predict(X)
     if isinstance(pred, pd.DataFrame) and set(targets) <= set(map(str, pred.columns)):
@@ -169,21 +220,47 @@ def prediction_frame(model, X: pd.DataFrame, targets: Sequence[str]) -> pd.DataF
     return out
 
 
-def has_intervals(model) -> bool:
+def has_intervals(model: object) -> bool:
+    """Tell whether ``model`` predicts intervals (has a callable ``predict_interval``).
+
+    Parameters
+    ----------
+    model : object
+        A fitted model.
+
+    Returns
+    -------
+    bool
+        Whether it has ``predict_interval``.
+    """
     return callable(getattr(model, "predict_interval", None))
 
 
-def model_signature(columns: Sequence[str], outputs: Sequence[str]):
-    """Inputs by name (type ``Any``, optional: the model checks them itself, see the module
-    docstring), outputs as doubles."""
+def model_signature(columns: Sequence[str], outputs: Sequence[str]) -> ModelSignature:
+    """Build the logged model's MLflow signature.
+
+    Parameters
+    ----------
+    columns : sequence of str
+        Input columns, declared by name with type ``Any`` and optional: the model checks them
+        itself (see the module docstring).
+    outputs : sequence of str
+        Output columns, declared as doubles.
+
+    Returns
+    -------
+    mlflow.models.ModelSignature
+        The inputs and outputs.
+    """
     return ModelSignature(
         inputs=Schema([ColSpec(AnyType(), str(c), required=False) for c in columns]),
         outputs=Schema([ColSpec(DataType.double, str(c)) for c in outputs]))
 
 
 class WorkbenchModel(PythonModel):
-    """A fitted workbench model as an MLflow pyfunc model: checks the input table
-    (:func:`check_inputs`) and returns :func:`prediction_frame`.
+    """A fitted workbench model as an MLflow pyfunc model.
+
+    It checks the input table (:func:`check_inputs`) and returns :func:`prediction_frame`.
 
     Parameters
     ----------
@@ -195,25 +272,63 @@ class WorkbenchModel(PythonModel):
         The predicted targets, in the order of ``model.predict``'s columns.
     """
 
-    def __init__(self, model, columns: Sequence[str], targets: Sequence[str]):
+    def __init__(self, model: Any, columns: Sequence[str], targets: Sequence[str]) -> None:
         self.model = model
         self.columns = [str(c) for c in columns]
         self.targets = [str(t) for t in targets]
 
     @property
     def outputs(self) -> list[str]:
-        """The output columns: the targets, then the interval columns if any."""
+        """Name the output columns.
+
+        Returns
+        -------
+        list of str
+            The targets, then the interval columns if the model has them.
+        """
         extra = interval_columns(self.targets) if has_intervals(self.model) else []
         return self.targets + extra
 
     def predict_checked(self, X: pd.DataFrame) -> pd.DataFrame:
-        """Predictions for a frame already through :func:`check_inputs`."""
+        """Predict a frame already through :func:`check_inputs`.
+
+        Parameters
+        ----------
+        X : DataFrame
+            The checked inputs.
+
+        Returns
+        -------
+        DataFrame
+            :func:`prediction_frame` of the model.
+        """
         return prediction_frame(self.model, X, self.targets)
 
     # A DataFrame type hint: MLflow neither infers a schema from it nor warns about a missing
     # hint; the logged signature names the inputs.
-    def predict(self, context, model_input: pd.DataFrame,
+    def predict(self, context: Any, model_input: pd.DataFrame,
                 params: dict[str, Any] | None = None) -> pd.DataFrame:
+        """Check ``model_input`` and predict it (MLflow's pyfunc entry point).
+
+        Parameters
+        ----------
+        context : PythonModelContext or None
+            MLflow's context (unused).
+        model_input : DataFrame
+            The input table.
+        params : dict, default=None
+            MLflow's inference parameters (unused).
+
+        Returns
+        -------
+        DataFrame
+            :func:`prediction_frame` of the model.
+
+        Raises
+        ------
+        mlflow.exceptions.MlflowException
+            An input table the model cannot use (its message is :class:`InputError`'s line).
+        """
         try:
             X = check_inputs(model_input, self.columns, where="model input")
         except InputError as exc:

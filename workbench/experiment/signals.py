@@ -15,6 +15,7 @@ import contextlib
 import signal
 import threading
 from collections.abc import Iterator
+from types import FrameType
 
 __all__ = ["Interrupted", "MESSAGE", "handle_signals", "ignoring_signals",
            "interrupts_deferred"]
@@ -23,9 +24,20 @@ MESSAGE = "interrupted; run the same command to resume"
 
 
 class Interrupted(KeyboardInterrupt):
-    """SIGINT or SIGTERM; ``code`` is the exit code (128 + signal number)."""
+    """SIGINT or SIGTERM received by the command.
 
-    def __init__(self, signum: int):
+    Parameters
+    ----------
+    signum : int
+        The signal's number.
+
+    Attributes
+    ----------
+    code : int
+        The command's exit code, 128 + the signal's number.
+    """
+
+    def __init__(self, signum: int) -> None:
         super().__init__(signal.Signals(signum).name)
         self.code = 128 + signum
 
@@ -36,11 +48,18 @@ _PENDING: list[int] = []  # a signal that arrived inside them
 
 @contextlib.contextmanager
 def interrupts_deferred() -> Iterator[None]:
-    """Under :func:`handle_signals`, a SIGINT or SIGTERM that arrives while the main thread is
-    inside the block is raised once the outermost block is left (bookkeeping that must not
-    stop half-way: a trial asked from the storage but not yet running, or run but not yet
-    told; an append to the Optuna journal under its file lock; a new store's migration).
-    In other threads the block does nothing (signals interrupt the main thread only)."""
+    """Defer a SIGINT or SIGTERM that arrives inside the block until the outermost block is left.
+
+    Under :func:`handle_signals`. For bookkeeping that must not stop half-way: a trial asked
+    from the storage but not yet running, or run but not yet told; an append to the Optuna
+    journal under its file lock; a new store's migration. In other threads the block does
+    nothing (signals interrupt the main thread only).
+
+    Yields
+    ------
+    None
+        While the block runs.
+    """
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -55,14 +74,21 @@ def interrupts_deferred() -> Iterator[None]:
 
 @contextlib.contextmanager
 def handle_signals() -> Iterator[None]:
-    """SIGINT and SIGTERM raise :class:`Interrupted` in the main thread (once: further
-    signals are ignored while the command cleans up), or, inside
+    """Make SIGINT and SIGTERM raise :class:`Interrupted` in the main thread.
+
+    Once: further signals are ignored while the command cleans up; inside
     :func:`interrupts_deferred`, when that block is left. Any other code (e.g. MLflow's
-    requests and their retries, a database call) is interrupted where it is: its stores
-    roll back what was not committed."""
+    requests and their retries, a database call) is interrupted where it is: its stores roll
+    back what was not committed.
+
+    Yields
+    ------
+    None
+        While the block runs; the previous handlers are restored after it.
+    """
     fired: list[int] = []
 
-    def handler(signum, frame):
+    def handler(signum: int, frame: FrameType | None) -> None:
         if fired:
             return
         if _DEFERRING[0]:
@@ -84,7 +110,15 @@ def handle_signals() -> Iterator[None]:
 
 @contextlib.contextmanager
 def ignoring_signals() -> Iterator[None]:
-    """Let the run's end be written even if a second Ctrl-C arrives."""
+    """Ignore SIGINT and SIGTERM while the block runs, so that a run's end is written.
+
+    Even if a second Ctrl-C arrives. In other threads the block does nothing.
+
+    Yields
+    ------
+    None
+        While the block runs.
+    """
     if threading.current_thread() is not threading.main_thread():
         yield
         return

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 from sklearn.utils._param_validation import InvalidParameterError
@@ -23,6 +23,10 @@ from ..boosting import BaseBoostRegressor
 from ..losses import LOSSES
 from .errors import shorten, unknown_keys
 from .schema import check_values
+
+if TYPE_CHECKING:  # Optuna and pydantic types only: nothing imported when the module runs
+    from optuna.trial import Trial
+    from pydantic import BaseModel
 
 __all__ = ["SearchSpace", "SpaceError", "check_ranges", "draw_params", "has_ranges"]
 
@@ -69,7 +73,7 @@ def _check_spec(name: str, spec: Any, valid: tuple[str, ...] | None = None) -> N
             raise SpaceError(f"{name}: unknown value(s) {bad or spec!r}; valid: {list(valid)}")
 
 
-def _suggest(trial, name: str, spec: Any) -> Any:
+def _suggest(trial: Trial | _Draw, name: str, spec: Any) -> Any:
     if isinstance(spec, list):
         return trial.suggest_categorical(name, spec)
     if isinstance(spec, dict):
@@ -83,8 +87,18 @@ def _suggest(trial, name: str, spec: Any) -> Any:
 
 @dataclass(frozen=True)
 class SearchSpace:
-    """The ``[search]`` table, checked; ``family_table`` is its ``[search.<family>]``, which
-    varies the model family's own settings (parameters named ``<family>.<key>``)."""
+    """The ``[search]`` table, checked.
+
+    Attributes
+    ----------
+    table : dict
+        The entries that vary the boosting settings (``basis_params`` included).
+    family : str or None
+        The model family whose settings ``family_table`` varies.
+    family_table : dict
+        ``[search.<family>]``: the family's own settings, as parameters named
+        ``<family>.<key>``.
+    """
 
     table: dict[str, Any] = field(default_factory=dict)
     family: str | None = None
@@ -93,9 +107,29 @@ class SearchSpace:
     @classmethod
     def from_table(cls, table: dict[str, Any], family: str | None = None,
                    check: Callable[[str, Any], None] | None = None) -> SearchSpace:
-        """Check ``table``. ``family``: the model family whose settings ``[search.<family>]``
-        may vary (``None``: it has none, so such a table is an error); ``check(key, value)``
-        raises :class:`SpaceError` for a value the family's settings do not allow."""
+        """Check a ``[search]`` table and build its space.
+
+        Parameters
+        ----------
+        table : dict
+            The ``[search]`` table.
+        family : str, default=None
+            The model family whose settings ``[search.<family>]`` may vary (``None``: it has none,
+            so such a table is an error).
+        check : callable, default=None
+            ``check(key, value)`` raises :class:`SpaceError` for a value the family's settings do
+            not allow.
+
+        Returns
+        -------
+        SearchSpace
+            The checked space.
+
+        Raises
+        ------
+        SpaceError
+            An entry that cannot be sampled; the message names it.
+        """
         if not isinstance(table, dict):
             raise SpaceError(f"[search] must be a table, got {table!r}")
         table = dict(table)
@@ -137,9 +171,21 @@ class SearchSpace:
                     check(name, value)
         return cls(table=table, family=family, family_table=dict(sub))
 
-    def sample(self, trial, base: dict[str, Any]) -> dict[str, Any]:
-        """Model settings: ``base`` (a target's ``[model]`` settings) with searched entries
-        replaced by the trial's values."""
+    def sample(self, trial: Trial, base: dict[str, Any]) -> dict[str, Any]:
+        """Sample a target's model settings for ``trial``.
+
+        Parameters
+        ----------
+        trial : optuna.trial.Trial
+            Or anything with Optuna's ``suggest_*`` methods (``FixedTrial``).
+        base : dict
+            A target's ``[model]`` settings.
+
+        Returns
+        -------
+        dict
+            ``base`` with the searched entries replaced by the trial's values.
+        """
         settings = dict(base)
         for name, spec in self.table.items():
             if name != "basis_params":
@@ -155,9 +201,22 @@ class SearchSpace:
                 **{k: _suggest(trial, f"{settings['basis']}.{k}", v) for k, v in specs.items()}}
         return settings
 
-    def sample_family(self, trial, base):
-        """The family's settings (a pydantic model): ``base`` with the entries of
-        ``[search.<family>]`` replaced by the trial's values (``<family>.<key>``)."""
+    def sample_family(self, trial: Trial, base: BaseModel) -> BaseModel:
+        """Sample the family's own settings for ``trial``.
+
+        Parameters
+        ----------
+        trial : optuna.trial.Trial
+            Or anything with Optuna's ``suggest_*`` methods.
+        base : pydantic.BaseModel
+            The family's settings.
+
+        Returns
+        -------
+        pydantic.BaseModel
+            ``base`` with the entries of ``[search.<family>]`` replaced by the trial's values
+            (``<family>.<key>``).
+        """
         if not self.family_table:
             return base
         values = {name: _suggest(trial, f"{self.family}.{name}", spec)
@@ -166,7 +225,7 @@ class SearchSpace:
 
 
 def _values(spec: Any) -> list[Any]:
-    """The values of a spec to check: every choice, a range's ends, or the fixed value."""
+    """List the values of a spec to check: every choice, a range's ends, or the fixed value."""
     if isinstance(spec, list):
         return list(spec)
     if isinstance(spec, dict):
@@ -176,8 +235,10 @@ def _values(spec: Any) -> list[Any]:
 
 # --------------------------------------------------------------------------- random draws
 class _Draw:
-    """Optuna's ``suggest_*`` answered by independent draws of a seeded numpy Generator
-    (uniform, or log-uniform for ``log`` ranges; on the ``step`` grid when given)."""
+    """Answer Optuna's ``suggest_*`` by independent draws of a seeded numpy Generator.
+
+    Uniform, or log-uniform for ``log`` ranges; on the ``step`` grid when given.
+    """
 
     def __init__(self, rng: np.random.Generator) -> None:
         self.rng = rng
@@ -204,19 +265,48 @@ class _Draw:
 
 
 def has_ranges(params: dict[str, Any]) -> bool:
-    """Whether a basis's ``basis_params`` hold a table to draw from: a range
-    (``{ low, high, log? }``) or a choice (``{ choices = [...] }``; a plain list is a value)."""
+    """Tell whether a basis's ``basis_params`` hold a table to draw from.
+
+    Parameters
+    ----------
+    params : dict
+        The basis's ``basis_params``.
+
+    Returns
+    -------
+    bool
+        Whether some entry is a range (``{ low, high, log? }``) or a choice
+        (``{ choices = [...] }``; a plain list is a value).
+    """
     return any(isinstance(v, dict) for v in params.values())
 
 
 def _spec(spec: dict[str, Any]) -> Any:
-    """A drawn entry as a search-space spec: ``{ choices = [...] }`` is a choice list."""
+    """Read a drawn entry as a search-space spec: ``{ choices = [...] }`` is a choice list."""
     return spec["choices"] if set(spec) == {"choices"} else spec
 
 
 def check_ranges(name: str, params: dict[str, Any]) -> list[dict[str, Any]]:
-    """Check the tables to draw from of ``basis_params.<name>``; the settings to validate
-    against the basis: every range at its low end, and at its high end (choices: each)."""
+    """Check the tables to draw from of ``basis_params.<name>``.
+
+    Parameters
+    ----------
+    name : str
+        The basis.
+    params : dict
+        Its ``basis_params``.
+
+    Returns
+    -------
+    list of dict
+        The settings to validate against the basis: every range at its low end, and at its
+        high end (choices: each).
+
+    Raises
+    ------
+    SpaceError
+        A table that cannot be drawn from.
+    """
     width = 2
     for key, spec in params.items():
         if isinstance(spec, dict):
@@ -233,9 +323,25 @@ def check_ranges(name: str, params: dict[str, Any]) -> list[dict[str, Any]]:
 
 
 def draw_params(params: dict[str, Any], n: int, seed: int | None) -> list[dict[str, Any]]:
-    """``n`` settings of a basis whose ``basis_params`` hold tables to draw from: each range
-    drawn at random (uniform, or log-uniform), each choice uniformly (seeded by ``seed``),
-    fixed values kept. The same seed gives the same draws."""
+    """Draw ``n`` settings of a basis whose ``basis_params`` hold tables to draw from.
+
+    Each range is drawn at random (uniform, or log-uniform), each choice uniformly, fixed
+    values kept. The same seed gives the same draws.
+
+    Parameters
+    ----------
+    params : dict
+        The basis's ``basis_params``.
+    n : int
+        Settings to draw.
+    seed : int or None
+        Seed of the draws.
+
+    Returns
+    -------
+    list of dict
+        The drawn settings.
+    """
     draw = _Draw(np.random.default_rng(seed))
     return [{k: (_suggest(draw, k, _spec(v)) if isinstance(v, dict) else v)
              for k, v in params.items()} for _ in range(n)]

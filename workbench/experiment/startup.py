@@ -1,30 +1,34 @@
-"""What a command sets up first, kept light (no heavy imports) so that any module may use
-it: the progress lines of the ``workbench`` logger (to standard error)."""
+"""What a command sets up first: the progress lines of the ``workbench`` logger.
+
+Kept light (no heavy imports) so that any module may use it; the lines go to standard
+error.
+"""
 
 from __future__ import annotations
 
 import logging
 import sys
+from typing import TextIO
 
 __all__ = ["setup_logging"]
 
 class _Stderr(logging.StreamHandler):
     """A handler writing to the *current* ``sys.stderr`` (which callers may replace)."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         super().__init__(sys.stderr)
 
     @property
-    def stream(self):
+    def stream(self) -> TextIO:  # type: ignore[override]
         return sys.stderr
 
     @stream.setter
-    def stream(self, value) -> None:
+    def stream(self, value: TextIO) -> None:
         pass
 
 
 def setup_logging() -> None:
-    """Progress lines of the ``workbench`` logger to standard error (once per process)."""
+    """Send the ``workbench`` logger's progress lines to standard error (once per process)."""
     logger = logging.getLogger("workbench")
     if not any(isinstance(h, _Stderr) for h in logger.handlers):
         handler = _Stderr()

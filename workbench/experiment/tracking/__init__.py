@@ -24,23 +24,12 @@ store; the store itself is never deleted or rewritten.
 from __future__ import annotations
 
 import os
-from typing import TYPE_CHECKING, Any
 
 # MLflow prints "View run ... at <url>" to stdout whenever a run ends against a tracking server:
 # one line per trial in a sweep. The workbench reports runs itself.
 os.environ.setdefault("MLFLOW_SUPPRESS_PRINTING_URL_TO_STDOUT", "true")
 
 # The package's rooms: uris (where the store is, checked before any work), translate (store
-# errors as one line), runs (Tracker), models (logged, registered, loaded models), records
-# (hashes, commits, MLflow's value limits). Import from them.
-
-
-if not TYPE_CHECKING:  # type checkers see the package's real names only
-
-    def __getattr__(name: str) -> Any:
-        if name == "_PyfuncModel":  # models logged before serving.WorkbenchModel pickle it
-            # (b) .models imports MLflow; importing the light .uris runs this __init__ too
-            from .models import LegacyPyfuncModel
-
-            return LegacyPyfuncModel
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+# errors as one line), runs (Tracker), models (logged, registered, loaded models), artifacts
+# (files, figures, input datasets), records (hashes, commits, MLflow's value limits). Import
+# from them.

@@ -1,5 +1,7 @@
-"""What a run's records are made of: the code's commit, a data set's hash, params and tags
-cut to MLflow's limits."""
+"""What a run's records are made of: the code's commit, a data set's hash, params and tags.
+
+Params and tags are cut to MLflow's limits.
+"""
 
 from __future__ import annotations
 
@@ -12,6 +14,8 @@ from typing import Any
 
 import pandas as pd
 
+from ..errors import clip
+
 __all__ = ["MAX_PARAM_LENGTH", "dataset_hash", "git_commit", "now_ms", "param_value",
            "tag_value"]
 
@@ -23,7 +27,18 @@ _MAX_TAG_LENGTH = 8000
 
 
 def git_commit(root: Path) -> str | None:
-    """``git rev-parse HEAD`` in ``root``; ``None`` outside a repository or without git."""
+    """Return the commit checked out in ``root`` (``git rev-parse HEAD``).
+
+    Parameters
+    ----------
+    root : Path
+        A directory of the repository.
+
+    Returns
+    -------
+    str or None
+        The 40-digit hash; ``None`` outside a repository or without git.
+    """
     try:
         out = subprocess.run(["git", "rev-parse", "HEAD"], cwd=str(root), capture_output=True,
                              text=True, timeout=10, check=False)
@@ -36,8 +51,20 @@ def git_commit(root: Path) -> str | None:
 
 
 def dataset_hash(*frames: pd.DataFrame | pd.Series) -> str:
-    """SHA-256 over the values, index, column names and dtypes of each frame (stable across
-    processes: ``pandas.util.hash_pandas_object`` uses a fixed key)."""
+    """Hash the values, index, column names and dtypes of each frame (SHA-256).
+
+    Stable across processes: ``pandas.util.hash_pandas_object`` uses a fixed key.
+
+    Parameters
+    ----------
+    *frames : DataFrame or Series
+        The data.
+
+    Returns
+    -------
+    str
+        The hex digest.
+    """
     h = hashlib.sha256()
     for i, frame in enumerate(frames):
         h.update(f"frame{i}:{type(frame).__name__}:{frame.shape}\n".encode())
@@ -50,10 +77,33 @@ def dataset_hash(*frames: pd.DataFrame | pd.Series) -> str:
 
 
 def now_ms() -> int:
+    """Return the time now in milliseconds since the epoch, as MLflow records times.
+
+    Returns
+    -------
+    int
+        Milliseconds.
+    """
     return int(time.time() * 1000)
 
 
 def param_value(key: str, value: Any) -> tuple[str, bool]:
+    """Render a param's value as text within MLflow's limit.
+
+    Parameters
+    ----------
+    key : str
+        The param's name, for the warning.
+    value : object
+        Its value.
+
+    Returns
+    -------
+    text : str
+        The value as text, cut to :data:`MAX_PARAM_LENGTH` with a note of its length.
+    truncated : bool
+        Whether it was cut (a warning is logged then).
+    """
     text = str(value)
     if len(text) <= MAX_PARAM_LENGTH:
         return text, False
@@ -64,5 +114,17 @@ def param_value(key: str, value: Any) -> tuple[str, bool]:
 
 
 def tag_value(value: Any) -> str:
+    """Render a tag's value as text within MLflow's limit.
+
+    Parameters
+    ----------
+    value : object
+        The tag's value.
+
+    Returns
+    -------
+    str
+        The value as text, cut to 8,000 characters (``...`` marking the cut).
+    """
     text = str(value)
-    return text if len(text) <= _MAX_TAG_LENGTH else text[:_MAX_TAG_LENGTH - 3] + "..."
+    return clip(text, _MAX_TAG_LENGTH)

@@ -1,6 +1,9 @@
-"""Runs in the store: :class:`Tracker`, an explicit :class:`mlflow.MlflowClient` bound to
-one tracking URI and one experiment (runs, nested runs, params, metrics, tags, artifacts,
-input datasets; its models from :class:`~.models.ModelRecords`)."""
+"""Runs in the store: :class:`Tracker`, an explicit MLflow client bound to one experiment.
+
+One tracking URI and one experiment: runs, nested runs, params, metrics, tags, artifacts,
+input datasets; its models from :class:`~.models.ModelRecords`, its artifacts from
+:class:`~.artifacts.ArtifactRecords`.
+"""
 
 from __future__ import annotations
 
@@ -8,20 +11,16 @@ import contextlib
 import json
 import logging
 import math
-import os
-import warnings
-from collections.abc import Iterator, Mapping
-from pathlib import Path
-from typing import Any
+from collections.abc import Iterator, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
-import pandas as pd
 from mlflow import MlflowClient
-from mlflow.data.pandas_dataset import from_pandas  # mlflow.data.from_pandas: no stub sees it
-from mlflow.entities import DatasetInput, InputTag, Metric, Param, RunTag
+from mlflow.entities import Metric, Param, RunTag
 from mlflow.exceptions import MlflowException
 
 from ..errors import TrackingError, redact
 from ..signals import ignoring_signals
+from .artifacts import ArtifactRecords
 from .models import ModelRecords
 from .records import now_ms, param_value, tag_value
 from .translate import duplicate_row, translate
@@ -30,6 +29,9 @@ from .uris import (
     prepare_store_location,
     sqlite_path,
 )
+
+if TYPE_CHECKING:
+    pass
 
 __all__ = ["RUNS_VIEW", "SHARED_VIEW_PREFIX", "Tracker", "ensure_store", "metric_view"]
 
@@ -52,8 +54,10 @@ SHARED_VIEW_PREFIX = "mlflow.sharedViewState."
 RUNS_VIEW = "workbench"
 
 
-class Tracker(ModelRecords):
+class Tracker(ModelRecords, ArtifactRecords):
     """Log runs of one experiment to one tracking store through an explicit client.
+
+    The client is created on first use; constructing a ``Tracker`` touches nothing.
 
     Parameters
     ----------
@@ -64,11 +68,10 @@ class Tracker(ModelRecords):
     artifact_root : str, default=None
         Artifact location for a new experiment. ``None``: ``artifacts/`` next to a SQLite
         database file, the server's default otherwise. An existing experiment keeps its own.
-
-    The client is created on first use; constructing a ``Tracker`` touches nothing.
     """
 
-    def __init__(self, tracking_uri: str, experiment_name: str, artifact_root: str | None = None):
+    def __init__(self, tracking_uri: str, experiment_name: str,
+                 artifact_root: str | None = None) -> None:
         self.tracking_uri = str(tracking_uri)
         self.experiment_name = experiment_name
         if artifact_root is None and (path := sqlite_path(self.tracking_uri)):
@@ -79,10 +82,12 @@ class Tracker(ModelRecords):
         self._skipped: dict[str, set[str]] = {}
 
     def __repr__(self) -> str:
+        """Show the store (password redacted), the experiment and the artifact root."""
         return (f"Tracker({redact(self.tracking_uri)!r}, {self.experiment_name!r}, "
                 f"artifact_root={self.artifact_root!r})")
 
-    def __getstate__(self):  # picklable for worker processes; the client is rebuilt there
+    def __getstate__(self) -> dict[str, Any]:
+        """Drop the client for pickling: worker processes rebuild it on first use."""
         state = self.__dict__.copy()
         state["_client"] = None
         return state
@@ -102,7 +107,13 @@ class Tracker(ModelRecords):
 
     @property
     def client(self) -> MlflowClient:
-        """The :class:`mlflow.MlflowClient` (created, with its store, on first use)."""
+        """The :class:`mlflow.MlflowClient`, created (with its store) on first use.
+
+        Raises
+        ------
+        TrackingError
+            The store cannot be used.
+        """
         if self._client is None:
             prepare_store_location(self.tracking_uri)
             with self._errors():
@@ -111,7 +122,13 @@ class Tracker(ModelRecords):
 
     @property
     def experiment_id(self) -> str:
-        """The experiment's id; the experiment is created if it does not exist."""
+        """The experiment's id; the experiment is created if it does not exist.
+
+        Raises
+        ------
+        TrackingError
+            The experiment cannot be created, or is deleted.
+        """
         if self._experiment_id is None:
             client = self.client
             with self._errors():
@@ -138,7 +155,7 @@ class Tracker(ModelRecords):
                     f"{describe_store(self.tracking_uri)} is deleted; restore it "
                     f"('mlflow experiments restore --experiment-id {exp.experiment_id}') or use "
                     "another name")
-            if EXPERIMENT_KIND_TAG not in exp.tags:  # an experiment from before the tag
+            if EXPERIMENT_KIND_TAG not in exp.tags:  # else MLflow's UI opens its GenAI view
                 with self._errors():
                     client.set_experiment_tag(exp.experiment_id, EXPERIMENT_KIND_TAG,
                                               EXPERIMENT_KIND)
@@ -152,8 +169,23 @@ class Tracker(ModelRecords):
                   params: Mapping[str, Any] | None = None,
                   start_time: float | None = None) -> str:
         """Create a run (a child of ``parent_run_id`` if given) and return its id.
-        ``start_time``: when the run's work began (seconds since the epoch; default now), for
-        a run logged after the work it records."""
+
+        Parameters
+        ----------
+        name : str
+            The run's name.
+        parent_run_id : str, default=None
+            The parent run.
+        tags, params : mapping, default=None
+            Tags and params to log with it.
+        start_time : float, default=None
+            When the run's work began (seconds since the epoch; ``None``: now), for a run logged
+            after the work it records.
+
+        Returns
+        -------
+        str
+        """
         all_tags = {str(k): tag_value(v) for k, v in (tags or {}).items()}
         if parent_run_id:
             all_tags[PARENT_TAG] = parent_run_id
@@ -169,8 +201,15 @@ class Tracker(ModelRecords):
 
     def end_run(self, run_id: str, status: str = "FINISHED",
                 end_time: float | None = None) -> None:
-        """Mark the run ``FINISHED``, ``FAILED`` or ``KILLED``; ``end_time``: when its work
-        ended (seconds since the epoch; default now)."""
+        """Mark the run ``FINISHED``, ``FAILED`` or ``KILLED`` (``status``).
+
+        ``end_time``: when its work ended (seconds since the epoch; ``None``: now).
+
+        Raises
+        ------
+        ValueError
+            An unknown status.
+        """
         if status not in _RUN_STATUSES:
             raise ValueError(f"status must be one of {_RUN_STATUSES}, got {status!r}")
         with self._errors():
@@ -182,8 +221,16 @@ class Tracker(ModelRecords):
     def run(self, name: str, parent_run_id: str | None = None,
             tags: Mapping[str, Any] | None = None,
             params: Mapping[str, Any] | None = None) -> Iterator[str]:
-        """``with tracker.run("fold-0", parent_run_id=pid) as run_id:`` ... ends the run
-        ``FINISHED``, or ``FAILED`` (``KILLED`` on ``KeyboardInterrupt``) and re-raises."""
+        """Run a block inside a run: ``with tracker.run("fold-0", parent_run_id=pid) as run_id:``.
+
+        The run ends ``FINISHED``, or ``FAILED`` (``KILLED`` on ``KeyboardInterrupt``) and the
+        error is re-raised. The arguments are :meth:`start_run`'s.
+
+        Yields
+        ------
+        str
+            The run id.
+        """
         run_id = self.start_run(name, parent_run_id=parent_run_id, tags=tags, params=params)
         try:
             yield run_id
@@ -201,15 +248,27 @@ class Tracker(ModelRecords):
 
     # ----------------------------------------------------------------- params, metrics, tags
 
-    def _log_batch(self, run_id: str, *, metrics=(), params=(), tags=()) -> None:
+    def _log_batch(self, run_id: str, *, metrics: Sequence[Metric] = (),
+                   params: Sequence[Param] = (), tags: Sequence[RunTag] = ()) -> None:
         # MlflowClient.log_batch splits into the store's batch limits itself
+        """Log metrics, params and tags in one request (MLflow splits it to the store's limits)."""
         with self._errors():
             self.client.log_batch(run_id, metrics=list(metrics), params=list(params),
                                   tags=list(tags))
 
     def log_params(self, run_id: str, params: Mapping[str, Any]) -> None:
-        """Log params (values as strings; longer than 6000 characters: truncated, with a note
-        in the value and the key in the tag ``workbench.truncated_params``)."""
+        """Log params, values as strings.
+
+        A value longer than 6000 characters is truncated, with a note in the value and the key
+        in the tag ``workbench.truncated_params``.
+
+        Parameters
+        ----------
+        run_id : str
+            The run.
+        params : mapping
+            Name to value.
+        """
         items, truncated = [], []
         for key, value in params.items():
             text, cut = param_value(str(key), value)
@@ -221,10 +280,21 @@ class Tracker(ModelRecords):
 
     def log_metrics(self, run_id: str, metrics: Mapping[str, float],
                     step: int | None = None) -> None:
-        """Log metrics in one batch, each to :data:`METRIC_DIGITS` significant digits (MLflow's
-        runs table then shows it whole, not cut to ``0.31870539...``; ``result.json`` keeps
-        every digit); NaN/inf values are skipped and their names recorded in the tag
-        ``workbench.skipped_metrics``."""
+        """Log metrics in one batch, each to :data:`METRIC_DIGITS` significant digits.
+
+        MLflow's runs table then shows it whole, not cut to ``0.31870539...``; ``result.json``
+        keeps every digit. NaN/inf values are skipped and their names recorded in the tag
+        ``workbench.skipped_metrics``.
+
+        Parameters
+        ----------
+        run_id : str
+            The run.
+        metrics : mapping
+            Name to value.
+        step : int, default=None
+            The metrics' step (0 when ``None``).
+        """
         ts, items, skipped = now_ms(), [], []
         for key, value in metrics.items():
             value = float(value)
@@ -242,11 +312,19 @@ class Tracker(ModelRecords):
         self._log_batch(run_id, metrics=items, tags=tags)
 
     def share_view(self, state: Mapping[str, Any], key: str = RUNS_VIEW) -> None:
-        """Store a runs view of the experiment for MLflow's UI (an experiment tag read when
-        the runs page's URL has ``?viewStateShareKey=<key>``; see
-        :func:`~.uris.ui_url`): ``state`` as the UI keeps it, e.g. ``selectedColumns``
-        (``"metrics.`test_mae_avg`"``, ...), ``searchFilter``, ``orderByKey``,
-        ``orderByAsc``. Replaces the view of the same key."""
+        """Store a runs view of the experiment for MLflow's UI.
+
+        An experiment tag, read when the runs page's URL has ``?viewStateShareKey=<key>`` (see
+        :func:`~.uris.ui_url`). Replaces the view of the same key.
+
+        Parameters
+        ----------
+        state : mapping
+            The view as the UI keeps it, e.g. ``selectedColumns`` (``"metrics.`test_mae_avg`"``,
+            ...), ``searchFilter``, ``orderByKey``, ``orderByAsc``.
+        key : str, default=RUNS_VIEW
+            The view's key.
+        """
         name, value = SHARED_VIEW_PREFIX + key, json.dumps(dict(state))
         with self._errors():
             try:
@@ -261,73 +339,53 @@ class Tracker(ModelRecords):
                 self.client.set_experiment_tag(self.experiment_id, name, value)
 
     def set_tags(self, run_id: str, tags: Mapping[str, Any]) -> None:
-        """Set tags (values as strings)."""
+        """Set tags of a run, values as strings.
+
+        Parameters
+        ----------
+        run_id : str
+            The run.
+        tags : mapping
+            Name to value.
+        """
         self._log_batch(run_id, tags=[RunTag(str(k), tag_value(v)) for k, v in tags.items()])
-
-    # ----------------------------------------------------------------- artifacts
-
-    def log_dict(self, run_id: str, obj: Any, artifact_file: str) -> None:
-        """``obj`` as JSON (``.json``) or YAML (``.yaml``/``.yml``)."""
-        with self._errors():
-            self.client.log_dict(run_id, obj, artifact_file)
-
-    def log_text(self, run_id: str, text: str, artifact_file: str) -> None:
-        with self._errors():
-            self.client.log_text(run_id, text, artifact_file)
-
-    def log_file(self, run_id: str, path: str | os.PathLike,
-                 artifact_path: str | None = None) -> None:
-        """Copy a local file (or directory) into the run's artifacts under ``artifact_path``."""
-        path = Path(path)
-        with self._errors():
-            if path.is_dir():
-                self.client.log_artifacts(run_id, str(path), artifact_path)
-            else:
-                self.client.log_artifact(run_id, str(path), artifact_path)
-
-    def log_figure(self, run_id: str, fig, artifact_file: str) -> None:
-        """A matplotlib figure, saved in the format of ``artifact_file``'s suffix (PNG)."""
-        with self._errors():
-            self.client.log_figure(run_id, fig, artifact_file)
-
-    def log_dataset(self, run_id: str, frame: pd.DataFrame, *, name: str, context: str,
-                    source: str | None = None, targets: str | None = None) -> str:
-        """Record ``frame`` as an input dataset of the run (MLflow's name, digest and schema;
-        the runs table's "Dataset" column), with ``mlflow.data.context`` = ``context``;
-        returns MLflow's digest."""
-        with warnings.catch_warnings():  # a local path "can be interpreted in multiple ways"
-            warnings.simplefilter("ignore", UserWarning)
-            # its hint omits None, its default (None: "the code location")
-            dataset = from_pandas(frame, source=source,  # type: ignore[arg-type]
-                                  name=name, targets=targets)
-        inputs = [DatasetInput(dataset._to_mlflow_entity(),
-                               tags=[InputTag("mlflow.data.context", context)])]
-        with self._errors():
-            try:
-                self.client.log_inputs(run_id, inputs)
-            except MlflowException as exc:
-                if not duplicate_row(exc):
-                    raise
-                # Another process created the same dataset row (experiment, name, digest)
-                # between MLflow's lookup and its insert (two first runs at once): the row
-                # exists now, and the second attempt links this run to it.
-                _logger.debug("log_inputs raced another process (%s); trying again", exc)
-                self.client.log_inputs(run_id, inputs)
-        return dataset.digest
 
 
 def ensure_store(tracking_uri: str, experiment_name: str,
                  artifact_root: str | None = None) -> str:
-    """Create the store (schema) and the experiment once, e.g. before starting parallel
-    workers; returns the experiment id."""
+    """Create the store (schema) and the experiment once, e.g. before starting parallel workers.
+
+    Parameters
+    ----------
+    tracking_uri, experiment_name, artifact_root
+        As in :class:`Tracker`.
+
+    Returns
+    -------
+    str
+        The experiment id.
+    """
     return Tracker(tracking_uri, experiment_name, artifact_root).experiment_id
 
 
 def metric_view(targets: list[str], metric: str = "test_mae",
                 search_filter: str = "") -> dict[str, Any]:
-    """The runs view :meth:`Tracker.share_view` stores by default: the columns ``<metric>/<t>``
-    per target and ``<metric>_avg``, the runs ordered by that average (best first), and
-    ``search_filter`` (MLflow's run search syntax; empty: every run)."""
+    """Build the runs view :meth:`Tracker.share_view` stores by default.
+
+    Parameters
+    ----------
+    targets : list of str
+        The targets.
+    metric : str, default="test_mae"
+        The metric shown: columns ``<metric>/<target>`` per target and ``<metric>_avg``.
+    search_filter : str, default=""
+        MLflow's run search syntax; empty: every run.
+
+    Returns
+    -------
+    dict
+        The view, runs ordered by the average (best first).
+    """
     columns = [f"metrics.`{metric}/{t}`" for t in targets] + [f"metrics.`{metric}_avg`"]
     return {"selectedColumns": columns, "searchFilter": search_filter,
             "orderByKey": f"metrics.`{metric}_avg`", "orderByAsc": True}

@@ -1,5 +1,7 @@
-"""MLflow's and the databases' errors as one-line :class:`TrackingError` s naming the store
-(a locked or corrupt SQLite file, an old schema, an unreachable server, a missing driver)."""
+"""MLflow's and the databases' errors as one-line :class:`TrackingError` s naming the store.
+
+A locked or corrupt SQLite file, an old schema, an unreachable server, a missing driver.
+"""
 
 from __future__ import annotations
 
@@ -12,7 +14,20 @@ __all__ = ["duplicate_row", "translate"]
 
 
 def translate(exc: BaseException, uri: str) -> TrackingError | None:
-    """A :class:`TrackingError` for store problems, ``None`` for other errors."""
+    """Translate a store problem into a one-line :class:`TrackingError`.
+
+    Parameters
+    ----------
+    exc : BaseException
+        An error raised by MLflow or a database driver.
+    uri : str
+        The tracking URI, named in the message (without a password).
+
+    Returns
+    -------
+    TrackingError or None
+        ``None`` for errors that are not store problems.
+    """
     store = describe_store(uri)
     if isinstance(exc, ImportError) and urlsplit(uri).scheme.split("+")[0] in (
             "postgresql", "mysql", "mssql", "sqlite"):  # the database's driver
@@ -49,8 +64,20 @@ def translate(exc: BaseException, uri: str) -> TrackingError | None:
 
 
 def duplicate_row(exc: BaseException) -> bool:
-    """Whether ``exc`` is a database's unique-constraint violation (SQLite, PostgreSQL,
-    MySQL): a row another process inserted first."""
+    """Tell whether ``exc`` is a database's unique-constraint violation.
+
+    SQLite, PostgreSQL and MySQL: a row another process inserted first.
+
+    Parameters
+    ----------
+    exc : BaseException
+        The error.
+
+    Returns
+    -------
+    bool
+        Whether it is a duplicate row.
+    """
     text = f"{exc} {exc.__cause__ or exc.__context__ or ''}".lower()
     return any(s in text for s in ("unique constraint", "duplicate key", "duplicate entry",
                                    "integrityerror"))

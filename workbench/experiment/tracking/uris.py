@@ -1,7 +1,10 @@
-"""Where the MLflow store is: tracking URIs (the default SQLite store in the project, a
-relative path resolved where the user typed it) and the checks run before any work (a scheme
-MLflow has a store for, an installed database driver, a writable SQLite location, a server
-that answers). Light: MLflow and SQLAlchemy are imported only by the checks that need them."""
+"""Where the MLflow store is: tracking URIs and the checks run before any work.
+
+The default SQLite store is in the project, and a relative path is resolved where the user
+typed it. The checks: a scheme MLflow has a store for, an installed database driver, a
+writable SQLite location, a server that answers. Light: MLflow and SQLAlchemy are imported
+only by the checks that need them.
+"""
 
 from __future__ import annotations
 
@@ -21,18 +24,43 @@ _SQLITE_HEADER = b"SQLite format 3\x00"
 
 
 def default_tracking_uri(root: Path) -> str:
-    """``sqlite:///<abs root>/mlruns/mlflow.db``."""
+    """Return the default tracking URI of a project.
+
+    Parameters
+    ----------
+    root : Path
+        The project's directory.
+
+    Returns
+    -------
+    str
+        ``sqlite:///<abs root>/mlruns/mlflow.db``.
+    """
     return "sqlite:///" + str(Path(root).resolve() / DEFAULT_STORE / "mlflow.db")
 
 
 def default_artifact_root(root: Path) -> str:
-    """``file:///<abs root>/mlruns/artifacts``."""
+    """Return the default artifact root of a project.
+
+    Parameters
+    ----------
+    root : Path
+        The project's directory.
+
+    Returns
+    -------
+    str
+        ``file:///<abs root>/mlruns/artifacts``.
+    """
     return (Path(root).resolve() / DEFAULT_STORE / "artifacts").as_uri()
 
 
 def _split_sqlite(uri: str) -> tuple[str, str] | None:
-    """``(path, query)`` of a ``sqlite:///`` URI (``path`` relative unless it starts with
-    ``/``), ``None`` for other URIs and in-memory databases."""
+    """Split a ``sqlite:///`` URI into ``(path, query)``.
+
+    ``path`` is relative unless it starts with ``/``; ``None`` for other URIs and in-memory
+    databases.
+    """
     if not uri.startswith("sqlite:///"):
         return None
     path, sep, query = uri.removeprefix("sqlite:///").partition("?")
@@ -42,7 +70,7 @@ def _split_sqlite(uri: str) -> tuple[str, str] | None:
 
 
 def _absolute_sqlite(uri: str, base: Path) -> str:
-    """``uri`` with a relative sqlite path made absolute against ``base``."""
+    """Make a relative sqlite path of ``uri`` absolute against ``base``."""
     parts = _split_sqlite(uri)
     if parts is None or Path(parts[0]).is_absolute():
         return uri
@@ -51,10 +79,27 @@ def _absolute_sqlite(uri: str, base: Path) -> str:
 
 
 def resolve_tracking_uri(cli: str | None, config: str | None, root: Path) -> str:
-    """The tracking URI to use: the CLI flag, else ``$MLFLOW_TRACKING_URI``, else the config
-    value, else :func:`default_tracking_uri`. A relative sqlite path in the config
+    """Choose the tracking URI to use.
+
+    The CLI flag, else ``$MLFLOW_TRACKING_URI``, else the config value, else
+    :func:`default_tracking_uri`. A relative sqlite path in the config
     (``sqlite:///mlruns/mlflow.db``) is relative to ``root``; in the CLI flag or the
-    environment it is relative to the current directory, as the user typed it there."""
+    environment it is relative to the current directory, as the user typed it there.
+
+    Parameters
+    ----------
+    cli : str or None
+        ``--tracking-uri``.
+    config : str or None
+        The config's ``tracking_uri``.
+    root : Path
+        The project's directory (the config's).
+
+    Returns
+    -------
+    str
+        The tracking URI, sqlite paths absolute.
+    """
     if cli:
         return _absolute_sqlite(cli, Path.cwd())
     env = os.environ.get("MLFLOW_TRACKING_URI")
@@ -66,21 +111,54 @@ def resolve_tracking_uri(cli: str | None, config: str | None, root: Path) -> str
 
 
 def sqlite_path(uri: str) -> Path | None:
-    """The database file of a ``sqlite:///`` URI (``None`` for other stores and in-memory
-    databases)."""
+    """Return the database file of a ``sqlite:///`` URI.
+
+    Parameters
+    ----------
+    uri : str
+        A tracking URI.
+
+    Returns
+    -------
+    Path or None
+        ``None`` for other stores and in-memory databases.
+    """
     parts = _split_sqlite(uri)
     return Path(parts[0]) if parts else None
 
 
 def describe_store(uri: str) -> str:
-    """The store as messages name it (its SQLite file, else its URI without a password)."""
+    """Name the store as messages name it.
+
+    Parameters
+    ----------
+    uri : str
+        A tracking URI.
+
+    Returns
+    -------
+    str
+        Its SQLite file, else its URI without a password.
+    """
     path = sqlite_path(uri)
     return f"SQLite database {path}" if path else f"tracking store {redact(uri)}"
 
 
 def prepare_store_location(uri: str) -> None:
-    """:func:`check_store_uri`, then the directory of a SQLite store created (what a client
-    needs before its first use of the store)."""
+    """Check the store, then create a SQLite store's directory.
+
+    What a client needs before its first use of the store.
+
+    Parameters
+    ----------
+    uri : str
+        A tracking URI.
+
+    Raises
+    ------
+    TrackingError
+        As :func:`check_store_uri`, or the directory cannot be created.
+    """
     check_store_uri(uri)
     path = sqlite_path(uri)
     if path is None:
@@ -93,9 +171,12 @@ def prepare_store_location(uri: str) -> None:
 
 
 def _check_sqlite_location(path: Path) -> None:
-    """Without writing anything: ``path`` is not a directory, and its directory (or the
-    nearest existing one, where it would be created) accepts new files: SQLite writes its
-    journal and the first-use lock beside the database, even for an existing one."""
+    """Check a SQLite database's location without writing anything.
+
+    ``path`` is not a directory, and its directory (or the nearest existing one, where it
+    would be created) accepts new files: SQLite writes its journal and the first-use lock
+    beside the database, even for an existing one.
+    """
     if path.is_dir():
         raise TrackingError(f"SQLite database {path} is a directory, not a database file")
     existing = Path(os.path.abspath(path)).parent
@@ -132,7 +213,7 @@ _MLFLOW_SCHEMES = ("", "file", "http", "https", "databricks", "databricks-uc", "
 
 
 def _store_schemes() -> list[str]:
-    from importlib.metadata import entry_points  # (c) stdlib, 20 ms: this module is light
+    from importlib.metadata import entry_points  # (c) stdlib, slow to import: this module is light
 
     from mlflow.store.db.db_types import DATABASE_ENGINES  # (b) MLflow: not for evaluate --no-track
 
@@ -141,8 +222,10 @@ def _store_schemes() -> list[str]:
 
 
 def _check_scheme_and_driver(uri: str) -> None:
-    """Without connecting: MLflow has a store for the URI's scheme, and a database URI's
-    driver is installed."""
+    """Check without connecting that MLflow has a store for the URI's scheme.
+
+    And that a database URI's driver is installed.
+    """
     from mlflow.store.db.db_types import DATABASE_ENGINES  # (b) MLflow: not for evaluate --no-track
 
     shown = redact(uri)
@@ -177,10 +260,21 @@ def _check_scheme_and_driver(uri: str) -> None:
 
 
 def check_store_uri(uri: str) -> None:
-    """Before any work, writing nothing: the tracking store at ``uri`` can be used. Its
-    scheme has an MLflow store, a database's driver is installed, a SQLite database's
+    """Check, before any work and writing nothing, that the tracking store at ``uri`` can be used.
+
+    Its scheme has an MLflow store, a database's driver is installed, a SQLite database's
     directory can be written (and the file is SQLite), a server accepts connections.
-    Raises :class:`TrackingError` (one line, no password)."""
+
+    Parameters
+    ----------
+    uri : str
+        A tracking URI.
+
+    Raises
+    ------
+    TrackingError
+        One line, no password.
+    """
     _check_scheme_and_driver(uri)
     path = sqlite_path(uri)
     if path is not None:
@@ -190,8 +284,7 @@ def check_store_uri(uri: str) -> None:
 
 
 def _check_server(uri: str, timeout: float = 5.0) -> None:
-    """Fail fast when an http(s) tracking server does not accept connections (MLflow itself
-    retries for minutes)."""
+    """Fail fast when an http(s) tracking server refuses connections (MLflow retries long)."""
     parts = urlsplit(uri)
     if parts.scheme not in ("http", "https") or not parts.hostname:
         return
@@ -206,11 +299,28 @@ def _check_server(uri: str, timeout: float = 5.0) -> None:
 
 def ui_url(port: int, experiment_id: str | None = None, view: str | None = None,
            host: str = "127.0.0.1") -> str:
-    """The address of MLflow's UI in its model-training view: the experiments list, or an
-    experiment's runs (with ``view``, the runs view stored under that key, see
-    :meth:`~.runs.Tracker.share_view`). MLflow 3 (3.17) opens its GenAI view unless the URL
-    says ``workflowType=machine_learning`` (or the user's browser remembers the toggle):
-    the experiment's ``mlflow.experimentKind`` tag does not decide it any more."""
+    """Build the address of MLflow's UI in its model-training view.
+
+    MLflow's UI opens its GenAI view unless the URL says ``workflowType=machine_learning`` (or
+    the user's browser remembers the toggle); the experiment's ``mlflow.experimentKind`` tag
+    does not decide it.
+
+    Parameters
+    ----------
+    port : int
+        The UI server's port.
+    experiment_id : str, default=None
+        An experiment: its runs page (``None``: the experiments list).
+    view : str, default=None
+        A runs view stored under that key (:meth:`~.runs.Tracker.share_view`).
+    host : str, default="127.0.0.1"
+        The UI server's host.
+
+    Returns
+    -------
+    str
+        The URL.
+    """
     from urllib.parse import urlencode
 
     query = {"workflowType": "machine_learning"}
