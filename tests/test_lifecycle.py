@@ -219,27 +219,29 @@ def test_an_interrupt_does_not_wait_for_mlflow_s_retries(monkeypatch):
 def test_heartbeat_beats_while_a_long_trial_runs(tmp_path, kind):
     """A trial longer than the grace period is not failed by another worker's check: its
     heartbeat beats from a background thread (Optuna's table for RDB, a user attribute for
-    the journal)."""
+    the journal). The grace period is 4 s with a beat every second: on a loaded machine a
+    SQLite write can wait a second or more for its lock, so a 2 s grace could pass between two
+    beats that were both on time."""
     url = str(tmp_path / "h.journal") if kind == "journal" else f"sqlite:///{tmp_path}/h.db"
-    storage = open_storage(url, tmp_path, stale_after_s=2)
+    storage = open_storage(url, tmp_path, stale_after_s=4)
     study = optuna.create_study(study_name="h", storage=storage)
     checks, stop = [], threading.Event()
 
     def other_worker():  # another machine's view: same study, checking for stale trials
         other = optuna.load_study(study_name="h", storage=open_storage(url, tmp_path,
-                                                                       stale_after_s=2))
+                                                                       stale_after_s=4))
         while not stop.wait(0.5):
-            fail_stale(other, 2)
+            fail_stale(other, 4)
             checks.append(1)
 
     def objective(trial):
-        time.sleep(5)  # one long fold
+        time.sleep(6)  # one long fold, longer than the grace period
         return trial.suggest_float("x", 0, 1)
 
     watcher = threading.Thread(target=other_worker)
     watcher.start()
     try:
-        run_study(study, objective, 1, stale_after_s=2)
+        run_study(study, objective, 1, stale_after_s=4)
     finally:
         stop.set()
         watcher.join()
