@@ -71,3 +71,15 @@ def test_format_round_trips():
                     'model.basis=["ridge", "lightgbm"]')
     assert parse_overrides(text.replace(' model.', '\nmodel.').replace(' sel', '\nsel')
                            .splitlines()) == overrides
+
+
+@pytest.mark.parametrize("name", ["smoke.toml", "generic.toml", "hamiltonian.toml",
+                                  "paper_main_body.toml"])
+def test_dump_reads_back(name):
+    from workbench.experiment.overrides import dump_config
+
+    raw = tomllib.loads((ROOT / "experiments" / name).read_text())
+    raw = apply_overrides(raw, {"model.n_stages": 2, "model.targets.eeig1.loss": "huber"})
+    text = dump_config(raw, header=f"experiments/{name}\n--set model.n_stages=2")
+    assert text.startswith(f"# experiments/{name}\n# --set model.n_stages=2\n")
+    assert tomllib.loads(text) == raw

@@ -16,8 +16,10 @@ from collections.abc import Iterable, Mapping
 from typing import Any
 
 from .errors import ConfigError
+from .toml_text import toml_comment, toml_string
 
-__all__ = ["apply_overrides", "format_overrides", "parse_override", "parse_overrides"]
+__all__ = ["apply_overrides", "dump_config", "format_overrides", "parse_override",
+           "parse_overrides"]
 
 
 def parse_override(text: str) -> tuple[str, Any]:
@@ -119,3 +121,55 @@ def format_overrides(overrides: Mapping[str, Any]) -> str:
         for numbers, booleans, strings and lists).
     """
     return " ".join(f"{key}={json.dumps(value)}" for key, value in overrides.items())
+
+
+def _value(value: Any) -> str:
+    """Write one value as TOML (tables inside arrays inline)."""
+    if isinstance(value, str):
+        return toml_string(value)
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int | float):
+        return repr(value)
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_value(v) for v in value) + "]"
+    if isinstance(value, Mapping):
+        return "{ " + ", ".join(f"{_key(k)} = {_value(v)}" for k, v in value.items()) + " }"
+    raise TypeError(f"cannot write {type(value).__name__} as TOML")
+
+
+def _key(key: str) -> str:
+    """Write a key bare where TOML allows it, else quoted."""
+    bare = key.replace("_", "").replace("-", "").isalnum() and key.isascii()
+    return key if bare else toml_string(key)
+
+
+def dump_config(raw: Mapping[str, Any], header: str = "") -> str:
+    """Write a config's tables as TOML (what a run logs as the config it ran).
+
+    Parameters
+    ----------
+    raw : mapping
+        The config's tables (after :func:`apply_overrides`).
+    header : str, default=""
+        A comment written first (e.g. the file and the overrides it came from).
+
+    Returns
+    -------
+    str
+        TOML that ``tomllib`` reads back to ``raw``.
+    """
+    lines = [f"# {toml_comment(line)}" for line in header.splitlines()]
+
+    def table(prefix: list[str], tab: Mapping[str, Any]) -> None:
+        plain = {k: v for k, v in tab.items() if not isinstance(v, Mapping)}
+        if prefix and (plain or not any(isinstance(v, Mapping) for v in tab.values())):
+            lines.append("")
+            lines.append("[" + ".".join(_key(p) for p in prefix) + "]")
+        lines.extend(f"{_key(k)} = {_value(v)}" for k, v in plain.items())
+        for k, v in tab.items():
+            if isinstance(v, Mapping):
+                table([*prefix, k], v)
+
+    table([], raw)
+    return "\n".join(lines) + "\n"
