@@ -2,10 +2,9 @@
 
 The config's ``[data]`` section is written from the command's options; everything after it
 (``[model]``, ``[selection]``, ...) is the text of one template, the package data file
-``workbench/experiment/templates/generic.toml``, copied with its comments. Before anything
-is written the data are loaded exactly as ``workbench evaluate`` will load them (the same
-loader, the same values, the same one-line errors), and the config is parsed by the
-project's own config parser; the file is then written all or nothing.
+``workbench/experiment/templates/generic.toml``, copied with its comments. First the data
+are loaded as ``workbench evaluate`` will load them (same loader, values and one-line
+errors) and the config is parsed by the project's parser; then it is written all or nothing.
 """
 
 from __future__ import annotations
