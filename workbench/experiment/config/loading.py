@@ -1,6 +1,7 @@
-"""Loading a config's dataset: through the data-source registry
-(:func:`workbench.datasets.load_source`), then checked against the config's folds and
-prediction intervals.
+"""Load a config's dataset and check it against the config.
+
+The data come through the data-source registry (:func:`workbench.datasets.load_source`), then
+are checked against the config's folds and prediction intervals.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ __all__ = ["check_training_rows", "load_dataset"]
 
 
 def load_dataset(cfg: ExperimentConfig) -> Dataset:
-    """The dataset named by the config's ``[data]`` section (paths relative to the config).
+    """Load the dataset named by the config's ``[data]`` section (paths relative to the config).
 
     Parameters
     ----------
@@ -41,8 +42,9 @@ def load_dataset(cfg: ExperimentConfig) -> Dataset:
 
 
 def check_training_rows(cfg: ExperimentConfig, n_train: int) -> None:
-    """Raise :class:`~workbench.datasets.DatasetError` when ``n_train`` training rows are
-    too few for ``[selection]``'s folds or ``[intervals]``' calibration.
+    """Check that ``n_train`` training rows are enough for the config.
+
+    Enough means enough for ``[selection]``'s folds and ``[intervals]``' calibration.
 
     Parameters
     ----------

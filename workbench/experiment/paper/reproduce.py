@@ -21,7 +21,7 @@ from sklearn.exceptions import ConvergenceWarning
 
 from ..._io import atomic_write
 from ...datasets import Dataset
-from ..config import ExperimentConfig
+from ..config import ExperimentConfig, without_intervals
 from ..errors import UsageError
 from ..evaluate import evaluate
 from ..figures import (
@@ -44,7 +44,6 @@ from .compute import (
     figure_saver,
     hamiltonian_config,
     learning_curves,
-    no_intervals,
     say,
     seeded,
     start_clock,
@@ -166,7 +165,8 @@ def _search(job: _Job, storage: str | None) -> Sweep:
         "(experiments/paper_search.toml)")
     cfg = load_config(job.configs / "paper_search.toml")
     cv = {"seed": job.seed, **({"outer_folds": 2, "inner_folds": 3} if job.quick else {})}
-    cfg = no_intervals(replace(cfg, random_state=job.seed, cv=cfg.cv.model_copy(update=cv)))
+    cfg = without_intervals(replace(cfg, random_state=job.seed,
+                                    cv=cfg.cv.model_copy(update=cv)))
     # another seed, or --quick (other folds and budgets), must not resume these studies
     cfg = cfg.with_study(study_name=f"{cfg.name}-seed{job.seed}{'-quick' if job.quick else ''}",
                          trials=2 if job.quick else None, storage=storage)
