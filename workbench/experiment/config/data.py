@@ -21,12 +21,11 @@ __all__ = ["DataConfig", "HamiltonianData"]
 class HamiltonianData(Section):
     """``[data.hamiltonian]``: the Hamiltonian's columns.
 
-    ``sign``: the prior is the sorted
-    eigenvalues of ``sign * H``. The coupling graph: ``topology`` "chain" (N - 1 couplings
-    ``(i, i+1)``), "ring", "grid" with ``shape = [rows, cols]``, or an explicit ``edges``
-    list of 0-based site pairs, one per coupling column.
-    ``qubit_features``/``coupler_features``: the features acting on each site and on each
-    coupling, in site and edge order.
+    ``sign``: the prior is the sorted eigenvalues of ``sign * H``. The coupling graph:
+    ``topology`` "chain" (N - 1 couplings ``(i, i+1)``), "ring", "grid" with
+    ``shape = [rows, cols]``, or an explicit ``edges`` list of 0-based site pairs, one per
+    coupling column. ``qubit_features``/``coupler_features``: the features acting on each
+    site and on each coupling, in site and edge order.
     """
 
     onsite: list[str]

@@ -64,8 +64,8 @@ _Selection = ParameterOf(HamiltonianSelectionCV)
 class HamiltonianSettings(Section):
     """``[model.hamiltonian]``: the parameter-space model's settings.
 
-    ``start``: covariates every model has ("default": the default
-    library, "none": intercepts only); ``candidates``: the pool ("physical": with neighbours,
+    ``start``: covariates every model has ("default": the default library, "none":
+    intercepts only); ``candidates``: the pool ("physical": with neighbours,
     "local": without, "none"); ``selection``: "forward" (forward selection by CV from start
     over the pool, every candidate refitted), "linearised" (the same, candidates scored by one
     Gauss-Newton step: scales to large devices) or "none" (start and pool together,
