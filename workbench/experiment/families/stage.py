@@ -39,7 +39,9 @@ def make_booster(settings: dict[str, Any], prior: Any, inputs: list[str] | None,
     settings : dict
         One candidate's boosting settings (no lists).
     prior : str, estimator or None
-        What it boosts from (a prior column, an outside prior, ``None``: a constant).
+        What it boosts from (BaseBoostRegressor's ``prior``): a prior column, or ``None``
+        where a :class:`~workbench.fitted_prior.FittedPriorBoost` sets its fitted prior's
+        columns later.
     inputs : list of str or None
         Its basis inputs, of which the first ``n_priors`` are prior columns.
     n_priors : int, default=1
