@@ -59,7 +59,7 @@ def oracle(config: str):
     from threadpoolctl import threadpool_limits
 
     from workbench.experiment.config import load_dataset
-    from workbench.experiment.families.base import quiet_fit
+    from workbench.experiment.families.fitting import quiet_fit
     from workbench.experiment.prepare import load_config
 
     with threadpool_limits(1):

@@ -9,6 +9,7 @@ import warnings
 import matplotlib.image
 import pytest
 
+from workbench.datasets import SOURCES, register_source
 from workbench.experiment.cli import main
 from workbench.experiment.paper.gates import GATE_SYSTEMS
 from workbench.experiment.paper.systems import SYSTEMS
@@ -19,6 +20,18 @@ FIGURE_IDS = ["fig2_mae_bars", "fig3_correlation", "fig4_learning_curve_Y3", "fi
               "figS8_shap", "figH1_hamiltonian_mae_bars", "figH2_parameter_corrections",
               "figH3_selection_path", "figR1_systems_mae", "figR2_shap_correction",
               "figR3_shap_prediction", "figG1_gates_mae"]
+
+
+def _counted(load, log):
+    """``load``, writing the source's name to the file ``log`` at each call (worker processes
+    count too)."""
+    def counted(options, base, name):
+        dataset = load(options, base, name)
+        with open(log, "a") as fh:
+            fh.write(f"{dataset.name}\n")
+        return dataset
+
+    return counted
 
 
 @pytest.fixture(scope="module")
@@ -34,6 +47,9 @@ def quick_run(tmp_path_factory, google_5q_dir, ibm_gates_dir):
             warnings.simplefilter("ignore", hidden)
         mp.setenv("WORKBENCH_DATA_DIR", str(google_5q_dir))
         mp.chdir(root)  # the search's journal lands here
+        for name in ("google_5q", "ibm_gates"):
+            mp.setitem(SOURCES, name, SOURCES[name])  # restored after the run
+            register_source(name, _counted(SOURCES[name].load, root / "loads.txt"))
         assert main(["reproduce", "--quick", "--out", str(root / "reports"),
                      "--tracking-uri", uri]) == 0
     shown = "".join(f"{w.category.__name__}: {w.message}\n" for w in caught)
@@ -50,6 +66,14 @@ def test_every_figure_is_written(quick_run):
         for f in files:
             assert matplotlib.image.imread(out / f).size > 0, f
     assert len(manifest["figS5_learning_curves"]) == len(manifest["figS8_shap"]) == 5
+
+
+def test_each_dataset_is_loaded_once(quick_run):
+    """The Google benchmark's systems (paper, improved, search, hamiltonian) share one load;
+    the IBM gates, one more."""
+    out, _ = quick_run
+    loads = (out.parent / "loads.txt").read_text().split("\n")[:-1]
+    assert len(loads) == 2 and len(set(loads)) == 2, loads
 
 
 def test_progress_and_the_final_count(quick_run):

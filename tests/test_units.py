@@ -88,8 +88,8 @@ def test_data_without_a_unit_show_none(tmp_path, drawn):
 
 
 def test_the_unit_is_a_csv_key_only(tmp_path):
-    from workbench.experiment.prepare import parse_config
     from workbench.experiment.errors import ConfigError
+    from workbench.experiment.prepare import parse_config
 
     with pytest.raises(ConfigError, match="unit"):
         parse_config({"data": {"source": "google_5q", "unit": "meV"}})

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..hamiltonian import make_graph
+from ..hamiltonian import CouplingGraph, make_graph
 from .base import Dataset, Hamiltonian
 
 __all__ = ["DatasetError", "load_csv_dataset", "read_numeric_columns"]
@@ -260,29 +260,64 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
     if len(prior) != len(targets):
         raise DatasetError(f"{len(prior)} prior column(s) {prior} for {len(targets)} target(s) "
                            f"{targets}: give one prior column per target, in the same order")
-    if (onsite is None) != (couplings is None):
-        raise DatasetError("give both onsite and couplings columns for the Hamiltonian, or neither")
-    ham_cols = [*(onsite or []), *(couplings or [])]
-    graph = None
-    if onsite is not None:
-        assert couplings is not None  # both or neither, checked above
-        if len(onsite) < 2:
-            raise DatasetError(f"the Hamiltonian needs at least 2 onsite columns, got "
-                               f"{list(onsite)}")
-        try:
-            graph = make_graph(len(onsite), topology, None if shape is None else tuple(shape),
-                               edges)
-        except (ValueError, TypeError) as exc:
-            raise DatasetError(f"hamiltonian graph: {exc}") from None
-        if len(couplings) != graph.n_edges:
-            what = "edges" if edges is not None else f"{graph.topology}"
-            raise DatasetError(f"a {what} of {len(onsite)} sites has {graph.n_edges} "
-                               f"couplings, got {len(couplings)}: {list(couplings)}")
-    elif edges is not None or shape is not None or topology != "chain":
-        raise DatasetError("topology, shape and edges need the Hamiltonian's onsite and "
-                           "couplings columns")
+    graph = _graph(onsite, couplings, topology, shape, edges)
     if sign not in (-1, 1):
         raise DatasetError(f"sign must be -1 or 1, got {sign!r}")
+    _check_site_features(onsite, couplings, qubit_features, coupler_features, features)
+    ham_cols = [*(onsite or []), *(couplings or [])]
+    used = list(dict.fromkeys([*features, *prior, *targets, *ham_cols]))
+    named_twice = sorted(c for c, n in Counter([*features, *prior, *targets]).items() if n > 1)
+    if named_twice:
+        raise DatasetError(f"column(s) {named_twice} named in more than one role")
+
+    data, frame = _read_columns(path, used, [split_column, group_column])
+    train, test = _split(frame, path, test_fraction, split_column, split_seed)
+    hamiltonian = None
+    if onsite is not None:
+        assert couplings is not None and graph is not None  # both set with onsite (_graph)
+        hamiltonian = Hamiltonian(
+            onsite=data[list(onsite)], couplings=data[list(couplings)], sign=int(sign),
+            qubit_features=tuple(qubit_features) if qubit_features is not None else None,
+            coupler_features=tuple(coupler_features) if coupler_features is not None else None,
+            edges=None if graph.topology == "chain" else graph.edges)
+    groups = None if group_column is None else _groups(frame, group_column, used, path)
+    return Dataset(name=name or path.stem, features=data[features], prior=data[prior],
+                   targets=data[targets], train_index=train, test_index=test,
+                   hamiltonian=hamiltonian, groups=groups, unit=unit)
+
+
+def _graph(onsite: Sequence[str] | None, couplings: Sequence[str] | None, topology: str,
+           shape: Sequence[int] | None,
+           edges: Sequence[Sequence[int]] | None) -> CouplingGraph | None:
+    """Check the Hamiltonian's columns against its coupling graph; return the graph."""
+    if (onsite is None) != (couplings is None):
+        raise DatasetError("give both onsite and couplings columns for the Hamiltonian, or neither")
+    if onsite is None:
+        if edges is not None or shape is not None or topology != "chain":
+            raise DatasetError("topology, shape and edges need the Hamiltonian's onsite and "
+                               "couplings columns")
+        return None
+    assert couplings is not None  # both or neither, checked above
+    if len(onsite) < 2:
+        raise DatasetError(f"the Hamiltonian needs at least 2 onsite columns, got "
+                           f"{list(onsite)}")
+    try:
+        graph = make_graph(len(onsite), topology, None if shape is None else tuple(shape),
+                           edges)
+    except (ValueError, TypeError) as exc:
+        raise DatasetError(f"hamiltonian graph: {exc}") from None
+    if len(couplings) != graph.n_edges:
+        what = "edges" if edges is not None else f"{graph.topology}"
+        raise DatasetError(f"a {what} of {len(onsite)} sites has {graph.n_edges} "
+                           f"couplings, got {len(couplings)}: {list(couplings)}")
+    return graph
+
+
+def _check_site_features(onsite: Sequence[str] | None, couplings: Sequence[str] | None,
+                         qubit_features: Sequence[str] | None,
+                         coupler_features: Sequence[str] | None,
+                         features: list[str]) -> None:
+    """Check the features named per site and per coupling: one each, among ``features``."""
     for what, names, size in (("qubit_features", qubit_features, len(onsite or [])),
                               ("coupler_features", coupler_features, len(couplings or []))):
         if names is None:
@@ -296,13 +331,17 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
         outside = [c for c in names if c not in features]
         if outside:
             raise DatasetError(f"{what} {outside} must be among the features {features}")
-    used = list(dict.fromkeys([*features, *prior, *targets, *ham_cols]))
-    named_twice = sorted(c for c, n in Counter([*features, *prior, *targets]).items() if n > 1)
-    if named_twice:
-        raise DatasetError(f"column(s) {named_twice} named in more than one role")
 
+
+def _read_columns(path: Path, used: list[str],
+                  text_columns: list[str | None]) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Read the ``used`` columns as checked numbers, and the file's frame for the text ones.
+
+    Every named column must be in the header; ``text_columns`` (``None`` entries: not
+    given) are the split and group columns, read as text.
+    """
     header = _header(path, min_columns=2)  # a prior and a target at least
-    text = list(dict.fromkeys(c for c in (split_column, group_column) if c))
+    text = list(dict.fromkeys(c for c in text_columns if c))
     missing = [c for c in [*used, *text] if c not in header]
     if missing:
         has = (f"the file has columns [{_names(header)}]" if _is_header(header) else
@@ -311,29 +350,20 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
     fast = _read_numbers(path, used, text)
     if fast is None:
         frame = _read(path, min_columns=2)
-        data = _numeric(frame, used, path)
-    else:
-        data, frame = fast
-        _check_values(data, used, path)
-    train, test = _split(frame, path, test_fraction, split_column, split_seed)
-    hamiltonian = None
-    if onsite is not None:
-        assert couplings is not None and graph is not None  # both set with onsite, above
-        hamiltonian = Hamiltonian(
-            onsite=data[list(onsite)], couplings=data[list(couplings)], sign=int(sign),
-            qubit_features=tuple(qubit_features) if qubit_features is not None else None,
-            coupler_features=tuple(coupler_features) if coupler_features is not None else None,
-            edges=None if graph.topology == "chain" else graph.edges)
-    groups = None
-    if group_column is not None:
-        if group_column in used:
-            raise DatasetError(f"group column {group_column!r} is also named as a prior, "
-                               f"target, feature or Hamiltonian column")
-        groups = frame[group_column].str.strip()
-        empty = groups == ""
-        if empty.any():
-            raise DatasetError(f"{path}: group column {group_column!r} is empty at "
-                               f"{_rows(frame.index[empty])}")
-    return Dataset(name=name or path.stem, features=data[features], prior=data[prior],
-                   targets=data[targets], train_index=train, test_index=test,
-                   hamiltonian=hamiltonian, groups=groups, unit=unit)
+        return _numeric(frame, used, path), frame
+    data, frame = fast
+    _check_values(data, used, path)
+    return data, frame
+
+
+def _groups(frame: pd.DataFrame, group_column: str, used: list[str], path: Path) -> pd.Series:
+    """Read each row's group from ``group_column`` (text, none empty)."""
+    if group_column in used:
+        raise DatasetError(f"group column {group_column!r} is also named as a prior, "
+                           f"target, feature or Hamiltonian column")
+    groups = frame[group_column].str.strip()
+    empty = groups == ""
+    if empty.any():
+        raise DatasetError(f"{path}: group column {group_column!r} is empty at "
+                           f"{_rows(frame.index[empty])}")
+    return groups

@@ -1,5 +1,6 @@
-"""``workbench design CONFIG --candidates CANDIDATES.csv --n N --out NEXT.csv``: which
-settings to measure next.
+"""``workbench design``: which settings to measure next.
+
+``workbench design CONFIG --candidates CANDIDATES.csv --n N --out NEXT.csv``.
 
 The config's model is fitted on its training rows (the measurements so far; the test rows
 stay unseen), then ``N`` of the candidate settings (rows with the model's inputs: features,
@@ -23,17 +24,21 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
+from ..datasets import Dataset
 from ..datasets.csv import DatasetError, _read
 from ..design import CRITERIA, Batch, DesignProblem, greedy_design
 from .config import ExperimentConfig, load_dataset
 from .errors import UsageError
-from .families.base import quiet_fit
+from .families.fitting import quiet_fit
+from .metrics import mean_absolute_error
 from .outputs import check_file, write_file
 from .serving import InputError, check_inputs
 
@@ -44,8 +49,23 @@ log = logging.getLogger("workbench")
 
 @dataclass
 class Design:
-    """A chosen batch: ``chosen`` the design columns of the picks (rank order, indexed like
-    the candidates), ``batch`` the greedy batch, ``problem`` what the model was unsure of."""
+    """A chosen batch of candidates.
+
+    Attributes
+    ----------
+    chosen : DataFrame
+        The design columns of the picks (rank order, indexed like the candidates).
+    batch : Batch
+        The greedy batch.
+    problem : DesignProblem
+        What the model was unsure of.
+    n_rows : int
+        The rows the model was fitted on.
+    n_candidates : int
+        The candidates it chose among.
+    seconds : float
+        The wall time of the choice.
+    """
 
     chosen: pd.DataFrame
     batch: Batch
@@ -79,10 +99,38 @@ def _reasons(batch: Batch, problem: DesignProblem, targets: list[str]) -> list[s
     return out
 
 
-def choose(cfg: ExperimentConfig, model, X: pd.DataFrame, Y: pd.DataFrame,
+def choose(cfg: ExperimentConfig, model: Any, X: pd.DataFrame, Y: pd.DataFrame,
            candidates: pd.DataFrame, n: int, criterion: str = "i") -> Design:
-    """Choose ``n`` of the ``candidates`` (a frame of the family's input columns) for the
-    config's ``model`` fitted on ``X``, ``Y`` (no file is read or written)."""
+    """Choose ``n`` of the ``candidates`` for the config's ``model`` fitted on ``X``, ``Y``.
+
+    No file is read or written.
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The checked config (its family says what the model is unsure of).
+    model : estimator
+        The config's model, fitted on ``X``, ``Y``.
+    X, Y : DataFrame
+        The rows measured so far: the family's inputs and the targets.
+    candidates : DataFrame
+        The candidate settings: a frame of the family's input columns.
+    n : int
+        How many to choose (1 to the number of candidates).
+    criterion : {"i", "d"}, default="i"
+        "i" lowers the average predictive variance over the candidates, "d" maximises the
+        information about the coefficients.
+
+    Returns
+    -------
+    Design
+        The picks, in the order chosen.
+
+    Raises
+    ------
+    UsageError
+        For an unknown criterion or an ``n`` out of range.
+    """
     start = time.perf_counter()
     if criterion not in CRITERIA:
         raise UsageError(f"unknown design criterion {criterion!r}; valid: {', '.join(CRITERIA)}")
@@ -104,7 +152,8 @@ def choose(cfg: ExperimentConfig, model, X: pd.DataFrame, Y: pd.DataFrame,
                   n_candidates=len(candidates), seconds=time.perf_counter() - start)
 
 
-def _checked(cfg: ExperimentConfig, candidates: pd.DataFrame):
+def _checked(cfg: ExperimentConfig,
+             candidates: pd.DataFrame) -> tuple[Dataset, pd.DataFrame, pd.DataFrame]:
     ds = load_dataset(cfg)
     X_all = cfg.family.inputs(cfg, ds)
     try:
@@ -114,7 +163,8 @@ def _checked(cfg: ExperimentConfig, candidates: pd.DataFrame):
     return ds, X_all, C
 
 
-def _design(cfg, ds, X_all, C, n, criterion) -> Design:
+def _design(cfg: ExperimentConfig, ds: Dataset, X_all: pd.DataFrame, C: pd.DataFrame, n: int,
+            criterion: str) -> Design:
     X, Y = X_all.loc[ds.train_index], ds.targets.loc[ds.train_index]
     log.info("[%s] fitting on %d training rows, then choosing %d of %d candidates", cfg.name,
              len(X), n, len(C))
@@ -124,23 +174,84 @@ def _design(cfg, ds, X_all, C, n, criterion) -> Design:
 
 def design(cfg: ExperimentConfig, candidates: pd.DataFrame, n: int,
            criterion: str = "i") -> Design:
-    """Fit the config's model on its training rows and choose ``n`` of the ``candidates``
-    (any frame holding the family's input columns by name; checked like a served model's
-    input)."""
+    """Fit the config's model on its training rows and choose ``n`` of the ``candidates``.
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The checked config.
+    candidates : DataFrame
+        Any frame holding the family's input columns by name (checked like a served model's
+        input).
+    n : int
+        How many to choose.
+    criterion : {"i", "d"}, default="i"
+        The design criterion (:func:`choose`).
+
+    Returns
+    -------
+    Design
+        The picks, in the order chosen.
+
+    Raises
+    ------
+    UsageError
+        For candidates without the model's inputs, an unknown criterion or an ``n`` out of
+        range.
+    """
     ds, X_all, C = _checked(cfg, candidates)
     return _design(cfg, ds, X_all, C, n, criterion)
 
 
 def design_columns(targets: list[str]) -> list[str]:
-    """The columns ``workbench design`` adds to the chosen rows."""
+    """List the columns ``workbench design`` adds to the chosen rows.
+
+    Parameters
+    ----------
+    targets : list of str
+        The dataset's targets.
+
+    Returns
+    -------
+    list of str
+        ``design_rank``, ``design_gain``, ``<target>_predicted`` and ``<target>_sd`` per
+        target, ``design_reason``.
+    """
     return ["design_rank", "design_gain", *(f"{t}_{s}" for t in targets
                                             for s in ("predicted", "sd")), "design_reason"]
 
 
 def design_csv(cfg: ExperimentConfig, candidates: str | Path, n: int, out: str | Path,
                criterion: str = "i") -> Design:
-    """:func:`design` from a candidates CSV; writes the chosen rows (see the module
-    docstring) to ``out`` atomically. Every input is checked before the model is fitted."""
+    """Run :func:`design` on a candidates CSV and write the chosen rows to ``out``.
+
+    The file (see the module docstring) is written atomically; every input is checked before
+    the model is fitted.
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The checked config.
+    candidates : str or Path
+        The candidates CSV.
+    n : int
+        How many to choose.
+    out : str or Path
+        Where the chosen rows go.
+    criterion : {"i", "d"}, default="i"
+        The design criterion (:func:`choose`).
+
+    Returns
+    -------
+    Design
+        The picks, in the order chosen.
+
+    Raises
+    ------
+    UsageError
+        For an unreadable candidates file, columns design would overwrite, or any
+        :func:`design` error.
+    """
     check_file(out, "--out")
     try:
         text = _read(Path(candidates))
@@ -169,19 +280,52 @@ class Acquisition:
     seed: int
     n_measured: list[int]
     test_mae: list[float]
-    chosen: list = field(default_factory=list)
+    chosen: list[Any] = field(default_factory=list)
     seconds: float = 0.0
 
 
-def acquisition_loop(cfg: ExperimentConfig, ds, pool, test, *, arm: str = "design",
-                     seed: int = 0, start: int = 20, batch: int = 10, stop: int = 200,
-                     criterion: str = "i", progress=None) -> Acquisition:
-    """Calibrate from ``start`` random rows of ``pool`` (index labels of ``ds`` whose targets
-    are revealed only when chosen) to ``stop`` in batches of ``batch``: each batch chosen by
-    :func:`choose` (``arm="design"``) or at random (``"random"``); after each batch the
-    config's model is refitted on the chosen rows and scored on the ``test`` rows.
+def acquisition_loop(cfg: ExperimentConfig, ds: Dataset, pool: Any, test: Any, *,
+                     arm: str = "design", seed: int = 0, start: int = 20, batch: int = 10,
+                     stop: int = 200, criterion: str = "i",
+                     progress: Callable[[Acquisition], None] | None = None) -> Acquisition:
+    """Run one closed calibration loop, from ``start`` random rows of ``pool`` to ``stop``.
 
-    The starting rows depend on ``seed`` only, so both arms of a seed start alike."""
+    Each batch of ``batch`` rows is chosen by :func:`choose` (``arm="design"``) or at random
+    (``"random"``); after each batch the config's model is refitted on the chosen rows and
+    scored on the ``test`` rows. The starting rows depend on ``seed`` only, so both arms of a
+    seed start alike.
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The checked config.
+    ds : Dataset
+        The dataset.
+    pool : iterable
+        Index labels of ``ds`` whose targets are revealed only when chosen.
+    test : list-like
+        Index labels of the rows scored after each batch.
+    arm : {"design", "random"}, default="design"
+        How each batch is chosen.
+    seed : int, default=0
+        Seeds the starting rows and the random picks.
+    start, batch, stop : int
+        The starting rows, the rows per batch and the rows at which the loop stops.
+    criterion : {"i", "d"}, default="i"
+        The design criterion (:func:`choose`).
+    progress : callable, optional
+        Called with the :class:`Acquisition` so far after each batch.
+
+    Returns
+    -------
+    Acquisition
+        The test MAE after each batch.
+
+    Raises
+    ------
+    ValueError
+        For an unknown ``arm``.
+    """
     if arm not in ARMS:
         raise ValueError(f"unknown arm {arm!r}; valid: {', '.join(ARMS)}")
     t0 = time.perf_counter()
@@ -197,7 +341,7 @@ def acquisition_loop(cfg: ExperimentConfig, ds, pool, test, *, arm: str = "desig
         model = quiet_fit(family.build(cfg, ds), X, Y)
         pred = np.asarray(model.predict(X_test), dtype=float).reshape(y_test.shape)
         out.n_measured.append(len(chosen))
-        out.test_mae.append(float(np.mean(np.abs(y_test - pred))))
+        out.test_mae.append(mean_absolute_error(y_test, pred))
         if progress is not None:
             progress(out)
         taken = set(chosen)

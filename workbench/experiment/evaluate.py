@@ -1,10 +1,13 @@
-"""``workbench evaluate``: fit a config's model on the training rows, score it once on the
-test rows; optional repeated CV on the training rows and nested CV over all rows.
+"""``workbench evaluate``: fit a config's model on the training rows, score it on the test rows.
+
+The test rows are scored once; optional repeated CV on the training rows and nested CV over
+all rows estimate the error again.
 
 Family-independent: the config's family (:mod:`workbench.experiment.families`) builds the
 model and assembles its scores; with ``[intervals]`` (the default) the model is wrapped in a
 conformal :class:`~workbench.conformal.ConformalRegressor` here, for every family
-(:mod:`workbench.experiment.intervals`)."""
+(:mod:`workbench.experiment.intervals`).
+"""
 
 from __future__ import annotations
 
@@ -18,6 +21,7 @@ from sklearn.model_selection import KFold, RepeatedKFold, cross_val_predict
 
 from .bootstrap import bootstrap_test_scores
 from .config import ExperimentConfig, load_dataset
+from .families.artifacts import Artifacts
 from .intervals import (
     family_model,
     interval_artifacts,
@@ -39,12 +43,22 @@ log = logging.getLogger("workbench")
 
 @dataclass
 class Evaluation:
-    """A result with the fitted model and the dataset it came from (``model``: with
-    intervals, the fitted ConformalRegressor around the family's model)."""
+    """A result with the fitted model and the dataset it came from.
+
+    Attributes
+    ----------
+    result : Result
+        The scores.
+    model : object
+        The fitted model; with intervals, the fitted ConformalRegressor around the family's
+        model.
+    dataset : Dataset
+        The data it was fitted and scored on.
+    """
 
     result: Result
     model: Any
-    dataset: Any
+    dataset: Dataset
 
 
 @overload
@@ -59,8 +73,9 @@ def evaluate(cfg: ExperimentConfig, return_model: Literal[True], *,
 
 def evaluate(cfg: ExperimentConfig, return_model: bool = False, *,
              dataset: Dataset | None = None) -> Result | Evaluation:
-    """Fit on the training rows (every choice by CV on those rows), then score prior and
-    model on the test rows.
+    """Fit on the training rows, then score prior and model on the test rows.
+
+    Every choice is made by CV on the training rows.
 
     Parameters
     ----------
@@ -100,15 +115,31 @@ def evaluate(cfg: ExperimentConfig, return_model: bool = False, *,
     return Evaluation(result, model, ds) if return_model else result
 
 
-def _oof(model, X, Y, cv) -> np.ndarray:
-    """Out-of-fold predictions of ``model`` refitted on each split's training rows."""
+def _oof(model: Any, X: Any, Y: Any, cv: Any) -> np.ndarray:
+    """Predict out of fold: ``model`` refitted on each split's training rows."""
     return np.asarray(cross_val_predict(model, X, Y, cv=cv), dtype=float)
 
 
-def repeated_cv(cfg: ExperimentConfig, ds, model) -> CVEstimate:
-    """Repeated K-fold CV (``[evaluation]`` cv_folds x cv_repeats, ``RepeatedKFold`` seeded by
-    cv_seed) of ``model`` (unfitted) on the training rows only, with the control program's
-    MAE there."""
+def repeated_cv(cfg: ExperimentConfig, ds: Dataset, model: Any) -> CVEstimate:
+    """Estimate the error of ``model`` by repeated K-fold CV on the training rows only.
+
+    ``[evaluation]`` cv_folds x cv_repeats folds (``RepeatedKFold`` seeded by cv_seed), with
+    the control program's MAE on the same rows.
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The checked config.
+    ds : Dataset
+        The config's dataset.
+    model : estimator
+        The unfitted model (the choices it made kept fixed).
+
+    Returns
+    -------
+    CVEstimate
+        Per-target MAE and MSE averaged over the repeats.
+    """
     ev = cfg.evaluation
     X = cfg.family.inputs(cfg, ds).loc[ds.train_index]
     Y = ds.targets.loc[ds.train_index]
@@ -124,10 +155,25 @@ def repeated_cv(cfg: ExperimentConfig, ds, model) -> CVEstimate:
                       model_mae_avg_per_repeat=[float(np.mean(m)) for m in per_repeat])
 
 
-def nested_cv_all(cfg: ExperimentConfig, ds) -> CVEstimate:
-    """Nested CV over every row (training and test): in each of ``nested_folds`` outer folds
-    the whole model, every choice included, is fitted on the other rows and scored on the
-    fold's rows. The least noisy estimate for small data; no choice is made from it."""
+def nested_cv_all(cfg: ExperimentConfig, ds: Dataset) -> CVEstimate:
+    """Estimate the error by nested CV over every row (training and test).
+
+    In each of ``nested_folds`` outer folds the whole model, every choice included, is
+    fitted on the other rows and scored on the fold's rows. The least noisy estimate for
+    small data; no choice is made from it.
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The checked config.
+    ds : Dataset
+        The config's dataset.
+
+    Returns
+    -------
+    CVEstimate
+        Per-target MAE and MSE of the model and the prior's MAE over all rows.
+    """
     ev = cfg.evaluation
     X, Y = cfg.family.inputs(cfg, ds), ds.targets
     pred = _oof(cfg.family.build(cfg, ds), X, Y,
@@ -136,11 +182,29 @@ def nested_cv_all(cfg: ExperimentConfig, ds) -> CVEstimate:
                       model_mae=mae(Y, pred), model_mse=mse(Y, pred), prior_mae=mae(Y, ds.prior))
 
 
-def fit_and_score(cfg: ExperimentConfig, ds, model) -> tuple[Result, Any]:
-    """Fit ``model`` (built by the config's family; inside a conformal wrapper when
-    ``[intervals]`` is on) on the training rows and score prior and model once on the test
-    rows, the intervals' coverage and width too. Returns ``(result, fitted model)``: the
-    fitted wrapper with intervals (the family's fitted model is :func:`family_model` of it)."""
+def fit_and_score(cfg: ExperimentConfig, ds: Dataset, model: Any) -> tuple[Result, Any]:
+    """Fit ``model`` on the training rows and score prior and model once on the test rows.
+
+    The model goes inside a conformal wrapper when ``[intervals]`` is on; the intervals'
+    coverage and width are scored too.
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The checked config.
+    ds : Dataset
+        The config's dataset.
+    model : estimator
+        The unfitted model the config's family built.
+
+    Returns
+    -------
+    result : Result
+        The scores.
+    model : estimator
+        The fitted model; with intervals, the fitted wrapper (the family's fitted model is
+        :func:`family_model` of it).
+    """
     family = cfg.family
     X_train, X_test, y_train, y_test = ds.split(family.inputs(cfg, ds))
     model = with_intervals(cfg, model)
@@ -166,15 +230,46 @@ def fit_and_score(cfg: ExperimentConfig, ds, model) -> tuple[Result, Any]:
 
 
 def has_outputs(cfg: ExperimentConfig) -> bool:
-    """Whether ``evaluate --out`` has anything to write (the family's tables and figures, or
-    the intervals' figure and table)."""
+    """Tell whether ``evaluate --out`` has anything to write.
+
+    That is the family's tables and figures, or the intervals' figure and table.
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The checked config.
+
+    Returns
+    -------
+    bool
+        Whether the family writes outputs or ``[intervals]`` is on.
+    """
     return cfg.family.writes_outputs or cfg.intervals.enabled
 
 
-def outputs(cfg: ExperimentConfig, model, ds, setting: str):
-    """What ``evaluate --out DIR`` writes: the family's tables and figures
+def outputs(cfg: ExperimentConfig, model: Any, ds: Dataset, setting: str) -> Artifacts:
+    """Make what ``evaluate --out DIR`` writes.
+
+    The family's tables and figures
     (:meth:`~workbench.experiment.families.base.ModelFamily.outputs`) and the intervals'
-    figure and table (:func:`~workbench.experiment.intervals.interval_artifacts`)."""
+    figure and table (:func:`~workbench.experiment.intervals.interval_artifacts`).
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The checked config.
+    model : estimator
+        The fitted model (with intervals, the fitted wrapper).
+    ds : Dataset
+        The dataset it was fitted on.
+    setting : str
+        The run's label, in figure titles.
+
+    Returns
+    -------
+    Artifacts
+        The tables and figures.
+    """
     out = interval_artifacts(cfg, ds, model, setting)
     if cfg.family.writes_outputs:
         extra = cfg.family.outputs(family_model(model), ds, setting)
@@ -183,13 +278,26 @@ def outputs(cfg: ExperimentConfig, model, ds, setting: str):
     return out
 
 
-def _interval(bounds) -> str:
+def _interval(bounds: Any) -> str:
     return f"[{bounds[0]:.3f}, {bounds[1]:.3f}]"
 
 
 def format_table(result: Result) -> str:
-    """Per-target table: prior and model test MAE, the model's CV MAE and what was selected;
-    below it the bootstrap intervals of the average test MAE (prior, model, model - prior)."""
+    """Format a per-target table of a result.
+
+    Prior and model test MAE, the model's CV MAE and what was selected; below it the
+    bootstrap intervals of the average test MAE (prior, model, model - prior).
+
+    Parameters
+    ----------
+    result : Result
+        The scores.
+
+    Returns
+    -------
+    str
+        The table, lines joined.
+    """
     w = max(10, *(len(t) + 2 for t in result.targets))
     rule = "-" * (w + 46)
     lines = [f"{'target':<{w}}{'prior MAE':>11}{'model MAE':>11}{'model CV MAE':>14}  selected",

@@ -26,7 +26,7 @@ import pandas as pd
 from numpy.typing import ArrayLike
 
 from ..conformal import ConformalRegressor, interval_coverage, interval_width
-from .families.base import Artifacts
+from .families.artifacts import Artifacts
 from .figures import interval_figure
 
 if TYPE_CHECKING:

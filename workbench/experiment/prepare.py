@@ -30,7 +30,7 @@ from .config import (
     check_boost_settings,
     load_dataset,
 )
-from .errors import ConfigError, shorten
+from .errors import ConfigError, clip, shorten
 from .families import FAMILIES, ModelFamily, discover_families
 from .schema import MAX_MESSAGE
 from .space import SearchSpace, SpaceError
@@ -60,8 +60,9 @@ class PreparedRun:
         return family
 
     def with_config(self, config: ExperimentConfig) -> PreparedRun:
-        """The same data with another config (e.g. a search's choices, or
-        ``--no-intervals``).
+        """Return the same data with another config.
+
+        E.g. a search's choices, or ``--no-intervals``.
 
         Parameters
         ----------
@@ -98,7 +99,7 @@ def prepare(cfg: ExperimentConfig) -> PreparedRun:
 
 
 def _one_line(where: str, exc: ValidationError, prefix: tuple[str, ...] = ()) -> str:
-    """One line for the first error: ``file: section.key = value: what is allowed``."""
+    """Write one line for the first error: ``file: section.key = value: what is allowed``."""
     err = exc.errors(include_url=False)[0]
     # drop the union-branch labels pydantic adds to a location ("literal['a','b']", ...)
     loc = ".".join(str(p) for p in (*prefix, *err["loc"]) if not any(c in str(p) for c in "[("))
@@ -107,17 +108,17 @@ def _one_line(where: str, exc: ValidationError, prefix: tuple[str, ...] = ()) ->
         text = f"{where}: [{loc}]: {msg}" if loc else f"{where}: {msg}"
     else:
         text = f"{where}: {loc} = {shorten(err.get('input'))}: {msg}"
-    return text if len(text) <= MAX_MESSAGE else text[:MAX_MESSAGE - 3] + "..."
+    return clip(text, MAX_MESSAGE)
 
 
 def _error(where: str, text: str) -> ConfigError:
-    line = f"{where}: {text}"
-    return ConfigError(line if len(line) <= MAX_MESSAGE else line[:MAX_MESSAGE - 3] + "...")
+    return ConfigError(clip(f"{where}: {text}", MAX_MESSAGE))
 
 
 def _family(where: str, model_table: dict[str, Any]) -> tuple[ModelFamily, Any]:
-    """The family ``[model] family`` names, and its ``[model.<family>]`` table (taken out of
-    ``model_table``); a table of another family is an error.
+    """Find the family ``[model] family`` names, and its ``[model.<family>]`` table.
+
+    The table is taken out of ``model_table``; a table of another family is an error.
     """
     discover_families()
     family_name = model_table.get("family", "eigenvalue")
@@ -135,7 +136,7 @@ def _family(where: str, model_table: dict[str, Any]) -> tuple[ModelFamily, Any]:
 
 def _family_parts(where: str, family: ModelFamily, table: Any, search: dict[str, Any],
                   data: DataConfig) -> tuple[BaseModel | None, SearchSpace]:
-    """The family's settings and search space, checked, and its check of ``[data]``."""
+    """Check the family's settings, search space and ``[data]``; return the first two."""
     try:
         settings = family.parse_settings(table)
     except ValidationError as exc:
@@ -154,8 +155,9 @@ def _family_parts(where: str, family: ModelFamily, table: Any, search: dict[str,
 
 
 def _intervals(where: str, family: ModelFamily, intervals: IntervalsConfig) -> IntervalsConfig:
-    """``[intervals]`` with the family's default method; ``"oof"`` only where the family
-    keeps out-of-fold predictions.
+    """Fill in ``[intervals]``' method with the family's default.
+
+    ``"oof"`` is accepted only where the family keeps out-of-fold predictions.
     """
     if intervals.method is None:
         return intervals.model_copy(update={"method": family.interval_method})

@@ -26,7 +26,7 @@ import pandas as pd
 from ..datasets import Dataset
 from .config import ExperimentConfig
 from .errors import redact
-from .families.base import Artifacts
+from .families.artifacts import Artifacts
 from .figures import mae_bars
 from .intervals import family_model, interval_artifacts
 from .results import Result

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import sys
 
-from ..errors import ConfigError, StorageError, TrackingError, UsageError, redact_urls
+from ..errors import ConfigError, StorageError, TrackingError, UsageError, clip, redact_urls
 from ..startup import setup_logging
 from . import commands
 from .parser import build_parser
@@ -75,4 +75,4 @@ def error_line(exc: BaseException) -> str:
     """
     text = redact_urls(" ".join(str(exc).split()))
     line = f"workbench: error: {text}"
-    return line if len(line) <= MAX_ERROR_LINE else line[:MAX_ERROR_LINE - 3] + "..."
+    return clip(line, MAX_ERROR_LINE)

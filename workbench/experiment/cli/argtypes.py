@@ -1,5 +1,7 @@
-"""The types of the command line's values: each parses one string or raises
-``argparse.ArgumentTypeError`` with what was expected and what was given (shortened).
+"""Types of the command line's values.
+
+Each parses one string or raises ``argparse.ArgumentTypeError`` with what was expected and
+what was given (shortened).
 """
 
 from __future__ import annotations
@@ -10,7 +12,7 @@ __all__ = ["count", "fraction", "nested_folds", "seed"]
 
 
 def count(value: str) -> int:
-    """A count: an integer >= 1.
+    """Parse a count: an integer >= 1.
 
     Parameters
     ----------

@@ -1,6 +1,7 @@
-"""The handlers of the commands that run a config: ``evaluate``, ``sweep``, ``design`` and
-``reproduce``. Each checks everything first (:mod:`.preflight`), loads the config's data
-once (:func:`~workbench.experiment.prepare.prepare`) and hands that run down.
+"""Handlers of the commands that run a config: ``evaluate``, ``sweep``, ``design``, ``reproduce``.
+
+Each checks everything first (:mod:`.preflight`), loads the config's data once
+(:func:`~workbench.experiment.prepare.prepare`) and hands that run down.
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ def mark_start() -> None:
 
 
 def wall() -> float:
-    """The whole command's wall time so far.
+    """Return the whole command's wall time so far.
 
     Returns
     -------
@@ -51,8 +52,10 @@ def _write_json(path: str, payload: dict[str, Any]) -> None:
 
 
 def _prefetch(modules: Iterable[str]) -> None:
-    """Import ``modules`` in a background thread (errors ignored: the real import reports
-    them); call it once the worker processes are forked (no fork while it runs).
+    """Import ``modules`` in a background thread.
+
+    Errors are ignored: the real import reports them. Call it once the worker processes are
+    forked (no fork while it runs).
     """
     def load() -> None:
         for name in modules:
@@ -179,7 +182,7 @@ def sweep(args: argparse.Namespace) -> int:
 
 
 def _evaluate_config(args: argparse.Namespace) -> Any:
-    """The config ``evaluate`` runs: the file's, with the command line's overrides."""
+    """Load the config ``evaluate`` runs: the file's, with the command line's overrides."""
     from ..config import without_intervals
     from ..evaluate import has_outputs
     from ..prepare import load_config

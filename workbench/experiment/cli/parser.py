@@ -1,5 +1,7 @@
-"""The command line of ``workbench``: one function per command adds its subparser, whose
-``func`` is the command's handler (:mod:`.commands`, :mod:`.tools`, :mod:`.ui`).
+"""Command line of ``workbench``.
+
+One function per command adds its subparser, whose ``func`` is the command's handler
+(:mod:`.commands`, :mod:`.tools`, :mod:`.ui`).
 """
 
 from __future__ import annotations
@@ -19,8 +21,10 @@ Subparsers = argparse._SubParsersAction
 
 
 class _Parser(argparse.ArgumentParser):
-    """Bad arguments end in one line, ``workbench: error: ...`` (exit code 2), without the
-    usage block (``--help`` shows it); the command's subparsers are of this class too.
+    """Parser whose errors are one line, ``workbench: error: ...`` (exit code 2).
+
+    The usage block is left out (``--help`` shows it); the command's subparsers are of this
+    class too.
     """
 
     def error(self, message: str) -> NoReturn:
@@ -31,7 +35,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The parser of the ``workbench`` command.
+    """Build the parser of the ``workbench`` command.
 
     Returns
     -------

@@ -1,6 +1,7 @@
-"""The checks every command makes before any work: its outputs can be written, the MLflow
-store and the Optuna storage can be used (a damaged journal repaired first with
-``--repair``); nothing is written until every check has passed.
+"""Checks every command makes before any work.
+
+Its outputs can be written, the MLflow store and the Optuna storage can be used (a damaged
+journal repaired first with ``--repair``); nothing is written until every check has passed.
 """
 
 from __future__ import annotations
@@ -25,8 +26,10 @@ log = logging.getLogger("workbench")
 
 
 def check_outputs(args: argparse.Namespace) -> None:
-    """Every output location (``--json``, ``--out``) is writable, and ``--register`` has a
-    store to register in, before anything is loaded or fitted.
+    """Check that every output can be written before anything is loaded or fitted.
+
+    Every output location (``--json``, ``--out``) must be writable, and ``--register`` needs
+    a store to register in.
 
     Parameters
     ----------
@@ -89,8 +92,10 @@ def check_before_work(cfg: ExperimentConfig, args: argparse.Namespace,
 
 def check_stores(tracker: Tracker | None, storage: str | None, repair: bool,
                  hint: str | None) -> Tracker | None:
-    """The MLflow store of ``tracker`` and the Optuna ``storage`` can be used (nothing
-    written), then the tracking store is created.
+    """Check the MLflow store of ``tracker`` and the Optuna ``storage``, then create the store.
+
+    The checks write nothing (but a ``repair``); the tracking store is created once both
+    passed.
 
     Parameters
     ----------
@@ -122,7 +127,7 @@ def check_stores(tracker: Tracker | None, storage: str | None, repair: bool,
 
 
 def check_storage(storage: str, repair: bool, hint: str | None) -> None:
-    """The Optuna storage can be used (nothing written).
+    """Check that the Optuna storage can be used (nothing written).
 
     Parameters
     ----------
@@ -144,7 +149,7 @@ def check_storage(storage: str, repair: bool, hint: str | None) -> None:
 
 
 def _hidden(word: str) -> str:
-    """A command-line word, a URL with a password replaced."""
+    """Return a command-line word, a URL with a password replaced."""
     try:
         if "://" in word and urlsplit(word).password:
             return "URI-WITH-PASSWORD"
@@ -154,7 +159,7 @@ def _hidden(word: str) -> str:
 
 
 def repair_hint(args: argparse.Namespace) -> str:
-    """What repairs a damaged journal: this command line with ``--repair``.
+    """Return what repairs a damaged journal: this command line with ``--repair``.
 
     Parameters
     ----------

@@ -1,5 +1,7 @@
-"""The handlers of the commands around a model run: ``init`` (a first config for a CSV),
-``predict`` (a logged model on new rows) and ``simulate`` (a simulated device's CSV).
+"""Handlers of the commands around a model run: ``init``, ``predict`` and ``simulate``.
+
+``init`` writes a first config for a CSV, ``predict`` applies a logged model to new rows and
+``simulate`` writes a simulated device's CSV.
 """
 
 from __future__ import annotations
@@ -70,7 +72,7 @@ def predict(args: argparse.Namespace) -> int:
 
 
 def _mismatch(names: list[str] | None) -> Any:
-    """The simulation's mismatch mechanisms ``--mismatch`` names."""
+    """Return the simulation's mismatch mechanisms ``--mismatch`` names."""
     from ...simulate import Mismatch
 
     if names is None:
@@ -91,8 +93,9 @@ def _shape(text: str | None) -> tuple[int, int] | None:
 
 
 def _simulation(args: argparse.Namespace) -> Any:
-    """The simulation ``simulate``'s arguments ask for: random settings, or ``--settings``
-    measured on the seed's device.
+    """Run the simulation ``simulate``'s arguments ask for.
+
+    Random settings, or ``--settings`` measured on the seed's device.
     """
     from ...simulate import measure
     from ...simulate import simulate as run
@@ -132,6 +135,7 @@ def simulate(args: argparse.Namespace) -> int:
         For contradictory options or values the simulation refuses.
     """
     from ...simulate import write_simulation
+    from ..metrics import mean_absolute_error
 
     if args.settings is not None and args.experiments is not None:
         raise UsageError("--settings measures the rows of its CSV; drop --experiments")
@@ -142,11 +146,11 @@ def simulate(args: argparse.Namespace) -> int:
         csv_path, truth_path = write_simulation(sim, args.out)
     except (ValueError, OSError) as exc:
         raise UsageError(str(exc)) from None
-    prior = sim.data.filter(like="model_E").to_numpy()
-    measured = sim.data.filter(like="measured_E").to_numpy()
+    prior_mae = mean_absolute_error(sim.data.filter(like="measured_E").to_numpy(),
+                                    sim.data.filter(like="model_E").to_numpy())
     rows = (f"{len(sim.data)} experiments" if args.settings is None
             else f"measured {len(sim.data)} settings")
     print(f"wrote {csv_path} ({rows}, {sim.truth['n_sites']} sites, "
           f"{sim.truth['graph']['topology']}; prior MAE "
-          f"{abs(prior - measured).mean():.3f} MHz) and {truth_path}")
+          f"{prior_mae:.3f} MHz) and {truth_path}")
     return 0

@@ -1,5 +1,7 @@
-"""``workbench ui``: the MLflow UI over the tracking store and, beside it, optuna-dashboard
-over the sweeps' studies, both on 127.0.0.1, until Ctrl-C.
+"""``workbench ui``: the MLflow UI and optuna-dashboard on 127.0.0.1, until Ctrl-C.
+
+The MLflow UI serves the tracking store and, beside it, optuna-dashboard the sweeps'
+studies.
 """
 
 from __future__ import annotations
@@ -20,9 +22,10 @@ log = logging.getLogger("workbench")
 
 
 def _experiment_views(uri: str, port: int) -> list[tuple[str, str]]:
-    """The UI's address of each experiment in the store that has the workbench's runs view
-    (its runs' test MAE per target side by side); none if the store cannot be read now (the
-    UI reports that itself).
+    """List the UI's address of each experiment in the store with the workbench's runs view.
+
+    That view shows its runs' test MAE per target side by side. None are listed if the store
+    cannot be read now (the UI reports that itself).
     """
     from ..tracking.runs import RUNS_VIEW, SHARED_VIEW_PREFIX
     from ..tracking.uris import sqlite_path, ui_url
@@ -42,9 +45,10 @@ def _experiment_views(uri: str, port: int) -> list[tuple[str, str]]:
 
 
 def _commands(args: argparse.Namespace) -> list[list[str]]:
-    """The servers' command lines, their addresses printed; the stores checked as every
-    command checks them first (a server would print a traceback, or sit on a store it
-    cannot read).
+    """Return the servers' command lines, their addresses printed.
+
+    The stores are checked first, as every command checks them (a server would print a
+    traceback, or sit on a store it cannot read).
     """
     from ..tracking.uris import check_store_uri, resolve_tracking_uri, ui_url
 
@@ -105,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def ui_env() -> dict[str, str]:
-    """The environment of the servers ``workbench ui`` starts.
+    """Return the environment of the servers ``workbench ui`` starts.
 
     This process's, with MLflow's server jobs off unless
     ``MLFLOW_SERVER_ENABLE_JOB_EXECUTION`` is set: they serve MLflow's GenAI features, which
@@ -123,7 +127,7 @@ def ui_env() -> dict[str, str]:
 
 
 def ui_command(tracking_uri: str, port: int, workers: int = 1) -> list[str]:
-    """The ``mlflow server`` command line serving ``tracking_uri`` on 127.0.0.1.
+    """Return the ``mlflow server`` command line serving ``tracking_uri`` on 127.0.0.1.
 
     One server process is the default: it serves a user's browser and starts in about half
     the time of MLflow's default of four on a small machine.

@@ -29,7 +29,7 @@ package sits below the families and imports none of them.
 from ..errors import ConfigError
 from .data import DataConfig, HamiltonianData
 from .experiment import ExperimentConfig, without_intervals
-from .loading import load_dataset
+from .loading import check_training_rows, data_key, load_dataset
 from .sections import (
     MODEL_DEFAULTS,
     BoostSettings,
@@ -47,4 +47,5 @@ from .validation import check_boost_settings
 __all__ = ["MODEL_DEFAULTS", "BoostSettings", "CVConfig", "ConfigError", "DataConfig",
            "EvaluationConfig", "ExperimentConfig", "HamiltonianData", "IntervalsConfig",
            "ModelConfig", "SelectionConfig", "StudyConfig", "TopLevel", "TrackingConfig",
-           "check_boost_settings", "load_dataset", "without_intervals"]
+           "check_boost_settings", "check_training_rows", "data_key", "load_dataset",
+           "without_intervals"]

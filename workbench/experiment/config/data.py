@@ -1,6 +1,7 @@
-"""``[data]``: where a config's data come from (:class:`DataConfig`, with the Hamiltonian's
-columns in :class:`HamiltonianData`); ``source`` names a loader of the data-source registry
-(:mod:`workbench.datasets.sources`).
+"""``[data]``: where a config's data come from.
+
+:class:`DataConfig`, with the Hamiltonian's columns in :class:`HamiltonianData`; ``source``
+names a loader of the data-source registry (:mod:`workbench.datasets.sources`).
 """
 
 from __future__ import annotations
@@ -18,12 +19,13 @@ __all__ = ["DataConfig", "HamiltonianData"]
 
 
 class HamiltonianData(Section):
-    """``[data.hamiltonian]``: the Hamiltonian's columns. ``sign``: the prior is the sorted
-    eigenvalues of ``sign * H``. The coupling graph: ``topology`` "chain" (N - 1 couplings
-    ``(i, i+1)``), "ring", "grid" with ``shape = [rows, cols]``, or an explicit ``edges``
-    list of 0-based site pairs, one per coupling column.
-    ``qubit_features``/``coupler_features``: the features acting on each site and on each
-    coupling, in site and edge order.
+    """``[data.hamiltonian]``: the Hamiltonian's columns.
+
+    ``sign``: the prior is the sorted eigenvalues of ``sign * H``. The coupling graph:
+    ``topology`` "chain" (N - 1 couplings ``(i, i+1)``), "ring", "grid" with
+    ``shape = [rows, cols]``, or an explicit ``edges`` list of 0-based site pairs, one per
+    coupling column. ``qubit_features``/``coupler_features``: the features acting on each
+    site and on each coupling, in site and edge order.
     """
 
     onsite: list[str]
@@ -55,7 +57,9 @@ class HamiltonianData(Section):
 
 
 class DataConfig(Section):
-    """``[data]``: ``source = "google_5q"`` (optional ``data_dir``), ``source = "ibm_gates"``
+    """``[data]``: where the data come from, and which columns and rows are which.
+
+    ``source = "google_5q"`` (optional ``data_dir``), ``source = "ibm_gates"``
     (optional ``data_dir``, ``split = "time"`` or ``"devices"`` with ``split_seed``), or a CSV
     of your own (``csv``, one ``prior`` column per ``targets`` column, ``features``, either
     ``test_fraction`` or ``split_column``, and optionally the targets' ``unit``). ``source``

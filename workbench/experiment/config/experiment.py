@@ -1,5 +1,6 @@
-"""The checked config: :class:`ExperimentConfig`, its sections typed, and the merged
-boosting settings of each target (:meth:`ExperimentConfig.model_for`).
+"""The checked config: :class:`ExperimentConfig`, its sections typed.
+
+It also merges the boosting settings of each target (:meth:`ExperimentConfig.model_for`).
 """
 
 from __future__ import annotations
@@ -64,13 +65,14 @@ class ExperimentConfig:
 
     @property
     def jobs(self) -> int:
-        """Processes for independent work (``n_jobs``; unset: every core). Results do not
-        depend on it (:mod:`workbench.parallel`).
+        """Processes for independent work (``n_jobs``; unset: every core).
+
+        Results do not depend on it (:mod:`workbench.parallel`).
         """
         return -1 if self.n_jobs is None else self.n_jobs
 
     def model_for(self, target: str | None) -> dict[str, Any]:
-        """The boosting settings of one target.
+        """Merge the boosting settings of one target.
 
         Defaults < ``[model]`` < its ``[model.targets.<target>]`` table (< a search's choice
         for it). ``basis_params`` (``input_transform_params``) merge over the parent's while
@@ -100,7 +102,7 @@ class ExperimentConfig:
         return merged
 
     def with_study(self, **updates: Any) -> ExperimentConfig:
-        """This config with ``[study]`` values replaced.
+        """Return a copy of the config with ``[study]`` values replaced.
 
         Parameters
         ----------
@@ -117,10 +119,9 @@ class ExperimentConfig:
 
 
 def _set(section: BaseModel) -> dict[str, Any]:
-    """The boosting keys a section sets (``None``: not given)."""
+    """Return the boosting keys a section sets (``None``: not given)."""
     return {k: v for k, v in section.model_dump(exclude={"family", "targets"}).items()
             if v is not None}
-
 
 
 def without_intervals(cfg: ExperimentConfig, off: bool = True) -> ExperimentConfig:

@@ -1,21 +1,23 @@
-"""Loading a config's dataset: through the data-source registry
-(:func:`workbench.datasets.load_source`), then checked against the config's folds and
-prediction intervals.
+"""Load a config's dataset and check it against the config.
+
+The data come through the data-source registry (:func:`workbench.datasets.load_source`), then
+are checked against the config's folds and prediction intervals.
 """
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 from ...conformal import min_calibration_rows
 from ...datasets import Dataset, DatasetError, load_source
 from .experiment import ExperimentConfig
 
-__all__ = ["check_training_rows", "load_dataset"]
+__all__ = ["check_training_rows", "data_key", "load_dataset"]
 
 
 def load_dataset(cfg: ExperimentConfig) -> Dataset:
-    """The dataset named by the config's ``[data]`` section (paths relative to the config).
+    """Load the dataset named by the config's ``[data]`` section (paths relative to the config).
 
     Parameters
     ----------
@@ -34,15 +36,40 @@ def load_dataset(cfg: ExperimentConfig) -> Dataset:
         For unusable data, including a training split too small for the configured CV
         folds or prediction intervals.
     """
-    base = cfg.path.parent if cfg.path is not None else Path.cwd()
-    ds = load_source(cfg.data.source, cfg.data.model_dump(), base, cfg.name)
+    ds = load_source(cfg.data.source, cfg.data.model_dump(), _base(cfg), cfg.name)
     check_training_rows(cfg, len(ds.train_index))
     return ds
 
 
+def _base(cfg: ExperimentConfig) -> Path:
+    """Return the folder the config's relative data paths start from."""
+    return cfg.path.parent if cfg.path is not None else Path.cwd()
+
+
+def data_key(cfg: ExperimentConfig) -> str:
+    """Say which data a config loads: its ``[data]`` table and the folder paths start from.
+
+    Configs with equal keys load equal datasets (up to a name the source takes from the
+    config, e.g. a CSV's), so a command that runs several of them can load the data once.
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The checked config.
+
+    Returns
+    -------
+    str
+        The key.
+    """
+    return json.dumps([cfg.data.model_dump(mode="json"), str(_base(cfg).resolve())],
+                      sort_keys=True)
+
+
 def check_training_rows(cfg: ExperimentConfig, n_train: int) -> None:
-    """Raise :class:`~workbench.datasets.DatasetError` when ``n_train`` training rows are
-    too few for ``[selection]``'s folds or ``[intervals]``' calibration.
+    """Check that ``n_train`` training rows are enough for the config.
+
+    Enough means enough for ``[selection]``'s folds and ``[intervals]``' calibration.
 
     Parameters
     ----------

@@ -1,6 +1,8 @@
-"""The sections of a config besides ``[data]``: the boosting settings (``[model]``,
-``[model.targets.<target>]``), ``[selection]``, ``[evaluation]``, ``[intervals]``, ``[cv]``,
-``[study]``, ``[tracking]``, and the top level that holds them (:class:`TopLevel`).
+"""The sections of a config besides ``[data]``.
+
+The boosting settings (``[model]``, ``[model.targets.<target>]``), ``[selection]``,
+``[evaluation]``, ``[intervals]``, ``[cv]``, ``[study]``, ``[tracking]``, and the top level
+that holds them (:class:`TopLevel`).
 """
 
 from __future__ import annotations
@@ -23,11 +25,13 @@ _Boost = ParameterOf(BaseBoostRegressor)
 
 
 class BoostSettings(Section):
-    """The eigenvalue-space boosting settings of one target (``[model]``, or a
-    ``[model.targets.<target>]`` override, where every key is optional). ``n_stages``,
-    ``loss``, ``line_search_loss``, ``line_search_penalty``, ``alpha`` and ``link`` are
-    BaseBoostRegressor's parameters, checked against its ``_parameter_constraints``; a list
-    of losses, links or input transforms makes candidates that CV chooses among per target.
+    """The eigenvalue-space boosting settings of one target.
+
+    ``[model]``, or a ``[model.targets.<target>]`` override, where every key is optional.
+    ``n_stages``, ``loss``, ``line_search_loss``, ``line_search_penalty``, ``alpha`` and
+    ``link`` are BaseBoostRegressor's parameters, checked against its
+    ``_parameter_constraints``; a list of losses, links or input transforms makes candidates
+    that CV chooses among per target.
     """
 
     basis: str | list[str] | None = None
@@ -58,8 +62,10 @@ MODEL_DEFAULTS: dict[str, Any] = dict(
 
 
 class ModelConfig(BoostSettings):
-    """``[model]``: the family (a name in :data:`~workbench.experiment.families.FAMILIES`),
-    the boosting settings shared by every target, and per-target overrides.
+    """``[model]``: the family, the boosting settings shared by every target, and overrides.
+
+    ``family`` is a name in :data:`~workbench.experiment.families.FAMILIES`; ``targets`` holds
+    the per-target overrides.
     """
 
     family: str = "eigenvalue"
@@ -67,10 +73,12 @@ class ModelConfig(BoostSettings):
 
 
 class SelectionConfig(Section):
-    """``[selection]``: BaseBoostCV's folds (contiguous unless ``shuffle``; whole groups of rows
-    when the dataset has groups, unless ``groups = false``) and scoring; with candidates,
-    ``ensemble``: the mean of that many best candidates is a candidate too
-    (:class:`~workbench.selection.BasisChoiceCV`; 1: none).
+    """``[selection]``: BaseBoostCV's folds and scoring.
+
+    The folds are contiguous unless ``shuffle``, and keep whole groups of rows when the
+    dataset has groups, unless ``groups = false``. With candidates, ``ensemble``: the mean of
+    that many best candidates is a candidate too (:class:`~workbench.selection.BasisChoiceCV`;
+    1: none).
     """
 
     cv: int = Field(default=5, ge=2, le=10_000)
@@ -89,9 +97,11 @@ class SelectionConfig(Section):
 
 
 class EvaluationConfig(Section):
-    """``[evaluation]``: ``cv_repeats`` > 0 adds a repeated ``cv_folds``-fold CV of the chosen
-    model on the training rows (``RepeatedKFold`` seeded by ``cv_seed``); ``nested_folds`` > 0
-    adds a nested CV over all rows, every choice remade inside each outer fold.
+    """``[evaluation]``: the extra estimates of the chosen model's error.
+
+    ``cv_repeats`` > 0 adds a repeated ``cv_folds``-fold CV of the chosen model on the
+    training rows (``RepeatedKFold`` seeded by ``cv_seed``); ``nested_folds`` > 0 adds a
+    nested CV over all rows, every choice remade inside each outer fold.
     """
 
     cv_folds: int = Field(default=5, ge=2, le=10_000)
@@ -112,8 +122,9 @@ _Conformal = ParameterOf(ConformalRegressor)
 
 
 class IntervalsConfig(Section):
-    """``[intervals]``: conformal prediction intervals around the fitted model
-    (:class:`~workbench.conformal.ConformalRegressor`), ``1 - alpha`` per target. ``method``
+    """``[intervals]``: conformal prediction intervals around the fitted model.
+
+    A :class:`~workbench.conformal.ConformalRegressor` of level ``1 - alpha`` per target. ``method``
     "oof" takes the out-of-fold residuals of the CV the model already ran to make its
     choices and centres ``+- q`` on the model fitted on all rows: no extra fit (``cv`` is
     then unused: the model's own folds count); absent, the family's default
@@ -144,8 +155,10 @@ class CVConfig(Section):
 
 
 class StudyConfig(Section):
-    """``[study]``: the Optuna studies of a sweep. ``storage``: a journal file path (one
-    machine, several processes) or an RDB URL such as ``postgresql://...`` (machines).
+    """``[study]``: the Optuna studies of a sweep.
+
+    ``storage``: a journal file path (one machine, several processes) or an RDB URL such as
+    ``postgresql://...`` (machines).
     """
 
     trials: int = Field(default=20, ge=1, le=1_000_000)
@@ -159,8 +172,10 @@ class StudyConfig(Section):
 
 
 class TrackingConfig(Section):
-    """``[tracking]``: MLflow; ``tracking_uri`` None means $MLFLOW_TRACKING_URI or
-    ``sqlite:///mlruns/mlflow.db``; ``experiment`` None means the config's name.
+    """``[tracking]``: where MLflow records.
+
+    ``tracking_uri`` None means $MLFLOW_TRACKING_URI or ``sqlite:///mlruns/mlflow.db``;
+    ``experiment`` None means the config's name.
     """
 
     tracking_uri: str | None = None

@@ -1,5 +1,6 @@
-"""Checks of a target's boosting settings against the estimators they make: basis and
-transform names, and their parameters against each estimator's own constraints
+"""Checks of a target's boosting settings against the estimators they make.
+
+Basis and transform names, and their parameters against each estimator's own constraints
 (scikit-learn's ``_parameter_constraints``, read by ``validate_parameter_constraints``).
 """
 

@@ -21,7 +21,8 @@ from __future__ import annotations
 import importlib.metadata
 import logging
 
-from .base import Artifacts, ModelFamily
+from .artifacts import Artifacts
+from .base import ModelFamily
 from .eigenvalue import EigenvalueFamily
 from .hamiltonian import HamiltonianFamily
 
@@ -64,8 +65,9 @@ def register_family(family: ModelFamily) -> ModelFamily:
 
 
 def discover_families() -> list[str]:
-    """Register the families other packages declare as entry points of
-    :data:`ENTRY_POINT_GROUP`, each once.
+    """Register the families other packages declare as entry points, each once.
+
+    The entry point group is :data:`ENTRY_POINT_GROUP`.
 
     An entry point names a :class:`ModelFamily` subclass (instantiated without arguments)
     or an instance. One that cannot be loaded is logged and left out: a broken plug-in

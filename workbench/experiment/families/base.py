@@ -1,32 +1,33 @@
-"""The model-family interface, with defaults for a family whose one model predicts every
-target together (a sweep's study unit is then "all targets")."""
+"""The model-family interface.
+
+Its defaults suit a family whose one model predicts every target together (a sweep's study
+unit is then "all targets"); the part that reports a fitted model is
+:class:`~workbench.experiment.families.artifacts.ResultMethods`.
+"""
 
 from __future__ import annotations
 
 import dataclasses
-import warnings
-from dataclasses import dataclass, field
-from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, ClassVar
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 import pandas as pd
 from pydantic import BaseModel, ValidationError
 from sklearn.base import clone
-from sklearn.exceptions import ConvergenceWarning
 
-from ..._io import atomic_write
 from ...design import DesignProblem, ensemble_blocks, robust_sd
-from ..errors import listing
-from ..figures import save_figure
-from ..results import ModelScores, Scores, mae, mse
+from ..errors import clip, listing
+from ..results import mae
 from ..space import SearchSpace, SpaceError
+from .artifacts import ResultMethods
+from .fitting import quiet_fit
 
 if TYPE_CHECKING:
     from ...datasets import Dataset
     from ..config import DataConfig, ExperimentConfig
 
-__all__ = ["ALL_TARGETS", "Artifacts", "ModelFamily", "Report"]
+__all__ = ["ALL_TARGETS", "ModelFamily", "Report"]
 
 #: The study unit of a family whose one model predicts every target.
 ALL_TARGETS = "all"
@@ -38,39 +39,12 @@ DESIGN_FOLDS = 5
 Report = Callable[[int, float, float], None]
 
 
-@dataclass
-class Artifacts:
-    """A fitted model's extra outputs: figures (name -> matplotlib Figure), tables (name ->
-    DataFrame, written as CSV without the index) and JSON-ready data."""
+class ModelFamily(ResultMethods):
+    """One kind of model.
 
-    figures: dict[str, Any] = field(default_factory=dict)
-    tables: dict[str, pd.DataFrame] = field(default_factory=dict)
-    data: dict[str, Any] = field(default_factory=dict)
-
-    def write(self, directory, *, tables: bool = True, figures: bool = True) -> dict[str, Any]:
-        """Tables as ``<directory>/<name>.csv`` (no index column), figures as PNG; returns
-        name -> path."""
-        directory = Path(directory)
-        directory.mkdir(parents=True, exist_ok=True)
-        written: dict[str, Any] = {}
-        for name, table in (self.tables.items() if tables else ()):
-            written[name] = atomic_write(directory / f"{name}.csv", table.to_csv(index=False))
-        for name, fig in (self.figures.items() if figures else ()):
-            written[name] = save_figure(fig, directory / f"{name}.png")
-        return written
-
-
-def quiet_fit(model, X, y):
-    """``model.fit(X, y)`` without scikit-learn's convergence warnings (an MLP's max_iter is
-    the search's business, not noise)."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ConvergenceWarning)
-        return model.fit(X, y)
-
-
-class ModelFamily:
-    """One kind of model. Subclasses set :attr:`name` and implement :meth:`build`; the other
-    methods have defaults for a family whose one model predicts every target at once."""
+    Subclasses set :attr:`name` and implement :meth:`build`; the other methods have defaults
+    for a family whose one model predicts every target at once.
+    """
 
     #: The value of ``[model] family``.
     name: ClassVar[str] = ""
@@ -85,15 +59,26 @@ class ModelFamily:
     #: "cv_plus" (the model refitted once per fold).
     interval_method: ClassVar[str] = "cv_plus"
 
-    @property
-    def writes_outputs(self) -> bool:
-        """Whether :meth:`outputs` has tables and figures for ``evaluate --out`` (the family
-        overrides it)."""
-        return type(self).outputs is not ModelFamily.outputs
-
     # ------------------------------------------------------------------ config
     def parse_settings(self, table: dict[str, Any] | None) -> BaseModel | None:
-        """``[model.<name>]``, validated (``None`` when the family has no settings)."""
+        """Validate ``[model.<name>]``.
+
+        Parameters
+        ----------
+        table : dict or None
+            The table as read (``None``: not given).
+
+        Returns
+        -------
+        BaseModel or None
+            The settings (``None`` when the family has no settings).
+
+        Raises
+        ------
+        ValueError
+            For a table given to a family without settings (pydantic's ``ValidationError``,
+            a ``ValueError``, for bad values).
+        """
         if self.settings is None:
             if table:
                 raise ValueError(f"family {self.name!r} has no settings of its own")
@@ -101,8 +86,25 @@ class ModelFamily:
         return self.settings.model_validate(table or {})
 
     def parse_search(self, table: dict[str, Any]) -> SearchSpace:
-        """``[search]``, with ``[search.<name>]`` varying this family's settings (each value a
-        search can take is checked against :attr:`settings`)."""
+        """Parse ``[search]``, with ``[search.<name>]`` varying this family's settings.
+
+        Each value a search can take is checked against :attr:`settings`.
+
+        Parameters
+        ----------
+        table : dict
+            The ``[search]`` table as read.
+
+        Returns
+        -------
+        SearchSpace
+            The checked search space.
+
+        Raises
+        ------
+        SpaceError
+            For an unknown key or a value the settings refuse.
+        """
         return SearchSpace.from_table(table, family=self.name if self.settings else None,
                                       check=self._check_setting)
 
@@ -111,7 +113,7 @@ class ModelFamily:
         assert settings is not None  # [search.<name>] is read only with settings (parse_search)
         fields_ = settings.model_fields
         if key not in fields_:
-            shown = key if len(key) <= 40 else key[:37] + "..."
+            shown = clip(key, 40)
             raise SpaceError(f"{self.name}.{shown}: unknown key; valid keys are "
                              f"{listing(sorted(fields_))}")
         try:
@@ -122,22 +124,75 @@ class ModelFamily:
                              f"{err['msg'].removeprefix('Value error, ')}") from None
 
     def check_data(self, data: DataConfig) -> None:
-        """Raise ``ValueError`` when ``[data]`` cannot feed this family."""
+        """Check that ``[data]`` can feed this family.
+
+        Parameters
+        ----------
+        data : DataConfig
+            The config's ``[data]``.
+
+        Raises
+        ------
+        ValueError
+            When it cannot (default: every ``[data]`` can).
+        """
 
     # ------------------------------------------------------------------ the model
     def inputs(self, cfg: ExperimentConfig, ds: Dataset) -> pd.DataFrame:
-        """The frame the family's model reads (rows: every experiment)."""
+        """Make the frame the family's model reads.
+
+        Parameters
+        ----------
+        cfg : ExperimentConfig
+            The config.
+        ds : Dataset
+            Its dataset.
+
+        Returns
+        -------
+        DataFrame
+            One row per experiment (default: the dataset's features and prior, ``ds.X``).
+        """
         return ds.X
 
-    def build(self, cfg: ExperimentConfig, ds: Dataset):
-        """The config's unfitted model over every target (``predict`` returns a frame with
-        one column per target)."""
+    def build(self, cfg: ExperimentConfig, ds: Dataset) -> Any:
+        """Build the config's unfitted model over every target.
+
+        Parameters
+        ----------
+        cfg : ExperimentConfig
+            The config (with a search's choices, if any).
+        ds : Dataset
+            Its dataset.
+
+        Returns
+        -------
+        estimator
+            Its ``predict`` returns one column per target.
+        """
         raise NotImplementedError
 
-    def with_trial(self, cfg: ExperimentConfig, trial, targets: list[str]) -> ExperimentConfig:
-        """``cfg`` with a trial's values (an Optuna trial, or ``FixedTrial`` of a finished
-        one): the ``[search]`` entries for these targets' boosting settings (one parameter
-        shared by them) and the ``[search.<name>]`` entries for the family's settings."""
+    def with_trial(self, cfg: ExperimentConfig, trial: Any,
+                   targets: list[str]) -> ExperimentConfig:
+        """Return ``cfg`` with a trial's values.
+
+        The ``[search]`` entries for these targets' boosting settings (one parameter shared
+        by them) and the ``[search.<name>]`` entries for the family's settings.
+
+        Parameters
+        ----------
+        cfg : ExperimentConfig
+            The config.
+        trial : optuna.trial.BaseTrial
+            An Optuna trial, or ``FixedTrial`` of a finished one.
+        targets : list of str
+            The study unit's targets.
+
+        Returns
+        -------
+        ExperimentConfig
+            The copy with the trial's choices.
+        """
         chosen = dict(cfg.chosen)
         if cfg.search.table:
             chosen.update({t: cfg.search.sample(trial, cfg.model_for(t)) for t in targets})
@@ -146,20 +201,62 @@ class ModelFamily:
             settings = cfg.search.sample_family(trial, settings)
         return dataclasses.replace(cfg, chosen=chosen, family_settings=settings)
 
-    def fixed_choices(self, model):
-        """An unfitted copy of a fitted model that keeps the choices it made on its training
-        rows where refitting would remake them differently (default: a clone)."""
+    def fixed_choices(self, model: Any) -> Any:
+        """Return an unfitted copy of a fitted model that keeps the choices it made.
+
+        The choices made on its training rows are kept where refitting would remake them
+        differently.
+
+        Parameters
+        ----------
+        model : estimator
+            The family's fitted model.
+
+        Returns
+        -------
+        estimator
+            Unfitted (default: a clone).
+        """
         return clone(model)
 
     # ------------------------------------------------------------------ sweeps
     def units(self, targets: list[str]) -> dict[str, list[str]]:
-        """A sweep's study units: unit name -> the targets its studies choose for."""
+        """Group the targets into a sweep's study units.
+
+        Parameters
+        ----------
+        targets : list of str
+            The dataset's targets.
+
+        Returns
+        -------
+        dict
+            Unit name -> the targets its studies choose for (default: one unit, all).
+        """
         return {ALL_TARGETS: list(targets)}
 
-    def objective(self, cfg: ExperimentConfig, ds: Dataset, targets: list[str], X, Y, trial,
-                  cv, report: Report) -> None:
-        """Score a trial on a study's rows by inner CV: ``report(fold, mae, prior_mae)``
-        after each fold (MAE averaged over ``targets``)."""
+    def objective(self, cfg: ExperimentConfig, ds: Dataset, targets: list[str], X: pd.DataFrame,
+                  Y: pd.DataFrame, trial: Any, cv: Any, report: Report) -> None:
+        """Score a trial on a study's rows by inner CV.
+
+        Parameters
+        ----------
+        cfg : ExperimentConfig
+            The config.
+        ds : Dataset
+            Its dataset.
+        targets : list of str
+            The study unit's targets.
+        X, Y : DataFrame
+            The study's rows: inputs and the unit's targets.
+        trial : optuna.trial.Trial
+            The trial.
+        cv : cross-validator
+            The inner folds.
+        report : callable
+            ``report(fold, mae, prior_mae)``, called after each fold (MAE averaged over
+            ``targets``).
+        """
         model = self.build(self.with_trial(cfg, trial, targets), ds)
         prior = ds.prior.loc[X.index].to_numpy()[:, [ds.target_names.index(t) for t in targets]]
         for i, (train, val) in enumerate(cv.split(X)):
@@ -169,10 +266,32 @@ class ModelFamily:
             report(i, float(np.mean(mae(y_val, pred))), float(np.mean(mae(y_val, prior[val]))))
 
     def refit_predict(self, cfg: ExperimentConfig, ds: Dataset, targets: list[str],
-                      params: dict[str, Any], X, Y, train, val) -> tuple[np.ndarray, str]:
-        """An outer fold: a study's best settings refitted on ``train`` rows; returns the
-        predictions on ``val`` rows (one column per target of the unit) and what was
-        selected."""
+                      params: dict[str, Any], X: pd.DataFrame, Y: pd.DataFrame, train: Any,
+                      val: Any) -> tuple[np.ndarray, str]:
+        """Refit a study's best settings on an outer fold's ``train`` rows, predict ``val``.
+
+        Parameters
+        ----------
+        cfg : ExperimentConfig
+            The config.
+        ds : Dataset
+            Its dataset.
+        targets : list of str
+            The study unit's targets.
+        params : dict
+            The study's best trial's parameters.
+        X, Y : DataFrame
+            The rows: inputs and the unit's targets.
+        train, val : array-like of int
+            Positions of the fold's training and validation rows.
+
+        Returns
+        -------
+        pred : ndarray
+            Predictions on ``val`` rows, one column per target of the unit.
+        selected : str
+            What was selected, comma-separated.
+        """
         from optuna.trial import FixedTrial  # (b) Optuna: not for evaluate
 
         model = self.build(self.with_trial(cfg, FixedTrial(params), targets), ds)
@@ -182,8 +301,23 @@ class ModelFamily:
 
     def chosen_config(self, cfg: ExperimentConfig, ds: Dataset,
                       best: dict[str, dict[str, Any] | None]) -> ExperimentConfig:
-        """``cfg`` with the final studies' choices (unit -> best params; a unit without a
-        completed trial keeps the config's own settings)."""
+        """Return ``cfg`` with the final studies' choices.
+
+        Parameters
+        ----------
+        cfg : ExperimentConfig
+            The config.
+        ds : Dataset
+            Its dataset.
+        best : dict
+            Unit -> best params; a unit without a completed trial (``None``) keeps the
+            config's own settings.
+
+        Returns
+        -------
+        ExperimentConfig
+            The copy with the choices.
+        """
         from optuna.trial import FixedTrial  # (b) Optuna: not for evaluate
 
         for unit, targets in self.units(ds.target_names).items():
@@ -192,22 +326,50 @@ class ModelFamily:
                 cfg = self.with_trial(cfg, FixedTrial(params), targets)
         return cfg
 
-    def final_model(self, cfg: ExperimentConfig, ds: Dataset):
-        """The unfitted model a sweep refits on all training rows (``cfg`` holds its
-        choices, from :meth:`chosen_config`)."""
+    def final_model(self, cfg: ExperimentConfig, ds: Dataset) -> Any:
+        """Build the unfitted model a sweep refits on all training rows.
+
+        Parameters
+        ----------
+        cfg : ExperimentConfig
+            The config with the sweep's choices (:meth:`chosen_config`).
+        ds : Dataset
+            Its dataset.
+
+        Returns
+        -------
+        estimator
+            Unfitted.
+        """
         return self.build(cfg, ds)
 
     # ------------------------------------------------------------------ design
-    def design_problem(self, model, X: pd.DataFrame, Y: pd.DataFrame,
+    def design_problem(self, model: Any, X: pd.DataFrame, Y: pd.DataFrame,
                        candidates: pd.DataFrame, random_state: int | None = None
                        ) -> DesignProblem:
-        """What the ``model`` fitted on ``X``, ``Y`` does not know at the ``candidates``
-        (frames of :meth:`inputs`' columns), for ``workbench design``.
+        """Say what the ``model`` fitted on ``X``, ``Y`` does not know at the ``candidates``.
 
-        Default: the spread of :data:`DESIGN_FOLDS` fold models (the fitted model's choices
-        kept, :meth:`fixed_choices`, each refitted without one fold of the rows), with each
-        target's noise sd the robust sd of the fold models' out-of-fold residuals
-        (:func:`~workbench.design.ensemble_blocks`)."""
+        For ``workbench design``. Default: the spread of :data:`DESIGN_FOLDS` fold models
+        (the fitted model's choices kept, :meth:`fixed_choices`, each refitted without one
+        fold of the rows), with each target's noise sd the robust sd of the fold models'
+        out-of-fold residuals (:func:`~workbench.design.ensemble_blocks`).
+
+        Parameters
+        ----------
+        model : estimator
+            The family's model, fitted on ``X``, ``Y``.
+        X, Y : DataFrame
+            The measured rows: :meth:`inputs`' columns and the targets.
+        candidates : DataFrame
+            The candidate settings, :meth:`inputs`' columns.
+        random_state : int, optional
+            Seeds the folds.
+
+        Returns
+        -------
+        DesignProblem
+            The information blocks of the candidates and the noise sd per target.
+        """
         from sklearn.model_selection import KFold
 
         folds = KFold(min(DESIGN_FOLDS, len(X)), shuffle=True,
@@ -225,66 +387,3 @@ class ModelFamily:
         return DesignProblem(blocks, information, noise, names,
                              f"the spread of {k} fold models",
                              informs="the fold models' spread of {name} falls {fraction:.0%}")
-
-    # ------------------------------------------------------------------ results
-    def selected(self, model, targets: list[str]) -> list[str]:
-        """What the fitted model chose per target (default: its ``selected_`` or "model")."""
-        return list(getattr(model, "selected_", ["model"] * len(targets)))
-
-    def scores(self, ds: Dataset, model, Y_train: pd.DataFrame,
-               prior_test, y_test, pred) -> tuple[Scores, ModelScores, dict[str, Any]]:
-        """Prior and model scores of a fitted model, and the family's JSON-ready details.
-
-        Default: no CV inside the model, so the prior's CV error is its training error (it
-        is not fitted) and the model's CV error is unknown (NaN) unless ``[evaluation]``
-        asks for a repeated CV."""
-        prior_train = ds.prior.loc[Y_train.index].to_numpy()
-        nan = [float("nan")] * len(ds.target_names)
-        prior = Scores(test_mae=mae(y_test, prior_test), test_mse=mse(y_test, prior_test),
-                       cv_mae=mae(Y_train, prior_train), cv_mse=mse(Y_train, prior_train))
-        scores = ModelScores(test_mae=mae(y_test, pred), test_mse=mse(y_test, pred),
-                             cv_mae=list(nan), cv_mse=list(nan),
-                             selected=self.selected(model, ds.target_names))
-        return prior, scores, {}
-
-    def begin_artifacts(self, cfg: ExperimentConfig, ds: Dataset, model, setting: str,
-                        quick: bool = False) -> Callable[..., Artifacts]:
-        """The figures and tables logged with a run (beside the MAE/MSE bars every run has).
-
-        In two halves: start what can run on the worker processes (e.g. learning-curve
-        fits) and return a function ``finish(emit=None)`` that waits for it, draws the
-        figures and returns the :class:`Artifacts`, so the run's other records are written
-        meanwhile. ``emit(name, figure)``, if given, receives every figure as soon as it is
-        drawn (e.g. to log it while later ones are computed).
-
-        Parameters
-        ----------
-        cfg : ExperimentConfig
-            The run's config.
-        ds : Dataset
-            The run's dataset.
-        model : estimator
-            The family's fitted model.
-        setting : str
-            What the figures' titles say the run was.
-        quick : bool, default=False
-            Fewer points and rows (tests).
-
-        Returns
-        -------
-        callable
-            ``finish(emit=None) -> Artifacts``. Default: nothing started; ``finish``
-            returns :meth:`outputs` (or nothing).
-        """
-        def finish(emit=None) -> Artifacts:
-            out = self.outputs(model, ds, setting) or Artifacts()
-            for name, fig in out.figures.items():
-                if emit is not None:
-                    emit(name, fig)
-            return out
-
-        return finish
-
-    def outputs(self, model, ds: Dataset, setting: str) -> Artifacts | None:
-        """What ``evaluate --out DIR`` writes (``None``: the family writes nothing)."""
-        return None

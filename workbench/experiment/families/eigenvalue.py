@@ -12,7 +12,8 @@ import logging
 import queue
 import threading
 import warnings
-from typing import TYPE_CHECKING
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from sklearn.exceptions import ConvergenceWarning
@@ -20,12 +21,22 @@ from sklearn.model_selection import KFold
 
 from ...curves import learning_curve_plan, selection_curve_plan
 from ...multitarget import MultiTargetBaseBoost
-from ...parallel import Task, effective_n_jobs, gather, prioritised, run_plans, start_workers
+from ...parallel import (
+    Plan,
+    Task,
+    effective_n_jobs,
+    gather,
+    prioritised,
+    run_plans,
+    start_workers,
+)
 from ...selection import BaseBoostCV, BasisChoiceCV
 from ..explain import target_shap_values
 from ..figures import correction_shap_figure, learning_curve_figure, shap_figure
 from ..results import ModelScores, Scores, mae, mse
-from .base import Artifacts, ModelFamily, quiet_fit
+from .artifacts import Artifacts
+from .base import ModelFamily, Report
+from .fitting import quiet_fit
 from .stage import (
     booster_cv,
     candidate_choices,
@@ -36,6 +47,8 @@ from .stage import (
 )
 
 if TYPE_CHECKING:
+    import pandas as pd
+
     from ...datasets import Dataset
     from ..config import ExperimentConfig
 
@@ -49,7 +62,22 @@ CURVE_POINTS = 3
 
 
 def curve_sizes(n_rows: int, folds: int, points: int = CURVE_POINTS) -> list[int]:
-    """Training sizes from a quarter of the fold-training size up to all of it."""
+    """Choose training sizes from a quarter of the fold-training size up to all of it.
+
+    Parameters
+    ----------
+    n_rows : int
+        The training rows.
+    folds : int
+        The folds they are split into.
+    points : int, default=CURVE_POINTS
+        How many sizes at most (equal sizes merge).
+
+    Returns
+    -------
+    list of int
+        The sizes, increasing.
+    """
     largest = n_rows - -(-n_rows // folds)  # rows left for training in the largest fold
     return sorted({int(s) for s in np.linspace(max(5, largest // 4), largest, points)})
 
@@ -61,19 +89,27 @@ class EigenvalueFamily(ModelFamily):
     cv_from_repeats = False  # BaseBoostCV's own folds give the CV figures
     interval_method = "oof"  # BaseBoostCV keeps its out-of-fold predictions
 
-    def build(self, cfg: ExperimentConfig, ds: Dataset):
+    def build(self, cfg: ExperimentConfig, ds: Dataset) -> MultiTargetBaseBoost:
+        """Build one BaseBoostCV per target, each boosting from its prior column."""
         return per_target_boost(cfg, ds, ds.prior_names)
 
     def units(self, targets: list[str]) -> dict[str, list[str]]:
+        """Make each target a study unit of its own."""
         return {t: [t] for t in targets}
 
-    def objective(self, cfg, ds, targets, X, Y, trial, cv, report) -> None:
+    def objective(self, cfg: ExperimentConfig, ds: Dataset, targets: list[str],
+                  X: pd.DataFrame, Y: pd.DataFrame, trial: Any, cv: Any,
+                  report: Report) -> None:
+        """Score a trial by BaseBoostCV's own fold scores, reported fold by fold."""
         (target,) = targets
         settings = self.with_trial(cfg, trial, targets).model_for(target)
         model = booster_cv(cfg, ds, target, settings, cv, refit=False)
         quiet_fit_callback(model, X, Y[target].to_numpy(), report)
 
-    def refit_predict(self, cfg, ds, targets, params, X, Y, train, val):
+    def refit_predict(self, cfg: ExperimentConfig, ds: Dataset, targets: list[str],
+                      params: dict[str, Any], X: pd.DataFrame, Y: pd.DataFrame, train: Any,
+                      val: Any) -> tuple[np.ndarray, str]:
+        """Refit the target's best settings on the outer fold (inner folds ``[cv]``)."""
         from optuna.trial import FixedTrial  # (b) Optuna: not for evaluate
 
         (target,) = targets
@@ -82,15 +118,20 @@ class EigenvalueFamily(ModelFamily):
         quiet_fit(model, X.iloc[train], Y[target].to_numpy()[train])
         return np.asarray(model.predict(X.iloc[val])).reshape(-1, 1), model.selected_
 
-    def final_model(self, cfg: ExperimentConfig, ds: Dataset):
-        """The final model of a sweep: the chosen settings, each target's BaseBoostCV on the
-        sweep's inner folds (as in the search)."""
+    def final_model(self, cfg: ExperimentConfig, ds: Dataset) -> MultiTargetBaseBoost:
+        """Build the final model of a sweep.
+
+        The chosen settings, each target's BaseBoostCV on the sweep's inner folds (as in the
+        search).
+        """
         return MultiTargetBaseBoost(target_estimators={
             t: booster_cv(cfg, ds, t, cfg.model_for(t), cfg_inner_cv(cfg),
                           return_train_score=True)  # the curves reuse its folds
             for t in ds.target_names}, random_state=cfg.random_state, n_jobs=cfg.jobs)
 
-    def scores(self, ds, model, Y_train, prior_test, y_test, pred):
+    def scores(self, ds: Dataset, model: Any, Y_train: pd.DataFrame, prior_test: Any,
+               y_test: Any, pred: Any) -> tuple[Scores, ModelScores, dict[str, Any]]:
+        """Score prior and model, the CV figures from each target's BaseBoostCV."""
         s = stage_scores(model.estimators_, Y_train.to_numpy(dtype=float))
         prior = Scores(test_mae=mae(y_test, prior_test), test_mse=mse(y_test, prior_test),
                        cv_mae=s["prior_cv_mae"], cv_mse=s["prior_cv_mse"])
@@ -100,8 +141,9 @@ class EigenvalueFamily(ModelFamily):
                              extra={"cv_mae_boosted": s["boosted_cv_mae"]})
         return prior, scores, candidate_choices(ds.target_names, model.estimators_)
 
-    def begin_artifacts(self, cfg, ds, model, setting, quick=False):
-        """An augmented learning curve and two SHAP summaries per target.
+    def begin_artifacts(self, cfg: ExperimentConfig, ds: Dataset, model: Any, setting: str,
+                        quick: bool = False) -> Callable[..., Artifacts]:
+        """Start an augmented learning curve and two SHAP summaries per target.
 
         A BaseBoostCV's curve is drawn on its own selection folds, with its candidate as
         seeded there, at :data:`CURVE_POINTS` sizes: the whole-fold points are the
@@ -114,21 +156,22 @@ class EigenvalueFamily(ModelFamily):
         whole prediction (``shap_<target>``, dominated by its prior) and, on the same rows
         over the same background, its correction, model - prior, what boosting learned
         (``shap_correction_<target>``; a note instead where the model is the prior)
-        (:func:`~workbench.experiment.explain.target_shap_values`)."""
+        (:func:`~workbench.experiment.explain.target_shap_values`).
+        """
         log = logging.getLogger("workbench")
         X_train, _, y_train, _ = ds.split()
         sizes = curve_sizes(len(X_train), cfg.selection.cv)
         log.info("[%s] figures: learning curves at sizes %s and SHAP summaries of %d targets "
                  "(%d processes)", cfg.name, sizes, len(ds.target_names),
                  effective_n_jobs(cfg.jobs))
-        results: queue.Queue = queue.Queue()
+        results: queue.Queue[Any] = queue.Queue()
         n_targets = len(ds.target_names)
         plans = [prioritised(_reported(_target_plan(cfg, est, X_train, y_train[target].to_numpy(),
                                                     sizes), j, results),
                              (n_targets - j) * 10 ** 7)  # target j's tasks before j + 1's
                  for j, (target, est) in enumerate(zip(ds.target_names, model.estimators_))]
 
-        def work():
+        def work() -> None:
             try:
                 run_plans(plans, cfg.jobs)
             except BaseException as exc:  # re-raised by finish()
@@ -137,8 +180,8 @@ class EigenvalueFamily(ModelFamily):
         start_workers(cfg.jobs)  # never fork from the thread
         threading.Thread(target=work, name="workbench-artifacts", daemon=True).start()
 
-        def finish(emit=None) -> Artifacts:
-            drawn: dict[int, tuple] = {}
+        def finish(emit: Callable[[str, Any], None] | None = None) -> Artifacts:
+            drawn: dict[int, tuple[Any, dict[str, Any]]] = {}
             while len(drawn) < n_targets:
                 item = results.get()
                 if isinstance(item, BaseException):
@@ -168,8 +211,9 @@ class EigenvalueFamily(ModelFamily):
         return finish
 
 
-def _target_plan(cfg: ExperimentConfig, est, X_train, y, sizes: list[int]):
-    """One target's learning curve and SHAP values, as a plan (:mod:`workbench.parallel`)."""
+def _target_plan(cfg: ExperimentConfig, est: Any, X_train: pd.DataFrame, y: np.ndarray,
+                 sizes: list[int]) -> Plan:
+    """Plan one target's learning curve and SHAP values (:mod:`workbench.parallel`)."""
     if isinstance(est, BaseBoostCV) and not isinstance(est, BasisChoiceCV):
         # its own folds (a sweep's final model: the inner folds)
         own = curve_sizes(len(X_train), len(est.cv_splits_))
@@ -186,25 +230,46 @@ def _target_plan(cfg: ExperimentConfig, est, X_train, y, sizes: list[int]):
     return gather([curve, _all([shap])])
 
 
-def _reported(plan, key, results):
-    """``plan``, putting ``(key, its result)`` on the queue ``results`` when it ends."""
+def _reported(plan: Plan, key: int, results: queue.Queue[Any]) -> Plan:
+    """Run ``plan``, putting ``(key, its result)`` on the queue ``results`` when it ends."""
     value = yield from plan
     results.put((key, value))
     return value
 
 
-def _all(tasks):
-    """A plan of independent tasks (:mod:`workbench.parallel`)."""
+def _all(tasks: list[Task]) -> Plan:
+    """Plan independent tasks (:mod:`workbench.parallel`)."""
     return (yield tasks)
 
 
-def cfg_inner_cv(cfg: ExperimentConfig):
-    """A sweep's inner folds (``[cv]``)."""
+def cfg_inner_cv(cfg: ExperimentConfig) -> KFold:
+    """Make a sweep's inner folds (``[cv]``).
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The config.
+
+    Returns
+    -------
+    KFold
+        ``inner_folds`` shuffled folds seeded by ``[cv] seed``.
+    """
     return KFold(cfg.cv.inner_folds, shuffle=True, random_state=cfg.cv.seed)
 
 
-def quiet_fit_callback(model, X, y, report) -> None:
-    """Fit a BaseBoostCV, reporting each fold's boosted and prior MAE as it finishes."""
+def quiet_fit_callback(model: Any, X: Any, y: Any, report: Report) -> None:
+    """Fit a BaseBoostCV, reporting each fold's boosted and prior MAE as it finishes.
+
+    Parameters
+    ----------
+    model : BaseBoostCV
+        The model to fit (convergence warnings silenced).
+    X, y : array-like
+        The training rows.
+    report : callable
+        ``report(fold, mae, prior_mae)``.
+    """
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
         model.fit(X, y, fold_callback=lambda i, prior_score, boosted_score:

@@ -12,7 +12,8 @@ are ``[model.hamiltonian]`` (:class:`HamiltonianSettings`); a sweep varies them 
 What the model learned is written as tables and figures:
 
 * ``coefficients``: the selected covariates and coefficients per Hamiltonian parameter
-  (MHz per standard deviation of the covariate, and that standard deviation);
+  (in the targets' unit per standard deviation of the covariate, and that standard
+  deviation);
 * ``corrected_parameters``: per experiment, each parameter's control-model value, corrected
   value and correction, and whether the row is a training or a test row;
 * ``selection_path``: the forward selection's CV MAE after each added covariate;
@@ -38,7 +39,8 @@ from ...param_select import HamiltonianSelectionCV, candidate_pool
 from ..errors import ConfigError
 from ..results import ModelScores, Scores, mae, mse
 from ..schema import ParameterOf, Section
-from .base import Artifacts, ModelFamily
+from .artifacts import Artifacts
+from .base import ModelFamily
 from .hamiltonian_figures import parameter_corrections, selection_path_figure
 from .stage import per_target_boost, stage_scores
 
@@ -60,8 +62,10 @@ _Selection = ParameterOf(HamiltonianSelectionCV)
 
 
 class HamiltonianSettings(Section):
-    """``[model.hamiltonian]``. ``start``: covariates every model has ("default": the default
-    library, "none": intercepts only); ``candidates``: the pool ("physical": with neighbours,
+    """``[model.hamiltonian]``: the parameter-space model's settings.
+
+    ``start``: covariates every model has ("default": the default library, "none":
+    intercepts only); ``candidates``: the pool ("physical": with neighbours,
     "local": without, "none"); ``selection``: "forward" (forward selection by CV from start
     over the pool, every candidate refitted), "linearised" (the same, candidates scored by one
     Gauss-Newton step: scales to large devices) or "none" (start and pool together,
@@ -73,7 +77,8 @@ class HamiltonianSettings(Section):
     HamiltonianSelectionCV's: their values are checked against the estimators'
     ``_parameter_constraints``. The ``le`` caps are the config's own, declared by no
     estimator: they keep a typo (a million folds, repeats, iterations or steps, each more
-    fits) from running for days."""
+    fits) from running for days.
+    """
 
     loss: Annotated[str, _Regressor] = "huber"
     huber_delta: Annotated[float, _Regressor] = 0.5
@@ -102,11 +107,34 @@ class HamiltonianSettings(Section):
     crosstalk: bool = False
 
 
-def make_hamiltonian(settings: HamiltonianSettings, ds: Dataset, *, random_state=None,
-                     n_jobs=None):
-    """The parameter-space model that ``[model.hamiltonian]`` describes: a
-    :class:`HamiltonianSelectionCV` (``selection = "forward"``) or a
-    :class:`HamiltonianParameterRegressor` with the start and pool covariates together."""
+def make_hamiltonian(settings: HamiltonianSettings, ds: Dataset, *,
+                     random_state: int | None = None, n_jobs: int | None = None
+                     ) -> HamiltonianParameterRegressor | HamiltonianSelectionCV:
+    """Make the parameter-space model that ``[model.hamiltonian]`` describes.
+
+    Parameters
+    ----------
+    settings : HamiltonianSettings
+        ``[model.hamiltonian]``.
+    ds : Dataset
+        The dataset (its Hamiltonian columns).
+    random_state : int, optional
+        Seeds the selection's folds.
+    n_jobs : int, optional
+        The selection's processes.
+
+    Returns
+    -------
+    HamiltonianSelectionCV or HamiltonianParameterRegressor
+        A :class:`HamiltonianSelectionCV` (``selection = "forward"`` or ``"linearised"``),
+        or a :class:`HamiltonianParameterRegressor` with the start and pool covariates
+        together (``selection = "none"``); unfitted.
+
+    Raises
+    ------
+    ConfigError
+        For a dataset without Hamiltonian parameters.
+    """
     ham = ds.hamiltonian
     if ham is None:
         raise ConfigError(f"family = \"hamiltonian\" needs a dataset with Hamiltonian "
@@ -115,12 +143,13 @@ def make_hamiltonian(settings: HamiltonianSettings, ds: Dataset, *, random_state
     on, co = list(ham.onsite.columns), list(ham.couplings.columns)
     edges = ham.edge_list
     parasitic = None if s.parasitic == "none" else s.parasitic
-    graph = dict(edges=edges, parasitic=parasitic)
-    common = dict(onsite=on, couplings=co, sign=ham.sign, loss=s.loss,
-                  huber_delta=float(s.huber_delta), alpha=float(s.alpha),
-                  alpha_l1=float(s.alpha_l1), max_iter=s.max_iter, **graph)
+    graph: dict[str, Any] = dict(edges=edges, parasitic=parasitic)
+    common: dict[str, Any] = dict(onsite=on, couplings=co, sign=ham.sign, loss=s.loss,
+                                  huber_delta=float(s.huber_delta), alpha=float(s.alpha),
+                                  alpha_l1=float(s.alpha_l1), max_iter=s.max_iter, **graph)
     # parasitic couplings enter through the pool only, so CV decides whether they are kept
     start = default_library(on, co, edges) if s.start == "default" else {}
+    pool: dict[str, list[str]]
     if s.candidates == "none":
         pool = {}
     else:
@@ -139,9 +168,19 @@ def make_hamiltonian(settings: HamiltonianSettings, ds: Dataset, *, random_state
                                   random_state=random_state, n_jobs=n_jobs)
 
 
-def physics_regressor(model):
-    """The fitted :class:`~workbench.param_boost.HamiltonianParameterRegressor` inside a
-    fitted family-hamiltonian model (after its covariate selection, if any)."""
+def physics_regressor(model: Any) -> HamiltonianParameterRegressor:
+    """Return the fitted parameter-space regressor inside a fitted family-hamiltonian model.
+
+    Parameters
+    ----------
+    model : FittedPriorBoost
+        The family's fitted model.
+
+    Returns
+    -------
+    HamiltonianParameterRegressor
+        Its physics model (after its covariate selection, if any).
+    """
     physics = model.physics_
     return getattr(physics, "estimator_", physics)
 
@@ -159,17 +198,21 @@ class HamiltonianFamily(ModelFamily):
     interval_method = "oof"  # FittedPriorBoost keeps its out-of-fold predictions
 
     def check_data(self, data: DataConfig) -> None:
+        """Require ``[data.hamiltonian]`` for a CSV."""
         if data.source == "csv" and data.hamiltonian is None:
             raise ValueError("family = \"hamiltonian\" needs the Hamiltonian's columns in "
                              "[data.hamiltonian] (onsite, couplings)")
 
-    def inputs(self, cfg, ds) -> pd.DataFrame:
+    def inputs(self, cfg: ExperimentConfig, ds: Dataset) -> pd.DataFrame:
+        """Return the physics model's inputs (``ds.X_physics``)."""
         return ds.X_physics
 
-    def build(self, cfg: ExperimentConfig, ds: Dataset):
-        """A :class:`FittedPriorBoost` whose physics model is :func:`make_hamiltonian` and
-        whose per-target stage is BaseBoostCV, boosting from the physics model's
-        prediction (columns ``prior_<target>``)."""
+    def build(self, cfg: ExperimentConfig, ds: Dataset) -> FittedPriorBoost:
+        """Build a :class:`FittedPriorBoost` over :func:`make_hamiltonian`.
+
+        Its per-target stage is BaseBoostCV, boosting from the physics model's prediction
+        (columns ``prior_<target>``).
+        """
         h = cast(HamiltonianSettings, cfg.family_settings)  # validated by `settings`
         priors = [f"{PRIOR_PREFIX}{t}" for t in ds.target_names]
         boost = per_target_boost(cfg, ds, priors, boost_from_prior=False)
@@ -183,36 +226,45 @@ class HamiltonianFamily(ModelFamily):
 
     @staticmethod
     def _needs_oof(cfg: ExperimentConfig) -> bool:
-        """Whether the model without a stage must keep its out-of-fold predictions: only for
-        out-of-fold prediction intervals. Its CV MAE comes from them, so without a stage or
-        such intervals the model's CV MAE is NaN rather than paid for with ``prior_cv``
-        refits; ``[evaluation] cv_repeats`` estimates it when asked."""
+        """Tell whether the model without a stage must keep its out-of-fold predictions.
+
+        Only out-of-fold prediction intervals need them. Its CV MAE comes from them, so
+        without a stage or such intervals the model's CV MAE is NaN rather than paid for
+        with ``prior_cv`` refits; ``[evaluation] cv_repeats`` estimates it when asked.
+        """
         return cfg.intervals.enabled and cfg.intervals.method == "oof"
 
-    def fixed_choices(self, model):
+    def fixed_choices(self, model: Any) -> Any:
         """Keep the selected covariates (refitting the selection would remake it)."""
         selection = getattr(model.physics_, "selection_", None)
         if selection is not None:
             return clone(model).set_params(physics=selection.estimator())
         return clone(model)
 
-    def selected(self, model, targets):
-        """Per target "hamiltonian", or "hamiltonian+boosted" ("hamiltonian+<basis>" when the
-        stage chose its basis among several by CV) where the stage on top was kept."""
+    def selected(self, model: Any, targets: list[str]) -> list[str]:
+        """Label per target "hamiltonian", or "hamiltonian+boosted" where the stage was kept.
+
+        "hamiltonian+<basis>" when the stage chose its basis among several by CV; "control"
+        where the control model's prediction was kept (``fallback``).
+        """
         stages = model.boost_.estimators_ if model.boost_stage else [None] * len(targets)
         base = ["hamiltonian" if p else "control" for p in model.physics_selected_]
         return [f"{b}+{getattr(e, 'selected_candidate_', None) or 'boosted'}"
                 if s == "boosted" else b for b, s, e in zip(base, model.selected_, stages)]
 
-    def scores(self, ds, model, Y_train, prior_test, y_test, pred):
-        """``model.cv_mae``: the boosting stage's CV (NaN without a stage; the repeated CV of
+    def scores(self, ds: Dataset, model: Any, Y_train: pd.DataFrame, prior_test: Any,
+               y_test: Any, pred: Any) -> tuple[Scores, ModelScores, dict[str, Any]]:
+        """Score prior and model, with the parameter-space model's details.
+
+        ``model.cv_mae``: the boosting stage's CV (NaN without a stage; the repeated CV of
         ``[evaluation]`` replaces it when asked); ``cv_mae_hamiltonian``: the parameter-space
-        model's out-of-fold CV MAE."""
+        model's out-of-fold CV MAE.
+        """
         prior_train = ds.prior.loc[Y_train.index].to_numpy()
         nan = [float("nan")] * len(ds.target_names)
         Y = Y_train.to_numpy(dtype=float)
         staged = model.boost_stage
-        s = stage_scores(model.boost_.estimators_, Y) if staged else {}
+        s: dict[str, list[Any]] = stage_scores(model.boost_.estimators_, Y) if staged else {}
         prior = Scores(test_mae=mae(y_test, prior_test), test_mse=mse(y_test, prior_test),
                        cv_mae=mae(Y_train, prior_train),  # no fit: CV MAE = training MAE
                        cv_mse=mse(Y_train, prior_train))
@@ -236,18 +288,22 @@ class HamiltonianFamily(ModelFamily):
                                 "seconds": selection.seconds}
         return prior, scores, {"hamiltonian": ham}
 
-    def design_problem(self, model, X, Y, candidates, random_state=None) -> DesignProblem:
-        """The Fisher information of the parameter-space model's correction coefficients
-        (Gauss-Newton: the Hellmann-Feynman Jacobian of the eigenvalues times the
-        covariates, :meth:`~workbench.param_boost.HamiltonianParameterRegressor.coef_jacobian`,
-        plus the ridge penalty as the coefficients' prior), one noise sd for every
-        eigenvalue: the robust sd of the model's training residuals.
+    def design_problem(self, model: Any, X: pd.DataFrame, Y: pd.DataFrame,
+                       candidates: pd.DataFrame, random_state: int | None = None
+                       ) -> DesignProblem:
+        """Give the Fisher information of the parameter-space model's correction coefficients.
+
+        Gauss-Newton: the Hellmann-Feynman Jacobian of the eigenvalues times the covariates,
+        :meth:`~workbench.param_boost.HamiltonianParameterRegressor.coef_jacobian`, plus the
+        ridge penalty as the coefficients' prior; one noise sd for every eigenvalue: the
+        robust sd of the model's training residuals.
 
         The coefficients are those of every covariate the selection could choose, not only
         the chosen ones (at the fitted model, the others at 0; DuMouchel and Jones's
         "potential terms"): a design for the chosen covariates alone piles its points where
         they have leverage and starves the terms the selection has not taken yet. The
-        boosting stage on top is not part of it."""
+        boosting stage on top is not part of it.
+        """
         regressor = physics_regressor(model)
         physics = model.physics_
         library = {p: [c for c in names if c != "intercept"]
@@ -266,10 +322,13 @@ class HamiltonianFamily(ModelFamily):
                              informs="the variance of the coefficient {name} falls "
                                      "{fraction:.0%}")
 
-    def outputs(self, model, ds: Dataset, setting: str | None = None) -> Artifacts:
-        """The tables and figures of a fitted model, from one computation of the corrected
-        parameters of every experiment. Every table is written without its index (the
-        corrected parameters carry the experiment label in the column ``experiment``)."""
+    def outputs(self, model: Any, ds: Dataset, setting: str | None = None) -> Artifacts:
+        """Make the tables and figures of a fitted model.
+
+        They come from one computation of the corrected parameters of every experiment.
+        Every table is written without its index (the corrected parameters carry the
+        experiment label in the column ``experiment``).
+        """
         regressor = physics_regressor(model)
         X = ds.X_physics
         names = regressor.parameter_names_

@@ -1,12 +1,15 @@
-"""The per-target boosting stage shared by the model families (not a family itself): one
-:class:`~workbench.BaseBoostCV` per target from its prior column, configured by the
+"""The per-target boosting stage shared by the model families (not a family itself).
+
+One :class:`~workbench.BaseBoostCV` per target from its prior column, configured by the
 ``[model]`` settings (``cfg.model_for(target)``), and the stage's CV figures. Family
 ``eigenvalue`` is this stage on the control program's eigenvalues; family ``hamiltonian``
-puts it on top of the parameter-space model."""
+puts it on top of the parameter-space model.
+"""
 
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -27,11 +30,28 @@ __all__ = ["booster_cv", "candidate_choices", "candidate_settings", "cv_mse", "h
            "make_booster", "per_target_boost", "selection_cv", "stage_scores", "target_inputs"]
 
 
-def make_booster(settings: dict[str, Any], prior, inputs: list[str] | None,
-                 n_priors: int = 1):
-    """The :class:`~workbench.BaseBoostRegressor` that one target's settings describe;
-    ``inputs`` are its basis inputs, of which the first ``n_priors`` are prior columns (what
-    a transform with an ``n_priors`` parameter, such as ``"derived"``, is told)."""
+def make_booster(settings: dict[str, Any], prior: Any, inputs: list[str] | None,
+                 n_priors: int = 1) -> BaseBoostRegressor:
+    """Make the :class:`~workbench.BaseBoostRegressor` that one target's settings describe.
+
+    Parameters
+    ----------
+    settings : dict
+        One candidate's boosting settings (no lists).
+    prior : str, estimator or None
+        What it boosts from (BaseBoostRegressor's ``prior``): a prior column, or ``None``
+        where a :class:`~workbench.fitted_prior.FittedPriorBoost` sets its fitted prior's
+        columns later.
+    inputs : list of str or None
+        Its basis inputs, of which the first ``n_priors`` are prior columns.
+    n_priors : int, default=1
+        What a transform with an ``n_priors`` parameter, such as ``"derived"``, is told.
+
+    Returns
+    -------
+    BaseBoostRegressor
+        Unfitted.
+    """
     transform = make_transform(settings["input_transform"], **settings["input_transform_params"])
     if transform is not None and "n_priors" in transform.get_params():
         transform.set_params(n_priors=n_priors)
@@ -45,8 +65,21 @@ def make_booster(settings: dict[str, Any], prior, inputs: list[str] | None,
 
 
 def has_candidates(settings: dict[str, Any]) -> bool:
-    """Whether a target's settings describe several candidates for CV to choose from: a list
-    of bases, losses, links or input transforms, or ranges in a basis's ``basis_params``."""
+    """Tell whether a target's settings describe several candidates for CV to choose from.
+
+    They do with a list of bases, losses, links or input transforms, or ranges in a basis's
+    ``basis_params``.
+
+    Parameters
+    ----------
+    settings : dict
+        One target's boosting settings.
+
+    Returns
+    -------
+    bool
+        Whether CV chooses among candidates.
+    """
     params = settings["basis_params"]
     tables = list(params.values()) if isinstance(settings["basis"], list) else [params]
     return (any(isinstance(settings.get(k), list)
@@ -56,17 +89,32 @@ def has_candidates(settings: dict[str, Any]) -> bool:
 
 def candidate_settings(settings: dict[str, Any],
                        seed: int | None) -> list[tuple[str, dict[str, Any]]]:
-    """The candidates of settings for which :func:`has_candidates`: one per basis, drawn
-    setting, loss, link and input transform (bases outer). A basis whose ``basis_params``
-    hold ranges gives ``draws`` settings drawn at random (``seed``; the same draws for every
-    target, loss, link and transform), named ``basis#i``. A name joins what varies: the basis
-    (or draw), the loss, the link and the transform, e.g. ``"ridge"``, ``"huber"``,
-    ``"lightgbm#07/huber"``, ``"ridge/log"``, ``"lightgbm#03/identity/derived"``."""
+    """List the candidates of settings for which :func:`has_candidates`.
+
+    One per basis, drawn setting, loss, link and input transform (bases outer). A basis
+    whose ``basis_params`` hold ranges gives ``draws`` settings drawn at random (``seed``;
+    the same draws for every target, loss, link and transform), named ``basis#i``. A name
+    joins what varies: the basis (or draw), the loss, the link and the transform, e.g.
+    ``"ridge"``, ``"huber"``, ``"lightgbm#07/huber"``, ``"ridge/log"``,
+    ``"lightgbm#03/identity/derived"``.
+
+    Parameters
+    ----------
+    settings : dict
+        One target's boosting settings.
+    seed : int or None
+        Seeds the draws.
+
+    Returns
+    -------
+    list of (str, dict)
+        Each candidate's name and settings.
+    """
     bases, losses, links = settings["basis"], settings["loss"], settings.get("link", "identity")
     transforms = settings["input_transform"]
     many_bases, many_losses = isinstance(bases, list), isinstance(losses, list)
     many_links, many_transforms = isinstance(links, list), isinstance(transforms, list)
-    out = []
+    out: list[tuple[str, dict[str, Any]]] = []
     for basis in (bases if many_bases else [bases]):
         params = settings["basis_params"].get(basis, {}) if many_bases else \
             settings["basis_params"]
@@ -88,16 +136,45 @@ def candidate_settings(settings: dict[str, Any],
 
 
 def target_inputs(settings: dict[str, Any], ds: Dataset, priors: list[str]) -> list[str]:
-    """The basis input columns ``settings["basis_inputs"]`` names: the prior columns
-    ``priors``, optionally with the dataset's features."""
+    """List the basis input columns ``settings["basis_inputs"]`` names.
+
+    Parameters
+    ----------
+    settings : dict
+        One target's boosting settings.
+    ds : Dataset
+        The dataset.
+    priors : list of str
+        The prior columns.
+
+    Returns
+    -------
+    list of str
+        ``priors``, with the dataset's features for ``"prior+features"``.
+    """
     extra = ds.feature_names if settings["basis_inputs"] == "prior+features" else []
     return list(priors) + extra
 
 
-def selection_cv(cfg: ExperimentConfig, ds: Dataset | None = None):
-    """BaseBoostCV's folds (``[selection]``): contiguous unless ``shuffle``; whole groups
-    (:class:`~workbench.selection.LabelGroupKFold`) when the dataset has groups (e.g. the
-    device of each row) and ``[selection] groups`` is true, its default."""
+def selection_cv(cfg: ExperimentConfig, ds: Dataset | None = None) -> Any:
+    """Make BaseBoostCV's folds (``[selection]``).
+
+    Contiguous unless ``shuffle``; whole groups (:class:`~workbench.selection.LabelGroupKFold`)
+    when the dataset has groups (e.g. the device of each row) and ``[selection] groups`` is
+    true, its default.
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The config.
+    ds : Dataset, optional
+        The dataset (its groups).
+
+    Returns
+    -------
+    cross-validator
+        ``KFold`` or ``LabelGroupKFold``.
+    """
     s = cfg.selection
     seed = cfg.random_state if s.shuffle else None
     if s.groups and ds is not None and ds.groups is not None:
@@ -106,16 +183,37 @@ def selection_cv(cfg: ExperimentConfig, ds: Dataset | None = None):
 
 
 def per_target_boost(cfg: ExperimentConfig, ds: Dataset, priors: list[str], *,
-                     boost_from_prior: bool = True):
-    """One :class:`BaseBoostCV` per target (target ``j`` boosting from ``priors[j]``, or from
-    an outside prior when ``boost_from_prior`` is false), as a MultiTargetBaseBoost."""
+                     boost_from_prior: bool = True) -> MultiTargetBaseBoost:
+    """Make one :class:`BaseBoostCV` per target, as a MultiTargetBaseBoost.
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The config.
+    ds : Dataset
+        The dataset.
+    priors : list of str
+        The prior column of each target.
+    boost_from_prior : bool, default=True
+        Whether target ``j`` boosts from ``priors[j]`` (else from an outside prior).
+
+    Returns
+    -------
+    MultiTargetBaseBoost
+        Unfitted.
+
+    Raises
+    ------
+    ConfigError
+        For ``[model.targets]`` naming an unknown target, or a lone log link the data refuse.
+    """
     names = ds.target_names
     unknown = sorted(set(cfg.model.targets) - set(names))
     if unknown:
         raise ConfigError(f"[model.targets]: unknown target(s) {unknown}; the dataset's "
                           f"targets are {names}")
     _warn_quadratic_bases(cfg, names, len(ds.train_index))
-    per_target = {}
+    per_target: dict[str, Any] = {}
     for target, prior in zip(names, priors):
         s = _positive_links(cfg, ds, target, prior, cfg.model_for(target))
         start = prior if boost_from_prior else None
@@ -140,9 +238,12 @@ def per_target_boost(cfg: ExperimentConfig, ds: Dataset, priors: list[str], *,
 
 def _positive_links(cfg: ExperimentConfig, ds: Dataset, target: str, prior: str,
                     settings: dict[str, Any]) -> dict[str, Any]:
-    """``settings`` whose ``link`` can fit ``target``: the log link needs positive targets and
-    priors on the training rows. A "log" among several links is left out (a note in the log)
-    where they are not; a lone ``link = "log"`` is a ConfigError naming the target."""
+    """Return ``settings`` with a ``link`` that can fit ``target``.
+
+    The log link needs positive targets and priors on the training rows. A "log" among
+    several links is left out (a note in the log) where they are not; a lone
+    ``link = "log"`` is a ConfigError naming the target.
+    """
     link = settings.get("link", "identity")
     links = link if isinstance(link, list) else [link]
     if "log" not in links:
@@ -165,9 +266,11 @@ def _positive_links(cfg: ExperimentConfig, ds: Dataset, target: str, prior: str,
 
 
 def _warn_quadratic_bases(cfg: ExperimentConfig, targets: list[str], n_rows: int) -> None:
-    """Warn (the ``workbench`` logger), before anything is fitted, about a basis that will not
-    scale to ``n_rows``."""
-    bases = set()
+    """Warn about a basis that will not scale to ``n_rows``, before anything is fitted.
+
+    The warning goes to the ``workbench`` logger.
+    """
+    bases: set[str] = set()
     for target in targets:
         basis = cfg.model_for(target)["basis"]
         bases.update(basis if isinstance(basis, list) else [basis])
@@ -177,9 +280,30 @@ def _warn_quadratic_bases(cfg: ExperimentConfig, targets: list[str], n_rows: int
             logging.getLogger("workbench").warning("[%s] warning: %s", cfg.name, message)
 
 
-def booster_cv(cfg: ExperimentConfig, ds: Dataset, target: str, settings: dict[str, Any], cv,
-               **kwargs):
-    """One target's BaseBoostCV of a sweep (inner folds ``cv``)."""
+def booster_cv(cfg: ExperimentConfig, ds: Dataset, target: str, settings: dict[str, Any],
+               cv: Any, **kwargs: Any) -> BaseBoostCV:
+    """Make one target's BaseBoostCV of a sweep.
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The config.
+    ds : Dataset
+        The dataset.
+    target : str
+        The target.
+    settings : dict
+        Its boosting settings (a trial's).
+    cv : cross-validator
+        The inner folds.
+    **kwargs
+        Further BaseBoostCV parameters.
+
+    Returns
+    -------
+    BaseBoostCV
+        Unfitted.
+    """
     prior = ds.prior_names[ds.target_names.index(target)]
     booster = make_booster(settings, prior=prior, inputs=target_inputs(settings, ds,
                                                                         ds.prior_names),
@@ -188,11 +312,24 @@ def booster_cv(cfg: ExperimentConfig, ds: Dataset, target: str, settings: dict[s
                        random_state=cfg.random_state, **kwargs)
 
 
-def candidate_choices(targets: list[str], cvs) -> dict[str, Any]:
-    """What CV chose among candidates (:class:`~workbench.selection.BasisChoiceCV`), per
-    target: the winning candidate's name (basis or draw, loss, link; ``"prior"`` when the
-    prior alone won) and every candidate's CV MAE, as the result's ``candidates`` section
-    (empty where no target had candidates)."""
+def candidate_choices(targets: list[str], cvs: Sequence[Any]) -> dict[str, Any]:
+    """Collect what CV chose among candidates per target.
+
+    Parameters
+    ----------
+    targets : list of str
+        The targets.
+    cvs : sequence of estimators
+        Each target's fitted estimator (:class:`~workbench.selection.BasisChoiceCV` where
+        it had candidates).
+
+    Returns
+    -------
+    dict
+        The result's ``candidates`` section: per target, the winning candidate's name (basis
+        or draw, loss, link; ``"prior"`` when the prior alone won) and every candidate's CV
+        MAE; empty where no target had candidates.
+    """
     out = {}
     for target, est in zip(targets, cvs):
         if isinstance(est, BasisChoiceCV):
@@ -204,19 +341,45 @@ def candidate_choices(targets: list[str], cvs) -> dict[str, Any]:
     return {"candidates": out} if out else {}
 
 
-def cv_mse(y, predictions) -> float:
-    """MSE of out-of-fold predictions (rows without one, e.g. failed folds, left out)."""
+def cv_mse(y: Any, predictions: Any) -> float:
+    """Compute the MSE of out-of-fold predictions.
+
+    Parameters
+    ----------
+    y : array-like
+        The measured values.
+    predictions : array-like
+        The out-of-fold predictions; rows without one (NaN, e.g. failed folds) are left out.
+
+    Returns
+    -------
+    float
+        The MSE, NaN when no row has a prediction.
+    """
     y, p = np.asarray(y, dtype=float), np.asarray(predictions, dtype=float)
     ok = np.isfinite(p)
     return float(np.mean((y[ok] - p[ok]) ** 2)) if ok.any() else float("nan")
 
 
-def stage_scores(cvs, Y: np.ndarray) -> dict[str, list]:
-    """The per-target CV figures of fitted BaseBoostCVs: ``cv_mae`` their CV score (of what
-    they selected), ``cv_mse`` from out-of-fold predictions, the prior's and the boosted
-    candidate's own CV MAE, the stage coefficients, and ``selected``: what each target
-    predicts with, "boosted", or "prior" when the prior was selected or when every boosted
-    stage's coefficient came out 0 in the refit (the model is then the prior exactly)."""
+def stage_scores(cvs: Sequence[Any], Y: np.ndarray) -> dict[str, list[Any]]:
+    """Collect the per-target CV figures of fitted BaseBoostCVs.
+
+    Parameters
+    ----------
+    cvs : sequence of BaseBoostCV
+        Each target's fitted estimator.
+    Y : ndarray
+        The training targets, one column per target.
+
+    Returns
+    -------
+    dict
+        ``cv_mae`` their CV score (of what they selected), ``cv_mse`` from out-of-fold
+        predictions, the prior's and the boosted candidate's own CV MAE, the stage
+        coefficients, and ``selected``: what each target predicts with, "boosted", or
+        "prior" when the prior was selected or when every boosted stage's coefficient came
+        out 0 in the refit (the model is then the prior exactly).
+    """
     coefs = [e.best_estimator_.coefs_.tolist() if e.selected_ == "boosted" else []
              for e in cvs]
     return {

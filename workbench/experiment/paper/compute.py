@@ -29,7 +29,7 @@ from ...curves import learning_curve_plan
 from ...datasets import Dataset
 from ...parallel import Task, map_tasks, run_plans
 from ..bootstrap import bootstrap_error_interval
-from ..config import ExperimentConfig
+from ..config import ExperimentConfig, without_intervals
 from ..explain import shap_values, target_shap_values
 from ..figures import correction_shap_figure, learning_curve_figure, save_figure, shap_figure
 from ..intervals import family_model
@@ -39,7 +39,7 @@ if TYPE_CHECKING:
 
 __all__ = ["PAPER_SIZES", "SHORT", "TABULA_RASA", "TABULA_RASA_SEEDS", "SameAs", "Save",
            "correction_shap", "figure_saver", "hamiltonian_config", "learning_curves",
-           "no_intervals", "say", "seeded", "start_clock", "tabula_rasa_system"]
+           "say", "seeded", "start_clock", "tabula_rasa_system"]
 
 #: The paper's short names of the five eigenenergies.
 SHORT = ["Y1", "Y2", "Y3", "Y4", "Y5"]
@@ -83,28 +83,12 @@ def say(text: str) -> None:
                                         text)
 
 
-def no_intervals(cfg: ExperimentConfig) -> ExperimentConfig:
-    """Turn off a config's prediction intervals.
+def seeded(cfg: ExperimentConfig, seed: int) -> ExperimentConfig:
+    """Seed a config and turn off its intervals, as every evaluation of the reproduction.
 
     The reproduction reports the paper's errors, and CV+ would refit every model 5 more times
     (``workbench evaluate`` reports the intervals; ``python benchmarks/intervals.py`` measures
     them).
-
-    Parameters
-    ----------
-    cfg : ExperimentConfig
-        The config.
-
-    Returns
-    -------
-    ExperimentConfig
-        ``cfg`` without prediction intervals.
-    """
-    return replace(cfg, intervals=cfg.intervals.model_copy(update={"enabled": False}))
-
-
-def seeded(cfg: ExperimentConfig, seed: int) -> ExperimentConfig:
-    """Seed a config and turn off its intervals, as every evaluation of the reproduction.
 
     Parameters
     ----------
@@ -118,7 +102,7 @@ def seeded(cfg: ExperimentConfig, seed: int) -> ExperimentConfig:
     ExperimentConfig
         The copy the reproduction evaluates.
     """
-    return no_intervals(replace(cfg, random_state=seed))
+    return without_intervals(replace(cfg, random_state=seed))
 
 
 def hamiltonian_config(cfg: ExperimentConfig, seed: int, quick: bool) -> ExperimentConfig:

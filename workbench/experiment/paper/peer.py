@@ -25,6 +25,8 @@ import pandas as pd
 from lightgbm import LGBMRegressor
 from sklearn.model_selection import KFold
 
+from ..metrics import mean_absolute_error
+
 __all__ = ["PEER_OBJECTIVES", "PEER_TRIALS", "Peer", "peer_predict"]
 
 log = logging.getLogger("workbench")
@@ -125,7 +127,7 @@ def peer_predict(X_train: pd.DataFrame, y_train: pd.DataFrame, X_test: pd.DataFr
                 fit_rows, val_rows = rows
                 model = make(params).fit(X[fit_rows], y[fit_rows], init_score=base[fit_rows])
                 pred = base[val_rows] + model.predict(X[val_rows])
-                return float(np.mean(np.abs(y[val_rows] - pred)))
+                return mean_absolute_error(y[val_rows], pred)
 
             def objective(trial: optuna.Trial, fold_error: Any = fold_error) -> float:
                 params = _suggest(trial, objectives)

@@ -21,7 +21,13 @@ from sklearn.exceptions import ConvergenceWarning
 
 from ..._io import atomic_write
 from ...datasets import Dataset
-from ..config import ExperimentConfig
+from ..config import (
+    ExperimentConfig,
+    check_training_rows,
+    data_key,
+    load_dataset,
+    without_intervals,
+)
 from ..errors import UsageError
 from ..evaluate import evaluate
 from ..figures import (
@@ -44,7 +50,6 @@ from .compute import (
     figure_saver,
     hamiltonian_config,
     learning_curves,
-    no_intervals,
     say,
     seeded,
     start_clock,
@@ -114,6 +119,7 @@ class _Job:
         default_factory=lambda: {key: Stopwatch() for key in SYSTEMS})
     settings: dict[str, Result] = field(default_factory=dict)
     cfgs: dict[str, ExperimentConfig] = field(default_factory=dict)
+    datasets: dict[str, Dataset] = field(default_factory=dict)
     save: Save = field(init=False)
     same_as: SameAs = field(init=False)
 
@@ -125,9 +131,22 @@ class _Job:
         """Evaluate the system ``key`` with ``cfg`` (as loaded), seeded, without intervals."""
         say(f"evaluating the {key} settings ({Path(cfg.path or cfg.name).name})")
         self.cfgs[key] = seeded(cfg, self.seed)
-        run = evaluate(self.cfgs[key], return_model=True)
+        run = evaluate(self.cfgs[key], return_model=True, dataset=self.dataset(self.cfgs[key]))
         self.settings[key] = run.result
         return run
+
+    def dataset(self, cfg: ExperimentConfig) -> Dataset:
+        """Load the dataset of ``cfg`` once per ``[data]`` table (:func:`data_key`).
+
+        The Google benchmark's systems share one load; each config's folds and intervals
+        are still checked against the training rows.
+        """
+        key = data_key(cfg)
+        if key not in self.datasets:
+            self.datasets[key] = load_dataset(cfg)
+        else:
+            check_training_rows(cfg, len(self.datasets[key].train_index))
+        return self.datasets[key]
 
 
 def _error_bars(save: Save, fig_id: str, result: Result, unit: str | None, **kwargs: Any
@@ -166,14 +185,16 @@ def _search(job: _Job, storage: str | None) -> Sweep:
         "(experiments/paper_search.toml)")
     cfg = load_config(job.configs / "paper_search.toml")
     cv = {"seed": job.seed, **({"outer_folds": 2, "inner_folds": 3} if job.quick else {})}
-    cfg = no_intervals(replace(cfg, random_state=job.seed, cv=cfg.cv.model_copy(update=cv)))
+    cfg = without_intervals(replace(cfg, random_state=job.seed,
+                                    cv=cfg.cv.model_copy(update=cv)))
     # another seed, or --quick (other folds and budgets), must not resume these studies
     cfg = cfg.with_study(study_name=f"{cfg.name}-seed{job.seed}{'-quick' if job.quick else ''}",
                          trials=2 if job.quick else None, storage=storage)
     with job.watches["search"], warnings.catch_warnings():
         # a candidate basis's convergence notes: not the user's
         warnings.simplefilter("ignore", ConvergenceWarning)
-        search = run_sweep(cfg, progress=True)  # a line per trial: the longest phase
+        # a line per trial: the longest phase
+        search = run_sweep(cfg, progress=True, dataset=job.dataset(cfg))
     job.settings["search"], job.cfgs["search"] = search.result, cfg
     return search
 
@@ -189,7 +210,7 @@ def _hamiltonian(job: _Job, ds: Dataset) -> tuple[dict[str, str], list[Path]]:
                                  job.quick)
         say("the parameter-space model (experiments/hamiltonian.toml): covariate "
             "selection by CV on the training rows")
-        run = evaluate(cfg, return_model=True)
+        run = evaluate(cfg, return_model=True, dataset=job.dataset(cfg))
         job.settings["hamiltonian"], job.cfgs["hamiltonian"] = run.result, cfg
         _error_bars(job.save, "figH1_hamiltonian_mae_bars", run.result, ds.unit,
                     labels=("control program", "parameter-space model"),
