@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import tomllib
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -32,6 +33,7 @@ from .config import (
 )
 from .errors import ConfigError, clip, shorten
 from .families import FAMILIES, ModelFamily, discover_families
+from .overrides import apply_overrides, format_overrides
 from .schema import MAX_MESSAGE
 from .space import SearchSpace, SpaceError
 
@@ -219,13 +221,17 @@ def parse_config(raw: dict[str, Any], path: Path | None = None) -> ExperimentCon
     return cfg
 
 
-def load_config(path: str | Path) -> ExperimentConfig:
+def load_config(path: str | Path,
+                overrides: Mapping[str, Any] | None = None) -> ExperimentConfig:
     """Read and check a TOML config file.
 
     Parameters
     ----------
     path : str or Path
         The config file.
+    overrides : mapping, optional
+        ``SECTION.KEY`` -> value, set over the file's values before they are checked
+        (``--set``; :mod:`workbench.experiment.overrides`): checked like the file's own.
 
     Returns
     -------
@@ -235,7 +241,8 @@ def load_config(path: str | Path) -> ExperimentConfig:
     Raises
     ------
     ConfigError
-        One line: a file that cannot be read, is not TOML, or holds a bad value.
+        One line: a file that cannot be read, is not TOML, or holds a bad value (an
+        override's too: the line then starts with the ``--set`` overrides).
     """
     path = Path(path)
     try:
@@ -250,4 +257,10 @@ def load_config(path: str | Path) -> ExperimentConfig:
         raise _error(str(path), f"not valid TOML: {exc}") from None
     except ValueError as exc:  # e.g. an integer beyond Python's str-conversion limit
         raise _error(str(path), f"a value cannot be read: {exc}") from None
-    return parse_config(raw, path)
+    if not overrides:
+        return parse_config(raw, path)
+    try:
+        cfg = parse_config(apply_overrides(raw, overrides), path)
+    except ConfigError as exc:
+        raise ConfigError(f"with --set {format_overrides(overrides)}: {exc}") from None
+    return dataclasses.replace(cfg, overrides=dict(overrides))

@@ -8,6 +8,8 @@ with its credentials redacted, and a sweep's trials and outer folds as child run
 
 from __future__ import annotations
 
+import json
+import tomllib
 from pathlib import Path
 from typing import Any
 
@@ -16,6 +18,7 @@ import pandas as pd
 from ..datasets import BENCHMARKS, Dataset
 from .config import ExperimentConfig
 from .errors import redact_config
+from .overrides import apply_overrides, dump_config, format_overrides
 from .results import INTERVAL_KEYS, Result, Scores
 from .tracking.records import dataset_hash, git_commit
 from .tracking.runs import Tracker
@@ -178,11 +181,16 @@ def config_text(cfg: ExperimentConfig) -> str | None:
     -------
     str or None
         The file's text, a storage or tracking URL's password redacted; ``None`` without a
-        file.
+        file. With ``--set`` overrides, the file's tables with them applied, written anew
+        (its comments lost) below a header naming the file and the overrides.
     """
     if cfg.path is None:
         return None
-    return redact_config(Path(cfg.path).read_text(encoding="utf-8"), str(cfg.path))
+    text = Path(cfg.path).read_text(encoding="utf-8")
+    if cfg.overrides:
+        header = f"{cfg.path} with --set {format_overrides(cfg.overrides)}"
+        text = dump_config(apply_overrides(tomllib.loads(text), cfg.overrides), header)
+    return redact_config(text, str(cfg.path))
 
 
 def source_tags(cfg: ExperimentConfig, kind: str, commit: str | None) -> dict[str, str]:
@@ -250,7 +258,8 @@ def run_params(cfg: ExperimentConfig, targets: list[str], n_train: int,
     -------
     dict
         The seed, the split's sizes, the family, every target's model settings
-        (``<target>.<setting>``), the family's and the intervals' settings.
+        (``<target>.<setting>``), the family's and the intervals' settings, and each
+        ``--set`` override as ``set.<SECTION.KEY>``.
     """
     family = cfg.family
     params: dict[str, Any] = {"random_state": cfg.random_state, "n_train": n_train,
@@ -260,6 +269,7 @@ def run_params(cfg: ExperimentConfig, targets: list[str], n_train: int,
     if cfg.family_settings is not None:
         params.update(_flat(f"{family.name}.", cfg.family_settings.model_dump()))
     params.update(_flat("intervals.", cfg.intervals.model_dump()))
+    params.update({f"set.{key}": json.dumps(value) for key, value in cfg.overrides.items()})
     return params
 
 

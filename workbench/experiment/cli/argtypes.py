@@ -7,8 +7,9 @@ what was given (shortened).
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
-__all__ = ["count", "fraction", "nested_folds", "seed"]
+__all__ = ["count", "fraction", "nested_folds", "override", "seed"]
 
 
 def count(value: str) -> int:
@@ -120,3 +121,31 @@ def nested_folds(value: str) -> int:
         raise argparse.ArgumentTypeError(f"expected 0 (none) or an integer >= 2 outer folds, "
                                          f"got {number}")
     return number
+
+
+def override(value: str) -> tuple[str, Any]:
+    """Parse a ``--set SECTION.KEY=VALUE`` override (the value read as TOML).
+
+    Parameters
+    ----------
+    value : str
+        The command-line text.
+
+    Returns
+    -------
+    tuple of (str, object)
+        The dotted key and its value (:func:`workbench.experiment.overrides.parse_override`).
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        For text that is not ``SECTION.KEY=VALUE``.
+    """
+    from ..errors import ConfigError
+    from ..overrides import parse_override
+
+    try:
+        return parse_override(value)
+    except ConfigError as exc:
+        # argparse names the option itself: "argument --set: 'x': give ..."
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("--set ")) from None

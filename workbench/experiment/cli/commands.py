@@ -141,7 +141,7 @@ def sweep(args: argparse.Namespace) -> int:
     from ..prepare import load_config, prepare
     from ..sweep.search import run_sweep  # imports Optuna only for sweeps
 
-    cfg = without_intervals(load_config(args.config).with_study(
+    cfg = without_intervals(load_config(args.config, dict(args.overrides)).with_study(
         trials=args.trials, workers=args.workers, storage=args.storage), args.no_intervals)
     check_outputs(args)
     prepared = prepare(cfg)
@@ -187,7 +187,7 @@ def _evaluate_config(args: argparse.Namespace) -> Any:
     from ..evaluate import has_outputs
     from ..prepare import load_config
 
-    cfg = without_intervals(load_config(args.config), args.no_intervals)
+    cfg = without_intervals(load_config(args.config, dict(args.overrides)), args.no_intervals)
     if args.jobs is not None:
         cfg = dataclasses.replace(cfg, n_jobs=args.jobs)
     if args.nested is not None:
@@ -278,7 +278,7 @@ def design(args: argparse.Namespace) -> int:
     from ..design import design_csv
     from ..prepare import load_config
 
-    cfg = load_config(args.config)
+    cfg = load_config(args.config, dict(args.overrides))
     if args.jobs is not None:
         cfg = dataclasses.replace(cfg, n_jobs=args.jobs)
     with worker_pool(cfg.jobs, eager=True):

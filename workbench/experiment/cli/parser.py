@@ -83,6 +83,16 @@ def _add_init(sub: Subparsers) -> None:
     ini.set_defaults(func=tools.init)
 
 
+def _set_arg(parser: argparse.ArgumentParser) -> None:
+    """Add ``--set SECTION.KEY=VALUE`` (repeatable): a config value overridden."""
+    parser.add_argument("--set", dest="overrides", type=argtypes.override, action="append",
+                        default=[], metavar="SECTION.KEY=VALUE",
+                        help="override one config value, checked like the file's (repeatable; "
+                        "the value is TOML, a bare word a string), e.g. --set model.n_stages=2 "
+                        "--set selection.cv=3; logged as run params set.<KEY> and in the "
+                        "logged config")
+
+
 def _add_evaluate(sub: Subparsers) -> None:
     """``workbench evaluate``: fit and score a config's model."""
     ev = sub.add_parser("evaluate", help="fit a config's model on the training rows and score "
@@ -102,6 +112,7 @@ def _add_evaluate(sub: Subparsers) -> None:
                     help="write the model family's tables (CSV) and figures (PNG) to DIR "
                     "(family hamiltonian: coefficients, corrected parameters, selection)")
     _model_args(ev)
+    _set_arg(ev)
     ev.set_defaults(func=commands.evaluate)
 
 
@@ -118,6 +129,7 @@ def _add_sweep(sub: Subparsers) -> None:
     _repair_arg(sw)
     sw.add_argument("--json", metavar="PATH", help="also write the results as JSON")
     _model_args(sw)
+    _set_arg(sw)
     sw.set_defaults(func=commands.sweep)
 
 
@@ -188,6 +200,7 @@ def _add_design(sub: Subparsers) -> None:
                      "(default); d: most information about the model's coefficients (log det)")
     des.add_argument("--jobs", type=argtypes.count, default=None, help="worker processes (default: "
                      "the config's n_jobs)")
+    _set_arg(des)
     des.set_defaults(func=commands.design)
 
 

@@ -34,7 +34,8 @@ class ExperimentConfig:
 
     Sections are typed (frozen pydantic models); ``family_settings`` is the family's
     ``[model.<family>]`` (its own schema), ``search`` the ``[search]`` space, ``chosen`` the
-    per-target settings a search chose (target -> full settings, over ``[model]``).
+    per-target settings a search chose (target -> full settings, over ``[model]``),
+    ``overrides`` the ``SECTION.KEY=VALUE`` overrides applied over the file (``--set``).
     ``family`` is the :class:`~workbench.experiment.families.base.ModelFamily` that
     ``[model] family`` names, resolved by the loader: the config package sits below the
     families and imports none of them, so the attribute is typed ``Any`` here.
@@ -56,6 +57,7 @@ class ExperimentConfig:
     family_settings: BaseModel | None = None
     description: str = ""
     chosen: dict[str, dict[str, Any]] = field(default_factory=dict)
+    overrides: dict[str, Any] = field(default_factory=dict)
     family: Any = field(default=None, compare=False, repr=False)
 
     @property
