@@ -99,6 +99,9 @@ def test_logged_as_params_and_config(cfg, tmp_path, capsys):
     logged = Path(path).read_text()
     assert logged.startswith(f"# {cfg} with --set model.n_stages=2 model.loss=\"huber\"")
     assert tomllib.loads(logged)["model"]["n_stages"] == 2
+    # the test rows' predictions and measured targets, what `workbench compare` pairs
+    arts = {a.path for a in client.list_artifacts(run.info.run_id, "predictions")}
+    assert arts == {"predictions/test.csv", "predictions/test_measured.csv"}
 
 
 def test_sweep_and_design_take_set(cfg, tmp_path, capsys):

@@ -68,3 +68,18 @@ def test_errors_name_the_problem(client):
         compare_runs(client, "old", "one")
     with pytest.raises(UsageError, match="different test rows"):
         compare_runs(client, "other rows", "one")
+
+
+def test_command_prints_the_table(client, tmp_path, capsys):
+    from workbench.experiment.cli import main
+
+    y = np.arange(12.0).reshape(6, 2)
+    _run(client, "a", y + 0.5, y)
+    _run(client, "b", y + 1.0, y)
+    uri = f"sqlite:///{tmp_path}/mlflow.db"
+    assert main(["compare", "a", "b", "--tracking-uri", uri]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("test MAE on 6 rows: a = a, b = b")
+    assert lines[-1].split()[:4] == ["average", "0.500", "1.000", "-0.500"]
+    assert main(["compare", "a", "nope", "--tracking-uri", uri]) == 2
+    assert "no run with the id or name 'nope'" in capsys.readouterr().err

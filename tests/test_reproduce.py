@@ -288,3 +288,21 @@ def test_reproduce_without_its_configs_is_one_line(tmp_path, capsys, monkeypatch
     assert "cfg/" in err and "paper_improved.toml" in err and "--experiments" in err, err
     assert "paper_main_body.toml" not in err  # present: not listed as missing
     assert not (tmp_path / "r").exists()
+
+
+def test_compare_two_reproduction_runs(quick_run, capsys):
+    """``workbench compare`` on the reproduction's paper-settings and control-program runs:
+    their test MAEs as results.json has them, and a paired interval per target."""
+    out, uri = quick_run
+    res = json.loads((out / "results.json").read_text())
+    ids = res["mlflow"]
+    assert main(["compare", ids["run_id.paper"], ids["run_id.prior"], "--tracking-uri",
+                 uri]) == 0
+    text = capsys.readouterr().out
+    lines = {line.split()[0]: line.split() for line in text.splitlines()[2:]}
+    paper = res["settings"]["paper"]
+    for i, target in enumerate(res["targets"]):
+        a, b = float(lines[target][1]), float(lines[target][2])
+        assert a == pytest.approx(paper["model"]["test_mae"][i], abs=5e-4)
+        assert b == pytest.approx(paper["prior"]["test_mae"][i], abs=5e-4)
+    assert "paired bootstrap interval of a - b" in text and "average" in lines

@@ -35,6 +35,7 @@ from .run_fields import (
     config_text,
     log_inputs,
     log_sweep_children,
+    log_test_predictions,
     result_metrics,
     run_params,
     run_tags,
@@ -95,17 +96,18 @@ def _log_error_bars(tracker: Tracker, run_id: str, result: Result, unit: str | N
 
 def _log_predictions(tracker: Tracker, run_id: str, cfg: ExperimentConfig, ds: Dataset,
                      model: Any, X_test: pd.DataFrame, targets: list[str], setting: str) -> None:
-    """Log the intervals' figure and table, and the test rows' predictions.
+    """Log the intervals' figure and table, and the test rows' predictions and targets.
 
-    The predictions as ``workbench predict`` and a served model give them.
+    The predictions as ``workbench predict`` and a served model give them; the measured
+    targets beside them (``predictions/test_measured.csv``) let ``workbench compare`` pair
+    two runs' errors row by row.
     """
     intervals = interval_artifacts(cfg, ds, model, setting)
     for name, fig in intervals.figures.items():
         tracker.log_figure(run_id, fig, f"plots/{name}.png")
     for name, table in intervals.tables.items():
         tracker.log_text(run_id, table.to_csv(index=False), f"intervals/{name}.csv")
-    predictions = prediction_frame(model, X_test, targets)
-    tracker.log_text(run_id, predictions.to_csv(index_label="row"), "predictions/test.csv")
+    log_test_predictions(tracker, run_id, ds, prediction_frame(model, X_test, targets))
 
 
 def _log_tables(tracker: Tracker, run_id: str, family: str, extra: Artifacts) -> None:

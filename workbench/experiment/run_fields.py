@@ -299,3 +299,29 @@ def log_inputs(tracker: Tracker, run_id: str, cfg: ExperimentConfig, ds: Dataset
 
 #: MLflow's tag for a run's description (the run page's "Description", Markdown).
 NOTE_TAG = "mlflow.note.content"
+
+
+def log_test_predictions(tracker: Tracker, run_id: str, ds: Dataset,
+                         predictions: pd.DataFrame) -> None:
+    """Log the test rows' predictions and, beside them, their measured targets.
+
+    ``predictions/test.csv`` holds the predictions as ``workbench predict`` gives them,
+    ``predictions/test_measured.csv`` the targets of the same rows: together they let
+    ``workbench compare`` pair two runs' errors row by row.
+
+    Parameters
+    ----------
+    tracker : Tracker
+        The tracker.
+    run_id : str
+        The run.
+    ds : Dataset
+        The data the rows come from.
+    predictions : DataFrame
+        Indexed by test row, one column per target (interval columns may follow).
+    """
+    targets = [t for t in ds.target_names if t in predictions.columns]
+    tracker.log_text(run_id, predictions.to_csv(index_label="row"), "predictions/test.csv")
+    measured = ds.targets.loc[predictions.index, targets]
+    tracker.log_text(run_id, measured.to_csv(index_label="row"),
+                     "predictions/test_measured.csv")

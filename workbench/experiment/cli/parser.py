@@ -44,8 +44,8 @@ def build_parser() -> argparse.ArgumentParser:
     """
     parser = _Parser(prog="workbench", description="Base boosting workbench.")
     sub = parser.add_subparsers(dest="command", required=True)
-    for add in (_add_init, _add_evaluate, _add_sweep, _add_predict, _add_reproduce, _add_ui,
-                _add_design, _add_simulate):
+    for add in (_add_init, _add_evaluate, _add_sweep, _add_predict, _add_compare,
+                _add_reproduce, _add_ui, _add_design, _add_simulate):
         add(sub)
     return parser
 
@@ -146,6 +146,19 @@ def _add_predict(sub: Subparsers) -> None:
                     help="MLflow store holding the model (default: $MLFLOW_TRACKING_URI, "
                     "then sqlite:///mlruns/mlflow.db)")
     pr.set_defaults(func=tools.predict)
+
+
+def _add_compare(sub: Subparsers) -> None:
+    """``workbench compare``: two runs' test errors side by side."""
+    co = sub.add_parser("compare", help="two tracked runs on the same test rows: per-target "
+                        "test MAE and the paired bootstrap interval of the difference (logs "
+                        "nothing)")
+    co.add_argument("run_a", metavar="RUN_A", help="a run id or a run name")
+    co.add_argument("run_b", metavar="RUN_B", help="a run id or a run name")
+    co.add_argument("--tracking-uri", default=None,
+                    help="MLflow store holding the runs (default: $MLFLOW_TRACKING_URI, "
+                    "then sqlite:///mlruns/mlflow.db)")
+    co.set_defaults(func=tools.compare)
 
 
 def _add_reproduce(sub: Subparsers) -> None:

@@ -71,6 +71,30 @@ def predict(args: argparse.Namespace) -> int:
     return 0
 
 
+def compare(args: argparse.Namespace) -> int:
+    """``workbench compare``: two runs' per-target test MAE and their paired interval.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command's arguments.
+
+    Returns
+    -------
+    int
+        The exit code (0).
+    """
+    from mlflow import MlflowClient
+
+    from ..compare import compare_runs, format_comparison
+    from ..tracking.uris import check_store_uri, resolve_tracking_uri
+
+    uri = resolve_tracking_uri(args.tracking_uri, None, Path.cwd())
+    check_store_uri(uri)
+    print(format_comparison(compare_runs(MlflowClient(uri), args.run_a, args.run_b)))
+    return 0
+
+
 def _mismatch(names: list[str] | None) -> Any:
     """Return the simulation's mismatch mechanisms ``--mismatch`` names."""
     from ...simulate import Mismatch

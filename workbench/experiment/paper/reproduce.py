@@ -17,6 +17,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+import pandas as pd
 from sklearn.exceptions import ConvergenceWarning
 
 from ..._io import atomic_write
@@ -40,6 +41,7 @@ from ..figures import (
 from ..intervals import family_model
 from ..prepare import load_config
 from ..results import Result
+from ..serving import prediction_frame
 from ..sweep.search import Sweep, run_sweep
 from ..units import squared
 from .compute import (
@@ -120,6 +122,7 @@ class _Job:
     settings: dict[str, Result] = field(default_factory=dict)
     cfgs: dict[str, ExperimentConfig] = field(default_factory=dict)
     datasets: dict[str, Dataset] = field(default_factory=dict)
+    predictions: dict[str, pd.DataFrame] = field(default_factory=dict)
     save: Save = field(init=False)
     same_as: SameAs = field(init=False)
 
@@ -133,7 +136,17 @@ class _Job:
         self.cfgs[key] = seeded(cfg, self.seed)
         run = evaluate(self.cfgs[key], return_model=True, dataset=self.dataset(self.cfgs[key]))
         self.settings[key] = run.result
+        self.keep_predictions(key, self.cfgs[key], run)
         return run
+
+    def keep_predictions(self, key: str, cfg: ExperimentConfig, run: Any) -> None:
+        """Keep a system's test predictions (and, for the paper settings, the prior's)."""
+        ds = run.dataset
+        X_test = ds.split(cfg.family.inputs(cfg, ds))[1]
+        self.predictions[key] = prediction_frame(run.model, X_test, run.result.targets)
+        if key == "paper":
+            prior = ds.prior.loc[X_test.index, ds.prior_names]
+            self.predictions["prior"] = prior.set_axis(ds.target_names, axis=1)
 
     def dataset(self, cfg: ExperimentConfig) -> Dataset:
         """Load the dataset of ``cfg`` once per ``[data]`` table (:func:`data_key`).
@@ -212,6 +225,7 @@ def _hamiltonian(job: _Job, ds: Dataset) -> tuple[dict[str, str], list[Path]]:
             "selection by CV on the training rows")
         run = evaluate(cfg, return_model=True, dataset=job.dataset(cfg))
         job.settings["hamiltonian"], job.cfgs["hamiltonian"] = run.result, cfg
+        job.keep_predictions("hamiltonian", cfg, run)
         _error_bars(job.save, "figH1_hamiltonian_mae_bars", run.result, ds.unit,
                     labels=("control program", "parameter-space model"),
                     title="Test MAE per eigenenergy: corrected Hamiltonian", setting=setting)
@@ -321,6 +335,8 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
     correlation = _data_figures(job, ds)
     systems = paper_systems(job.settings, job.cfgs, tabula, search, job.watches, job.files,
                             {"hamiltonian": table_files}, ds)
+    for system in systems:
+        system.predictions = job.predictions.get(system.key)
     _compare(job, systems, ds)
     atomic_write(job.out / "systems.csv",
                  summary_table(ds.target_names, systems).to_csv(index=False))

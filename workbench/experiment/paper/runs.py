@@ -19,7 +19,14 @@ from pathlib import Path
 from ...datasets import Dataset
 from ..config import ExperimentConfig
 from ..errors import redact
-from ..run_fields import NOTE_TAG, config_text, log_inputs, log_sweep_children, run_tags
+from ..run_fields import (
+    NOTE_TAG,
+    config_text,
+    log_inputs,
+    log_sweep_children,
+    log_test_predictions,
+    run_tags,
+)
 from ..tracking.runs import Tracker, metric_view
 from ..tracking.uris import resolve_tracking_uri
 from ..units import unit_name
@@ -98,6 +105,8 @@ def _log_system(tracker: Tracker, run: str, system: System, cfg: ExperimentConfi
         tracker.log_file(run, path, "figures")
     for path in system.tables:
         tracker.log_file(run, path, "tables")
+    if system.predictions is not None:
+        log_test_predictions(tracker, run, ds, system.predictions)
     if system.sweep is not None:
         log_sweep_children(tracker, run, system.sweep, trials=False)
 

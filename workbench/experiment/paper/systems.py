@@ -88,6 +88,9 @@ class System:
         Files to log under ``figures/`` and ``tables/``.
     sweep : Sweep, optional
         A sweep whose outer folds become the run's children.
+    predictions : DataFrame, optional
+        Its test rows' predictions (one column per target), logged with the measured
+        targets for ``workbench compare``.
     description : str
         The run page's description (Markdown).
     """
@@ -103,6 +106,7 @@ class System:
     figures: list[Path] = field(default_factory=list)
     tables: list[Path] = field(default_factory=list)
     sweep: Sweep | None = None
+    predictions: pd.DataFrame | None = None
     description: str = ""
 
     @property
