@@ -6,7 +6,7 @@ PY     := $(VENV)/bin/python
 export MLFLOW_DISABLE_TELEMETRY := true
 export MPLCONFIGDIR := $(CURDIR)/.cache/matplotlib
 
-.PHONY: run test lint lock clean browser bench bench-peers
+.PHONY: run test lint lock clean browser bench bench-peers docs
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -18,6 +18,10 @@ $(VENV)/.installed: pyproject.toml requirements.lock | $(PY)
 
 $(VENV)/.installed-dev: pyproject.toml requirements.lock | $(PY)
 	$(PY) -m pip install -c requirements.lock -e ".[dev]"
+	touch $@ $(VENV)/.installed
+
+$(VENV)/.installed-docs: pyproject.toml requirements.lock | $(PY)
+	$(PY) -m pip install -c requirements.lock -e ".[docs]"
 	touch $@ $(VENV)/.installed
 
 # One BLAS/OpenMP thread per test worker: two workers on 2 cores would oversubscribe.
@@ -45,6 +49,12 @@ bench-peers: $(VENV)/.installed
 	$(PY) benchmarks/peers.py --datasets ibm ibm_devices google chain \
 	  --seeds 0 1 2 3 4 5 --json benchmarks/results/peers.json
 	$(PY) benchmarks/tables.py
+
+# The documentation site (docs/, Sphinx) into docs/_build/html: offline, warnings as errors,
+# the gallery's examples run. The config and CLI references are generated from the code.
+# Open docs/_build/html/index.html.
+docs: $(VENV)/.installed-docs
+	$(THREADS) MPLBACKEND=Agg $(PY) -m sphinx -b html -W --keep-going docs docs/_build/html
 
 # Lint (ruff) and type check (mypy), on the paths pyproject.toml's [tool.ruff] and
 # [tool.mypy] cover.
