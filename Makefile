@@ -1,4 +1,4 @@
-# The README's two commands. Both create .venv if it is missing and install the project with
+# The two commands of README.md. Both create .venv if it is missing and install the project with
 # the exact versions of requirements.lock (pip's constraints: every package pinned).
 PYTHON ?= python3
 VENV   ?= .venv
@@ -34,8 +34,8 @@ run: $(VENV)/.installed
 	$(VENV)/bin/workbench reproduce --out reports
 
 # Benchmarks (about 15 minutes; run alone on a quiet machine): the scaling, bootstrap and
-# reference figures as JSON under benchmarks/results/, then README's tables remade from them
-# (benchmarks/tables.py; a test checks README against the JSON). The reference side runs
+# reference figures as JSON under benchmarks/results/, then docs/benchmarks.md's tables remade
+# from them (benchmarks/tables.py; a test checks the page against the JSON). The reference side runs
 # where its virtualenv exists (bash ../shared/bench/reference/setup.sh /tmp/reference-venv).
 bench: $(VENV)/.installed
 	$(PY) benchmarks/scaling.py --max-rows 30000 --json benchmarks/results/scaling.json
@@ -44,7 +44,7 @@ bench: $(VENV)/.installed
 	$(PY) benchmarks/tables.py
 
 # The recommended config against the peer on every benchmark split (about 25 minutes):
-# benchmarks/results/peers.json and README's table made from it.
+# benchmarks/results/peers.json and docs/benchmarks.md's table made from it.
 bench-peers: $(VENV)/.installed
 	$(PY) benchmarks/peers.py --datasets ibm ibm_devices google chain \
 	  --seeds 0 1 2 3 4 5 --json benchmarks/results/peers.json
