@@ -55,3 +55,23 @@ def test_benchmark_tables_are_made_from_the_json():
     point["per_1k_rows"] += 1.0
     assert tables.scaling(data) != tables.scaling(
         json.loads((tables.RESULTS / "scaling.json").read_text()))
+
+
+def _rows(text):
+    """``{first cell: other cells}`` of every Markdown table row in ``text``."""
+    return {cells[0]: cells[1:] for line in text.splitlines() if line.startswith("| ")
+            for cells in [[c.strip() for c in line.strip("|").split("|")]]}
+
+
+def test_readme_results_are_the_benchmarks_page_s():
+    """The README's headline table repeats docs/benchmarks.md's numbers, row for row."""
+    readme, page = _rows(README.read_text()), _rows(BENCHMARKS_PAGE.read_text())
+    same = {"control program (prior)": "control program (prior)",
+            "reference implementation, paper settings (mean of 8 runs)":
+                "reference implementation, paper settings (mean of 8 runs)",
+            "workbench, paper settings": "workbench, paper settings, seed 0",
+            "workbench, parameter-space model (`hamiltonian.toml`)": "test MAE (41 rows, once)"}
+    for ours, theirs in same.items():
+        assert readme[ours] == page[theirs], ours
+    assert readme["workbench, paper settings"] == ["1.734", "1.027", "0.794", "0.801", "1.013",
+                                                   "1.074"]
