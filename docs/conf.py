@@ -53,6 +53,7 @@ root_doc = "index"
 # --- API reference: autosummary pages from the numpydoc docstrings ---------------------------
 autosummary_generate = True
 autosummary_imported_members = True
+autosummary_ignore_module_all = False  # a module page lists its __all__, nothing else
 autodoc_default_options = {"members": True, "inherited-members": False}
 autodoc_typehints = "none"  # numpydoc's Parameters sections carry the types
 numpydoc_show_class_members = False
@@ -106,10 +107,7 @@ KNOWN_DOCSTRING_PROBLEMS = (
     "workbench.simulate.Mismatch",
     "workbench.experiment.schema.MAX_MESSAGE",
     # the summary lines autosummary copies into these modules' pages
-    "generated/workbench.simulate.rst",
-    "generated/workbench.param_boost.rst",
     "generated/workbench.experiment.errors.rst",
-    "generated/workbench.experiment.families.base.rst",
     "generated/workbench.experiment.schema.rst",
 )
 

@@ -37,8 +37,9 @@ model = MultiTargetBaseBoost(BaseBoostCV(booster, cv=5), priors=priors, random_s
 model.fit(X[train], Y[train])
 pred = model.predict(X[~train])
 
-prior_mae = (X.loc[~train, priors].to_numpy() - Y[~train].to_numpy()).__abs__().mean(axis=0)
-model_mae = (pred.to_numpy() - Y[~train].to_numpy()).__abs__().mean(axis=0)
+truth = Y[~train].to_numpy()
+prior_mae = np.abs(X.loc[~train, priors].to_numpy() - truth).mean(axis=0)
+model_mae = np.abs(pred.to_numpy() - truth).mean(axis=0)
 for t, p, m in zip(targets, prior_mae, model_mae):
     print(f"{t}: control model {p:.3f} MHz, base boosting {m:.3f} MHz")
 
