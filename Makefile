@@ -1,4 +1,4 @@
-# The README's two commands. Both create .venv if it is missing and install the project with
+# The two commands of README.md. Both create .venv if it is missing and install the project with
 # the exact versions of requirements.lock (pip's constraints: every package pinned).
 PYTHON ?= python3
 VENV   ?= .venv
@@ -6,7 +6,7 @@ PY     := $(VENV)/bin/python
 export MLFLOW_DISABLE_TELEMETRY := true
 export MPLCONFIGDIR := $(CURDIR)/.cache/matplotlib
 
-.PHONY: run test lint lock clean browser bench bench-peers
+.PHONY: run test lint lock clean browser bench bench-peers docs
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -20,6 +20,10 @@ $(VENV)/.installed-dev: pyproject.toml requirements.lock | $(PY)
 	$(PY) -m pip install -c requirements.lock -e ".[dev]"
 	touch $@ $(VENV)/.installed
 
+$(VENV)/.installed-docs: pyproject.toml requirements.lock | $(PY)
+	$(PY) -m pip install -c requirements.lock -e ".[docs]"
+	touch $@ $(VENV)/.installed
+
 # One BLAS/OpenMP thread per test worker: two workers on 2 cores would oversubscribe.
 # (For the single-process main job it made no clear difference: reproduce --quick took
 # 113 and 120 s with one thread, 103 and 117 s without, alternating runs on an idle machine.)
@@ -30,8 +34,8 @@ run: $(VENV)/.installed
 	$(VENV)/bin/workbench reproduce --out reports
 
 # Benchmarks (about 15 minutes; run alone on a quiet machine): the scaling, bootstrap and
-# reference figures as JSON under benchmarks/results/, then README's tables remade from them
-# (benchmarks/tables.py; a test checks README against the JSON). The reference side runs
+# reference figures as JSON under benchmarks/results/, then docs/benchmarks.md's tables remade
+# from them (benchmarks/tables.py; a test checks the page against the JSON). The reference side runs
 # where its virtualenv exists (bash ../shared/bench/reference/setup.sh /tmp/reference-venv).
 bench: $(VENV)/.installed
 	$(PY) benchmarks/scaling.py --max-rows 30000 --json benchmarks/results/scaling.json
@@ -40,11 +44,17 @@ bench: $(VENV)/.installed
 	$(PY) benchmarks/tables.py
 
 # The recommended config against the peer on every benchmark split (about 25 minutes):
-# benchmarks/results/peers.json and README's table made from it.
+# benchmarks/results/peers.json and docs/benchmarks.md's table made from it.
 bench-peers: $(VENV)/.installed
 	$(PY) benchmarks/peers.py --datasets ibm ibm_devices google chain \
 	  --seeds 0 1 2 3 4 5 --json benchmarks/results/peers.json
 	$(PY) benchmarks/tables.py
+
+# The documentation site (docs/, Sphinx) into docs/_build/html: offline, warnings as errors,
+# the gallery's examples run. The config and CLI references are generated from the code.
+# Open docs/_build/html/index.html.
+docs: $(VENV)/.installed-docs
+	$(THREADS) MPLBACKEND=Agg $(PY) -m sphinx -b html -W --keep-going docs docs/_build/html
 
 # Lint (ruff) and type check (mypy), on the paths pyproject.toml's [tool.ruff] and
 # [tool.mypy] cover.

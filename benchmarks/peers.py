@@ -177,7 +177,7 @@ def main() -> None:
     parser.add_argument("--config", default=str(ROOT / "experiments" / "generic.toml"))
     parser.add_argument("--json", type=Path,
                         help="also write the rows as JSON (benchmarks/results/peers.json is "
-                             "what README's table is made from)")
+                             "what docs/benchmarks.md's table is made from)")
     args = parser.parse_args()
     rows = []
     import subprocess

@@ -149,7 +149,7 @@ def main() -> None:
     parser.add_argument("--sites", nargs="+", type=int, default=SITES)
     parser.add_argument("--json", type=Path,
                         help="also write the points as JSON (benchmarks/results/scaling.json "
-                             "is what README's table is made from: make bench)")
+                             "is what docs/benchmarks.md's table is made from: make bench)")
     parser.add_argument("--child", nargs=3, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:

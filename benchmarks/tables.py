@@ -1,14 +1,14 @@
-"""README's benchmark tables, made from the JSON the benchmark scripts write (``make bench``).
+"""Benchmark tables of docs/benchmarks.md, made from the JSON the benchmark scripts write.
 
-    python benchmarks/tables.py           # README.md's tables remade from benchmarks/results
-    python benchmarks/tables.py --check   # exit 1 if README.md's tables differ from the JSON
+    python benchmarks/tables.py           # docs/benchmarks.md's tables remade from the JSON
+    python benchmarks/tables.py --check   # exit 1 if its tables differ from the JSON
 
-Each table sits in README.md between ``<!-- bench:NAME -->`` and ``<!-- /bench:NAME -->`` and
-is made from ``benchmarks/results/NAME.json`` (written by ``scaling.py --json``,
-``bootstrap.py --json``, ``vs_reference.py --json``, ``peers.py --json``) with the date,
-commit, machine and load it was measured on. A number in those tables is never typed by
-hand: a slower or faster run changes the table (and tests/test_readme.py fails until
-README.md is remade).
+Each table sits in docs/benchmarks.md between ``<!-- bench:NAME -->`` and
+``<!-- /bench:NAME -->`` and is made from ``benchmarks/results/NAME.json`` (written by
+``scaling.py --json``, ``bootstrap.py --json``, ``vs_reference.py --json``,
+``peers.py --json``) with the date, commit, machine and load it was measured on. A number
+in those tables is never typed by hand: a slower or faster run changes the table (and
+tests/test_readme.py fails until docs/benchmarks.md is remade).
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
-README = ROOT / "README.md"
+PAGE = ROOT / "docs" / "benchmarks.md"
 
 SCALING_LABELS = {
     "ridge": "eigenvalue, ridge basis",
@@ -167,17 +167,18 @@ def render(text: str) -> str:
 def main() -> int:
     parser = argparse.ArgumentParser()
     parser.add_argument("--check", action="store_true",
-                        help="only check: exit 1 where README.md's tables are not the JSON's")
+                        help="only check: exit 1 where docs/benchmarks.md's tables are not "
+                        "the JSON's")
     args = parser.parse_args()
-    old = README.read_text()
+    old = PAGE.read_text()
     new = render(old)
     if args.check:
         if new != old:
-            print("README.md's benchmark tables differ from benchmarks/results/*.json: run "
-                  "python benchmarks/tables.py", file=sys.stderr)
+            print("docs/benchmarks.md's benchmark tables differ from "
+                  "benchmarks/results/*.json: run python benchmarks/tables.py", file=sys.stderr)
             return 1
         return 0
-    README.write_text(new)
+    PAGE.write_text(new)
     return 0
 
 

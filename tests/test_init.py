@@ -384,11 +384,11 @@ def test_init_help_loads_no_heavy_library():
     assert "--split-column" in out and out.strip().endswith("[]")
 
 
-def test_the_readme_s_two_commands(tmp_path, monkeypatch):
-    """The README's "Your own data" section opens with init and evaluate; init, as written
+def test_the_user_guide_s_two_commands(tmp_path, monkeypatch):
+    """The user guide's "Your own data" page opens with init and evaluate; init, as written
     there, writes the config the evaluate line names."""
-    readme = (ROOT / "README.md").read_text()
-    section = readme.split("## Your own data: a CSV and a config", 1)[1]
+    page = (ROOT / "docs" / "user_guide" / "own_data.md").read_text()
+    section = page.split("# Your own data: a CSV and a config", 1)[1]
     block = re.search(r"```sh\n(.*?)```", section, flags=re.S)
     assert block and block.start() < section.index("```toml")  # the commands come first
     init_line, evaluate_line = block.group(1).strip().splitlines()

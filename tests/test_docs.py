@@ -1,0 +1,196 @@
+"""The documentation (docs/, ``make docs``) cannot go stale.
+
+The config reference lists every key of every section of the typed schemas, the CLI
+reference every option of every command, the API reference only modules and names that
+exist; and the site builds with warnings as errors (the gallery not run: ``make docs`` runs
+it), with no broken internal link and nothing fetched from the web but MathJax.
+"""
+
+import importlib
+import importlib.util
+import inspect
+import re
+import shutil
+import subprocess
+import sys
+from html.parser import HTMLParser
+from pathlib import Path
+from urllib.parse import unquote, urlsplit
+
+import pytest
+from pydantic import BaseModel
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+
+
+def _extension(name):
+    spec = importlib.util.spec_from_file_location(f"docs_{name}", DOCS / "_ext" / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _tables(page):
+    """``{heading: [first-column cells]}`` of a generated Markdown page."""
+    out, current = {}, None
+    for line in page.splitlines():
+        heading = re.match(r"## `(.+)`$", line)
+        if heading:
+            current = out.setdefault(heading.group(1), [])
+        elif current is not None and line.startswith("| `"):
+            current.append(line.split("`")[1])
+    return out
+
+
+def _expected_config_keys():
+    """Every (table, key) a config file may hold, walked from the schemas themselves."""
+    from workbench.experiment import config as c
+    from workbench.experiment.families import FAMILIES, discover_families
+
+    def fields(model, skip=()):
+        return {k for k in model.model_fields if k not in skip}
+
+    sections = {name: info.annotation for name, info in c.TopLevel.model_fields.items()
+                if inspect.isclass(info.annotation) and issubclass(info.annotation, BaseModel)}
+    expected = {"(top level)": {k for k in fields(c.TopLevel)
+                                if k not in sections and k not in ("data", "model", "search")},
+                "[data]": fields(c.DataConfig, {"hamiltonian"}),
+                "[data.hamiltonian]": fields(c.HamiltonianData),
+                "[model]": fields(c.ModelConfig, {"targets"}),
+                "[model.targets.<target>]": fields(c.BoostSettings)}
+    expected.update({f"[{name}]": fields(model) for name, model in sections.items()})
+    discover_families()
+    expected.update({f"[model.{name}]": fields(family.settings)
+                     for name, family in FAMILIES.items() if family.settings is not None})
+    return expected
+
+
+def test_the_config_reference_lists_every_key_of_every_section():
+    page = _extension("configref").render()
+    listed = {table: set(keys) for table, keys in _tables(page).items()}
+    assert listed == _expected_config_keys()
+    # every schema the config package exports is a table of the page
+    from workbench.experiment import config as c
+
+    schemas = {getattr(c, n) for n in c.__all__
+               if inspect.isclass(getattr(c, n)) and issubclass(getattr(c, n), BaseModel)}
+    shown = {schema for _, schema, _ in _extension("configref").sections()}
+    assert schemas <= shown, f"not in the config reference: {schemas - shown}"
+
+
+def test_the_config_reference_shows_types_defaults_and_checks():
+    page = _extension("configref").render()
+    assert "| `trials` | int | `20` | >= 1, <= 1,000,000 |" in page
+    assert "| `n_stages` | int or none | `(1)` | <= 10,000, checked by `BaseBoostRegressor` |" \
+        in page
+    assert '| `sampler` | "tpe" \\| "random" | `"tpe"` |  |' in page
+    assert "| `onsite` | list of str | `required` |  |" in page
+
+
+def test_the_cli_reference_lists_every_command_and_option():
+    import argparse
+
+    from workbench.experiment.cli.parser import build_parser
+
+    page = _extension("cliref").render()
+    tables = _tables(page)
+    parser = build_parser()
+    subparsers = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    assert set(tables) == {f"workbench {name}" for name in subparsers.choices}
+    for name, sub in subparsers.choices.items():
+        cells = " ".join(tables[f"workbench {name}"])
+        for action in sub._actions:
+            if isinstance(action, argparse._HelpAction):
+                continue
+            for option in action.option_strings or [action.metavar or action.dest]:
+                assert option in cells, f"workbench {name} {option} not in the CLI reference"
+
+
+def test_the_api_reference_names_modules_and_names_that_exist():
+    text = (DOCS / "reference" / "api.rst").read_text()
+    modules = re.findall(r"^   (workbench[\w.]*)$", text, flags=re.M)
+    assert "workbench" in modules and "workbench.datasets" in modules
+    for name in modules:
+        module = importlib.import_module(name)
+        for public in getattr(module, "__all__", []):
+            assert getattr(module, public, None) is not None, f"{name}.{public}"
+
+
+class _Links(HTMLParser):
+    def __init__(self):
+        super().__init__()
+        self.ids, self.links, self.external = set(), [], []
+
+    def handle_starttag(self, tag, attrs):
+        attrs = dict(attrs)
+        if "id" in attrs:
+            self.ids.add(attrs["id"])
+        if tag == "span" and "problematic" in (attrs.get("class") or "") and self.links \
+                and self.links[-1].startswith("#"):
+            # docutils' link from a docstring's reST error to its message (dropped with the
+            # message: conf.py's KNOWN_DOCSTRING_PROBLEMS), not a link of the site
+            self.links.pop()
+        for key in ("href", "src"):
+            url = attrs.get(key)
+            if not url:
+                continue
+            if urlsplit(url).scheme in ("http", "https", "ftp") or url.startswith("//"):
+                if tag in ("script", "img") or (tag == "link" and "stylesheet" in
+                                                 (attrs.get("rel") or "")):
+                    self.external.append(url)
+            elif not url.startswith(("mailto:", "javascript:", "data:")):
+                self.links.append(url)
+
+
+def _check_links(html_dir):
+    pages, broken, fetched = {}, [], set()
+    for path in html_dir.rglob("*.html"):
+        parser = _Links()
+        parser.feed(path.read_text(errors="replace"))
+        pages[path] = parser
+        fetched.update(parser.external)
+    for path, parser in pages.items():
+        if "_modules" in path.parts or "_static" in path.parts:  # source pages, theme files
+            continue
+        for url in parser.links:
+            parts = urlsplit(url)
+            target = (path.parent / unquote(parts.path)).resolve() if parts.path else path
+            if target.is_dir():
+                target = target / "index.html"
+            if not target.exists():
+                broken.append(f"{path.relative_to(html_dir)}: {url}")
+            elif parts.fragment and target.suffix == ".html" and target in pages \
+                    and unquote(parts.fragment) not in pages[target].ids:
+                broken.append(f"{path.relative_to(html_dir)}: {url} (no such anchor)")
+    return broken, fetched
+
+
+def test_the_site_builds_without_warnings_and_without_broken_links(tmp_path):
+    """The whole site but the gallery's runs (``-D plot_gallery=0``), from a copy of docs/."""
+    pytest.importorskip("sphinx")
+    src = tmp_path / "docs"
+    shutil.copytree(DOCS, src, ignore=shutil.ignore_patterns(
+        "_build", "auto_examples", "generated", "config.md", "cli.md", "__pycache__"))
+    shutil.copy(ROOT / "CHANGES.md", tmp_path / "CHANGES.md")
+    out = tmp_path / "html"
+    build = subprocess.run(
+        [sys.executable, "-m", "sphinx", "-b", "html", "-W", "--keep-going", "-q",
+         "-D", "plot_gallery=0", "-d", str(tmp_path / "doctrees"), str(src), str(out)],
+        capture_output=True, text=True, env={**_env(), "MPLBACKEND": "Agg"})
+    assert build.returncode == 0, build.stderr[-4000:]
+    assert (out / "reference" / "config.html").is_file()
+    assert (out / "reference" / "cli.html").is_file()
+    assert (out / "auto_examples" / "index.html").is_file()
+    broken, fetched = _check_links(out)
+    assert not broken, "\n".join(broken[:20])
+    assert all("mathjax" in url.lower() for url in fetched), fetched
+
+
+def _env():
+    import os
+
+    env = dict(os.environ)
+    # the checkout's package first, as in the tests (conf.py puts its own parent first too)
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
+    return env
