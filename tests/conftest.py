@@ -20,6 +20,7 @@ LONG_FILES = [
     "test_services.py",  # ~55 s, PostgreSQL, an mlflow server, three sweep processes
     "test_hamiltonian_family.py",  # ~50 s
     "test_predict.py",  # ~40 s
+    "test_docs.py",  # ~35 s, a Sphinx build of docs/ without the gallery
     "test_ui_browser.py",  # ~35 s
     "test_param_select.py",  # ~30 s
     "test_cli.py",  # ~30 s

@@ -42,7 +42,7 @@ class ARDGaussianProcess(RegressorMixin, BaseEstimator):
     ----------
     estimator_ : GaussianProcessRegressor
         The fitted process.
-    length_scales_ : ndarray of shape (n_features_in_,)
+    length_scales_ : ndarray of shape (n_features,)
         The fitted length scale of each input.
     subsampled_ : bool
         Whether the process was fitted on a subset of the rows.

@@ -27,7 +27,7 @@ __all__ = ["MAX_INT", "MAX_MESSAGE", "ParameterOf", "Section", "Seed", "check_va
 
 #: The largest seed or count a config may give (numpy seeds are 32-bit).
 MAX_INT = 2**32 - 1
-#: Most characters of a config error line (``workbench: error: `` before it: under 300).
+#: Most characters of a config error line (with the "workbench: error: " before it: under 300).
 MAX_MESSAGE = 280
 
 
