@@ -1,5 +1,7 @@
-"""Database (RDB) storages: opened with Optuna's heartbeat, a grace period and one retry of
-a stale trial; checked before any work; problems as one line without the password.
+"""Database (RDB) storages.
+
+Opened with Optuna's heartbeat, a grace period and one retry of a stale trial; checked
+before any work; problems as one line without the password.
 """
 
 from __future__ import annotations
@@ -56,8 +58,9 @@ def _sqlite_file(url: str, shown: str) -> Path | None:
 
 
 def check_rdb(url: str) -> None:
-    """The database accepts a connection (nothing is created; a new SQLite file's directory
-    must be writable).
+    """Check that the database accepts a connection.
+
+    Nothing is created; a new SQLite file's directory must be writable.
     """
     import sqlalchemy  # (b) SQLAlchemy: database storages only, not a journal
 
