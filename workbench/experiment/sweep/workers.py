@@ -8,11 +8,12 @@ command.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Mapping
 
 from ...parallel import Task, map_tasks
-from ..signals import handle_signals
+from ..signals import Interrupted, handle_signals
 from ..startup import setup_logging
 from .scheduler import open_study
 from .storage import open_storage
@@ -31,13 +32,18 @@ def sweep_task(search: Callable[..., None], cfg: ExperimentConfig, storage_url: 
 
     It calls ``search(cfg, storage_url, progress=show, worker=index, on_trial=on_trial,
     dataset=dataset)``. A SIGTERM (the command ending its workers) or Ctrl-C (it reaches
-    the whole process group) fails and queues the running trial, then ends the task.
+    the whole process group) fails and queues the running trial, then ends the process:
+    the command is ending, and a worker left waiting for its next task would keep it from
+    exiting.
     """
-    with handle_signals():
-        if show:  # this process's per-trial lines to its standard error
-            setup_logging()
-        search(cfg, storage_url, progress=show, worker=index, on_trial=on_trial,
-               dataset=dataset)
+    try:
+        with handle_signals():
+            if show:  # this process's per-trial lines to its standard error
+                setup_logging()
+            search(cfg, storage_url, progress=show, worker=index, on_trial=on_trial,
+                   dataset=dataset)
+    except Interrupted as exc:  # the running trial is queued again already
+        os._exit(exc.code)
 
 
 def search_in_workers(search: Callable[..., None], cfg: ExperimentConfig, storage_url: str,
