@@ -186,16 +186,19 @@ def test_an_interrupt_ending_another_thread_stops_the_command():
     assert time.monotonic() - start < 5
 
 
-@pytest.mark.parametrize("signum, group", [(signal.SIGINT, True), (signal.SIGTERM, False)],
-                         ids=["Ctrl-C", "SIGTERM"])
-def test_an_interrupted_evaluate_drawing_its_figures_ends(tiny, tmp_path, signum, group):
-    """Ctrl-C or SIGTERM while ``evaluate`` computes and draws its learning curves and SHAP
-    summaries: 130 / 143 within seconds, one line, no ``--json``, the run KILLED."""
+@pytest.mark.parametrize("signum, group, phase", [
+    (signal.SIGINT, True, "] figures: "), (signal.SIGTERM, False, "] figures: "),
+    (signal.SIGTERM, False, "] fitting the model"), (signal.SIGINT, True, "] tracking in ")],
+    ids=["Ctrl-C-figures", "SIGTERM-figures", "SIGTERM-fitting", "Ctrl-C-logging"])
+def test_an_interrupted_evaluate_ends(tiny, tmp_path, signum, group, phase):
+    """Ctrl-C or SIGTERM while ``evaluate`` fits, logs, or computes and draws its learning
+    curves and SHAP summaries: 130 / 143 within seconds, one line, no ``--json``, the run
+    KILLED, its worker processes gone."""
     uri = f"sqlite:///{tmp_path / 'mlflow.db'}"
     out, err = tmp_path / "out.json", tmp_path / "err.log"
     cmd = workbench_cmd("evaluate", tiny, "--tracking-uri", uri, "--jobs", "2",
                         "--json", out)
-    proc = _start(cmd, tmp_path, err, "] figures: ")
+    proc = _start(cmd, tmp_path, err, phase)
     workers = _children(proc.pid)
     _ends(proc, signum, group=group)
     assert proc.returncode == 128 + signum
