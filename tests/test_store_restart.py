@@ -15,7 +15,7 @@ import pytest
 from optuna.trial import TrialState
 
 from workbench.experiment.errors import StorageError
-from workbench.experiment.sweep.scheduler import is_counted
+from workbench.experiment.sweep.scheduler import is_counted, run_study
 from workbench.experiment.sweep.storage import _rdb, open_storage
 
 from services import Postgres, command_env, tiny_sweep, workbench_cmd
@@ -41,7 +41,7 @@ def _kill(pg: Postgres) -> None:
 
 def test_a_sweep_waits_for_a_restarted_postgres_and_finishes_exactly(pg, tmp_path):
     url = pg.database("optuna", password=SECRET)
-    config = tiny_sweep(tmp_path / "cfg", trials=20)
+    config = tiny_sweep(tmp_path / "cfg", trials=10)
     err = tmp_path / "err.log"
     cmd = workbench_cmd("sweep", config, "--storage", url, "--no-track", "--json",
                         tmp_path / "out.json")
@@ -65,7 +65,7 @@ def test_a_sweep_waits_for_a_restarted_postgres_and_finishes_exactly(pg, tmp_pat
     assert len(names) == 3
     for name in names:
         trials = optuna.load_study(study_name=name, storage=storage).get_trials()
-        assert sum(is_counted(t) for t in trials) == 20
+        assert sum(is_counted(t) for t in trials) == 10
         assert not [t for t in trials if t.state in (TrialState.RUNNING, TrialState.WAITING)]
 
 
@@ -83,3 +83,19 @@ def test_a_postgres_that_stays_away_ends_in_one_line_naming_it(pg, tmp_path, mon
     assert "did not answer" in message and "run the same command" in message
     assert time.monotonic() - start < 10
     pg.server.ensure_postgres_running()  # for the fixture's stop
+
+
+def test_a_store_away_during_a_trial_is_not_the_configuration_s_fault(tmp_path):
+    """A storage error inside the objective (a report the store did not take) ends the
+    search; the trial is not recorded as a failed configuration that counts."""
+    storage = open_storage(str(tmp_path / "s.journal"), tmp_path)
+    study = optuna.create_study(study_name="s", storage=storage)
+
+    def objective(trial):
+        raise StorageError("Optuna storage db did not answer")
+
+    with pytest.raises(StorageError):
+        run_study(study, objective, 3)
+    trials = study.get_trials()
+    assert [t.state for t in trials] == [TrialState.RUNNING]  # for the reaper
+    assert not [t for t in trials if is_counted(t) and t.state == TrialState.FAIL]

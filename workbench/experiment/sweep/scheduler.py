@@ -45,6 +45,7 @@ from optuna.exceptions import ExperimentalWarning, UpdateFinishedTrialError
 from optuna.trial import FrozenTrial, TrialState
 
 from ...parallel import pid_alive
+from ..errors import StorageError
 from ..lifecycle import every
 from ..signals import interrupts_deferred
 from .storage import (
@@ -293,6 +294,8 @@ def run_study(study: optuna.Study, objective: Callable, n_trials: int, *,
                 value = objective(trial)
         except optuna.TrialPruned as exc:
             state, note = TrialState.PRUNED, str(exc)
+        except StorageError:  # the store is away: its trial stays RUNNING for the reaper
+            raise  # (fail_stale: this process gone), not counted as the configuration's
         except Exception as exc:  # a failed configuration is recorded, never chosen
             state, note = TrialState.FAIL, f"{type(exc).__name__}: {exc}"
             trial.set_user_attr("error", note[:2000])

@@ -30,8 +30,10 @@ __all__ = ["RETRY_DELAYS_S", "check_rdb", "rdb_storage"]
 #: 30 s in all: a restarted or failed-over server is back well within it).
 RETRY_DELAYS_S = (0.5, 1.0, 2.0, 4.0, 8.0, 15.0)
 
-#: The storage calls retried: every one that reads or writes the database.
+#: The storage calls retried: every one that reads or writes the database, with the private
+#: ones Optuna's cache in front of it calls (``_CachedStorage``).
 _RETRIED = (
+    "_create_new_trial", "_get_best_trial_id", "_get_trials", "_set_trial_param",
     "create_new_study", "delete_study", "set_study_user_attr", "set_study_system_attr",
     "get_study_id_from_name", "get_study_name_from_id", "get_study_directions",
     "get_study_user_attrs", "get_study_system_attrs", "get_all_studies", "create_new_trial",
@@ -70,15 +72,21 @@ def _unreachable(exc: StorageInternalError) -> str | None:
     """Say why the database did not answer, or ``None`` when ``exc`` is not about reaching it.
 
     Optuna raises :class:`StorageInternalError` for every SQLAlchemy error; a lost or refused
-    connection is worth another try, bad data is not.
+    connection is worth another try, bad data is not. The lost connection may be the context
+    of the error raised (a query made after it in the same transaction fails as
+    ``PendingRollbackError``).
     """
     import sqlalchemy.exc  # (b) SQLAlchemy: database storages only, not a journal
 
-    cause = exc.__cause__
-    if isinstance(cause, (sqlalchemy.exc.OperationalError, sqlalchemy.exc.InterfaceError)) or (
-            isinstance(cause, sqlalchemy.exc.DBAPIError) and cause.connection_invalidated):
-        reason = str(getattr(cause, "orig", cause)).strip().splitlines()
-        return reason[0][:150] if reason else type(cause).__name__
+    lost = (sqlalchemy.exc.OperationalError, sqlalchemy.exc.InterfaceError,
+            sqlalchemy.exc.PendingRollbackError)
+    cause, seen = exc.__cause__, 0
+    while cause is not None and seen < 5:
+        if isinstance(cause, lost) or (isinstance(cause, sqlalchemy.exc.DBAPIError)
+                                       and cause.connection_invalidated):
+            reason = str(getattr(cause, "orig", cause)).strip().splitlines()
+            return reason[0][:150] if reason else type(cause).__name__
+        cause, seen = cause.__cause__ or cause.__context__, seen + 1
     return None
 
 
