@@ -35,6 +35,7 @@ import multiprocessing
 import os
 import signal
 import sys
+import time
 import warnings
 from collections.abc import Callable, Generator, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -48,6 +49,9 @@ __all__ = ["Task", "die_with_parent", "effective_n_jobs", "gather", "in_worker",
 
 THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
               "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
+
+#: Seconds ended workers have to exit after SIGTERM before they are killed.
+KILL_GRACE_S = 5.0
 
 _IN_WORKER = False
 _AMBIENT: list[_Pool] = []  # the pools of the enclosing ``worker_pool`` blocks
@@ -201,9 +205,18 @@ class _Pool:
             for p in procs:
                 with contextlib.suppress(Exception):
                     p.terminate()
+            # SIGTERM lets a task that handles it end cleanly (a sweep's worker queues its
+            # trial); one that outlives the grace is killed: a live worker would hold the
+            # interpreter's exit, which joins the pool's processes
+            deadline = time.monotonic() + KILL_GRACE_S
             for p in procs:
                 with contextlib.suppress(Exception):
-                    p.join(timeout=5)
+                    p.join(timeout=max(0.0, deadline - time.monotonic()))
+            for p in procs:
+                with contextlib.suppress(Exception):
+                    if p.is_alive():
+                        p.kill()
+                        p.join(timeout=1)
         else:
             ex.shutdown(wait=True)
 

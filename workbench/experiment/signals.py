@@ -2,7 +2,8 @@
 
 * :func:`handle_signals`: they raise :class:`Interrupted` (a ``KeyboardInterrupt``) in the
   main thread, so the command unwinds, ends its runs ``KILLED`` and exits 130 / 143 with the
-  one line :data:`MESSAGE` (no traceback).
+  one line :data:`MESSAGE` (no traceback). Where Python would swallow it (raised inside a
+  finalizer, or in another thread) it is delivered to the main thread again.
 * :func:`interrupts_deferred`: bookkeeping that must not stop half-way (a trial being asked
   or told, an append to the Optuna journal under its lock, a new store's migration) gets
   the signal as it ends.
@@ -13,9 +14,11 @@ from __future__ import annotations
 
 import contextlib
 import signal
+import sys
 import threading
 from collections.abc import Iterator
 from types import FrameType
+from typing import Any
 
 __all__ = ["Interrupted", "MESSAGE", "handle_signals", "ignoring_signals",
            "interrupts_deferred"]
@@ -81,6 +84,12 @@ def handle_signals() -> Iterator[None]:
     requests and their retries, a database call) is interrupted where it is: its stores roll
     back what was not committed.
 
+    Python runs the handler wherever the main thread is, also inside a finalizer
+    (``__del__``, a weakref callback: matplotlib and SHAP run many while drawing), where the
+    exception is printed and dropped (``sys.unraisablehook``) and the command would go on
+    to exit 0. An :class:`Interrupted` dropped there, or ending another thread
+    (``threading.excepthook``), is delivered to the main thread again, silently.
+
     Yields
     ------
     None
@@ -98,12 +107,39 @@ def handle_signals() -> Iterator[None]:
         fired.append(signum)
         raise Interrupted(signum)
 
+    def redeliver(exc: BaseException | None) -> bool:
+        if not isinstance(exc, Interrupted):
+            return False
+        fired.clear()  # the main thread has not seen it: let the handler raise it again
+        # a real signal (it wakes a main thread blocked waiting), from another thread once
+        # this hook has returned (raised inside the hook, it would be dropped again); raised
+        # in a finalizer again, it comes back here
+        timer = threading.Timer(0.01, signal.pthread_kill,
+                                (threading.main_thread().ident, exc.code - 128))
+        timer.daemon = True
+        timer.start()
+        return True
+
+    def unraisable(info: Any) -> None:
+        try:
+            if not redeliver(info.exc_value):
+                old_unraisable(info)
+        except Interrupted as exc:  # the timer's, while still in the hook
+            redeliver(exc)
+
+    def thread_ended(args: Any) -> None:
+        if not redeliver(args.exc_value):
+            old_excepthook(args)
+
     signals = (signal.SIGINT, signal.SIGTERM)
     old = {s: signal.signal(s, handler) for s in signals}
+    old_unraisable, old_excepthook = sys.unraisablehook, threading.excepthook
+    sys.unraisablehook, threading.excepthook = unraisable, thread_ended
     try:
         yield
     finally:
         _PENDING.clear()
+        sys.unraisablehook, threading.excepthook = old_unraisable, old_excepthook
         for s, h in old.items():
             signal.signal(s, h)
 

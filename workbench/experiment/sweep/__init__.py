@@ -1,4 +1,4 @@
-"""``workbench sweep``, one room per concern:
+"""``workbench sweep``, one room per concern.
 
 * :mod:`~workbench.experiment.sweep.search`: nested CV over the family's study units, the
   outer folds' refits and the final evaluation (:func:`~.search.run_sweep`);

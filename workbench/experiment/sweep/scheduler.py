@@ -1,6 +1,7 @@
-"""The trial scheduler of ``workbench sweep``: samplers and pruners, and running studies in
-shared storage until each holds exactly its budget of counted trials
-(:mod:`~workbench.experiment.sweep.storage` opens the storages,
+"""The trial scheduler of ``workbench sweep``.
+
+Samplers and pruners, and running studies in shared storage until each holds exactly its
+budget of counted trials (:mod:`~workbench.experiment.sweep.storage` opens the storages,
 :mod:`~workbench.experiment.sweep.workers` starts the processes,
 :mod:`~workbench.experiment.sweep.search` holds the objectives).
 
@@ -35,14 +36,16 @@ import socket
 import time
 import warnings
 import zlib
-from typing import Any, Callable, Mapping
+from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
 
 import numpy as np
 import optuna
+from optuna.distributions import BaseDistribution
 from optuna.exceptions import ExperimentalWarning, UpdateFinishedTrialError
 from optuna.trial import FrozenTrial, TrialState
 
 from ...parallel import pid_alive
+from ..errors import StorageError
 from ..lifecycle import every
 from ..signals import interrupts_deferred
 from .storage import (
@@ -53,6 +56,9 @@ from .storage import (
     set_trial_attr,
 )
 
+if TYPE_CHECKING:
+    from ..config import ExperimentConfig
+
 log = logging.getLogger("workbench")
 
 __all__ = ["OBJECTIVE", "TrialSeededSampler", "fail_stale", "is_counted", "open_study",
@@ -60,22 +66,27 @@ __all__ = ["OBJECTIVE", "TrialSeededSampler", "fail_stale", "is_counted", "open_
 
 
 def trial_seed(seed: int, study_name: str, number: int) -> int:
-    """The seed of trial ``number`` of study ``study_name`` (32 bits, well mixed: nearby
-    seeds, names and numbers give unrelated streams)."""
+    """Seed trial ``number`` of study ``study_name``: 32 bits, well mixed.
+
+    Nearby seeds, names and numbers give unrelated streams.
+    """
     entropy = [seed, zlib.crc32(study_name.encode()), number]
     return int(np.random.SeedSequence(entropy).generate_state(1)[0])
 
 
 class TrialSeededSampler(optuna.samplers.BaseSampler):
-    """Optuna's sampler ``kind`` (``"tpe"``, with ``constant_liar``, or ``"random"``) with its
-    random numbers seeded per trial: each trial is sampled by a fresh sampler seeded with
-    :func:`trial_seed` of (``seed``, the study's name, the trial's number). Trial numbers are
-    assigned atomically by every Optuna storage, so processes sharing a study never draw the
-    same numbers, one trial number draws the same numbers in whichever process runs it, and
-    one process alone proposes the same trials run after run (TPE's proposals also depend on
-    the trials finished before, which only a lone process fixes). A fresh sampler per trial
-    costs nothing that matters here: Optuna's TPE and random samplers keep no state between
-    trials but their random generator and caches of the study's trials."""
+    """Optuna's sampler ``kind`` with its random numbers seeded per trial.
+
+    ``kind`` is ``"tpe"`` (with ``constant_liar``) or ``"random"``. Each trial is sampled by
+    a fresh sampler seeded with :func:`trial_seed` of (``seed``, the study's name, the
+    trial's number). Trial numbers are assigned atomically by every Optuna storage, so
+    processes sharing a study never draw the same numbers, one trial number draws the same
+    numbers in whichever process runs it, and one process alone proposes the same trials run
+    after run (TPE's proposals also depend on the trials finished before, which only a lone
+    process fixes). A fresh sampler per trial costs nothing that matters here: Optuna's TPE
+    and random samplers keep no state between trials but their random generator and caches
+    of the study's trials.
+    """
 
     def __init__(self, kind: str, seed: int):
         if kind not in ("tpe", "random"):
@@ -84,10 +95,11 @@ class TrialSeededSampler(optuna.samplers.BaseSampler):
         self._current: tuple[tuple[str, int], optuna.samplers.BaseSampler] | None = None
 
     def __repr__(self) -> str:
+        """Show the sampler's kind and seed."""
         return f"TrialSeededSampler({self.kind!r}, seed={self.seed})"
 
     def _for(self, study: optuna.Study, trial: FrozenTrial) -> optuna.samplers.BaseSampler:
-        """The sampler of ``trial`` (made when the trial starts, kept while it runs)."""
+        """Get the sampler of ``trial`` (made when the trial starts, kept while it runs)."""
         key = (study.study_name, trial.number)
         if self._current is None or self._current[0] != key:
             seed = trial_seed(self.seed, *key)
@@ -97,28 +109,40 @@ class TrialSeededSampler(optuna.samplers.BaseSampler):
         return self._current[1]
 
     def before_trial(self, study: optuna.Study, trial: FrozenTrial) -> None:
+        """Delegate to the trial's sampler."""
         self._for(study, trial).before_trial(study, trial)
 
-    def infer_relative_search_space(self, study, trial):
+    def infer_relative_search_space(self, study: optuna.Study,
+                                    trial: FrozenTrial) -> dict[str, BaseDistribution]:
+        """Delegate to the trial's sampler."""
         return self._for(study, trial).infer_relative_search_space(study, trial)
 
-    def sample_relative(self, study, trial, search_space):
+    def sample_relative(self, study: optuna.Study, trial: FrozenTrial,
+                        search_space: dict[str, BaseDistribution]) -> dict[str, Any]:
+        """Delegate to the trial's sampler."""
         return self._for(study, trial).sample_relative(study, trial, search_space)
 
-    def sample_independent(self, study, trial, param_name, param_distribution):
+    def sample_independent(self, study: optuna.Study, trial: FrozenTrial, param_name: str,
+                           param_distribution: BaseDistribution) -> Any:
+        """Delegate to the trial's sampler."""
         return self._for(study, trial).sample_independent(study, trial, param_name,
                                                           param_distribution)
 
-    def after_trial(self, study, trial, state, values) -> None:
+    def after_trial(self, study: optuna.Study, trial: FrozenTrial, state: TrialState,
+                    values: Sequence[float] | None) -> None:
+        """Delegate to the trial's sampler."""
         self._for(study, trial).after_trial(study, trial, state, values)
 
     def reseed_rng(self) -> None:
         """Nothing to reseed: every trial's numbers come from its own seed."""
 
 
-def sampler(cfg) -> TrialSeededSampler:
-    """The sampler of a sweep's study (``[study] sampler``), seeded per trial from
-    ``[cv] seed`` and the study's name (:class:`TrialSeededSampler`)."""
+def sampler(cfg: ExperimentConfig) -> TrialSeededSampler:
+    """Make the sampler of a sweep's study (``[study] sampler``).
+
+    It is seeded per trial from ``[cv] seed`` and the study's name
+    (:class:`TrialSeededSampler`).
+    """
     return TrialSeededSampler(cfg.study.sampler, cfg.cv.seed)
 
 
@@ -126,12 +150,14 @@ def sampler(cfg) -> TrialSeededSampler:
 OBJECTIVE = "inner-CV MAE (targets' units)"
 
 
-def open_study(name: str, storage, *, attrs: Mapping[str, Any] | None = None,
-               **kwargs) -> optuna.Study:
-    """The sweep's study ``name`` in ``storage`` (created if new; minimised), its objective
-    named (:data:`OBJECTIVE`) and its user attributes ``attrs`` set where missing (what
-    sweep it belongs to, which the dashboard shows; a resumed study keeps the values it
-    has). ``kwargs``: Optuna's (a sampler, a pruner)."""
+def open_study(name: str, storage: optuna.storages.BaseStorage, *,
+               attrs: Mapping[str, Any] | None = None, **kwargs: Any) -> optuna.Study:
+    """Open the sweep's study ``name`` in ``storage`` (created if new; minimised).
+
+    Its objective is named (:data:`OBJECTIVE`) and its user attributes ``attrs`` set where
+    missing (what sweep it belongs to, which the dashboard shows; a resumed study keeps the
+    values it has). ``kwargs``: Optuna's (a sampler, a pruner).
+    """
     study = optuna.create_study(study_name=name, storage=storage, direction="minimize",
                                 load_if_exists=True, **kwargs)
     if study.metric_names != [OBJECTIVE]:
@@ -146,7 +172,8 @@ def open_study(name: str, storage, *, attrs: Mapping[str, Any] | None = None,
     return study
 
 
-def pruner(cfg):
+def pruner(cfg: ExperimentConfig) -> optuna.pruners.BasePruner:
+    """Make the pruner of a sweep's study (``[study] pruner``: median, wilcoxon or none)."""
     name = cfg.study.pruner
     if name == "median":  # reported values: running mean of the inner folds' MAE
         return optuna.pruners.MedianPruner(n_startup_trials=3)
@@ -166,10 +193,12 @@ def is_counted(t: FrozenTrial) -> bool:
 
 
 def _fail_and_retry(study: optuna.Study, number: int) -> None:
-    """Fail a running trial that no process works on, then queue it once more (only the
-    process whose FAIL lands first queues it: the storage refuses the others'). The trial is
-    marked ``stale`` first, so it is not counted even when its process died after setting
-    ``finished_by`` and before its own ``tell``."""
+    """Fail a running trial that no process works on, then queue it once more.
+
+    Only the process whose FAIL lands first queues it: the storage refuses the others'. The
+    trial is marked ``stale`` first, so it is not counted even when its process died after
+    setting ``finished_by`` and before its own ``tell``.
+    """
     try:
         set_trial_attr(study, number, "stale", True)
         study.tell(number, state=TrialState.FAIL)
@@ -179,9 +208,11 @@ def _fail_and_retry(study: optuna.Study, number: int) -> None:
 
 
 def fail_stale(study: optuna.Study, stale_after_s: float) -> None:
-    """Fail (and queue once more) running trials whose worker is gone: at once when it was a
-    process on this host; after ``stale_after_s`` without a heartbeat otherwise (RDB: by
-    Optuna's heartbeat; journal: by the ``heartbeat`` user attribute)."""
+    """Fail (and queue once more) running trials whose worker is gone.
+
+    At once when it was a process on this host; after ``stale_after_s`` without a heartbeat
+    otherwise (RDB: by Optuna's heartbeat; journal: by the ``heartbeat`` user attribute).
+    """
     if heartbeat_enabled(study):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ExperimentalWarning)
@@ -226,7 +257,8 @@ def run_study(study: optuna.Study, objective: Callable, n_trials: int, *,
     is complete); without, return as soon as the budget is taken. ``on_trial(study, trial)``
     is called after each trial this process finishes (e.g. to log it). An interrupt
     (``KeyboardInterrupt``, SIGTERM raised as one) fails the running trial, queues it to be
-    re-run, and propagates."""
+    re-run, and propagates.
+    """
     worker = f"{socket.gethostname()}:{os.getpid()}"
     beat_s = heartbeat_interval(stale_after_s)
     start = time.perf_counter()
@@ -262,6 +294,8 @@ def run_study(study: optuna.Study, objective: Callable, n_trials: int, *,
                 value = objective(trial)
         except optuna.TrialPruned as exc:
             state, note = TrialState.PRUNED, str(exc)
+        except StorageError:  # the store is away: its trial stays RUNNING for the reaper
+            raise  # (fail_stale: this process gone), not counted as the configuration's
         except Exception as exc:  # a failed configuration is recorded, never chosen
             state, note = TrialState.FAIL, f"{type(exc).__name__}: {exc}"
             trial.set_user_attr("error", note[:2000])
@@ -283,11 +317,13 @@ def run_study(study: optuna.Study, objective: Callable, n_trials: int, *,
                      state.name.lower(), shown, best if best is None else round(best, 4))
 
 
-def run_studies(cfg, studies: list[tuple[optuna.Study, Callable]], *,
+def run_studies(cfg: ExperimentConfig, studies: list[tuple[optuna.Study, Callable]], *,
                 progress: bool = False,
                 on_trial: Callable[[optuna.Study, FrozenTrial], None] | None = None) -> None:
-    """Run (or resume) ``(study, objective)`` pairs to their budgets in this process (each
-    study with its own sampler, see :func:`sampler`)."""
+    """Run (or resume) ``(study, objective)`` pairs to their budgets in this process.
+
+    Each study has its own sampler (see :func:`sampler`).
+    """
     if not studies:
         return
     for study, _ in studies:

@@ -35,12 +35,15 @@ from ...parallel import Task, map_tasks
 from ..config import ExperimentConfig, load_dataset
 from ..errors import redact
 from ..evaluate import fit_and_score
+from ..metrics import mean_absolute_error
 from ..results import OuterFold, Result, SweepSummary
 from .scheduler import is_counted, open_study, pruner, run_studies, sampler
 from .storage import open_storage
 from .workers import search_in_workers
 
 if TYPE_CHECKING:
+    import pandas as pd
+
     from ...datasets import Dataset
 
 __all__ = ["Sweep", "run_search", "run_sweep", "study_attrs", "study_names", "sweep_name"]
@@ -51,8 +54,11 @@ log = logging.getLogger("workbench")
 
 @dataclass(frozen=True)
 class StudySpec:
-    """One study of a sweep: its name, unit, the unit's targets, and the outer fold (``None``:
-    the final study on all training rows)."""
+    """One study of a sweep.
+
+    Its name, unit, the unit's targets, and the outer fold (``None``: the final study on all
+    training rows).
+    """
 
     name: str
     unit: str
@@ -73,6 +79,7 @@ class Sweep:
 
     @property
     def outer_folds(self) -> list[OuterFold]:
+        """The outer folds of the sweep's summary."""
         assert self.result.sweep is not None  # a sweep's result has its summary
         return self.result.sweep.outer_folds
 
@@ -83,10 +90,12 @@ def _root() -> Path:
 
 
 def study_names(cfg: ExperimentConfig, targets: list[str]) -> list[StudySpec]:
-    """The sweep's studies in order: per unit, one per outer fold, then the final one, all
-    named ``<sweep>.<unit>.outer<k>`` / ``<sweep>.<unit>.final`` (``<sweep>``:
+    """List the sweep's studies in order: per unit, one per outer fold, then the final one.
+
+    All are named ``<sweep>.<unit>.outer<k>`` / ``<sweep>.<unit>.final`` (``<sweep>``:
     :func:`sweep_name`), so that the sweep's name finds them (the dashboard's "Search
-    study" box)."""
+    study" box).
+    """
     base = sweep_name(cfg)
     n_outer = cfg.cv.outer_folds * cfg.cv.repeats
     out = []
@@ -98,33 +107,36 @@ def study_names(cfg: ExperimentConfig, targets: list[str]) -> list[StudySpec]:
 
 
 def sweep_name(cfg: ExperimentConfig) -> str:
-    """The name a sweep's studies begin with: ``[study] study_name``, else the config's."""
+    """Name the sweep's studies begin with: ``[study] study_name``, else the config's."""
     return cfg.study.study_name or cfg.name
 
 
 def study_attrs(cfg: ExperimentConfig, spec: StudySpec) -> dict[str, Any]:
-    """A study's user attributes (the dashboard shows them on the study's page): the sweep
-    it belongs to, its config, unit, targets and outer fold (``"final"``: the final study
-    on all training rows)."""
+    """Build a study's user attributes (the dashboard shows them on the study's page).
+
+    The sweep it belongs to, its config, unit, targets and outer fold (``"final"``: the
+    final study on all training rows).
+    """
     return {"sweep": sweep_name(cfg), "config": cfg.label, "unit": spec.unit,
             "targets": list(spec.targets),
             "fold": "final" if spec.fold is None else spec.fold}
 
 
-def outer_splits(cfg: ExperimentConfig, n_rows: int) -> list:
-    """The outer folds: ``RepeatedKFold`` (``[cv]`` outer_folds x repeats, seeded)."""
+def outer_splits(cfg: ExperimentConfig, n_rows: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Split ``n_rows`` rows into the outer folds: ``RepeatedKFold`` (``[cv]``, seeded)."""
     c = cfg.cv
     splitter = RepeatedKFold(n_splits=c.outer_folds, n_repeats=c.repeats, random_state=c.seed)
     return list(splitter.split(np.zeros((n_rows, 1))))
 
 
-def inner_cv(cfg: ExperimentConfig):
-    """The inner folds of every trial (``[cv]`` inner_folds, shuffled with the seed)."""
+def inner_cv(cfg: ExperimentConfig) -> KFold:
+    """Make the inner folds of every trial (``[cv]`` inner_folds, shuffled with the seed)."""
     return KFold(cfg.cv.inner_folds, shuffle=True, random_state=cfg.cv.seed)
 
 
-def _rows(cfg: ExperimentConfig, ds, spec: StudySpec):
-    """A study's search rows: an outer fold's training rows, or all training rows."""
+def _rows(cfg: ExperimentConfig, ds: Dataset,
+          spec: StudySpec) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Select a study's search rows: an outer fold's training rows, or all training rows."""
     X = cfg.family.inputs(cfg, ds).loc[ds.train_index]
     Y = ds.targets.loc[ds.train_index]
     if spec.fold is None:
@@ -133,10 +145,13 @@ def _rows(cfg: ExperimentConfig, ds, spec: StudySpec):
     return X.iloc[train], Y.iloc[train]
 
 
-def _fold_reporter(cfg: ExperimentConfig, trial, maes: list[float], prior: list[float]):
-    """``report(i, mae, prior_mae)`` after inner fold ``i``: heartbeat, the value the pruner
-    reads (running mean of the folds' MAE for the median pruner, each fold's for wilcoxon),
-    and pruning."""
+def _fold_reporter(cfg: ExperimentConfig, trial: optuna.Trial, maes: list[float],
+                   prior: list[float]) -> Callable[[int, float, float], None]:
+    """Make ``report(i, mae, prior_mae)``, called after inner fold ``i``.
+
+    It beats the heartbeat, reports the value the pruner reads (running mean of the folds'
+    MAE for the median pruner, each fold's for wilcoxon), and prunes.
+    """
     per_fold = cfg.study.pruner == "wilcoxon"
 
     def report(i: int, mae: float, prior_mae: float) -> None:
@@ -152,12 +167,13 @@ def _fold_reporter(cfg: ExperimentConfig, trial, maes: list[float], prior: list[
     return report
 
 
-def study_objective(cfg: ExperimentConfig, ds, spec: StudySpec) -> Callable:
-    """The objective of one study: a trial's inner-CV MAE on the study's rows."""
+def study_objective(cfg: ExperimentConfig, ds: Dataset,
+                    spec: StudySpec) -> Callable[[optuna.Trial], float]:
+    """Make the objective of one study: a trial's inner-CV MAE on the study's rows."""
     X, Y = _rows(cfg, ds, spec)
     family = cfg.family
 
-    def objective(trial) -> float:
+    def objective(trial: optuna.Trial) -> float:
         maes: list[float] = []
         prior: list[float] = []
         family.objective(cfg, ds, spec.targets, X, Y, trial, inner_cv(cfg),
@@ -207,10 +223,12 @@ def _best_params(study: optuna.Study) -> dict[str, Any] | None:
 def _outer_folds(cfg: ExperimentConfig, ds: Dataset, specs: list[StudySpec],
                  params_of: dict[str, dict[str, Any] | None]
                  ) -> tuple[list[OuterFold], dict[str, list[float]], dict[str, list[float]]]:
-    """The outer folds' refits of each study's best settings (independent, on the
-    command's worker processes) scored on their validation rows: the folds, and per target
-    the model's and the prior's MAE in each fold (the prior stands where no trial
-    completed)."""
+    """Refit each study's best settings on its outer fold and score them on its validation rows.
+
+    The refits are independent, on the command's worker processes. Returns the folds, and
+    per target the model's and the prior's MAE in each fold (the prior stands where no
+    trial completed).
+    """
     family = cfg.family
     X_all = family.inputs(cfg, ds).loc[ds.train_index]
     Y_all = ds.targets.loc[ds.train_index]
@@ -236,8 +254,8 @@ def _outer_folds(cfg: ExperimentConfig, ds: Dataset, specs: list[StudySpec],
             pred, selected = prior_val, "prior"
         else:
             pred, selected = refitted[spec.name]
-        maes = [float(np.mean(np.abs(y_val[:, j] - pred[:, j]))) for j in range(len(cols))]
-        prior_maes = [float(np.mean(np.abs(y_val[:, j] - prior_val[:, j])))
+        maes = [mean_absolute_error(y_val[:, j], pred[:, j]) for j in range(len(cols))]
+        prior_maes = [mean_absolute_error(y_val[:, j], prior_val[:, j])
                       for j in range(len(cols))]
         for t, m, p in zip(spec.targets, maes, prior_maes):
             nested.setdefault(t, []).append(m)

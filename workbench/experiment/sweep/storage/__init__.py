@@ -1,5 +1,7 @@
-"""The Optuna storage adapter of ``workbench sweep``: the only module that touches Optuna's
-private names (a test checks), shaped like ``optuna.storages``: this public front over
+"""The Optuna storage adapter of ``workbench sweep``.
+
+The only module that touches Optuna's private names (a test checks), shaped like
+``optuna.storages``: this public front over
 one private module per concern, ``_journal`` (the journal file, failing safe), ``_repair``
 (``--repair``), ``_rdb`` (databases) and ``_heartbeat`` (heartbeats and retries).
 
@@ -36,11 +38,31 @@ __all__ = ["JournalDamaged", "Repair", "StorageError", "beat", "check_storage",
 
 def open_storage(storage: str, root: Path, *, stale_after_s: float = 600,
                  hint: str | None = None) -> optuna.storages.BaseStorage:
-    """An Optuna storage: an RDB URL (with Optuna's heartbeat, grace period ``stale_after_s``
-    and one retry of a stale trial), else a journal file (relative to ``root``), checked for
-    damage before anything is appended (:class:`JournalDamaged`; ``hint``: the command that
-    repairs it). Problems end in a :class:`StorageError` of one line (without the URL's
-    password).
+    """Open the Optuna storage ``storage``: an RDB URL, else a journal file.
+
+    An RDB storage has Optuna's heartbeat, grace period ``stale_after_s`` and one retry of a
+    stale trial; a journal file is checked for damage before anything is appended.
+
+    Parameters
+    ----------
+    storage : str
+        An RDB URL (``scheme://...``) or a journal file's path.
+    root : Path
+        The directory a relative journal path resolves against.
+    stale_after_s : float, default=600
+        Seconds without a heartbeat after which a running trial counts as dead.
+    hint : str, optional
+        The command that repairs a damaged journal, named in its error.
+
+    Returns
+    -------
+    optuna.storages.BaseStorage
+        The storage.
+
+    Raises
+    ------
+    StorageError
+        One line, without the URL's password (:class:`JournalDamaged` for a damaged journal).
     """
     if "://" in storage:
         return rdb_storage(storage, stale_after_s)
@@ -63,10 +85,25 @@ def open_storage(storage: str, root: Path, *, stale_after_s: float = 600,
 
 
 def check_storage(storage: str, root: Path, *, hint: str | None = None) -> None:
-    """Before any work, writing nothing: the Optuna storage can be used. A journal file that
-    exists is checked as :func:`open_storage` checks it; a missing one must be creatable (it
-    is not created here); a database must accept a connection (its tables are not created
-    here). Raises :class:`StorageError` (one line, no password).
+    """Check, before any work and writing nothing, that the Optuna storage can be used.
+
+    A journal file that exists is checked as :func:`open_storage` checks it; a missing one
+    must be creatable (it is not created here); a database must accept a connection (its
+    tables are not created here).
+
+    Parameters
+    ----------
+    storage : str
+        An RDB URL or a journal file's path.
+    root : Path
+        The directory a relative journal path resolves against.
+    hint : str, optional
+        The command that repairs a damaged journal, named in its error.
+
+    Raises
+    ------
+    StorageError
+        One line, without the URL's password.
     """
     if "://" in storage:
         check_rdb(storage)
@@ -85,8 +122,10 @@ def check_storage(storage: str, root: Path, *, hint: str | None = None) -> None:
 
 
 def dashboard_command(storage: str, port: int, root: Path) -> list[str]:
-    """The ``optuna-dashboard`` command line serving the studies of ``storage`` (a journal
-    file, relative to ``root``, or an RDB URL) on 127.0.0.1.
+    """Build the ``optuna-dashboard`` command line serving the studies of ``storage``.
+
+    ``storage`` is a journal file (relative to ``root``) or an RDB URL; the dashboard
+    listens on 127.0.0.1:``port``.
     """
     cmd = [sys.executable, "-c", "from optuna_dashboard._cli import main; main()",
            "--host", "127.0.0.1", "--port", str(port)]  # the package has no __main__

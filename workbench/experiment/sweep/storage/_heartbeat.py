@@ -1,8 +1,9 @@
-"""Heartbeats and retries of running trials: Optuna's own on an RDB storage, a user
-attribute on the journal file (Optuna's ``JournalStorage`` has no heartbeat), and the one
-retry of a trial whose worker died. The scheduler's access to what Optuna keeps private (a
-study's storage, its id, a trial's id) is here and in the other modules of this package,
-nowhere else (tests/test_layering.py checks).
+"""Heartbeats and retries of running trials.
+
+Optuna's own on an RDB storage, a user attribute on the journal file (Optuna's
+``JournalStorage`` has no heartbeat), and the one retry of a trial whose worker died. The
+scheduler's access to what Optuna keeps private (a study's storage, its id, a trial's id) is
+here and in the other modules of this package, nowhere else (tests/test_layering.py checks).
 """
 
 from __future__ import annotations
@@ -28,9 +29,11 @@ def heartbeat_interval(stale_after_s: float) -> int:
 
 
 class _Retry(optuna.storages.RetryFailedTrialCallback):
-    """Optuna's retry of a failed trial (same parameters, ``retry_history`` in its system
-    attributes), without the dead attempt's own user attributes: its ``worker`` (host:pid of
-    a dead process) would get the retry failed again the moment another process looks.
+    """Optuna's retry of a failed trial, without the dead attempt's own user attributes.
+
+    The retry has the same parameters and ``retry_history`` in its system attributes; the
+    attempt's ``worker`` (host:pid of a dead process) would get the retry failed again the
+    moment another process looks.
     """
 
     def __call__(self, study: optuna.Study, trial: FrozenTrial) -> None:
@@ -55,8 +58,9 @@ def retry_callback() -> _Retry:
 
 
 def heartbeat_enabled(study: optuna.Study) -> bool:
-    """Whether ``study``'s storage has Optuna's own heartbeat (an RDB storage opened by
-    :func:`open_storage`); the journal file has none.
+    """Tell whether ``study``'s storage has Optuna's own heartbeat.
+
+    An RDB storage opened by :func:`open_storage` has one; the journal file has none.
     """
     storage = study._storage
     return isinstance(storage, optuna.storages.RDBStorage) \
@@ -64,8 +68,9 @@ def heartbeat_enabled(study: optuna.Study) -> bool:
 
 
 def beat(study: optuna.Study, trial: optuna.Trial) -> None:
-    """One heartbeat of a running trial: Optuna's own on an RDB storage, a user attribute on
-    the journal file.
+    """Record one heartbeat of a running trial.
+
+    Optuna's own on an RDB storage, a user attribute on the journal file.
     """
     storage = study._storage
     if isinstance(storage, optuna.storages.RDBStorage) and heartbeat_enabled(study):
@@ -82,8 +87,9 @@ def set_trial_attr(study: optuna.Study, number: int, key: str, value: Any) -> No
 
 
 def retry(study: optuna.Study, number: int) -> None:
-    """Queue failed trial ``number`` once more with its parameters (Optuna's
-    ``RetryFailedTrialCallback``, without the dead attempt's own attributes).
+    """Queue failed trial ``number`` once more with its parameters.
+
+    Optuna's ``RetryFailedTrialCallback``, without the dead attempt's own attributes.
     """
     retry_callback()(study, study.get_trials(deepcopy=False)[number])
 

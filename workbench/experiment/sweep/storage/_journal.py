@@ -38,8 +38,10 @@ _STATES = {0: "a trial started", 1: "a trial completed", 2: "a trial pruned",
 
 
 class JournalDamaged(StorageError):
-    """An Optuna journal file with a damaged line: a torn (incomplete) record, bytes that are
-    not a JSON record, or a record Optuna cannot replay. Nothing was appended to it.
+    """An Optuna journal file with a damaged line.
+
+    The line is a torn (incomplete) record, bytes that are not a JSON record, or a record
+    Optuna cannot replay. Nothing was appended to the file.
     """
 
     def __init__(self, shown: str, line: int, total: int, why: str, last_good: str,
@@ -83,15 +85,17 @@ def parse_line(line: bytes) -> tuple[dict | None, str]:
 
 
 def read_lines(path: Path) -> Iterator[tuple[int, bytes, Any, str]]:
-    """``(number, bytes, record or None, why)`` for each line of the file (from 1)."""
+    """Yield ``(number, bytes, record or None, why)`` for each line of the file (from 1)."""
     with open(path, "rb") as fh:
         for number, line in enumerate(fh, start=1):
             yield (number, line, *parse_line(line))
 
 
 def replay_records(records: list[dict]) -> tuple[int | None, str]:
-    """``(index, why)`` of the first record Optuna's replay raises on, else ``(None, "")``
-    (replayed as a process that wrote none of them, as Optuna replays others' records).
+    """Find the first record Optuna's replay raises on: ``(index, why)``, else ``(None, "")``.
+
+    The records are replayed as a process that wrote none of them, as Optuna replays
+    others' records.
     """
     replay = JournalStorageReplayResult("workbench-check-")
     for i, record in enumerate(records):
@@ -103,10 +107,11 @@ def replay_records(records: list[dict]) -> tuple[int | None, str]:
 
 
 def id_gap(records: list[dict]) -> int | None:
-    """Index of the first record naming a study or trial that no earlier record created,
-    else ``None``. Optuna numbers studies and trials by their creation records, so in a
-    sound journal this never happens; after a lost creation record the ids shift and the
-    records of the last trials point past the end (or at the wrong trial).
+    """Index of the first record naming a study or trial that no earlier record created.
+
+    ``None`` when there is none. Optuna numbers studies and trials by their creation
+    records, so in a sound journal this never happens; after a lost creation record the ids
+    shift and the records of the last trials point past the end (or at the wrong trial).
     """
     studies: dict[int, str] = {}
     next_study = n_trials = 0
@@ -131,9 +136,10 @@ def id_gap(records: list[dict]) -> int | None:
 
 def find_damage(path: Path, shown: str, hint: str | None = None,
                  replay: bool = False) -> JournalDamaged | None:
-    """The file's first damaged line as a :class:`JournalDamaged`, else ``None`` (with
-    ``replay``, records that Optuna cannot replay count as damaged too). Without the file's
-    lock, another process's append in progress can look like a torn last line.
+    """Find the file's first damaged line, as a :class:`JournalDamaged`, else ``None``.
+
+    With ``replay``, records that Optuna cannot replay count as damaged too. Without the
+    file's lock, another process's append in progress can look like a torn last line.
     """
     first = None
     last_good, total, records, numbers = "none", 0, [], []
@@ -160,7 +166,7 @@ def find_damage(path: Path, shown: str, hint: str | None = None,
 
 @contextlib.contextmanager
 def holding(lock: Any, shown: str) -> Iterator[None]:
-    """The journal file's lock (Optuna's: every append takes it), or a one-line error."""
+    """Hold the journal file's lock (Optuna's: every append takes it), or fail in one line."""
     try:
         lock.acquire()
     except OSError as exc:
@@ -174,13 +180,15 @@ def holding(lock: Any, shown: str) -> Iterator[None]:
 
 
 class JournalFile(JournalFileBackend):
-    """Optuna's journal file, flushed to disk (fsync) only when the appended operations
-    create or delete a study, create a trial or set a trial's state, instead of after every
-    append (a trial's parameters, reports, heartbeats and attributes: ~20 fsyncs of ~3.5 ms
-    per trial here, an eighth of a small sweep). Every append is still written under the
-    file lock before it returns, so other processes (and machines sharing the file, whose
-    NFS flushes at close) see it at once; only an operating-system crash or power loss can
-    lose the unsynced operations of the running trials, which a resumed sweep runs again.
+    """Optuna's journal file, flushed to disk (fsync) only when a trial's state changes.
+
+    The file is synced when the appended operations create or delete a study, create a trial
+    or set a trial's state, instead of after every append (a trial's parameters, reports,
+    heartbeats and attributes: ~20 fsyncs of ~3.5 ms per trial here, an eighth of a small
+    sweep). Every append is still written under the file lock before it returns, so other
+    processes (and machines sharing the file, whose NFS flushes at close) see it at once;
+    only an operating-system crash or power loss can lose the unsynced operations of the
+    running trials, which a resumed sweep runs again.
 
     Fails safe: :meth:`check` finds a damaged line before anything is appended; an append
     after a torn last line is refused (it would glue a good record to the torn one); a read
@@ -192,9 +200,11 @@ class JournalFile(JournalFileBackend):
         self._shown = shown or file_path
 
     def check(self, hint: str | None = None) -> None:
-        """Raise :class:`JournalDamaged` at the first damaged line. Damage found is checked
-        again under the file lock (another process's append in progress looks like a torn
-        last line), so an intact file is read without taking the lock.
+        """Raise :class:`JournalDamaged` at the first damaged line.
+
+        Damage found is checked again under the file lock (another process's append in
+        progress looks like a torn last line), so an intact file is read without taking the
+        lock.
         """
         path = Path(self._file_path)
         if find_damage(path, self._shown, hint) is None:

@@ -1,6 +1,7 @@
-"""Repairing a damaged Optuna journal file (``workbench sweep --repair``): every complete
-record is recovered into a new file that must replay before it replaces the original, which
-is kept beside it.
+"""Repairing a damaged Optuna journal file (``workbench sweep --repair``).
+
+Every complete record is recovered into a new file that must replay before it replaces the
+original, which is kept beside it.
 """
 
 from __future__ import annotations
@@ -51,8 +52,9 @@ def _n(count: int, noun: str) -> str:
 
 
 def repair_journal(storage: str, root: Path) -> Repair | None:
-    """Recover every complete record of a damaged journal file into a new file (``None`` when it is
-    not damaged, or does not exist). The original is kept as ``<file>.damaged``
+    """Recover every complete record of a damaged journal file into a new file.
+
+    ``None`` when it is not damaged, or does not exist. The original is kept as ``<file>.damaged``
     (``.damaged-N`` when that exists); the good records are written to a temporary file
     beside it, which must replay (a :class:`JournalStorage` on it loads every study's
     trials) before it is moved into place atomically. When the complete records do not
@@ -118,8 +120,9 @@ def _write_temp(path: Path, data: bytes) -> Path:
 
 
 def _verify(path: Path, n_records: int) -> tuple[int, int]:
-    """``(studies, trials)`` of a journal file replayed by Optuna itself; raises unless every
-    one of its ``n_records`` lines was read.
+    """Count ``(studies, trials)`` of a journal file replayed by Optuna itself.
+
+    Raises unless every one of its ``n_records`` lines was read.
     """
     storage = optuna.storages.JournalStorage(
         optuna.storages.journal.JournalFileBackend(str(path)))
@@ -132,8 +135,10 @@ def _verify(path: Path, n_records: int) -> tuple[int, int]:
 
 
 def _keep_original(path: Path) -> Path:
-    """A second name for the damaged file, ``<file>.damaged`` or ``<file>.damaged-N``, that
-    keeps its bytes once the repaired file replaces it (a hard link, else a copy).
+    """Give the damaged file a second name, ``<file>.damaged`` or ``<file>.damaged-N``.
+
+    It keeps the bytes once the repaired file replaces the original (a hard link, else a
+    copy).
     """
     for n in range(10_000):
         copy = path.with_name(f"{path.name}.damaged" + (f"-{n}" if n else ""))

