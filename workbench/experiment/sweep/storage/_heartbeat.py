@@ -2,8 +2,9 @@
 
 Optuna's own on an RDB storage, a user attribute on the journal file (Optuna's
 ``JournalStorage`` has no heartbeat), and the one retry of a trial whose worker died. The
-scheduler's access to what Optuna keeps private (a study's storage, its id, a trial's id) is
-here and in the other modules of this package, nowhere else (tests/test_layering.py checks).
+scheduler reaches what Optuna keeps private (a study's storage, its id, a trial's id)
+through :mod:`._optuna`, the one module that reads those names (tests/test_layering.py
+checks that no module outside this package does).
 """
 
 from __future__ import annotations
@@ -15,6 +16,8 @@ from typing import Any
 
 import optuna
 from optuna.trial import FrozenTrial
+
+from ._optuna import storage_of, study_id, trial_id
 
 __all__ = ["beat", "heartbeat_enabled", "heartbeat_interval", "retry", "retry_callback",
            "set_trial_attr"]
@@ -62,7 +65,7 @@ def heartbeat_enabled(study: optuna.Study) -> bool:
 
     An RDB storage opened by :func:`open_storage` has one; the journal file has none.
     """
-    storage = study._storage
+    storage = storage_of(study)
     return isinstance(storage, optuna.storages.RDBStorage) \
         and storage.get_heartbeat_interval() is not None
 
@@ -72,17 +75,17 @@ def beat(study: optuna.Study, trial: optuna.Trial) -> None:
 
     Optuna's own on an RDB storage, a user attribute on the journal file.
     """
-    storage = study._storage
+    storage = storage_of(study)
     if isinstance(storage, optuna.storages.RDBStorage) and heartbeat_enabled(study):
-        storage.record_heartbeat(trial._trial_id)
+        storage.record_heartbeat(trial_id(trial))
     else:
         trial.set_user_attr("heartbeat", time.time())
 
 
 def set_trial_attr(study: optuna.Study, number: int, key: str, value: Any) -> None:
     """Set a user attribute of trial ``number``, which another process may be running."""
-    storage = study._storage
-    trial_id = storage.get_trial_id_from_study_id_trial_number(study._study_id, number)
+    storage = storage_of(study)
+    trial_id = storage.get_trial_id_from_study_id_trial_number(study_id(study), number)
     storage.set_trial_user_attr(trial_id, key, value)
 
 

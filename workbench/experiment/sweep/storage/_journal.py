@@ -19,16 +19,15 @@ from pathlib import Path
 from typing import Any
 
 from optuna.storages.journal import JournalFileBackend
-from optuna.storages.journal._file import get_lock_file
-from optuna.storages.journal._storage import JournalOperation, JournalStorageReplayResult
 
 from ...errors import StorageError
 from ...signals import interrupts_deferred
+from ._optuna import JournalOperation, JournalStorageReplayResult, get_lock_file
 
 __all__ = ["JournalDamaged", "JournalFile", "describe_record", "find_damage", "holding",
            "id_gap", "journal_file", "journal_path", "parse_line", "read_lines", "replay_records"]
 
-#: What a record does, by op code (``optuna.storages.journal._storage.JournalOperation``).
+#: What a record does, by op code (Optuna's ``JournalOperation``).
 _OPS = {0: "a study created", 1: "a study deleted", 2: "a study attribute",
         3: "a study attribute", 4: "a trial created", 5: "a trial parameter",
         6: "a trial's state", 7: "a trial's report", 8: "a trial attribute",
