@@ -12,7 +12,6 @@ import inspect
 import re
 import types
 import typing
-from pathlib import Path
 from typing import Any
 
 from pydantic import BaseModel
@@ -169,16 +168,8 @@ def render() -> str:
     return "\n".join(lines)
 
 
-def write(srcdir: str | Path) -> Path:
-    """Write the page under ``srcdir/reference/`` (only when its text changed)."""
-    path = Path(srcdir) / "reference" / "config.md"
-    text = render()
-    if not path.is_file() or path.read_text() != text:
-        path.write_text(text)
-    return path
-
-
 def setup(app: Any) -> dict[str, Any]:
     """Register the page's generation at the start of every build."""
-    app.connect("builder-inited", lambda app: write(app.srcdir))
-    return {"parallel_read_safe": True, "version": "1"}
+    from generated_page import connect  # docs/_ext, on the path conf.py sets
+
+    return connect(app, "config.md", render)
