@@ -72,7 +72,7 @@ def _forbidden(name: str):
 #: Every function that computes a run's figures, tables or predictions, by where the
 #: experiment layer looks it up.
 COMPUTING = [(run_outputs, "compute_outputs"), (run_outputs, "interval_artifacts"),
-             (run_outputs, "mae_bars"), (run_outputs, "save_figure"),
+             (run_outputs, "mae_bars"), (run_outputs, "_png"),
              (run_outputs, "write_artifacts"), (intervals, "interval_artifacts"),
              (intervals, "interval_figure"), (figures, "mae_bars"), (figures, "save_figure"),
              (serving, "prediction_frame"), (EigenvalueFamily, "begin_artifacts"),
@@ -93,13 +93,13 @@ def test_the_record_computes_nothing(fitted, tmp_path, monkeypatch):
     cfg, run = fitted
     calls = Calls()
     for owner, name in [(run_outputs, "interval_artifacts"), (run_outputs, "mae_bars"),
-                        (run_outputs, "save_figure"), (serving, "prediction_frame"),
+                        (run_outputs, "_png"), (serving, "prediction_frame"),
                         (EigenvalueFamily, "begin_artifacts")]:
         monkeypatch.setattr(owner, name, calls.counted(name, getattr(owner, name)))
     with computed_outputs(cfg, run.result, run.model, run.dataset,
                           setting="evaluate of computed") as computed:
         assert calls.counts == {"interval_artifacts": 1, "mae_bars": 2, "begin_artifacts": 1,
-                                "prediction_frame": 1, "save_figure": 4}
+                                "prediction_frame": 1, "_png": 4}
         assert set(computed.files) == set(computed.figures) == {
             "plots/mae_bars.png", "plots/mse_bars.png", "plots/intervals.png",
             "plots/curve_y1.png"}
@@ -160,4 +160,8 @@ def test_out_and_tracking_log_the_files_out_wrote(fitted, tmp_path):
     with computed_outputs(cfg, run.result, run.model, run.dataset, setting="s",
                           out=tmp_path / "out") as computed:
         assert computed.files["plots/intervals.png"] == tmp_path / "out" / "intervals.png"
-        assert computed.files["plots/mae_bars.png"].parent.name == "plots"
+        bars = computed.files["plots/mae_bars.png"]
+        assert bars.parent.name == "plots"
+        # a run's PNG is the bytes --out (save_figure) writes of the same figure
+        again = figures.save_figure(computed.figures["plots/mae_bars.png"], tmp_path / "a.png")
+        assert bars.read_bytes() == again.read_bytes()

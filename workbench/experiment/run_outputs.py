@@ -25,8 +25,10 @@ import pandas as pd
 
 from ..datasets import Dataset
 from .config import ExperimentConfig
+from .errors import TrackingError
 from .families.artifacts import Artifacts
-from .figures import mae_bars, save_figure
+from .figures import mae_bars
+from .figures.style import PNG_DPI
 from .intervals import family_model, interval_artifacts
 from .outputs import write_artifacts
 from .results import Result
@@ -93,6 +95,17 @@ def _merged(*parts: Artifacts) -> Artifacts:
     return out
 
 
+def _png(fig: Any, path: Path) -> Path:
+    """Render ``fig`` as the PNG ``path`` (a scratch file: written directly, not atomically).
+
+    At the resolution of :func:`~.figures.save_figure`, so a figure's PNG is the same bytes
+    here and in ``evaluate --out``.
+    """
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=PNG_DPI, format="png")
+    return path
+
+
 def _tracked(computed: RunOutputs, family: str, shown: Artifacts, own: Artifacts,
              extra: Artifacts, bars: dict[str, Any], scratch: Path) -> None:
     """Fill a tracked run's figures (as PNG files in ``scratch``), tables and data.
@@ -104,9 +117,12 @@ def _tracked(computed: RunOutputs, family: str, shown: Artifacts, own: Artifacts
     for name, fig in {**bars, **shown.figures, **logged.figures}.items():
         artifact = f"{PLOTS}/{name}.png"
         computed.figures[artifact] = fig
-        computed.files[artifact] = (
-            computed.written[name] if at_out.get(name) is fig
-            else save_figure(fig, scratch / PLOTS / f"{name}.png"))
+        try:
+            computed.files[artifact] = (computed.written[name] if at_out.get(name) is fig
+                                        else _png(fig, scratch / PLOTS / f"{name}.png"))
+        except OSError as exc:
+            raise TrackingError(f"cannot write the run's figure {name}.png in {scratch}: "
+                                f"{exc.strerror or type(exc).__name__}") from None
     computed.tables.update({f"intervals/{k}.csv": t for k, t in shown.tables.items()})
     computed.tables.update({f"{family}/{k}.csv": t for k, t in logged.tables.items()})
     computed.data.update({f"{k}.json": d for k, d in logged.data.items()})
