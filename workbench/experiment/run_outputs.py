@@ -110,7 +110,7 @@ def _tracked(computed: RunOutputs, family: str, shown: Artifacts, own: Artifacts
              extra: Artifacts, bars: dict[str, Any], scratch: Path) -> None:
     """Fill a tracked run's figures (as PNG files in ``scratch``), tables and data.
 
-    A figure ``evaluate --out`` wrote already is its file in the directory (not drawn again).
+    A figure ``evaluate --out`` wrote already is its file in the directory (not rendered again).
     """
     logged = _merged(own, extra)
     at_out = {**shown.figures, **own.figures} if computed.written else {}
@@ -134,8 +134,9 @@ def compute_outputs(cfg: ExperimentConfig, result: Result, model: Any, ds: Datas
     """Compute a run's figures, tables and predictions; write ``--out``'s part.
 
     With ``scratch`` (a tracked run), everything the record logs: the MAE/MSE bars, the
-    intervals' figure and table, the family's outputs and its run figures (started first,
-    on the worker processes, while the rest is drawn here), the test rows' predictions.
+    intervals' figure and table, the family's outputs and its run figures (started on the
+    worker processes while the bars and predictions are made here), the test rows'
+    predictions, the figures rendered as PNG files in ``scratch``.
     With ``out``, the intervals' figure and table and the family's outputs
     (:meth:`~.families.base.ModelFamily.outputs`), written all or nothing.
 
@@ -165,6 +166,8 @@ def compute_outputs(cfg: ExperimentConfig, result: Result, model: Any, ds: Datas
     ------
     OutputError
         ``out`` cannot be written (none of its files is left then).
+    TrackingError
+        ``scratch`` cannot take a figure.
     """
     family = cfg.family
     fitted = family_model(model)
