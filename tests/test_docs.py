@@ -126,11 +126,6 @@ class _Links(HTMLParser):
         attrs = dict(attrs)
         if "id" in attrs:
             self.ids.add(attrs["id"])
-        if tag == "span" and "problematic" in (attrs.get("class") or "") and self.links \
-                and self.links[-1].startswith("#"):
-            # docutils' link from a docstring's reST error to its message (dropped with the
-            # message: conf.py's KNOWN_DOCSTRING_PROBLEMS), not a link of the site
-            self.links.pop()
         for key in ("href", "src"):
             url = attrs.get(key)
             if not url:

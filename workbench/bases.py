@@ -73,6 +73,22 @@ class LeanLGBMRegressor(CachedParamNames, LGBMRegressor):
     _trees: tuple[int, list[_Tree] | None] | None
 
     def fit(self, X: Any, y: Any, *args: Any, **kwargs: Any) -> Self:
+        """Fit as :meth:`lightgbm.LGBMRegressor.fit` does, keeping the trained booster.
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_features)
+            The inputs.
+        y : array-like of shape (n_samples,)
+            The target.
+        *args, **kwargs
+            Passed to :meth:`lightgbm.LGBMRegressor.fit` (``sample_weight``, ...).
+
+        Returns
+        -------
+        self : LeanLGBMRegressor
+            The fitted model.
+        """
         if _lgb_sklearn.train is not _train:
             with _PATCH:  # once per process; thread-safe: the flag is per thread
                 _lgb_sklearn.train = _train

@@ -222,12 +222,26 @@ def _score_many(base: Any, libraries: list[dict[str, list[str]]], folds: list[tu
 class SelectionResult:
     """Outcome of :func:`forward_select`.
 
-    covariates : parameter -> selected covariate names (refit with
+    Parameters
+    ----------
+    covariates : dict
+        Parameter name -> the selected covariate names (refit with
         ``HamiltonianParameterRegressor(covariates=result.covariates, ...)`` or
-        ``result.estimator()``).
-    path : DataFrame with columns step, parameter, covariate, cv_mae (step 0 = start).
-    cv_mae : CV MAE of the final selection (the last path entry).
-    n_rows : rows the selection saw; index : their index labels.
+        :meth:`estimator`).
+    path : DataFrame
+        One row per step, columns ``step``, ``parameter``, ``covariate``, ``cv_mae``
+        (step 0 is the start).
+    cv_mae : float
+        CV MAE of the final selection (the last row of ``path``).
+    n_rows : int
+        Rows the selection saw.
+    index : Index
+        Their index labels.
+    regressor_params : dict, default={}
+        The other parameters of the regressor the selection fitted (:meth:`estimator`
+        passes them on).
+    seconds : float, default=0.0
+        Wall time of the selection.
     """
 
     covariates: dict

@@ -46,21 +46,33 @@ MECHANISMS = {**{k: k for k in ("drift", "crosstalk", "coupler_nonlinearity",
 class Mismatch:
     """How the true device departs from the control model; 0 switches a mechanism off.
 
-    drift: multiplier of per-element parameter offsets (1 = sd 1.5 MHz on f_max, 0.2 mV on
-        the sweet spot V0, 0.3 % on the flux period, 3 % on g_max, 1 mV on the coupler midpoint).
-    crosstalk: flux crosstalk fraction; qubit i feels ~this fraction (x U(0.5, 1.5), random
-        sign) of the bias of neighbouring qubits i±1 and of its adjacent couplers (coupler bias
-        relative to the calibration point V_CAL, whose constant part the model absorbed).
-    coupler_nonlinearity: MHz; true g gains kappa * ((V_c - 0.16) / 0.06)^2, |kappa| ~ this.
-    coupler_frequency_shift: dimensionless; each coupler pulls its two qubits down by
-        this * g^2 / Delta_c (Delta_c ~ 1 GHz, a dispersive shift).
-    next_nearest_coupling: parasitic couplings the control model lacks, between the sites of
-        each parasitic pair (i, j) (chain/ring: next-nearest, grid: diagonal):
-        H[i, j] = -this * eta_ij * mean over paths i-m-j of sqrt(|g_im g_mj|),
-        eta_ij ~ U(0.5, 1.5).
-    noise_sd: Gaussian measurement noise on each measured eigenvalue (MHz).
-    misidentified_rate: per-experiment probability that one eigenvalue is a wrong peak
-        (shifted by ±3-10 MHz).
+    Parameters
+    ----------
+    drift : float, default=0.0
+        Multiplier of per-element parameter offsets (1 = sd 1.5 MHz on f_max, 0.2 mV on the
+        sweet spot V0, 0.3 % on the flux period, 3 % on g_max, 1 mV on the coupler midpoint).
+    crosstalk : float, default=0.0
+        Flux crosstalk fraction: qubit i feels about this fraction (times U(0.5, 1.5), random
+        sign) of the bias of neighbouring qubits i±1 and of its adjacent couplers (coupler
+        bias relative to the calibration point ``V_CAL``, whose constant part the model
+        absorbed).
+    coupler_nonlinearity : float, default=0.0
+        In MHz: the true g gains ``kappa * ((V_c - 0.16) / 0.06)**2``, with ``abs(kappa)``
+        about this.
+    coupler_frequency_shift : float, default=0.0
+        Dimensionless: each coupler pulls its two qubits down by ``this * g**2 / Delta_c``
+        (``Delta_c`` about 1 GHz, a dispersive shift).
+    next_nearest_coupling : float, default=0.0
+        Parasitic couplings the control model lacks, between the sites of each parasitic
+        pair (i, j) (chain or ring: next-nearest, grid: diagonal):
+        ``H[i, j] = -this * eta_ij * mean over paths i-m-j of sqrt(abs(g_im * g_mj))``, with
+        ``eta_ij`` drawn from U(0.5, 1.5).
+    noise_sd : float, default=0.0
+        Standard deviation of the Gaussian measurement noise on each measured eigenvalue
+        (MHz).
+    misidentified_rate : float, default=0.0
+        Per-experiment probability that one eigenvalue is a wrong peak (shifted by 3 to
+        10 MHz either way); at most 1.
     """
 
     drift: float = 0.0
