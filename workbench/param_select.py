@@ -95,9 +95,29 @@ def candidate_pool(onsite: Sequence[str], couplings: Sequence[str],
     the couplers touching it and (with ``neighbours``) of the neighbouring qubits; coupling
     ``g_e``: its coupler's feature times its two qubits' features.
 
-    ``qubit_features`` (N names) and ``coupler_features`` (one per coupling) are in site and
-    edge order, e.g. ``qvolt5..qvolt9`` and ``cvolt5..cvolt8`` on the benchmark. Duplicates
-    are dropped.
+    Duplicates are dropped.
+
+    Parameters
+    ----------
+    onsite, couplings : sequence of str
+        The onsite parameters' and the couplings' names, in site and edge order.
+    qubit_features : sequence of str, default=None
+        N names of the features acting on each site, in site order (e.g. ``qvolt5..qvolt9``
+        on the benchmark).
+    coupler_features : sequence of str, default=None
+        One name per coupling, in edge order (e.g. ``cvolt5..cvolt8``).
+    squares : bool, default=True
+        Whether each candidate comes with its square.
+    base : {"default", None}, default="default"
+        Whether to start from :func:`~workbench.param_boost.default_library`.
+    neighbours : bool, default=True
+        Whether to add the neighbouring terms described above.
+    edges : iterable of (int, int), default=None
+        The coupling graph's site pairs (``None``: the chain).
+    parasitic : str or iterable of (int, int), default=None
+        The parasitic couplings (:func:`~workbench.param_boost.resolve_graph`).
+    crosstalk : bool, default=False
+        Whether to add the bias crosstalk terms.
     """
     on, co = list(onsite), list(couplings)
     graph, pairs = resolve_graph(len(on), edges, parasitic)
@@ -143,8 +163,14 @@ def crosstalk_candidates(onsite: Sequence[str], couplings: Sequence[str],
                          qubit_features: Sequence[str] | None,
                          coupler_features: Sequence[str] | None, graph: CouplingGraph,
                          neighbours: bool = True) -> dict[str, list[str]]:
-    """The bias-product candidates of :func:`candidate_pool` (``crosstalk=True``) on
-    ``graph`` (a :class:`~workbench.hamiltonian.CouplingGraph`)."""
+    """The bias-product candidates of :func:`candidate_pool` (``crosstalk=True``).
+
+    Parameters
+    ----------
+    onsite, couplings, qubit_features, coupler_features, neighbours
+        As in :func:`candidate_pool`.
+    graph : CouplingGraph
+        The coupling graph."""
     qf, cf = list(qubit_features or []), list(coupler_features or [])
     out: dict[str, list[str]] = {}
     for i, p in enumerate(onsite):
@@ -179,8 +205,22 @@ def _sliced(X: pd.DataFrame, y: np.ndarray,
 
 def cv_mae(estimator: Any, X: pd.DataFrame, y: ArrayLike, *, cv: int = 5, n_repeats: int = 1,
            random_state: int = 0) -> float:
-    """Repeated K-fold CV MAE of ``estimator`` on ``(X, y)`` (mean over all held-out
-    values; RepeatedKFold seeded by ``random_state``)."""
+    """Repeated K-fold CV MAE of ``estimator`` on ``(X, y)``, the mean over all held-out values.
+
+    Parameters
+    ----------
+    estimator : HamiltonianParameterRegressor
+        The model.
+    X : DataFrame
+        The rows.
+    y : array-like of shape (n, N)
+        Their ascending eigenvalues.
+    cv : int, default=5
+        Folds.
+    n_repeats : int, default=1
+        Repeats of the K-fold split.
+    random_state : int, default=0
+        Seeds the ``RepeatedKFold``."""
     y = np.asarray(y, dtype=float)
     abs_sum, count = 0.0, 0
     for fit_rows, val_rows in _splits(len(X), cv, n_repeats, random_state):
@@ -296,17 +336,41 @@ def forward_select(X: pd.DataFrame, y: ArrayLike, *, candidates: dict[str, list[
 
     Parameters
     ----------
-    X : DataFrame with the onsite, coupling and candidate-feature columns.
-    y : (n, N) ascending eigenvalues.
-    candidates : dict parameter -> list of covariate names (see :func:`candidate_pool`).
-    n_jobs : scikit-learn's convention (``None``: 1, ``-1``: every core; 1 inside a worker
+    X : DataFrame
+        The onsite, coupling and candidate-feature columns.
+    y : array-like of shape (n, N)
+        The ascending eigenvalues.
+    candidates : dict
+        Parameter -> list of covariate names (see :func:`candidate_pool`).
+    cv : int, default=5
+        Folds.
+    n_repeats : int, default=1
+        Repeats of the K-fold split.
+    random_state : int, default=0
+        Seeds the ``RepeatedKFold``.
+    max_steps : int, default=30
+        The most steps.
+    min_improvement : float, default=0.001
+        The least CV MAE gain (targets' units) a step must bring.
+    start : dict, default=None
+        The starting covariates (``None``: intercepts only).
+    n_jobs : int, default=None
+        scikit-learn's convention (``None``: 1, ``-1``: every core; 1 inside a worker
         process): for ``"refit"``, the candidates are scored on the workbench's worker
         processes (:mod:`workbench.parallel`, the command's pool when there is one); for
         ``"linearised"``, the folds' fits and linear scores run on threads of this process
         (the folds' data and fitted models stay in memory from step to step; numpy's
         linear algebra releases the GIL).
-    progress : called with one line per step.
-    **regressor_params : passed to :class:`~workbench.param_boost.HamiltonianParameterRegressor`
+    method : {"refit", "linearised"}, default="refit"
+        How candidates are scored (see above).
+    shortlist : int, default=5
+        ``"linearised"``: the best-scored single candidates refitted exactly.
+    batch : int or "auto", default="auto"
+        ``"linearised"``: the most parameters a batch step adds a covariate to.
+    progress : callable, default=None
+        Called with one line per step.
+    **regressor_params
+        Passed to :class:`~workbench.param_boost.HamiltonianParameterRegressor`
         (``onsite``, ``couplings``, ``sign``, ``alpha``, ``loss``, ...; not ``covariates``).
     """
     t0 = time.perf_counter()

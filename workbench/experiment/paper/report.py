@@ -87,7 +87,7 @@ def _hamiltonian_section(ham: Result, tables: dict[str, str]) -> str:
                      "estimate.")
     else:
         lines.append("- The least noisy estimate, a nested CV over all 136 experiments with the "
-                     "selection redone inside each outer fold, takes about 4 minutes more: "
+                     "selection redone inside each outer fold, is left out of the reproduction: "
                      "`workbench evaluate experiments/hamiltonian.toml` computes it.")
     if tables:
         lines.append("- Tables: " + ", ".join(f"[{n}]({p})" for n, p in tables.items())
