@@ -117,6 +117,39 @@ def test_the_api_reference_names_modules_and_names_that_exist():
             assert getattr(module, public, None) is not None, f"{name}.{public}"
 
 
+#: numpydoc's checks that a docstring documents exactly its signature: it exists (GL08),
+#: every parameter is in its Parameters section (PR01), and nothing there is not a parameter
+#: (PR02). A class documents its constructor's parameters (scikit-learn's layout; a
+#: dataclass's or a config section's fields).
+PARAMETER_CHECKS = {"GL08", "PR01", "PR02"}
+
+
+def _public_names():
+    """``{qualified name: object}`` of every function and class the API reference lists."""
+    text = (DOCS / "reference" / "api.rst").read_text()
+    out = {}
+    for module_name in re.findall(r"^   (workbench[\w.]*)$", text, flags=re.M):
+        module = importlib.import_module(module_name)
+        for name in getattr(module, "__all__", []):
+            obj = getattr(module, name)
+            if inspect.isclass(obj) or inspect.isfunction(obj):
+                out.setdefault(f"{obj.__module__}.{obj.__qualname__}", obj)
+    return out
+
+
+def test_every_public_name_documents_its_parameters():
+    """numpydoc's own validation of every public function and class (their methods are
+    rendered from the same docstrings; ``make docs`` fails on their reST errors)."""
+    from numpydoc.validate import get_doc_object, validate
+
+    problems = []
+    for name, obj in sorted(_public_names().items()):
+        for code, message in validate(get_doc_object(obj))["errors"]:
+            if code in PARAMETER_CHECKS:
+                problems.append(f"{name}: {code} {message}")
+    assert not problems, "\n".join(problems)
+
+
 class _Links(HTMLParser):
     def __init__(self):
         super().__init__()
