@@ -70,54 +70,38 @@ def candidate_pool(onsite: Sequence[str], couplings: Sequence[str],
                    crosstalk: bool = False) -> dict[str, list[str]]:
     """Physically meaningful candidate covariates of each Hamiltonian parameter.
 
-    "Adjacent" and "neighbouring" are read from the coupling graph (``edges``; None: the
-    chain). ``base="default"`` starts from :func:`~workbench.param_boost.default_library`
-    (the parameter and its square; for onsite ``f_i`` the couplings touching site ``i`` and
-    their squares; for ``g_e`` the detuning across it; for a parasitic coupling the
-    geometric means of the couplings bridging it); ``base=None`` from nothing. Then, each
-    with its square when ``squares``:
+    "Adjacent" and "neighbouring" are read from the coupling graph. ``base="default"``
+    starts from :func:`~workbench.param_boost.default_library` (the parameter and its square;
+    for onsite ``f_i`` the couplings touching site ``i`` and their squares; for ``g_e`` the
+    detuning across it; for a parasitic coupling the geometric means of the couplings
+    bridging it); ``base=None`` from nothing. Then, each with its square when ``squares``:
 
     * onsite ``f_i``: its qubit's feature and the features of the couplers touching it;
       with ``neighbours``, also the neighbouring onsite frequencies ``f_j``, the detunings
       to them and the neighbouring qubits' features;
     * coupling ``g_e``, ``e = (i, j)``: its coupler's feature; with ``neighbours``, also the
       two coupled frequencies, the squared detuning and the two qubits' features;
-    * parasitic coupling ``(i, j)`` (``parasitic``: "next_nearest", "diagonal" or a list of
-      site pairs; see :func:`~workbench.param_boost.resolve_graph`): the geometric means
-      ``sqrt|g_a*g_b|`` of the bridging couplings (not squared); with ``neighbours``, also
-      the bridging couplers' features and the two qubits' features. A parasitic coupling
-      enters the model only once a covariate of it is selected.
+    * parasitic coupling ``(i, j)``: the geometric means ``sqrt|g_a*g_b|`` of the bridging
+      couplings (not squared); with ``neighbours``, also the bridging couplers' features and
+      the two qubits' features. It enters the model once a covariate of it is selected.
 
-    With ``crosstalk``, bias crosstalk terms (products of centred biases, not squared): a
-    parameter tuned by its own bias line that also feels a neighbouring line ``V'`` changes by
-    about ``(df/dV) C V'``, and near a sweet spot ``df/dV`` is linear in the own bias ``V``,
-    so the candidate is ``V*V'``. Onsite ``f_i``: its qubit's feature times the features of
-    the couplers touching it and (with ``neighbours``) of the neighbouring qubits; coupling
-    ``g_e``: its coupler's feature times its two qubits' features.
-
-    Duplicates are dropped.
+    With ``crosstalk``, the bias products of :func:`crosstalk_candidates`. Duplicates are
+    dropped.
 
     Parameters
     ----------
     onsite, couplings : sequence of str
         The onsite parameters' and the couplings' names, in site and edge order.
-    qubit_features : sequence of str, default=None
-        N names of the features acting on each site, in site order (e.g. ``qvolt5..qvolt9``
-        on the benchmark).
-    coupler_features : sequence of str, default=None
-        One name per coupling, in edge order (e.g. ``cvolt5..cvolt8``).
-    squares : bool, default=True
-        Whether each candidate comes with its square.
+    qubit_features, coupler_features : sequence of str, default=None
+        The features acting on each site (N names) and coupling (one per edge), in site and
+        edge order (e.g. ``qvolt5..qvolt9`` and ``cvolt5..cvolt8`` on the benchmark).
+    squares, neighbours, crosstalk : bool, default=True, True, False
+        Whether to add each candidate's square, the neighbouring terms, the bias products.
     base : {"default", None}, default="default"
         Whether to start from :func:`~workbench.param_boost.default_library`.
-    neighbours : bool, default=True
-        Whether to add the neighbouring terms described above.
-    edges : iterable of (int, int), default=None
-        The coupling graph's site pairs (``None``: the chain).
-    parasitic : str or iterable of (int, int), default=None
-        The parasitic couplings (:func:`~workbench.param_boost.resolve_graph`).
-    crosstalk : bool, default=False
-        Whether to add the bias crosstalk terms.
+    edges, parasitic : default=None
+        The coupling graph's site pairs (``None``: the chain) and the parasitic couplings
+        (:func:`~workbench.param_boost.resolve_graph`).
     """
     on, co = list(onsite), list(couplings)
     graph, pairs = resolve_graph(len(on), edges, parasitic)
@@ -164,6 +148,13 @@ def crosstalk_candidates(onsite: Sequence[str], couplings: Sequence[str],
                          coupler_features: Sequence[str] | None, graph: CouplingGraph,
                          neighbours: bool = True) -> dict[str, list[str]]:
     """The bias-product candidates of :func:`candidate_pool` (``crosstalk=True``).
+
+    Bias crosstalk terms (products of centred biases, not squared): a parameter tuned by its
+    own bias line that also feels a neighbouring line ``V'`` changes by about
+    ``(df/dV) C V'``, and near a sweet spot ``df/dV`` is linear in the own bias ``V``, so the
+    candidate is ``V*V'``. Onsite ``f_i``: its qubit's feature times the features of the
+    couplers touching it and (with ``neighbours``) of the neighbouring qubits; coupling
+    ``g_e``: its coupler's feature times its two qubits' features.
 
     Parameters
     ----------

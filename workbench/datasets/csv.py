@@ -246,24 +246,20 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
     path : str or Path
         The CSV file.
     prior : sequence of str
-        The prior columns: ``prior[j]`` is the scientific model's prediction of
-        ``targets[j]``.
+        The prior columns, ``prior[j]`` the scientific model's prediction of ``targets[j]``.
     targets : sequence of str
         The target columns.
     features : sequence of str, default=()
         The input columns.
     test_fraction : float, default=None
-        A seeded random share of the rows held out for testing (give this or
-        ``split_column``).
+        A seeded random share of the rows held out (or ``split_column``).
     split_column : str, default=None
         A column holding ``train`` or ``test`` per row.
     split_seed : int, default=0
         Seeds the ``test_fraction`` split.
-    onsite : sequence of str, default=None
-        N columns of the control model's Hamiltonian diagonal per row (its prior is the
-        ascending eigenvalues of ``sign * H``).
-    couplings : sequence of str, default=None
-        One column per edge of the coupling graph.
+    onsite, couplings : sequence of str, default=None
+        The control model's Hamiltonian per row: N diagonal columns, one coupling column per
+        edge of the coupling graph (its prior is the ascending eigenvalues of ``sign * H``).
     sign : {-1, 1}, default=-1
         The sign of ``H``.
     qubit_features, coupler_features : sequence of str, default=None
@@ -272,18 +268,15 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
     topology : {"chain", "ring", "grid"}, default="chain"
         The coupling graph ("chain": N - 1 couplings ``(i, i+1)``; see
         :class:`~workbench.hamiltonian.CouplingGraph`).
-    shape : (int, int), default=None
-        ``(rows, cols)`` of a grid.
-    edges : sequence of (int, int), default=None
-        An explicit list of 0-based site pairs, one per coupling column.
+    shape, edges : default=None
+        ``(rows, cols)`` of a grid; an explicit list of 0-based site pairs instead, one per
+        coupling column.
     group_column : str, default=None
-        Each row's group (any text, e.g. the device or the cooldown it was measured in): the
-        dataset's ``groups``, which CV folds then keep whole.
+        Each row's group (e.g. its device): the dataset's ``groups``, which CV folds keep whole.
     name : str, default=None
         The dataset's name (``None``: the file's stem).
     unit : str, default=None
-        The targets' unit (e.g. ``"meV"``), which figures and summaries show; ``None``: none
-        shown.
+        The targets' unit (e.g. ``"meV"``) figures and summaries show (``None``: none).
     """
     path = Path(path)
     prior, targets, features = list(prior), list(targets), list(features)
