@@ -29,9 +29,11 @@ $(VENV)/.installed-docs: pyproject.toml requirements.lock | $(PY)
 # 113 and 120 s with one thread, 103 and 117 s without, alternating runs on an idle machine.)
 THREADS := OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1
 
-# Main job: reproduce the paper (figures, tables, report in reports/; runs in mlruns/).
+# Main job: reproduce the paper (figures, tables, report in reports/; runs in mlruns/), then
+# README.md's results remade from reports/results.json (benchmarks/tables.py --readme).
 run: $(VENV)/.installed
 	$(VENV)/bin/workbench reproduce --out reports
+	$(PY) benchmarks/tables.py --readme reports/results.json
 
 # Benchmarks (about 15 minutes; run alone on a quiet machine): the scaling, bootstrap and
 # reference figures as JSON under benchmarks/results/, then docs/benchmarks.md's tables remade

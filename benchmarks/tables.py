@@ -2,6 +2,7 @@
 
     python benchmarks/tables.py           # docs/benchmarks.md's tables remade from the JSON
     python benchmarks/tables.py --check   # exit 1 if its tables differ from the JSON
+    python benchmarks/tables.py --readme reports/results.json   # README.md's results
 
 Each table sits in docs/benchmarks.md between ``<!-- bench:NAME -->`` and
 ``<!-- /bench:NAME -->`` and is made from ``benchmarks/results/NAME.json`` (written by
@@ -9,6 +10,11 @@ Each table sits in docs/benchmarks.md between ``<!-- bench:NAME -->`` and
 ``peers.py --json``) with the date, commit, machine and load it was measured on. A number
 in those tables is never typed by hand: a slower or faster run changes the table (and
 tests/test_readme.py fails until docs/benchmarks.md is remade).
+
+README.md's results, between ``<!-- results -->`` and ``<!-- /results -->``, are made the
+same way from ``make run``'s ``reports/results.json`` (:func:`readme_results`; ``make run``
+remakes them). ``reproduce --quick`` computes the rows of :data:`QUICK_ROWS` as the full run
+does, and tests/test_reproduce.py checks the README's against its JSON.
 """
 
 from __future__ import annotations
@@ -23,6 +29,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
 PAGE = ROOT / "docs" / "benchmarks.md"
+README = ROOT / "README.md"
+#: The README's rows that ``reproduce --quick`` computes as the full run does (it shortens
+#: the search, the parameter-space model's selection and the IBM benchmark's budgets).
+QUICK_ROWS = ("control program (prior)",
+              "reference implementation, paper settings (mean of 8 runs)",
+              "workbench, paper settings")
 
 SCALING_LABELS = {
     "ridge": "eigenvalue, ridge basis",
@@ -149,6 +161,44 @@ def peers(data: dict) -> str:
     return "\n".join([_measured(data["measured"]), head, "", *lines, *sums])
 
 
+def readme_results(res: dict) -> str:
+    """README.md's results block from ``reports/results.json`` (``res``)."""
+    settings, gates = res["settings"], res["ibm_gates"]
+    reference = res["reference"]["scikit-physlearn, paper settings (mean of 8 runs)"]
+
+    def row(label: str, values: list[float], average: float) -> str:
+        return "| " + " | ".join([label, *(f"{v:.3f}" for v in values), f"{average:.3f}"]) \
+            + " |"
+
+    def scores(part: dict) -> list:
+        return [part["test_mae"], part["test_mae_avg"]]
+
+    head = "| system | " + " | ".join(res["short"]) + " | average |"
+    lines = [
+        f"The paper's settings on the Google 5-qubit benchmark (`make run`; test MAE on the "
+        f"{settings['paper']['n_test']} test", f"rows, {res['unit']}, seed {res['seed']}):", "",
+        head, "|---" * (len(res["short"]) + 2) + "|",
+        row(QUICK_ROWS[0], *scores(settings["paper"]["prior"])),
+        row(QUICK_ROWS[1], *reference),
+        row(QUICK_ROWS[2], *scores(settings["paper"]["model"])),
+        row("workbench, parameter-space model (`hamiltonian.toml`)",
+            *scores(settings["hamiltonian"]["model"])), "",
+        f"On the IBM two-qubit gates ({gates['generic']['n_test']:,} test gates of devices never "
+        f"seen, gate error in", f"percent): coherence limit "
+        f"{gates['generic']['prior']['test_mae_avg']:.3f}, a tuned LightGBM boosted from the "
+        f"prior {gates['peer']['model']['test_mae_avg']:.3f},", f"the generic config "
+        f"`experiments/generic.toml` {gates['generic']['model']['test_mae_avg']:.3f}."]
+    return "\n".join(lines)
+
+
+def render_readme(text: str, res: dict) -> str:
+    """``text`` (README.md's) with its ``<!-- results -->`` block remade from ``res``."""
+    pattern = re.compile(r"(<!-- results -->\n).*?(<!-- /results -->)", re.S)
+    if not pattern.search(text):
+        raise ValueError("README.md has no <!-- results --> block")
+    return pattern.sub(lambda m: m.group(1) + readme_results(res) + "\n" + m.group(2), text)
+
+
 TABLES: dict[str, Callable[[dict], str]] = {"scaling": scaling, "bootstrap": bootstrap,
                                             "reference": reference, "peers": peers}
 
@@ -169,7 +219,21 @@ def main() -> int:
     parser.add_argument("--check", action="store_true",
                         help="only check: exit 1 where docs/benchmarks.md's tables are not "
                         "the JSON's")
+    parser.add_argument("--readme", type=Path, metavar="RESULTS_JSON",
+                        help="remake README.md's results from this reports/results.json instead")
     args = parser.parse_args()
+    if args.readme:
+        res = json.loads(args.readme.read_text())
+        if res.get("quick"):
+            print(f"{args.readme} is a reproduce --quick run's: README.md keeps the full "
+                  "run's results", file=sys.stderr)
+            return 1
+        old = README.read_text()
+        new = render_readme(old, res)
+        if args.check:
+            return int(new != old)
+        README.write_text(new)
+        return 0
     old = PAGE.read_text()
     new = render(old)
     if args.check:

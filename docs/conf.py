@@ -15,7 +15,6 @@ schemas and the argparse parser (``_ext/configref.py``, ``_ext/cliref.py``).
 
 from __future__ import annotations
 
-import logging
 import os
 import sys
 from pathlib import Path
@@ -95,37 +94,6 @@ html_theme_options = {
 html_show_sourcelink = False
 html_last_updated_fmt = None
 
-# --- known docstring problems ----------------------------------------------------------------
-# TEMP issue-33: reST errors in these objects' docstrings (substitution-like |...| text,
-# unindented definition lists, targets like ``name_``) are being rewritten in workbench/ on
-# other branches; until they land, their warnings are printed but do not fail the build. Any
-# other warning does (-W). Drop an entry once its docstring renders cleanly.
-KNOWN_DOCSTRING_PROBLEMS = (
-    "workbench.fitted_prior.FittedPriorBoost",
-    "workbench.param_select.SelectionResult",
-    "workbench.simulate.Mismatch",
-    # the summary lines autosummary copies into these modules' pages
-    "generated/workbench.experiment.errors.rst",
-    "generated/workbench.experiment.schema.rst",
-)
-
-
-class _KnownProblems(logging.Filter):
-    """Print a warning about a listed docstring without counting it as a build failure."""
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.seen: dict[str, None] = {}
-
-    def filter(self, record: logging.LogRecord) -> bool:
-        if record.levelno < logging.WARNING:
-            return True
-        where = f"{getattr(record, 'location', '')} {record.getMessage()}"
-        if any(name in where for name in KNOWN_DOCSTRING_PROBLEMS):
-            self.seen[where.strip()] = None
-            return False
-        return True
-
 
 def _skip_member(app, what, name, obj, skip, options):  # noqa: ANN001, ANN202 (Sphinx hook)
     # scikit-learn's metadata-routing setters (set_fit_request, ...): its docstrings link
@@ -136,18 +104,5 @@ def _skip_member(app, what, name, obj, skip, options):  # noqa: ANN001, ANN202 (
 
 
 def setup(app):  # noqa: ANN001, ANN201 (Sphinx hook)
-    """Install the known-problems filter in front of Sphinx's warning handler."""
-    known = _KnownProblems()
-    for handler in logging.getLogger("sphinx").handlers:
-        if handler.level >= logging.WARNING:  # the warning handler, not the info ones
-            handler.filters.insert(0, known)
-
-    def report(app, exc):  # noqa: ANN001, ANN202
-        if known.seen:
-            print(f"{len(known.seen)} warning(s) in docstrings listed in "
-                  "KNOWN_DOCSTRING_PROBLEMS (docs/conf.py), not counted:", file=sys.stderr)
-            for line in known.seen:
-                print(f"  {line}", file=sys.stderr)
-
+    """Leave scikit-learn's metadata-routing setters out of the API pages."""
     app.connect("autodoc-skip-member", _skip_member)
-    app.connect("build-finished", report)

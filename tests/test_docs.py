@@ -117,6 +117,52 @@ def test_the_api_reference_names_modules_and_names_that_exist():
             assert getattr(module, public, None) is not None, f"{name}.{public}"
 
 
+#: numpydoc's checks that a docstring documents exactly its signature: it exists (GL08),
+#: every parameter is in its Parameters section (PR01), and nothing there is not a parameter
+#: (PR02). A class documents its constructor's parameters (scikit-learn's layout; a
+#: dataclass's or a config section's fields).
+PARAMETER_CHECKS = {"GL08", "PR01", "PR02"}
+#: TEMP issue-33: config sections and result records whose fields are not in a Parameters
+#: section yet (results.py needs splitting first: its fields' entries would take it over the
+#: 400 lines of tests/test_house.py). Drop a name once its docstring passes.
+PENDING = {f"workbench.experiment.config.{n}" for n in (
+    "data.DataConfig", "data.HamiltonianData", "experiment.ExperimentConfig",
+    "sections.BoostSettings", "sections.EvaluationConfig", "sections.IntervalsConfig",
+    "sections.ModelConfig", "sections.SelectionConfig", "sections.TopLevel")} | {
+    f"workbench.experiment.results.{n}" for n in (
+        "CVEstimate", "ModelScores", "OuterFold", "Result", "Scores", "SweepSummary")}
+
+
+def _public_names():
+    """``{qualified name: object}`` of every function and class the API reference lists."""
+    text = (DOCS / "reference" / "api.rst").read_text()
+    out = {}
+    for module_name in re.findall(r"^   (workbench[\w.]*)$", text, flags=re.M):
+        module = importlib.import_module(module_name)
+        for name in getattr(module, "__all__", []):
+            obj = getattr(module, name)
+            if inspect.isclass(obj) or inspect.isfunction(obj):
+                out.setdefault(f"{obj.__module__}.{obj.__qualname__}", obj)
+    return out
+
+
+def test_every_public_name_documents_its_parameters():
+    """numpydoc's own validation of every public function and class (their methods are
+    rendered from the same docstrings; ``make docs`` fails on their reST errors)."""
+    from numpydoc.validate import get_doc_object, validate
+
+    problems, names = [], _public_names()
+    assert PENDING <= set(names), PENDING - set(names)
+    for name, obj in sorted(names.items()):
+        found = [f"{name}: {code} {message}" for code, message in
+                 validate(get_doc_object(obj))["errors"] if code in PARAMETER_CHECKS]
+        if name in PENDING:
+            assert found, f"{name} passes now: drop it from PENDING"
+        else:
+            problems += found
+    assert not problems, "\n".join(problems)
+
+
 class _Links(HTMLParser):
     def __init__(self):
         super().__init__()
@@ -126,11 +172,6 @@ class _Links(HTMLParser):
         attrs = dict(attrs)
         if "id" in attrs:
             self.ids.add(attrs["id"])
-        if tag == "span" and "problematic" in (attrs.get("class") or "") and self.links \
-                and self.links[-1].startswith("#"):
-            # docutils' link from a docstring's reST error to its message (dropped with the
-            # message: conf.py's KNOWN_DOCSTRING_PROBLEMS), not a link of the site
-            self.links.pop()
         for key in ("href", "src"):
             url = attrs.get(key)
             if not url:

@@ -6,6 +6,7 @@ import re
 from pathlib import Path
 
 import pandas as pd
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
@@ -61,6 +62,25 @@ def _rows(text):
     """``{first cell: other cells}`` of every Markdown table row in ``text``."""
     return {cells[0]: cells[1:] for line in text.splitlines() if line.startswith("| ")
             for cells in [[c.strip() for c in line.strip("|").split("|")]]}
+
+
+def test_readme_results_are_make_run_s():
+    """README.md's results block is benchmarks/tables.py's rendering of ``make run``'s
+    reports/results.json, when a full run's is there (tests/test_reproduce.py checks the rows
+    ``reproduce --quick`` computes against its own)."""
+    import importlib.util
+
+    results = ROOT / "reports" / "results.json"
+    res = json.loads(results.read_text()) if results.is_file() else None
+    if res is None or res.get("quick"):
+        pytest.skip("no full run's reports/results.json (make run)")
+    spec = importlib.util.spec_from_file_location("bench_tables", ROOT / "benchmarks" /
+                                                  "tables.py")
+    tables = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tables)
+    text = README.read_text()
+    assert tables.render_readme(text, res) == text, \
+        "run python benchmarks/tables.py --readme reports/results.json"
 
 
 def test_readme_results_are_the_benchmarks_page_s():

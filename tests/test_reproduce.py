@@ -4,6 +4,7 @@ import contextlib
 import csv
 import io
 import json
+import re
 import warnings
 
 import matplotlib.image
@@ -128,6 +129,35 @@ def test_report_and_numbers(quick_run):
     assert max(lc["train_sizes"]) <= 76
     for curve in lc["curves"].values():
         assert curve["n_train_rows"] == [[s] * lc["folds"] for s in lc["train_sizes"]]
+
+
+def test_readme_results_are_the_reproduction_s(quick_run):
+    """README.md's results are benchmarks/tables.py's rendering of results.json: the rows
+    ``--quick`` computes as ``make run`` does are this run's, the others have their place."""
+    import importlib.util
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    out, _ = quick_run
+    res = json.loads((out / "results.json").read_text())
+    spec = importlib.util.spec_from_file_location("bench_tables", root / "benchmarks" /
+                                                  "tables.py")
+    tables = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tables)
+    text = (root / "README.md").read_text()
+    block = text[text.index("<!-- results -->"):text.index("<!-- /results -->")]
+
+    def rows(text):
+        return {cells[0]: cells[1:] for line in text.splitlines() if line.startswith("| ")
+                for cells in [[c.strip() for c in line.strip("|").split("|")]]}
+
+    made, shown = rows(tables.readme_results(res)), rows(block)
+    assert made.keys() == shown.keys()
+    for row in tables.QUICK_ROWS:
+        assert shown[row] == made[row], row
+    # the report says no machine timing (results.json keeps wall_s)
+    report = (out / "README.md").read_text()
+    assert not re.search(r"\d+(\.\d+)? ?(s|seconds|minutes)\b", report), "a timing in the report"
 
 
 def test_figures_show_the_json_numbers_and_mlflow_has_them(quick_run, tmp_path):

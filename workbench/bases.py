@@ -67,12 +67,37 @@ class LeanLGBMRegressor(CachedParamNames, LGBMRegressor):
     training (``keep_training_booster``): it writes the trees to text and parses them back
     (on this project's small data a third of a 1000-tree fit). The trees, and so every
     prediction, are the same; pickling still stores the model as LightGBM's text. The fitted
-    model keeps its binned training set (the booster refers to it) until it is pickled."""
+    model keeps its binned training set (the booster refers to it) until it is pickled.
+
+    Parameters
+    ----------
+    boosting_type, num_leaves, max_depth, learning_rate, n_estimators, subsample_for_bin, \
+objective, class_weight, min_split_gain, min_child_weight, min_child_samples, subsample, \
+subsample_freq, colsample_bytree, reg_alpha, reg_lambda, random_state, n_jobs, \
+importance_type, **kwargs
+        As in :class:`lightgbm.LGBMRegressor`.
+    """
 
     #: ``(id of the booster, its compiled trees)``, cached by :meth:`_numpy_trees`.
     _trees: tuple[int, list[_Tree] | None] | None
 
     def fit(self, X: Any, y: Any, *args: Any, **kwargs: Any) -> Self:
+        """Fit as :meth:`lightgbm.LGBMRegressor.fit` does, keeping the trained booster.
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_features)
+            The inputs.
+        y : array-like of shape (n_samples,)
+            The target.
+        *args, **kwargs
+            Passed to :meth:`lightgbm.LGBMRegressor.fit` (``sample_weight``, ...).
+
+        Returns
+        -------
+        self : LeanLGBMRegressor
+            The fitted model.
+        """
         if _lgb_sklearn.train is not _train:
             with _PATCH:  # once per process; thread-safe: the flag is per thread
                 _lgb_sklearn.train = _train
@@ -249,7 +274,14 @@ def paper_stacking(*, mlp_hidden: Iterable[int] = (10,), mlp_alpha: float = 10.0
 
 def paper_basis(target: str | int,
                 random_state: int | np.random.RandomState | None = None) -> StackingRegressor:
-    """The paper's stacking basis for target ``"Y1"``..``"Y5"`` (or position 0..4)."""
+    """The paper's stacking basis for one of the Google benchmark's targets.
+
+    Parameters
+    ----------
+    target : str or int
+        ``"Y1"`` to ``"Y5"``, or the position 0 to 4.
+    random_state : int, RandomState instance or None, default=None
+        Seeds the stacking's estimators."""
     key = f"Y{target + 1}" if isinstance(target, int) else target
     if key not in PAPER_PARAMS:
         raise ValueError(f"unknown paper target {target!r}; valid: {', '.join(PAPER_PARAMS)}")
@@ -275,8 +307,26 @@ class ScalableKernelRidge(CachedParamNames, RegressorMixin, BaseEstimator):
     kernel: the kernel matrix is approximated by rank ``n_components``, O(rows x
     n_components^2) time and O(rows x n_components) memory.
 
-    Attributes: ``estimator_`` (the fitted KernelRidge or Nystroem + Ridge pipeline),
-    ``approximate_`` (whether the Nystroem features were used)."""
+    Parameters
+    ----------
+    alpha : float, default=1.0
+        The ridge penalty.
+    kernel, gamma, degree, coef0, kernel_params
+        The kernel, as in :class:`~sklearn.kernel_ridge.KernelRidge` (default ``"rbf"``).
+    exact_max_rows : int, default=3000
+        The most training rows fitted by the exact kernel ridge.
+    n_components : int, default=300
+        The Nystroem features above that.
+    random_state : int, RandomState instance or None, default=None
+        Seeds the Nystroem features' rows.
+
+    Attributes
+    ----------
+    estimator_ : KernelRidge or Pipeline
+        The fitted kernel ridge, or the Nystroem + ridge pipeline.
+    approximate_ : bool
+        Whether the Nystroem features were used.
+    """
 
     _parameter_constraints = {
         **KernelRidge._parameter_constraints,
@@ -389,7 +439,14 @@ BASES: dict[str, Callable[..., Any]] = {
 
 
 def make_basis(name: str, **params: Any) -> Any:
-    """Build the basis ``name`` of :data:`BASES` with ``params``."""
+    """Build the basis ``name`` of :data:`BASES` with ``params``.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`BASES`.
+    **params
+        The basis's parameters."""
     if name not in BASES:
         raise ValueError(f"unknown basis {name!r}; valid names are: {', '.join(sorted(BASES))}")
     return BASES[name](**params)
@@ -448,7 +505,15 @@ _CLIP = _clip_bounds()
 class NormalQuantileTransformer(CachedParamNames, TransformerMixin, BaseEstimator):
     """``QuantileTransformer(output_distribution="normal")`` with ``n_quantiles`` capped at
     the number of rows, so small training sets fit without a warning (and its normal
-    mapping without ``scipy.stats``' per-call overhead; the same numbers)."""
+    mapping without ``scipy.stats``' per-call overhead; the same numbers).
+
+    Parameters
+    ----------
+    n_quantiles : int, default=1000
+        Quantiles of the mapping, at most the number of training rows.
+    subsample, random_state
+        As in :class:`~sklearn.preprocessing.QuantileTransformer`.
+    """
 
     def __init__(self, n_quantiles: int = 1000, subsample: int = 10_000,
                  random_state: int | np.random.RandomState | None = None) -> None:
@@ -486,7 +551,14 @@ TRANSFORMS: dict[str, Callable[..., Any]] = {
 
 
 def make_transform(name: str | None, **params: Any) -> Any:
-    """Build the input transform ``name`` of :data:`TRANSFORMS` (``None``/"none": no transform)."""
+    """Build the input transform ``name`` of :data:`TRANSFORMS` (``None``/"none": no transform).
+
+    Parameters
+    ----------
+    name : str or None
+        A key of :data:`TRANSFORMS`; ``None`` or ``"none"``: no transform.
+    **params
+        The transform's parameters."""
     if name is None or name == "none":
         return None
     if name not in TRANSFORMS:

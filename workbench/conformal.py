@@ -94,7 +94,14 @@ _BLOCK = 256
 
 def conformal_rank(n: int, alpha: float) -> int:
     """The rank ``ceil((1 - alpha)(n + 1))`` of the conformal quantile among ``n``
-    calibration values (1-based); larger than ``n`` when ``n`` is too small for ``alpha``."""
+    calibration values (1-based); larger than ``n`` when ``n`` is too small for ``alpha``.
+
+    Parameters
+    ----------
+    n : int
+        The number of calibration values.
+    alpha : float
+        The miscoverage level."""
     # round first so that e.g. (1 - 0.1) * 20 = 18.000000000000004 is not ceiled to 19
     return int(math.ceil(round((1.0 - alpha) * (n + 1), 9)))
 
@@ -130,7 +137,14 @@ def _kth_smallest(values: np.ndarray, k: int) -> np.ndarray:
 
 def interval_coverage(y: ArrayLike, intervals: ArrayLike) -> list[float]:
     """Per target, the fraction of rows whose ``y`` lies in ``[lower, upper]`` (``intervals``
-    as returned by :meth:`ConformalRegressor.predict_interval`)."""
+    as returned by :meth:`ConformalRegressor.predict_interval`).
+
+    Parameters
+    ----------
+    y : array-like of shape (n_samples, n_targets)
+        The measured values.
+    intervals : array-like of shape (n_samples, n_targets, 2)
+        The lower and upper bounds."""
     y = _as_2d(y)
     iv = np.asarray(intervals, dtype=float)
     inside = (y >= iv[..., 0]) & (y <= iv[..., 1])
@@ -138,7 +152,12 @@ def interval_coverage(y: ArrayLike, intervals: ArrayLike) -> list[float]:
 
 
 def interval_width(intervals: ArrayLike) -> list[float]:
-    """Per target, the mean width ``upper - lower``."""
+    """Per target, the mean width ``upper - lower``.
+
+    Parameters
+    ----------
+    intervals : array-like of shape (n_samples, n_targets, 2)
+        The lower and upper bounds (:meth:`ConformalRegressor.predict_interval`)."""
     iv = np.asarray(intervals, dtype=float)
     return np.mean(iv[..., 1] - iv[..., 0], axis=0).tolist()
 

@@ -84,7 +84,7 @@ class LearningCurve:
     Errors are positive (``-score``, e.g. the MAE for ``"neg_mean_absolute_error"``); rows
     are training sizes, columns folds. NaN marks a (size, fold) where the candidate failed.
 
-    Attributes
+    Parameters
     ----------
     train_sizes : ndarray of int, shape (n_sizes,)
         The requested training sizes (row counts), ascending.
@@ -316,7 +316,12 @@ def learning_curve_plan(estimator: Any, X: Any, y: ArrayLike, *, train_sizes: Ar
                         cv: Any = 5, incumbent: Any = None,
                         scoring: str | Callable = "neg_mean_absolute_error",
                         random_state: int | np.random.RandomState | None = None) -> Plan:
-    """:func:`augmented_learning_curve` as a plan (:mod:`workbench.parallel`)."""
+    """:func:`augmented_learning_curve` as a plan (:mod:`workbench.parallel`).
+
+    Parameters
+    ----------
+    estimator, X, y, train_sizes, cv, incumbent, scoring, random_state
+        As in :func:`augmented_learning_curve`."""
     X, y, sizes = _inputs(X, y, scoring, train_sizes)
     rng = check_random_state(random_state)
     cv_seed, estimator_seed = (int(s) for s in rng.randint(_SEED_MAX, size=2))
@@ -342,15 +347,32 @@ def selection_learning_curve(model: Any, X: Any, y: ArrayLike, *, train_sizes: A
     folds (``X``, ``y``: the rows it was fitted on), with its candidate seeded as in its
     selection and its incumbent and scoring: where a size is a fold's whole training set
     the selection's fold fit is the point (no fit again; it needs the training scores of
-    ``BaseBoostCV(return_train_score=True)``). ``random_state`` seeds the
-    per-fold row permutations."""
+    ``BaseBoostCV(return_train_score=True)``).
+
+    Parameters
+    ----------
+    model : BaseBoostCV
+        The fitted model.
+    X, y : array-like
+        The rows it was fitted on.
+    train_sizes : array-like of int
+        The training sizes (row counts).
+    random_state : int, RandomState instance or None, default=None
+        Seeds the per-fold row permutations.
+    n_jobs : int, default=None
+        Processes for the fits (:mod:`workbench.parallel`; ``None``: 1)."""
     return run_plans([selection_curve_plan(model, X, y, train_sizes=train_sizes,
                                            random_state=random_state)], n_jobs)[0]
 
 
 def selection_curve_plan(model: Any, X: Any, y: ArrayLike, *, train_sizes: ArrayLike,
                          random_state: int | np.random.RandomState | None = None) -> Plan:
-    """:func:`selection_learning_curve` as a plan (:mod:`workbench.parallel`)."""
+    """:func:`selection_learning_curve` as a plan (:mod:`workbench.parallel`).
+
+    Parameters
+    ----------
+    model, X, y, train_sizes, random_state
+        As in :func:`selection_learning_curve`."""
     if not hasattr(model, "cv_splits_"):
         raise ValueError(f"{type(model).__name__} is not a fitted BaseBoostCV (no cv_splits_)")
     scoring = model.scoring

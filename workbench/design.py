@@ -43,14 +43,24 @@ CRITERIA = ("d", "i")
 
 @dataclass
 class Batch:
-    """A greedy batch (positions into the candidates, in the order chosen).
+    """A greedy batch of :func:`greedy_design`.
 
-    ``gain``: each pick's criterion gain given the measured rows and the earlier picks (nats
-    for D, noise-variance units of the average predictive variance for I); ``sd``: each
-    pick's predictive sd per output at the time it was chosen (noise sd units); ``sd_before``:
-    every candidate's predictive sd per output before the batch; ``informs`` and
-    ``informs_fraction``: the coefficient whose variance each pick lowers most, relatively,
-    and by what fraction.
+    Parameters
+    ----------
+    index : ndarray of int
+        The picks: positions into the candidates, in the order chosen.
+    gain : ndarray
+        Each pick's criterion gain given the measured rows and the earlier picks (nats for D,
+        noise-variance units of the average predictive variance for I).
+    sd : ndarray
+        Each pick's predictive sd per output at the time it was chosen (noise sd units).
+    sd_before : ndarray
+        Every candidate's predictive sd per output before the batch.
+    informs, informs_fraction : ndarray
+        The coefficient whose variance each pick lowers most, relatively, and by what
+        fraction.
+    criterion : {"d", "i"}
+        The criterion.
     """
 
     index: np.ndarray
@@ -64,11 +74,24 @@ class Batch:
 
 @dataclass
 class DesignProblem:
-    """What a fitted model knows, for :func:`greedy_design`: the candidates' ``blocks``
-    ``(m, q, D)`` and the ``information`` ``(D, D)`` in noise units, the noise sd of each
-    output (``noise_sd``, targets' units: an sd in noise units times it is in the targets'
-    units), the coefficients' names, what they are (``what``) and how to say that a pick
-    lowers one's variance (``informs``, formatted with ``name`` and ``fraction``)."""
+    """What a fitted model knows, for :func:`greedy_design`.
+
+    Parameters
+    ----------
+    blocks : ndarray of shape (m, q, D)
+        The candidates' blocks, in noise units.
+    information : ndarray of shape (D, D)
+        The information of the measured rows, in noise units.
+    noise_sd : ndarray
+        The noise sd of each output, in the targets' units (an sd in noise units times it is
+        in the targets' units).
+    coefficients : list of str
+        The coefficients' names.
+    what : str
+        What they are.
+    informs : str, default="the variance of {name} falls {fraction:.0%}"
+        How to say that a pick lowers one's variance (formatted with ``name`` and
+        ``fraction``)."""
 
     blocks: np.ndarray
     information: np.ndarray
@@ -80,7 +103,14 @@ class DesignProblem:
 
 def robust_sd(residuals: ArrayLike, axis: int | tuple[int, ...] | None = None) -> np.ndarray:
     """1.4826 x the median absolute deviation from the median (the sd for Gaussian
-    residuals, unmoved by a few wild ones), floored at 1e-12."""
+    residuals, unmoved by a few wild ones), floored at 1e-12.
+
+    Parameters
+    ----------
+    residuals : array-like
+        The residuals.
+    axis : int or tuple of int, default=None
+        Over which axes (``None``: all)."""
     r = np.asarray(residuals, dtype=float)
     med = np.median(r, axis=axis, keepdims=True)
     return np.maximum(1.4826 * np.median(np.abs(r - med), axis=axis), 1e-12)
@@ -129,9 +159,21 @@ def greedy_design(blocks: ArrayLike, information: ArrayLike, n: int, *, criterio
     """Choose ``n`` of the candidates' ``blocks`` (shape ``(m, q, D)``) greedily by the D- or
     I-criterion (``criterion`` "d" or "i"), given the current ``information`` ``(D, D)``.
 
-    ``reference``: blocks of the settings whose average predictive variance the I-criterion
-    lowers (default: the candidates themselves). Each candidate is chosen at most once
-    unless ``repeats`` (a setting may then be measured again: replicates).
+    Parameters
+    ----------
+    blocks : array-like of shape (m, q, D)
+        The candidates' blocks.
+    information : array-like of shape (D, D)
+        The current information.
+    n : int
+        How many to choose.
+    criterion : {"d", "i"}, default="d"
+        The D- or the I-criterion.
+    reference : array-like, default=None
+        Blocks of the settings whose average predictive variance the I-criterion lowers
+        (``None``: the candidates themselves).
+    repeats : bool, default=False
+        Whether a candidate may be chosen again (a replicate measurement).
     """
     B, F, R = _check(blocks, information, n, criterion, reference, repeats)
     m, q, D = B.shape
@@ -180,11 +222,16 @@ def greedy_design(blocks: ArrayLike, information: ArrayLike, n: int, *, criterio
 def ensemble_blocks(predictions: ArrayLike, noise_sd: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Blocks and information for the spread of an ensemble's predictions.
 
-    ``predictions``: shape ``(K, m, q)``, K models' predictions of q outputs at m settings;
-    ``noise_sd``: the measurement noise's sd per output (shape ``(q,)`` or a number). Output
-    ``t`` is modelled as ``mean + E_t(x) . w_t`` with ``w_t ~ N(0, I_K)`` and ``E_t`` the
+    Output ``t`` is modelled as ``mean + E_t(x) . w_t`` with ``w_t ~ N(0, I_K)`` and ``E_t`` the
     deviations from the ensemble mean over ``sqrt(K - 1)`` (so the predictive variance is the
     ensemble's variance). Returns ``(blocks (m, q, K q), information = I)``.
+
+    Parameters
+    ----------
+    predictions : array-like of shape (K, m, q)
+        K models' predictions of q outputs at m settings.
+    noise_sd : array-like of shape (q,) or float
+        The measurement noise's sd per output.
     """
     P = np.asarray(predictions, dtype=float)
     if P.ndim != 3 or P.shape[0] < 2:

@@ -61,7 +61,7 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
     boost : MultiTargetBaseBoost, default=None
         The per-target stage (``None``: ``MultiTargetBaseBoost()``, i.e. ``BaseBoostCV`` with
         its defaults). Its ``priors`` are set to the prior columns added here.
-    prior_prefix : str, default="prior_"
+    prior_prefix : str, default="prior\\_"
         The prior of target ``t`` is added to ``X`` as column ``prior_prefix + t``; the
         boosting stage's ``basis_features`` may name these columns.
     cv : int or CV splitter, default=5
@@ -87,15 +87,21 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
 
     Attributes
     ----------
-    physics_ : the fitted physics model
-    physics_selected_ : ndarray of bool, per target whether the physics model is the prior
-        (all true without ``fallback``)
-    boost_ : the fitted MultiTargetBaseBoost (``boost_stage=True``)
+    physics_ : regressor
+        The fitted physics model.
+    physics_selected_ : ndarray of bool
+        Per target, whether the physics model is the prior (all true without ``fallback``).
+    boost_ : MultiTargetBaseBoost
+        The fitted boosting stage (``boost_stage=True``).
     prior_columns_ : list of str
-    oof_prior_ : DataFrame, the out-of-fold prior on the training rows (not set when nothing
-        needs it: no stage, no fallback, ``cv_predictions=False``)
-    prior_folds_ : ndarray (n_samples,), the fold of each row in ``oof_prior_``
+        The prior columns added to ``X``.
+    oof_prior_ : DataFrame
+        The out-of-fold prior on the training rows (not set when nothing needs it: no
+        stage, no fallback, ``cv_predictions=False``).
+    prior_folds_ : ndarray of shape (n_samples,)
+        The fold of each row in ``oof_prior_``.
     target_names_ : list of str
+        The targets, in the order of the prediction's columns.
     """
 
     _parameter_constraints: dict = {

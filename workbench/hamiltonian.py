@@ -48,7 +48,18 @@ class CouplingGraph:
     """Sites ``0..n_sites-1`` and the couplings between them (edges, in parameter order).
 
     Build one with :meth:`chain`, :meth:`ring`, :meth:`grid` or :meth:`from_edges` (which
-    check it). ``shape`` is ``(rows, cols)`` for a grid (site ``r * cols + c``), else None.
+    check it).
+
+    Parameters
+    ----------
+    n_sites : int
+        The number of sites.
+    edges : tuple of (int, int)
+        The coupled site pairs, in parameter order.
+    topology : str, default="edges"
+        ``"chain"``, ``"ring"``, ``"grid"`` or ``"edges"`` (an explicit list).
+    shape : (int, int), default=None
+        ``(rows, cols)`` for a grid (site ``r * cols + c``), else ``None``.
     """
 
     n_sites: int
@@ -183,8 +194,18 @@ def _check_edges(n: int, edges: Any) -> tuple[tuple[int, int], ...]:
 def make_graph(n_sites: int | None = None, topology: str = "chain",
                shape: Any = None,
                edges: Iterable[Sequence[int]] | None = None) -> CouplingGraph:
-    """A graph from config-style settings: ``topology`` ("chain", "ring", "grid" with
-    ``shape = (rows, cols)``) or an explicit ``edges`` list; ``n_sites`` (if given) must match."""
+    """A graph from config-style settings: a topology or an explicit list of edges.
+
+    Parameters
+    ----------
+    n_sites : int, default=None
+        The number of sites; with ``edges`` or a grid, it must match them if given.
+    topology : {"chain", "ring", "grid"}, default="chain"
+        The graph's shape (with ``edges``: ignored).
+    shape : (int, int), default=None
+        ``(rows, cols)`` of a grid.
+    edges : iterable of (int, int), default=None
+        An explicit list of coupled site pairs."""
     if edges is not None:
         if n_sites is None:
             flat = [v for e in edges for v in e]
@@ -263,8 +284,16 @@ def _build(f: np.ndarray, g: np.ndarray, graph: CouplingGraph,
 
 def graph_hamiltonian(onsite: ArrayLike, couplings: ArrayLike,
                       graph: CouplingGraph | None = None) -> np.ndarray:
-    """Hamiltonians, shape ``(n, N, N)``, from onsite ``(n, N)`` and couplings ``(n, E)``
-    on ``graph`` (None: the chain)."""
+    """Hamiltonians, shape ``(n, N, N)``, on a coupling graph.
+
+    Parameters
+    ----------
+    onsite : array-like of shape (n, N)
+        The diagonal entries.
+    couplings : array-like of shape (n, E)
+        One coupling per edge of ``graph``.
+    graph : CouplingGraph, default=None
+        The graph (``None``: the chain)."""
     f, g, graph = _check(onsite, couplings, graph)
     return _build(f, g, graph)
 
@@ -274,15 +303,29 @@ def graph_spectrum(onsite: ArrayLike, couplings: ArrayLike, graph: CouplingGraph
                    out: np.ndarray | None = None) -> Any:  # a pair when jacobian, else one
     """Ascending eigenvalues of ``sign * H`` and (``jacobian=True``) their Jacobian.
 
+    Parameters
+    ----------
+    onsite : array-like of shape (n, N)
+        The diagonal entries.
+    couplings : array-like of shape (n, E)
+        One coupling per edge of ``graph``.
+    graph : CouplingGraph, default=None
+        The graph (``None``: the chain).
+    sign : int, default=-1
+        The sign of ``H``.
+    jacobian : bool, default=True
+        Whether to compute the Jacobian.
+    chunk_elements : int, default=8_000_000
+        The examples are diagonalised in chunks of about this many matrix entries.
+    out : ndarray, default=None
+        An array of the Jacobian's shape to write it into (reused memory).
+
     Returns
     -------
     eigenvalues : ndarray of shape (n, N)
     jacobian : ndarray of shape (n, N, N + E)
         ``jacobian[j, k, p] = d lambda_k / d theta_p`` for example ``j``, with
         ``theta = (onsite_1..onsite_N, coupling_1..coupling_E)``. Only when ``jacobian``.
-
-    The examples are diagonalised in chunks of about ``chunk_elements`` matrix entries.
-    ``out``: an array of the Jacobian's shape to write it into (reused memory), or None.
     """
     sign = _check_sign(sign)
     f, g, graph = _check(onsite, couplings, graph)
@@ -330,13 +373,28 @@ def _hellmann_feynman(vec: np.ndarray, sign: int, a: np.ndarray, b: np.ndarray, 
 
 
 def chain_hamiltonian(onsite: ArrayLike, couplings: ArrayLike) -> np.ndarray:
-    """Tridiagonal Hamiltonians, shape ``(n, N, N)``, from onsite ``(n, N)`` and couplings
-    ``(n, N - 1)`` (arrays or DataFrames)."""
+    """Tridiagonal Hamiltonians, shape ``(n, N, N)``, of chains.
+
+    Parameters
+    ----------
+    onsite : array-like of shape (n, N)
+        The diagonal entries (an array or a DataFrame).
+    couplings : array-like of shape (n, N - 1)
+        The nearest-neighbour couplings."""
     return graph_hamiltonian(onsite, couplings, None)
 
 
 def chain_spectrum(onsite: ArrayLike, couplings: ArrayLike,
                    sign: int = -1) -> tuple[np.ndarray, np.ndarray]:
     """Ascending eigenvalues of ``sign * H`` of a chain and their Jacobian, shape
-    ``(n, N, 2N - 1)`` (see :func:`graph_spectrum`)."""
+    ``(n, N, 2N - 1)`` (see :func:`graph_spectrum`).
+
+    Parameters
+    ----------
+    onsite : array-like of shape (n, N)
+        The diagonal entries.
+    couplings : array-like of shape (n, N - 1)
+        The nearest-neighbour couplings.
+    sign : int, default=-1
+        The sign of ``H``."""
     return graph_spectrum(onsite, couplings, None, sign)

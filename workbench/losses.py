@@ -93,8 +93,13 @@ class AbsoluteError(Loss):
 class Huber(Loss):
     """Huber loss: ``u**2 / 2`` for ``|u| <= delta``, ``delta * (|u| - delta / 2)`` beyond.
 
-    ``delta=None`` (default) takes ``delta`` as the ``quantile`` quantile of ``|u|`` of the
-    residuals the loss is bound to, as in Friedman (2001) and scikit-learn.
+    Parameters
+    ----------
+    quantile : float, default=0.9
+        Which quantile of the residuals' ``|u|`` is ``delta`` when ``delta`` is ``None``.
+    delta : float, default=None
+        The threshold; ``None``: the ``quantile`` quantile of ``|u|`` of the residuals the
+        loss is bound to, as in Friedman (2001) and scikit-learn.
     """
 
     quantile: float = 0.9
@@ -139,7 +144,12 @@ class Huber(Loss):
 @dataclass(frozen=True)
 class Quantile(Loss):
     """Pinball loss for the ``alpha`` quantile: ``alpha * u`` if ``u > 0`` else
-    ``(alpha - 1) * u``."""
+    ``(alpha - 1) * u``.
+
+    Parameters
+    ----------
+    alpha : float, default=0.9
+        The quantile's level."""
 
     alpha: float = 0.9
     name = "quantile"
@@ -170,8 +180,13 @@ LOSSES: dict[str, type[Loss]] = {
 def get_loss(loss: str | Loss, alpha: float = 0.9) -> Loss:
     """Resolve a loss name (or pass a :class:`Loss` instance through).
 
-    ``alpha`` sets Huber's ``quantile`` and the quantile loss's level, as ``alpha`` does in
-    scikit-learn's ``GradientBoostingRegressor``; other losses ignore it.
+    Parameters
+    ----------
+    loss : str or Loss
+        A name of :data:`LOSSES`, or a loss, returned as it is.
+    alpha : float, default=0.9
+        Huber's ``quantile`` and the quantile loss's level, as ``alpha`` in scikit-learn's
+        ``GradientBoostingRegressor``; other losses ignore it.
     """
     if isinstance(loss, Loss):
         return loss

@@ -117,8 +117,16 @@ def _columns(X: pd.DataFrame, names: list[str], what: str) -> np.ndarray:
 def resolve_graph(n_sites: int, edges: Iterable[Sequence[int]] | None = None,
                   parasitic: str | Iterable[Sequence[int]] | None = None
                   ) -> tuple[CouplingGraph, list[tuple[int, int]]]:
-    """The control model's graph (``edges`` None: the chain) and the parasitic site pairs
-    (``parasitic``: None/"none", "next_nearest", "diagonal" or a list of pairs)."""
+    """The control model's graph and the parasitic site pairs.
+
+    Parameters
+    ----------
+    n_sites : int
+        The number of sites.
+    edges : iterable of (int, int), default=None
+        The coupling graph's site pairs (``None``: the chain).
+    parasitic : str or iterable of (int, int), default=None
+        ``None`` or ``"none"``, ``"next_nearest"``, ``"diagonal"`` or a list of site pairs."""
     graph = CouplingGraph.chain(n_sites) if edges is None else \
         CouplingGraph.from_edges(n_sites, edges)
     if parasitic is None:
@@ -135,7 +143,14 @@ def resolve_graph(n_sites: int, edges: Iterable[Sequence[int]] | None = None,
 
 
 def parasitic_names(onsite: Iterable[str], pairs: Iterable[tuple[int, int]]) -> list[str]:
-    """Names of parasitic couplings between sites ``(i, j)``: ``"<onsite_i>~<onsite_j>"``."""
+    """Names of parasitic couplings between sites ``(i, j)``: ``"<onsite_i>~<onsite_j>"``.
+
+    Parameters
+    ----------
+    onsite : iterable of str
+        The onsite parameters' names, in site order.
+    pairs : iterable of (int, int)
+        The parasitic site pairs."""
     on = list(onsite)
     return [f"{on[i]}~{on[j]}" for i, j in pairs]
 
@@ -163,7 +178,18 @@ def default_library(onsite: Iterable[str], couplings: Iterable[str],
     Onsite ``f_i``: ``f_i``, ``f_i^2`` and each coupling touching site ``i`` with its square.
     Coupling ``g_e`` (``e = (i, j)``): ``g_e``, ``g_e^2`` and the detuning ``f_i-f_j``.
     Parasitic coupling ``(i, j)``: the geometric mean ``sqrt|g_a*g_b|`` of each pair of
-    couplings bridging it. ``edges`` None: the chain.
+    couplings bridging it.
+
+    Parameters
+    ----------
+    onsite : iterable of str
+        The onsite parameters' names, in site order.
+    couplings : iterable of str
+        The couplings' names, in edge order.
+    edges : iterable of (int, int), default=None
+        The coupling graph's site pairs (``None``: the chain).
+    parasitic : str or iterable of (int, int), default=None
+        The parasitic couplings, as :func:`resolve_graph` reads them.
     """
     on, co = list(onsite), list(couplings)
     graph, pairs = resolve_graph(len(on), edges, parasitic)

@@ -70,34 +70,38 @@ def candidate_pool(onsite: Sequence[str], couplings: Sequence[str],
                    crosstalk: bool = False) -> dict[str, list[str]]:
     """Physically meaningful candidate covariates of each Hamiltonian parameter.
 
-    "Adjacent" and "neighbouring" are read from the coupling graph (``edges``; None: the
-    chain). ``base="default"`` starts from :func:`~workbench.param_boost.default_library`
-    (the parameter and its square; for onsite ``f_i`` the couplings touching site ``i`` and
-    their squares; for ``g_e`` the detuning across it; for a parasitic coupling the
-    geometric means of the couplings bridging it); ``base=None`` from nothing. Then, each
-    with its square when ``squares``:
+    "Adjacent" and "neighbouring" are read from the coupling graph. ``base="default"``
+    starts from :func:`~workbench.param_boost.default_library` (the parameter and its square;
+    for onsite ``f_i`` the couplings touching site ``i`` and their squares; for ``g_e`` the
+    detuning across it; for a parasitic coupling the geometric means of the couplings
+    bridging it); ``base=None`` from nothing. Then, each with its square when ``squares``:
 
     * onsite ``f_i``: its qubit's feature and the features of the couplers touching it;
       with ``neighbours``, also the neighbouring onsite frequencies ``f_j``, the detunings
       to them and the neighbouring qubits' features;
     * coupling ``g_e``, ``e = (i, j)``: its coupler's feature; with ``neighbours``, also the
       two coupled frequencies, the squared detuning and the two qubits' features;
-    * parasitic coupling ``(i, j)`` (``parasitic``: "next_nearest", "diagonal" or a list of
-      site pairs; see :func:`~workbench.param_boost.resolve_graph`): the geometric means
-      ``sqrt|g_a*g_b|`` of the bridging couplings (not squared); with ``neighbours``, also
-      the bridging couplers' features and the two qubits' features. A parasitic coupling
-      enters the model only once a covariate of it is selected.
+    * parasitic coupling ``(i, j)``: the geometric means ``sqrt|g_a*g_b|`` of the bridging
+      couplings (not squared); with ``neighbours``, also the bridging couplers' features and
+      the two qubits' features. It enters the model once a covariate of it is selected.
 
-    With ``crosstalk``, bias crosstalk terms (products of centred biases, not squared): a
-    parameter tuned by its own bias line that also feels a neighbouring line ``V'`` changes by
-    about ``(df/dV) C V'``, and near a sweet spot ``df/dV`` is linear in the own bias ``V``,
-    so the candidate is ``V*V'``. Onsite ``f_i``: its qubit's feature times the features of
-    the couplers touching it and (with ``neighbours``) of the neighbouring qubits; coupling
-    ``g_e``: its coupler's feature times its two qubits' features.
+    With ``crosstalk``, the bias products of :func:`crosstalk_candidates`. Duplicates are
+    dropped.
 
-    ``qubit_features`` (N names) and ``coupler_features`` (one per coupling) are in site and
-    edge order, e.g. ``qvolt5..qvolt9`` and ``cvolt5..cvolt8`` on the benchmark. Duplicates
-    are dropped.
+    Parameters
+    ----------
+    onsite, couplings : sequence of str
+        The onsite parameters' and the couplings' names, in site and edge order.
+    qubit_features, coupler_features : sequence of str, default=None
+        The features acting on each site (N names) and coupling (one per edge), in site and
+        edge order (e.g. ``qvolt5..qvolt9`` and ``cvolt5..cvolt8`` on the benchmark).
+    squares, neighbours, crosstalk : bool, default=True, True, False
+        Whether to add each candidate's square, the neighbouring terms, the bias products.
+    base : {"default", None}, default="default"
+        Whether to start from :func:`~workbench.param_boost.default_library`.
+    edges, parasitic : default=None
+        The coupling graph's site pairs (``None``: the chain) and the parasitic couplings
+        (:func:`~workbench.param_boost.resolve_graph`).
     """
     on, co = list(onsite), list(couplings)
     graph, pairs = resolve_graph(len(on), edges, parasitic)
@@ -143,8 +147,21 @@ def crosstalk_candidates(onsite: Sequence[str], couplings: Sequence[str],
                          qubit_features: Sequence[str] | None,
                          coupler_features: Sequence[str] | None, graph: CouplingGraph,
                          neighbours: bool = True) -> dict[str, list[str]]:
-    """The bias-product candidates of :func:`candidate_pool` (``crosstalk=True``) on
-    ``graph`` (a :class:`~workbench.hamiltonian.CouplingGraph`)."""
+    """The bias-product candidates of :func:`candidate_pool` (``crosstalk=True``).
+
+    Bias crosstalk terms (products of centred biases, not squared): a parameter tuned by its
+    own bias line that also feels a neighbouring line ``V'`` changes by about
+    ``(df/dV) C V'``, and near a sweet spot ``df/dV`` is linear in the own bias ``V``, so the
+    candidate is ``V*V'``. Onsite ``f_i``: its qubit's feature times the features of the
+    couplers touching it and (with ``neighbours``) of the neighbouring qubits; coupling
+    ``g_e``: its coupler's feature times its two qubits' features.
+
+    Parameters
+    ----------
+    onsite, couplings, qubit_features, coupler_features, neighbours
+        As in :func:`candidate_pool`.
+    graph : CouplingGraph
+        The coupling graph."""
     qf, cf = list(qubit_features or []), list(coupler_features or [])
     out: dict[str, list[str]] = {}
     for i, p in enumerate(onsite):
@@ -179,8 +196,22 @@ def _sliced(X: pd.DataFrame, y: np.ndarray,
 
 def cv_mae(estimator: Any, X: pd.DataFrame, y: ArrayLike, *, cv: int = 5, n_repeats: int = 1,
            random_state: int = 0) -> float:
-    """Repeated K-fold CV MAE of ``estimator`` on ``(X, y)`` (mean over all held-out
-    values; RepeatedKFold seeded by ``random_state``)."""
+    """Repeated K-fold CV MAE of ``estimator`` on ``(X, y)``, the mean over all held-out values.
+
+    Parameters
+    ----------
+    estimator : HamiltonianParameterRegressor
+        The model.
+    X : DataFrame
+        The rows.
+    y : array-like of shape (n, N)
+        Their ascending eigenvalues.
+    cv : int, default=5
+        Folds.
+    n_repeats : int, default=1
+        Repeats of the K-fold split.
+    random_state : int, default=0
+        Seeds the ``RepeatedKFold``."""
     y = np.asarray(y, dtype=float)
     abs_sum, count = 0.0, 0
     for fit_rows, val_rows in _splits(len(X), cv, n_repeats, random_state):
@@ -222,12 +253,26 @@ def _score_many(base: Any, libraries: list[dict[str, list[str]]], folds: list[tu
 class SelectionResult:
     """Outcome of :func:`forward_select`.
 
-    covariates : parameter -> selected covariate names (refit with
+    Parameters
+    ----------
+    covariates : dict
+        Parameter name -> the selected covariate names (refit with
         ``HamiltonianParameterRegressor(covariates=result.covariates, ...)`` or
-        ``result.estimator()``).
-    path : DataFrame with columns step, parameter, covariate, cv_mae (step 0 = start).
-    cv_mae : CV MAE of the final selection (the last path entry).
-    n_rows : rows the selection saw; index : their index labels.
+        :meth:`estimator`).
+    path : DataFrame
+        One row per step, columns ``step``, ``parameter``, ``covariate``, ``cv_mae``
+        (step 0 is the start).
+    cv_mae : float
+        CV MAE of the final selection (the last row of ``path``).
+    n_rows : int
+        Rows the selection saw.
+    index : Index
+        Their index labels.
+    regressor_params : dict, default={}
+        The other parameters of the regressor the selection fitted (:meth:`estimator`
+        passes them on).
+    seconds : float, default=0.0
+        Wall time of the selection.
     """
 
     covariates: dict
@@ -282,17 +327,41 @@ def forward_select(X: pd.DataFrame, y: ArrayLike, *, candidates: dict[str, list[
 
     Parameters
     ----------
-    X : DataFrame with the onsite, coupling and candidate-feature columns.
-    y : (n, N) ascending eigenvalues.
-    candidates : dict parameter -> list of covariate names (see :func:`candidate_pool`).
-    n_jobs : scikit-learn's convention (``None``: 1, ``-1``: every core; 1 inside a worker
+    X : DataFrame
+        The onsite, coupling and candidate-feature columns.
+    y : array-like of shape (n, N)
+        The ascending eigenvalues.
+    candidates : dict
+        Parameter -> list of covariate names (see :func:`candidate_pool`).
+    cv : int, default=5
+        Folds.
+    n_repeats : int, default=1
+        Repeats of the K-fold split.
+    random_state : int, default=0
+        Seeds the ``RepeatedKFold``.
+    max_steps : int, default=30
+        The most steps.
+    min_improvement : float, default=0.001
+        The least CV MAE gain (targets' units) a step must bring.
+    start : dict, default=None
+        The starting covariates (``None``: intercepts only).
+    n_jobs : int, default=None
+        scikit-learn's convention (``None``: 1, ``-1``: every core; 1 inside a worker
         process): for ``"refit"``, the candidates are scored on the workbench's worker
         processes (:mod:`workbench.parallel`, the command's pool when there is one); for
         ``"linearised"``, the folds' fits and linear scores run on threads of this process
         (the folds' data and fitted models stay in memory from step to step; numpy's
         linear algebra releases the GIL).
-    progress : called with one line per step.
-    **regressor_params : passed to :class:`~workbench.param_boost.HamiltonianParameterRegressor`
+    method : {"refit", "linearised"}, default="refit"
+        How candidates are scored (see above).
+    shortlist : int, default=5
+        ``"linearised"``: the best-scored single candidates refitted exactly.
+    batch : int or "auto", default="auto"
+        ``"linearised"``: the most parameters a batch step adds a covariate to.
+    progress : callable, default=None
+        Called with one line per step.
+    **regressor_params
+        Passed to :class:`~workbench.param_boost.HamiltonianParameterRegressor`
         (``onsite``, ``couplings``, ``sign``, ``alpha``, ``loss``, ...; not ``covariates``).
     """
     t0 = time.perf_counter()

@@ -24,7 +24,12 @@ __all__ = ["BaseBoostCV", "BasisChoiceCV", "CandidateMean", "LabelGroupKFold", "
 
 
 def find_prior(estimator: Any) -> Any:
-    """The ``prior`` parameter of ``estimator`` (or of the one it wraps, e.g. in a Pipeline)."""
+    """The ``prior`` parameter of ``estimator`` (or of the one it wraps, e.g. in a Pipeline).
+
+    Parameters
+    ----------
+    estimator : estimator
+        A base-boosting estimator, or one that wraps it."""
     params = estimator.get_params(deep=True)
     if "prior" in params:
         return params["prior"]

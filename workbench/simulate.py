@@ -46,21 +46,33 @@ MECHANISMS = {**{k: k for k in ("drift", "crosstalk", "coupler_nonlinearity",
 class Mismatch:
     """How the true device departs from the control model; 0 switches a mechanism off.
 
-    drift: multiplier of per-element parameter offsets (1 = sd 1.5 MHz on f_max, 0.2 mV on
-        the sweet spot V0, 0.3 % on the flux period, 3 % on g_max, 1 mV on the coupler midpoint).
-    crosstalk: flux crosstalk fraction; qubit i feels ~this fraction (x U(0.5, 1.5), random
-        sign) of the bias of neighbouring qubits i±1 and of its adjacent couplers (coupler bias
-        relative to the calibration point V_CAL, whose constant part the model absorbed).
-    coupler_nonlinearity: MHz; true g gains kappa * ((V_c - 0.16) / 0.06)^2, |kappa| ~ this.
-    coupler_frequency_shift: dimensionless; each coupler pulls its two qubits down by
-        this * g^2 / Delta_c (Delta_c ~ 1 GHz, a dispersive shift).
-    next_nearest_coupling: parasitic couplings the control model lacks, between the sites of
-        each parasitic pair (i, j) (chain/ring: next-nearest, grid: diagonal):
-        H[i, j] = -this * eta_ij * mean over paths i-m-j of sqrt(|g_im g_mj|),
-        eta_ij ~ U(0.5, 1.5).
-    noise_sd: Gaussian measurement noise on each measured eigenvalue (MHz).
-    misidentified_rate: per-experiment probability that one eigenvalue is a wrong peak
-        (shifted by ±3-10 MHz).
+    Parameters
+    ----------
+    drift : float, default=0.0
+        Multiplier of per-element parameter offsets (1 = sd 1.5 MHz on f_max, 0.2 mV on the
+        sweet spot V0, 0.3 % on the flux period, 3 % on g_max, 1 mV on the coupler midpoint).
+    crosstalk : float, default=0.0
+        Flux crosstalk fraction: qubit i feels about this fraction (times U(0.5, 1.5), random
+        sign) of the bias of neighbouring qubits i±1 and of its adjacent couplers (coupler
+        bias relative to the calibration point ``V_CAL``, whose constant part the model
+        absorbed).
+    coupler_nonlinearity : float, default=0.0
+        In MHz: the true g gains ``kappa * ((V_c - 0.16) / 0.06)**2``, with ``abs(kappa)``
+        about this.
+    coupler_frequency_shift : float, default=0.0
+        Dimensionless: each coupler pulls its two qubits down by ``this * g**2 / Delta_c``
+        (``Delta_c`` about 1 GHz, a dispersive shift).
+    next_nearest_coupling : float, default=0.0
+        Parasitic couplings the control model lacks, between the sites of each parasitic
+        pair (i, j) (chain or ring: next-nearest, grid: diagonal):
+        ``H[i, j] = -this * eta_ij * mean over paths i-m-j of sqrt(abs(g_im * g_mj))``, with
+        ``eta_ij`` drawn from U(0.5, 1.5).
+    noise_sd : float, default=0.0
+        Standard deviation of the Gaussian measurement noise on each measured eigenvalue
+        (MHz).
+    misidentified_rate : float, default=0.0
+        Per-experiment probability that one eigenvalue is a wrong peak (shifted by 3 to
+        10 MHz either way); at most 1.
     """
 
     drift: float = 0.0
@@ -107,7 +119,15 @@ class Mismatch:
 
 @dataclass
 class Simulation:
-    """Simulated experiments (``data``) and everything injected to make them (``truth``)."""
+    """Simulated experiments and everything injected to make them.
+
+    Parameters
+    ----------
+    data : DataFrame
+        One row per experiment: the biases, the control model's parameters and prior, the
+        measured eigenvalues.
+    truth : dict
+        The device, the mismatch and its hidden draws, the seeds (JSON-ready)."""
 
     data: pd.DataFrame
     truth: dict
@@ -316,7 +336,14 @@ def _experiments(dev: _Device, mm: Mismatch, vq: np.ndarray, vc: np.ndarray, dra
 
 
 def bias_columns(n_sites: int, n_edges: int) -> list[str]:
-    """The bias columns of a device: ``v_q1..v_qN`` then ``v_c1..v_cE``."""
+    """The bias columns of a device: ``v_q1..v_qN`` then ``v_c1..v_cE``.
+
+    Parameters
+    ----------
+    n_sites : int
+        The qubits, N.
+    n_edges : int
+        The couplers, E."""
     return ([f"v_q{k}" for k in range(1, n_sites + 1)]
             + [f"v_c{k}" for k in range(1, n_edges + 1)])
 
@@ -327,15 +354,31 @@ def simulate(n_sites: int | None = 5, n_experiments: int = 136, *, seed: int | N
              parasitic: str | Iterable[Sequence[int]] | None = None) -> Simulation:
     """Simulate ``n_experiments`` random bias settings of a device of ``n_sites`` sites.
 
-    ``topology`` "chain" (default), "ring" or "grid" (``shape = (rows, cols)``; ``n_sites``
-    may be None or must equal rows * cols), or an explicit ``edges`` list. ``parasitic``
-    (None: :func:`default_parasitic`; "next_nearest", "diagonal", "none" or a list of site
-    pairs) chooses where the next_nearest_coupling mismatch puts its parasitic couplings.
-
     All random draws are made in a fixed order whatever the mismatch (the device first, then
     the voltages, uniform in Q_RANGE and C_RANGE, then noise and misidentified peaks), so the
     same seed gives the same device and voltages and only the switched-on mechanisms change
     the targets. :func:`measure` measures chosen settings on the same device.
+
+    Parameters
+    ----------
+    n_sites : int or None, default=5
+        The sites (a grid: ``None`` or rows * cols).
+    n_experiments : int, default=136
+        The bias settings drawn.
+    seed : int or None, default=0
+        Seeds every draw (``None``: fresh ones).
+    mismatch : Mismatch, default=None
+        How the true device departs from the control model (``None``: it does not).
+    topology : {"chain", "ring", "grid"}, default="chain"
+        The coupling graph's shape.
+    shape : (int, int), default=None
+        ``(rows, cols)`` of a grid.
+    edges : iterable of (int, int), default=None
+        An explicit list of coupled site pairs instead of a topology.
+    parasitic : str or iterable of (int, int), default=None
+        Where the next_nearest_coupling mismatch puts its parasitic couplings:
+        ``"next_nearest"``, ``"diagonal"``, ``"none"`` or a list of site pairs (``None``:
+        :func:`default_parasitic`).
     """
     if int(n_experiments) != n_experiments or n_experiments < 1:
         raise ValueError(f"n_experiments must be an integer >= 1, got {n_experiments!r}")
@@ -356,15 +399,32 @@ def measure(settings: pd.DataFrame, *, seed: int | None = 0, mismatch: Mismatch 
     are ignored) on the device :func:`simulate` makes with the same ``seed``, ``topology``,
     ``n_sites``, ``shape``, ``edges``, ``parasitic`` and ``mismatch``.
 
-    ``n_sites`` None with a chain or ring: the number of ``v_q`` columns. Voltages outside
-    Q_RANGE and C_RANGE are allowed. The rows come back in the order and with the index of
-    ``settings``, in simulate()'s columns; ``truth`` is simulate()'s for this device with
-    ``n_experiments`` the rows measured here and the misidentified rows (0-based positions)
-    of this call. Noise and misidentified peaks come from ``noise_seed``, or (None) from a
-    seed derived from ``seed`` and the settings' values: the same settings measure the same,
-    different settings get independent noise (``seed`` None: a fresh device and fresh
-    noise). Raises ValueError on a missing column, a non-numeric, NaN or infinite bias, or
-    no rows.
+    Voltages outside Q_RANGE and C_RANGE are allowed. The rows come back in the order and
+    with the index of ``settings``, in simulate()'s columns; ``truth`` is simulate()'s for
+    this device with ``n_experiments`` the rows measured here and the misidentified rows
+    (0-based positions) of this call.
+
+    Parameters
+    ----------
+    settings : DataFrame
+        The biases to measure.
+    seed : int or None, default=0
+        The device's seed (``None``: a fresh device and fresh noise).
+    mismatch : Mismatch, default=None
+        As in :func:`simulate`.
+    topology, shape, edges, parasitic
+        As in :func:`simulate`.
+    n_sites : int, default=None
+        The sites (``None`` with a chain or ring: the number of ``v_q`` columns).
+    noise_seed : int, default=None
+        Seeds the noise and the misidentified peaks; ``None``: a seed derived from ``seed``
+        and the settings' values (the same settings measure the same, different settings get
+        independent noise).
+
+    Raises
+    ------
+    ValueError
+        On a missing column, a non-numeric, NaN or infinite bias, or no rows.
     """
     if not isinstance(settings, pd.DataFrame):
         raise TypeError(f"settings must be a pandas DataFrame, got {type(settings).__name__}")
@@ -408,7 +468,14 @@ def measure(settings: pd.DataFrame, *, seed: int | None = 0, mismatch: Mismatch 
 
 
 def write_simulation(sim: Simulation, out: str | Path) -> tuple[Path, Path]:
-    """Write ``out`` (CSV, no index) and ``<out without .csv>.truth.json``, each atomically."""
+    """Write ``out`` (CSV, no index) and ``<out without .csv>.truth.json``, each atomically.
+
+    Parameters
+    ----------
+    sim : Simulation
+        What to write.
+    out : str or Path
+        The CSV file."""
     out = Path(out)
     stem = out.with_suffix("") if out.suffix.lower() == ".csv" else out
     truth_path = stem.parent / f"{stem.name}.truth.json"

@@ -14,13 +14,25 @@ from ..hamiltonian import CouplingGraph
 class Hamiltonian:
     """Per-example parameters of a device's control-model Hamiltonian.
 
-    ``onsite`` holds the N diagonal entries (qubit frequencies, MHz) and ``couplings`` one
-    coupling per edge of the coupling graph, one row per example, aligned with the dataset's
-    rows. ``edges`` are the graph's site pairs (0-based, one per coupling column, in order);
-    None means the nearest-neighbour chain. The prior is the ascending eigenvalues of
-    ``sign * H``. ``qubit_features`` (N names) and ``coupler_features`` (one per edge)
-    optionally name the dataset features that act on each site and coupling (e.g. bias
-    voltages), in site and edge order, for physics-aware covariates.
+    One row per example, aligned with the dataset's rows. The prior is the ascending
+    eigenvalues of ``sign * H``.
+
+    Parameters
+    ----------
+    onsite : DataFrame
+        The N diagonal entries (qubit frequencies, MHz).
+    couplings : DataFrame
+        One coupling per edge of the coupling graph.
+    sign : int, default=-1
+        The sign of ``H`` whose eigenvalues are the prior.
+    qubit_features : tuple of str, default=None
+        N names of the dataset features that act on each site (e.g. bias voltages), in site
+        order, for physics-aware covariates.
+    coupler_features : tuple of str, default=None
+        The same for each coupling, in edge order.
+    edges : tuple of (int, int), default=None
+        The graph's site pairs (0-based, one per coupling column, in order); ``None``: the
+        nearest-neighbour chain.
     """
 
     onsite: pd.DataFrame
@@ -47,11 +59,28 @@ class Hamiltonian:
 class Dataset:
     """Features, one prior column per target, the targets and a train/test split.
 
-    All frames share one row index. ``train_index`` and ``test_index`` hold index labels.
-    ``groups`` optionally names each row's group (e.g. the device it was measured on): rows of
-    one group share conditions a model must not learn from the test rows. ``unit`` is the
-    targets' (and priors') unit, as figures and summaries label it (e.g. ``"MHz"``); ``None``:
-    no unit is shown.
+    All frames share one row index.
+
+    Parameters
+    ----------
+    name : str
+        The data set's name.
+    features : DataFrame
+        The inputs.
+    prior : DataFrame
+        One prior column per target, in the targets' order.
+    targets : DataFrame
+        The measured targets.
+    train_index, test_index : ndarray
+        The index labels of the training and the test rows.
+    hamiltonian : Hamiltonian, default=None
+        The control model's Hamiltonian parameters per row, for the physics-aware models.
+    groups : Series, default=None
+        Each row's group (e.g. the device it was measured on): rows of one group share
+        conditions a model must not learn from the test rows.
+    unit : str, default=None
+        The targets' (and priors') unit, as figures and summaries label it (e.g. ``"MHz"``);
+        ``None``: no unit is shown.
     """
 
     name: str

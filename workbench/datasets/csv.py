@@ -242,17 +242,42 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
                      unit: str | None = None) -> Dataset:
     """Read a CSV of experiments into a :class:`Dataset`.
 
-    ``prior[j]`` is the scientific model's prediction of ``targets[j]``. ``onsite`` (N
-    columns) and ``couplings`` (one column per edge) optionally give the control model's
-    Hamiltonian per row; its prior is the ascending eigenvalues of ``sign * H``. The coupling
-    graph is ``topology`` ("chain": N - 1 couplings ``(i, i+1)``; "ring"; "grid" with
-    ``shape = (rows, cols)``, see :class:`~workbench.hamiltonian.CouplingGraph`) or an
-    explicit ``edges`` list of 0-based site pairs, one per coupling column.
-    ``qubit_features`` (N) and ``coupler_features`` (one per edge), columns among
-    ``features``, name what acts on each site and coupling (e.g. bias voltages).
-    ``group_column`` names each row's group (any text, e.g. the device or the cooldown it
-    was measured in): the dataset's ``groups``, which CV folds then keep whole. ``unit``: the
-    targets' unit (e.g. ``"meV"``), which figures and summaries show; ``None``: none shown.
+    Parameters
+    ----------
+    path : str or Path
+        The CSV file.
+    prior : sequence of str
+        The prior columns, ``prior[j]`` the scientific model's prediction of ``targets[j]``.
+    targets : sequence of str
+        The target columns.
+    features : sequence of str, default=()
+        The input columns.
+    test_fraction : float, default=None
+        A seeded random share of the rows held out (or ``split_column``).
+    split_column : str, default=None
+        A column holding ``train`` or ``test`` per row.
+    split_seed : int, default=0
+        Seeds the ``test_fraction`` split.
+    onsite, couplings : sequence of str, default=None
+        The control model's Hamiltonian per row: N diagonal columns, one coupling column per
+        edge of the coupling graph (its prior is the ascending eigenvalues of ``sign * H``).
+    sign : {-1, 1}, default=-1
+        The sign of ``H``.
+    qubit_features, coupler_features : sequence of str, default=None
+        Columns among ``features`` that act on each site (N) and coupling (one per edge),
+        e.g. bias voltages.
+    topology : {"chain", "ring", "grid"}, default="chain"
+        The coupling graph ("chain": N - 1 couplings ``(i, i+1)``; see
+        :class:`~workbench.hamiltonian.CouplingGraph`).
+    shape, edges : default=None
+        ``(rows, cols)`` of a grid; an explicit list of 0-based site pairs instead, one per
+        coupling column.
+    group_column : str, default=None
+        Each row's group (e.g. its device): the dataset's ``groups``, which CV folds keep whole.
+    name : str, default=None
+        The dataset's name (``None``: the file's stem).
+    unit : str, default=None
+        The targets' unit (e.g. ``"meV"``) figures and summaries show (``None``: none).
     """
     path = Path(path)
     prior, targets, features = list(prior), list(targets), list(features)

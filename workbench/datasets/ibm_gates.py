@@ -239,9 +239,26 @@ def load_ibm_gates(data_dir: str | os.PathLike[str] | None = None, *,
                    download: bool = True) -> Dataset:
     """The IBM two-qubit gate benchmark (see the module docstring) with its ``split``.
 
-    ``groups`` holds each row's device. Raises
-    :class:`~workbench.datasets.DataUnavailableError` when the files cannot be found, fetched
-    or verified, ``ValueError`` for an unknown split.
+    ``groups`` holds each row's device.
+
+    Parameters
+    ----------
+    data_dir : str or path-like, default=None
+        Where the snapshots are (``None``: the loader's cache).
+    split : {"time", "devices"}, default="time"
+        ``"time"``: the snapshots from 2025 on are the test rows; ``"devices"``: the gates of
+        30% of the devices, held out at random.
+    split_seed : int, default=0
+        Which devices the ``"devices"`` split holds out.
+    download : bool, default=True
+        Whether to fetch (and verify) the wheel when it is missing.
+
+    Raises
+    ------
+    DataUnavailableError
+        When the files cannot be found, fetched or verified.
+    ValueError
+        For an unknown split.
     """
     table = gate_table(data_dir, download=download)
     devices = table["device"]

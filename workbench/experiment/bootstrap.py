@@ -44,7 +44,7 @@ CORNISH_FISHER_LIMIT = 0.5
 class ErrorInterval(NamedTuple):
     """Bootstrap intervals of a mean error.
 
-    Attributes
+    Parameters
     ----------
     per_target : list of [low, high]
         One interval per target.

@@ -35,7 +35,7 @@ PREDICTIONS, MEASURED = "predictions/test.csv", "predictions/test_measured.csv"
 class Comparison:
     """Per-target test MAE of two runs and the paired interval of their difference.
 
-    Attributes
+    Parameters
     ----------
     runs : tuple of str
         The two runs' names (or ids where they have none).

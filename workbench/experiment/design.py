@@ -51,7 +51,7 @@ log = logging.getLogger("workbench")
 class Design:
     """A chosen batch of candidates.
 
-    Attributes
+    Parameters
     ----------
     chosen : DataFrame
         The design columns of the picks (rank order, indexed like the candidates).
@@ -274,7 +274,21 @@ ARMS = ("design", "random")
 
 @dataclass
 class Acquisition:
-    """One closed loop: the test MAE (average over targets) after each batch."""
+    """One closed loop: the test MAE (average over targets) after each batch.
+
+    Parameters
+    ----------
+    arm : {"design", "random"}
+        How each batch was chosen.
+    seed : int
+        The loop's seed.
+    n_measured, test_mae : list
+        After each batch, the rows measured and the test MAE of the model fitted on them.
+    chosen : list, default=[]
+        The index labels chosen, in order.
+    seconds : float, default=0.0
+        The loop's wall time.
+    """
 
     arm: str
     seed: int

@@ -93,7 +93,9 @@ def driver_hint(exc: ImportError) -> str:
 
 
 def listing(names: Iterable, budget: int = 140, width: int = 30) -> str:
-    """List names for an error line: ``'a', 'b', ... (N in all)``.
+    """List names for an error line, within a character budget, with their count if cut.
+
+    As in ``'a', 'b', ... (N in all)``.
 
     Parameters
     ----------
@@ -123,7 +125,9 @@ def listing(names: Iterable, budget: int = 140, width: int = 30) -> str:
 
 
 def unknown_keys(unknown: Iterable, valid: Iterable) -> str:
-    """Describe unknown keys: ``unknown key(s) ['x'] (did you mean 'y'?); valid keys are ...``.
+    """Describe unknown keys, with the closest valid key and the valid ones.
+
+    As in ``unknown key(s) ['x'] (did you mean 'y'?); valid keys are ...``.
 
     Parameters
     ----------

@@ -38,7 +38,7 @@ log = logging.getLogger("workbench")
 class Evaluation:
     """A result with the fitted model and the dataset it came from.
 
-    Attributes
+    Parameters
     ----------
     result : Result
         The scores.

@@ -44,7 +44,7 @@ _OWN_KEYS = ("name", "random_state", "data")
 class InitResult:
     """What :func:`init_config` wrote.
 
-    Attributes
+    Parameters
     ----------
     path : Path
         The config file.

@@ -53,7 +53,7 @@ _NOT_FOUND = ("RESOURCE_DOES_NOT_EXIST", "NOT_FOUND", "INVALID_PARAMETER_VALUE")
 class Prediction:
     """What :func:`predict_csv` wrote.
 
-    Attributes
+    Parameters
     ----------
     path : Path
         The output file.

@@ -109,7 +109,7 @@ class ParameterOf:
     line then names the file, ``section.key`` and the value). Use it as
     ``Annotated[float, ParameterOf(Estimator)]``; keep the default beside the field.
 
-    Attributes
+    Parameters
     ----------
     estimator : type
         The estimator class.

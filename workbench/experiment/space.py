@@ -89,7 +89,7 @@ def _suggest(trial: Trial | _Draw, name: str, spec: Any) -> Any:
 class SearchSpace:
     """The ``[search]`` table, checked.
 
-    Attributes
+    Parameters
     ----------
     table : dict
         The entries that vary the boosting settings (``basis_params`` included).

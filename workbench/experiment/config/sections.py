@@ -149,7 +149,17 @@ class IntervalsConfig(Section):
 
 
 class CVConfig(Section):
-    """``[cv]``: the nested cross-validation of a sweep (``repeats``: ``RepeatedKFold``)."""
+    """``[cv]``: the nested cross-validation of a sweep.
+
+    Parameters
+    ----------
+    outer_folds, inner_folds : int, default=5
+        The folds of the outer (scoring) and the inner (searching) CV.
+    repeats : int, default=1
+        Repeats of the outer folds (``RepeatedKFold``).
+    seed : int, default=0
+        Seeds the folds.
+    """
 
     outer_folds: int = Field(default=5, ge=2, le=10_000)
     inner_folds: int = Field(default=5, ge=2, le=10_000)
@@ -160,8 +170,25 @@ class CVConfig(Section):
 class StudyConfig(Section):
     """``[study]``: the Optuna studies of a sweep.
 
-    ``storage``: a journal file path (one machine, several processes) or an RDB URL such as
-    ``postgresql://...`` (machines).
+    Parameters
+    ----------
+    trials : int, default=20
+        Trials per study.
+    timeout : float, default=None
+        Seconds a study may search (``None``: no limit).
+    sampler : {"tpe", "random"}, default="tpe"
+        Optuna's sampler.
+    pruner : {"none", "median", "wilcoxon"}, default="median"
+        Optuna's pruner.
+    storage : str, default="mlruns/optuna.journal"
+        A journal file path (one machine, several processes) or an RDB URL such as
+        ``postgresql://...`` (machines).
+    study_name : str, default=None
+        The studies' name prefix (``None``: from the config's name).
+    workers : int, default=1
+        Processes searching at once.
+    stale_after_s : float, default=600
+        A running trial without a heartbeat for this long is failed and re-queued.
     """
 
     trials: int = Field(default=20, ge=1, le=1_000_000)
@@ -177,8 +204,12 @@ class StudyConfig(Section):
 class TrackingConfig(Section):
     """``[tracking]``: where MLflow records.
 
-    ``tracking_uri`` None means $MLFLOW_TRACKING_URI or ``sqlite:///mlruns/mlflow.db``;
-    ``experiment`` None means the config's name.
+    Parameters
+    ----------
+    tracking_uri : str, default=None
+        The tracking store (``None``: $MLFLOW_TRACKING_URI or ``sqlite:///mlruns/mlflow.db``).
+    experiment : str, default=None
+        The MLflow experiment (``None``: the config's name).
     """
 
     tracking_uri: str | None = None

@@ -30,7 +30,7 @@ __all__ = ["Artifacts", "ResultMethods"]
 class Artifacts:
     """A fitted model's extra outputs.
 
-    Attributes
+    Parameters
     ----------
     figures : dict
         Name -> matplotlib Figure.

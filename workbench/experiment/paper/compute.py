@@ -108,8 +108,8 @@ def seeded(cfg: ExperimentConfig, seed: int) -> ExperimentConfig:
 def hamiltonian_config(cfg: ExperimentConfig, seed: int, quick: bool) -> ExperimentConfig:
     """Set up ``experiments/hamiltonian.toml`` as the reproduction evaluates it.
 
-    Its nested CV over all rows (about 4 minutes, which would take the main job near 10) is
-    left to ``workbench evaluate experiments/hamiltonian.toml``; quick mode also uses a
+    Its nested CV over all rows (its longest part: it redoes the selection in each outer
+    fold) is left to ``workbench evaluate experiments/hamiltonian.toml``; quick mode also uses a
     smaller pool and one CV repeat.
 
     Parameters
