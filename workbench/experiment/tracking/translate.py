@@ -54,13 +54,45 @@ def translate(exc: BaseException, uri: str) -> TrackingError | None:
         return TrackingError(
             f"{store} has an older MLflow schema: back it up, then run "
             f"'mlflow db upgrade {redact(uri)}'. ({exc})")
-    if any(s in low for s in ("connection refused", "max retries exceeded",
-                              "failed to establish a new connection", "name or service not known",
-                              "connectionerror", "timed out")):
-        return TrackingError(f"cannot reach the MLflow {store}: {exc}")
+    if any(s in low for s in _UNREACHABLE):
+        return TrackingError(
+            f"cannot reach the MLflow {store} ({_reason(low)}; {_retried()}); a run it holds "
+            "is marked FAILED by the next command on the store. Run the command again when "
+            "the server answers")
     if "sqlite3.databaseerror" in low or "sqlite3.operationalerror" in low:
         return TrackingError(f"{store} cannot be used: {exc}")
     return None
+
+
+#: What a request to a server that is away fails with (requests, urllib3, MLflow).
+_UNREACHABLE = ("connection refused", "max retries exceeded", "failed to establish a new "
+                "connection", "name or service not known", "connectionerror", "timed out",
+                "remotedisconnected", "connection aborted", "connection reset")
+#: The reason shown for each kind of failure, in the order looked for.
+_REASONS = (("connection refused", "connection refused"),
+            ("name or service not known", "unknown host"),
+            ("timed out", "no answer in time"),
+            ("remotedisconnected", "connection dropped"),
+            ("connection aborted", "connection dropped"),
+            ("connection reset", "connection dropped"))
+
+
+def _reason(low: str) -> str:
+    """Say in a few words why a request failed (``low``: the error's text, lower case)."""
+    return next((reason for key, reason in _REASONS if key in low), "no connection")
+
+
+def _retried() -> str:
+    """Say how long MLflow retried a request (its environment variables)."""
+    from mlflow.environment_variables import (  # (b) MLflow: a store error came from it
+        MLFLOW_HTTP_REQUEST_BACKOFF_FACTOR,
+        MLFLOW_HTTP_REQUEST_MAX_RETRIES,
+    )
+
+    retries = MLFLOW_HTTP_REQUEST_MAX_RETRIES.get()
+    factor = MLFLOW_HTTP_REQUEST_BACKOFF_FACTOR.get()
+    waited = sum(min(factor * 2 ** (n - 1), 120) for n in range(2, retries + 1))
+    return f"MLflow retried for {waited:.0f} s, {retries} retries"
 
 
 def duplicate_row(exc: BaseException) -> bool:
