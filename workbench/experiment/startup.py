@@ -37,3 +37,6 @@ def setup_logging() -> None:
     logger.setLevel(logging.INFO)
     logger.propagate = False
     logging.getLogger("mlflow").setLevel(logging.WARNING)  # keep the per-trial lines readable
+    # MLflow logs the traceback of a database error (a full disk, a locked file) that it
+    # raises again at once: the command reports it in one line naming the store
+    logging.getLogger("mlflow.store.db.utils").setLevel(logging.CRITICAL)

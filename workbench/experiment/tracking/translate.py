@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from urllib.parse import urlsplit
 
-from ..errors import TrackingError, redact
+from ..errors import TrackingError, disk_full, redact
 from .uris import describe_store
 
 __all__ = ["duplicate_row", "translate"]
@@ -35,6 +35,12 @@ def translate(exc: BaseException, uri: str) -> TrackingError | None:
     if "supported uri schemes" in str(exc).lower():  # MLflow's registry: a 400-character line
         scheme = urlsplit(uri).scheme if "://" in uri else ""
         return TrackingError(f"{store}: MLflow has no tracking store for '{scheme}://'")
+    full = disk_full(exc)
+    if full is not None:
+        return TrackingError(
+            f"{store}: the disk is full (no space left on the device); free space, then run "
+            "the command again (the next command marks a run left RUNNING as FAILED)"
+            + (f". Writing {full}" if full else ""))
     text = f"{type(exc).__name__}: {exc}"
     cause = exc.__cause__ or exc.__context__
     if cause is not None:
