@@ -14,6 +14,16 @@ on the test rows, and two oracles pick with the test scores, which no honest met
 * **best mean**: the mean of the ``k`` candidates with the lowest test MAEs, ``k`` from 1
   to 10 chosen on the test rows too (CV's "mean of 5" is one of these).
 
+Two more choosers see only the training rows (honest, like CV's choice), from every
+candidate's out-of-fold predictions (``BasisChoiceCV.candidate_predictions_``), each falling
+back to the prior where its out-of-fold MAE is not below the prior's:
+
+* **greedy**: Caruana et al.'s ensemble selection (2004), as in auto-sklearn: 25 rounds,
+  each adding (with replacement) the candidate that most lowers the out-of-fold MAE of the
+  running mean;
+* **top k**: the mean of the ``k`` candidates with the lowest out-of-fold MAEs, ``k`` from
+  1 to 10 chosen on the out-of-fold predictions.
+
 Printed per dataset and seed: the peer's test MAE (from ``--peers``, the JSON
 ``peers.py --json`` wrote for the same splits; its tuning is seeded), the config's CV choice
 refitted here, and the two oracles, each also as a ratio to the peer. Where an oracle's ratio
@@ -40,19 +50,57 @@ sys.path.insert(0, str(HERE))
 from peers import BENCHMARKS, DEFAULT_SEEDS, simulated, write_config  # noqa: E402
 
 TOP = 10
+ROUNDS = 25
+
+
+def _mae(y, p) -> float:
+    return float(np.mean(np.abs(np.asarray(y) - p)))
+
+
+def greedy_weights(oof: dict, y: np.ndarray, rounds: int = ROUNDS) -> dict:
+    """Caruana's ensemble selection on out-of-fold predictions: name -> weight."""
+    names = list(oof)
+    M = np.array([oof[n] for n in names])
+    counts, total = np.zeros(len(names)), np.zeros(len(y))
+    for k in range(rounds):
+        i = int(np.argmin(np.mean(np.abs(y - (total + M) / (k + 1)), axis=1)))
+        counts[i] += 1
+        total += M[i]
+    return {names[i]: c / rounds for i, c in enumerate(counts) if c}
+
+
+def top_k_weights(oof: dict, y: np.ndarray) -> dict:
+    """The mean of the k candidates best out of fold, k (<= TOP) chosen out of fold."""
+    ranked = sorted(oof, key=lambda n: _mae(y, oof[n]))
+    k = 1 + int(np.argmin([_mae(y, np.mean([oof[n] for n in ranked[:k]], axis=0))
+                           for k in range(1, min(TOP, len(ranked)) + 1)]))
+    return {n: 1 / k for n in ranked[:k]}
+
+
+def chooser(weights: dict, est, y, predictions: dict, prior_test) -> np.ndarray:
+    """Test predictions of ``weights`` over the candidates, or the prior's where their
+    out-of-fold MAE is not below the prior's."""
+    oof = sum(w * est.candidate_predictions_[n] for n, w in weights.items())
+    if _mae(y, oof) >= _mae(y, est.cv_predictions_prior_):
+        return prior_test
+    return sum(w * predictions[n] for n, w in weights.items())
 
 
 def oracles(est, X_train, y, X_test, y_test) -> dict:
-    """Test MAE of the CV choice and of the two oracles, for one target's fitted
-    ``BasisChoiceCV`` ``est``."""
-    predictions = {name: clone(cand).fit(X_train, y).predict(X_test)
-                   for name, cand in est.candidates}
+    """Test MAE of the CV choice, of the two honest choosers and of the two oracles, for one
+    target's fitted ``BasisChoiceCV`` ``est``."""
+    fitted = {name: clone(cand).fit(X_train, y) for name, cand in est.candidates}
+    predictions = {name: m.predict(X_test) for name, m in fitted.items()}
+    prior_test = next(iter(fitted.values())).predict_prior(X_test)
+    honest = {key: _mae(y_test, chooser(weights(est.candidate_predictions_, y), est, y,
+                                        predictions, prior_test))
+              for key, weights in (("greedy", greedy_weights), ("top_k", top_k_weights))}
     mae = {name: float(np.mean(np.abs(y_test - p))) for name, p in predictions.items()}
     ranked = sorted(mae, key=mae.get)
     means = [float(np.mean(np.abs(y_test - np.mean([predictions[n] for n in ranked[:k]],
                                                     axis=0))))
              for k in range(1, min(TOP, len(ranked)) + 1)]
-    return dict(cv=float(np.mean(np.abs(y_test - est.predict(X_test)))),
+    return dict(cv=float(np.mean(np.abs(y_test - est.predict(X_test)))), **honest,
                 chosen=est.selected_candidate_ or "prior", best_single=mae[ranked[0]],
                 best_single_name=ranked[0], best_mean=min(means),
                 best_mean_k=int(np.argmin(means)) + 1, candidates=len(mae))
@@ -80,7 +128,7 @@ def run(name: str, seed: int, config: Path, tmp: Path) -> dict:
         per_target[target] = oracles(est, X_train, Y_train[target].to_numpy(), X_test,
                                      Y_test[target].to_numpy())
     avg = {k: float(np.mean([t[k] for t in per_target.values()]))
-           for k in ("cv", "best_single", "best_mean")}
+           for k in ("cv", "greedy", "top_k", "best_single", "best_mean")}
     return dict(dataset=name, seed=seed, **avg, targets=per_target)
 
 
@@ -110,7 +158,8 @@ def main() -> None:
                 r["peer"] = peers.get((name, seed))
                 rows.append(r)
                 print(f"{name} seed {seed}: peer " + _with_ratio(r, "peer") + ", CV choice "
-                      + _with_ratio(r, "cv") + ", oracle single "
+                      + _with_ratio(r, "cv") + ", greedy " + _with_ratio(r, "greedy")
+                      + ", top k " + _with_ratio(r, "top_k") + ", oracle single "
                       + _with_ratio(r, "best_single") + ", oracle mean "
                       + _with_ratio(r, "best_mean"), flush=True)
     for name in args.datasets:
@@ -118,7 +167,9 @@ def main() -> None:
         if these:
             peer = sum(r["peer"] for r in these)
             print(f"{name}: summed over {len(these)} split(s), / peer: CV choice "
-                  f"{sum(r['cv'] for r in these) / peer:.3f}, oracle single "
+                  f"{sum(r['cv'] for r in these) / peer:.3f}, greedy "
+                  f"{sum(r['greedy'] for r in these) / peer:.3f}, top k "
+                  f"{sum(r['top_k'] for r in these) / peer:.3f}, oracle single "
                   f"{sum(r['best_single'] for r in these) / peer:.3f}, oracle mean "
                   f"{sum(r['best_mean'] for r in these) / peer:.3f}; median oracle-mean "
                   f"ratio {statistics.median(r['best_mean'] / r['peer'] for r in these):.3f}")

@@ -165,6 +165,10 @@ def test_the_mean_of_the_best_candidates_wins_where_cv_says_it_helps():
     np.testing.assert_allclose(model.cv_score_, model.candidate_scores_["mean of 2"].mean())
     assert model.cv_score_ > single.cv_score_
     assert all(np.isfinite(model.cv_predictions_))
+    # every candidate's out-of-fold predictions are kept; the mean's are their mean
+    assert set(model.candidate_predictions_) == {"ridge_x1", "trees_x0"}
+    np.testing.assert_allclose(
+        model.cv_predictions_, np.mean(list(model.candidate_predictions_.values()), axis=0))
     # the refit is the mean of the members refitted on all rows
     mean = model.best_estimator_
     np.testing.assert_allclose(

@@ -269,7 +269,7 @@ def test_the_delegated_keys_and_their_defaults():
 
     boost = {k: (BaseBoostRegressor, k)
              for k in ("n_stages", "loss", "line_search_loss", "line_search_penalty", "alpha",
-                       "link")}
+                       "link", "out_of_bounds")}
     assert parameters_of(BoostSettings) == boost
     assert parameters_of(IntervalsConfig) == {
         k: (ConformalRegressor, k) for k in ("alpha", "method", "cv", "calibration_fraction")}

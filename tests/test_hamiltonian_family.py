@@ -208,6 +208,40 @@ def test_evaluate_is_tracked_and_the_model_serves(cli_run):
     assert np.allclose(got[[f"{t}_lower" for t in ds.target_names]].to_numpy(), lower)
 
 
+def test_evaluate_without_tracking_writes_the_same_outputs(cli_run, tmp_path):
+    """``--out`` with and without tracking: the same files, byte for byte, and the same
+    numbers; the tracked run logged those very files (figures and tables)."""
+    _, result, out, store, cfg = cli_run
+    assert main(["evaluate", str(cfg), "--json", str(tmp_path / "out.json"), "--out",
+                 str(tmp_path / "tables"), "--no-track"]) == 0
+    untracked = json.loads((tmp_path / "out.json").read_text())
+    assert "mlflow" not in untracked
+
+    def numbers(r):  # without the timings and where the outputs went
+        r = json.loads(json.dumps(r))
+        del r["hamiltonian"]["selection"]["seconds"]
+        return {k: v for k, v in r.items() if k not in ("wall_s", "mlflow", "outputs")}
+
+    assert numbers(untracked) == numbers(result)
+    files = sorted(p.name for p in (out / "tables").iterdir())
+    assert files == sorted(p.name for p in (tmp_path / "tables").iterdir())
+    for name in files:
+        assert (out / "tables" / name).read_bytes() == (tmp_path / "tables" / name).read_bytes()
+    client = Tracker(store, "ham").client
+    run_id = result["mlflow"]["run_id"]
+    logged = {"plots/intervals.png": "intervals.png",
+              "intervals/test_intervals.csv": "test_intervals.csv",
+              "plots/parameter_corrections.png": "parameter_corrections.png",
+              "plots/selection_path.png": "selection_path.png",
+              "hamiltonian/coefficients.csv": "coefficients.csv",
+              "hamiltonian/corrected_parameters.csv": "corrected_parameters.csv",
+              "hamiltonian/selection_path.csv": "selection_path.csv"}
+    assert set(logged.values()) == set(files)
+    for artifact, name in logged.items():
+        local = client.download_artifacts(run_id, artifact, str(tmp_path / "logged"))
+        assert Path(local).read_bytes() == (out / "tables" / name).read_bytes(), artifact
+
+
 def test_evaluate_reports_and_writes_prediction_intervals(cli_run):
     """[intervals] absent: 90% "oof" intervals (the model's own out-of-fold residuals). The
     JSON has per-target coverage and width on the test rows and in CV (with averages), --out

@@ -68,6 +68,33 @@ def test_log_link_refuses_values_that_are_not_positive():
         _booster("logit").fit(X2, y2)
 
 
+@pytest.mark.parametrize("link", ["identity", "log"])
+def test_out_of_bounds_clip_keeps_a_new_rows_correction_in_the_training_range(link):
+    X, y = _multiplicative()
+    free = _booster(link).set_params(n_stages=2).fit(X, y)
+    clipped = clone(free).set_params(out_of_bounds="clip").fit(X, y)
+    # inside the training range: the same model and the same predictions
+    np.testing.assert_allclose(clipped.predict(X), free.predict(X), rtol=1e-12)
+    low, high = clipped.correction_range_[-1]
+    assert clipped.correction_range_.shape == (2, 2) and low < 0 < high
+    # far outside (x = 40 where training saw [-1, 1]): the ridge stages extrapolate linearly,
+    # the log link exponentially; clipped, the correction is the training rows' largest
+    far = pd.DataFrame({"x": [40.0, -40.0], "prior": [2.0, 2.0]})
+    start = np.log(2.0) if link == "log" else 2.0
+    expected = np.array([start + high, start + low])
+    expected = np.exp(expected) if link == "log" else expected
+    np.testing.assert_allclose(clipped.predict(far), expected, rtol=1e-12)
+    assert np.all(np.abs(free.predict(far) - 2.0) > np.abs(expected - 2.0))
+    np.testing.assert_allclose(clipped.predict_correction(far), expected - 2.0, rtol=1e-9)
+    for staged, k in zip(clipped.staged_predict(far), range(2)):
+        bound = clipped.correction_range_[k]
+        on_link = np.log(staged) if link == "log" else staged
+        assert np.all(on_link - start >= bound[0] - 1e-12)
+        assert np.all(on_link - start <= bound[1] + 1e-12)
+    with pytest.raises(ValueError, match="out_of_bounds"):
+        clone(free).set_params(out_of_bounds="nan").fit(X, y)
+
+
 def test_cv_chooses_the_link_per_target():
     X, y = _multiplicative()
     choice = BasisChoiceCV([("identity", _booster("identity")), ("log", _booster("log"))],

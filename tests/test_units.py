@@ -10,7 +10,7 @@ from workbench.experiment.evaluate import evaluate, format_table
 from workbench.experiment.prepare import load_config
 from workbench.experiment.record import record
 from workbench.experiment.run_fields import NOTE_TAG
-from workbench.experiment.tracking.runs import Tracker
+from workbench.experiment.run_outputs import computed_outputs
 
 
 def _config(tmp_path, unit: str | None) -> object:
@@ -40,23 +40,24 @@ def _labels(fig) -> list[str]:
     return [t for t in out if t]
 
 
-@pytest.fixture
-def drawn(monkeypatch):
-    """Every figure a run logs, by artifact name, without writing it."""
-    figures = {}
-    monkeypatch.setattr(Tracker, "log_figure",
-                        lambda self, run_id, fig, name: figures.__setitem__(name, fig))
-    return figures
+def _record(cfg, run, tmp_path) -> tuple[dict, dict]:
+    """Compute a run's outputs and record them: the record's ids and every figure it logs,
+    by artifact name."""
+    with computed_outputs(cfg, run.result, run.model, run.dataset,
+                          setting=f"evaluate of {cfg.name}") as computed:
+        ids = record(cfg, run.result, run.model, run.dataset, computed, kind="evaluate",
+                     tracking_uri=f"sqlite:///{tmp_path / 'mlflow.db'}")
+    assert set(computed.figures) == set(computed.files)
+    return ids, computed.figures
 
 
-def test_a_csv_s_unit_labels_every_figure_summary_and_description(tmp_path, drawn):
+def test_a_csv_s_unit_labels_every_figure_summary_and_description(tmp_path):
     cfg = _config(tmp_path, "meV")
     run = evaluate(cfg, return_model=True)
     assert run.dataset.unit == run.result.unit == "meV"
     assert run.result.to_json()["unit"] == "meV"
     assert "test MAE in meV" in format_table(run.result)
-    ids = record(cfg, run.result, run.model, run.dataset, kind="evaluate",
-                 tracking_uri=f"sqlite:///{tmp_path / 'mlflow.db'}")
+    ids, drawn = _record(cfg, run, tmp_path)
     note = MlflowClient(ids["tracking_uri"]).get_run(ids["run_id"]).data.tags[NOTE_TAG]
     assert "in meV (MSE: squared)" in note and "MHz" not in note
     expected = {"plots/mae_bars.png": ("y", "MAE (meV)"), "plots/mse_bars.png": ("y", "MSE (meV²)"),
@@ -76,13 +77,12 @@ def test_a_csv_s_unit_labels_every_figure_summary_and_description(tmp_path, draw
     assert "meV" in text  # a beeswarm's axis, or the note that the correction is 0 meV
 
 
-def test_data_without_a_unit_show_none(tmp_path, drawn):
+def test_data_without_a_unit_show_none(tmp_path):
     cfg = _config(tmp_path, None)
     run = evaluate(cfg, return_model=True)
     assert run.dataset.unit is None and run.result.to_json()["unit"] is None
     assert "test MAE in the targets' units" in format_table(run.result)
-    record(cfg, run.result, run.model, run.dataset, kind="evaluate",
-           tracking_uri=f"sqlite:///{tmp_path / 'mlflow.db'}")
+    _, drawn = _record(cfg, run, tmp_path)
     assert drawn["plots/mae_bars.png"].axes[0].get_ylabel() == "MAE"
     assert drawn["plots/intervals.png"].axes[0].get_ylabel() == "measured"
 

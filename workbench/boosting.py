@@ -202,6 +202,14 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
         How the stages combine with the prior: ``"identity"`` adds them; ``"log"`` boosts
         ``log y`` from ``log prior`` and predicts ``prior * exp(sum ...)`` (targets and prior
         must be positive: a value that is not is a ValueError naming its rows).
+    out_of_bounds : {"extrapolate", "clip"}, default="extrapolate"
+        What the stages may add for a new row, as in
+        :class:`~sklearn.isotonic.IsotonicRegression`: ``"extrapolate"`` leaves the summed
+        correction (on the link's scale) as the bases predict it; ``"clip"`` clips it, after
+        each stage, to the range it took on the training rows (``correction_range_``). A
+        tree basis never leaves that range by much; a linear or kernel basis extrapolates
+        past it, which the log link turns into exponential growth (a ridge stage on the log
+        scale once predicted a gate error 2,000 times the largest seen for a new device).
 
     Attributes
     ----------
@@ -218,6 +226,9 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
         The line-search coefficient of each stage.
     train_score_ : ndarray of shape (n_stages + 1,)
         Training loss (the pseudo-residual loss) of the prior and after each stage.
+    correction_range_ : ndarray of shape (n_stages, 2)
+        The smallest and largest summed correction (on the link's scale) on the training
+        rows after each stage: the bounds of ``out_of_bounds="clip"``.
     """
 
     _parameter_constraints: dict = {
@@ -232,6 +243,7 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
         "alpha": [Interval(numbers.Real, 0, 1, closed="neither")],
         "random_state": ["random_state"],
         "link": [StrOptions(set(LINKS))],
+        "out_of_bounds": [StrOptions({"extrapolate", "clip"})],
     }
 
     def __init__(self, prior: Any = None, basis: Any = None, n_stages: int = 1,
@@ -240,7 +252,7 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
                  line_search_penalty: float = 0.1, basis_features: Any = None,
                  input_transform: Any = None, alpha: float = 0.9,
                  random_state: int | np.random.RandomState | None = None,
-                 link: str = "identity") -> None:
+                 link: str = "identity", out_of_bounds: str = "extrapolate") -> None:
         self.prior = prior
         self.basis = basis
         self.n_stages = n_stages
@@ -252,6 +264,7 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
         self.alpha = alpha
         self.random_state = random_state
         self.link = link
+        self.out_of_bounds = out_of_bounds
 
     def _check_params(self) -> tuple[Loss, Loss, Any]:
         """The parameters checked against ``_parameter_constraints`` (scikit-learn's
@@ -308,7 +321,7 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
         Z = self._basis_inputs(X)
 
         current = start.copy()
-        self.estimators_, coefs, scores = [], [], [loss(y, current)]
+        self.estimators_, coefs, scores, ranges = [], [], [loss(y, current)], []
         for k in range(self.n_stages):
             residual = loss.negative_gradient(y, current)
             est = clone(basis)
@@ -322,7 +335,9 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
             self.estimators_.append(est)
             coefs.append(coef)
             scores.append(loss(y, current))
+            ranges.append(((current - start).min(), (current - start).max()))
         self.coefs_ = np.asarray(coefs)
+        self.correction_range_ = np.asarray(ranges, dtype=float)
         self.train_score_ = np.asarray(scores)
         return self
 
@@ -361,6 +376,7 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
         for est, coef in zip(self.estimators_, self.coefs_):
             if coef != 0:
                 out = out + coef * np.asarray(est.predict(Z), dtype=float).ravel()
+        out = self._bounded(out, len(self.estimators_) - 1)
         if self.link == "identity":
             return out
         prior = self.prior_model_._predict_validated(X_raw, X)
@@ -370,11 +386,25 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
         """Yield the prediction after each stage ``k = 1..n_stages``."""
         check_is_fitted(self)
         X_raw, X = X, validate_data(self, X, reset=False, dtype=float)
-        pred = self._to_link(self.prior_model_._predict_validated(X_raw, X), "the prior")
+        start = self._to_link(self.prior_model_._predict_validated(X_raw, X), "the prior")
         Z = self._basis_inputs(X)
-        for est, coef in zip(self.estimators_, self.coefs_):
-            pred = pred + coef * np.asarray(est.predict(Z), dtype=float).ravel()
+        pred, correction = start, np.zeros(X.shape[0])
+        for k, (est, coef) in enumerate(zip(self.estimators_, self.coefs_)):
+            step = coef * np.asarray(est.predict(Z), dtype=float).ravel()
+            if self.out_of_bounds == "clip":
+                correction = correction + step
+                pred = start + self._bounded(correction, k)
+            else:
+                pred = pred + step
             yield self._from_link(pred)
+
+    def _bounded(self, correction: np.ndarray, stage: int) -> np.ndarray:
+        """``correction`` (summed to ``stage``, link scale), clipped to the training rows'
+        range where ``out_of_bounds="clip"``."""
+        if self.out_of_bounds != "clip":
+            return correction
+        low, high = self.correction_range_[stage]
+        return np.clip(correction, low, high)
 
     def predict(self, X: Any) -> np.ndarray:
         """``prior(X) + sum_k coef_k * b_k(T(X))`` (``link="log"``: ``prior(X) *

@@ -369,6 +369,9 @@ class BasisChoiceCV(_BaseComposition, BaseBoostCV):
         is ``"mean of <k>"``.
     candidate_scores_ : dict of str -> ndarray of shape (n_splits,)
         Every candidate's fold scores (and the ensemble's, with ``ensemble`` > 1).
+    candidate_predictions_ : dict of str -> ndarray of shape (n_samples,)
+        Every candidate's out-of-fold predictions on the training rows (those whose fits
+        succeeded), from the same folds: for stacking or other ways of combining them.
     estimator_ : regressor
         The winning candidate (the first one when the prior is selected), unfitted: a
         :class:`CandidateMean` when the ensemble won.
@@ -439,6 +442,7 @@ class BasisChoiceCV(_BaseComposition, BaseBoostCV):
         self.candidate_scores_ = {n: r.cv_scores_boosted_ for n, r in runs.items()}
         ok = {n: r for n, r in runs.items()
               if not r.fit_errors_ and np.all(np.isfinite(r.cv_scores_boosted_))}
+        self.candidate_predictions_ = {n: r.cv_predictions_boosted_ for n, r in ok.items()}
         first = next(iter(runs.values()))
         best = max(ok, key=lambda n: ok[n].cv_scores_boosted_.mean()) if ok else None
         chosen = runs[best] if best is not None else first

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from .._text import clip
 from ..hamiltonian import CouplingGraph, make_graph
 from .base import Dataset, Hamiltonian
 
@@ -45,7 +46,7 @@ _DELIMITERS = {";": "semicolons", "\t": "tabs", "|": "vertical bars"}
 def _names(names: Iterable[Any], limit: int = 4, width: int = 30) -> str:
     """``'a', 'b', ... (N in all)``: at most ``limit`` names, each cut to ``width``."""
     names = [str(n) for n in names]
-    shown = [repr(n if len(n) <= width else n[:width - 3] + "...") for n in names[:limit]]
+    shown = [repr(clip(n, width)) for n in names[:limit]]
     return ", ".join(shown) + (f", ... ({len(names)} in all)" if len(names) > limit else "")
 
 
@@ -110,7 +111,7 @@ def _read(path: Path, min_columns: int = 1) -> pd.DataFrame:
         frame = pd.read_csv(path, dtype=str, keep_default_na=False)
     except (pd.errors.ParserError, UnicodeDecodeError) as exc:
         reason = " ".join(str(exc).split())
-        reason = reason if len(reason) <= 100 else reason[:97] + "..."
+        reason = clip(reason, 100)
         raise DatasetError(f"{path} is not a well-formed CSV file: {reason}") from None
     if frame.empty:
         raise DatasetError(f"{path} has a header but no rows")

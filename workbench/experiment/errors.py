@@ -1,8 +1,9 @@
 """Errors the ``workbench`` command reports as one ``workbench: error: ...`` line, exit code 2.
 
-Also what keeps such lines short and free of secrets (:func:`clip`, :func:`shorten`,
-:func:`listing`, :func:`redact`). Kept in a module of their own (no heavy imports), so the
-command can catch them without loading MLflow, Optuna or the estimators.
+Also what keeps such lines short and free of secrets (:func:`clip`, the core's
+:func:`workbench._text.clip` shared with the data readers; :func:`shorten`, :func:`listing`,
+:func:`redact`). Kept in a module of their own (no heavy imports), so the command can catch
+them without loading MLflow, Optuna or the estimators.
 """
 
 from __future__ import annotations
@@ -13,6 +14,8 @@ import importlib.util
 import re
 from collections.abc import Iterable
 from typing import Any
+
+from .._text import clip
 
 __all__ = ["ConfigError", "StorageError", "TrackingError", "UsageError", "clip", "disk_full",
            "driver_hint", "listing", "redact", "redact_config", "redact_urls", "shorten",
@@ -36,31 +39,6 @@ class StorageError(ValueError):
 
 class TrackingError(RuntimeError):
     """The tracking store cannot be used (locked, corrupt, unreachable, ...)."""
-
-
-def clip(text: str, limit: int) -> str:
-    """Cut ``text`` to at most ``limit`` characters, ending in ``...`` when cut.
-
-    Parameters
-    ----------
-    text : str
-        The text to shorten.
-    limit : int
-        The longest result, ``...`` included (at least 3).
-
-    Returns
-    -------
-    str
-        ``text`` itself if it fits, else its first ``limit - 3`` characters and ``...``.
-
-    Examples
-    --------
-    >>> clip("abcdefgh", 6)
-    'abc...'
-    >>> clip("abc", 6)
-    'abc'
-    """
-    return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
 def shorten(value: Any, limit: int = 60) -> str:

@@ -21,14 +21,7 @@ from sklearn.model_selection import KFold, RepeatedKFold, cross_val_predict
 
 from .bootstrap import bootstrap_test_scores
 from .config import ExperimentConfig, load_dataset
-from .families.artifacts import Artifacts
-from .intervals import (
-    family_model,
-    interval_artifacts,
-    interval_scores,
-    interval_settings,
-    with_intervals,
-)
+from .intervals import family_model, interval_scores, interval_settings, with_intervals
 from .results import CVEstimate, Result, mae, mse
 from .units import unit_name
 
@@ -36,7 +29,7 @@ if TYPE_CHECKING:
     from ..datasets import Dataset
 
 __all__ = ["Evaluation", "evaluate", "fit_and_score", "format_table", "has_outputs",
-           "nested_cv_all", "outputs", "repeated_cv"]
+           "nested_cv_all", "repeated_cv"]
 
 log = logging.getLogger("workbench")
 
@@ -245,37 +238,6 @@ def has_outputs(cfg: ExperimentConfig) -> bool:
         Whether the family writes outputs or ``[intervals]`` is on.
     """
     return cfg.family.writes_outputs or cfg.intervals.enabled
-
-
-def outputs(cfg: ExperimentConfig, model: Any, ds: Dataset, setting: str) -> Artifacts:
-    """Make what ``evaluate --out DIR`` writes.
-
-    The family's tables and figures
-    (:meth:`~workbench.experiment.families.base.ModelFamily.outputs`) and the intervals'
-    figure and table (:func:`~workbench.experiment.intervals.interval_artifacts`).
-
-    Parameters
-    ----------
-    cfg : ExperimentConfig
-        The checked config.
-    model : estimator
-        The fitted model (with intervals, the fitted wrapper).
-    ds : Dataset
-        The dataset it was fitted on.
-    setting : str
-        The run's label, in figure titles.
-
-    Returns
-    -------
-    Artifacts
-        The tables and figures.
-    """
-    out = interval_artifacts(cfg, ds, model, setting)
-    if cfg.family.writes_outputs:
-        extra = cfg.family.outputs(family_model(model), ds, setting)
-        out.tables.update(extra.tables)
-        out.figures.update(extra.figures)
-    return out
 
 
 def _interval(bounds: Any) -> str:

@@ -1,4 +1,4 @@
-"""Record an ``evaluate`` or ``sweep`` in MLflow.
+"""Record an ``evaluate`` or ``sweep`` in MLflow: log what was computed, compute nothing.
 
 One parent run with the metrics, the config, the figures (MAE/MSE bars, an augmented learning
 curve and a SHAP summary per target) and the fitted multi-target model; with prediction
@@ -6,11 +6,14 @@ intervals, their coverage and width as metrics, their figure and the test rows' 
 for a sweep, a child run per trial and per outer fold. What every run carries (the metric
 schema, tags, params, data) is :mod:`.run_fields`.
 
-Beside the MAE/MSE bars every run has, the config's model family supplies its own figures
-and tables (:meth:`~workbench.experiment.families.base.ModelFamily.artifacts`: learning curves
-and SHAP summaries per target for family eigenvalue, the parameter-space model's tables and
-figures for family hamiltonian). Every error is in the dataset's unit
-(:attr:`~workbench.datasets.Dataset.unit`).
+Every figure, table and prediction is made before the record, by
+:func:`~workbench.experiment.run_outputs.compute_outputs` (the figures as PNG files): beside
+the MAE/MSE bars every run has, the config's model family's tables and figures
+(:meth:`~workbench.experiment.families.base.ModelFamily.outputs` and
+:meth:`~workbench.experiment.families.base.ModelFamily.begin_artifacts`: learning curves and
+SHAP summaries per target for family eigenvalue, the parameter-space model's tables and
+figures for family hamiltonian). :func:`record` logs those files and values. Every error is in
+the dataset's unit (:attr:`~workbench.datasets.Dataset.unit`).
 """
 
 from __future__ import annotations
@@ -18,17 +21,13 @@ from __future__ import annotations
 import contextlib
 import json
 import logging
+import posixpath
 from pathlib import Path
 from typing import Any
-
-import pandas as pd
 
 from ..datasets import Dataset
 from .config import ExperimentConfig
 from .errors import redact
-from .families.artifacts import Artifacts
-from .figures import mae_bars
-from .intervals import family_model, interval_artifacts
 from .results import Result
 from .run_fields import (
     NOTE_TAG,
@@ -40,11 +39,11 @@ from .run_fields import (
     run_params,
     run_tags,
 )
-from .serving import prediction_frame
+from .run_outputs import RunOutputs
 from .tracking.models import CHAMPION
 from .tracking.runs import Tracker, metric_view
 from .tracking.uris import resolve_tracking_uri
-from .units import squared, unit_name
+from .units import unit_name
 
 __all__ = ["record", "record_wall_time", "tracker_for"]
 
@@ -81,41 +80,21 @@ def _description(cfg: ExperimentConfig, ds: Dataset, kind: str, result: Result) 
             f"{unit_name(ds.unit)} (MSE: squared).")
 
 
-def _log_error_bars(tracker: Tracker, run_id: str, result: Result, unit: str | None,
-                    setting: str) -> None:
-    """Log the test MAE and MSE bars of prior and model (``plots/mae_bars.png``, ...)."""
-    for metric, name in (("MAE", "mae_bars"), ("MSE", "mse_bars")):
-        key = f"test_{metric.lower()}"
-        fig = mae_bars(result.targets, getattr(result.prior, key),
-                       getattr(result.model, key), metric=metric,
-                       prior_ci=result.prior.ci(key), model_ci=result.model.ci(key),
-                       unit=unit if metric == "MAE" else squared(unit),
-                       title=f"Test {metric} per target", setting=setting)
-        tracker.log_figure(run_id, fig, f"plots/{name}.png")
-
-
-def _log_predictions(tracker: Tracker, run_id: str, cfg: ExperimentConfig, ds: Dataset,
-                     model: Any, X_test: pd.DataFrame, targets: list[str], setting: str) -> None:
-    """Log the intervals' figure and table, and the test rows' predictions and targets.
+def _log_outputs(tracker: Tracker, run_id: str, ds: Dataset, computed: RunOutputs) -> None:
+    """Log the computed figures' files, tables, data and the test rows' predictions.
 
     The predictions as ``workbench predict`` and a served model give them; the measured
     targets beside them (``predictions/test_measured.csv``) let ``workbench compare`` pair
     two runs' errors row by row.
     """
-    intervals = interval_artifacts(cfg, ds, model, setting)
-    for name, fig in intervals.figures.items():
-        tracker.log_figure(run_id, fig, f"plots/{name}.png")
-    for name, table in intervals.tables.items():
-        tracker.log_text(run_id, table.to_csv(index=False), f"intervals/{name}.csv")
-    log_test_predictions(tracker, run_id, ds, prediction_frame(model, X_test, targets))
-
-
-def _log_tables(tracker: Tracker, run_id: str, family: str, extra: Artifacts) -> None:
-    """Log the family's tables (``<family>/<name>.csv``) and data (``<name>.json``)."""
-    for name, table in extra.tables.items():
-        tracker.log_text(run_id, table.to_csv(index=False), f"{family}/{name}.csv")
-    for name, data in extra.data.items():
-        tracker.log_dict(run_id, data, f"{name}.json")
+    for artifact, path in computed.files.items():
+        tracker.log_file(run_id, path, posixpath.dirname(artifact) or None)
+    for artifact, table in computed.tables.items():
+        tracker.log_text(run_id, table.to_csv(index=False), artifact)
+    for artifact, data in computed.data.items():
+        tracker.log_dict(run_id, data, artifact)
+    if computed.predictions is not None:
+        log_test_predictions(tracker, run_id, ds, computed.predictions)
 
 
 def _register(tracker: Tracker, run_id: str, model_uri: str, name: str, cfg: ExperimentConfig,
@@ -139,15 +118,17 @@ def _register(tracker: Tracker, run_id: str, model_uri: str, name: str, cfg: Exp
             "registered_uri": f"models:/{name}@{CHAMPION}"}
 
 
-def record(cfg: ExperimentConfig, result: Result, model: Any, ds: Dataset, *, kind: str,
-           tracking_uri: str | None = None, sweep: Any = None, run_id: str | None = None,
+def record(cfg: ExperimentConfig, result: Result, model: Any, ds: Dataset,
+           computed: RunOutputs, *, kind: str, tracking_uri: str | None = None,
+           sweep: Any = None, run_id: str | None = None,
            register: str | None = None) -> dict[str, str]:
-    """Log one evaluate or sweep as a parent run.
+    """Log one evaluate or sweep as a parent run; compute nothing.
 
     The run holds the metrics, the chosen settings, the config file with its credentials
-    redacted, the result, the training and test rows as MLflow datasets, MAE/MSE bars, the
-    family's artifacts, the test rows' predictions and the model; for a sweep a child run per
-    trial and per outer fold.
+    redacted, the result, the training and test rows as MLflow datasets, and what
+    :func:`~.run_outputs.compute_outputs` made before: the MAE/MSE bars, the intervals' and
+    the family's figures and tables, the test rows' predictions; then the model; for a sweep
+    a child run per trial and per outer fold.
 
     Parameters
     ----------
@@ -159,6 +140,9 @@ def record(cfg: ExperimentConfig, result: Result, model: Any, ds: Dataset, *, ki
         The fitted model (with intervals, the conformal wrapper).
     ds : Dataset
         The data it was fitted on.
+    computed : RunOutputs
+        The run's figures (as files), tables, data and predictions
+        (:func:`~.run_outputs.compute_outputs` with a scratch directory).
     kind : str
         The command (``"evaluate"``, ``"sweep"``).
     tracking_uri : str, optional
@@ -178,11 +162,9 @@ def record(cfg: ExperimentConfig, result: Result, model: Any, ds: Dataset, *, ki
         Ids and URIs to add to the result (tracking URI, experiment, run, model, version).
     """
     tracker = tracker_for(cfg, tracking_uri)
-    family = cfg.family
-    X_train, X_test, y_train, y_test = ds.split(family.inputs(cfg, ds))
+    X_train, X_test, y_train, y_test = computed.rows
     tags = {**run_tags(cfg, ds, kind), NOTE_TAG: _description(cfg, ds, kind, result)}
     params = run_params(cfg, result.targets, len(X_train), len(X_test))
-    setting = f"{kind} of {cfg.name}"
     live = run_id is not None
     if run_id is not None:
         tracker.set_tags(run_id, tags)
@@ -193,21 +175,15 @@ def record(cfg: ExperimentConfig, result: Result, model: Any, ds: Dataset, *, ki
                  run_id)
         # a command's run gets its whole wall time at the end (record_wall_time)
         tracker.log_metrics(run_id, result_metrics(result, wall=not live))
-        # the family's figures are computed on the workers while the rest is logged
-        finish_artifacts = family.begin_artifacts(cfg, ds, family_model(model), setting)
         log_inputs(tracker, run_id, cfg, ds, X_train, X_test, y_train, y_test)
         config = config_text(cfg)
         if config is not None and cfg.path is not None:  # both or neither
             tracker.log_text(run_id, config, Path(cfg.path).name)
         tracker.log_dict(run_id, json.loads(json.dumps(result.to_json(), default=str)),
                          "result.json")
-        _log_error_bars(tracker, run_id, result, ds.unit, setting)
-        _log_predictions(tracker, run_id, cfg, ds, model, X_test, result.targets, setting)
+        _log_outputs(tracker, run_id, ds, computed)
         model_uri = tracker.log_model(run_id, model, X_test.head(5), targets=result.targets,
                                       texts={"config.toml": config} if config else None)
-        extra = finish_artifacts(lambda name, fig: tracker.log_figure(run_id, fig,
-                                                                      f"plots/{name}.png"))
-        _log_tables(tracker, run_id, family.name, extra)
         tracker.set_tags(run_id, {"model_uri": model_uri,
                                   "selected": ",".join(result.model.selected)})
         tracker.share_view(metric_view(result.targets))  # `workbench ui`'s link opens it

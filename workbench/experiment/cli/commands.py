@@ -161,11 +161,15 @@ def sweep(args: argparse.Namespace) -> int:
         result = done.result
         if not args.no_track:
             from ..record import record
+            from ..run_outputs import computed_outputs
 
-            # logged with the chosen configuration (the family's chosen settings too)
-            result.mlflow = record(done.config, result, done.model, done.dataset,
-                                   kind="sweep", tracking_uri=args.tracking_uri, sweep=done,
-                                   run_id=run_id, register=args.register)
+            # computed, then logged, with the chosen configuration (the family's chosen
+            # settings too)
+            with computed_outputs(done.config, result, done.model, done.dataset,
+                                  setting=f"sweep of {done.config.name}") as computed:
+                result.mlflow = record(done.config, result, done.model, done.dataset,
+                                       computed, kind="sweep", tracking_uri=args.tracking_uri,
+                                       sweep=done, run_id=run_id, register=args.register)
         result.wall_s = wall()
         if run_id is not None:  # the same figure in MLflow, the output and --json
             from ..record import record_wall_time
@@ -200,6 +204,29 @@ def _evaluate_config(args: argparse.Namespace) -> Any:
     return cfg
 
 
+def _evaluate_outputs(args: argparse.Namespace, cfg: Any, run: Any, run_id: str | None) -> None:
+    """Compute an evaluate's figures, tables and predictions once; write ``--out``, record.
+
+    Sets the result's ``outputs`` (``--out``) and ``mlflow`` (tracked).
+    """
+    if args.out is None and args.no_track:
+        return
+    from ..run_outputs import computed_outputs
+
+    result = run.result
+    with computed_outputs(cfg, result, run.model, run.dataset,
+                          setting=f"evaluate of {cfg.name}", track=not args.no_track,
+                          out=args.out) as computed:
+        if args.out is not None:
+            result.outputs = {k: str(v) for k, v in computed.written.items()}
+        if not args.no_track:
+            from ..record import record
+
+            result.mlflow = record(cfg, result, run.model, run.dataset, computed,
+                                   kind="evaluate", tracking_uri=args.tracking_uri,
+                                   run_id=run_id, register=args.register)
+
+
 def evaluate(args: argparse.Namespace) -> int:
     """``workbench evaluate``: fit a config's model, score it on the test rows.
 
@@ -214,7 +241,7 @@ def evaluate(args: argparse.Namespace) -> int:
         The exit code (0).
     """
     from ..evaluate import evaluate as run_evaluate
-    from ..evaluate import format_table, outputs
+    from ..evaluate import format_table
     from ..prepare import prepare
 
     cfg = _evaluate_config(args)
@@ -233,17 +260,7 @@ def evaluate(args: argparse.Namespace) -> int:
             _prefetch(RECORD_MODULES)
         run = run_evaluate(cfg, return_model=True, dataset=prepared.dataset)
         result = run.result
-        if args.out is not None:
-            from ..outputs import write_artifacts
-
-            extra = outputs(cfg, run.model, run.dataset, f"evaluate of {cfg.name}")
-            result.outputs = {k: str(v) for k, v in write_artifacts(extra, args.out).items()}
-        if not args.no_track:
-            from ..record import record
-
-            result.mlflow = record(cfg, result, run.model, run.dataset, kind="evaluate",
-                                   tracking_uri=args.tracking_uri, run_id=run_id,
-                                   register=args.register)
+        _evaluate_outputs(args, cfg, run, run_id)
         result.wall_s = wall()
         if run_id is not None:  # the same figure in MLflow, the output and --json
             from ..record import record_wall_time

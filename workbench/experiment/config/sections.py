@@ -28,8 +28,8 @@ class BoostSettings(Section):
     """The eigenvalue-space boosting settings of one target.
 
     ``[model]``, or a ``[model.targets.<target>]`` override, where every key is optional.
-    ``n_stages``, ``loss``, ``line_search_loss``, ``line_search_penalty``, ``alpha`` and
-    ``link`` are BaseBoostRegressor's parameters, checked against its
+    ``n_stages``, ``loss``, ``line_search_loss``, ``line_search_penalty``, ``alpha``,
+    ``link`` and ``out_of_bounds`` are BaseBoostRegressor's parameters, checked against its
     ``_parameter_constraints``; a list of losses, links or input transforms makes candidates
     that CV chooses among per target.
     """
@@ -45,6 +45,8 @@ class BoostSettings(Section):
     alpha: Annotated[float, _Boost] | None = None
     # "identity": the stages add to the prior; "log": they multiply it (positive quantities)
     link: Annotated[str, _Boost] | list[Annotated[str, _Boost]] | None = None
+    # "clip": a new row's correction stays within the range it took on the training rows
+    out_of_bounds: Annotated[str, _Boost] | None = None
     basis_inputs: Literal["prior", "prior+features"] | None = None
     # a list: candidates that CV chooses among per target
     input_transform: str | list[str] | None = None
@@ -57,7 +59,8 @@ class BoostSettings(Section):
 MODEL_DEFAULTS: dict[str, Any] = dict(
     basis="paper_stacking", basis_params={}, n_stages=1, loss="squared_error", draws=20,
     line_search_loss="absolute_error", line_search_penalty=0.1, alpha=0.9, link="identity",
-    basis_inputs="prior", input_transform="quantile_normal", input_transform_params={},
+    out_of_bounds="extrapolate", basis_inputs="prior", input_transform="quantile_normal",
+    input_transform_params={},
 )
 
 

@@ -141,15 +141,17 @@ class ResultMethods:
 
     def begin_artifacts(self, cfg: ExperimentConfig, ds: Dataset, model: Any, setting: str,
                         quick: bool = False) -> Callable[..., Artifacts]:
-        """Start the figures and tables logged with a run.
+        """Start the figures and tables a tracked run has beyond :meth:`outputs`.
 
-        They come beside the MAE/MSE bars every run has.
+        They come beside the MAE/MSE bars every run has and the family's :meth:`outputs`
+        (which a run logs too); they are computed before the run is recorded
+        (``workbench.experiment.run_outputs.compute_outputs``).
 
         In two halves: start what can run on the worker processes (e.g. learning-curve
         fits) and return a function ``finish(emit=None)`` that waits for it, draws the
-        figures and returns the :class:`Artifacts`, so the run's other records are written
+        figures and returns the :class:`Artifacts`, so the run's other figures are drawn
         meanwhile. ``emit(name, figure)``, if given, receives every figure as soon as it is
-        drawn (e.g. to log it while later ones are computed).
+        drawn.
 
         Parameters
         ----------
@@ -167,15 +169,11 @@ class ResultMethods:
         Returns
         -------
         callable
-            ``finish(emit=None) -> Artifacts``. Default: nothing started; ``finish``
-            returns :meth:`outputs` (or nothing).
+            ``finish(emit=None) -> Artifacts``. Default: nothing started, nothing beyond
+            :meth:`outputs`.
         """
         def finish(emit: Callable[[str, Any], None] | None = None) -> Artifacts:
-            out = self.outputs(model, ds, setting) or Artifacts()
-            for name, fig in out.figures.items():
-                if emit is not None:
-                    emit(name, fig)
-            return out
+            return Artifacts()
 
         return finish
 

@@ -61,7 +61,8 @@ def make_booster(settings: dict[str, Any], prior: Any, inputs: list[str] | None,
         line_search_loss=settings["line_search_loss"],
         line_search_penalty=settings["line_search_penalty"], alpha=settings["alpha"],
         link=settings.get("link", "identity"), basis_features=inputs,
-        input_transform=transform)
+        input_transform=transform,
+        out_of_bounds=settings.get("out_of_bounds", "extrapolate"))
 
 
 def has_candidates(settings: dict[str, Any]) -> bool:

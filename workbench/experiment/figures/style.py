@@ -24,7 +24,10 @@ if TYPE_CHECKING:
 
 __all__ = ["COUPLER_COLOR", "INCUMBENT_COLOR", "MEASURED_COLOR", "MODEL_COLOR",
            "OTHER_SYSTEM_COLORS", "PRIOR_COLOR", "QUBIT_COLOR", "TRAIN_COLOR", "new_figure",
-           "numeric_frame", "save_figure", "style_axes", "with_setting"]
+           "PNG_DPI", "numeric_frame", "save_figure", "style_axes", "with_setting"]
+
+#: The resolution of every PNG the workbench writes (``--out``, a run's figures, the report).
+PNG_DPI = 120
 
 #: Colours (Okabe-Ito, readable in grey scale and by colour-blind readers).
 PRIOR_COLOR = "#7f7f7f"
@@ -88,7 +91,7 @@ def with_setting(title: str, setting: str | None) -> str:
     return f"{title}\n{setting}" if setting else title
 
 
-def save_figure(fig: Figure, path: str | Path, *, dpi: int = 120) -> Path:
+def save_figure(fig: Figure, path: str | Path, *, dpi: int = PNG_DPI) -> Path:
     """Write ``fig`` as a PNG (creating parent directories) and close it.
 
     Parameters
@@ -97,8 +100,8 @@ def save_figure(fig: Figure, path: str | Path, *, dpi: int = 120) -> Path:
         The figure.
     path : str or Path
         The file; a path without a suffix gets ``.png``.
-    dpi : int, default=120
-        The resolution.
+    dpi : int, default=PNG_DPI
+        The resolution (120 dots per inch).
 
     Returns
     -------
