@@ -84,25 +84,51 @@ TEST_SERVER_ENV = {"MLFLOW_SERVER_ENABLE_JOB_EXECUTION": "false", "MLFLOW_WORKER
 
 
 class MlflowServer:
-    """``mlflow server`` on 127.0.0.1 at a free port, on ``backend_uri`` with artifacts in
-    ``artifacts``; :attr:`uri` is its http URL."""
+    """``mlflow server`` on 127.0.0.1 at a free port (or ``port``), on ``backend_uri`` with
+    artifacts in ``artifacts``; :attr:`uri` is its http URL. :meth:`kill` and :meth:`start`
+    take it away (SIGKILL) and bring it back on the same port."""
 
-    def __init__(self, backend_uri: str, artifacts: Path, log: Path, timeout: float = 180):
-        self.port = free_port()
+    def __init__(self, backend_uri: str, artifacts: Path, log: Path, timeout: float = 180,
+                 port: int | None = None):
+        self.port = port or free_port()
         self.uri = f"http://127.0.0.1:{self.port}"
         artifacts.mkdir(parents=True, exist_ok=True)
-        env = dict(os.environ, MLFLOW_DISABLE_TELEMETRY="true", **TEST_SERVER_ENV)
+        self._args = [sys.executable, "-m", "mlflow", "server", "--backend-store-uri",
+                      backend_uri, "--artifacts-destination", artifacts.resolve().as_uri(),
+                      "--host", "127.0.0.1", "--port", str(self.port), "--workers", "1"]
+        self._log_path = log
         self._log = open(log, "w")
-        self.proc = subprocess.Popen(
-            [sys.executable, "-m", "mlflow", "server", "--backend-store-uri", backend_uri,
-             "--artifacts-destination", artifacts.resolve().as_uri(), "--host", "127.0.0.1",
-             "--port", str(self.port), "--workers", "1"],
-            stdout=self._log, stderr=subprocess.STDOUT, env=env, start_new_session=True)
+        self.start(timeout)
+
+    def start(self, timeout: float = 180) -> float:
+        """Start the server and wait until it answers; returns the seconds it took."""
+        env = dict(os.environ, MLFLOW_DISABLE_TELEMETRY="true", **TEST_SERVER_ENV)
+        self.proc = subprocess.Popen(self._args, stdout=self._log, stderr=subprocess.STDOUT,
+                                     env=env, start_new_session=True)
         try:
-            wait_until_answering(f"{self.uri}/health", self.proc, log, timeout, poll_s=0.5)
+            return wait_until_answering(f"{self.uri}/health", self.proc, self._log_path,
+                                        timeout, poll_s=0.5)
         except RuntimeError:
             self.stop()
             raise
+
+    def kill(self) -> None:
+        """SIGKILL the server and its workers (a crashed host), and wait until they are gone
+        and the port refuses connections."""
+        import signal
+
+        try:
+            os.killpg(self.proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        self.proc.wait()
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline:  # a worker may outlive its parent for a moment
+            try:
+                os.killpg(self.proc.pid, 0)
+            except ProcessLookupError:
+                return
+            time.sleep(0.05)
 
     def stop(self) -> None:
         import signal

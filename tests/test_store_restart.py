@@ -1,6 +1,7 @@
 """A sweep's PostgreSQL server killed (SIGKILL) and restarted mid-sweep: the sweep waits for
 it and finishes every study to exactly its budget; a server that stays away ends the command
-in one line naming the store (issue 35)."""
+in one line naming the store; four sweeps, one killed and restarted again and again (slow),
+lose and repeat no trial (issue 35)."""
 
 from __future__ import annotations
 
@@ -99,3 +100,65 @@ def test_a_store_away_during_a_trial_is_not_the_configuration_s_fault(tmp_path):
     trials = study.get_trials()
     assert [t.state for t in trials] == [TrialState.RUNNING]  # for the reaper
     assert not [t for t in trials if is_counted(t) and t.state == TrialState.FAIL]
+
+
+def _running_in(storage, pid: int) -> bool:
+    """Whether process ``pid`` runs a trial of any study in ``storage``."""
+    return any(t.state == TrialState.RUNNING and t.user_attrs.get("worker", "").endswith(
+        f":{pid}") for s in optuna.get_all_study_summaries(storage)
+        for t in optuna.load_study(study_name=s.study_name, storage=storage).get_trials(
+            deepcopy=False, states=(TrialState.RUNNING,)))
+
+
+@pytest.mark.slow  # four sweeps on 2 cores, six of them killed: a few minutes
+def test_soak_four_sweeps_one_killed_and_restarted_again_and_again(pg, tmp_path):
+    """Four ``workbench sweep`` processes share one PostgreSQL; every few seconds one of them
+    is SIGKILLed mid-trial and started again. Every study ends with exactly its budget of
+    complete trials, none lost, and no killed trial run again more than once."""
+    url = pg.database("optuna")
+    storage = optuna.storages.RDBStorage(url)
+    config = tiny_sweep(tmp_path / "cfg", trials=16)
+    cmd = workbench_cmd("sweep", config, "--storage", url, "--no-track")
+
+    def start(n: int) -> subprocess.Popen:
+        proc = subprocess.Popen(cmd, cwd=tmp_path, env=command_env(),
+                                stdout=subprocess.DEVNULL, stderr=open(tmp_path / f"p{n}.log", "w"))
+        proc.log = tmp_path / f"p{n}.log"  # type: ignore[attr-defined]
+        return proc
+
+    procs, kills, n = [start(i) for i in range(4)], [], 4
+    try:
+        deadline = time.monotonic() + 600
+        while len(kills) < 6 and any(p.poll() is None for p in procs):
+            assert time.monotonic() < deadline
+            victim = procs[len(kills) % 4]
+            if victim.poll() is None and _running_in(storage, victim.pid):
+                victim.kill()
+                victim.wait()
+                kills.append(victim.pid)
+                procs[procs.index(victim)] = start(n)
+                n += 1
+                time.sleep(2)  # a few seconds between kills
+            elif victim.poll() is not None:
+                kills.append(None)  # it finished: on to the next one
+            time.sleep(0.05)
+        for p in procs:
+            assert p.wait(timeout=600) == 0, p.log.read_text()[-3000:]
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
+    assert len([k for k in kills if k]) >= 3, kills  # it did kill mid-trial
+    for log in tmp_path.glob("p*.log"):
+        assert "Traceback" not in log.read_text(), log.read_text()[-3000:]
+    names = optuna.get_all_study_names(storage)
+    assert len(names) == 3
+    for name in names:
+        trials = optuna.load_study(study_name=name, storage=storage).get_trials()
+        counted = [t for t in trials if is_counted(t)]
+        assert len(counted) == 16 and all(t.state == TrialState.COMPLETE for t in counted), [
+            (t.number, t.state.name, t.user_attrs) for t in trials]
+        assert not [t for t in trials if t.state in (TrialState.RUNNING, TrialState.WAITING)]
+        reruns = [t.system_attrs["failed_trial"] for t in trials
+                  if t.system_attrs.get("failed_trial") is not None]
+        assert len(reruns) == len(set(reruns)), name  # a killed trial is re-run once at most

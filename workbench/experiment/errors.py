@@ -9,6 +9,7 @@ them without loading MLflow, Optuna or the estimators.
 from __future__ import annotations
 
 import difflib
+import errno
 import importlib.util
 import re
 from collections.abc import Iterable
@@ -16,8 +17,9 @@ from typing import Any
 
 from .._text import clip
 
-__all__ = ["ConfigError", "StorageError", "TrackingError", "UsageError", "clip", "driver_hint",
-           "listing", "redact", "redact_config", "redact_urls", "shorten", "unknown_keys"]
+__all__ = ["ConfigError", "StorageError", "TrackingError", "UsageError", "clip", "disk_full",
+           "driver_hint", "listing", "redact", "redact_config", "redact_urls", "shorten",
+           "unknown_keys"]
 
 
 class ConfigError(ValueError):
@@ -147,6 +149,45 @@ def unknown_keys(unknown: Iterable, valid: Iterable) -> str:
     if close:
         text += f" (did you mean {listing(dict.fromkeys(close), budget=60)}?)"
     return f"{text}; valid keys are {listing(valid)}"
+
+
+#: What a full disk (or an exhausted quota) says: the OS, SQLite.
+_DISK_FULL_TEXT = ("no space left on device", "database or disk is full",
+                   "disk quota exceeded")
+
+
+def disk_full(exc: BaseException) -> str | None:
+    """Tell whether ``exc`` (or its cause) is a full disk, and where it was writing.
+
+    Parameters
+    ----------
+    exc : BaseException
+        An error: an ``OSError`` with ``errno`` ``ENOSPC`` or ``EDQUOT``, or one whose text
+        says so (SQLite's ``database or disk is full``, an error MLflow wrapped).
+
+    Returns
+    -------
+    str or None
+        ``None`` when it is not a full disk; else the file being written (``""`` when not
+        known).
+
+    Examples
+    --------
+    >>> disk_full(OSError(28, "No space left on device", "/data/out.csv"))
+    '/data/out.csv'
+    >>> disk_full(ValueError("bad")) is None
+    True
+    """
+    seen: BaseException | None = exc
+    for _ in range(4):  # the error, its cause, ...
+        if seen is None:
+            break
+        if isinstance(seen, OSError) and seen.errno in (errno.ENOSPC, errno.EDQUOT):
+            return str(seen.filename2 or seen.filename or "")
+        if any(s in str(seen).lower() for s in _DISK_FULL_TEXT):
+            return ""
+        seen = seen.__cause__ or seen.__context__
+    return None
 
 
 # --------------------------------------------------------------------------- secrets

@@ -37,3 +37,10 @@ def setup_logging() -> None:
     logger.setLevel(logging.INFO)
     logger.propagate = False
     logging.getLogger("mlflow").setLevel(logging.WARNING)  # keep the per-trial lines readable
+    # MLflow logs the traceback of a database error (a full disk, a locked file) that it
+    # raises again at once: the command reports it in one line naming the store
+    logging.getLogger("mlflow.store.db.utils").setLevel(logging.CRITICAL)
+    # SQLAlchemy's pool logs (with a traceback) a cursor or connection that could not be
+    # closed after its work failed or was interrupted ("Error closing cursor" after a Ctrl-C
+    # in an MLflow SQLite read): the failure itself is reported, in one line
+    logging.getLogger("sqlalchemy.pool").setLevel(logging.CRITICAL)

@@ -12,7 +12,15 @@ from __future__ import annotations
 
 import sys
 
-from ..errors import ConfigError, StorageError, TrackingError, UsageError, clip, redact_urls
+from ..errors import (
+    ConfigError,
+    StorageError,
+    TrackingError,
+    UsageError,
+    clip,
+    disk_full,
+    redact_urls,
+)
 from ..startup import setup_logging
 from . import commands
 from .parser import build_parser
@@ -34,7 +42,8 @@ def main(argv: list[str] | None = None) -> int:
     Returns
     -------
     int
-        The exit code: 0, 2 for an error reported in one line, 130/143 when interrupted.
+        The exit code: 0, 2 for an error reported in one line (a full disk included),
+        130/143 when interrupted.
     """
     commands.mark_start()
     args = build_parser().parse_args(argv)
@@ -53,20 +62,27 @@ def main(argv: list[str] | None = None) -> int:
     except (ConfigError, DatasetError, TrackingError, UsageError, StorageError) as exc:
         print(error_line(exc), file=sys.stderr)
         return 2
+    except Exception as exc:  # a full disk anywhere (the cases known are one line already)
+        where = disk_full(exc)
+        if where is None:
+            raise
+        print(error_line(f"no space left on the device{f' writing {where}' if where else ''}"
+                         "; free space, then run the command again"), file=sys.stderr)
+        return 2
     except KeyboardInterrupt as exc:
         print(f"workbench: {MESSAGE}", file=sys.stderr)
         return getattr(exc, "code", 130)
 
 
-def error_line(exc: BaseException) -> str:
+def error_line(exc: BaseException | str) -> str:
     """One line ``workbench: error: <message>``, passwords redacted.
 
     Messages are written short; this is the last guard.
 
     Parameters
     ----------
-    exc : BaseException
-        The error.
+    exc : BaseException or str
+        The error, or its message.
 
     Returns
     -------

@@ -29,6 +29,16 @@ import os
 # one line per trial in a sweep. The workbench reports runs itself.
 os.environ.setdefault("MLFLOW_SUPPRESS_PRINTING_URL_TO_STDOUT", "true")
 
+#: MLflow's retries of a tracking server's requests, bounded: MLflow's own defaults retry for
+#: about four minutes with a two-minute timeout per request. Five retries with back-off 0, 2,
+#: 4, 8 and 16 s wait out a server restarted within about 30 s; a server away for longer ends
+#: the command in one line naming it. Values already in the environment are kept.
+HTTP_RETRIES = {"MLFLOW_HTTP_REQUEST_MAX_RETRIES": "5",
+                "MLFLOW_HTTP_REQUEST_BACKOFF_FACTOR": "1",
+                "MLFLOW_HTTP_REQUEST_TIMEOUT": "60"}
+for _name, _value in HTTP_RETRIES.items():
+    os.environ.setdefault(_name, _value)
+
 # The package's rooms: uris (where the store is, checked before any work), translate (store
 # errors as one line), runs (Tracker), models (logged, registered, loaded models), artifacts
 # (files, figures, input datasets), records (hashes, commits, MLflow's value limits). Import

@@ -240,7 +240,11 @@ class Tracker(ModelRecords, ArtifactRecords):
                 try:
                     self.end_run(run_id, status)
                 except Exception as end_exc:  # never mask the original error
-                    _logger.warning("could not mark run %s %s: %s", run_id, status, end_exc)
+                    # the store is away: its own error says so once, and the next command
+                    # on the store marks the run FAILED
+                    away = isinstance(end_exc, TrackingError) and isinstance(exc, TrackingError)
+                    _logger.log(logging.DEBUG if away else logging.WARNING,
+                                "could not mark run %s %s: %s", run_id, status, end_exc)
             raise
         else:
             with ignoring_signals():

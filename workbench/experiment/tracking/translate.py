@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from urllib.parse import urlsplit
 
-from ..errors import TrackingError, redact
+from ..errors import TrackingError, disk_full, redact
 from .uris import describe_store
 
 __all__ = ["duplicate_row", "translate"]
@@ -35,6 +35,12 @@ def translate(exc: BaseException, uri: str) -> TrackingError | None:
     if "supported uri schemes" in str(exc).lower():  # MLflow's registry: a 400-character line
         scheme = urlsplit(uri).scheme if "://" in uri else ""
         return TrackingError(f"{store}: MLflow has no tracking store for '{scheme}://'")
+    full = disk_full(exc)
+    if full is not None:
+        return TrackingError(
+            f"{store}: the disk is full (no space left on the device); free space, then run "
+            "the command again (the next command marks a run left RUNNING as FAILED)"
+            + (f". Writing {full}" if full else ""))
     text = f"{type(exc).__name__}: {exc}"
     cause = exc.__cause__ or exc.__context__
     if cause is not None:
@@ -54,13 +60,45 @@ def translate(exc: BaseException, uri: str) -> TrackingError | None:
         return TrackingError(
             f"{store} has an older MLflow schema: back it up, then run "
             f"'mlflow db upgrade {redact(uri)}'. ({exc})")
-    if any(s in low for s in ("connection refused", "max retries exceeded",
-                              "failed to establish a new connection", "name or service not known",
-                              "connectionerror", "timed out")):
-        return TrackingError(f"cannot reach the MLflow {store}: {exc}")
+    if any(s in low for s in _UNREACHABLE):
+        return TrackingError(
+            f"cannot reach the MLflow {store} ({_reason(low)}; {_retried()}); a run it holds "
+            "is marked FAILED by the next command on the store. Run the command again when "
+            "the server answers")
     if "sqlite3.databaseerror" in low or "sqlite3.operationalerror" in low:
         return TrackingError(f"{store} cannot be used: {exc}")
     return None
+
+
+#: What a request to a server that is away fails with (requests, urllib3, MLflow).
+_UNREACHABLE = ("connection refused", "max retries exceeded", "failed to establish a new "
+                "connection", "name or service not known", "connectionerror", "timed out",
+                "remotedisconnected", "connection aborted", "connection reset")
+#: The reason shown for each kind of failure, in the order looked for.
+_REASONS = (("connection refused", "connection refused"),
+            ("name or service not known", "unknown host"),
+            ("timed out", "no answer in time"),
+            ("remotedisconnected", "connection dropped"),
+            ("connection aborted", "connection dropped"),
+            ("connection reset", "connection dropped"))
+
+
+def _reason(low: str) -> str:
+    """Say in a few words why a request failed (``low``: the error's text, lower case)."""
+    return next((reason for key, reason in _REASONS if key in low), "no connection")
+
+
+def _retried() -> str:
+    """Say how long MLflow retried a request (its environment variables)."""
+    from mlflow.environment_variables import (  # (b) MLflow: a store error came from it
+        MLFLOW_HTTP_REQUEST_BACKOFF_FACTOR,
+        MLFLOW_HTTP_REQUEST_MAX_RETRIES,
+    )
+
+    retries = MLFLOW_HTTP_REQUEST_MAX_RETRIES.get()
+    factor = MLFLOW_HTTP_REQUEST_BACKOFF_FACTOR.get()
+    waited = sum(min(factor * 2 ** (n - 1), 120) for n in range(2, retries + 1))
+    return f"MLflow retried for {waited:.0f} s, {retries} retries"
 
 
 def duplicate_row(exc: BaseException) -> bool:

@@ -241,10 +241,31 @@ class JournalFile(JournalFileBackend):
                     damage = find_damage(Path(self._file_path), self._shown)
                     raise damage or StorageError(f"Optuna journal {self._shown} ends in a "
                                                  "torn record; nothing was appended")
-                f.write(text.encode("utf-8"))
-                f.flush()
-                if sync:
-                    os.fsync(f.fileno())
+                _append(f.fileno(), text.encode("utf-8"), end, sync, self._shown)
+
+
+def _append(fd: int, data: bytes, end: int, sync: bool, shown: str) -> None:
+    """Append ``data`` to the journal open as ``fd`` (``end``: its size), under its lock.
+
+    A write that fails (a full disk) is undone: the file is cut back to ``end``, so it never
+    ends in a torn record that a later command would have to repair.
+    """
+    try:
+        view = memoryview(data)
+        while view:  # the file is open for appending: every write goes to its end
+            view = view[os.write(fd, view):]
+    except OSError as exc:
+        with contextlib.suppress(OSError):
+            os.ftruncate(fd, end)
+        raise StorageError(f"cannot write Optuna journal {shown}: "
+                           f"{exc.strerror or type(exc).__name__}; nothing was appended. Free "
+                           "space (or fix the file system), then run the command again") from None
+    if sync:
+        try:
+            os.fsync(fd)
+        except OSError as exc:  # written, perhaps already read by other processes: kept
+            raise StorageError(f"cannot sync Optuna journal {shown} to disk: "
+                               f"{exc.strerror or type(exc).__name__}") from None
 
 
 def journal_path(storage: str, root: Path) -> Path:
