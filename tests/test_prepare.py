@@ -134,6 +134,13 @@ def test_evaluate_loads_the_dataset_once(counted, tmp_path):
     assert log.read_text().split() == ["once"]
 
 
+def test_evaluate_with_seeds_loads_the_dataset_once(counted, tmp_path):
+    """One load for every seed of ``evaluate --seeds``."""
+    path, log = counted
+    assert main(["evaluate", str(path), "--no-track", "--seeds", "0-2"]) == 0
+    assert log.read_text().split() == ["once"]
+
+
 def test_sweep_loads_the_dataset_once(counted, tmp_path):
     path, log = counted
     out = tmp_path / "sweep.json"

@@ -2,11 +2,13 @@
 
 What the commands do, returning the typed results instead of printing them::
 
-    from workbench.experiment.api import evaluate, load_config
+    from workbench.experiment.api import evaluate, evaluate_seeds, load_config
 
     cfg = load_config("experiments/generic.toml", overrides={"selection.cv": 3})
     result = evaluate(cfg)                 # a Result: per-target test MAE, CV scores, ...
     print(result.model.avg("test_mae"))
+    spread = evaluate_seeds(cfg, [0, 1, 2])   # a SeedsResult: a Result per seed, and
+    print(spread.summary.test_mae_sd)          # per target the mean and sd over the seeds
 
 The names here are the promised ones; the modules they come from may move.
 """
@@ -20,9 +22,11 @@ from .evaluate import Evaluation, evaluate
 from .overrides import apply_overrides, parse_overrides
 from .prepare import PreparedRun, load_config, parse_config, prepare
 from .results import ModelScores, Result, Scores
+from .seeds import SeedsResult, SeedSummary, evaluate_seeds
 from .sweep.search import Sweep, run_sweep
 
 __all__ = ["Comparison", "Design", "Evaluation", "ExperimentConfig", "ModelScores",
-           "PreparedRun", "Result", "Scores", "Sweep", "apply_overrides", "compare_runs",
-           "design", "evaluate", "load_config", "load_dataset", "parse_config",
-           "parse_overrides", "prepare", "run_sweep"]
+           "PreparedRun", "Result", "Scores", "SeedSummary", "SeedsResult", "Sweep",
+           "apply_overrides", "compare_runs", "design", "evaluate", "evaluate_seeds",
+           "load_config", "load_dataset", "parse_config", "parse_overrides", "prepare",
+           "run_sweep"]

@@ -25,9 +25,13 @@ import posixpath
 from pathlib import Path
 from typing import Any
 
+import pandas as pd
+
 from ..datasets import Dataset
 from .config import ExperimentConfig
 from .errors import redact
+from .evaluate import Evaluation
+from .families.artifacts import Artifacts
 from .results import Result
 from .run_fields import (
     NOTE_TAG,
@@ -40,12 +44,13 @@ from .run_fields import (
     run_tags,
 )
 from .run_outputs import RunOutputs
+from .seeds import SeedsResult, format_seeds_table
 from .tracking.models import CHAMPION
 from .tracking.runs import Tracker, metric_view
 from .tracking.uris import resolve_tracking_uri
 from .units import unit_name
 
-__all__ = ["record", "record_wall_time", "tracker_for"]
+__all__ = ["record", "record_seed", "record_seeds", "record_wall_time", "tracker_for"]
 
 log = logging.getLogger("workbench")
 
@@ -220,3 +225,105 @@ def record_wall_time(cfg: ExperimentConfig, result: Result, *, tracking_uri: str
     tracker.log_dict(run_id, json.loads(json.dumps(result.to_json(), default=str)),
                      "result.json")
 
+
+
+def record_seed(cfg: ExperimentConfig, run: Evaluation, predictions: pd.DataFrame, *,
+                tracking_uri: str | None, run_id: str) -> dict[str, str]:
+    """Log one seed of ``evaluate --seeds`` into its child run.
+
+    Its metrics (the schema of every evaluate), params (``random_state`` the seed), tags,
+    ``result.json`` and the test rows' predictions (so that ``workbench compare`` pairs two
+    seeds); no model and no figures (one ``evaluate`` with ``random_state`` the seed has them).
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The seed's config (``random_state`` the seed).
+    run : Evaluation
+        Its fit.
+    predictions : DataFrame
+        The test rows' predictions (:func:`~.serving.prediction_frame`), computed already.
+    tracking_uri : str or None
+        ``--tracking-uri``.
+    run_id : str
+        The seed's child run.
+
+    Returns
+    -------
+    dict of str to str
+        The child run's ids.
+    """
+    tracker = tracker_for(cfg, tracking_uri)
+    ds, result = run.dataset, run.result
+    X_train, X_test, _, _ = ds.split(cfg.family.inputs(cfg, ds))
+    tracker.set_tags(run_id, {**run_tags(cfg, ds, "evaluate"), "workbench.kind": "seed",
+                              "workbench.seed": cfg.random_state,
+                              NOTE_TAG: _description(cfg, ds, "evaluate", result)})
+    tracker.log_params(run_id, run_params(cfg, result.targets, len(X_train), len(X_test)))
+    tracker.log_metrics(run_id, result_metrics(result))
+    tracker.log_dict(run_id, json.loads(json.dumps(result.to_json(), default=str)),
+                     "result.json")
+    log_test_predictions(tracker, run_id, ds, predictions)
+    return {"tracking_uri": redact(tracker.tracking_uri), "experiment_id": tracker.experiment_id,
+            "run_id": run_id}
+
+
+def record_seeds(cfg: ExperimentConfig, done: SeedsResult, ds: Dataset, *,
+                 tracking_uri: str | None, run_id: str,
+                 artifacts: Artifacts) -> dict[str, str]:
+    """Log ``evaluate --seeds`` into its parent run, whose children are the seeds.
+
+    The summary's metrics (:meth:`~.seeds.SeedSummary.metrics`), the config's params with
+    ``seeds`` (no ``random_state``: each child has its own), the tags, a description with
+    the per-target table, the config file, the data as MLflow datasets, the spread figure
+    (``plots/seed_spread.png``), each seed's test MAE (``seeds/seed_test_mae.csv``) and
+    ``result.json`` (what ``--json`` writes).
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The config run.
+    done : SeedsResult
+        The result; its ``wall_s`` final.
+    ds : Dataset
+        The data.
+    tracking_uri : str or None
+        ``--tracking-uri``.
+    run_id : str
+        The command's run.
+    artifacts : Artifacts
+        The figure and table (:func:`~.seeds.seed_artifacts`), drawn already.
+
+    Returns
+    -------
+    dict of str to str
+        The parent run's ids.
+    """
+    tracker = tracker_for(cfg, tracking_uri)
+    X_train, X_test, y_train, y_test = ds.split(cfg.family.inputs(cfg, ds))
+    seeds = ",".join(str(s) for s in done.seeds)
+    note = (f"`workbench evaluate --seeds {seeds}` of "
+            f"{f'`{cfg.path}`' if cfg.path else repr(cfg.name)} on {ds.name}: one child run "
+            f"per seed (the seed its `random_state`).\n\n"
+            + format_seeds_table(done, markdown=True))
+    tracker.set_tags(run_id, {**run_tags(cfg, ds, "evaluate"), "workbench.seeds": seeds,
+                              NOTE_TAG: note})
+    params = run_params(cfg, done.summary.targets, len(X_train), len(X_test))
+    params.pop("random_state")
+    tracker.log_params(run_id, {**params, "seeds": seeds})
+    tracker.log_metrics(run_id, {**done.summary.metrics(), "wall_s": done.wall_s})
+    log_inputs(tracker, run_id, cfg, ds, X_train, X_test, y_train, y_test)
+    config = config_text(cfg)
+    if config is not None and cfg.path is not None:
+        tracker.log_text(run_id, config, Path(cfg.path).name)
+    for name, fig in artifacts.figures.items():
+        tracker.log_figure(run_id, fig, f"plots/{name}.png")
+    for name, table in artifacts.tables.items():
+        tracker.log_text(run_id, table.to_csv(index=False), f"seeds/{name}.csv")
+    out = {"tracking_uri": redact(tracker.tracking_uri), "experiment_id": tracker.experiment_id,
+           "run_id": run_id}
+    done.mlflow = out
+    tracker.log_dict(run_id, json.loads(json.dumps(done.to_json(), default=str)),
+                     "result.json")
+    tracker.share_view(metric_view(done.summary.targets))
+    return out

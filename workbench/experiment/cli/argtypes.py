@@ -9,7 +9,10 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-__all__ = ["count", "fraction", "nested_folds", "override", "seed"]
+__all__ = ["count", "fraction", "nested_folds", "override", "seed", "seeds"]
+
+#: Most seeds ``--seeds`` takes (each is one more fit of the whole model).
+MAX_SEEDS = 1000
 
 
 def count(value: str) -> int:
@@ -92,6 +95,53 @@ def seed(value: str) -> int:
     if number < 0:
         raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {value[:40]!r}")
     return number
+
+
+def seeds(value: str) -> list[int]:
+    """``--seeds``: two or more distinct seeds, ``A-B`` (``A`` to ``B``) or ``A,B,C`` or both.
+
+    E.g. ``0-4`` is 0, 1, 2, 3, 4 and ``0,3,7-9`` is 0, 3, 7, 8, 9.
+
+    Parameters
+    ----------
+    value : str
+        The command-line text.
+
+    Returns
+    -------
+    list of int
+        The seeds, in the order given.
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        For anything else: an empty item, a range that runs backwards, a negative or
+        non-integer seed, a seed given twice, fewer than two or more than :data:`MAX_SEEDS`.
+    """
+    from ..schema import MAX_INT  # numpy's seeds are 32-bit
+
+    shown = repr(value[:40])
+    out: list[int] = []
+    for item in value.split(","):
+        low, dash, high = item.strip().partition("-")
+        try:
+            first, last = int(low), int(high if dash else low)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"expected seeds as A-B or A,B,C (integers >= 0, e.g. 0-4 or 0,3,7), got "
+                f"{shown}") from None
+        if first < 0 or last < first or last > MAX_INT:
+            raise argparse.ArgumentTypeError(f"expected seeds A-B with 0 <= A <= B <= "
+                                             f"{MAX_INT}, got {item.strip()[:40]!r} in {shown}")
+        if last - first >= MAX_SEEDS or len(out) + last - first >= MAX_SEEDS:
+            raise argparse.ArgumentTypeError(f"at most {MAX_SEEDS} seeds, got more in {shown}")
+        out.extend(range(first, last + 1))
+    if len(set(out)) != len(out):
+        raise argparse.ArgumentTypeError(f"a seed given twice in {shown}")
+    if len(out) < 2:
+        raise argparse.ArgumentTypeError(f"expected two or more seeds to compare, got {shown} "
+                                         "(one seed: --set random_state=N)")
+    return out
 
 
 def nested_folds(value: str) -> int:

@@ -12,13 +12,19 @@ import importlib
 import json
 import threading
 import time
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..errors import UsageError
 from ..units import unit_suffix
 from .preflight import check_before_work, check_outputs, check_stores, repair_hint
+
+if TYPE_CHECKING:
+    from ...datasets import Dataset
+    from ..config import ExperimentConfig
+    from ..evaluate import Evaluation
+    from ..tracking.runs import Tracker
 
 __all__ = ["RECORD_MODULES", "design", "evaluate", "mark_start", "reproduce", "sweep", "wall"]
 
@@ -197,7 +203,13 @@ def _evaluate_config(args: argparse.Namespace) -> Any:
     if args.nested is not None:
         cfg = dataclasses.replace(cfg, evaluation=cfg.evaluation.model_copy(
             update={"nested_folds": args.nested}))
-    if args.out is not None and not has_outputs(cfg):
+    if args.seeds is not None:
+        cfg = dataclasses.replace(cfg, evaluation=cfg.evaluation.model_copy(
+            update={"seeds": args.seeds}))
+    if cfg.evaluation.seeds and args.register is not None:
+        raise UsageError("--register registers one model; with seeds there is one per seed "
+                         "(register one: --set random_state=N, without seeds)")
+    if args.out is not None and not cfg.evaluation.seeds and not has_outputs(cfg):
         raise UsageError(f"--out writes a model family's tables and figures and the "
                          f"prediction intervals'; family {cfg.family.name!r} has none and "
                          f"[intervals] is off ({args.config})")
@@ -251,6 +263,9 @@ def evaluate(args: argparse.Namespace) -> int:
     from ...parallel import worker_pool
     from ..lifecycle import command_run
 
+    if cfg.evaluation.seeds:
+        return _evaluate_seeds(args, cfg, prepared.dataset, tracker)
+
     # one set of worker processes for the fit, the curves and the figures, forked before
     # this process starts any thread (the run's heartbeat, the prefetch); the run ends
     # FINISHED only once every output is written
@@ -272,6 +287,58 @@ def evaluate(args: argparse.Namespace) -> int:
     _print_registered(result)
     if args.out is not None:
         print(f"wrote {', '.join(sorted(Path(p).name for p in result.outputs.values()))} "
+              f"to {args.out}")
+    if args.json:
+        print(f"wrote {args.json}")
+    return 0
+
+
+def _evaluate_seeds(args: argparse.Namespace, cfg: ExperimentConfig, dataset: Dataset,
+                    tracker: Tracker | None) -> int:
+    """``workbench evaluate`` with seeds: a fit per seed, a child run each, their summary."""
+    from ...parallel import worker_pool
+    from ..lifecycle import command_run
+    from ..seeds import evaluate_seeds, format_seeds_table, seed_artifacts
+
+    def runner(one: ExperimentConfig, fit: Callable[[], Evaluation]) -> Evaluation:
+        """Run one seed's fit inside its child run (KILLED with the parent on an interrupt)."""
+        if tracker is None:
+            return fit()
+        from ..record import record_seed
+        from ..serving import prediction_frame
+
+        with tracker.run(f"evaluate {cfg.name} seed {one.random_state}",
+                         parent_run_id=run_id, tags={"workbench.kind": "seed"}) as child:
+            run = fit()
+            X_test = run.dataset.split(one.family.inputs(one, run.dataset))[1]
+            predictions = prediction_frame(run.model, X_test, run.result.targets)
+            run.result.mlflow = record_seed(one, run, predictions,
+                                            tracking_uri=args.tracking_uri, run_id=child)
+        return run
+
+    with worker_pool(cfg.jobs, eager=True), \
+            command_run(tracker, "evaluate", cfg.name,
+                        tags={"workbench.seeds": ",".join(map(str, cfg.evaluation.seeds))}
+                        ) as run_id:
+        done = evaluate_seeds(cfg, dataset=dataset, runner=runner)
+        extra = seed_artifacts(done, f"evaluate of {cfg.name}")
+        if args.out is not None:
+            from ..outputs import write_artifacts
+
+            done.outputs = {k: str(v) for k, v in write_artifacts(extra, args.out).items()}
+        done.wall_s = wall()
+        if run_id is not None:
+            from ..record import record_seeds
+
+            record_seeds(cfg, done, dataset, tracking_uri=args.tracking_uri, run_id=run_id,
+                         artifacts=extra)
+        if args.json:
+            _write_json(args.json, done.to_json())
+    print(format_seeds_table(done))
+    if done.mlflow:
+        print(f"tracked: parent run {done.mlflow['run_id']} with {len(done.seeds)} child runs")
+    if args.out is not None:
+        print(f"wrote {', '.join(sorted(Path(p).name for p in done.outputs.values()))} "
               f"to {args.out}")
     if args.json:
         print(f"wrote {args.json}")

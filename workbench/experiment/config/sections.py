@@ -104,7 +104,11 @@ class EvaluationConfig(Section):
 
     ``cv_repeats`` > 0 adds a repeated ``cv_folds``-fold CV of the chosen model on the
     training rows (``RepeatedKFold`` seeded by ``cv_seed``); ``nested_folds`` > 0 adds a
-    nested CV over all rows, every choice remade inside each outer fold.
+    nested CV over all rows, every choice remade inside each outer fold. ``seeds``, two or
+    more distinct seeds: ``evaluate`` fits the config once per seed, each seed its
+    ``random_state`` (the data, their split and the CV folds stay), and reports the mean and
+    sd of the test MAE over them (:mod:`workbench.experiment.seeds`; ``--seeds`` overrides
+    it; empty: one fit with ``random_state``).
     """
 
     cv_folds: int = Field(default=5, ge=2, le=10_000)
@@ -112,11 +116,22 @@ class EvaluationConfig(Section):
     cv_seed: int = Field(default=1000, ge=0, le=MAX_INT)
     nested_folds: int = Field(default=0, ge=0, le=10_000)
     nested_seed: int = Seed()
+    # max_length: a cap of its own (each seed is one more fit of the whole model)
+    seeds: list[Annotated[int, Field(ge=0, le=MAX_INT)]] = Field(default=[], max_length=1000)
 
     @model_validator(mode="after")
     def _nested(self) -> EvaluationConfig:
         if self.nested_folds == 1:
             raise ValueError("nested_folds = 1: give 0 (off) or >= 2 folds")
+        return self
+
+    @model_validator(mode="after")
+    def _seeds(self) -> EvaluationConfig:
+        if len(self.seeds) == 1:
+            raise ValueError(f"seeds = {self.seeds}: give two or more seeds to compare (one "
+                             "seed: random_state), or none")
+        if len(set(self.seeds)) != len(self.seeds):
+            raise ValueError(f"seeds = {shorten(self.seeds)}: a seed given twice")
         return self
 
 

@@ -13,6 +13,7 @@
 * :func:`voltage_boxplots` -- boxplots of the qubit and coupler bias voltages (Fig. S2).
 * :func:`prior_target_boxplots` -- paired boxplots of prior and target eigenenergies (Fig. S3).
 * :func:`interval_figure` -- measured against predicted with each row's prediction interval.
+* :func:`seed_spread` -- each seed's test error per target, and the mean +- sd over seeds.
 * :func:`save_figure` -- write a figure to PNG and close it.
 
 A family's own figures live beside the family (e.g.
@@ -26,10 +27,11 @@ from ._bars import mae_bars, model_comparison_bars
 from ._curves import learning_curve_figure
 from ._data import correlation_heatmap, prior_target_boxplots, voltage_boxplots
 from ._intervals import interval_figure
+from ._seeds import seed_spread
 from ._shap import correction_shap_figure, shap_figure, shap_summary
 from .style import save_figure
 
 __all__ = ["correction_shap_figure", "correlation_heatmap", "interval_figure",
            "learning_curve_figure", "mae_bars", "model_comparison_bars",
-           "prior_target_boxplots", "save_figure", "shap_figure", "shap_summary",
-           "voltage_boxplots"]
+           "prior_target_boxplots", "save_figure", "seed_spread", "shap_figure",
+           "shap_summary", "voltage_boxplots"]
