@@ -53,7 +53,7 @@ def _sd(values: Any, axis: int | None = None) -> Any:
 class SeedSummary:
     """The model's test MAE over seeds: per seed, and its mean and sample sd per target.
 
-    Attributes
+    Parameters
     ----------
     seeds : list of int
         The seeds, in the order run.
@@ -161,7 +161,7 @@ class SeedSummary:
 class SeedsResult:
     """One config evaluated once per seed.
 
-    Attributes
+    Parameters
     ----------
     name : str
         The config's name.
