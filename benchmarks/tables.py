@@ -161,6 +161,23 @@ def peers(data: dict) -> str:
     return "\n".join([_measured(data["measured"]), head, "", *lines, *sums])
 
 
+def peer_bound(data: dict) -> str:
+    """How far ahead of the peer the generic config's candidates get, chosen by CV, by two
+    choosers that see only the training rows and by two oracles that see the test rows
+    (``benchmarks/peer_bound.py``), summed per data set."""
+    lines = ["| data set | splits | CV's choice | greedy ensemble | top k | oracle, best single "
+             "| oracle, best mean |", "|---" * 7 + "|"]
+    for name in dict.fromkeys(r["dataset"] for r in data["rows"]):
+        rows = [r for r in data["rows"] if r["dataset"] == name and r["peer"]]
+        peer = sum(r["peer"] for r in rows)
+        ratios = " | ".join(f"{sum(r[k] for r in rows) / peer:.3f}"
+                            for k in ("cv", "greedy", "top_k", "best_single", "best_mean"))
+        lines.append(f"| {PEER_DATASETS.get(name, name)} | {len(rows)} | {ratios} |")
+    head = (f"Config `{data['config']}`; test MAE summed over the splits / the peer's "
+            "(`peers.json`).")
+    return "\n".join([_measured(data["measured"]), head, "", *lines])
+
+
 def readme_results(res: dict) -> str:
     """README.md's results block from ``reports/results.json`` (``res``)."""
     settings, gates = res["settings"], res["ibm_gates"]
@@ -200,7 +217,8 @@ def render_readme(text: str, res: dict) -> str:
 
 
 TABLES: dict[str, Callable[[dict], str]] = {"scaling": scaling, "bootstrap": bootstrap,
-                                            "reference": reference, "peers": peers}
+                                            "reference": reference, "peers": peers,
+                                            "peer_bound": peer_bound}
 
 
 def render(text: str) -> str:
