@@ -86,6 +86,11 @@ def test_the_config_reference_shows_types_defaults_and_checks():
         in page
     assert '| `sampler` | "tpe" \\| "random" | `"tpe"` |  |' in page
     assert "| `onsite` | list of str | `required` |  |" in page
+    # each key's meaning, from the schema's Parameters section (a [model] key from
+    # BoostSettings', which ModelConfig's points to)
+    assert "| `trials` | int | `20` | >= 1, <= 1,000,000 | Trials per study. |" in page
+    assert "| `n_stages` | int or none | `(1)` | <= 10,000, checked by `BaseBoostRegressor` | " \
+        "The boosting stages `K`. |" in page
 
 
 def test_the_cli_reference_lists_every_command_and_option():

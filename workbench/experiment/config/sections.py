@@ -40,7 +40,7 @@ class BoostSettings(Section):
     basis : str or list of str, default=None
         The regressor each boosting stage fits to the residuals, a name in
         :data:`workbench.bases.BASES` (e.g. ``"paper_stacking"``, ``"ridge"``,
-        ``"lightgbm"``).
+        ``"lightgbm"``); a list: candidates.
     basis_params : dict, default=None
         The basis's parameters (with a list of bases, one table per basis of the list). A
         value given as a range ``{ low, high, log }`` or a choice ``{ choices = [...] }``
@@ -49,7 +49,8 @@ class BoostSettings(Section):
         The boosting stages ``K``.
     loss : str or list of str, default=None
         The loss whose negative gradient each stage fits, a name in
-        :data:`workbench.losses.LOSSES` (e.g. ``"squared_error"``, ``"huber"``).
+        :data:`workbench.losses.LOSSES` (e.g. ``"squared_error"``, ``"huber"``); a list:
+        candidates.
     line_search_loss : str, default=None
         The loss of the line search that sets each stage's coefficient.
     line_search_penalty : float, default=None
@@ -58,7 +59,7 @@ class BoostSettings(Section):
         Huber's quantile for its ``delta``, and the quantile loss's level.
     link : str or list of str, default=None
         How the stages combine with the prior: ``"identity"`` adds them to it, ``"log"``
-        multiplies it by them (targets and prior positive).
+        multiplies it by them (targets and prior positive); a list: candidates.
     out_of_bounds : str, default=None
         ``"extrapolate"``: a new row gets the correction the stages predict; ``"clip"``: it
         stays within the range the correction took on the training rows.
@@ -66,7 +67,7 @@ class BoostSettings(Section):
         What the basis sees: the prior alone, or the prior and the dataset's features.
     input_transform : str or list of str, default=None
         The transform of the basis's inputs (never of the prior term), a name in
-        :data:`workbench.bases.TRANSFORMS` or ``"none"``.
+        :data:`workbench.bases.TRANSFORMS` or ``"none"``; a list: candidates.
     input_transform_params : dict, default=None
         The transform's parameters.
     draws : int, default=None
