@@ -1,8 +1,9 @@
 """Generate ``reference/config.md``, the config reference, from the typed config schemas.
 
-Every table of a config file and every key of it, with its type, default and constraints,
-is read from the pydantic models of :mod:`workbench.experiment.config` (and a model family's
-own ``[model.<family>]`` schema), so the page cannot drift from the code:
+Every table of a config file and every key of it, with its type, default, constraints and
+meaning, is read from the pydantic models of :mod:`workbench.experiment.config` (and a model
+family's own ``[model.<family>]`` schema): the meaning from the schema's numpydoc
+``Parameters`` section. So the page cannot drift from the code:
 ``tests/test_docs.py`` compares the schemas' fields with the page this writes.
 """
 
@@ -137,11 +138,36 @@ def _toml(value: Any) -> str:
     return repr(value)
 
 
+def _markdown(text: str) -> str:
+    """reST on one line as MyST-friendly Markdown: roles and literals as code."""
+    text = " ".join(text.split())
+    return re.sub(r":\w+:`~?([^`]+)`", r"`\1`", text).replace("``", "`")
+
+
 def _summary(schema: type[BaseModel]) -> str:
     doc = inspect.getdoc(schema) or ""
-    text = " ".join(doc.split("\n\n")[0].split())
-    # reST roles to MyST-friendly code
-    return re.sub(r":\w+:`~?([^`]+)`", r"`\1`", text).replace("``", "`")
+    return _markdown(doc.split("\n\n")[0])
+
+
+def meanings(schema: type[BaseModel]) -> dict[str, str]:
+    """Each key's entry in the schema's ``Parameters`` section, as one line of Markdown.
+
+    An entry that points elsewhere (``As in :class:`BoostSettings```) is taken from the
+    first base class that documents the key itself.
+    """
+    from numpydoc.docscrape import NumpyDocString
+
+    out: dict[str, str] = {}
+    for cls in schema.__mro__:
+        if not (inspect.isclass(cls) and issubclass(cls, BaseModel)) or not cls.__doc__:
+            continue
+        for entry in NumpyDocString(inspect.getdoc(cls) or "")["Parameters"]:
+            text = " ".join(entry.desc)
+            if text.startswith("As in "):
+                continue
+            for key in entry.name.split(","):
+                out.setdefault(key.strip(), _markdown(text).replace("|", "\\|"))
+    return out
 
 
 def render() -> str:
@@ -159,11 +185,13 @@ def render() -> str:
         lines += [f"## `{table}`", "", _summary(schema), ""]
         if note:
             lines += [note, ""]
-        lines += ["| key | type | default | constraints |", "|---|---|---|---|"]
+        lines += ["| key | type | default | constraints | meaning |", "|---|---|---|---|---|"]
+        meaning = meanings(schema)
         for key in keys(schema, table):
             info = schema.model_fields[key]
             lines.append(f"| `{key}` | {type_name(info.annotation)} | "
-                         f"`{default(info, key, table)}` | {constraints(info)} |")
+                         f"`{default(info, key, table)}` | {constraints(info)} | "
+                         f"{meaning.get(key, '')} |")
         lines.append("")
     return "\n".join(lines)
 

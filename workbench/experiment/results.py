@@ -17,219 +17,55 @@ targets' ``[low, high]``); ``model`` adds the paired interval of its difference 
 below 0, the model's error is the lower); the result a ``bootstrap`` section (method,
 level, resamples, seed, rows). Only keys are added: a script that read the JSON before reads
 it unchanged.
+
+The score records a result holds (:class:`Scores`, :class:`ModelScores`, :class:`CVEstimate`)
+and the per-target errors (:func:`mae`, :func:`mse`) are :mod:`workbench.experiment.scores`'s,
+re-exported here.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
-from numpy.typing import ArrayLike
+from .scores import INTERVAL_KEYS as INTERVAL_KEYS  # re-exported: run_fields reads it here
+from .scores import CVEstimate, ModelScores, Scores, _avg, mae, mse
 
 __all__ = ["CVEstimate", "ModelScores", "OuterFold", "Result", "Scores", "SweepSummary", "mae",
            "mse"]
 
 
-def mae(y: ArrayLike, pred: ArrayLike) -> list[float]:
-    """Per-column mean absolute error.
-
-    Parameters
-    ----------
-    y, pred : array-like of shape (n_rows, n_targets) or (n_rows,)
-        The measured values and their predictions.
-
-    Returns
-    -------
-    list of float
-        The mean absolute error of each column.
-    """
-    return np.mean(np.abs(np.asarray(y, float) - np.asarray(pred, float)), axis=0).tolist()
-
-
-def mse(y: ArrayLike, pred: ArrayLike) -> list[float]:
-    """Per-column mean squared error.
-
-    Parameters
-    ----------
-    y, pred : array-like of shape (n_rows, n_targets) or (n_rows,)
-        The measured values and their predictions.
-
-    Returns
-    -------
-    list of float
-        The mean squared error of each column.
-    """
-    return np.mean((np.asarray(y, float) - np.asarray(pred, float)) ** 2, axis=0).tolist()
-
-
-def _avg(values: list[float]) -> float:
-    return float(np.mean(values)) if len(values) else math.nan
-
-
-@dataclass
-class Scores:
-    """Per-target test and CV errors of one system (the prior, or the model).
-
-    With the bootstrap intervals of the test errors (:func:`~.bootstrap.bootstrap_test_scores`;
-    empty: not computed): ``test_mae_ci`` one ``[low, high]`` per target, ``test_mae_avg_ci``
-    the average over targets' ``[low, high]``; the same for ``test_mse``.
-    """
-
-    test_mae: list[float]
-    test_mse: list[float]
-    cv_mae: list[float]
-    cv_mse: list[float]
-    test_mae_ci: list[list[float]] = field(default_factory=list)
-    test_mae_avg_ci: list[float] = field(default_factory=list)
-    test_mse_ci: list[list[float]] = field(default_factory=list)
-    test_mse_avg_ci: list[float] = field(default_factory=list)
-
-    def avg(self, key: str) -> float:
-        """Average ``key`` over the targets.
-
-        Parameters
-        ----------
-        key : str
-            ``"test_mae"``, ``"cv_mse"``, ...
-
-        Returns
-        -------
-        float
-            The mean (NaN for an empty list).
-        """
-        return _avg(getattr(self, key))
-
-    def ci(self, key: str) -> list[list[float]] | None:
-        """Gather the bootstrap intervals of ``key``.
-
-        Parameters
-        ----------
-        key : str
-            ``"test_mae"``, ``"test_mse"`` (a model's ``"test_mae_diff"`` too).
-
-        Returns
-        -------
-        list of [low, high], or None
-            One ``[low, high]`` per target, then the average's: the rows
-            :func:`~workbench.experiment.figures.mae_bars` takes (``None``: not computed).
-        """
-        per_target, average = getattr(self, f"{key}_ci"), getattr(self, f"{key}_avg_ci")
-        if not per_target or not average:
-            return None
-        return [*map(list, per_target), list(average)]
-
-    def to_json(self) -> dict[str, Any]:
-        """Write the scores as JSON, with each list's average.
-
-        Returns
-        -------
-        dict
-            Every field (intervals only when computed) and ``<key>_avg`` of each error.
-        """
-        out: dict[str, Any] = {}
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if f.name.endswith("_ci") and not value:  # intervals not computed: no key
-                continue
-            out[f.name] = value
-            if f.name in ("test_mae", "test_mse", "cv_mae", "cv_mse"):
-                out[f"{f.name}_avg"] = _avg(value)
-        return out
-
-
-#: The per-target interval figures of :class:`ModelScores` (empty lists: no intervals).
-INTERVAL_KEYS = ("test_coverage", "test_width", "cv_coverage", "cv_width")
-
-
-@dataclass
-class ModelScores(Scores):
-    """The model's scores plus what it chose per target.
-
-    ``extra``: family-specific per-target figures (e.g. ``cv_mae_boosted``). With prediction
-    intervals: per target the fraction of test rows inside their interval (``test_coverage``)
-    and the mean width (``test_width``), and the same estimated by CV on the training rows
-    (``cv_coverage``, ``cv_width``). With bootstrap intervals, those of model - prior test
-    MAE (``test_mae_diff_ci``, ``test_mae_diff_avg_ci``), paired: both systems' errors on the
-    same resampled rows.
-    """
-
-    selected: list[str] = field(default_factory=list)
-    coefs: list[list[float]] = field(default_factory=list)
-    extra: dict[str, list[float]] = field(default_factory=dict)
-    test_coverage: list[float] = field(default_factory=list)
-    test_width: list[float] = field(default_factory=list)
-    cv_coverage: list[float] = field(default_factory=list)
-    cv_width: list[float] = field(default_factory=list)
-    #: The paired bootstrap interval of model - prior test MAE per target and of the average
-    #: over targets (below 0: the model's error is the lower;
-    #: :func:`~.bootstrap.bootstrap_test_scores`).
-    test_mae_diff_ci: list[list[float]] = field(default_factory=list)
-    test_mae_diff_avg_ci: list[float] = field(default_factory=list)
-
-    def to_json(self) -> dict[str, Any]:
-        """Write the scores as JSON (:meth:`Scores.to_json`), the family's figures inline.
-
-        Returns
-        -------
-        dict
-            The scores; the interval figures and their averages only when computed.
-        """
-        out = super().to_json()
-        out.update(out.pop("extra"))
-        for key in INTERVAL_KEYS:
-            if out[key]:
-                out[f"{key}_avg"] = _avg(out[key])
-            else:
-                del out[key]
-        return out
-
-
-@dataclass
-class CVEstimate:
-    """A cross-validated estimate of the chosen model.
-
-    Repeated K-fold CV on the training rows (``repeats`` > 0) or nested CV over all rows
-    (``n_rows``).
-    """
-
-    folds: int
-    seed: int
-    model_mae: list[float]
-    model_mse: list[float]
-    prior_mae: list[float]
-    repeats: int | None = None
-    n_rows: int | None = None
-    model_mae_avg_per_repeat: list[float] | None = None
-
-    @property
-    def model_mae_avg(self) -> float:
-        """The model's MAE averaged over the targets."""
-        return _avg(self.model_mae)
-
-    @property
-    def prior_mae_avg(self) -> float:
-        """The prior's MAE averaged over the targets."""
-        return _avg(self.prior_mae)
-
-    def to_json(self) -> dict[str, Any]:
-        """Write the estimate as JSON.
-
-        Returns
-        -------
-        dict
-            The fields set and the averages over targets.
-        """
-        out = {k: v for k, v in asdict(self).items() if v is not None}
-        out.update(model_mae_avg=self.model_mae_avg, model_mse_avg=_avg(self.model_mse),
-                   prior_mae_avg=self.prior_mae_avg)
-        return out
-
-
 @dataclass
 class OuterFold:
-    """One outer fold of a sweep: its study's best settings refitted and scored."""
+    """One outer fold of a sweep: its study's best settings refitted and scored.
+
+    The study searched on the fold's training rows (inner CV); its best trial's settings are
+    refitted on them and scored on the fold's validation rows, which no trial saw.
+
+    Parameters
+    ----------
+    unit : str
+        The study unit: the targets the study chose settings for together (the family's
+        :meth:`~workbench.experiment.families.base.ModelFamily.units`).
+    fold : int
+        The outer fold's index (over all ``[cv] repeats``).
+    study : str
+        The study's name (``<sweep>.<unit>.outer<fold>``).
+    mae : float
+        The refitted model's MAE on the validation rows, averaged over the unit's targets.
+    prior_mae : float
+        The prior's, likewise.
+    selected : str
+        What the refitted model predicts with (comma-separated per target; ``"prior"`` when
+        no trial completed: the prior then stands).
+    n_train, n_val : int
+        The fold's training and validation rows.
+    params : dict or None
+        The best trial's settings (``None``: no trial completed).
+    target_mae, target_prior_mae : dict of str to float
+        Per target of the unit, the model's and the prior's MAE on the validation rows.
+    """
 
     unit: str
     fold: int
@@ -249,7 +85,26 @@ class SweepSummary:
     """What a sweep adds to a result.
 
     Nested-CV estimates, the chosen parameters per target (a unit's choice repeated for each
-    of its targets), the trial counts.
+    of its targets), the trial counts; every list one value per target.
+
+    Parameters
+    ----------
+    nested_cv_mae : list of float
+        The model's MAE over the outer folds' validation rows (the mean over the folds): the
+        sweep's estimate of the error of its whole search.
+    nested_cv_prior_mae : list of float
+        The prior's, on the same rows.
+    best_params : list of dict or None
+        The settings the final study chose (``None``: no trial completed).
+    trials_per_study : int
+        The trials each study was given (``[study] trials``).
+    trials_counted : int
+        The trials that used a study's budget, over all studies (stale trials re-queued and
+        surplus ones not counted).
+    studies : int
+        The studies: per unit, one per outer fold and the final one.
+    outer_folds : list of OuterFold, default=[]
+        Each outer fold's refit and scores.
     """
 
     nested_cv_mae: list[float]
@@ -290,9 +145,50 @@ class SweepSummary:
 class Result:
     """One ``evaluate`` (or a sweep's final evaluation).
 
-    The model fitted on the training rows and scored once on the test rows. ``details``: the
-    family's own JSON-ready section (e.g. ``{"hamiltonian": {...}}``); ``wall_s``: the whole
-    command's wall time; ``unit``: the targets' (the dataset's).
+    The model fitted on the training rows and scored once on the test rows;
+    :meth:`to_json` writes it as ``--json`` does.
+
+    Parameters
+    ----------
+    name : str
+        What ran: the config's name (``reproduce``: a system's, e.g. ``"peer"``).
+    config : str or None
+        The config file (``None``: the config has no file).
+    family : str
+        The model family (``[model] family``).
+    targets : list of str
+        The targets, the order of every per-target list.
+    n_train, n_test : int
+        The training and test rows.
+    prior : Scores
+        The prior's (the scientific model's) errors.
+    model : ModelScores
+        The model's errors and choices.
+    details : dict, default={}
+        The family's own JSON-ready section (e.g. ``{"hamiltonian": {...}}``), written at
+        the JSON's top level.
+    repeated_cv : CVEstimate, default=None
+        The repeated CV of ``[evaluation] cv_repeats`` (``None``: not run).
+    nested_cv_all : CVEstimate, default=None
+        The nested CV over all rows of ``[evaluation] nested_folds`` (``None``: not run).
+    sweep : SweepSummary, default=None
+        What a sweep adds (``None``: not a sweep).
+    intervals : dict, default={}
+        The prediction intervals' settings (method, alpha, level, ...; empty: none).
+    bootstrap : dict, default={}
+        The test errors' bootstrap intervals' settings (method, level, n_resamples,
+        random_state, n_rows; :func:`~workbench.experiment.bootstrap.bootstrap_test_scores`;
+        empty: none).
+    outputs : dict of str to str, default={}
+        The files ``--out`` wrote, by name (empty: none).
+    mlflow : dict of str to str, default={}
+        Where the run was recorded (tracking URI, experiment, run, model, registered
+        version; empty: not tracked).
+    wall_s : float, default=nan
+        The whole command's wall time, in seconds.
+    unit : str, default=None
+        The targets' unit (the dataset's; ``None``: none), which every error shares (MSE: its
+        square).
     """
 
     name: str
@@ -307,16 +203,11 @@ class Result:
     repeated_cv: CVEstimate | None = None
     nested_cv_all: CVEstimate | None = None
     sweep: SweepSummary | None = None
-    #: The prediction intervals' settings (method, alpha, level, ...); empty: none.
     intervals: dict[str, Any] = field(default_factory=dict)
-    #: The test errors' bootstrap intervals' settings (method, level, n_resamples,
-    #: random_state, n_rows; :func:`~.bootstrap.bootstrap_test_scores`); empty: none.
     bootstrap: dict[str, Any] = field(default_factory=dict)
     outputs: dict[str, str] = field(default_factory=dict)
     mlflow: dict[str, str] = field(default_factory=dict)
     wall_s: float = math.nan
-    #: The targets' unit (the dataset's; ``None``: none), which every error shares (MSE: its
-    #: square).
     unit: str | None = None
 
     def to_json(self) -> dict[str, Any]:

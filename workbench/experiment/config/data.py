@@ -21,11 +21,30 @@ __all__ = ["DataConfig", "HamiltonianData"]
 class HamiltonianData(Section):
     """``[data.hamiltonian]``: the Hamiltonian's columns.
 
-    ``sign``: the prior is the sorted eigenvalues of ``sign * H``. The coupling graph:
-    ``topology`` "chain" (N - 1 couplings ``(i, i+1)``), "ring", "grid" with
-    ``shape = [rows, cols]``, or an explicit ``edges`` list of 0-based site pairs, one per
-    coupling column. ``qubit_features``/``coupler_features``: the features acting on each
-    site and on each coupling, in site and edge order.
+    The control model's Hamiltonian ``H`` per row, for a CSV of your own: its N diagonal
+    entries and one coupling per edge of the coupling graph.
+
+    Parameters
+    ----------
+    onsite : list of str
+        The N columns of ``H``'s diagonal, one per site.
+    couplings : list of str
+        The coupling columns, one per edge of the coupling graph, in edge order.
+    sign : {-1, 1}, default=-1
+        The prior is the ascending eigenvalues of ``sign * H``.
+    topology : {"chain", "ring", "grid"}, default="chain"
+        The coupling graph: "chain" (N - 1 couplings ``(i, i+1)``), "ring", or "grid" (with
+        ``shape``).
+    shape : list of int, default=None
+        A grid's ``[rows, cols]``.
+    edges : list of list of int, default=None
+        An explicit coupling graph instead of ``topology``: 0-based site pairs, one per
+        coupling column.
+    qubit_features : list of str, default=None
+        The columns among ``[data] features`` that act on each site, in site order (e.g.
+        bias voltages).
+    coupler_features : list of str, default=None
+        The columns among ``[data] features`` that act on each coupling, in edge order.
     """
 
     onsite: list[str]
@@ -62,8 +81,43 @@ class DataConfig(Section):
     ``source = "google_5q"`` (optional ``data_dir``), ``source = "ibm_gates"``
     (optional ``data_dir``, ``split = "time"`` or ``"devices"`` with ``split_seed``), or a CSV
     of your own (``csv``, one ``prior`` column per ``targets`` column, ``features``, either
-    ``test_fraction`` or ``split_column``, and optionally the targets' ``unit``). ``source``
-    is a name in the data-source registry (:data:`workbench.datasets.SOURCES`).
+    ``test_fraction`` or ``split_column``, and optionally the targets' ``unit``). Paths are
+    relative to the config file.
+
+    Parameters
+    ----------
+    source : str, default="google_5q"
+        The data source, a name in the data-source registry
+        (:data:`workbench.datasets.SOURCES`): ``"google_5q"``, ``"ibm_gates"``, ``"csv"``
+        (implied by ``csv``) or one added with :func:`~workbench.datasets.register_source`.
+    split : {"time", "devices"}, default=None
+        ``ibm_gates``' split: ``"time"`` (``None`` too) tests on the snapshots from 2025 on,
+        ``"devices"`` on 30% of the devices held out at random.
+    data_dir : str, default=None
+        Where a benchmark's files are (``None``: the loader's own place, downloading them
+        when missing).
+    csv : str, default=None
+        A CSV of your own, one experiment per row.
+    prior : list of str, default=None
+        The CSV's prior columns: ``prior[j]`` is the scientific model's prediction of
+        ``targets[j]``.
+    targets : list of str, default=None
+        The CSV's target columns, the measured values.
+    features : list of str, default=[]
+        The CSV's input columns (e.g. control settings).
+    test_fraction : float, default=None
+        A seeded random share of the CSV's rows held out as the test rows.
+    split_column : str, default=None
+        Instead, a column holding ``train`` or ``test`` per row.
+    split_seed : int, default=0
+        Seeds the random split (``test_fraction``; ``ibm_gates``' ``"devices"``).
+    group_column : str, default=None
+        A column holding each row's group (e.g. its device): CV folds keep a group's rows
+        together (``[selection] groups``).
+    unit : str, default=None
+        The targets' unit (e.g. ``"meV"``) that figures and summaries show.
+    hamiltonian : HamiltonianData, default=None
+        ``[data.hamiltonian]``: the Hamiltonian's columns, for the physics-aware families.
     """
 
     source: str = "google_5q"

@@ -32,13 +32,51 @@ __all__ = ["ExperimentConfig", "without_intervals"]
 class ExperimentConfig:
     """A checked config, as :func:`workbench.experiment.prepare.parse_config` makes it.
 
-    Sections are typed (frozen pydantic models); ``family_settings`` is the family's
-    ``[model.<family>]`` (its own schema), ``search`` the ``[search]`` space, ``chosen`` the
-    per-target settings a search chose (target -> full settings, over ``[model]``),
-    ``overrides`` the ``SECTION.KEY=VALUE`` overrides applied over the file (``--set``).
-    ``family`` is the :class:`~workbench.experiment.families.base.ModelFamily` that
-    ``[model] family`` names, resolved by the loader: the config package sits below the
-    families and imports none of them, so the attribute is typed ``Any`` here.
+    Sections are typed (frozen pydantic models), each a table of the file.
+
+    Parameters
+    ----------
+    path : Path or None
+        The config file (``None``: a config made in code); relative data paths start from
+        its folder.
+    name : str
+        The config's name (the top-level ``name``, else the file's stem).
+    random_state : int or None
+        The top-level ``random_state``: seeds every random component of the model.
+    n_jobs : int or None
+        The top-level ``n_jobs`` (see :attr:`jobs`).
+    data : DataConfig
+        ``[data]``.
+    model : ModelConfig
+        ``[model]``.
+    selection : SelectionConfig, default=SelectionConfig()
+        ``[selection]``.
+    evaluation : EvaluationConfig, default=EvaluationConfig()
+        ``[evaluation]``.
+    intervals : IntervalsConfig, default=IntervalsConfig()
+        ``[intervals]``.
+    search : SearchSpace, default=SearchSpace()
+        ``[search]``: the space a sweep searches.
+    cv : CVConfig, default=CVConfig()
+        ``[cv]``.
+    study : StudyConfig, default=StudyConfig()
+        ``[study]``.
+    tracking : TrackingConfig, default=TrackingConfig()
+        ``[tracking]``.
+    family_settings : pydantic.BaseModel, default=None
+        The family's ``[model.<family>]``, checked by its own schema (``None``: the family
+        has none).
+    description : str, default=""
+        The top-level ``description``.
+    chosen : dict of str to dict, default={}
+        The per-target settings a search chose: target -> its full boosting settings, which
+        :meth:`model_for` returns over ``[model]``'s.
+    overrides : dict, default={}
+        The ``SECTION.KEY=VALUE`` overrides applied over the file (``--set``).
+    family : ModelFamily, default=None
+        The :class:`~workbench.experiment.families.base.ModelFamily` that ``[model] family``
+        names, resolved by the loader: the config package sits below the families and
+        imports none of them, so the attribute is typed ``Any`` here.
     """
 
     path: Path | None

@@ -27,11 +27,51 @@ _Boost = ParameterOf(BaseBoostRegressor)
 class BoostSettings(Section):
     """The eigenvalue-space boosting settings of one target.
 
-    ``[model]``, or a ``[model.targets.<target>]`` override, where every key is optional.
+    ``[model]``, or a ``[model.targets.<target>]`` override, where every key is optional: a
+    key not given takes ``[model]``'s value, else the default of :data:`MODEL_DEFAULTS`
+    (:meth:`~workbench.experiment.config.ExperimentConfig.model_for` merges them).
     ``n_stages``, ``loss``, ``line_search_loss``, ``line_search_penalty``, ``alpha``,
     ``link`` and ``out_of_bounds`` are BaseBoostRegressor's parameters, checked against its
-    ``_parameter_constraints``; a list of losses, links or input transforms makes candidates
-    that CV chooses among per target.
+    ``_parameter_constraints``; a list of bases, losses, links or input transforms makes
+    candidates that CV chooses among per target (``[selection]``).
+
+    Parameters
+    ----------
+    basis : str or list of str, default=None
+        The regressor each boosting stage fits to the residuals, a name in
+        :data:`workbench.bases.BASES` (e.g. ``"paper_stacking"``, ``"ridge"``,
+        ``"lightgbm"``); a list: candidates.
+    basis_params : dict, default=None
+        The basis's parameters (with a list of bases, one table per basis of the list). A
+        value given as a range ``{ low, high, log }`` or a choice ``{ choices = [...] }``
+        makes ``draws`` settings drawn at random, each a candidate.
+    n_stages : int, default=None
+        The boosting stages ``K``.
+    loss : str or list of str, default=None
+        The loss whose negative gradient each stage fits, a name in
+        :data:`workbench.losses.LOSSES` (e.g. ``"squared_error"``, ``"huber"``); a list:
+        candidates.
+    line_search_loss : str, default=None
+        The loss of the line search that sets each stage's coefficient.
+    line_search_penalty : float, default=None
+        The L1 penalty on each stage's coefficient in the line search (0: none).
+    alpha : float, default=None
+        Huber's quantile for its ``delta``, and the quantile loss's level.
+    link : str or list of str, default=None
+        How the stages combine with the prior: ``"identity"`` adds them to it, ``"log"``
+        multiplies it by them (targets and prior positive); a list: candidates.
+    out_of_bounds : str, default=None
+        ``"extrapolate"``: a new row gets the correction the stages predict; ``"clip"``: it
+        stays within the range the correction took on the training rows.
+    basis_inputs : {"prior", "prior+features"}, default=None
+        What the basis sees: the prior alone, or the prior and the dataset's features.
+    input_transform : str or list of str, default=None
+        The transform of the basis's inputs (never of the prior term), a name in
+        :data:`workbench.bases.TRANSFORMS` or ``"none"``; a list: candidates.
+    input_transform_params : dict, default=None
+        The transform's parameters.
+    draws : int, default=None
+        How many settings are drawn for a basis whose ``basis_params`` hold ranges.
     """
 
     basis: str | list[str] | None = None
@@ -67,8 +107,20 @@ MODEL_DEFAULTS: dict[str, Any] = dict(
 class ModelConfig(BoostSettings):
     """``[model]``: the family, the boosting settings shared by every target, and overrides.
 
-    ``family`` is a name in :data:`~workbench.experiment.families.FAMILIES`; ``targets`` holds
-    the per-target overrides.
+    A boosting key left out takes its default from :data:`MODEL_DEFAULTS` (the paper's
+    settings).
+
+    Parameters
+    ----------
+    family : str, default="eigenvalue"
+        The model family, a name in :data:`~workbench.experiment.families.FAMILIES` (its own
+        settings: ``[model.<family>]``).
+    targets : dict of str to BoostSettings, default={}
+        Per target, the boosting settings that override these (``[model.targets.<target>]``).
+    basis, basis_params, n_stages, loss, line_search_loss, line_search_penalty, alpha, link
+        As in :class:`BoostSettings`, for every target.
+    out_of_bounds, basis_inputs, input_transform, input_transform_params, draws
+        As in :class:`BoostSettings`, for every target.
     """
 
     family: str = "eigenvalue"
@@ -78,10 +130,25 @@ class ModelConfig(BoostSettings):
 class SelectionConfig(Section):
     """``[selection]``: BaseBoostCV's folds and scoring.
 
-    The folds are contiguous unless ``shuffle``, and keep whole groups of rows when the
-    dataset has groups, unless ``groups = false``. With candidates, ``ensemble``: the mean of
-    that many best candidates is a candidate too (:class:`~workbench.selection.BasisChoiceCV`;
-    1: none).
+    The CV on the training rows that makes every choice of the model: the prior or the
+    boosted model per target, and among candidates.
+
+    Parameters
+    ----------
+    cv : int, default=5
+        The folds.
+    shuffle : bool, default=False
+        Shuffle the rows before making the folds (seeded by ``random_state``; else the folds
+        are contiguous).
+    scoring : str, default="neg_mean_absolute_error"
+        What the choices maximise, a scikit-learn scorer's name
+        (``sklearn.metrics.get_scorer_names()``).
+    groups : bool, default=True
+        When the dataset has groups (e.g. each row's device), keep each group's rows in one
+        fold; ``false``: split them like any rows.
+    ensemble : int, default=1
+        With candidates: the mean of this many best candidates is a candidate too
+        (:class:`~workbench.selection.BasisChoiceCV`; 1: none).
     """
 
     cv: int = Field(default=5, ge=2, le=10_000)
@@ -102,13 +169,27 @@ class SelectionConfig(Section):
 class EvaluationConfig(Section):
     """``[evaluation]``: the extra estimates of the chosen model's error.
 
-    ``cv_repeats`` > 0 adds a repeated ``cv_folds``-fold CV of the chosen model on the
-    training rows (``RepeatedKFold`` seeded by ``cv_seed``); ``nested_folds`` > 0 adds a
-    nested CV over all rows, every choice remade inside each outer fold. ``seeds``, two or
-    more distinct seeds: ``evaluate`` fits the config once per seed, each seed its
-    ``random_state`` (the data, their split and the CV folds stay), and reports the mean and
-    sd of the test MAE over them (:mod:`workbench.experiment.seeds`; ``--seeds`` overrides
-    it; empty: one fit with ``random_state``).
+    Each beside the test error that ``evaluate`` always reports; all off by default.
+
+    Parameters
+    ----------
+    cv_folds : int, default=5
+        The folds of the repeated CV.
+    cv_repeats : int, default=0
+        Repeats of a ``cv_folds``-fold CV of the chosen model on the training rows
+        (``RepeatedKFold``; 0: none).
+    cv_seed : int, default=1000
+        Seeds the repeated CV's folds.
+    nested_folds : int, default=0
+        The outer folds of a nested CV over all rows, training and test, every choice of the
+        model remade inside each (0: none; else 2 or more).
+    nested_seed : int, default=0
+        Seeds the nested CV's outer folds.
+    seeds : list of int, default=[]
+        Two or more distinct seeds: ``evaluate`` fits the config once per seed, each seed
+        its ``random_state`` (the data, their split and the CV folds stay), and reports the
+        mean and sd of the test MAE over them (:mod:`workbench.experiment.seeds`;
+        ``--seeds`` overrides it; empty: one fit with ``random_state``).
     """
 
     cv_folds: int = Field(default=5, ge=2, le=10_000)
@@ -142,17 +223,30 @@ _Conformal = ParameterOf(ConformalRegressor)
 class IntervalsConfig(Section):
     """``[intervals]``: conformal prediction intervals around the fitted model.
 
-    A :class:`~workbench.conformal.ConformalRegressor` of level ``1 - alpha`` per target. ``method``
-    "oof" takes the out-of-fold residuals of the CV the model already ran to make its
-    choices and centres ``+- q`` on the model fitted on all rows: no extra fit (``cv`` is
-    then unused: the model's own folds count); absent, the family's default
-    (:attr:`~workbench.experiment.families.base.ModelFamily.interval_method`: "oof" for a
-    family whose model cross-validates itself, else "cv_plus"); "cv_plus" refits the whole model
-    (every choice remade) once per ``cv`` fold; "cv" uses the same refits but centres
-    ``+- q`` on the model fitted on all rows (not widened by the fold models'
-    disagreement); "split" holds out ``calibration_fraction`` of the training rows.
-    On unless ``enabled = false``. ``alpha``, ``method``, ``cv`` and ``calibration_fraction``
-    are ConformalRegressor's parameters, checked against its ``_parameter_constraints``.
+    A :class:`~workbench.conformal.ConformalRegressor` of level ``1 - alpha`` per target.
+    ``alpha``, ``method``, ``cv`` and ``calibration_fraction`` are ConformalRegressor's
+    parameters, checked against its ``_parameter_constraints``.
+
+    Parameters
+    ----------
+    enabled : bool, default=True
+        Make the intervals (``false``: none, as ``--no-intervals``).
+    alpha : float, default=0.1
+        The miscoverage: the intervals aim to hold a share ``1 - alpha`` of new rows.
+    method : str, default=None
+        How the intervals are calibrated. ``"oof"`` takes the out-of-fold residuals of the
+        CV the model already ran to make its choices and centres ``+- q`` on the model
+        fitted on all rows: no extra fit (``cv`` unused: the model's own folds count).
+        ``"cv_plus"`` refits the whole model (every choice remade) once per ``cv`` fold;
+        ``"cv"`` uses the same refits but centres ``+- q`` on the model fitted on all rows
+        (not widened by the fold models' disagreement); ``"split"`` holds out
+        ``calibration_fraction`` of the training rows. Not given: the family's default
+        (:attr:`~workbench.experiment.families.base.ModelFamily.interval_method`: ``"oof"``
+        for a family whose model cross-validates itself, else ``"cv_plus"``).
+    cv : int, default=5
+        The folds of ``"cv_plus"`` and ``"cv"``.
+    calibration_fraction : float, default=0.25
+        The share of the training rows ``"split"`` holds out to calibrate on.
     """
 
     enabled: bool = True
@@ -232,7 +326,40 @@ class TrackingConfig(Section):
 
 
 class TopLevel(Section):
-    """The top level of a config file (sections validated on their own)."""
+    """The top level of a config file (sections validated on their own).
+
+    Parameters
+    ----------
+    name : str, default=None
+        The config's name: its runs', studies' and outputs' (``None``: the file's stem).
+    description : str, default=""
+        A note on what the config is for (free text).
+    random_state : int, default=None
+        Seeds every random component of the model: the bases, the transforms, the
+        ``basis_params`` draws and shuffled folds (``None``: they are not seeded).
+    n_jobs : int, default=None
+        Processes for independent work (targets, folds, refits; ``-1`` or ``None``: every
+        core); the results do not depend on it (``--jobs`` overrides it).
+    data : dict, default={}
+        ``[data]`` (:class:`~workbench.experiment.config.DataConfig`).
+    model : dict, default={}
+        ``[model]`` (:class:`ModelConfig`, and the family's ``[model.<family>]``).
+    selection : SelectionConfig, default=SelectionConfig()
+        ``[selection]``.
+    evaluation : EvaluationConfig, default=EvaluationConfig()
+        ``[evaluation]``.
+    intervals : IntervalsConfig, default=IntervalsConfig()
+        ``[intervals]``.
+    search : dict, default={}
+        ``[search]``: the space a sweep searches
+        (:class:`~workbench.experiment.space.SearchSpace`).
+    cv : CVConfig, default=CVConfig()
+        ``[cv]``.
+    study : StudyConfig, default=StudyConfig()
+        ``[study]``.
+    tracking : TrackingConfig, default=TrackingConfig()
+        ``[tracking]``.
+    """
 
     name: str | None = None
     description: str = ""
