@@ -12,7 +12,15 @@ from __future__ import annotations
 
 import sys
 
-from ..errors import ConfigError, StorageError, TrackingError, UsageError, clip, redact_urls
+from ..errors import (
+    ConfigError,
+    StorageError,
+    SweepTimedOut,
+    TrackingError,
+    UsageError,
+    clip,
+    redact_urls,
+)
 from ..startup import setup_logging
 from . import commands
 from .parser import build_parser
@@ -34,7 +42,8 @@ def main(argv: list[str] | None = None) -> int:
     Returns
     -------
     int
-        The exit code: 0, 2 for an error reported in one line, 130/143 when interrupted.
+        The exit code: 0, 2 for an error reported in one line, 124 for a sweep stopped by
+        its timeout, 130/143 when interrupted.
     """
     commands.mark_start()
     args = build_parser().parse_args(argv)
@@ -53,6 +62,9 @@ def main(argv: list[str] | None = None) -> int:
     except (ConfigError, DatasetError, TrackingError, UsageError, StorageError) as exc:
         print(error_line(exc), file=sys.stderr)
         return 2
+    except SweepTimedOut as exc:  # resumable: one line saying how
+        print(f"workbench: {exc}", file=sys.stderr)
+        return exc.code
     except KeyboardInterrupt as exc:
         print(f"workbench: {MESSAGE}", file=sys.stderr)
         return getattr(exc, "code", 130)

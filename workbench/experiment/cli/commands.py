@@ -142,7 +142,8 @@ def sweep(args: argparse.Namespace) -> int:
     from ..sweep.search import run_sweep  # imports Optuna only for sweeps
 
     cfg = without_intervals(load_config(args.config, dict(args.overrides)).with_study(
-        trials=args.trials, workers=args.workers, storage=args.storage), args.no_intervals)
+        trials=args.trials, workers=args.workers, storage=args.storage, timeout=args.timeout),
+        args.no_intervals)
     check_outputs(args)
     prepared = prepare(cfg)
     tracker = check_before_work(cfg, args, cfg.study.storage, repair_hint(args))
