@@ -36,7 +36,7 @@ def smoke_run(project, tmp_path, capsys, monkeypatch):
     are checked by test_services.py on the same ``record``, an evaluate's by test_cli.py).
 
     First stopped by ``--timeout`` after its first trial (exit 124), then resumed by the same
-    command without it. Returns the result, the store, standard error."""
+    command without it, with ``--out``. Returns the result, the store, standard error."""
     from workbench.experiment.families import Artifacts
     from workbench.experiment.families.eigenvalue import EigenvalueFamily
 
@@ -46,7 +46,7 @@ def smoke_run(project, tmp_path, capsys, monkeypatch):
     uri = f"sqlite:///{tmp_path / 'store' / 'mlflow.db'}"
     args = ["sweep", str(project), "--trials", "3", "--tracking-uri", uri]
     assert main([*args, "--timeout", "0.01"]) == 124  # no trial starts after the first
-    assert main([*args, "--json", str(out)]) == 0
+    assert main([*args, "--json", str(out), "--out", str(tmp_path / "out")]) == 0
     return json.loads(out.read_text()), uri, capsys.readouterr().err
 
 
@@ -112,6 +112,22 @@ def test_smoke_sweep_json_and_tracking(smoke_run, tmp_path, project):
     assert len(plots) >= 3 and all(p.endswith(".png") for p in plots)
     local = client.download_artifacts(run.info.run_id, plots[0], str(tmp_path))
     assert matplotlib.image.imread(local).size > 0
+
+    # Optuna's figures of every study, in the run and under --out, and the importances
+    def is_png(path):
+        return path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and matplotlib.image.imread(path).size
+
+    optuna_dir = Path(client.download_artifacts(run.info.run_id, "optuna", str(tmp_path / "dl")))
+    for folder in (optuna_dir, tmp_path / "out"):
+        for name in names:
+            study = folder / "studies" / name
+            for figure in ("history", "importances", "parallel_coordinate", "slice"):
+                assert is_png(study / f"{figure}.png"), (name, figure)
+            table = pd.read_csv(study / "importances.csv")
+            assert list(table.columns) == ["param", "importance"] and len(table) >= 2
+            assert table["importance"].sum() == pytest.approx(1.0)
+        assert is_png(folder / "outer_folds.png")
+        assert set(pd.read_csv(folder / "importances.csv")["study"]) == set(names)
 
     ds = load_google_5q()
     _, X_test, _, _ = ds.split()

@@ -10,6 +10,7 @@ import argparse
 import dataclasses
 import importlib
 import json
+import logging
 import threading
 import time
 from collections.abc import Iterable
@@ -123,6 +124,29 @@ def reproduce(args: argparse.Namespace) -> int:
     return 0
 
 
+def _sweep_figures(done: Any, out: str | None, tracker: Any, run_id: str | None) -> None:
+    """Draw a sweep's Optuna figures into its run (``optuna/``) and ``--out`` (if given)."""
+    if out is None and run_id is None:
+        return
+    import shutil
+    import tempfile
+
+    from ..sweep.report import write_sweep_figures
+
+    cfg = done.config
+    seed = cfg.random_state if cfg.random_state is not None else cfg.cv.seed
+    start = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="workbench-optuna-") as tmp:
+        write_sweep_figures(done, tmp, seed, cfg.jobs)
+        logging.getLogger("workbench").info(
+            "[%s] Optuna figures of %d studies in %.1f s", cfg.name, len(done.studies),
+            time.perf_counter() - start)
+        if run_id is not None:
+            tracker.log_file(run_id, tmp, "optuna")
+        if out is not None:
+            shutil.copytree(tmp, out, dirs_exist_ok=True)
+
+
 def sweep(args: argparse.Namespace) -> int:
     """``workbench sweep``: the nested-CV search, then the chosen model's evaluation.
 
@@ -167,6 +191,7 @@ def sweep(args: argparse.Namespace) -> int:
             result.mlflow = record(done.config, result, done.model, done.dataset,
                                    kind="sweep", tracking_uri=args.tracking_uri, sweep=done,
                                    run_id=run_id, register=args.register)
+        _sweep_figures(done, args.out, tracker, run_id)
         result.wall_s = wall()
         if run_id is not None:  # the same figure in MLflow, the output and --json
             from ..record import record_wall_time
@@ -177,6 +202,8 @@ def sweep(args: argparse.Namespace) -> int:
             _write_json(args.json, result.to_json())
     print(format_table(result))
     _print_registered(result)
+    if args.out is not None:
+        print(f"wrote the studies' figures and importances to {args.out}")
     if args.json:
         print(f"wrote {args.json}")
     return 0

@@ -131,6 +131,10 @@ def _add_sweep(sub: Subparsers) -> None:
                     "running trials finish); a sweep stopped so ends its MLflow run KILLED "
                     "and exits 124, and the same command resumes it (overrides [study] "
                     "timeout)")
+    sw.add_argument("--out", metavar="DIR", default=None,
+                    help="also write each study's Optuna figures (PNG) and parameter "
+                    "importances (CSV) to DIR/studies/<study>/, and the outer folds' summary "
+                    "figure to DIR")
     _repair_arg(sw)
     sw.add_argument("--json", metavar="PATH", help="also write the results as JSON")
     _model_args(sw)
