@@ -5,7 +5,9 @@ coordinates, slices, and the contour of its two most important parameters, and t
 importances (fANOVA, seeded: :class:`optuna.importance.FanovaImportanceEvaluator`, computed
 once and reused by the importance and contour figures). A figure Optuna cannot draw (no
 complete trial, fewer than two for the importances, fewer than two parameters for the
-contour) is skipped, with the reason for the caller to log.
+contour) is skipped, with the reason for the caller to log; so is the contour of a study
+with fewer than :data:`MIN_CONTOUR_TRIALS` complete trials (a surface interpolated on a
+100 x 100 grid from a handful of points shows the interpolation, not the objective).
 
 Optuna's functions draw through pyplot: the Agg backend is selected when pyplot is not
 loaded yet (a command), the user's is kept otherwise (a notebook), and
@@ -13,13 +15,14 @@ loaded yet (a command), the user's is kept otherwise (a notebook), and
 shown. Optuna's ``ExperimentalWarning`` (these functions are experimental) and matplotlib's
 warning about a parameter that took one value (a flat axis) are silenced here only.
 
-Cost, paid once per study: the slice and parallel-coordinate figures show the parameters the
-importances rank (those every complete trial has: not a basis's own hyperparameters in a
-search over bases), at most :data:`MAX_PARAMS`, most important first, and all of them when
-there are no importances; every parameter of ``experiments/smoke.toml``'s search (12 against
-6) made a study's figures take 40 % longer. The importances' random forest has
-:data:`FANOVA_TREES` trees, not Optuna's 64: a study of tens of trials needs no more, and
-the forest took a quarter of the time (0.12 s against 0.47 s per smoke study).
+Cost, paid once per study, mostly matplotlib's (axes, ticks, text, PNG): the slice and
+parallel-coordinate figures show the parameters the importances rank (those every complete
+trial has: not a basis's own hyperparameters in a search over bases), at most
+:data:`MAX_PARAMS`, most important first (the importance figure and table rank them all),
+and all of them when there are no importances: each one is another subplot or axis to draw.
+The importances' random forest has :data:`FANOVA_TREES` trees, not Optuna's 64: a study of
+tens of trials needs no more, and the forest took a quarter of the time (0.12 s against
+0.47 s per smoke study).
 """
 
 from __future__ import annotations
@@ -35,7 +38,8 @@ if TYPE_CHECKING:
     import optuna
     from matplotlib.figure import Figure
 
-__all__ = ["FANOVA_TREES", "FIGURES", "MAX_PARAMS", "StudyFigures", "study_figures"]
+__all__ = ["FANOVA_TREES", "FIGURES", "MAX_PARAMS", "MIN_CONTOUR_TRIALS", "StudyFigures",
+           "study_figures"]
 
 #: The figures of a study, by file name (without ``.png``).
 FIGURES = ("history", "importances", "parallel_coordinate", "slice", "contour")
@@ -44,7 +48,10 @@ FIGURES = ("history", "importances", "parallel_coordinate", "slice", "contour")
 FANOVA_TREES = 16
 
 #: Most parameters on the slice and parallel-coordinate figures.
-MAX_PARAMS = 8
+MAX_PARAMS = 4
+
+#: Fewest complete trials for a contour figure.
+MIN_CONTOUR_TRIALS = 10
 
 
 @dataclass
@@ -120,6 +127,9 @@ def _reasons(n_complete: int, importances: dict[str, float]) -> dict[str, str]:
     elif len(importances) < 2:
         reasons["contour"] = (f"{len(importances)} parameter(s) common to every complete "
                               "trial; a contour needs 2")
+    if n_complete < MIN_CONTOUR_TRIALS:
+        reasons.setdefault("contour", f"{n_complete} complete trial(s); a contour needs "
+                                      f"{MIN_CONTOUR_TRIALS}")
     return reasons
 
 

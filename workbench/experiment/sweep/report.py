@@ -35,7 +35,7 @@ __all__ = ["DPI", "draw_study", "write_sweep_figures"]
 log = logging.getLogger("workbench")
 
 #: Resolution of the figures (PNG).
-DPI = 100
+DPI = 80
 
 
 def draw_study(name: str, trials: list[FrozenTrial], seed: int,
