@@ -113,14 +113,24 @@ def test_smoke_sweep_json_and_tracking(smoke_run, tmp_path, project):
     local = client.download_artifacts(run.info.run_id, plots[0], str(tmp_path))
     assert matplotlib.image.imread(local).size > 0
 
-    # Optuna's figures of every study, in the run and under --out, and the importances
+    # Optuna's figures of every study, in its outer fold's run (the final studies, which
+    # have none, in the sweep's) and under --out, and the importances
     def is_png(path):
         return path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and matplotlib.image.imread(path).size
 
     optuna_dir = Path(client.download_artifacts(run.info.run_id, "optuna", str(tmp_path / "dl")))
+    folds = {r.data.tags["study"]: r.info.run_id for r in every
+             if r.data.tags["workbench.kind"] == "outer_fold"
+             and r.data.tags.get("mlflow.parentRunId") == run.info.run_id}
+    assert len(folds) == 15 and all(".outer" in name for name in folds)
+    in_runs = {name: Path(client.download_artifacts(folds[name], "optuna",
+                                                    str(tmp_path / "dl" / name)))
+               if name in folds else optuna_dir / "studies" / name for name in names}
+    assert sorted(p.name for p in (optuna_dir / "studies").iterdir()) == sorted(
+        name for name in names if name.endswith(".final"))
     for folder in (optuna_dir, tmp_path / "out"):
         for name in names:
-            study = folder / "studies" / name
+            study = folder / "studies" / name if folder != optuna_dir else in_runs[name]
             for figure in ("history", "importances", "parallel_coordinate", "slice"):
                 assert is_png(study / f"{figure}.png"), (name, figure)
             table = pd.read_csv(study / "importances.csv")
