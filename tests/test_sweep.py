@@ -33,7 +33,10 @@ def project(tmp_path, monkeypatch, google_5q_dir):
 def smoke_run(project, tmp_path, capsys, monkeypatch):
     """The smoke sweep (3 trials per study) with tracking in a temporary store, without the
     family's learning curves and SHAP figures (about half the command's CPU time; a sweep's
-    are checked by test_services.py on the same ``record``, an evaluate's by test_cli.py)."""
+    are checked by test_services.py on the same ``record``, an evaluate's by test_cli.py).
+
+    First stopped by ``--timeout`` after its first trial (exit 124), then resumed by the same
+    command without it, with ``--out``. Returns the result, the store, standard error."""
     from workbench.experiment.families import Artifacts
     from workbench.experiment.families.eigenvalue import EigenvalueFamily
 
@@ -41,8 +44,9 @@ def smoke_run(project, tmp_path, capsys, monkeypatch):
                         lambda *args, **kwargs: lambda emit=None: Artifacts())
     out = tmp_path / "out.json"
     uri = f"sqlite:///{tmp_path / 'store' / 'mlflow.db'}"
-    assert main(["sweep", str(project), "--trials", "3", "--json", str(out),
-                 "--tracking-uri", uri]) == 0
+    args = ["sweep", str(project), "--trials", "3", "--tracking-uri", uri]
+    assert main([*args, "--timeout", "0.01"]) == 124  # no trial starts after the first
+    assert main([*args, "--json", str(out), "--out", str(tmp_path / "out")]) == 0
     return json.loads(out.read_text()), uri, capsys.readouterr().err
 
 
@@ -59,23 +63,30 @@ def test_smoke_sweep_json_and_tracking(smoke_run, tmp_path, project):
                 "best_params", "mlflow"):
         assert key in res
     assert len(res["nested_cv_mae"]) == len(res["best_params"]) == 5
+    # resumed after the timeout to every study's budget
     assert res["trials"] == {"per_study": 3, "counted": 5 * 4 * 3, "studies": 20}
     assert all(p is None or "basis" in p for p in res["best_params"])
     # the nested-CV estimate of the model beats the prior's on the training rows
     assert res["nested_cv_mae_avg"] < res["nested_cv_prior_mae_avg"]
     assert (tmp_path / "mlruns" / "optuna.journal").is_file()
     assert "trial   0" in err and "best" in err  # a progress line per trial
+    stopped = [line for line in err.splitlines() if "timeout" in line]
+    assert len(stopped) == 1 and "run the same command again to resume" in stopped[0]
 
     client = MlflowClient(uri)
     run = client.get_run(res["mlflow"]["run_id"])
-    parents = client.search_runs([run.info.experiment_id],
-                                 "tags.`workbench.kind` = 'sweep'")
-    assert len(parents) == 1
-    children = client.search_runs([run.info.experiment_id],
-                                  f"tags.mlflow.parentRunId = '{run.info.run_id}'",
-                                  max_results=1000)
-    kinds = pd.Series([c.data.tags["workbench.kind"] for c in children]).value_counts()
-    assert kinds["trial"] == 60 and kinds["outer_fold"] == 15
+    every = client.search_runs([run.info.experiment_id], max_results=1000)
+    assert not [r for r in every if r.info.status == "RUNNING"]
+    # the run stopped by the timeout ended KILLED, with its one trial; the resumed one has
+    # the other trials
+    parents = {r.info.status: r.info.run_id for r in every
+               if r.data.tags["workbench.kind"] == "sweep"}
+    assert sorted(parents) == ["FINISHED", "KILLED"] and parents["FINISHED"] == run.info.run_id
+    kinds = pd.crosstab(pd.Series([r.data.tags.get("mlflow.parentRunId") for r in every]),
+                        pd.Series([r.data.tags["workbench.kind"] for r in every]))
+    assert kinds.loc[parents["KILLED"]].sum() == kinds.loc[parents["KILLED"], "trial"] == 1
+    assert kinds.loc[run.info.run_id, "trial"] == 59
+    assert kinds.loc[run.info.run_id, "outer_fold"] == 15
     for name in ("test_mae_avg", "prior_test_mae_avg", "nested_cv_mae_avg", "cv_mae_avg",
                  "test_mae/eeig1", "test_mse/eeig5", "nested_cv_mae/eeig3"):
         assert name in run.data.metrics
@@ -101,6 +112,32 @@ def test_smoke_sweep_json_and_tracking(smoke_run, tmp_path, project):
     assert len(plots) >= 3 and all(p.endswith(".png") for p in plots)
     local = client.download_artifacts(run.info.run_id, plots[0], str(tmp_path))
     assert matplotlib.image.imread(local).size > 0
+
+    # Optuna's figures of every study, in its outer fold's run (the final studies, which
+    # have none, in the sweep's) and under --out, and the importances
+    def is_png(path):
+        return path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and matplotlib.image.imread(path).size
+
+    optuna_dir = Path(client.download_artifacts(run.info.run_id, "optuna", str(tmp_path / "dl")))
+    folds = {r.data.tags["study"]: r.info.run_id for r in every
+             if r.data.tags["workbench.kind"] == "outer_fold"
+             and r.data.tags.get("mlflow.parentRunId") == run.info.run_id}
+    assert len(folds) == 15 and all(".outer" in name for name in folds)
+    in_runs = {name: Path(client.download_artifacts(folds[name], "optuna",
+                                                    str(tmp_path / "dl" / name)))
+               if name in folds else optuna_dir / "studies" / name for name in names}
+    assert sorted(p.name for p in (optuna_dir / "studies").iterdir()) == sorted(
+        name for name in names if name.endswith(".final"))
+    for folder in (optuna_dir, tmp_path / "out"):
+        for name in names:
+            study = folder / "studies" / name if folder != optuna_dir else in_runs[name]
+            for figure in ("history", "importances", "parallel_coordinate", "slice"):
+                assert is_png(study / f"{figure}.png"), (name, figure)
+            table = pd.read_csv(study / "importances.csv")
+            assert list(table.columns) == ["param", "importance"] and len(table) >= 2
+            assert table["importance"].sum() == pytest.approx(1.0)
+        assert is_png(folder / "outer_folds.png")
+        assert set(pd.read_csv(folder / "importances.csv")["study"]) == set(names)
 
     ds = load_google_5q()
     _, X_test, _, _ = ds.split()
@@ -318,4 +355,5 @@ def test_sweep_workers_are_the_command_s_worker_processes(tmp_path):
     assert all(worker == "True" and jobs == "1" for _, worker, jobs in seen)
     study = optuna.load_study(study_name="a", storage=open_storage(str(journal), tmp_path))
     assert study.user_attrs == {"sweep": "s", "fold": 0}  # created once, before the workers
+
 

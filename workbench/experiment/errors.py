@@ -17,9 +17,9 @@ from typing import Any
 
 from .._text import clip
 
-__all__ = ["ConfigError", "StorageError", "TrackingError", "UsageError", "clip", "disk_full",
-           "driver_hint", "listing", "redact", "redact_config", "redact_urls", "shorten",
-           "unknown_keys"]
+__all__ = ["ConfigError", "StorageError", "SweepTimedOut", "TrackingError", "UsageError", "clip",
+           "disk_full", "driver_hint", "listing", "redact", "redact_config", "redact_urls",
+           "shorten", "unknown_keys"]
 
 
 class ConfigError(ValueError):
@@ -39,6 +39,18 @@ class StorageError(ValueError):
 
 class TrackingError(RuntimeError):
     """The tracking store cannot be used (locked, corrupt, unreachable, ...)."""
+
+
+class SweepTimedOut(Exception):
+    """A sweep stopped by its timeout before every study had its trials.
+
+    Not an error: the studies keep their trials and the same command resumes them. The
+    command's MLflow run ends ``KILLED`` (stopped before its end, as by Ctrl-C; no model, no
+    test metrics) and the command exits :attr:`code`, one line on standard error.
+    """
+
+    #: The exit code (that of coreutils' ``timeout``).
+    code = 124
 
 
 def shorten(value: Any, limit: int = 60) -> str:

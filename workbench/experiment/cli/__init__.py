@@ -15,6 +15,7 @@ import sys
 from ..errors import (
     ConfigError,
     StorageError,
+    SweepTimedOut,
     TrackingError,
     UsageError,
     clip,
@@ -43,7 +44,7 @@ def main(argv: list[str] | None = None) -> int:
     -------
     int
         The exit code: 0, 2 for an error reported in one line (a full disk included),
-        130/143 when interrupted.
+        124 for a sweep stopped by its timeout, 130/143 when interrupted.
     """
     commands.mark_start()
     args = build_parser().parse_args(argv)
@@ -62,6 +63,9 @@ def main(argv: list[str] | None = None) -> int:
     except (ConfigError, DatasetError, TrackingError, UsageError, StorageError) as exc:
         print(error_line(exc), file=sys.stderr)
         return 2
+    except SweepTimedOut as exc:  # resumable: one line saying how
+        print(f"workbench: {exc}", file=sys.stderr)
+        return exc.code
     except Exception as exc:  # a full disk anywhere (the cases known are one line already)
         where = disk_full(exc)
         if where is None:

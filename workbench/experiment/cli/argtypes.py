@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-__all__ = ["count", "fraction", "nested_folds", "override", "seed", "seeds"]
+__all__ = ["count", "fraction", "nested_folds", "override", "seconds", "seed", "seeds"]
 
 #: Most seeds ``--seeds`` takes (each is one more fit of the whole model).
 MAX_SEEDS = 1000
@@ -67,6 +67,33 @@ def fraction(value: str) -> float:
     if not 0.0 < number < 1.0:
         raise argparse.ArgumentTypeError(f"expected a number between 0 and 1 (exclusive), got "
                                          f"{value[:40]!r}")
+    return number
+
+
+def seconds(value: str) -> float:
+    """``--timeout``: a number of seconds > 0.
+
+    Parameters
+    ----------
+    value : str
+        The command-line text.
+
+    Returns
+    -------
+    float
+        The seconds.
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        For anything else.
+    """
+    try:
+        number = float(value)
+    except ValueError:
+        number = float("nan")
+    if not 0.0 < number < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a number of seconds > 0, got {value[:40]!r}")
     return number
 
 

@@ -133,6 +133,15 @@ def _add_sweep(sub: Subparsers) -> None:
                     help="processes working on the shared storage")
     sw.add_argument("--storage", default=None,
                     help="Optuna storage: a journal file path or an RDB URL")
+    sw.add_argument("--timeout", type=argtypes.seconds, default=None, metavar="SECONDS",
+                    help="start no trial after SECONDS of search (Optuna's timeout; the "
+                    "running trials finish); a sweep stopped so ends its MLflow run KILLED "
+                    "and exits 124, and the same command resumes it (overrides [study] "
+                    "timeout)")
+    sw.add_argument("--out", metavar="DIR", default=None,
+                    help="also write each study's Optuna figures (PNG) and parameter "
+                    "importances (CSV) to DIR/studies/<study>/, and the outer folds' summary "
+                    "figure to DIR")
     _repair_arg(sw)
     sw.add_argument("--json", metavar="PATH", help="also write the results as JSON")
     _model_args(sw)

@@ -62,7 +62,7 @@ if TYPE_CHECKING:
 log = logging.getLogger("workbench")
 
 __all__ = ["OBJECTIVE", "TrialSeededSampler", "fail_stale", "is_counted", "open_study",
-           "pruner", "run_studies", "run_study", "sampler", "trial_seed"]
+           "pruner", "run_studies", "run_study", "sampler", "studies_short", "trial_seed"]
 
 
 def trial_seed(seed: int, study_name: str, number: int) -> int:
@@ -322,16 +322,43 @@ def run_studies(cfg: ExperimentConfig, studies: list[tuple[optuna.Study, Callabl
                 on_trial: Callable[[optuna.Study, FrozenTrial], None] | None = None) -> None:
     """Run (or resume) ``(study, objective)`` pairs to their budgets in this process.
 
-    Each study has its own sampler (see :func:`sampler`).
+    Each study has its own sampler (see :func:`sampler`). ``[study] timeout`` (``--timeout``)
+    bounds the whole call, as Optuna's ``study.optimize(timeout=...)`` bounds one study: no
+    trial starts once it has passed, and the running one finishes (the studies are then
+    short of their budgets; :func:`studies_short` tells).
     """
     if not studies:
         return
     for study, _ in studies:
         fail_stale(study, cfg.study.stale_after_s)  # every dead trial at once, not per study
+    deadline = None if cfg.study.timeout is None else time.monotonic() + cfg.study.timeout
     # First pass: take trials wherever budget is left, never idling while another worker
     # finishes a study's last trials; second pass: make sure every study is complete.
     for wait in (False, True):
         for study, objective in studies:
-            run_study(study, objective, cfg.study.trials, timeout=cfg.study.timeout,
+            left = None if deadline is None else deadline - time.monotonic()
+            if left is not None and left <= 0:
+                return
+            run_study(study, objective, cfg.study.trials, timeout=left,
                       stale_after_s=cfg.study.stale_after_s, progress=progress, wait=wait,
                       on_trial=on_trial)
+
+
+def studies_short(studies: Sequence[optuna.Study], n_trials: int) -> tuple[int, int]:
+    """Count the studies' counted trials, and the trials their budgets call for.
+
+    Parameters
+    ----------
+    studies : sequence of optuna.Study
+        A sweep's studies.
+    n_trials : int
+        Each study's budget (``[study] trials``).
+
+    Returns
+    -------
+    tuple of int
+        ``(finished, wanted)``: counted trials not running, and ``n_trials`` per study.
+    """
+    done = sum(is_counted(t) and t.state.is_finished()
+               for s in studies for t in s.get_trials(deepcopy=False))
+    return done, n_trials * len(studies)

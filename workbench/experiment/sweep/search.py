@@ -33,11 +33,11 @@ from sklearn.model_selection import KFold, RepeatedKFold
 
 from ...parallel import Task, map_tasks
 from ..config import ExperimentConfig, load_dataset
-from ..errors import redact
+from ..errors import SweepTimedOut, redact
 from ..evaluate import fit_and_score
 from ..metrics import mean_absolute_error
 from ..results import OuterFold, Result, SweepSummary
-from .scheduler import is_counted, open_study, pruner, run_studies, sampler
+from .scheduler import is_counted, open_study, pruner, run_studies, sampler, studies_short
 from .storage import open_storage
 from .workers import search_in_workers
 
@@ -268,6 +268,20 @@ def _outer_folds(cfg: ExperimentConfig, ds: Dataset, specs: list[StudySpec],
     return folds, nested, nested_prior
 
 
+def _check_complete(cfg: ExperimentConfig, studies: list[optuna.Study],
+                    storage_url: str) -> None:
+    """Raise :class:`SweepTimedOut` when the timeout left a study short of its trials."""
+    timeout = cfg.study.timeout
+    if timeout is None:  # the search returns only with every study complete
+        return
+    done, wanted = studies_short(studies, cfg.study.trials)
+    if done < wanted:
+        raise SweepTimedOut(
+            f"sweep stopped by its timeout ({timeout:g} s) with {done} of {wanted} trials "
+            f"finished; run the same command again to resume (the studies in "
+            f"{redact(storage_url)} keep their trials)")
+
+
 def run_sweep(cfg: ExperimentConfig, *, progress: bool = True,
               on_trial: Callable | None = None, dataset: Dataset | None = None) -> Sweep:
     """Search, then evaluate the chosen configuration once on the test rows.
@@ -305,6 +319,7 @@ def run_sweep(cfg: ExperimentConfig, *, progress: bool = True,
     studies = {s.name: optuna.load_study(study_name=s.name, storage=storage,
                                          sampler=sampler(cfg), pruner=pruner(cfg))
                for s in specs}
+    _check_complete(cfg, list(studies.values()), storage_url)
     params_of = {spec.name: _best_params(studies[spec.name]) for spec in specs}
     best = {spec.unit: params_of[spec.name] for spec in specs if spec.fold is None}
     folds, nested, nested_prior = _outer_folds(cfg, ds, specs, params_of)

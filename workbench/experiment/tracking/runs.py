@@ -18,7 +18,7 @@ from mlflow import MlflowClient
 from mlflow.entities import Metric, Param, RunTag
 from mlflow.exceptions import MlflowException
 
-from ..errors import TrackingError, redact
+from ..errors import SweepTimedOut, TrackingError, redact
 from ..signals import ignoring_signals
 from .artifacts import ArtifactRecords
 from .models import ModelRecords
@@ -223,8 +223,9 @@ class Tracker(ModelRecords, ArtifactRecords):
             params: Mapping[str, Any] | None = None) -> Iterator[str]:
         """Run a block inside a run: ``with tracker.run("fold-0", parent_run_id=pid) as run_id:``.
 
-        The run ends ``FINISHED``, or ``FAILED`` (``KILLED`` on ``KeyboardInterrupt``) and the
-        error is re-raised. The arguments are :meth:`start_run`'s.
+        The run ends ``FINISHED``, or ``FAILED`` (``KILLED`` on ``KeyboardInterrupt`` or a
+        sweep's timeout, :class:`~workbench.experiment.errors.SweepTimedOut`) and the error
+        is re-raised. The arguments are :meth:`start_run`'s.
 
         Yields
         ------
@@ -235,7 +236,8 @@ class Tracker(ModelRecords, ArtifactRecords):
         try:
             yield run_id
         except BaseException as exc:
-            status = "KILLED" if isinstance(exc, KeyboardInterrupt) else "FAILED"
+            stopped = isinstance(exc, (KeyboardInterrupt, SweepTimedOut))
+            status = "KILLED" if stopped else "FAILED"
             with ignoring_signals():  # a second Ctrl-C does not stop the end being written
                 try:
                     self.end_run(run_id, status)
