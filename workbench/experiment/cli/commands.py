@@ -10,7 +10,6 @@ import argparse
 import dataclasses
 import importlib
 import json
-import logging
 import threading
 import time
 from collections.abc import Callable, Iterable
@@ -130,47 +129,6 @@ def reproduce(args: argparse.Namespace) -> int:
     return 0
 
 
-def _fold_runs(tracker: Any, run_id: str) -> dict[str, str]:
-    """Map each outer-fold study to its run (a child of the sweep's run, tagged ``study``)."""
-    runs = tracker.client.search_runs(
-        [tracker.experiment_id], max_results=10_000,
-        filter_string=f"tags.`mlflow.parentRunId` = '{run_id}' "
-                      "and tags.`workbench.kind` = 'outer_fold'")
-    return {r.data.tags["study"]: r.info.run_id for r in runs if "study" in r.data.tags}
-
-
-def _sweep_figures(done: Any, out: str | None, tracker: Any, run_id: str | None) -> None:
-    """Draw a sweep's Optuna figures into its runs (``optuna/``) and ``--out`` (if given).
-
-    An outer fold's study goes to that fold's run, the final studies (no run of their own)
-    and the tables across studies to the sweep's run, under ``optuna/studies/<study>/``.
-    """
-    if out is None and run_id is None:
-        return
-    import shutil
-    import tempfile
-
-    from ..sweep.report import write_sweep_figures
-
-    cfg = done.config
-    seed = cfg.random_state if cfg.random_state is not None else cfg.cv.seed
-    start = time.perf_counter()
-    with tempfile.TemporaryDirectory(prefix="workbench-optuna-") as tmp:
-        write_sweep_figures(done, tmp, seed, cfg.jobs)
-        logging.getLogger("workbench").info(
-            "[%s] Optuna figures of %d studies in %.1f s", cfg.name, len(done.studies),
-            time.perf_counter() - start)
-        if out is not None:
-            shutil.copytree(tmp, out, dirs_exist_ok=True)
-        if run_id is not None:
-            for study, fold_run in _fold_runs(tracker, run_id).items():
-                folder = Path(tmp) / "studies" / study
-                if folder.is_dir():
-                    tracker.log_file(fold_run, folder, "optuna")
-                    shutil.rmtree(folder)
-            tracker.log_file(run_id, tmp, "optuna")
-
-
 def sweep(args: argparse.Namespace) -> int:
     """``workbench sweep``: the nested-CV search, then the chosen model's evaluation.
 
@@ -219,7 +177,9 @@ def sweep(args: argparse.Namespace) -> int:
                 result.mlflow = record(done.config, result, done.model, done.dataset,
                                        computed, kind="sweep", tracking_uri=args.tracking_uri,
                                        sweep=done, run_id=run_id, register=args.register)
-        _sweep_figures(done, args.out, tracker, run_id)
+        from ..sweep.report import figures_of_sweep
+
+        figures_of_sweep(done, args.out, tracker, run_id)
         result.wall_s = wall()
         if run_id is not None:  # the same figure in MLflow, the output and --json
             from ..record import record_wall_time

@@ -13,6 +13,9 @@ with the reason and left out.
 from __future__ import annotations
 
 import logging
+import shutil
+import tempfile
+import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -30,7 +33,7 @@ from .scheduler import OBJECTIVE
 if TYPE_CHECKING:
     from .search import Sweep
 
-__all__ = ["DPI", "draw_study", "write_sweep_figures"]
+__all__ = ["DPI", "draw_study", "figures_of_sweep", "write_sweep_figures"]
 
 log = logging.getLogger("workbench")
 
@@ -109,3 +112,50 @@ def write_sweep_figures(sweep: Sweep, directory: str | Path, seed: int,
     save_figure(outer_folds_figure(sweep.outer_folds, sweep.dataset.unit),
                 folder / "outer_folds.png", dpi=DPI)
     return folder
+
+
+def _fold_runs(tracker: Any, run_id: str) -> dict[str, str]:
+    """Map each outer-fold study to its run (a child of the sweep's run, tagged ``study``)."""
+    runs = tracker.client.search_runs(
+        [tracker.experiment_id], max_results=10_000,
+        filter_string=f"tags.`mlflow.parentRunId` = '{run_id}' "
+                      "and tags.`workbench.kind` = 'outer_fold'")
+    return {r.data.tags["study"]: r.info.run_id for r in runs if "study" in r.data.tags}
+
+
+def figures_of_sweep(done: Sweep, out: str | None, tracker: Any, run_id: str | None) -> None:
+    """Draw a sweep's Optuna figures into its runs (``optuna/``) and ``--out`` (if given).
+
+    An outer fold's study goes to that fold's run, the final studies (no run of their own)
+    and the tables across studies to the sweep's run, under ``optuna/studies/<study>/``.
+
+    Parameters
+    ----------
+    done : Sweep
+        The finished sweep.
+    out : str or None
+        ``sweep --out``: a directory that gets the same files.
+    tracker : Tracker or None
+        The command's tracker (``None`` without tracking).
+    run_id : str or None
+        The sweep's run.
+    """
+    if out is None and run_id is None:
+        return
+    cfg = done.config
+    seed = cfg.random_state if cfg.random_state is not None else cfg.cv.seed
+    start = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="workbench-optuna-") as tmp:
+        write_sweep_figures(done, tmp, seed, cfg.jobs)
+        log.info(
+            "[%s] Optuna figures of %d studies in %.1f s", cfg.name, len(done.studies),
+            time.perf_counter() - start)
+        if out is not None:
+            shutil.copytree(tmp, out, dirs_exist_ok=True)
+        if run_id is not None:
+            for study, fold_run in _fold_runs(tracker, run_id).items():
+                folder = Path(tmp) / "studies" / study
+                if folder.is_dir():
+                    tracker.log_file(fold_run, folder, "optuna")
+                    shutil.rmtree(folder)
+            tracker.log_file(run_id, tmp, "optuna")
