@@ -208,6 +208,7 @@ def test_evaluate_is_tracked_and_the_model_serves(cli_run):
     assert np.allclose(got[[f"{t}_lower" for t in ds.target_names]].to_numpy(), lower)
 
 
+@pytest.mark.slow  # 23 s; test_run_outputs checks a tracked run logs the very files --out wrote
 def test_evaluate_without_tracking_writes_the_same_outputs(cli_run, tmp_path):
     """``--out`` with and without tracking: the same files, byte for byte, and the same
     numbers; the tracked run logged those very files (figures and tables)."""

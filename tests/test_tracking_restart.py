@@ -5,6 +5,7 @@ RUNNING (issue 35)."""
 
 from __future__ import annotations
 
+import re
 import subprocess
 import time
 
@@ -116,6 +117,8 @@ def test_a_tracking_server_that_stays_away_ends_in_one_line(server, tmp_path):
     text = err.read_text()
     line = _one_error_line(text)
     shown = server.uri.replace("http://", "http://u:***@")
-    assert code == 2 and line.startswith(f"workbench: error: cannot reach the MLflow "
-                                         f"tracking store {shown} (connection refused"), text
+    # refused, or dropped where the kill landed while a request was in flight
+    assert code == 2 and re.match(rf"workbench: error: cannot reach the MLflow tracking store "
+                                  rf"{re.escape(shown)} \(connection (refused|dropped)",
+                                  line), text
     assert SECRET not in text
