@@ -255,11 +255,10 @@ def record_seed(cfg: ExperimentConfig, run: Evaluation, predictions: pd.DataFram
     """
     tracker = tracker_for(cfg, tracking_uri)
     ds, result = run.dataset, run.result
-    X_train, X_test, _, _ = ds.split(cfg.family.inputs(cfg, ds))
     tracker.set_tags(run_id, {**run_tags(cfg, ds, "evaluate"), "workbench.kind": "seed",
                               "workbench.seed": cfg.random_state,
                               NOTE_TAG: _description(cfg, ds, "evaluate", result)})
-    tracker.log_params(run_id, run_params(cfg, result.targets, len(X_train), len(X_test)))
+    tracker.log_params(run_id, run_params(cfg, result.targets, result.n_train, result.n_test))
     tracker.log_metrics(run_id, result_metrics(result))
     tracker.log_dict(run_id, json.loads(json.dumps(result.to_json(), default=str)),
                      "result.json")
