@@ -41,6 +41,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from scipy.stats import spearmanr
 from sklearn.base import clone
 
 HERE = Path(__file__).resolve().parent
@@ -96,6 +97,10 @@ def oracles(est, X_train, y, X_test, y_test) -> dict:
                                         predictions, prior_test))
               for key, weights in (("greedy", greedy_weights), ("top_k", top_k_weights))}
     mae = {name: float(np.mean(np.abs(y_test - p))) for name, p in predictions.items()}
+    tied = indistinguishable(est.candidate_scores_, set(est.candidate_predictions_))
+    honest["tied_mean"] = _mae(y_test, chooser({n: 1 / len(tied) for n in tied}, est, y,
+                                               predictions, prior_test))
+    cv_mae = {n: -float(np.mean(est.candidate_scores_[n])) for n in mae}
     ranked = sorted(mae, key=mae.get)
     means = [float(np.mean(np.abs(y_test - np.mean([predictions[n] for n in ranked[:k]],
                                                     axis=0))))
@@ -103,7 +108,24 @@ def oracles(est, X_train, y, X_test, y_test) -> dict:
     return dict(cv=float(np.mean(np.abs(y_test - est.predict(X_test)))), **honest,
                 chosen=est.selected_candidate_ or "prior", best_single=mae[ranked[0]],
                 best_single_name=ranked[0], best_mean=min(means),
-                best_mean_k=int(np.argmin(means)) + 1, candidates=len(mae))
+                best_mean_k=int(np.argmin(means)) + 1, candidates=len(mae),
+                tied=len(tied), tied_pick=float(np.mean([mae[n] for n in tied])),
+                tied_best=min(mae[n] for n in tied), oracle_tied=ranked[0] in tied,
+                rank_rho=float(spearmanr([cv_mae[n] for n in mae], list(mae.values()))[0]))
+
+
+def indistinguishable(fold_scores: dict, ok: set) -> list:
+    """The candidates CV cannot tell from its best: those whose mean fold score is within one
+    standard error of the paired fold differences from the best's (the one-standard-error
+    rule of Breiman et al., paired); the best included."""
+    names = [n for n in fold_scores if n in ok]
+    best = max(names, key=lambda n: np.mean(fold_scores[n]))
+    out = []
+    for n in names:
+        d = np.asarray(fold_scores[best]) - np.asarray(fold_scores[n])
+        if n == best or d.mean() <= d.std(ddof=1) / np.sqrt(len(d)):
+            out.append(n)
+    return out
 
 
 def _with_ratio(row: dict, key: str) -> str:
@@ -128,7 +150,8 @@ def run(name: str, seed: int, config: Path, tmp: Path) -> dict:
         per_target[target] = oracles(est, X_train, Y_train[target].to_numpy(), X_test,
                                      Y_test[target].to_numpy())
     avg = {k: float(np.mean([t[k] for t in per_target.values()]))
-           for k in ("cv", "greedy", "top_k", "best_single", "best_mean")}
+           for k in ("cv", "greedy", "top_k", "tied_mean", "best_single", "best_mean",
+                     "tied_pick", "tied_best")}
     return dict(dataset=name, seed=seed, **avg, targets=per_target)
 
 
@@ -159,7 +182,10 @@ def main() -> None:
                 rows.append(r)
                 print(f"{name} seed {seed}: peer " + _with_ratio(r, "peer") + ", CV choice "
                       + _with_ratio(r, "cv") + ", greedy " + _with_ratio(r, "greedy")
-                      + ", top k " + _with_ratio(r, "top_k") + ", oracle single "
+                      + ", top k " + _with_ratio(r, "top_k") + ", mean of the tied "
+                      + _with_ratio(r, "tied_mean") + ", random tied pick "
+                      + _with_ratio(r, "tied_pick") + ", best tied "
+                      + _with_ratio(r, "tied_best") + ", oracle single "
                       + _with_ratio(r, "best_single") + ", oracle mean "
                       + _with_ratio(r, "best_mean"), flush=True)
     for name in args.datasets:
@@ -169,7 +195,10 @@ def main() -> None:
             print(f"{name}: summed over {len(these)} split(s), / peer: CV choice "
                   f"{sum(r['cv'] for r in these) / peer:.3f}, greedy "
                   f"{sum(r['greedy'] for r in these) / peer:.3f}, top k "
-                  f"{sum(r['top_k'] for r in these) / peer:.3f}, oracle single "
+                  f"{sum(r['top_k'] for r in these) / peer:.3f}, mean of the tied "
+                  f"{sum(r['tied_mean'] for r in these) / peer:.3f}, random tied pick "
+                  f"{sum(r['tied_pick'] for r in these) / peer:.3f}, best tied "
+                  f"{sum(r['tied_best'] for r in these) / peer:.3f}, oracle single "
                   f"{sum(r['best_single'] for r in these) / peer:.3f}, oracle mean "
                   f"{sum(r['best_mean'] for r in these) / peer:.3f}; median oracle-mean "
                   f"ratio {statistics.median(r['best_mean'] / r['peer'] for r in these):.3f}")

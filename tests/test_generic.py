@@ -78,6 +78,24 @@ def test_candidates_are_bases_draws_and_losses(tmp_path: Path) -> None:
     assert not has_candidates(plain.model_for("t"))
 
 
+def test_line_search_losses_are_candidates_too(tmp_path: Path) -> None:
+    """``line_search_loss`` as a list: every basis and loss with each, named ``line:<loss>``
+    (the stage loss and the line-search loss can share a name)."""
+    cfg = load_config(_config(tmp_path, 'basis = "ridge"\nloss = ["squared_error", "huber"]\n'
+                              'line_search_loss = ["absolute_error", "huber"]\n'))
+    s = cfg.model_for("t")
+    assert has_candidates(s)
+    cands = candidate_settings(s, cfg.random_state)
+    assert [n for n, _ in cands] == [
+        "squared_error/line:absolute_error", "squared_error/line:huber",
+        "huber/line:absolute_error", "huber/line:huber"]
+    assert [(c["loss"], c["line_search_loss"]) for _, c in cands] == [
+        ("squared_error", "absolute_error"), ("squared_error", "huber"),
+        ("huber", "absolute_error"), ("huber", "huber")]
+    with pytest.raises(ConfigError, match="line_search_loss"):
+        load_config(_config(tmp_path, 'line_search_loss = ["absolute_error", "bogus"]\n'))
+
+
 @pytest.mark.parametrize("model, message", [
     ('loss = ["huber", "huber"]', "distinct loss"),
     ('loss = ["huber", "bogus"]', "loss"),

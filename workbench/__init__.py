@@ -27,6 +27,7 @@ _EXPORTS = {
     "PriorDerivedInputs": "derived",
     "ARDGaussianProcess": "gp",
     "BaseBoostCV": "selection",
+    "StageChoiceCV": "stagewise",
 }
 
 __all__ = sorted(_EXPORTS)

@@ -35,6 +35,7 @@ from sklearn.utils.validation import check_is_fitted
 from .boosting import CachedParamNames
 from .derived import PriorDerivedInputs
 from .gp import ARDGaussianProcess
+from .stagewise import StageChoiceCV
 
 __all__ = [
     "BASES",
@@ -425,6 +426,21 @@ def spline(*, n_knots: int = 5, degree: int = 3, knots: Any = "quantile",
                      ("ridge", Ridge(alpha=alpha))])
 
 
+def stagewise(*, candidates: Iterable[str] = ("ridge", "spline", "lightgbm"), cv: int = 3,
+              **nested: Any) -> StageChoiceCV:
+    """Heterogeneous stages: a :class:`~workbench.stagewise.StageChoiceCV` over the bases
+    ``candidates`` (names of :data:`BASES`, each with its defaults), which chooses each
+    stage's basis by ``cv``-fold CV on that stage's own residuals (with ``n_stages`` > 1:
+    e.g. a ridge or spline stage for a smooth trend, then trees for what is left). A
+    candidate's parameters are set as ``<name>__<param>``, as in a Pipeline (e.g.
+    ``lightgbm__num_leaves = 15``; ranges there are drawn like any basis's)."""
+    names = list(candidates)
+    if "stagewise" in names:
+        raise ValueError("stagewise: a candidate cannot be stagewise itself")
+    chooser = StageChoiceCV([(name, make_basis(name)) for name in names], cv=cv)
+    return chooser.set_params(**nested) if nested else chooser
+
+
 #: Basis factories by name.
 BASES: dict[str, Callable[..., Any]] = {
     "paper_stacking": paper_stacking,
@@ -435,6 +451,7 @@ BASES: dict[str, Callable[..., Any]] = {
     "gaussian_process": gaussian_process,
     "gp_ard": gp_ard,
     "spline": spline,
+    "stagewise": stagewise,
 }
 
 

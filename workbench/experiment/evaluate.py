@@ -296,6 +296,9 @@ def format_table(result: Result) -> str:
                      f"{scores[choice['chosen']]:.4g}); lowest CV MAE "
                      + ", ".join(f"{name} {scores[name]:.4g}" for name in best)
                      + f" of {len(scores)} (the prior included)")
+    for target, chosen in result.details.get("stages", {}).items():
+        lines.append(f"{target}: each stage's basis by CV on its residuals: "
+                     + " > ".join(chosen))
     if result.repeated_cv is not None:
         r = result.repeated_cv
         lines.append(f"repeated CV on the training rows ({r.repeats} x {r.folds} folds): "

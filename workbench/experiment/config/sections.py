@@ -32,8 +32,8 @@ class BoostSettings(Section):
     (:meth:`~workbench.experiment.config.ExperimentConfig.model_for` merges them).
     ``n_stages``, ``loss``, ``line_search_loss``, ``line_search_penalty``, ``alpha``,
     ``link`` and ``out_of_bounds`` are BaseBoostRegressor's parameters, checked against its
-    ``_parameter_constraints``; a list of bases, losses, links or input transforms makes
-    candidates that CV chooses among per target (``[selection]``).
+    ``_parameter_constraints``; a list of bases, losses, line-search losses, links or input
+    transforms makes candidates that CV chooses among per target (``[selection]``).
 
     Parameters
     ----------
@@ -51,8 +51,9 @@ class BoostSettings(Section):
         The loss whose negative gradient each stage fits, a name in
         :data:`workbench.losses.LOSSES` (e.g. ``"squared_error"``, ``"huber"``); a list:
         candidates.
-    line_search_loss : str, default=None
-        The loss of the line search that sets each stage's coefficient.
+    line_search_loss : str or list of str, default=None
+        The loss of the line search that sets each stage's coefficient (a name in
+        :data:`workbench.losses.LOSSES`); a list: candidates.
     line_search_penalty : float, default=None
         The L1 penalty on each stage's coefficient in the line search (0: none).
     alpha : float, default=None
@@ -80,7 +81,7 @@ class BoostSettings(Section):
     # 1e6 stages is refused at load instead of running for days
     n_stages: Annotated[int, _Boost] | None = Field(default=None, le=10_000)
     loss: Annotated[str, _Boost] | list[Annotated[str, _Boost]] | None = None
-    line_search_loss: Annotated[str, _Boost] | None = None
+    line_search_loss: Annotated[str, _Boost] | list[Annotated[str, _Boost]] | None = None
     line_search_penalty: Annotated[float, _Boost] | None = None
     alpha: Annotated[float, _Boost] | None = None
     # "identity": the stages add to the prior; "log": they multiply it (positive quantities)

@@ -35,7 +35,7 @@ def check_boost_settings(settings: dict[str, Any]) -> None:
     ValueError
         The offending key first, then its value and what is allowed.
     """
-    for key in ("loss", "link", "input_transform"):
+    for key in ("loss", "line_search_loss", "link", "input_transform"):
         if isinstance(settings.get(key), list):  # candidates chosen by CV per target
             values = settings[key]
             if not values or len(set(values)) != len(values):

@@ -36,10 +36,10 @@ from ..figures import correction_shap_figure, learning_curve_figure, shap_figure
 from ..results import ModelScores, Scores, mae, mse
 from .artifacts import Artifacts
 from .base import ModelFamily, Report
+from .choices import candidate_choices
 from .fitting import quiet_fit
 from .stage import (
     booster_cv,
-    candidate_choices,
     make_booster,
     per_target_boost,
     stage_scores,

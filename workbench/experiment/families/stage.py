@@ -26,8 +26,8 @@ if TYPE_CHECKING:
     from ...datasets import Dataset
     from ..config import ExperimentConfig
 
-__all__ = ["booster_cv", "candidate_choices", "candidate_settings", "cv_mse", "has_candidates",
-           "make_booster", "per_target_boost", "selection_cv", "stage_scores", "target_inputs"]
+__all__ = ["booster_cv", "candidate_settings", "cv_mse", "has_candidates", "make_booster",
+           "per_target_boost", "selection_cv", "stage_scores", "target_inputs"]
 
 
 def make_booster(settings: dict[str, Any], prior: Any, inputs: list[str] | None,
@@ -68,8 +68,8 @@ def make_booster(settings: dict[str, Any], prior: Any, inputs: list[str] | None,
 def has_candidates(settings: dict[str, Any]) -> bool:
     """Tell whether a target's settings describe several candidates for CV to choose from.
 
-    They do with a list of bases, losses, links or input transforms, or ranges in a basis's
-    ``basis_params``.
+    They do with a list of bases, losses, line-search losses, links or input transforms, or
+    ranges in a basis's ``basis_params``.
 
     Parameters
     ----------
@@ -84,7 +84,7 @@ def has_candidates(settings: dict[str, Any]) -> bool:
     params = settings["basis_params"]
     tables = list(params.values()) if isinstance(settings["basis"], list) else [params]
     return (any(isinstance(settings.get(k), list)
-                for k in ("basis", "loss", "link", "input_transform"))
+                for k in ("basis", "loss", "line_search_loss", "link", "input_transform"))
             or any(isinstance(t, dict) and has_ranges(t) for t in tables))
 
 
@@ -92,11 +92,12 @@ def candidate_settings(settings: dict[str, Any],
                        seed: int | None) -> list[tuple[str, dict[str, Any]]]:
     """List the candidates of settings for which :func:`has_candidates`.
 
-    One per basis, drawn setting, loss, link and input transform (bases outer). A basis
-    whose ``basis_params`` hold ranges gives ``draws`` settings drawn at random (``seed``;
-    the same draws for every target, loss, link and transform), named ``basis#i``. A name
-    joins what varies: the basis (or draw), the loss, the link and the transform, e.g.
-    ``"ridge"``, ``"huber"``, ``"lightgbm#07/huber"``, ``"ridge/log"``,
+    One per basis, drawn setting, loss, line-search loss, link and input transform (bases
+    outer). A basis whose ``basis_params`` hold ranges gives ``draws`` settings drawn at
+    random (``seed``; the same draws for every target, loss, link and transform), named
+    ``basis#i``. A name joins what varies: the basis (or draw), the loss, the line-search
+    loss (after ``line:``), the link and the transform, e.g. ``"ridge"``, ``"huber"``,
+    ``"lightgbm#07/huber"``, ``"ridge/line:squared_error"``, ``"ridge/log"``,
     ``"lightgbm#03/identity/derived"``.
 
     Parameters
@@ -112,9 +113,12 @@ def candidate_settings(settings: dict[str, Any],
         Each candidate's name and settings.
     """
     bases, losses, links = settings["basis"], settings["loss"], settings.get("link", "identity")
-    transforms = settings["input_transform"]
+    transforms, line_losses = settings["input_transform"], settings["line_search_loss"]
     many_bases, many_losses = isinstance(bases, list), isinstance(losses, list)
     many_links, many_transforms = isinstance(links, list), isinstance(transforms, list)
+    many_line = isinstance(line_losses, list)
+    pairs = [(loss, line) for loss in (losses if many_losses else [losses])
+             for line in (line_losses if many_line else [line_losses])]
     out: list[tuple[str, dict[str, Any]]] = []
     for basis in (bases if many_bases else [bases]):
         params = settings["basis_params"].get(basis, {}) if many_bases else \
@@ -123,16 +127,18 @@ def candidate_settings(settings: dict[str, Any],
                   enumerate(draw_params(params, settings["draws"], seed))]
                  if has_ranges(params) else [(basis, params)])
         for label, values in drawn:
-            for loss in (losses if many_losses else [losses]):
+            for loss, line in pairs:
                 for link in (links if many_links else [links]):
                     for transform in (transforms if many_transforms else [transforms]):
                         parts = ([label] if many_bases or label != basis else []) + \
                             ([loss] if many_losses else []) + \
+                            ([f"line:{line}"] if many_line else []) + \
                             ([link] if many_links else []) + \
                             ([str(transform)] if many_transforms else [])
                         out.append(("/".join(parts), {
                             **settings, "basis": basis, "basis_params": values, "loss": loss,
-                            "link": link, "input_transform": transform}))
+                            "line_search_loss": line, "link": link,
+                            "input_transform": transform}))
     return out
 
 
@@ -311,35 +317,6 @@ def booster_cv(cfg: ExperimentConfig, ds: Dataset, target: str, settings: dict[s
                            n_priors=len(ds.prior_names))
     return BaseBoostCV(booster, cv=cv, scoring=cfg.selection.scoring,
                        random_state=cfg.random_state, **kwargs)
-
-
-def candidate_choices(targets: list[str], cvs: Sequence[Any]) -> dict[str, Any]:
-    """Collect what CV chose among candidates per target.
-
-    Parameters
-    ----------
-    targets : list of str
-        The targets.
-    cvs : sequence of estimators
-        Each target's fitted estimator (:class:`~workbench.selection.BasisChoiceCV` where
-        it had candidates).
-
-    Returns
-    -------
-    dict
-        The result's ``candidates`` section: per target, the winning candidate's name (basis
-        or draw, loss, link; ``"prior"`` when the prior alone won) and every candidate's CV
-        MAE; empty where no target had candidates.
-    """
-    out = {}
-    for target, est in zip(targets, cvs):
-        if isinstance(est, BasisChoiceCV):
-            out[target] = {
-                "chosen": est.selected_candidate_ or "prior",
-                "cv_mae": {"prior": float(-np.mean(est.cv_scores_prior_)),
-                           **{name: float(-np.mean(scores))
-                              for name, scores in est.candidate_scores_.items()}}}
-    return {"candidates": out} if out else {}
 
 
 def cv_mse(y: Any, predictions: Any) -> float:
