@@ -24,6 +24,21 @@ back to the prior where its out-of-fold MAE is not below the prior's:
 * **top k**: the mean of the ``k`` candidates with the lowest out-of-fold MAEs, ``k`` from
   1 to 10 chosen on the out-of-fold predictions.
 
+A third honest chooser and a yardstick come from CV's own resolution: the candidates CV
+cannot tell from its best (within one standard error of the paired fold differences, the
+one-standard-error rule) are **tied**; their mean is the third chooser, and a **random tied
+pick** (the mean test MAE of the tied candidates) is what choosing among them by chance
+would give. The **best tied** is an oracle within them, and ``rank_rho`` per target the
+Spearman correlation of the candidates' CV and test MAEs.
+
+The oracles on all test rows carry a winner's curse: the best of 50 candidates on 41 rows is
+partly the luckiest on those rows. The **held-out oracles** remove it: cross-fitted on the
+test rows, each choosing on four fifths of them (whole groups, e.g. devices, where they
+have groups) and scored on the other fifth, each row scored once per shuffle, 20 shuffles.
+They see rows of the test period or test devices themselves, which no chooser on the
+training rows sees; a goal above their ratios is beyond choosing among these candidates as
+far as the test rows can tell.
+
 Printed per dataset and seed: the peer's test MAE (from ``--peers``, the JSON
 ``peers.py --json`` wrote for the same splits; its tuning is seeded), the config's CV choice
 refitted here, and the two oracles, each also as a ratio to the peer. Where an oracle's ratio
@@ -52,6 +67,7 @@ from peers import BENCHMARKS, DEFAULT_SEEDS, simulated, write_config  # noqa: E4
 
 TOP = 10
 ROUNDS = 25
+FOLDS, REPEATS = 5, 20
 
 
 def _mae(y, p) -> float:
@@ -87,7 +103,36 @@ def chooser(weights: dict, est, y, predictions: dict, prior_test) -> np.ndarray:
     return sum(w * predictions[n] for n, w in weights.items())
 
 
-def oracles(est, X_train, y, X_test, y_test) -> dict:
+def held_out_oracles(predictions: dict, y_test: np.ndarray, groups, seed: int = 0,
+                     folds: int = FOLDS, repeats: int = REPEATS) -> tuple[float, float]:
+    """The two oracles without the winner's curse: cross-fitted on the test rows. The test
+    rows are dealt into ``folds`` folds (whole groups, where the test rows have groups), each
+    oracle chooses on the other folds' rows and is scored on the fold's, over ``repeats``
+    shuffles; returns the mean absolute error of the scored rows (each row once a repeat).
+    The best of 50 candidates on 41 rows is partly the luckiest on those rows; chosen on
+    other test rows, only what carries over from row to row is left."""
+    names = list(predictions)
+    P = np.array([predictions[n] for n in names])
+    err = np.abs(P - y_test)  # candidates x rows
+    labels = np.asarray(groups) if groups is not None else np.arange(len(y_test))
+    units = np.unique(labels)
+    rng = np.random.default_rng(seed)
+    single, mean = np.zeros(len(y_test)), np.zeros(len(y_test))
+    for _ in range(repeats):
+        fold_of = dict(zip(rng.permutation(units), np.arange(len(units)) % folds))
+        fold = np.array([fold_of[u] for u in labels])
+        for k in range(folds):
+            choose, score = fold != k, fold == k
+            ranked = np.argsort(err[:, choose].mean(axis=1))
+            top = ranked[:TOP]
+            means = np.cumsum(P[top], axis=0) / np.arange(1, len(top) + 1)[:, None]
+            best_k = int(np.argmin(np.abs(means[:, choose] - y_test[choose]).mean(axis=1)))
+            single[score] += err[ranked[0], score]
+            mean[score] += np.abs(means[best_k, score] - y_test[score])
+    return float(single.mean() / repeats), float(mean.mean() / repeats)
+
+
+def oracles(est, X_train, y, X_test, y_test, groups=None) -> dict:
     """Test MAE of the CV choice, of the two honest choosers and of the two oracles, for one
     target's fitted ``BasisChoiceCV`` ``est``."""
     fitted = {name: clone(cand).fit(X_train, y) for name, cand in est.candidates}
@@ -109,6 +154,8 @@ def oracles(est, X_train, y, X_test, y_test) -> dict:
                 chosen=est.selected_candidate_ or "prior", best_single=mae[ranked[0]],
                 best_single_name=ranked[0], best_mean=min(means),
                 best_mean_k=int(np.argmin(means)) + 1, candidates=len(mae),
+                **dict(zip(("held_out_single", "held_out_mean"),
+                           held_out_oracles(predictions, y_test, groups))),
                 tied=len(tied), tied_pick=float(np.mean([mae[n] for n in tied])),
                 tied_best=min(mae[n] for n in tied), oracle_tied=ranked[0] in tied,
                 rank_rho=float(spearmanr([cv_mae[n] for n in mae], list(mae.values()))[0]))
@@ -145,13 +192,14 @@ def run(name: str, seed: int, config: Path, tmp: Path) -> dict:
     ds = load_dataset(cfg)
     X_train, X_test, Y_train, Y_test = ds.split()
     model = per_target_boost(cfg, ds, ds.prior_names).fit(X_train, Y_train)
+    groups = None if ds.groups is None else ds.groups.loc[X_test.index].to_numpy()
     per_target = {}
     for target, est in zip(ds.target_names, model.estimators_):
         per_target[target] = oracles(est, X_train, Y_train[target].to_numpy(), X_test,
-                                     Y_test[target].to_numpy())
+                                     Y_test[target].to_numpy(), groups)
     avg = {k: float(np.mean([t[k] for t in per_target.values()]))
            for k in ("cv", "greedy", "top_k", "tied_mean", "best_single", "best_mean",
-                     "tied_pick", "tied_best")}
+                     "tied_pick", "tied_best", "held_out_single", "held_out_mean")}
     return dict(dataset=name, seed=seed, **avg, targets=per_target)
 
 
@@ -187,7 +235,9 @@ def main() -> None:
                       + _with_ratio(r, "tied_pick") + ", best tied "
                       + _with_ratio(r, "tied_best") + ", oracle single "
                       + _with_ratio(r, "best_single") + ", oracle mean "
-                      + _with_ratio(r, "best_mean"), flush=True)
+                      + _with_ratio(r, "best_mean") + ", held-out oracle single "
+                      + _with_ratio(r, "held_out_single") + ", held-out oracle mean "
+                      + _with_ratio(r, "held_out_mean"), flush=True)
     for name in args.datasets:
         these = [r for r in rows if r["dataset"] == name and r["peer"]]
         if these:
@@ -200,7 +250,9 @@ def main() -> None:
                   f"{sum(r['tied_pick'] for r in these) / peer:.3f}, best tied "
                   f"{sum(r['tied_best'] for r in these) / peer:.3f}, oracle single "
                   f"{sum(r['best_single'] for r in these) / peer:.3f}, oracle mean "
-                  f"{sum(r['best_mean'] for r in these) / peer:.3f}; median oracle-mean "
+                  f"{sum(r['best_mean'] for r in these) / peer:.3f}, held-out oracle single "
+                  f"{sum(r['held_out_single'] for r in these) / peer:.3f}, held-out oracle "
+                  f"mean {sum(r['held_out_mean'] for r in these) / peer:.3f}; median oracle-mean "
                   f"ratio {statistics.median(r['best_mean'] / r['peer'] for r in these):.3f}")
     after = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
     if args.json:

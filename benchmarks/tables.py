@@ -162,16 +162,19 @@ def peers(data: dict) -> str:
 
 
 def peer_bound(data: dict) -> str:
-    """How far ahead of the peer the generic config's candidates get, chosen by CV, by two
-    choosers that see only the training rows and by two oracles that see the test rows
+    """How far ahead of the peer the generic config's candidates get, chosen by CV, by three
+    choosers that see only the training rows, by a random pick among the candidates CV
+    cannot tell apart, and by oracles that see the test rows, on all of them or on half
     (``benchmarks/peer_bound.py``), summed per data set."""
-    lines = ["| data set | splits | CV's choice | greedy ensemble | top k | oracle, best single "
-             "| oracle, best mean |", "|---" * 7 + "|"]
+    keys = ("cv", "greedy", "top_k", "tied_mean", "tied_pick", "best_single", "best_mean",
+            "held_out_single", "held_out_mean")
+    lines = ["| data set | splits | CV's choice | greedy ensemble | top k | mean of the tied "
+             "| random tied pick | oracle, best single | oracle, best mean "
+             "| held-out oracle, single | held-out oracle, mean |", "|---" * 11 + "|"]
     for name in dict.fromkeys(r["dataset"] for r in data["rows"]):
         rows = [r for r in data["rows"] if r["dataset"] == name and r["peer"]]
         peer = sum(r["peer"] for r in rows)
-        ratios = " | ".join(f"{sum(r[k] for r in rows) / peer:.3f}"
-                            for k in ("cv", "greedy", "top_k", "best_single", "best_mean"))
+        ratios = " | ".join(f"{sum(r[k] for r in rows) / peer:.3f}" for k in keys)
         lines.append(f"| {PEER_DATASETS.get(name, name)} | {len(rows)} | {ratios} |")
     head = (f"Config `{data['config']}`; test MAE summed over the splits / the peer's "
             "(`peers.json`).")
