@@ -86,14 +86,15 @@ class Tracker(ModelRecords, ArtifactRecords):
         return state
 
     @contextlib.contextmanager
-    def _errors(self) -> Iterator[None]:
+    def _errors(self, store_call: bool = True) -> Iterator[None]:
         """Re-raise store problems as :class:`TrackingError`.
 
-        On a database store a Ctrl-C waits for the call to end (:func:`interrupts_deferred`):
-        raised inside SQLAlchemy it left the connection holding the database's lock as long
-        as the exception lived, and the run's end waited the 20 s of MLflow's busy timeout.
+        On a database store a Ctrl-C waits for a ``store_call`` to end
+        (:func:`interrupts_deferred`): raised inside SQLAlchemy it left the connection holding
+        the database's lock while the exception lived; the run's end waited 20 s for it.
         """
-        with interrupts_deferred() if is_database(self.tracking_uri) else contextlib.nullcontext():
+        deferred = store_call and is_database(self.tracking_uri)
+        with interrupts_deferred() if deferred else contextlib.nullcontext():
             try:
                 yield
             except TrackingError:
