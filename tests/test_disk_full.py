@@ -8,6 +8,7 @@ from __future__ import annotations
 import os
 import re
 import subprocess
+import time
 from pathlib import Path
 
 import optuna
@@ -142,38 +143,50 @@ def _server_failed(line: str, uri: str) -> re.Match | None:
                     rf"log says why: a full disk\?\)", line)
 
 
-def test_a_tracking_server_whose_database_disk_is_full_is_one_line(tiny_disk, tmp_path,
-                                                                    monkeypatch):
-    """The server's SQLite database on a tmpfs filled once the run exists: the server answers
-    503 to every write (MLflow's retries, one here), said in one line naming the server, its
-    password hidden; with space again the run is written to."""
-    from workbench.experiment.errors import TrackingError
+@pytest.mark.slow  # a server start and an evaluation: 18 s on 2 idle cores, 75 s busy
+def test_evaluate_on_a_tracking_server_whose_database_disk_fills(tiny_disk, tmp_path):
+    """``evaluate`` against a server whose SQLite database's tmpfs is filled once the run
+    exists (while the model is fitted): the server answers 503 to the first write that needs
+    space (MLflow's retries, one here), said in one line naming the server (password
+    hidden), exit 2, no traceback; with space again, the next command's reaping leaves the
+    run FAILED."""
+    from mlflow import MlflowClient
+
+    from workbench.experiment.lifecycle import reap_stale_runs
     from workbench.experiment.tracking.runs import Tracker
 
-    monkeypatch.setenv("MLFLOW_HTTP_REQUEST_MAX_RETRIES", "1")
     disk = tiny_disk("server", "2m")  # the new database takes about 0.9 MB
     server = MlflowServer(f"sqlite:///{disk / 'mlflow.db'}", tmp_path / "artifacts",
                           tmp_path / "server.log")
     try:
-        tracker = Tracker(server.uri.replace("http://", f"http://u:{SECRET}@"), "tiny")
-        run = tracker.start_run("filled")
+        config = tiny_sweep(tmp_path / "cfg")
+        uri = server.uri.replace("http://", f"http://u:{SECRET}@")
+        err = tmp_path / "err.log"
+        proc = subprocess.Popen(
+            workbench_cmd("evaluate", str(config), "--no-intervals", "--tracking-uri", uri),
+            cwd=tmp_path, env=command_env(MLFLOW_HTTP_REQUEST_MAX_RETRIES="1"),
+            stdout=subprocess.DEVNULL, stderr=open(err, "w"))
+        client = MlflowClient(server.uri)
+        deadline = time.monotonic() + 120
+        while not (client.get_experiment_by_name("tiny") and client.search_runs(
+                [client.get_experiment_by_name("tiny").experiment_id])):
+            assert proc.poll() is None and time.monotonic() < deadline, err.read_text()
+            time.sleep(0.1)
+        assert "] tracking in " not in err.read_text()  # still fitting: its logging is next
         _fill(disk)
-        with pytest.raises(TrackingError) as caught:
-            for i in range(200):  # the free space left inside the database's pages first
-                tracker.log_params(run, {f"p{i}": "x" * 5000})
-        line = f"workbench: error: {caught.value}"
-        assert _server_failed(line, server.uri), line
-        assert "answered HTTP 503 to the request runs/log-batch" in line, line
-        assert SECRET not in line and "\n" not in line
+        line = _one_error_line(proc.wait(timeout=300), err.read_text())
+        assert _server_failed(line, server.uri) and "answered HTTP 503 to" in line, line
+        assert SECRET not in err.read_text()
         (disk / "filler").unlink()
-        tracker.end_run(run, "FAILED")
-        assert tracker.client.get_run(run).info.status == "FAILED"
+        reap_stale_runs(Tracker(server.uri, "tiny"))  # what the next command does first
+        (run,) = client.search_runs([client.get_experiment_by_name("tiny").experiment_id])
+        assert run.info.status == "FAILED"
     finally:
         server.stop()
 
 
-@pytest.mark.slow  # a server start and two evaluations: about 50 s on 2 busy cores
-def test_a_tracking_server_whose_artifact_disk_fills_is_one_line(tiny_disk, tmp_path):
+@pytest.mark.slow  # a server start and two evaluations: 42 s on 2 idle cores, 113 s busy
+def test_evaluate_on_a_tracking_server_whose_artifact_disk_fills(tiny_disk, tmp_path):
     """``evaluate`` against a server whose artifact root (a 64 kB tmpfs) fills with the run's
     figures: one line naming the server (password hidden), exit 2, no traceback; once there is
     space the next command runs, and no run is left RUNNING."""
