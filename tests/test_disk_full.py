@@ -143,7 +143,7 @@ def _server_failed(line: str, uri: str) -> re.Match | None:
                     rf"log says why: a full disk\?\)", line)
 
 
-@pytest.mark.slow  # a server start and an evaluation: 18 s on 2 idle cores, 75 s busy
+@pytest.mark.slow  # a server start and an evaluation: 21-23 s on 2 idle cores
 def test_evaluate_on_a_tracking_server_whose_database_disk_fills(tiny_disk, tmp_path):
     """``evaluate`` against a server whose SQLite database's tmpfs is filled once the run
     exists (while the model is fitted): the server answers 503 to the first write that needs
@@ -185,7 +185,7 @@ def test_evaluate_on_a_tracking_server_whose_database_disk_fills(tiny_disk, tmp_
         server.stop()
 
 
-@pytest.mark.slow  # a server start and two evaluations: 42 s on 2 idle cores, 113 s busy
+@pytest.mark.slow  # a server start, two evaluations: 26-42 s on 2 idle cores, 113 s busy
 def test_evaluate_on_a_tracking_server_whose_artifact_disk_fills(tiny_disk, tmp_path):
     """``evaluate`` against a server whose artifact root (a 64 kB tmpfs) fills with the run's
     figures: one line naming the server (password hidden), exit 2, no traceback; once there is
