@@ -1,12 +1,14 @@
-"""A full disk (ENOSPC) under the MLflow store, an Optuna journal or ``--out``: a real tmpfs
-of a few kilobytes, mounted by the test (root only), that fills while the command writes.
-The command ends in one line naming the problem (exit code 2), no traceback; the store stays
-readable and the next command carries on (issue 35)."""
+"""A full disk (ENOSPC) under the MLflow store, an Optuna journal, ``--out`` or a tracking
+server's own store: a real tmpfs of a few kilobytes, mounted by the test (root only), that
+fills while the command writes. The command ends in one line naming the problem (exit code
+2), no traceback; the store stays readable and the next command carries on (issue 35)."""
 
 from __future__ import annotations
 
 import os
+import re
 import subprocess
+import time
 from pathlib import Path
 
 import optuna
@@ -15,7 +17,9 @@ from optuna.trial import TrialState
 
 from workbench.experiment.sweep.scheduler import is_counted
 
-from services import command_env, tiny_sweep, workbench_cmd
+from services import MlflowServer, command_env, tiny_sweep, workbench_cmd
+
+SECRET = "s3cret-pw"
 
 
 @pytest.fixture
@@ -119,3 +123,92 @@ def test_a_full_disk_under_out_leaves_nothing_partial(tiny_disk, tmp_path):
     assert line.startswith(f"workbench: error: --out {disk / 'out'}: cannot write: No space "
                            "left on device"), err
     assert list(disk.iterdir()) == []  # nor the directory it created
+
+
+def _fill(disk: Path) -> None:
+    """Write a file on ``disk`` until no byte more fits."""
+    with open(disk / "filler", "wb", buffering=0) as fh:
+        try:
+            while True:
+                fh.write(b"\0" * 4096)
+        except OSError as exc:
+            assert exc.errno == 28, exc  # ENOSPC
+
+
+def _server_failed(line: str, uri: str) -> re.Match | None:
+    """The one line of a tracking server that failed a request (its password shown ***)."""
+    shown = re.escape(uri.replace("http://", "http://u:***@"))
+    return re.match(rf"workbench: error: the MLflow tracking store {shown} (answered HTTP 5\d\d "
+                    rf"to|answers, but dropped the connection of) .* the server failed \(its "
+                    rf"log says why: a full disk\?\)", line)
+
+
+@pytest.mark.slow  # a server start and an evaluation: 21-23 s on 2 idle cores
+def test_evaluate_on_a_tracking_server_whose_database_disk_fills(tiny_disk, tmp_path):
+    """``evaluate`` against a server whose SQLite database's tmpfs is filled once the run
+    exists (while the model is fitted): the server answers 503 to the first write that needs
+    space (MLflow's retries, one here), said in one line naming the server (password
+    hidden), exit 2, no traceback; with space again, the next command's reaping leaves the
+    run FAILED."""
+    from mlflow import MlflowClient
+
+    from workbench.experiment.lifecycle import reap_stale_runs
+    from workbench.experiment.tracking.runs import Tracker
+
+    disk = tiny_disk("server", "2m")  # the new database takes about 0.9 MB
+    server = MlflowServer(f"sqlite:///{disk / 'mlflow.db'}", tmp_path / "artifacts",
+                          tmp_path / "server.log")
+    try:
+        config = tiny_sweep(tmp_path / "cfg")
+        uri = server.uri.replace("http://", f"http://u:{SECRET}@")
+        err = tmp_path / "err.log"
+        proc = subprocess.Popen(
+            workbench_cmd("evaluate", str(config), "--no-intervals", "--tracking-uri", uri),
+            cwd=tmp_path, env=command_env(MLFLOW_HTTP_REQUEST_MAX_RETRIES="1"),
+            stdout=subprocess.DEVNULL, stderr=open(err, "w"))
+        client = MlflowClient(server.uri)
+        deadline = time.monotonic() + 120
+        while not (client.get_experiment_by_name("tiny") and client.search_runs(
+                [client.get_experiment_by_name("tiny").experiment_id])):
+            assert proc.poll() is None and time.monotonic() < deadline, err.read_text()
+            time.sleep(0.1)
+        assert "] tracking in " not in err.read_text()  # still fitting: its logging is next
+        _fill(disk)
+        line = _one_error_line(proc.wait(timeout=300), err.read_text())
+        assert _server_failed(line, server.uri) and "answered HTTP 503 to" in line, line
+        assert SECRET not in err.read_text()
+        (disk / "filler").unlink()
+        reap_stale_runs(Tracker(server.uri, "tiny"))  # what the next command does first
+        (run,) = client.search_runs([client.get_experiment_by_name("tiny").experiment_id])
+        assert run.info.status == "FAILED"
+    finally:
+        server.stop()
+
+
+@pytest.mark.slow  # a server start, two evaluations: 26-42 s on 2 idle cores, 113 s busy
+def test_evaluate_on_a_tracking_server_whose_artifact_disk_fills(tiny_disk, tmp_path):
+    """``evaluate`` against a server whose artifact root (a 64 kB tmpfs) fills with the run's
+    figures: one line naming the server (password hidden), exit 2, no traceback; once there is
+    space the next command runs, and no run is left RUNNING."""
+    from mlflow import MlflowClient
+
+    disk = tiny_disk("artifacts", "64k")
+    server = MlflowServer(f"sqlite:///{tmp_path / 'mlflow.db'}", disk, tmp_path / "server.log")
+    try:
+        config = tiny_sweep(tmp_path / "cfg")
+        uri = server.uri.replace("http://", f"http://u:{SECRET}@")
+        cmd = ("evaluate", config, "--no-intervals", "--tracking-uri", uri)
+        done = subprocess.run(workbench_cmd(*map(str, cmd)), cwd=tmp_path, capture_output=True,
+                              text=True, timeout=300,
+                              env=command_env(MLFLOW_HTTP_REQUEST_MAX_RETRIES="1"))
+        line = _one_error_line(done.returncode, done.stderr)
+        assert _server_failed(line, server.uri), done.stderr
+        assert SECRET not in done.stderr
+        _grow(disk, "64m")
+        code, err = _run(tmp_path, *cmd)
+        assert code == 0, err[-3000:]
+        client = MlflowClient(server.uri)
+        runs = client.search_runs([client.get_experiment_by_name("tiny").experiment_id])
+        assert sorted(r.info.status for r in runs) == ["FAILED", "FINISHED"]
+    finally:
+        server.stop()

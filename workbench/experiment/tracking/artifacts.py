@@ -40,7 +40,7 @@ class ArtifactRecords:
         """The tracker's :class:`mlflow.MlflowClient`."""
         raise NotImplementedError
 
-    def _errors(self) -> contextlib.AbstractContextManager[None]:
+    def _errors(self, store_call: bool = True) -> contextlib.AbstractContextManager[None]:
         raise NotImplementedError
 
     def log_dict(self, run_id: str, obj: Any, artifact_file: str) -> None:

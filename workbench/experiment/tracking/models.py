@@ -115,7 +115,7 @@ class ModelRecords:
         """The tracker's experiment id."""
         raise NotImplementedError
 
-    def _errors(self) -> contextlib.AbstractContextManager[None]:
+    def _errors(self, store_call: bool = True) -> contextlib.AbstractContextManager[None]:
         raise NotImplementedError
 
     def log_model(self, run_id: str, model: Any, input_example: pd.DataFrame,
@@ -270,5 +270,5 @@ class ModelRecords:
         """
         if model_uri.startswith("models:/"):
             model_uri = self.model_artifact_uri(model_uri)
-        with self._errors():
+        with self._errors(store_call=False):  # files only: a Ctrl-C stops it at once
             return mlflow.pyfunc.load_model(model_uri)

@@ -12,26 +12,19 @@ import json
 import logging
 import math
 from collections.abc import Iterator, Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from mlflow import MlflowClient
 from mlflow.entities import Metric, Param, RunTag
 from mlflow.exceptions import MlflowException
 
 from ..errors import SweepTimedOut, TrackingError, redact
-from ..signals import ignoring_signals
+from ..signals import ignoring_signals, interrupts_deferred
 from .artifacts import ArtifactRecords
 from .models import ModelRecords
 from .records import now_ms, param_value, tag_value
 from .translate import duplicate_row, translate
-from .uris import (
-    describe_store,
-    prepare_store_location,
-    sqlite_path,
-)
-
-if TYPE_CHECKING:
-    pass
+from .uris import describe_store, is_database, prepare_store_location, sqlite_path
 
 __all__ = ["RUNS_VIEW", "SHARED_VIEW_PREFIX", "Tracker", "ensure_store", "metric_view"]
 
@@ -93,17 +86,24 @@ class Tracker(ModelRecords, ArtifactRecords):
         return state
 
     @contextlib.contextmanager
-    def _errors(self) -> Iterator[None]:
-        """Re-raise store problems as :class:`TrackingError`."""
-        try:
-            yield
-        except TrackingError:
-            raise
-        except Exception as exc:
-            err = translate(exc, self.tracking_uri)
-            if err is None:
+    def _errors(self, store_call: bool = True) -> Iterator[None]:
+        """Re-raise store problems as :class:`TrackingError`.
+
+        On a database store a Ctrl-C waits for a ``store_call`` to end
+        (:func:`interrupts_deferred`): raised inside SQLAlchemy it left the connection holding
+        the database's lock while the exception lived; the run's end waited 20 s for it.
+        """
+        deferred = store_call and is_database(self.tracking_uri)
+        with interrupts_deferred() if deferred else contextlib.nullcontext():
+            try:
+                yield
+            except TrackingError:
                 raise
-            raise err from exc
+            except Exception as exc:
+                err = translate(exc, self.tracking_uri)
+                if err is None:
+                    raise
+                raise err from exc
 
     @property
     def client(self) -> MlflowClient:

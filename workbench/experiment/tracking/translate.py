@@ -5,6 +5,7 @@ A locked or corrupt SQLite file, an old schema, an unreachable server, a missing
 
 from __future__ import annotations
 
+import re
 from urllib.parse import urlsplit
 
 from ..errors import TrackingError, disk_full, redact
@@ -60,6 +61,15 @@ def translate(exc: BaseException, uri: str) -> TrackingError | None:
         return TrackingError(
             f"{store} has an older MLflow schema: back it up, then run "
             f"'mlflow db upgrade {redact(uri)}'. ({exc})")
+    answered = _ERROR_STATUS.search(low)  # retried on a 500, 503, ... until MLflow gave up
+    if answered or (any(s in low for s in _UNREACHABLE) and _reason(low) == "connection dropped"
+                    and _answers(uri)):
+        what = (f"answered HTTP {answered.group(1)} to" if answered
+                else "answers, but dropped the connection of")
+        return TrackingError(
+            f"the MLflow {store} {what} {_request(text)} ({_retried()}): the server failed "
+            "(its log says why: a full disk?); a run left RUNNING is marked FAILED by the next "
+            "command on the store")
     if any(s in low for s in _UNREACHABLE):
         return TrackingError(
             f"cannot reach the MLflow {store} ({_reason(low)}; {_retried()}); a run it holds "
@@ -81,6 +91,42 @@ _REASONS = (("connection refused", "connection refused"),
             ("remotedisconnected", "connection dropped"),
             ("connection aborted", "connection dropped"),
             ("connection reset", "connection dropped"))
+
+
+#: urllib3's reason when every try of a request got an error status MLflow retries on.
+_ERROR_STATUS = re.compile(r"too many (\d{3}) error responses")
+#: The path of the failed request in urllib3's message.
+_URL_PATH = re.compile(r"with url: (/\S*?)(?: \(caused by|$)", re.IGNORECASE)
+
+
+def _request(text: str) -> str:
+    """Name the failed request (``text``: the error's text).
+
+    An artifact upload by the artifact's path, else the API endpoint.
+    """
+    found = _URL_PATH.search(text)
+    if found is None:
+        return "a request"
+    path = found.group(1)
+    if "/mlflow-artifacts/artifacts/" in path:
+        return f"the upload of artifact {path.split('/artifacts/', 2)[-1][-60:]}"
+    return f"the request {path.split('/mlflow/')[-1][:60]}"
+
+
+def _answers(uri: str, timeout: float = 2.0) -> bool:
+    """Tell whether the tracking server at ``uri`` answers its ``/health`` (200) now."""
+    import urllib.request
+
+    parts = urlsplit(uri)
+    if parts.scheme not in ("http", "https") or not parts.hostname:
+        return False
+    netloc = parts.hostname + (f":{parts.port}" if parts.port else "")
+    try:
+        with urllib.request.urlopen(f"{parts.scheme}://{netloc}{parts.path.rstrip('/')}/health",
+                                    timeout=timeout) as response:
+            return bool(response.status == 200)
+    except (OSError, ValueError):
+        return False
 
 
 def _reason(low: str) -> str:

@@ -127,6 +127,22 @@ def sqlite_path(uri: str) -> Path | None:
     return Path(parts[0]) if parts else None
 
 
+def is_database(uri: str) -> bool:
+    """Tell whether a tracking URI is a database MLflow opens in this process (SQLAlchemy).
+
+    Parameters
+    ----------
+    uri : str
+        A tracking URI.
+
+    Returns
+    -------
+    bool
+        ``True`` for ``sqlite``, ``postgresql``, ``mysql`` and ``mssql`` (any driver).
+    """
+    return urlsplit(str(uri)).scheme.split("+")[0] in ("sqlite", "postgresql", "mysql", "mssql")
+
+
 def describe_store(uri: str) -> str:
     """Name the store as messages name it.
 
