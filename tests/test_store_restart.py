@@ -117,7 +117,10 @@ def test_soak_four_sweeps_one_killed_and_restarted_again_and_again(pg, tmp_path)
     complete trials, none lost, and no killed trial run again more than once."""
     url = pg.database("optuna")
     storage = optuna.storages.RDBStorage(url)
-    config = tiny_sweep(tmp_path / "cfg", trials=16)
+    # SOAK_TRIALS per study (3 studies shared by the 4 processes): 16 by default; the issue's
+    # soak of 4 processes x 100 trials is SOAK_TRIALS=134 (about 400 trials in all)
+    budget = int(os.environ.get("SOAK_TRIALS", "16"))
+    config = tiny_sweep(tmp_path / "cfg", trials=budget)
     cmd = workbench_cmd("sweep", config, "--storage", url, "--no-track")
 
     def start(n: int) -> subprocess.Popen:
@@ -128,8 +131,8 @@ def test_soak_four_sweeps_one_killed_and_restarted_again_and_again(pg, tmp_path)
 
     procs, kills, n = [start(i) for i in range(4)], [], 4
     try:
-        deadline = time.monotonic() + 600
-        while len(kills) < 6 and any(p.poll() is None for p in procs):
+        deadline = time.monotonic() + 600 + 10 * budget
+        while len(kills) < max(6, budget // 8) and any(p.poll() is None for p in procs):
             assert time.monotonic() < deadline
             victim = procs[len(kills) % 4]
             if victim.poll() is None and _running_in(storage, victim.pid):
@@ -143,7 +146,7 @@ def test_soak_four_sweeps_one_killed_and_restarted_again_and_again(pg, tmp_path)
                 kills.append(None)  # it finished: on to the next one
             time.sleep(0.05)
         for p in procs:
-            assert p.wait(timeout=600) == 0, p.log.read_text()[-3000:]
+            assert p.wait(timeout=600 + 10 * budget) == 0, p.log.read_text()[-3000:]
     finally:
         for p in procs:
             if p.poll() is None:
@@ -156,7 +159,7 @@ def test_soak_four_sweeps_one_killed_and_restarted_again_and_again(pg, tmp_path)
     for name in names:
         trials = optuna.load_study(study_name=name, storage=storage).get_trials()
         counted = [t for t in trials if is_counted(t)]
-        assert len(counted) == 16 and all(t.state == TrialState.COMPLETE for t in counted), [
+        assert len(counted) == budget and all(t.state == TrialState.COMPLETE for t in counted), [
             (t.number, t.state.name, t.user_attrs) for t in trials]
         assert not [t for t in trials if t.state in (TrialState.RUNNING, TrialState.WAITING)]
         reruns = [t.system_attrs["failed_trial"] for t in trials
