@@ -53,6 +53,37 @@ def _mlflow_store(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
+def _empty_store(tmp_path_factory):
+    """An empty MLflow SQLite store, made once per worker: MLflow builds a new one with its
+    whole chain of schema migrations (about 1.3 CPU-s, and a disk sync per migration)."""
+    import contextlib
+
+    from mlflow import MlflowClient
+
+    folder = tmp_path_factory.mktemp("empty-store")
+    with contextlib.chdir(folder):  # MLflow's "Default" experiment points inside it
+        MlflowClient(f"sqlite:///{folder / 'mlflow.db'}").search_experiments()
+    return folder / "mlflow.db"
+
+
+@pytest.fixture(scope="session")
+def new_store(_empty_store):
+    """``new_store(path)``: an empty MLflow store at ``path`` (parents made), a copy of one
+    made once; returns its ``sqlite:///`` URI. For tests whose store is incidental: those of
+    a store's first use (tests/test_lifecycle.py, test_store_failures.py, test_tracking.py)
+    let MLflow create theirs."""
+    import shutil
+
+    def make(path):
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(_empty_store, path)
+        return f"sqlite:///{path}"
+
+    return make
+
+
+@pytest.fixture(scope="session")
 def google_5q_dir():
     """A directory with the benchmark files: the shared copy when present, otherwise the
     loader's cache, filled by a real (verified) download."""
