@@ -12,19 +12,29 @@ SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "
 
 # `make test` hands whole files to its two workers (--dist loadfile) in the order collected
 # (--no-loadscope-reorder). The longest files go first, so that none starts late and runs alone
-# at the end while the other worker idles; the rest keep their order. Longest first as measured
-# on 2 cores (seconds of a file's tests under `make test`, 2026-11-26).
+# at the end while the other worker idles; the rest keep their order. Longest first, as
+# measured: a file's share of the suite's time (sum of --durations under `make test` on 2
+# cores, 2026-11-26; about 450 s on a quiet machine).
 LONG_FILES = [
-    "test_reproduce.py",  # ~120 s, one `reproduce --quick`
-    "test_lifecycle.py",  # ~85 s, sweep and evaluate processes killed and rerun
-    "test_services.py",  # ~55 s, PostgreSQL, an mlflow server, three sweep processes
-    "test_hamiltonian_family.py",  # ~50 s
-    "test_predict.py",  # ~40 s
-    "test_docs.py",  # ~35 s, a Sphinx build of docs/ without the gallery
-    "test_ui_browser.py",  # ~35 s
-    "test_param_select.py",  # ~30 s
-    "test_cli.py",  # ~30 s
-    "test_sweep.py",  # ~25 s
+    "test_reproduce.py",  # 13%, one `reproduce --quick`
+    "test_lifecycle.py",  # 9%, sweep and evaluate processes killed and rerun
+    "test_interrupts.py",  # 9%, evaluate and sweep processes interrupted
+    "test_sweep.py",  # 7.5%, the smoke sweep (stopped by --timeout, resumed)
+    "test_services.py",  # 7%, PostgreSQL, an mlflow server, three sweep processes
+    "test_hamiltonian_family.py",  # 4%
+    "test_docs.py",  # 4%, a Sphinx build of docs/ without the gallery
+    "test_cli.py",  # 3.5%
+    "test_predict.py",  # 3.3%
+    "test_store_restart.py",  # 2.8%
+    "test_disk_full.py",  # 2.7%
+    "test_param_select.py",  # 2.3%
+    "test_init.py",  # 2%
+    "test_ui_browser.py",  # 1.9%
+    "test_cli_set.py",  # 1.9%
+    "test_layering.py",  # 1.8%
+    "test_tracking_restart.py",  # 1.6%
+    "test_sweep_hamiltonian.py",  # 1.5%
+    "test_readme.py",  # 1.5%
 ]
 
 
@@ -40,6 +50,37 @@ def _mlflow_store(tmp_path_factory):
     store = tmp_path_factory.mktemp("mlflow") / "mlflow.db"
     os.environ["MLFLOW_TRACKING_URI"] = f"sqlite:///{store}"
     yield store
+
+
+@pytest.fixture(scope="session")
+def _empty_store(tmp_path_factory):
+    """An empty MLflow SQLite store, made once per worker: MLflow builds a new one with its
+    whole chain of schema migrations (about 1.3 CPU-s, and a disk sync per migration)."""
+    import contextlib
+
+    from mlflow import MlflowClient
+
+    folder = tmp_path_factory.mktemp("empty-store")
+    with contextlib.chdir(folder):  # MLflow's "Default" experiment points inside it
+        MlflowClient(f"sqlite:///{folder / 'mlflow.db'}").search_experiments()
+    return folder / "mlflow.db"
+
+
+@pytest.fixture(scope="session")
+def new_store(_empty_store):
+    """``new_store(path)``: an empty MLflow store at ``path`` (parents made), a copy of one
+    made once; returns its ``sqlite:///`` URI. For tests whose store is incidental: those of
+    a store's first use (tests/test_lifecycle.py, test_store_failures.py, test_tracking.py)
+    let MLflow create theirs."""
+    import shutil
+
+    def make(path):
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(_empty_store, path)
+        return f"sqlite:///{path}"
+
+    return make
 
 
 @pytest.fixture(scope="session")

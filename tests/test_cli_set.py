@@ -86,8 +86,15 @@ def test_bad_override_is_one_line(cfg, tmp_path, capsys, override, needles):
         assert needle in err, (needle, err)
 
 
-def test_logged_as_params_and_config(cfg, tmp_path, capsys):
-    uri = f"sqlite:///{tmp_path}/mlflow.db"
+def test_logged_as_params_and_config(cfg, tmp_path, capsys, monkeypatch, new_store):
+    # without the family's learning curves and SHAP figures (most of the command's time; an
+    # evaluate's are checked by test_cli.py): this test is about the params and the config
+    from workbench.experiment.families import Artifacts
+    from workbench.experiment.families.eigenvalue import EigenvalueFamily
+
+    monkeypatch.setattr(EigenvalueFamily, "begin_artifacts",
+                        lambda *args, **kwargs: lambda emit=None: Artifacts())
+    uri = new_store(tmp_path / "mlflow.db")
     assert main(["evaluate", str(cfg), "--tracking-uri", uri,
                  "--set", "model.n_stages=2", "--set", 'model.loss="huber"']) == 0
     client = MlflowClient(uri)

@@ -18,8 +18,8 @@ ROWS = [3, 5, 8, 13, 21, 34]
 
 
 @pytest.fixture()
-def client(tmp_path):
-    client = MlflowClient(f"sqlite:///{tmp_path}/mlflow.db")
+def client(tmp_path, new_store):
+    client = MlflowClient(new_store(tmp_path / "mlflow.db"))
     client.create_experiment("x", artifact_location=(tmp_path / "artifacts").as_uri())
     return client
 

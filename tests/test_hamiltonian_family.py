@@ -138,11 +138,11 @@ def test_qubit_features_must_match_the_chain(device):
 
 
 @pytest.fixture(scope="module")
-def cli_run(device, tmp_path_factory):
+def cli_run(device, tmp_path_factory, new_store):
     out = tmp_path_factory.mktemp("run")
     cfg = _toml(device / "ham.toml", _raw(evaluation={"cv_repeats": 2, "cv_folds": 3,
                                                       "nested_folds": 2}))
-    store = f"sqlite:///{out / 'mlflow.db'}"
+    store = new_store(out / "mlflow.db")
     code = main(["evaluate", str(cfg), "--json", str(out / "out.json"), "--out",
                  str(out / "tables"), "--tracking-uri", store])
     return code, json.loads((out / "out.json").read_text()), out, store, cfg

@@ -115,8 +115,8 @@ def test_runs_never_left_running(tiny, tmp_path):
         assert not [t for t in trials if t.state == TrialState.RUNNING]
 
 
-def test_reaper_uses_heartbeats_for_other_hosts(tmp_path):
-    tracker = Tracker(f"sqlite:///{tmp_path / 'mlflow.db'}", "reap")
+def test_reaper_uses_heartbeats_for_other_hosts(tmp_path, new_store):
+    tracker = Tracker(new_store(tmp_path / "mlflow.db"), "reap")
     now = time.time()
     tags = {lifecycle.HOST_TAG: "another-host", lifecycle.PID_TAG: "4242"}
     silent = tracker.start_run("silent", tags={**tags, lifecycle.HEARTBEAT_TAG: now - 600})

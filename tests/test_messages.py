@@ -264,7 +264,7 @@ def test_served_model_answers_a_zero_row_request_in_one_short_message(tmp_path, 
 # --------------------------------------------------------------------------- secrets
 
 
-def test_logged_config_and_model_config_have_no_password(workdir, monkeypatch):
+def test_logged_config_and_model_config_have_no_password(workdir, monkeypatch, new_store):
     """``evaluate`` logs the config file as a run artifact and as the model's
     ``config.toml``: both with the passwords of ``[study] storage`` and ``[tracking]
     tracking_uri`` (and of a URL in a comment) replaced by ``***``; no file of the store
@@ -279,7 +279,7 @@ def test_logged_config_and_model_config_have_no_password(workdir, monkeypatch):
     cfg = with_data(workdir, top=f"# moved from postgresql://old:{SECRET}-x@db.example/old\n",
                     extra=f'[study]\nstorage = "postgresql://u:{SECRET}@127.0.0.1:1/db"\n'
                           f"[tracking]\ntracking_uri = 'http://u:{SECRET}@127.0.0.1:1'\n")
-    uri = f"sqlite:///{workdir / 'store' / 'mlflow.db'}"
+    uri = new_store(workdir / "store" / "mlflow.db")
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         rc = main(["evaluate", str(cfg), "--tracking-uri", uri, "--no-intervals",

@@ -226,7 +226,7 @@ def test_logged_model_returns_intervals_and_checks_inputs_in_one_line(logged_int
 
 
 @pytest.fixture(scope="module")
-def bench(google_5q_dir, tmp_path_factory):
+def bench(google_5q_dir, tmp_path_factory, new_store):
     """``evaluate --register device`` on the benchmark, the test rows as a CSV (an id column,
     the measured targets, the model's inputs in another order) and evaluate's own test
     predictions (the run's ``predictions/test.csv``)."""
@@ -235,7 +235,7 @@ def bench(google_5q_dir, tmp_path_factory):
     from workbench.datasets import load_google_5q
 
     root = tmp_path_factory.mktemp("predict")
-    uri = f"sqlite:///{root}/mlruns/mlflow.db"
+    uri = new_store(root / "mlruns" / "mlflow.db")
     config = write_config(root, google_5q_dir)
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(EigenvalueFamily, "begin_artifacts", _no_figures)

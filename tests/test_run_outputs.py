@@ -86,7 +86,7 @@ def fitted(tmp_path, monkeypatch):
     return cfg, evaluate(cfg, return_model=True)
 
 
-def test_the_record_computes_nothing(fitted, tmp_path, monkeypatch):
+def test_the_record_computes_nothing(fitted, tmp_path, monkeypatch, new_store):
     """Each output is computed once, before the record; with every computing function
     raising, the record still logs every figure (as the files computed), table, data and
     prediction."""
@@ -110,7 +110,7 @@ def test_the_record_computes_nothing(fitted, tmp_path, monkeypatch):
             for name in ("predict", "predict_interval"):  # no prediction
                 mp.setattr(type(run.model), name, _forbidden(name))
             ids = record(cfg, run.result, run.model, run.dataset, computed, kind="evaluate",
-                         tracking_uri=f"sqlite:///{tmp_path / 'mlflow.db'}")
+                         tracking_uri=new_store(tmp_path / "mlflow.db"))
         logged = {path: Path(file).read_bytes() for path, file in computed.files.items()}
         scratch = next(iter(computed.files.values())).parent
     assert not scratch.exists()  # the PNG files are removed once recorded

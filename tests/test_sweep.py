@@ -16,6 +16,9 @@ from workbench.experiment.sweep.scheduler import is_counted, run_study
 from workbench.experiment.sweep.storage import open_storage
 
 SMOKE = "experiments/smoke.toml"
+#: The smoke sweep as the tests run it: 5 targets, 2 outer folds (the config's 3 less one:
+#: each fold is 5 more studies to search and draw), 3 trials per study.
+TARGETS, OUTER, TRIALS = 5, 2, 3
 
 
 @pytest.fixture
@@ -30,10 +33,11 @@ def project(tmp_path, monkeypatch, google_5q_dir):
 
 
 @pytest.fixture
-def smoke_run(project, tmp_path, capsys, monkeypatch):
-    """The smoke sweep (3 trials per study) with tracking in a temporary store, without the
-    family's learning curves and SHAP figures (about half the command's CPU time; a sweep's
-    are checked by test_services.py on the same ``record``, an evaluate's by test_cli.py).
+def smoke_run(project, tmp_path, capsys, monkeypatch, new_store):
+    """The smoke sweep (:data:`OUTER` outer folds, :data:`TRIALS` trials per study) with
+    tracking in a temporary store, without the family's learning curves and SHAP figures
+    (about half the command's CPU time; a sweep's are checked by test_services.py on the same
+    ``record``, an evaluate's by test_cli.py).
 
     First stopped by ``--timeout`` after its first trial (exit 124), then resumed by the same
     command without it, with ``--out``. Returns the result, the store, standard error."""
@@ -43,8 +47,9 @@ def smoke_run(project, tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(EigenvalueFamily, "begin_artifacts",
                         lambda *args, **kwargs: lambda emit=None: Artifacts())
     out = tmp_path / "out.json"
-    uri = f"sqlite:///{tmp_path / 'store' / 'mlflow.db'}"
-    args = ["sweep", str(project), "--trials", "3", "--tracking-uri", uri]
+    uri = new_store(tmp_path / "store" / "mlflow.db")
+    args = ["sweep", str(project), "--trials", str(TRIALS), "--set", f"cv.outer_folds={OUTER}",
+            "--tracking-uri", uri]
     assert main([*args, "--timeout", "0.01"]) == 124  # no trial starts after the first
     assert main([*args, "--json", str(out), "--out", str(tmp_path / "out")]) == 0
     return json.loads(out.read_text()), uri, capsys.readouterr().err
@@ -62,9 +67,11 @@ def test_smoke_sweep_json_and_tracking(smoke_run, tmp_path, project):
     for key in ("targets", "prior", "model", "wall_s", "nested_cv_mae", "nested_cv_mae_avg",
                 "best_params", "mlflow"):
         assert key in res
-    assert len(res["nested_cv_mae"]) == len(res["best_params"]) == 5
-    # resumed after the timeout to every study's budget
-    assert res["trials"] == {"per_study": 3, "counted": 5 * 4 * 3, "studies": 20}
+    assert len(res["nested_cv_mae"]) == len(res["best_params"]) == TARGETS
+    # resumed after the timeout to every study's budget (the outer folds' and a final one)
+    studies = TARGETS * (OUTER + 1)
+    assert res["trials"] == {"per_study": TRIALS, "counted": studies * TRIALS,
+                             "studies": studies}
     assert all(p is None or "basis" in p for p in res["best_params"])
     # the nested-CV estimate of the model beats the prior's on the training rows
     assert res["nested_cv_mae_avg"] < res["nested_cv_prior_mae_avg"]
@@ -85,8 +92,8 @@ def test_smoke_sweep_json_and_tracking(smoke_run, tmp_path, project):
     kinds = pd.crosstab(pd.Series([r.data.tags.get("mlflow.parentRunId") for r in every]),
                         pd.Series([r.data.tags["workbench.kind"] for r in every]))
     assert kinds.loc[parents["KILLED"]].sum() == kinds.loc[parents["KILLED"], "trial"] == 1
-    assert kinds.loc[run.info.run_id, "trial"] == 59
-    assert kinds.loc[run.info.run_id, "outer_fold"] == 15
+    assert kinds.loc[run.info.run_id, "trial"] == studies * TRIALS - 1
+    assert kinds.loc[run.info.run_id, "outer_fold"] == TARGETS * OUTER
     for name in ("test_mae_avg", "prior_test_mae_avg", "nested_cv_mae_avg", "cv_mae_avg",
                  "test_mae/eeig1", "test_mse/eeig5", "nested_cv_mae/eeig3"):
         assert name in run.data.metrics
@@ -97,8 +104,8 @@ def test_smoke_sweep_json_and_tracking(smoke_run, tmp_path, project):
 
     journal = open_storage(str(tmp_path / "mlruns" / "optuna.journal"), tmp_path)
     names = optuna.get_all_study_names(journal)  # the sweep's studies, no bookkeeping
-    assert sorted(names) == sorted(f"smoke.eeig{j}.{k}" for j in range(1, 6)
-                                   for k in ("outer0", "outer1", "outer2", "final"))
+    assert sorted(names) == sorted(f"smoke.eeig{j}.{k}" for j in range(1, TARGETS + 1)
+                                   for k in [*(f"outer{i}" for i in range(OUTER)), "final"])
     assert all(optuna.load_study(study_name=n, storage=journal).metric_names
                == [OBJECTIVE] for n in names)
     # recognisable as one sweep's in the dashboard: the name's prefix and user attributes
@@ -122,7 +129,7 @@ def test_smoke_sweep_json_and_tracking(smoke_run, tmp_path, project):
     folds = {r.data.tags["study"]: r.info.run_id for r in every
              if r.data.tags["workbench.kind"] == "outer_fold"
              and r.data.tags.get("mlflow.parentRunId") == run.info.run_id}
-    assert len(folds) == 15 and all(".outer" in name for name in folds)
+    assert len(folds) == TARGETS * OUTER and all(".outer" in name for name in folds)
     in_runs = {name: Path(client.download_artifacts(folds[name], "optuna",
                                                     str(tmp_path / "dl" / name)))
                if name in folds else optuna_dir / "studies" / name for name in names}

@@ -40,24 +40,24 @@ def _labels(fig) -> list[str]:
     return [t for t in out if t]
 
 
-def _record(cfg, run, tmp_path) -> tuple[dict, dict]:
+def _record(cfg, run, tmp_path, new_store) -> tuple[dict, dict]:
     """Compute a run's outputs and record them: the record's ids and every figure it logs,
     by artifact name."""
     with computed_outputs(cfg, run.result, run.model, run.dataset,
                           setting=f"evaluate of {cfg.name}") as computed:
         ids = record(cfg, run.result, run.model, run.dataset, computed, kind="evaluate",
-                     tracking_uri=f"sqlite:///{tmp_path / 'mlflow.db'}")
+                     tracking_uri=new_store(tmp_path / "mlflow.db"))
     assert set(computed.figures) == set(computed.files)
     return ids, computed.figures
 
 
-def test_a_csv_s_unit_labels_every_figure_summary_and_description(tmp_path):
+def test_a_csv_s_unit_labels_every_figure_summary_and_description(tmp_path, new_store):
     cfg = _config(tmp_path, "meV")
     run = evaluate(cfg, return_model=True)
     assert run.dataset.unit == run.result.unit == "meV"
     assert run.result.to_json()["unit"] == "meV"
     assert "test MAE in meV" in format_table(run.result)
-    ids, drawn = _record(cfg, run, tmp_path)
+    ids, drawn = _record(cfg, run, tmp_path, new_store)
     note = MlflowClient(ids["tracking_uri"]).get_run(ids["run_id"]).data.tags[NOTE_TAG]
     assert "in meV (MSE: squared)" in note and "MHz" not in note
     expected = {"plots/mae_bars.png": ("y", "MAE (meV)"), "plots/mse_bars.png": ("y", "MSE (meV²)"),
@@ -77,12 +77,12 @@ def test_a_csv_s_unit_labels_every_figure_summary_and_description(tmp_path):
     assert "meV" in text  # a beeswarm's axis, or the note that the correction is 0 meV
 
 
-def test_data_without_a_unit_show_none(tmp_path):
+def test_data_without_a_unit_show_none(tmp_path, new_store):
     cfg = _config(tmp_path, None)
     run = evaluate(cfg, return_model=True)
     assert run.dataset.unit is None and run.result.to_json()["unit"] is None
     assert "test MAE in the targets' units" in format_table(run.result)
-    _, drawn = _record(cfg, run, tmp_path)
+    _, drawn = _record(cfg, run, tmp_path, new_store)
     assert drawn["plots/mae_bars.png"].axes[0].get_ylabel() == "MAE"
     assert drawn["plots/intervals.png"].axes[0].get_ylabel() == "measured"
 
