@@ -9,7 +9,7 @@ import re
 from urllib.parse import urlsplit
 
 from ..errors import TrackingError, disk_full, redact
-from .uris import describe_store
+from .uris import describe_store, is_database
 
 __all__ = ["duplicate_row", "translate"]
 
@@ -30,8 +30,7 @@ def translate(exc: BaseException, uri: str) -> TrackingError | None:
         ``None`` for errors that are not store problems.
     """
     store = describe_store(uri)
-    if isinstance(exc, ImportError) and urlsplit(uri).scheme.split("+")[0] in (
-            "postgresql", "mysql", "mssql", "sqlite"):  # the database's driver
+    if isinstance(exc, ImportError) and is_database(uri):  # the database's driver
         return TrackingError(f"{store}: its database driver is not installed ({exc})")
     if "supported uri schemes" in str(exc).lower():  # MLflow's registry: a 400-character line
         scheme = urlsplit(uri).scheme if "://" in uri else ""
