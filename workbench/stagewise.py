@@ -7,7 +7,7 @@ from typing import Any, Self
 
 import numpy as np
 from sklearn.base import RegressorMixin, clone
-from sklearn.model_selection import KFold
+from sklearn.model_selection import KFold, cross_val_predict
 from sklearn.utils._param_validation import Interval
 from sklearn.utils.metaestimators import _BaseComposition
 from sklearn.utils.validation import check_is_fitted, validate_data
@@ -100,13 +100,9 @@ class StageChoiceCV(CachedParamNames, RegressorMixin, _BaseComposition):
                              f"cv={self.cv} folds")
         folds = list(KFold(self.cv, shuffle=self.shuffle,
                            random_state=self.random_state if self.shuffle else None).split(X))
-        self.cv_scores_ = {}
-        for name, candidate in self.estimators:
-            held_out = np.empty(len(y))
-            for train, test in folds:
-                fitted = clone(candidate).fit(X[train], y[train])
-                held_out[test] = np.asarray(fitted.predict(X[test]), dtype=float).ravel()
-            self.cv_scores_[name] = float(np.mean((y - held_out) ** 2))
+        self.cv_scores_ = {
+            name: float(np.mean((y - cross_val_predict(candidate, X, y, cv=folds)) ** 2))
+            for name, candidate in self.estimators}
         self.chosen_ = min(self.cv_scores_, key=self.cv_scores_.__getitem__)
         self.estimator_ = clone(dict(self.estimators)[self.chosen_]).fit(X, y)
         return self
