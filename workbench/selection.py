@@ -24,20 +24,58 @@ __all__ = ["BaseBoostCV", "BasisChoiceCV", "CandidateMean", "LabelGroupKFold", "
 
 
 def find_prior(estimator: Any) -> Any:
-    """The ``prior`` parameter of ``estimator`` (or of the one it wraps, e.g. in a Pipeline).
+    """The ``prior`` parameter of ``estimator`` (or of the ones it wraps, e.g. in a Pipeline
+    or a :class:`CandidateMean`).
+
+    A composite of several base-boosting estimators has a prior when all of theirs are the
+    same (the same column, callable, or estimator type with the same parameters); priors
+    nested inside a prior estimator are not counted.
 
     Parameters
     ----------
     estimator : estimator
-        A base-boosting estimator, or one that wraps it."""
+        A base-boosting estimator, or one that wraps one or several.
+
+    Returns
+    -------
+    object
+        The prior (the first of the equal ones).
+
+    Raises
+    ------
+    ValueError
+        When ``estimator`` holds no prior, or several that differ."""
     params = estimator.get_params(deep=True)
     if "prior" in params:
         return params["prior"]
-    nested = [k for k in params if k.endswith("__prior")]
-    if len(nested) == 1:
-        return params[nested[0]]
-    raise ValueError(f"cannot find the prior of {type(estimator).__name__} (found "
-                     f"{len(nested)} nested 'prior' parameters); pass incumbent=")
+    nested = [params[k] for k in params if k.endswith("__prior") and "__prior__" not in k]
+    if nested and all(_same_param(p, nested[0]) for p in nested[1:]):
+        return nested[0]
+    what = "no" if not nested else f"{len(nested)} different"
+    raise ValueError(f"cannot find the prior of {type(estimator).__name__} ({what} nested "
+                     "'prior' parameters); pass incumbent=")
+
+
+def _same_param(a: Any, b: Any) -> bool:
+    """Whether two parameter values are the same: equal values, or estimators of one type
+    whose parameters are the same (what ``clone`` keeps)."""
+    if a is b:
+        return True
+    if type(a) is not type(b):
+        return False
+    if isinstance(a, BaseEstimator):
+        pa, pb = a.get_params(deep=False), b.get_params(deep=False)
+        return pa.keys() == pb.keys() and all(_same_param(pa[k], pb[k]) for k in pa)
+    if isinstance(a, (list, tuple)):
+        return len(a) == len(b) and all(_same_param(x, y) for x, y in zip(a, b))
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(_same_param(a[k], b[k]) for k in a)
+    if isinstance(a, np.ndarray):
+        return bool(np.array_equal(a, b))
+    try:
+        return bool(a == b)
+    except (TypeError, ValueError):  # e.g. values whose == is elementwise
+        return False
 
 
 class _Predicted(RegressorMixin, BaseEstimator):
