@@ -261,6 +261,11 @@ def cfg_inner_cv(cfg: ExperimentConfig) -> KFold:
 def quiet_fit_callback(model: Any, X: Any, y: Any, report: Report) -> None:
     """Fit a BaseBoostCV, reporting each fold's boosted and prior MAE as it finishes.
 
+    A :class:`~workbench.BasisChoiceCV` (a trial whose settings hold candidates) runs its
+    candidates' folds side by side and takes no fold callback: its folds (those of the
+    candidate it would choose) are reported once all have run, so a pruner makes the same
+    decision, only later.
+
     Parameters
     ----------
     model : BaseBoostCV
@@ -272,5 +277,11 @@ def quiet_fit_callback(model: Any, X: Any, y: Any, report: Report) -> None:
     """
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
+        if isinstance(model, BasisChoiceCV):
+            model.fit(X, y)
+            for i, (prior_score, boosted_score) in enumerate(
+                    zip(model.cv_scores_prior_, model.cv_scores_boosted_)):
+                report(i, -boosted_score, -prior_score)
+            return
         model.fit(X, y, fold_callback=lambda i, prior_score, boosted_score:
                   report(i, -boosted_score, -prior_score))

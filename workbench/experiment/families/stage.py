@@ -27,7 +27,8 @@ if TYPE_CHECKING:
     from ..config import ExperimentConfig
 
 __all__ = ["booster_cv", "candidate_settings", "cv_mse", "has_candidates", "make_booster",
-           "per_target_boost", "selection_cv", "stage_scores", "target_inputs"]
+           "per_target_boost", "selection_cv", "stage_scores", "target_inputs",
+           "target_selection"]
 
 
 def make_booster(settings: dict[str, Any], prior: Any, inputs: list[str] | None,
@@ -220,25 +221,12 @@ def per_target_boost(cfg: ExperimentConfig, ds: Dataset, priors: list[str], *,
         raise ConfigError(f"[model.targets]: unknown target(s) {unknown}; the dataset's "
                           f"targets are {names}")
     _warn_quadratic_bases(cfg, names, len(ds.train_index))
-    per_target: dict[str, Any] = {}
-    for target, prior in zip(names, priors):
-        s = _positive_links(cfg, ds, target, prior, cfg.model_for(target))
-        start = prior if boost_from_prior else None
-        inputs = target_inputs(s, ds, priors)
-        if has_candidates(s):  # the basis family, its settings or the loss too by CV
-            candidates = [(name, make_booster(settings, prior=start, inputs=inputs,
-                                              n_priors=len(priors)))
-                          for name, settings in candidate_settings(s, cfg.random_state)]
-            per_target[target] = BasisChoiceCV(candidates, cv=selection_cv(cfg, ds),
-                                               scoring=cfg.selection.scoring,
-                                               ensemble=cfg.selection.ensemble)
-            continue
-        # training scores: the learning curves reuse the folds (family artifacts)
-        per_target[target] = BaseBoostCV(make_booster(s, prior=start, inputs=inputs,
-                                                      n_priors=len(priors)),
-                                         cv=selection_cv(cfg, ds),
-                                         scoring=cfg.selection.scoring,
-                                         return_train_score=True)
+    # training scores: the learning curves reuse a BaseBoostCV's folds (family artifacts)
+    per_target = {target: target_selection(cfg, ds, target, cfg.model_for(target),
+                                           selection_cv(cfg, ds), priors=priors,
+                                           boost_from_prior=boost_from_prior,
+                                           return_train_score=True)
+                  for target in names}
     return MultiTargetBaseBoost(target_estimators=per_target, n_jobs=cfg.jobs,
                                 random_state=cfg.random_state)
 
@@ -287,9 +275,65 @@ def _warn_quadratic_bases(cfg: ExperimentConfig, targets: list[str], n_rows: int
             logging.getLogger("workbench").warning("[%s] warning: %s", cfg.name, message)
 
 
+def target_selection(cfg: ExperimentConfig, ds: Dataset, target: str,
+                     settings: dict[str, Any], cv: Any, *, priors: list[str],
+                     boost_from_prior: bool = True, **kwargs: Any) -> BaseBoostCV:
+    """Make one target's choice between its prior and boosting, as its settings describe.
+
+    A :class:`~workbench.BasisChoiceCV` over the candidates where the settings have several
+    (:func:`has_candidates`; the mean of the best ``[selection] ensemble`` of them is one
+    more), else a :class:`~workbench.BaseBoostCV` of the one booster: the same for
+    ``evaluate`` and for a sweep's trials and final model.
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The config.
+    ds : Dataset
+        The dataset.
+    target : str
+        The target.
+    settings : dict
+        Its boosting settings (``cfg.model_for(target)``, or a trial's).
+    cv : cross-validator
+        The folds of the choice.
+    priors : list of str
+        The prior column of each of the dataset's targets.
+    boost_from_prior : bool, default=True
+        Whether the target boosts from its prior column (else from an outside prior).
+    **kwargs
+        Further parameters of BaseBoostCV (``return_train_score`` only reaches a BaseBoostCV;
+        BasisChoiceCV does not take it).
+
+    Returns
+    -------
+    BaseBoostCV
+        Unfitted (a BasisChoiceCV where CV chooses among candidates).
+
+    Raises
+    ------
+    ConfigError
+        For a lone log link the data refuse.
+    """
+    prior = priors[ds.target_names.index(target)]
+    s = _positive_links(cfg, ds, target, prior, settings)
+    start = prior if boost_from_prior else None
+    inputs = target_inputs(s, ds, priors)
+    if has_candidates(s):  # the basis family, its settings or the loss too by CV
+        kwargs.pop("return_train_score", None)
+        candidates = [(name, make_booster(c, prior=start, inputs=inputs, n_priors=len(priors)))
+                      for name, c in candidate_settings(s, cfg.random_state)]
+        return BasisChoiceCV(candidates, cv=cv, scoring=cfg.selection.scoring,
+                             ensemble=cfg.selection.ensemble, **kwargs)
+    return BaseBoostCV(make_booster(s, prior=start, inputs=inputs, n_priors=len(priors)),
+                       cv=cv, scoring=cfg.selection.scoring, **kwargs)
+
+
 def booster_cv(cfg: ExperimentConfig, ds: Dataset, target: str, settings: dict[str, Any],
                cv: Any, **kwargs: Any) -> BaseBoostCV:
-    """Make one target's BaseBoostCV of a sweep.
+    """Make one target's BaseBoostCV of a sweep, seeded by ``random_state``.
+
+    :func:`target_selection`: a BasisChoiceCV where the settings hold candidates.
 
     Parameters
     ----------
@@ -311,12 +355,8 @@ def booster_cv(cfg: ExperimentConfig, ds: Dataset, target: str, settings: dict[s
     BaseBoostCV
         Unfitted.
     """
-    prior = ds.prior_names[ds.target_names.index(target)]
-    booster = make_booster(settings, prior=prior, inputs=target_inputs(settings, ds,
-                                                                        ds.prior_names),
-                           n_priors=len(ds.prior_names))
-    return BaseBoostCV(booster, cv=cv, scoring=cfg.selection.scoring,
-                       random_state=cfg.random_state, **kwargs)
+    return target_selection(cfg, ds, target, settings, cv, priors=ds.prior_names,
+                            random_state=cfg.random_state, **kwargs)
 
 
 def cv_mse(y: Any, predictions: Any) -> float:
