@@ -184,3 +184,31 @@ def test_the_mean_of_the_best_candidates_wins_where_cv_says_it_helps():
     with pytest.raises(ValueError, match="scoring name"):
         BasisChoiceCV(_candidates(), cv=5, ensemble=2,
                       scoring=lambda est, X, y: 0.0).fit(X, y)
+
+
+def test_the_mean_of_candidates_has_their_prior():
+    """``find_prior`` of a CandidateMean is its members' common prior (equal, not the same
+    object: a clone copies it), so its learning curve and a BaseBoostCV of it find their
+    incumbent; members with different priors, or none, are an error."""
+    from sklearn.model_selection import KFold
+
+    from workbench.curves import augmented_learning_curve
+    from workbench.selection import CandidateMean, find_prior
+
+    X, y = _mixed(n=120)
+    mean = clone(CandidateMean(_halves()))
+    assert find_prior(mean) == "prior"
+    folds = KFold(5)
+    curve = augmented_learning_curve(mean, X, y, train_sizes=[40, 96], cv=folds,
+                                     random_state=0)
+    assert np.isfinite(curve.cv_error).all() and not curve.fit_errors
+    # the incumbent is the prior alone: its error is the prior column's on each fold
+    prior_mae = [np.mean(np.abs(y[test] - X["prior"].to_numpy()[test]))
+                 for _, test in folds.split(X)]
+    np.testing.assert_allclose(curve.incumbent_error, [prior_mae] * 2)
+    members = _halves()
+    members[1][1].set_params(prior="x0")
+    with pytest.raises(ValueError, match=r"CandidateMean \(2 different nested 'prior'"):
+        find_prior(CandidateMean(members))
+    with pytest.raises(ValueError, match=r"CandidateMean \(no nested 'prior'"):
+        find_prior(CandidateMean([("a", make_basis("ridge"))]))
