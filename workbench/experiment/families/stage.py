@@ -287,14 +287,10 @@ def target_selection(cfg: ExperimentConfig, ds: Dataset, target: str,
 
     Parameters
     ----------
-    cfg : ExperimentConfig
-        The config.
-    ds : Dataset
-        The dataset.
-    target : str
-        The target.
-    settings : dict
-        Its boosting settings (``cfg.model_for(target)``, or a trial's).
+    cfg, ds : ExperimentConfig, Dataset
+        The config and the dataset.
+    target, settings : str, dict
+        The target and its boosting settings (``cfg.model_for(target)``, or a trial's).
     cv : cross-validator
         The folds of the choice.
     priors : list of str
@@ -337,16 +333,8 @@ def booster_cv(cfg: ExperimentConfig, ds: Dataset, target: str, settings: dict[s
 
     Parameters
     ----------
-    cfg : ExperimentConfig
-        The config.
-    ds : Dataset
-        The dataset.
-    target : str
-        The target.
-    settings : dict
-        Its boosting settings (a trial's).
-    cv : cross-validator
-        The inner folds.
+    cfg, ds, target, settings, cv
+        As in :func:`target_selection` (``settings``: a trial's; ``cv``: the inner folds).
     **kwargs
         Further BaseBoostCV parameters.
 
