@@ -18,7 +18,7 @@ SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "
 LONG_FILES = [
     "test_reproduce.py",  # 13%, one `reproduce --quick`
     "test_lifecycle.py",  # 9%, sweep and evaluate processes killed and rerun
-    "test_candidate_matrix.py",  # about 47 CPU-s alone (not a --durations share): five
+    "test_candidate_matrix.py",  # about 53 CPU-s alone (not a --durations share): five
     # kinds of model through evaluate (tracked, untracked, seeds), predict and a sweep
     "test_interrupts.py",  # 9%, evaluate and sweep processes interrupted
     "test_sweep.py",  # 7.5%, the smoke sweep (stopped by --timeout, resumed)

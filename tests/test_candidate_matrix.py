@@ -18,7 +18,8 @@ Each command runs once for all five (module fixtures); ``test_kind_through_path[
 <path>]`` then checks that kind's target in that command's outputs, so a failure names both.
 The paths: ``evaluate`` tracked (learning curves, SHAP, per-target bars, intervals, the
 logged and registered model), ``predict`` from the registry, the scoring server's request
-handler, ``evaluate --no-track --out``, ``evaluate --seeds`` and a tiny ``sweep``.
+handler, ``evaluate --no-track --out`` (with CV+ intervals: the whole model refitted per
+fold), ``evaluate --seeds`` and a tiny ``sweep``.
 """
 
 from __future__ import annotations
@@ -58,6 +59,7 @@ basis_inputs = "prior+features"
 input_transform = "standard"
 line_search_loss = "absolute_error"
 line_search_penalty = 0.0
+out_of_bounds = "clip"       # as generic.toml
 
 [model.targets.y_mean]
 link = ["identity", "log"]
@@ -84,7 +86,7 @@ ensemble = 2
 experiment = "matrix"
 """
 
-#: A sweep of the same models: one searched setting, 2 outer and 2 inner folds, 2 trials.
+#: A sweep of the same models: one searched setting, 2 outer and 2 inner folds, 1 trial.
 SWEEP = """
 [search]
 line_search_penalty = { low = 0.0, high = 0.2 }
@@ -95,7 +97,7 @@ inner_folds = 2
 seed = 0
 
 [study]
-trials = 2
+trials = 1
 storage = "optuna.journal"
 """
 
@@ -212,8 +214,11 @@ def served(loaded):
 
 @pytest.fixture(scope="module")
 def untracked(project):
+    """``evaluate --no-track --out`` with CV+ intervals (the whole model, every choice
+    remade, refitted on each of 2 folds' training rows)."""
     root = project.root
     res = ran(run_main("evaluate", project.config, "--no-track", "--out", root / "out",
+                       "--set", "intervals.method=cv_plus", "--set", "intervals.cv=2",
                        "--json", root / "untracked.json"))
     return SimpleNamespace(res=res, result=json.loads((root / "untracked.json").read_text()),
                            out=root / "out")
@@ -315,11 +320,14 @@ def check_bars(request, target):
     assert t.result["model"]["test_mae"][j] == pytest.approx(mae, rel=1e-12)
 
 
-def interval_rows(path: Path, target: str) -> np.ndarray:
-    """The target's test rows of an intervals table: predicted, lower, upper."""
+def interval_rows(path: Path, target: str, around: bool = True) -> np.ndarray:
+    """The target's test rows of an intervals table: predicted, lower, upper (``around``:
+    each interval holds its prediction, as a symmetric one does; a CV+ interval need not)."""
     table = text_csv(path)
     rows = floats(table.loc[table["target"] == target, ["predicted", "lower", "upper"]])
-    assert len(rows) and (rows[:, 1] <= rows[:, 0]).all() and (rows[:, 0] <= rows[:, 2]).all()
+    assert len(rows) and np.isfinite(rows).all() and (rows[:, 1] < rows[:, 2]).all()
+    if around:
+        assert (rows[:, 1] <= rows[:, 0]).all() and (rows[:, 0] <= rows[:, 2]).all()
     return rows
 
 
@@ -361,24 +369,37 @@ def check_registry(request, target):
 
 
 def check_no_track(request, target):
-    """``--no-track``: the same numbers as the tracked run."""
+    """``--no-track``: the same model as the tracked run."""
     u = request.getfixturevalue("untracked")
     t = request.getfixturevalue("tracked")
     j = TARGETS.index(target)
-    for key in ("test_mae", "cv_mae", "test_coverage"):
+    for key in ("test_mae", "cv_mae"):
         assert u.result["model"][key][j] == t.result["model"][key][j], key
     assert u.result["candidates"].get(target) == t.result["candidates"].get(target)
 
 
 def check_out(request, target):
-    """``--out DIR``, tracked and not: the intervals table (as logged) and figure."""
+    """``--out DIR``, tracked and not: the intervals table (the tracked run's as logged) and
+    figure."""
     t = request.getfixturevalue("tracked")
     u = request.getfixturevalue("untracked")
     logged = interval_rows(t.artifacts / "intervals" / "test_intervals.csv", target)
-    for out in (u.out, t.root / "out_tracked"):
-        np.testing.assert_array_equal(interval_rows(out / "test_intervals.csv", target),
-                                      logged)
+    tracked_out = t.root / "out_tracked"
+    np.testing.assert_array_equal(interval_rows(tracked_out / "test_intervals.csv", target),
+                                  logged)
+    for out in (tracked_out, u.out):
         assert (out / "intervals.png").stat().st_size > 0
+
+
+def check_cv_plus(request, target):
+    """CV+ intervals (the untracked run's): around the same predictions, finite, and they
+    hold most test rows."""
+    t = request.getfixturevalue("tracked")
+    u = request.getfixturevalue("untracked")
+    rows = interval_rows(u.out / "test_intervals.csv", target, around=False)
+    np.testing.assert_array_equal(rows[:, 0], floats(t.logged[[target]])[:, 0])
+    j = TARGETS.index(target)
+    assert u.result["model"]["test_coverage"][j] >= 0.5
 
 
 def check_seeds(request, target):
@@ -409,7 +430,8 @@ def check_sweep(request, target):
 PATHS = {"evaluate": check_evaluate, "learning_curve": check_learning_curve,
          "shap": check_shap, "bars": check_bars, "intervals": check_intervals,
          "predict": check_predict, "serving": check_serving, "registry": check_registry,
-         "no_track": check_no_track, "out": check_out, "seeds": check_seeds, "sweep": check_sweep}
+         "no_track": check_no_track, "out": check_out, "cv_plus": check_cv_plus,
+         "seeds": check_seeds, "sweep": check_sweep}
 
 
 @pytest.mark.parametrize("path", PATHS)
