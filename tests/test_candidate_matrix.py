@@ -15,7 +15,8 @@ prior      the prior itself (the target is noise around it; a BasisChoiceCV keep
 ========== ================================================================================
 
 Each command runs once for all five (module fixtures); ``test_kind_through_path[<kind>-
-<path>]`` then checks that kind's target in that command's outputs, so a failure names both.
+<path>]`` then checks that kind's target in that command's outputs, so a failure names both
+(a command that crashes errors all its cases, with its traceback).
 The paths: ``evaluate`` tracked (learning curves, SHAP, per-target bars, intervals, the
 logged and registered model), ``predict`` from the registry, the scoring server's request
 handler, ``evaluate --no-track --out`` (with CV+ intervals: the whole model refitted per
