@@ -11,6 +11,7 @@ from pathlib import Path
 
 from ...conformal import min_calibration_rows
 from ...datasets import Dataset, DatasetError, load_source
+from ..folds import check_ordered_rows
 from .experiment import ExperimentConfig
 
 __all__ = ["check_training_rows", "data_key", "load_dataset"]
@@ -38,6 +39,7 @@ def load_dataset(cfg: ExperimentConfig) -> Dataset:
     """
     ds = load_source(cfg.data.source, cfg.data.model_dump(), _base(cfg), cfg.name)
     check_training_rows(cfg, len(ds.train_index))
+    check_ordered_rows(cfg, ds)
     return ds
 
 
