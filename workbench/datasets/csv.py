@@ -293,26 +293,15 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
     unit : str, default=None
         The targets' unit (e.g. ``"meV"``) figures and summaries show (``None``: none).
     order_column : str, default=None
-        Each row's place in time: dates or datetimes (e.g. ``2024-03-01``,
-        ``2024-03-01T09:30:00Z``; without a zone: UTC) or numbers (run numbers, epochs).
-        The dataset's ``order``, which CV folds follow (forward-chaining); not a feature
-        unless named among ``features`` too.
+        Each row's place in time, dates (``2024-03-01``, ``2024-03-01T09:30:00Z``; no zone:
+        UTC) or numbers (run numbers): the dataset's ``order``, which CV folds follow.
     split : {"time"}, default=None
-        ``"time"``: the test rows are the latest ``test_fraction`` of the rows by
-        ``order_column`` (rows of one value on one side); ``None``: as above.
+        ``"time"``: the test rows are the latest ``test_fraction`` by ``order_column``.
     """
     path = Path(path)
-    if split not in (None, "time"):
-        raise DatasetError(f"split must be \"time\" or not given for a CSV, got {split!r}")
-    if split == "time" and order_column is None:
-        raise DatasetError("split = \"time\" needs an order_column (the rows' dates, times "
-                           "or run numbers)")
+    _check_time_split(split, order_column)
     prior, targets, features = list(prior), list(targets), list(features)
-    if not targets:
-        raise DatasetError("no target columns given")
-    if len(prior) != len(targets):
-        raise DatasetError(f"{len(prior)} prior column(s) {prior} for {len(targets)} target(s) "
-                           f"{targets}: give one prior column per target, in the same order")
+    _check_roles(prior, targets)
     graph = _graph(onsite, couplings, topology, shape, edges)
     if sign not in (-1, 1):
         raise DatasetError(f"sign must be -1 or 1, got {sign!r}")
@@ -326,19 +315,26 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
     data, frame = _read_columns(path, used, [split_column, group_column, order_column])
     order = None if order_column is None else _order(frame, order_column, path)
     train, test = _split(frame, path, test_fraction, split_column, split_seed,
-                         order if split == "time" else None)
-    hamiltonian = None
-    if onsite is not None:
-        assert couplings is not None and graph is not None  # both set with onsite (_graph)
-        hamiltonian = Hamiltonian(
-            onsite=data[list(onsite)], couplings=data[list(couplings)], sign=int(sign),
-            qubit_features=tuple(qubit_features) if qubit_features is not None else None,
-            coupler_features=tuple(coupler_features) if coupler_features is not None else None,
-            edges=None if graph.topology == "chain" else graph.edges)
+                         order if split else None)
+    hamiltonian = None if onsite is None else _hamiltonian(
+        data, onsite, couplings, sign, qubit_features, coupler_features, graph)
     groups = None if group_column is None else _groups(frame, group_column, used, path)
     return Dataset(name=name or path.stem, features=data[features], prior=data[prior],
                    targets=data[targets], train_index=train, test_index=test,
                    hamiltonian=hamiltonian, groups=groups, unit=unit, order=order)
+
+
+def _hamiltonian(data: pd.DataFrame, onsite: Sequence[str], couplings: Sequence[str] | None,
+                 sign: int, qubit_features: Sequence[str] | None,
+                 coupler_features: Sequence[str] | None,
+                 graph: CouplingGraph | None) -> Hamiltonian:
+    """The rows' Hamiltonian from their onsite and coupling columns (checked by _graph)."""
+    assert couplings is not None and graph is not None  # both set with onsite (_graph)
+    return Hamiltonian(
+        onsite=data[list(onsite)], couplings=data[list(couplings)], sign=int(sign),
+        qubit_features=tuple(qubit_features) if qubit_features is not None else None,
+        coupler_features=tuple(coupler_features) if coupler_features is not None else None,
+        edges=None if graph.topology == "chain" else graph.edges)
 
 
 def _graph(onsite: Sequence[str] | None, couplings: Sequence[str] | None, topology: str,
@@ -422,6 +418,24 @@ def _groups(frame: pd.DataFrame, group_column: str, used: list[str], path: Path)
         raise DatasetError(f"{path}: group column {group_column!r} is empty at "
                            f"{_rows(frame.index[empty])}")
     return groups
+
+
+def _check_roles(prior: list[str], targets: list[str]) -> None:
+    """Check the prior and target columns: some targets, one prior column each."""
+    if not targets:
+        raise DatasetError("no target columns given")
+    if len(prior) != len(targets):
+        raise DatasetError(f"{len(prior)} prior column(s) {prior} for {len(targets)} target(s) "
+                           f"{targets}: give one prior column per target, in the same order")
+
+
+def _check_time_split(split: str | None, order_column: str | None) -> None:
+    """Check a CSV's ``split``: ``"time"`` (with an order column) or none."""
+    if split not in (None, "time"):
+        raise DatasetError(f"split must be \"time\" or not given for a CSV, got {split!r}")
+    if split == "time" and order_column is None:
+        raise DatasetError("split = \"time\" needs an order_column (the rows' dates, times "
+                           "or run numbers)")
 
 
 def _order(frame: pd.DataFrame, order_column: str, path: Path) -> pd.Series:

@@ -19,7 +19,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from sklearn.model_selection import KFold
 
-from ..datasets import DatasetError
 from ..selection import LabelGroupKFold, LabelTimeSeriesSplit, ordered_splits
 
 if TYPE_CHECKING:
@@ -28,7 +27,7 @@ if TYPE_CHECKING:
     from ..datasets import Dataset
     from .config import DataConfig, ExperimentConfig
 
-__all__ = ["check_fold_settings", "check_ordered_rows", "curve_cv", "describe_folds",
+__all__ = ["check_fold_settings", "curve_cv", "describe_folds",
            "largest_curve_size", "make_folds", "outer_order_splits", "selection_cv",
            "sweep_inner_cv"]
 
@@ -69,6 +68,18 @@ def selection_cv(cfg: ExperimentConfig, ds: Dataset | None = None) -> Any:
     Forward-chaining when the dataset has an order, whole groups when it has groups and
     ``[selection] groups`` is true (its default), else ``KFold`` (contiguous unless
     ``shuffle``, seeded by ``random_state``).
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The config.
+    ds : Dataset, optional
+        The dataset (its order and groups).
+
+    Returns
+    -------
+    cross-validator
+        The folds.
     """
     s = cfg.selection
     return make_folds(ds, s.cv, shuffle=s.shuffle, random_state=cfg.random_state,
@@ -80,6 +91,18 @@ def sweep_inner_cv(cfg: ExperimentConfig, ds: Dataset | None = None) -> Any:
 
     ``[cv]`` inner_folds, shuffled with its seed; forward-chaining when the dataset has an
     order.
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The config.
+    ds : Dataset, optional
+        The dataset (its order and groups).
+
+    Returns
+    -------
+    cross-validator
+        The folds.
     """
     return make_folds(ds, cfg.cv.inner_folds, shuffle=True, random_state=cfg.cv.seed)
 
@@ -87,7 +110,17 @@ def sweep_inner_cv(cfg: ExperimentConfig, ds: Dataset | None = None) -> Any:
 def outer_order_splits(cfg: ExperimentConfig, ds: Dataset) -> list[tuple[np.ndarray, np.ndarray]]:
     """Chain a sweep's outer folds forward by the dataset's order.
 
-    Positions into the training rows; ``[cv]`` outer_folds, one repeat.
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The config (``[cv]`` outer_folds; one repeat).
+    ds : Dataset
+        The dataset, with an order.
+
+    Returns
+    -------
+    list of (train, validation) index arrays
+        Positions into the training rows.
     """
     assert ds.order is not None  # the caller asks only then
     return ordered_splits(ds.order.loc[ds.train_index].to_numpy(), cfg.cv.outer_folds)
@@ -98,13 +131,38 @@ def curve_cv(cfg: ExperimentConfig, ds: Dataset) -> Any:
 
     The selection's when they follow the data (its order or groups), else
     ``[selection] cv`` as an int (seeded shuffled folds).
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The config.
+    ds : Dataset
+        The dataset.
+
+    Returns
+    -------
+    int or cross-validator
+        The curves' ``cv``.
     """
     cv = selection_cv(cfg, ds)
     return cfg.selection.cv if isinstance(cv, KFold) else cv
 
 
 def largest_curve_size(cv: Any, X: pd.DataFrame) -> int:
-    """Count the rows the smallest fold of ``cv`` trains on (an int: ``KFold``'s)."""
+    """Count the rows the smallest fold of ``cv`` trains on.
+
+    Parameters
+    ----------
+    cv : int or cross-validator
+        The folds (an int: ``KFold``'s).
+    X : DataFrame
+        The rows they split.
+
+    Returns
+    -------
+    int
+        The smallest fold's training rows.
+    """
     if isinstance(cv, int):
         return len(X) - math.ceil(len(X) / cv)
     return min(len(train) for train, _ in cv.split(X))
@@ -113,8 +171,16 @@ def largest_curve_size(cv: Any, X: pd.DataFrame) -> int:
 def describe_folds(cv: Any) -> str:
     """Say which folds ``cv`` makes.
 
-    E.g. ``"5 forward-chaining by `date`"``, ``"5 by groups `device`"``, ``"5 shuffled"``
-    or ``"5 contiguous"``.
+    Parameters
+    ----------
+    cv : cross-validator
+        The folds.
+
+    Returns
+    -------
+    str
+        E.g. ``"5 forward-chaining by `date`"``, ``"5 by groups `device`"``,
+        ``"5 shuffled"`` or ``"5 contiguous"``.
     """
     n = cv.get_n_splits()
     if isinstance(cv, LabelTimeSeriesSplit):
@@ -128,6 +194,11 @@ def describe_folds(cv: Any) -> str:
 
 def check_fold_settings(cfg: ExperimentConfig) -> None:
     """Refuse the settings whose folds cannot follow ``[data] order_column``.
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The config.
 
     Raises
     ------
@@ -152,23 +223,3 @@ def check_fold_settings(cfg: ExperimentConfig) -> None:
         raise ValueError(f"[cv] repeats = {cfg.cv.repeats}: {why}, the same on every repeat; "
                          f"set repeats = 1")
 
-
-def check_ordered_rows(cfg: ExperimentConfig, ds: Dataset) -> None:
-    """Check that the training rows' order values make the config's ordered folds.
-
-    Raises
-    ------
-    DatasetError
-        Naming the column, its distinct values and the folds.
-    """
-    if ds.order is None:
-        return
-    order, folds = ds.order.loc[ds.train_index], cfg.selection.cv
-    try:
-        ordered_splits(order.to_numpy(), folds)
-    except ValueError:
-        raise DatasetError(
-            f"order column {order.name!r}: the {len(order)} training rows hold "
-            f"{order.nunique()} distinct value(s), too few for [selection] cv = {folds} "
-            f"forward-chaining folds (each needs earlier rows to train on and later ones to "
-            f"hold out); set fewer folds") from None
