@@ -245,6 +245,22 @@ def _features(path: Path, prior: list[str], targets: list[str], features: Sequen
     return list(features), skipped, hints
 
 
+def _checked_order(path: Path, *, order_column: str | None, group_column: str | None,
+                   **options: Any) -> str | None:
+    """Load the data as the config will, then choose the order column.
+
+    The loader's checks and messages first; then the column given, or the one found
+    (``"auto"``, without a group column), or none.
+    """
+    given = None if order_column == "auto" else order_column
+    load_csv_dataset(path, group_column=group_column, order_column=given, **options)
+    if order_column == "auto" and group_column is None:
+        found = find_order_column(path, [*options["prior"], *options["targets"],
+                                         options["split_column"] or ""])
+        given = found.column if found is not None else None
+    return given
+
+
 def _split_options(split_column: str | None, test_fraction: float | None,
                    split_seed: int | None) -> tuple[float | None, int | None]:
     """Check the split's options; return the test fraction and seed (defaults filled in)."""
@@ -281,10 +297,6 @@ def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str], targets: S
                 order_column: str | None = "auto") -> InitResult:
     """Write a first config for the CSV ``csv`` and return what was written.
 
-    A column of dates or run numbers (:func:`~.columns.find_order_column`) becomes
-    ``[data] order_column``: the CV folds chain forward in time and, without a split column
-    or a split seed, the test rows are the latest ones (``split = "time"``).
-
     Parameters
     ----------
     csv : path-like
@@ -300,8 +312,7 @@ def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str], targets: S
         Without ``split_column``: the random split's test share
         (:data:`DEFAULT_TEST_FRACTION` when ``None``).
     split_seed : int, default=None
-        The random split's seed (0 when ``None``); given, the split stays random with an
-        order column too.
+        The random split's seed (0 when ``None``; given: random with an order column too).
     name : str, default=None
         The data set's name; the CSV's stem when ``None``.
     out : path-like, default=None
@@ -311,8 +322,8 @@ def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str], targets: S
     group_column : str, default=None
         Each row's group (e.g. its device), kept whole by the CV folds.
     order_column : str, default="auto"
-        The column of dates, times or run numbers the CV folds chain forward by; ``"auto"``
-        finds one (none with ``group_column``); ``None``: none.
+        The column of dates or run numbers the CV folds chain forward by, the latest rows
+        the test rows; ``"auto"``: :func:`~.columns.find_order_column`; ``None``: none.
 
     Returns
     -------
@@ -336,21 +347,15 @@ def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str], targets: S
     prior, targets = list(prior), list(targets)
     entry = csv_entry(csv, out)
     path = (out.parent / entry).resolve()  # where load_dataset will read it
-    given = None if order_column == "auto" else order_column
-    # the data with the values the config will hold: the loader's checks and messages
-    load_csv_dataset(path, prior=prior, targets=targets, features=features or (),
-                     test_fraction=test_fraction, split_column=split_column,
-                     split_seed=split_seed or 0, group_column=group_column, name=name,
-                     order_column=given)
-    if order_column == "auto" and group_column is None:
-        found = find_order_column(path, [*prior, *targets, split_column or ""])
-        given = found.column if found is not None else None
+    given = _checked_order(path, prior=prior, targets=targets, features=features or (),
+                           test_fraction=test_fraction, split_column=split_column, name=name,
+                           split_seed=split_seed or 0, group_column=group_column,
+                           order_column=order_column)
     time_split = given is not None and split_column is None and not random_split
     defaulted = features is None
     features, skipped, hints = _features(path, prior, targets, features, split_column,
                                          group_column, given)
-    template = template_text()
-    tables = _check_template(template)
+    tables = _check_template(template := template_text())
     text = render_config(name=name, csv=entry, prior=prior, targets=targets, features=features,
                          split_column=split_column, test_fraction=test_fraction,
                          split_seed=split_seed or 0, out=str(out), source=str(csv),

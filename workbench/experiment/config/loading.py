@@ -129,10 +129,16 @@ def check_ordered_rows(cfg: ExperimentConfig, ds: Dataset) -> None:
         return
     order, folds = ds.order.loc[ds.train_index], cfg.selection.cv
     try:
-        ordered_splits(order.to_numpy(), folds)
+        splits = ordered_splits(order.to_numpy(), folds)
     except ValueError:
         raise DatasetError(
             f"order column {order.name!r}: the {len(order)} training rows hold "
             f"{order.nunique()} distinct value(s), too few for [selection] cv = {folds} "
             f"forward-chaining folds (each needs earlier rows to train on and later ones to "
             f"hold out); set fewer folds") from None
+    iv, held = cfg.intervals, sum(len(test) for _, test in splits)
+    if iv.enabled and iv.method == "oof" and held < min_calibration_rows(iv.alpha):
+        raise DatasetError(f"[intervals] method = 'oof': the forward-chaining folds hold out "
+                           f"{held} of the {len(order)} training rows, too few to calibrate "
+                           f"alpha = {iv.alpha} (at least {min_calibration_rows(iv.alpha)}); "
+                           f"set a larger alpha or [intervals] enabled = false")
