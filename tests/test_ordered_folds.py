@@ -300,3 +300,20 @@ def test_evaluate_with_ordered_folds_trains_every_fold_on_earlier_rows(tmp_path)
     # calibrate on the others
     assert np.isnan(est.cv_predictions_prior_).sum() == len(order) // 5
     assert np.isfinite(done.result.model.cv_mae).all()
+
+
+def test_a_sweep_s_outer_and_inner_folds_chain_forward(tmp_path):
+    from workbench.experiment.sweep.search import inner_cv, outer_splits, study_names
+
+    cfg = _config(tmp_path, cv={"outer_folds": 3, "inner_folds": 2},
+                  search={"line_search_penalty": {"low": 0.0, "high": 0.5}})
+    ds = load_dataset(cfg)
+    order = ds.order.loc[ds.train_index].to_numpy()
+    outer = outer_splits(cfg, len(order), ds)
+    assert len(outer) == 3 == sum(s.fold is not None for s in study_names(cfg, ["E"]))
+    for train, val in outer:
+        assert order[train].max() < order[val].min()
+        # an outer fold's training rows keep their labels: the inner folds chain on them
+        X = ds.X.loc[ds.train_index].iloc[train]
+        for inner_train, inner_val in inner_cv(cfg, ds).split(X):
+            assert order[train][inner_train].max() < order[train][inner_val].min()
