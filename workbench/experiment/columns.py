@@ -43,7 +43,7 @@ class OrderColumn:
     column : str
         Its name.
     kind : {"dates", "numbers"}
-        Dates and times, or run numbers (whole, mostly increasing down the file).
+        Dates and times, or numbers (run numbers, epochs).
     first, last : str
         Its earliest and latest values, as shown.
     n_values : int
@@ -72,7 +72,7 @@ class OrderColumn:
         """
         dates = pd.api.types.is_datetime64_any_dtype(order)
         show = (lambda v: str(v.date() if v == v.normalize() else v)) if dates else \
-            (lambda v: f"{v:g}")
+            (lambda v: f"{v:.15g}")
         return cls(str(order.name), "dates" if dates else "numbers", show(order.min()),
                    show(order.max()), int(order.nunique()))
 
@@ -183,7 +183,7 @@ def _as_order(column: str, raw: pd.Series) -> OrderColumn | None:
                 and np.all(values == np.round(values))
                 and np.mean(np.diff(values) >= 0) >= MONOTONE_SHARE):
             return None
-        return OrderColumn(column, "run numbers", f"{values.min():.0f}", f"{values.max():.0f}",
+        return OrderColumn(column, "numbers", f"{values.min():.0f}", f"{values.max():.0f}",
                            int(raw.nunique()))
     if not raw.str.contains(r"\d").all():
         return None  # month or day names alone are no dates to order by
