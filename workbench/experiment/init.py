@@ -234,11 +234,11 @@ def _features(path: Path, prior: list[str], targets: list[str], features: Sequen
     """Choose the feature columns, and the candidates for a group column.
 
     The features as given, or every other numeric column (with the columns skipped and why);
-    group candidates only without a group or an order column.
+    group candidates (not the order column) only without a group column.
     """
     skipped: dict[str, str] = {}
     roles = [*prior, *targets, *(c for c in (split_column, order_column) if c)]
-    hints = {} if group_column or order_column else group_columns(path, roles)
+    hints = {} if group_column else group_columns(path, roles)  # (--group-column: no order)
     if features is None:
         features, skipped = numeric_columns(
             path, [*roles, *([group_column] if group_column else [])])
