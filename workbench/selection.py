@@ -8,6 +8,7 @@ from collections.abc import Callable, Iterator
 from typing import Any, Self
 
 import numpy as np
+import pandas as pd
 from sklearn.base import BaseEstimator, MetaEstimatorMixin, RegressorMixin, clone
 from sklearn.exceptions import FitFailedWarning
 from sklearn.metrics import check_scoring
@@ -20,7 +21,8 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 from .boosting import BaseBoostRegressor, CachedParamNames, PriorModel, seed_estimator
 from .parallel import Plan, Task, gather, run_plans
 
-__all__ = ["BaseBoostCV", "BasisChoiceCV", "CandidateMean", "LabelGroupKFold", "find_prior"]
+__all__ = ["BaseBoostCV", "BasisChoiceCV", "CandidateMean", "LabelGroupKFold",
+           "LabelTimeSeriesSplit", "find_prior"]
 
 
 def find_prior(estimator: Any) -> Any:
@@ -596,3 +598,89 @@ class LabelGroupKFold(BaseCrossValidator):
     def _iter_test_indices(self, X: Any = None, y: Any = None,
                            groups: Any = None) -> Iterator[np.ndarray]:  # split is overridden
         raise NotImplementedError
+
+
+class LabelTimeSeriesSplit(BaseCrossValidator):
+    """Forward-chaining folds (scikit-learn's ``TimeSeriesSplit``) over rows ordered by a
+    value looked up by label: each fold trains on the rows earlier than its held-out rows.
+
+    ``order`` maps the row labels of a whole dataset (a pandas Series) to a sortable value
+    (a date, a time, a run number); :meth:`split` takes the values of the rows of ``X`` (a
+    DataFrame) from its index, as :class:`LabelGroupKFold` takes their groups. The rows,
+    sorted by their value, are cut as ``TimeSeriesSplit(n_splits)`` cuts them (held-out
+    blocks of ``n_rows // (n_splits + 1)`` rows at the end, fold ``k`` training on every
+    row before its block), except that each cut moves back to the first row of its value:
+    rows with equal values are never on both sides of a fold. The first block is never
+    held out (its rows have no out-of-fold prediction).
+
+    Parameters
+    ----------
+    order : pandas Series
+        The order value of each row label (numbers or datetimes; larger is later).
+    n_splits : int, default=5
+        The folds.
+    """
+
+    def __init__(self, order: Any = None, n_splits: int = 5) -> None:
+        self.order = order
+        self.n_splits = n_splits
+
+    def get_n_splits(self, X: Any = None, y: Any = None, groups: Any = None) -> int:
+        return self.n_splits
+
+    def split(self, X: Any, y: Any = None,
+              groups: Any = None) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        if not hasattr(X, "index"):
+            raise TypeError("LabelTimeSeriesSplit looks the rows' order up by label: X must "
+                            "be a DataFrame with the dataset's row labels")
+        missing = X.index.difference(self.order.index)
+        if len(missing):
+            raise ValueError(f"LabelTimeSeriesSplit: {len(missing)} row label(s) of X have "
+                             f"no order value, e.g. {missing[0]!r}")
+        yield from ordered_splits(self.order.loc[X.index].to_numpy(), self.n_splits)
+
+    def _iter_test_indices(self, X: Any = None, y: Any = None,
+                           groups: Any = None) -> Iterator[np.ndarray]:  # split is overridden
+        raise NotImplementedError
+
+
+def ordered_splits(values: Any, n_splits: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The positions of :class:`LabelTimeSeriesSplit`'s folds for rows of order ``values``.
+
+    Parameters
+    ----------
+    values : array-like of shape (n_rows,)
+        Each row's order value (numbers or datetimes), no missing value.
+    n_splits : int
+        The folds (at least 2).
+
+    Returns
+    -------
+    list of (train, test) index arrays
+        Positions into ``values``, each sorted; every training row's value is below every
+        held-out row's.
+
+    Raises
+    ------
+    ValueError
+        For missing values, or rows too few (or values too few distinct) for the folds.
+    """
+    if int(n_splits) < 2:
+        raise ValueError(f"n_splits must be at least 2, got {n_splits!r}")
+    codes, uniques = pd.factorize(pd.Series(values), sort=True)
+    if (codes < 0).any():
+        raise ValueError(f"LabelTimeSeriesSplit: {int((codes < 0).sum())} row(s) without an "
+                         "order value (NaN)")
+    n, k = len(codes), int(n_splits)
+    rows = np.argsort(codes, kind="stable")
+    sorted_codes = codes[rows]
+    size = n // (k + 1)
+    cuts = [n - (k - i) * size for i in range(k)]
+    # each cut back to the first row of its value: equal values stay on one side
+    cuts = [int(np.searchsorted(sorted_codes, sorted_codes[c], "left")) if c < n else n
+            for c in cuts] + [n]
+    if size == 0 or cuts[0] == 0 or any(a >= b for a, b in zip(cuts, cuts[1:])):
+        raise ValueError(f"LabelTimeSeriesSplit: {n} rows with {len(uniques)} distinct order "
+                         f"value(s) cannot make {k} forward-chaining folds (each needs "
+                         f"earlier rows to train on and later ones to hold out)")
+    return [(np.sort(rows[:a]), np.sort(rows[a:b])) for a, b in zip(cuts, cuts[1:])]

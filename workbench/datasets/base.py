@@ -81,6 +81,9 @@ class Dataset:
     unit : str, default=None
         The targets' (and priors') unit, as figures and summaries label it (e.g. ``"MHz"``);
         ``None``: no unit is shown.
+    order : Series, default=None
+        Each row's place in time (numbers, or datetimes; larger is later), e.g. the date a
+        row was measured: CV folds follow it (forward-chaining), and it is no feature.
     """
 
     name: str
@@ -92,6 +95,7 @@ class Dataset:
     hamiltonian: Hamiltonian | None = None
     groups: pd.Series | None = None
     unit: str | None = None
+    order: pd.Series | None = None
 
     @property
     def target_names(self) -> list[str]:

@@ -2,8 +2,10 @@
 
 One row per experiment; columns named by the caller: one prior column per target (same
 order), the targets, optional extra basis inputs (features), and optionally the control
-model's Hamiltonian parameters. The split comes from a ``train``/``test`` column or from a
-seeded random ``test_fraction``. Every problem is reported as a :class:`DatasetError` that
+model's Hamiltonian parameters. The split comes from a ``train``/``test`` column, from a
+seeded random ``test_fraction``, or (``split="time"``) from the latest ``test_fraction`` of
+the rows by an order column (dates, times or run numbers, :mod:`workbench.datasets.order`).
+Every problem is reported as a :class:`DatasetError` that
 names the file, the columns and the rows; nothing is written anywhere.
 
 A message never quotes the file's content beyond its header, and the header only when it
@@ -26,6 +28,7 @@ import pandas as pd
 from .._text import clip
 from ..hamiltonian import CouplingGraph, make_graph
 from .base import Dataset, Hamiltonian
+from .order import BadOrderValues, latest_rows, order_values
 
 __all__ = ["DatasetError", "load_csv_dataset", "read_numeric_columns"]
 
@@ -171,10 +174,20 @@ def _check_values(data: pd.DataFrame, columns: Sequence[str], path: Path) -> Non
 
 
 def _split(frame: pd.DataFrame, path: Path, test_fraction: Any,
-           split_column: str | None, split_seed: int) -> tuple[np.ndarray, np.ndarray]:
+           split_column: str | None, split_seed: int,
+           order: pd.Series | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The training and test rows; ``order``: the latest ``test_fraction`` are the test
+    rows (``split="time"``)."""
     if (test_fraction is None) == (split_column is None):
         raise DatasetError("give exactly one of test_fraction or split_column")
-    if split_column is not None:
+    if order is not None:
+        if split_column is not None:
+            raise DatasetError("split = \"time\" takes the latest test_fraction of the rows, "
+                               "not split_column")
+        if not 0.0 < float(test_fraction) < 1.0:
+            raise DatasetError(f"test_fraction must be in (0, 1), got {test_fraction!r}")
+        train, test = latest_rows(order, float(test_fraction))
+    elif split_column is not None:
         if split_column not in frame.columns:
             raise DatasetError(f"{path}: split column {split_column!r} is missing")
         values = frame[split_column].str.strip().str.lower()
@@ -239,7 +252,8 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
                      topology: str = "chain", shape: Sequence[int] | None = None,
                      edges: Sequence[Sequence[int]] | None = None,
                      group_column: str | None = None, name: str | None = None,
-                     unit: str | None = None) -> Dataset:
+                     unit: str | None = None, order_column: str | None = None,
+                     split: str | None = None) -> Dataset:
     """Read a CSV of experiments into a :class:`Dataset`.
 
     Parameters
@@ -278,14 +292,16 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
         The dataset's name (``None``: the file's stem).
     unit : str, default=None
         The targets' unit (e.g. ``"meV"``) figures and summaries show (``None``: none).
+    order_column : str, default=None
+        Each row's place in time, dates (``2024-03-01``, ``2024-03-01T09:30:00Z``; no zone:
+        UTC) or numbers (run numbers): the dataset's ``order``, which CV folds follow.
+    split : {"time"}, default=None
+        ``"time"``: the test rows are the latest ``test_fraction`` by ``order_column``.
     """
     path = Path(path)
+    _check_time_split(split, order_column)
     prior, targets, features = list(prior), list(targets), list(features)
-    if not targets:
-        raise DatasetError("no target columns given")
-    if len(prior) != len(targets):
-        raise DatasetError(f"{len(prior)} prior column(s) {prior} for {len(targets)} target(s) "
-                           f"{targets}: give one prior column per target, in the same order")
+    _check_roles(prior, targets)
     graph = _graph(onsite, couplings, topology, shape, edges)
     if sign not in (-1, 1):
         raise DatasetError(f"sign must be -1 or 1, got {sign!r}")
@@ -296,20 +312,29 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
     if named_twice:
         raise DatasetError(f"column(s) {named_twice} named in more than one role")
 
-    data, frame = _read_columns(path, used, [split_column, group_column])
-    train, test = _split(frame, path, test_fraction, split_column, split_seed)
-    hamiltonian = None
-    if onsite is not None:
-        assert couplings is not None and graph is not None  # both set with onsite (_graph)
-        hamiltonian = Hamiltonian(
-            onsite=data[list(onsite)], couplings=data[list(couplings)], sign=int(sign),
-            qubit_features=tuple(qubit_features) if qubit_features is not None else None,
-            coupler_features=tuple(coupler_features) if coupler_features is not None else None,
-            edges=None if graph.topology == "chain" else graph.edges)
+    data, frame = _read_columns(path, used, [split_column, group_column, order_column])
+    order = None if order_column is None else _order(frame, order_column, path)
+    train, test = _split(frame, path, test_fraction, split_column, split_seed,
+                         order if split else None)
+    hamiltonian = None if onsite is None else _hamiltonian(
+        data, onsite, couplings, sign, qubit_features, coupler_features, graph)
     groups = None if group_column is None else _groups(frame, group_column, used, path)
     return Dataset(name=name or path.stem, features=data[features], prior=data[prior],
                    targets=data[targets], train_index=train, test_index=test,
-                   hamiltonian=hamiltonian, groups=groups, unit=unit)
+                   hamiltonian=hamiltonian, groups=groups, unit=unit, order=order)
+
+
+def _hamiltonian(data: pd.DataFrame, onsite: Sequence[str], couplings: Sequence[str] | None,
+                 sign: int, qubit_features: Sequence[str] | None,
+                 coupler_features: Sequence[str] | None,
+                 graph: CouplingGraph | None) -> Hamiltonian:
+    """The rows' Hamiltonian from their onsite and coupling columns (checked by _graph)."""
+    assert couplings is not None and graph is not None  # both set with onsite (_graph)
+    return Hamiltonian(
+        onsite=data[list(onsite)], couplings=data[list(couplings)], sign=int(sign),
+        qubit_features=tuple(qubit_features) if qubit_features is not None else None,
+        coupler_features=tuple(coupler_features) if coupler_features is not None else None,
+        edges=None if graph.topology == "chain" else graph.edges)
 
 
 def _graph(onsite: Sequence[str] | None, couplings: Sequence[str] | None, topology: str,
@@ -393,3 +418,32 @@ def _groups(frame: pd.DataFrame, group_column: str, used: list[str], path: Path)
         raise DatasetError(f"{path}: group column {group_column!r} is empty at "
                            f"{_rows(frame.index[empty])}")
     return groups
+
+
+def _check_roles(prior: list[str], targets: list[str]) -> None:
+    """Check the prior and target columns: some targets, one prior column each."""
+    if not targets:
+        raise DatasetError("no target columns given")
+    if len(prior) != len(targets):
+        raise DatasetError(f"{len(prior)} prior column(s) {prior} for {len(targets)} target(s) "
+                           f"{targets}: give one prior column per target, in the same order")
+
+
+def _check_time_split(split: str | None, order_column: str | None) -> None:
+    """Check a CSV's ``split``: ``"time"`` (with an order column) or none."""
+    if split not in (None, "time"):
+        raise DatasetError(f"split must be \"time\" or not given for a CSV, got {split!r}")
+    if split == "time" and order_column is None:
+        raise DatasetError("split = \"time\" needs an order_column (the rows' dates, times "
+                           "or run numbers)")
+
+
+def _order(frame: pd.DataFrame, order_column: str, path: Path) -> pd.Series:
+    """Read each row's order value from ``order_column`` (numbers, else dates)."""
+    try:
+        return order_values(frame[order_column])
+    except BadOrderValues as exc:
+        what = ("is empty or NaN" if exc.what == "missing" else
+                "holds values that are neither numbers nor dates (e.g. 2024-03-01)")
+        raise DatasetError(f"{path}: order column {order_column!r} {what} at "
+                           f"{_rows(frame.index[exc.rows])}") from None

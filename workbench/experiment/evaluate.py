@@ -21,6 +21,7 @@ from sklearn.model_selection import KFold, RepeatedKFold, cross_val_predict
 
 from .bootstrap import bootstrap_test_scores
 from .config import ExperimentConfig, load_dataset
+from .folds import describe_folds, selection_cv
 from .intervals import family_model, interval_scores, interval_settings, with_intervals
 from .results import CVEstimate, Result, mae, mse
 from .units import unit_name
@@ -218,7 +219,8 @@ def fit_and_score(cfg: ExperimentConfig, ds: Dataset, model: Any) -> tuple[Resul
     result = Result(name=cfg.name, config=str(cfg.path) if cfg.path else None,
                     family=family.name, targets=list(ds.target_names), n_train=len(y_train),
                     n_test=len(y_test), prior=prior, model=scores, details=details,
-                    intervals=interval_settings(cfg), bootstrap=bootstrap, unit=ds.unit)
+                    intervals=interval_settings(cfg), bootstrap=bootstrap, unit=ds.unit,
+                    folds=describe_folds(selection_cv(cfg, ds)))
     return result, model
 
 
@@ -273,6 +275,8 @@ def format_table(result: Result) -> str:
                  f"{result.model.avg('test_mae'):>11.3f}{result.model.avg('cv_mae'):>14.3f}")
     lines.append(f"test MAE in {unit_name(result.unit)}; "
                  f"wall time {result.wall_s:.1f} s")
+    if result.folds:
+        lines.append(f"folds: {result.folds}")
     if result.model.test_mae_diff_avg_ci:
         boot = result.bootstrap
         ci_level = f"{boot['level']:.0%} " if "level" in boot else ""

@@ -17,25 +17,21 @@ from importlib import resources
 from pathlib import Path
 from typing import Any, Sequence
 
-import numpy as np
-import pandas as pd
-
 from ..datasets import load_csv_dataset
+from .columns import OrderColumn, find_order_column, group_columns, numeric_columns
 from .config import load_dataset
 from .errors import ConfigError, UsageError
 from .outputs import check_file, write_file
 from .prepare import parse_config
 from .toml_text import split_template, toml_comment, toml_string, toml_strings
 
-__all__ = ["DEFAULT_TEST_FRACTION", "TEMPLATE", "InitResult", "csv_entry", "group_columns",
-           "init_config", "numeric_columns", "render_config", "template_text"]
+__all__ = ["DEFAULT_TEST_FRACTION", "TEMPLATE", "InitResult", "csv_entry", "find_order_column",
+           "group_columns", "init_config", "numeric_columns", "render_config", "template_text"]
 
 #: The template every generated config copies below its ``[data]`` section.
 TEMPLATE = "generic.toml"
 #: The share of rows held out for testing when no split column is given.
 DEFAULT_TEST_FRACTION = 0.3
-#: What the loader reads as a missing cell (``workbench.datasets.csv``).
-_MISSING = ("", "nan", "na", "null")
 #: The keys the command writes itself; the template may not set them.
 _OWN_KEYS = ("name", "random_state", "data")
 
@@ -61,6 +57,10 @@ class InitResult:
     group_hints : dict of str to int
         Without a group column: text columns whose values repeat (e.g. a device or a date),
         with their number of distinct values: candidates for ``--group-column``.
+    order : OrderColumn, default=None
+        The column the CV folds chain forward by (``[data] order_column``), found or given.
+    time_split : bool, default=False
+        Whether the test rows are the latest ones by ``order`` (``split = "time"``).
     """
 
     path: Path
@@ -73,6 +73,8 @@ class InitResult:
     #: Without a group column: text columns whose values repeat (e.g. a device or a date),
     #: with their number of distinct values: candidates for ``--group-column``.
     group_hints: dict[str, int] = field(default_factory=dict)
+    order: OrderColumn | None = None
+    time_split: bool = False
 
 
 def template_text(name: str = TEMPLATE) -> str:
@@ -119,82 +121,11 @@ def csv_entry(csv: str | os.PathLike[str], config: str | os.PathLike[str]) -> st
         return target.as_posix()
 
 
-def numeric_columns(path: str | os.PathLike[str], exclude: Sequence[str]
-                    ) -> tuple[list[str], dict[str, str]]:
-    """Split the CSV's columns into the numeric ones and the others.
-
-    Cells are read as the loader reads them (text, stripped; empty, ``nan``, ``na``, ``null``
-    missing); call it once the loader has read the file.
-
-    Parameters
-    ----------
-    path : path-like
-        The CSV file.
-    exclude : sequence of str
-        Columns not considered.
-
-    Returns
-    -------
-    taken : list of str
-        The columns whose every cell is a finite number, in the file's order.
-    skipped : dict of str to str
-        The others, with the reason they were left out.
-    """
-    frame = pd.read_csv(path, dtype=str, keep_default_na=False)
-    taken: list[str] = []
-    skipped: dict[str, str] = {}
-    for column in frame.columns:
-        if column in exclude:
-            continue
-        raw = frame[column].str.strip()
-        missing = raw.str.lower().isin(_MISSING)
-        values = pd.to_numeric(raw.where(~missing, "nan"), errors="coerce")
-        if (values.isna() & ~missing).any():
-            skipped[column] = "not numeric"
-        elif not np.isfinite(values.to_numpy(dtype=float)).all():
-            skipped[column] = "missing or infinite values"
-        else:
-            taken.append(column)
-    return taken, skipped
-
-
-def group_columns(path: str | os.PathLike[str], exclude: Sequence[str]) -> dict[str, int]:
-    """Find the text columns whose values repeat, candidates for ``[data] group_column``.
-
-    Rows that share such a value (the device or the cooldown a row was measured in) are often
-    alike, so plain K-fold CV, which puts some of them on each side of a fold, rewards what
-    only repeats within a group; ``[data] group_column`` keeps each group whole in one fold.
-
-    Parameters
-    ----------
-    path : path-like
-        The CSV file.
-    exclude : sequence of str
-        Columns not considered.
-
-    Returns
-    -------
-    dict of str to int
-        Each such column with its number of distinct values (between 2 and half the rows).
-    """
-    frame = pd.read_csv(path, dtype=str, keep_default_na=False)
-    out = {}
-    for column in frame.columns:
-        if column in exclude:
-            continue
-        raw = frame[column].str.strip()
-        if pd.to_numeric(raw, errors="coerce").notna().all():
-            continue  # a number: a feature, not a name
-        n = raw.nunique()
-        if 2 <= n <= len(raw) // 2:
-            out[column] = int(n)
-    return out
-
-
 def render_config(*, name: str, csv: str, prior: Sequence[str], targets: Sequence[str],
                   features: Sequence[str], split_column: str | None, test_fraction: float | None,
                   split_seed: int, out: str, source: str, template: str,
-                  group_column: str | None = None) -> str:
+                  group_column: str | None = None, order_column: str | None = None,
+                  time_split: bool = False) -> str:
     """Write the config's text.
 
     A header comment (what wrote it, from which CSV, what to run next), ``name``,
@@ -223,6 +154,10 @@ def render_config(*, name: str, csv: str, prior: Sequence[str], targets: Sequenc
         The template's text.
     group_column : str, default=None
         The column whose groups CV folds keep whole.
+    order_column : str, default=None
+        The column the CV folds chain forward by (dates, times, run numbers).
+    time_split : bool, default=False
+        The test rows are the latest ``test_fraction`` by ``order_column``.
 
     Returns
     -------
@@ -249,6 +184,9 @@ def render_config(*, name: str, csv: str, prior: Sequence[str], targets: Sequenc
     ]
     if split_column is not None:
         data.append(f"split_column = {toml_string(split_column)}   # its values: train, test")
+    elif time_split:
+        data += [f"test_fraction = {test_fraction!r}   # the latest rows by order_column",
+                 'split = "time"']
     else:
         assert test_fraction is not None  # one of the two (init_config)
         data += [f"test_fraction = {test_fraction!r}   # of the rows, drawn at random with "
@@ -256,6 +194,9 @@ def render_config(*, name: str, csv: str, prior: Sequence[str], targets: Sequenc
     if group_column is not None:
         data.append(f"group_column = {toml_string(group_column)}"
                     "   # CV folds keep each group whole")
+    if order_column is not None:
+        data.append(f"order_column = {toml_string(order_column)}"
+                    "   # CV folds chain forward: each trains on earlier rows")
     top, rest = split_template(template)
     head = [*header, "", f"name = {toml_string(name)}", "random_state = 0"]
     return "\n".join(head) + "\n" + (top and top.rstrip("\n") + "\n") + "\n" \
@@ -288,20 +229,50 @@ def _parse(text: str, template: dict[str, Any]) -> dict[str, Any]:
 
 
 def _features(path: Path, prior: list[str], targets: list[str], features: Sequence[str] | None,
-              split_column: str | None, group_column: str | None
+              split_column: str | None, group_column: str | None, order_column: str | None
               ) -> tuple[list[str], dict[str, str], dict[str, int]]:
-    """Choose the feature columns, and without a group column the candidates for one.
+    """Choose the feature columns, and the candidates for a group column.
 
-    The features as given, or every other numeric column (with the columns skipped and why).
+    The features as given, or every other numeric column (with the columns skipped and why);
+    group candidates (not the order column) only without a group column.
     """
     skipped: dict[str, str] = {}
-    hints = {} if group_column else group_columns(
-        path, [*prior, *targets, *([split_column] if split_column else [])])
+    roles = [*prior, *targets, *(c for c in (split_column, order_column) if c)]
+    hints = {} if group_column else group_columns(path, roles)  # (--group-column: no order)
     if features is None:
         features, skipped = numeric_columns(
-            path, [*prior, *targets, *([split_column] if split_column else []),
-                   *([group_column] if group_column else [])])
+            path, [*roles, *([group_column] if group_column else [])])
     return list(features), skipped, hints
+
+
+def _checked_order(path: Path, *, order_column: str | None, group_column: str | None,
+                   **options: Any) -> str | None:
+    """Load the data as the config will, then choose the order column.
+
+    The loader's checks and messages first; then the column given, or the one found
+    (``"auto"``, without a group column), or none.
+    """
+    given = None if order_column == "auto" else order_column
+    load_csv_dataset(path, group_column=group_column, order_column=given, **options)
+    if order_column == "auto" and group_column is None:
+        found = find_order_column(path, [*options["prior"], *options["targets"],
+                                         options["split_column"] or ""])
+        given = found.column if found is not None else None
+    return given
+
+
+def _split_options(split_column: str | None, test_fraction: float | None,
+                   split_seed: int | None) -> tuple[float | None, int | None]:
+    """Check the split's options; return the test fraction and seed (defaults filled in)."""
+    if split_column is not None:
+        if test_fraction is not None:
+            raise UsageError("give either --split-column or --test-fraction, not both")
+        if split_seed is not None:
+            raise UsageError("--split-seed draws the random split of --test-fraction; "
+                             "--split-column gives the split")
+        return None, None
+    return (DEFAULT_TEST_FRACTION if test_fraction is None else test_fraction,
+            0 if split_seed is None else split_seed)
 
 
 def _output(name: str, out: str | os.PathLike[str] | None, force: bool) -> Path:
@@ -322,7 +293,8 @@ def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str], targets: S
                 features: Sequence[str] | None = None, split_column: str | None = None,
                 test_fraction: float | None = None, split_seed: int | None = None,
                 name: str | None = None, out: str | os.PathLike[str] | None = None,
-                force: bool = False, group_column: str | None = None) -> InitResult:
+                force: bool = False, group_column: str | None = None,
+                order_column: str | None = "auto") -> InitResult:
     """Write a first config for the CSV ``csv`` and return what was written.
 
     Parameters
@@ -340,7 +312,7 @@ def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str], targets: S
         Without ``split_column``: the random split's test share
         (:data:`DEFAULT_TEST_FRACTION` when ``None``).
     split_seed : int, default=None
-        The random split's seed (0 when ``None``).
+        The random split's seed (0 when ``None``; given: random with an order column too).
     name : str, default=None
         The data set's name; the CSV's stem when ``None``.
     out : path-like, default=None
@@ -349,6 +321,9 @@ def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str], targets: S
         Overwrite an existing ``out``.
     group_column : str, default=None
         Each row's group (e.g. its device), kept whole by the CV folds.
+    order_column : str, default="auto"
+        The column of dates or run numbers the CV folds chain forward by, the latest rows
+        the test rows; ``"auto"``: :func:`~.columns.find_order_column`; ``None``: none.
 
     Returns
     -------
@@ -367,34 +342,30 @@ def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str], targets: S
     csv = Path(csv)
     name = csv.stem if name is None else name
     out = _output(name, out, force)
-    if split_column is not None:
-        if test_fraction is not None:
-            raise UsageError("give either --split-column or --test-fraction, not both")
-        if split_seed is not None:
-            raise UsageError("--split-seed draws the random split of --test-fraction; "
-                             "--split-column gives the split")
-    else:
-        test_fraction = DEFAULT_TEST_FRACTION if test_fraction is None else test_fraction
-        split_seed = 0 if split_seed is None else split_seed
+    random_split = split_seed is not None
+    test_fraction, split_seed = _split_options(split_column, test_fraction, split_seed)
     prior, targets = list(prior), list(targets)
     entry = csv_entry(csv, out)
     path = (out.parent / entry).resolve()  # where load_dataset will read it
-    # the data with the values the config will hold: the loader's checks and messages
-    load_csv_dataset(path, prior=prior, targets=targets, features=features or (),
-                     test_fraction=test_fraction, split_column=split_column,
-                     split_seed=split_seed or 0, group_column=group_column, name=name)
+    given = _checked_order(path, prior=prior, targets=targets, features=features or (),
+                           test_fraction=test_fraction, split_column=split_column, name=name,
+                           split_seed=split_seed or 0, group_column=group_column,
+                           order_column=order_column)
+    time_split = given is not None and split_column is None and not random_split
     defaulted = features is None
     features, skipped, hints = _features(path, prior, targets, features, split_column,
-                                         group_column)
-    template = template_text()
-    tables = _check_template(template)
+                                         group_column, given)
+    tables = _check_template(template := template_text())
     text = render_config(name=name, csv=entry, prior=prior, targets=targets, features=features,
                          split_column=split_column, test_fraction=test_fraction,
                          split_seed=split_seed or 0, out=str(out), source=str(csv),
-                         template=template, group_column=group_column)
+                         template=template, group_column=group_column, order_column=given,
+                         time_split=time_split)
     cfg = parse_config(_parse(text, tables), out)  # the project's own parser
     dataset = load_dataset(cfg)  # exactly what evaluate loads, its size checks included
     write_file(out, text, "--out")  # atomic_write: all or nothing, a failure in one line
     return InitResult(path=out, text=text, features=features, defaulted=defaulted,
                       skipped=skipped, n_train=len(dataset.train_index),
-                      n_test=len(dataset.test_index), group_hints=hints)
+                      n_test=len(dataset.test_index), group_hints=hints,
+                      order=None if dataset.order is None else OrderColumn.of(dataset.order),
+                      time_split=time_split)

@@ -33,6 +33,7 @@ from .config import (
 )
 from .errors import ConfigError, clip, shorten
 from .families import FAMILIES, ModelFamily, discover_families
+from .folds import check_fold_settings
 from .overrides import apply_overrides, format_overrides
 from .schema import MAX_MESSAGE
 from .space import SearchSpace, SpaceError
@@ -218,6 +219,10 @@ def parse_config(raw: dict[str, Any], path: Path | None = None) -> ExperimentCon
             check_boost_settings(cfg.model_for(target))
         except ValueError as exc:
             raise _error(where, f"{label}.{exc}") from None
+    try:
+        check_fold_settings(cfg)
+    except ValueError as exc:
+        raise _error(where, str(exc)) from None
     return cfg
 
 

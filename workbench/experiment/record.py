@@ -169,7 +169,7 @@ def record(cfg: ExperimentConfig, result: Result, model: Any, ds: Dataset,
     tracker = tracker_for(cfg, tracking_uri)
     X_train, X_test, y_train, y_test = computed.rows
     tags = {**run_tags(cfg, ds, kind), NOTE_TAG: _description(cfg, ds, kind, result)}
-    params = run_params(cfg, result.targets, len(X_train), len(X_test))
+    params = run_params(cfg, result.targets, len(X_train), len(X_test), result.folds)
     live = run_id is not None
     if run_id is not None:
         tracker.set_tags(run_id, tags)
@@ -258,7 +258,8 @@ def record_seed(cfg: ExperimentConfig, run: Evaluation, predictions: pd.DataFram
     tracker.set_tags(run_id, {**run_tags(cfg, ds, "evaluate"), "workbench.kind": "seed",
                               "workbench.seed": cfg.random_state,
                               NOTE_TAG: _description(cfg, ds, "evaluate", result)})
-    tracker.log_params(run_id, run_params(cfg, result.targets, result.n_train, result.n_test))
+    tracker.log_params(run_id, run_params(cfg, result.targets, result.n_train, result.n_test,
+                                          result.folds))
     tracker.log_metrics(run_id, result_metrics(result))
     tracker.log_dict(run_id, json.loads(json.dumps(result.to_json(), default=str)),
                      "result.json")

@@ -189,6 +189,10 @@ class Result:
     unit : str, default=None
         The targets' unit (the dataset's; ``None``: none), which every error shares (MSE: its
         square).
+    folds : str, default=""
+        Which CV folds made the model's choices, e.g. ``"5 forward-chaining by `date`"``,
+        ``"5 by groups `device`"``, ``"5 shuffled"`` (:func:`~.folds.describe_folds`; empty:
+        not known).
     """
 
     name: str
@@ -209,6 +213,7 @@ class Result:
     mlflow: dict[str, str] = field(default_factory=dict)
     wall_s: float = math.nan
     unit: str | None = None
+    folds: str = ""
 
     def to_json(self) -> dict[str, Any]:
         """Write the result as the JSON ``--json`` writes (see the module docstring).
@@ -221,7 +226,7 @@ class Result:
         out: dict[str, Any] = {
             "name": self.name, "config": self.config, "family": self.family,
             "targets": self.targets, "unit": self.unit, "n_train": self.n_train,
-            "n_test": self.n_test,
+            "n_test": self.n_test, **({"folds": self.folds} if self.folds else {}),
             "prior": self.prior.to_json(), "model": self.model.to_json(), **self.details}
         for key in ("repeated_cv", "nested_cv_all", "sweep"):
             part = getattr(self, key)

@@ -242,7 +242,7 @@ def run_tags(cfg: ExperimentConfig, ds: Dataset, kind: str) -> dict[str, str]:
 
 
 def run_params(cfg: ExperimentConfig, targets: list[str], n_train: int,
-               n_test: int) -> dict[str, Any]:
+               n_test: int, folds: str = "") -> dict[str, Any]:
     """Write a run's params.
 
     Parameters
@@ -253,17 +253,21 @@ def run_params(cfg: ExperimentConfig, targets: list[str], n_train: int,
         Its targets.
     n_train, n_test : int
         The split's sizes.
+    folds : str, default=""
+        Which CV folds made the choices (:attr:`~.results.Result.folds`; empty: not logged).
 
     Returns
     -------
     dict
-        The seed, the split's sizes, the family, every target's model settings
+        The seed, the split's sizes, the folds, the family, every target's model settings
         (``<target>.<setting>``), the family's and the intervals' settings, and each
         ``--set`` override as ``set.<SECTION.KEY>``.
     """
     family = cfg.family
     params: dict[str, Any] = {"random_state": cfg.random_state, "n_train": n_train,
                               "n_test": n_test, "family": family.name}
+    if folds:
+        params["folds"] = folds
     for target in targets:
         params.update(_flat(f"{target}.", cfg.model_for(target)))
     if cfg.family_settings is not None:

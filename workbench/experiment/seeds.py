@@ -337,6 +337,8 @@ def format_seeds_table(done: SeedsResult, markdown: bool = False) -> str:
     lines.append("average per seed: " + ", ".join(
         f"{seed}: {v:.3f}" for seed, v in zip(s.seeds, s.test_mae_avg)))
     lines.append(f"wall time {done.wall_s:.1f} s")
+    if done.results and done.results[0].folds:  # the same folds for every seed's choices
+        lines.append(f"folds: {done.results[0].folds}")
     return "\n".join(lines)
 
 

@@ -66,14 +66,20 @@ def _add_init(sub: Subparsers) -> None:
     ini.add_argument("--group-column", metavar="COL", default=None,
                      help="a column naming each row's group (e.g. its device): CV folds keep "
                      "each group whole")
+    ini.add_argument("--order-column", metavar="COL", default="auto",
+                     help="a column of dates, times or run numbers: CV folds chain forward by "
+                     "it and the latest rows are the test rows (default: found, e.g. a "
+                     "column of dates; 'none': a random split and plain folds)")
     split = ini.add_mutually_exclusive_group()
     split.add_argument("--split-column", metavar="COL", default=None,
                        help="a column saying 'train' or 'test' for each row")
     split.add_argument("--test-fraction", type=argtypes.fraction, default=None, metavar="F",
-                       help="the share of rows held out for testing, drawn at random "
-                       "(default: 0.3 when there is no --split-column)")
+                       help="the share of rows held out for testing: the latest with an "
+                       "order column, else drawn at random (default: 0.3 when there is no "
+                       "--split-column)")
     ini.add_argument("--split-seed", type=argtypes.seed, default=None, metavar="N",
-                     help="the seed of the random split (default: 0)")
+                     help="the seed of the random split (default: 0; given, the split is "
+                     "random with an order column too)")
     ini.add_argument("--name", default=None,
                      help="the config's name (its MLflow experiment; default: the CSV's name "
                      "without .csv)")

@@ -34,18 +34,35 @@ def init(args: argparse.Namespace) -> int:
     done = init_config(args.data, prior=args.prior, targets=args.target, features=args.features,
                        split_column=args.split_column, test_fraction=args.test_fraction,
                        split_seed=args.split_seed, name=args.name, out=args.out,
-                       force=args.force, group_column=args.group_column)
+                       force=args.force, group_column=args.group_column,
+                       order_column=None if args.order_column == "none" else args.order_column)
     if done.defaulted:
         left = "; not taken: " + ", ".join(f"{c!r} ({why})" for c, why in done.skipped.items())
         print(f"features: {', '.join(done.features) or '(none)'} (every other numeric column"
               f"{left if done.skipped else ''}; --features chooses)")
     print(f"wrote {done.path} ({done.n_train} training rows, {done.n_test} test rows)")
+    _order_lines(args, done)
     for column, n in done.group_hints.items():
         print(f"note: column {column!r} repeats {n} values over the rows; if rows that share "
               f"one are alike (a device, a date), --group-column {shlex.quote(column)} keeps "
               f"each whole in one CV fold (plain folds reward what only repeats within it)")
     print(f"next: workbench evaluate {shlex.quote(str(done.path))}\n      workbench ui")
     return 0
+
+
+def _order_lines(args: argparse.Namespace, done: Any) -> None:
+    """Say which order column ``init`` found or was given, and what it made of it."""
+    order = done.order
+    if order is not None:
+        test = (f"; the test rows are the latest {done.n_test} (split = \"time\")"
+                if done.time_split else "")
+        how = "found" if args.order_column == "auto" else "given"
+        print(f"order: {how} {order.describe()}: the CV folds chain forward, each training on "
+              f"the rows before the ones it holds out ([data] order_column){test}; "
+              f"--order-column none: plain folds")
+    elif args.order_column == "auto" and args.group_column is None:
+        print("order: no column of dates or run numbers found: a random test split and "
+              "shuffled folds (--order-column COL names one)")
 
 
 def predict(args: argparse.Namespace) -> int:

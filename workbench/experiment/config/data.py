@@ -81,7 +81,8 @@ class DataConfig(Section):
     ``source = "google_5q"`` (optional ``data_dir``), ``source = "ibm_gates"``
     (optional ``data_dir``, ``split = "time"`` or ``"devices"`` with ``split_seed``), or a CSV
     of your own (``csv``, one ``prior`` column per ``targets`` column, ``features``, either
-    ``test_fraction`` or ``split_column``, and optionally the targets' ``unit``). Paths are
+    ``test_fraction`` or ``split_column``, optionally a ``group_column`` or an
+    ``order_column`` that the CV folds follow, and the targets' ``unit``). Paths are
     relative to the config file.
 
     Parameters
@@ -92,7 +93,8 @@ class DataConfig(Section):
         (implied by ``csv``) or one added with :func:`~workbench.datasets.register_source`.
     split : {"time", "devices"}, default=None
         ``ibm_gates``' split: ``"time"`` (``None`` too) tests on the snapshots from 2025 on,
-        ``"devices"`` on 30% of the devices held out at random.
+        ``"devices"`` on 30% of the devices held out at random. A CSV's ``"time"``: the
+        test rows are the latest ``test_fraction`` of the rows by ``order_column``.
     data_dir : str, default=None
         Where a benchmark's files are (``None``: the loader's own place, downloading them
         when missing).
@@ -114,6 +116,12 @@ class DataConfig(Section):
     group_column : str, default=None
         A column holding each row's group (e.g. its device): CV folds keep a group's rows
         together (``[selection] groups``).
+    order_column : str, default=None
+        A column holding each row's place in time: dates or datetimes (``2024-03-01``,
+        ``2024-03-01T09:30:00Z``) or numbers (run numbers, epochs). Every CV fold then
+        chains forward (scikit-learn's ``TimeSeriesSplit``): it trains on the rows before
+        the ones it holds out, and rows of one value stay on one side. Not a feature unless
+        named in ``features`` too; not with ``group_column``.
     unit : str, default=None
         The targets' unit (e.g. ``"meV"``) that figures and summaries show.
     hamiltonian : HamiltonianData, default=None
@@ -131,6 +139,7 @@ class DataConfig(Section):
     split_column: str | None = None
     split_seed: int = Seed()
     group_column: str | None = None
+    order_column: str | None = None
     unit: str | None = None
     hamiltonian: HamiltonianData | None = None
 
@@ -154,7 +163,8 @@ class DataConfig(Section):
     @model_validator(mode="after")
     def _consistent(self) -> DataConfig:
         csv_keys = sorted(k for k in ("csv", "prior", "targets", "test_fraction",
-                                      "split_column", "group_column", "hamiltonian", "unit")
+                                      "split_column", "group_column", "order_column",
+                                      "hamiltonian", "unit")
                           if getattr(self, k) is not None) + (["features"] if self.features
                                                               else [])
         if self.source != "csv":
@@ -163,9 +173,15 @@ class DataConfig(Section):
             if self.split is not None and self.source != "ibm_gates":
                 raise ValueError("'split' applies to source = \"ibm_gates\" only")
             return self
-        if self.split is not None:
-            raise ValueError("'split' applies to source = \"ibm_gates\" only (a CSV's split "
-                             "is test_fraction or split_column)")
+        if self.split == "devices":
+            raise ValueError("split = \"devices\" applies to source = \"ibm_gates\" only (a "
+                             "CSV's split: test_fraction, split_column, or split = \"time\")")
+        if self.split == "time" and (self.order_column is None or self.test_fraction is None):
+            raise ValueError("a CSV's split = \"time\" tests on the latest test_fraction of "
+                             "the rows by order_column: give both")
+        if self.order_column is not None and self.group_column is not None:
+            raise ValueError("give group_column or order_column, not both: the CV folds "
+                             "either keep groups whole or chain forward in time")
         for key in ("csv", "prior", "targets"):
             if getattr(self, key) is None:
                 raise ValueError(f"source = \"csv\" needs {key!r}")

@@ -11,9 +11,10 @@ from pathlib import Path
 
 from ...conformal import min_calibration_rows
 from ...datasets import Dataset, DatasetError, load_source
+from ...selection import ordered_splits
 from .experiment import ExperimentConfig
 
-__all__ = ["check_training_rows", "data_key", "load_dataset"]
+__all__ = ["check_ordered_rows", "check_training_rows", "data_key", "load_dataset"]
 
 
 def load_dataset(cfg: ExperimentConfig) -> Dataset:
@@ -38,6 +39,7 @@ def load_dataset(cfg: ExperimentConfig) -> Dataset:
     """
     ds = load_source(cfg.data.source, cfg.data.model_dump(), _base(cfg), cfg.name)
     check_training_rows(cfg, len(ds.train_index))
+    check_ordered_rows(cfg, ds)
     return ds
 
 
@@ -106,3 +108,37 @@ def check_training_rows(cfg: ExperimentConfig, n_train: int) -> None:
                            f"for [intervals] method = {iv.method!r} with {how} and alpha "
                            f"= {iv.alpha} (at least {least}); set a larger alpha or "
                            f"[intervals] enabled = false")
+
+
+def check_ordered_rows(cfg: ExperimentConfig, ds: Dataset) -> None:
+    """Check that the training rows' order values make the config's ordered folds.
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The checked config (``[selection] cv``).
+    ds : Dataset
+        Its data (their ``order``, if any).
+
+    Raises
+    ------
+    DatasetError
+        Naming the column, its distinct values and the folds.
+    """
+    if ds.order is None:
+        return
+    order, folds = ds.order.loc[ds.train_index], cfg.selection.cv
+    try:
+        splits = ordered_splits(order.to_numpy(), folds)
+    except ValueError:
+        raise DatasetError(
+            f"order column {order.name!r}: the {len(order)} training rows hold "
+            f"{order.nunique()} distinct value(s), too few for [selection] cv = {folds} "
+            f"forward-chaining folds (each needs earlier rows to train on and later ones to "
+            f"hold out); set fewer folds") from None
+    iv, held = cfg.intervals, sum(len(test) for _, test in splits)
+    if iv.enabled and iv.method == "oof" and held < min_calibration_rows(iv.alpha):
+        raise DatasetError(f"[intervals] method = 'oof': the forward-chaining folds hold out "
+                           f"{held} of the {len(order)} training rows, too few to calibrate "
+                           f"alpha = {iv.alpha} (at least {min_calibration_rows(iv.alpha)}); "
+                           f"set a larger alpha or [intervals] enabled = false")

@@ -132,15 +132,18 @@ class SelectionConfig(Section):
     """``[selection]``: BaseBoostCV's folds and scoring.
 
     The CV on the training rows that makes every choice of the model: the prior or the
-    boosted model per target, and among candidates.
+    boosted model per target, and among candidates. The folds follow the data: with
+    ``[data] order_column`` (dates, times, run numbers) they chain forward, each training on
+    the rows before the ones it holds out (scikit-learn's ``TimeSeriesSplit``, rows of one
+    value on one side); with groups, each group is held out whole; else K-fold.
 
     Parameters
     ----------
     cv : int, default=5
         The folds.
     shuffle : bool, default=False
-        Shuffle the rows before making the folds (seeded by ``random_state``; else the folds
-        are contiguous).
+        Shuffle the rows (or groups) before making the folds (seeded by ``random_state``;
+        else the folds are contiguous). Forward-chaining folds are never shuffled.
     scoring : str, default="neg_mean_absolute_error"
         What the choices maximise, a scikit-learn scorer's name
         (``sklearn.metrics.get_scorer_names()``).
@@ -260,6 +263,9 @@ class IntervalsConfig(Section):
 
 class CVConfig(Section):
     """``[cv]``: the nested cross-validation of a sweep.
+
+    With ``[data] order_column`` the outer and the inner folds chain forward in time (as
+    ``[selection]``'s do; one repeat).
 
     Parameters
     ----------

@@ -17,7 +17,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from sklearn.exceptions import ConvergenceWarning
-from sklearn.model_selection import KFold
 
 from ...curves import learning_curve_plan, selection_curve_plan
 from ...multitarget import MultiTargetBaseBoost
@@ -33,6 +32,7 @@ from ...parallel import (
 from ...selection import BaseBoostCV, BasisChoiceCV
 from ..explain import target_shap_values
 from ..figures import correction_shap_figure, learning_curve_figure, shap_figure
+from ..folds import curve_cv, largest_curve_size, sweep_inner_cv
 from ..results import ModelScores, Scores, mae, mse
 from .artifacts import Artifacts
 from .base import ModelFamily, Report
@@ -61,7 +61,8 @@ __all__ = ["EigenvalueFamily", "booster_cv", "curve_sizes", "make_booster", "per
 CURVE_POINTS = 3
 
 
-def curve_sizes(n_rows: int, folds: int, points: int = CURVE_POINTS) -> list[int]:
+def curve_sizes(n_rows: int, folds: int, points: int = CURVE_POINTS, *,
+                largest: int | None = None) -> list[int]:
     """Choose training sizes from a quarter of the fold-training size up to all of it.
 
     Parameters
@@ -72,13 +73,17 @@ def curve_sizes(n_rows: int, folds: int, points: int = CURVE_POINTS) -> list[int
         The folds they are split into.
     points : int, default=CURVE_POINTS
         How many sizes at most (equal sizes merge).
+    largest : int, default=None
+        The rows the smallest fold trains on (``None``: K-fold's, ``n_rows`` less the
+        largest fold); forward-chaining folds train on fewer.
 
     Returns
     -------
     list of int
         The sizes, increasing.
     """
-    largest = n_rows - -(-n_rows // folds)  # rows left for training in the largest fold
+    if largest is None:
+        largest = n_rows - -(-n_rows // folds)  # rows left for training in the largest fold
     return sorted({int(s) for s in np.linspace(max(5, largest // 4), largest, points)})
 
 
@@ -114,7 +119,7 @@ class EigenvalueFamily(ModelFamily):
 
         (target,) = targets
         settings = self.with_trial(cfg, FixedTrial(params), targets).model_for(target)
-        model = booster_cv(cfg, ds, target, settings, cfg_inner_cv(cfg))
+        model = booster_cv(cfg, ds, target, settings, cfg_inner_cv(cfg, ds))
         quiet_fit(model, X.iloc[train], Y[target].to_numpy()[train])
         return np.asarray(model.predict(X.iloc[val])).reshape(-1, 1), model.selected_
 
@@ -125,7 +130,7 @@ class EigenvalueFamily(ModelFamily):
         search).
         """
         return MultiTargetBaseBoost(target_estimators={
-            t: booster_cv(cfg, ds, t, cfg.model_for(t), cfg_inner_cv(cfg),
+            t: booster_cv(cfg, ds, t, cfg.model_for(t), cfg_inner_cv(cfg, ds),
                           return_train_score=True)  # the curves reuse its folds
             for t in ds.target_names}, random_state=cfg.random_state, n_jobs=cfg.jobs)
 
@@ -160,14 +165,16 @@ class EigenvalueFamily(ModelFamily):
         """
         log = logging.getLogger("workbench")
         X_train, _, y_train, _ = ds.split()
-        sizes = curve_sizes(len(X_train), cfg.selection.cv)
+        cv = curve_cv(cfg, ds)  # the selection's folds where they follow the data
+        sizes = curve_sizes(len(X_train), cfg.selection.cv,
+                            largest=largest_curve_size(cv, X_train))
         log.info("[%s] figures: learning curves at sizes %s and SHAP summaries of %d targets "
                  "(%d processes)", cfg.name, sizes, len(ds.target_names),
                  effective_n_jobs(cfg.jobs))
         results: queue.Queue[Any] = queue.Queue()
         n_targets = len(ds.target_names)
         plans = [prioritised(_reported(_target_plan(cfg, est, X_train, y_train[target].to_numpy(),
-                                                    sizes), j, results),
+                                                    sizes, cv), j, results),
                              (n_targets - j) * 10 ** 7)  # target j's tasks before j + 1's
                  for j, (target, est) in enumerate(zip(ds.target_names, model.estimators_))]
 
@@ -212,17 +219,22 @@ class EigenvalueFamily(ModelFamily):
 
 
 def _target_plan(cfg: ExperimentConfig, est: Any, X_train: pd.DataFrame, y: np.ndarray,
-                 sizes: list[int]) -> Plan:
-    """Plan one target's learning curve and SHAP values (:mod:`workbench.parallel`)."""
+                 sizes: list[int], cv: Any) -> Plan:
+    """Plan one target's learning curve and SHAP values (:mod:`workbench.parallel`).
+
+    The curve is drawn on ``cv`` (:func:`~workbench.experiment.folds.curve_cv`), or on a
+    BaseBoostCV's own folds.
+    """
     if isinstance(est, BaseBoostCV) and not isinstance(est, BasisChoiceCV):
         # its own folds (a sweep's final model: the inner folds)
-        own = curve_sizes(len(X_train), len(est.cv_splits_))
+        own = curve_sizes(len(X_train), len(est.cv_splits_),
+                          largest=min(len(train) for train, _ in est.cv_splits_))
         curve = selection_curve_plan(est, X_train, y, train_sizes=own,
                                      random_state=cfg.random_state)
     else:  # BasisChoiceCV: its chosen candidate on fresh folds
         candidate = getattr(est, "estimator_", None) or est.estimator
         curve = learning_curve_plan(candidate, X_train, y, train_sizes=sizes,
-                                    cv=cfg.selection.cv, random_state=cfg.random_state)
+                                    cv=cv, random_state=cfg.random_state)
     # the whole prediction's and the correction's SHAP values, one task
     shap = Task(target_shap_values, est.best_estimator_, X_train,
                 random_state=cfg.random_state or 0)
@@ -242,20 +254,23 @@ def _all(tasks: list[Task]) -> Plan:
     return (yield tasks)
 
 
-def cfg_inner_cv(cfg: ExperimentConfig) -> KFold:
+def cfg_inner_cv(cfg: ExperimentConfig, ds: Dataset | None = None) -> Any:
     """Make a sweep's inner folds (``[cv]``).
 
     Parameters
     ----------
     cfg : ExperimentConfig
         The config.
+    ds : Dataset, optional
+        The dataset (its order).
 
     Returns
     -------
-    KFold
-        ``inner_folds`` shuffled folds seeded by ``[cv] seed``.
+    cross-validator
+        ``inner_folds`` shuffled folds seeded by ``[cv] seed``, forward-chaining when the
+        dataset has an order (:func:`~workbench.experiment.folds.sweep_inner_cv`).
     """
-    return KFold(cfg.cv.inner_folds, shuffle=True, random_state=cfg.cv.seed)
+    return sweep_inner_cv(cfg, ds)
 
 
 def quiet_fit_callback(model: Any, X: Any, y: Any, report: Report) -> None:

@@ -199,6 +199,11 @@ class HamiltonianFamily(ModelFamily):
 
     def check_data(self, data: DataConfig) -> None:
         """Require ``[data.hamiltonian]`` for a CSV."""
+        if data.order_column is not None:  # prior_cv, selection_cv: shuffled K-fold
+            raise ValueError(f"[data] order_column = {data.order_column!r}: family = "
+                             f"\"hamiltonian\" fits its physics model on shuffled folds of "
+                             f"its own and cannot chain them forward; remove order_column "
+                             f"(a split_column can still test on the latest rows)")
         if data.source == "csv" and data.hamiltonian is None:
             raise ValueError("family = \"hamiltonian\" needs the Hamiltonian's columns in "
                              "[data.hamiltonian] (onsite, couplings)")

@@ -13,13 +13,13 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from sklearn.model_selection import KFold
 
 from ...bases import make_basis, make_transform, quadratic_basis_warning
 from ...boosting import BaseBoostRegressor
 from ...multitarget import MultiTargetBaseBoost
-from ...selection import BaseBoostCV, BasisChoiceCV, LabelGroupKFold
+from ...selection import BaseBoostCV, BasisChoiceCV
 from ..errors import ConfigError
+from ..folds import selection_cv as _selection_cv
 from ..space import draw_params, has_ranges
 
 if TYPE_CHECKING:
@@ -165,29 +165,27 @@ def target_inputs(settings: dict[str, Any], ds: Dataset, priors: list[str]) -> l
 
 
 def selection_cv(cfg: ExperimentConfig, ds: Dataset | None = None) -> Any:
-    """Make BaseBoostCV's folds (``[selection]``).
+    """Make BaseBoostCV's folds (``[selection]``; :func:`workbench.experiment.folds.selection_cv`).
 
-    Contiguous unless ``shuffle``; whole groups (:class:`~workbench.selection.LabelGroupKFold`)
-    when the dataset has groups (e.g. the device of each row) and ``[selection] groups`` is
-    true, its default.
+    Forward-chaining (:class:`~workbench.selection.LabelTimeSeriesSplit`) when the dataset
+    has an order (``[data] order_column``); whole groups
+    (:class:`~workbench.selection.LabelGroupKFold`) when it has groups (e.g. the device of
+    each row) and ``[selection] groups`` is true, its default; else contiguous unless
+    ``shuffle``.
 
     Parameters
     ----------
     cfg : ExperimentConfig
         The config.
     ds : Dataset, optional
-        The dataset (its groups).
+        The dataset (its order and groups).
 
     Returns
     -------
     cross-validator
-        ``KFold`` or ``LabelGroupKFold``.
+        ``LabelTimeSeriesSplit``, ``LabelGroupKFold`` or ``KFold``.
     """
-    s = cfg.selection
-    seed = cfg.random_state if s.shuffle else None
-    if s.groups and ds is not None and ds.groups is not None:
-        return LabelGroupKFold(ds.groups, s.cv, shuffle=s.shuffle, random_state=seed)
-    return KFold(s.cv, shuffle=s.shuffle, random_state=seed)
+    return _selection_cv(cfg, ds)
 
 
 def per_target_boost(cfg: ExperimentConfig, ds: Dataset, priors: list[str], *,

@@ -29,12 +29,13 @@ from typing import TYPE_CHECKING, Any, Callable
 import numpy as np
 import optuna
 from optuna.trial import TrialState
-from sklearn.model_selection import KFold, RepeatedKFold
+from sklearn.model_selection import RepeatedKFold
 
 from ...parallel import Task, map_tasks
 from ..config import ExperimentConfig, load_dataset
 from ..errors import SweepTimedOut, redact
 from ..evaluate import fit_and_score
+from ..folds import describe_folds, outer_order_splits, sweep_inner_cv
 from ..metrics import mean_absolute_error
 from ..results import OuterFold, Result, SweepSummary
 from .scheduler import is_counted, open_study, pruner, run_studies, sampler, studies_short
@@ -122,16 +123,25 @@ def study_attrs(cfg: ExperimentConfig, spec: StudySpec) -> dict[str, Any]:
             "fold": "final" if spec.fold is None else spec.fold}
 
 
-def outer_splits(cfg: ExperimentConfig, n_rows: int) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Split ``n_rows`` rows into the outer folds: ``RepeatedKFold`` (``[cv]``, seeded)."""
+def outer_splits(cfg: ExperimentConfig, n_rows: int,
+                 ds: Dataset | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Split ``n_rows`` training rows into the outer folds.
+
+    ``RepeatedKFold`` (``[cv]``, seeded), or forward-chaining when ``ds`` has an order.
+    """
     c = cfg.cv
+    if ds is not None and ds.order is not None:
+        return outer_order_splits(cfg, ds)
     splitter = RepeatedKFold(n_splits=c.outer_folds, n_repeats=c.repeats, random_state=c.seed)
     return list(splitter.split(np.zeros((n_rows, 1))))
 
 
-def inner_cv(cfg: ExperimentConfig) -> KFold:
-    """Make the inner folds of every trial (``[cv]`` inner_folds, shuffled with the seed)."""
-    return KFold(cfg.cv.inner_folds, shuffle=True, random_state=cfg.cv.seed)
+def inner_cv(cfg: ExperimentConfig, ds: Dataset | None = None) -> Any:
+    """Make the inner folds of every trial.
+
+    ``[cv]`` inner_folds, shuffled with the seed; forward-chaining when ``ds`` has an order.
+    """
+    return sweep_inner_cv(cfg, ds)
 
 
 def _rows(cfg: ExperimentConfig, ds: Dataset,
@@ -141,7 +151,7 @@ def _rows(cfg: ExperimentConfig, ds: Dataset,
     Y = ds.targets.loc[ds.train_index]
     if spec.fold is None:
         return X, Y
-    train, _ = outer_splits(cfg, len(X))[spec.fold]
+    train, _ = outer_splits(cfg, len(X), ds)[spec.fold]
     return X.iloc[train], Y.iloc[train]
 
 
@@ -176,7 +186,7 @@ def study_objective(cfg: ExperimentConfig, ds: Dataset,
     def objective(trial: optuna.Trial) -> float:
         maes: list[float] = []
         prior: list[float] = []
-        family.objective(cfg, ds, spec.targets, X, Y, trial, inner_cv(cfg),
+        family.objective(cfg, ds, spec.targets, X, Y, trial, inner_cv(cfg, ds),
                          _fold_reporter(cfg, trial, maes, prior))
         trial.set_user_attr("prior_cv_mae", float(np.mean(prior)))
         trial.set_user_attr("fold_mae", [float(m) for m in maes])
@@ -233,7 +243,7 @@ def _outer_folds(cfg: ExperimentConfig, ds: Dataset, specs: list[StudySpec],
     X_all = family.inputs(cfg, ds).loc[ds.train_index]
     Y_all = ds.targets.loc[ds.train_index]
     prior_all = ds.prior.loc[ds.train_index].to_numpy()
-    outer = outer_splits(cfg, len(X_all))
+    outer = outer_splits(cfg, len(X_all), ds)
     refits = [spec for spec in specs
               if spec.fold is not None and params_of[spec.name] is not None]
     refitted = dict(zip((spec.name for spec in refits), map_tasks(
@@ -326,6 +336,7 @@ def run_sweep(cfg: ExperimentConfig, *, progress: bool = True,
 
     chosen = family.chosen_config(cfg, ds, best)
     result, fitted = fit_and_score(chosen, ds, family.final_model(chosen, ds))
+    result.folds = f"{describe_folds(inner_cv(cfg, ds))} (the sweep's inner folds)"
     unit_of = {t: unit for unit, ts in family.units(ds.target_names).items() for t in ts}
     counted = sum(sum(is_counted(t) for t in s.get_trials(deepcopy=False))
                   for s in studies.values())
