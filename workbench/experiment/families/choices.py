@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from ...selection import BasisChoiceCV
+from ...selection import BasisChoiceCV, paired_standard_error
 
 __all__ = ["candidate_choices"]
 
@@ -26,20 +26,27 @@ def candidate_choices(targets: list[str], cvs: Sequence[Any]) -> dict[str, Any]:
     Returns
     -------
     dict
-        The result's ``candidates`` section: per target, the winning candidate's name (basis
-        or draw, loss, link; ``"prior"`` when the prior alone won) and every candidate's CV
-        MAE; empty where no target had candidates. And its ``stages`` section where a
+        The result's ``candidates`` section: per target, the winning candidate's name
+        (``chosen``: basis or draw, loss, link; ``"prior"`` when the prior alone won), the
+        choice ``rule``, the ``best`` by mean CV score (the prior possibly), every
+        candidate's CV MAE (``cv_mae``, the prior first, in the rule's order of complexity)
+        and ``se_vs_prior``: the standard errors of the paired fold differences of ``best``
+        and of ``chosen`` from the prior (0 for the prior itself), the noise a CV gain over
+        the prior is measured against; empty where no target had candidates. And its
+        ``stages`` section where a
         selected model's stages chose their own bases (the ``stagewise`` basis): per target,
         the basis each stage chose.
     """
     out, stages = {}, {}
     for target, est in zip(targets, cvs):
         if isinstance(est, BasisChoiceCV):
+            scores = est.candidate_scores_
+            won, best = est.selected_candidate_ or "prior", est.best_candidate_ or "prior"
             out[target] = {
-                "chosen": est.selected_candidate_ or "prior",
-                "cv_mae": {"prior": float(-np.mean(est.cv_scores_prior_)),
-                           **{name: float(-np.mean(scores))
-                              for name, scores in est.candidate_scores_.items()}}}
+                "chosen": won, "rule": est.rule, "best": best,
+                "cv_mae": {name: float(-np.mean(s)) for name, s in scores.items()},
+                "se_vs_prior": {key: paired_standard_error(scores[name], scores["prior"])
+                                for key, name in (("best", best), ("chosen", won))}}
         chosen = _stage_bases(getattr(est, "best_estimator_", None))
         if chosen:
             stages[target] = chosen
