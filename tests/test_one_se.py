@@ -149,11 +149,8 @@ def test_a_candidate_may_not_be_called_prior() -> None:
 
 
 def test_the_family_lists_candidates_simplest_first() -> None:
-    from workbench.experiment.families.stage import (
-        SIZE_PARAMS,
-        by_complexity,
-        candidate_settings,
-    )
+    from workbench.experiment.families.choices import SIZE_PARAMS, by_complexity
+    from workbench.experiment.families.stage import candidate_settings
 
     settings = dict(basis=["ridge", "lightgbm"], basis_params={"ridge": {}, "lightgbm": {
         "n_estimators": {"low": 10, "high": 400, "log": True},

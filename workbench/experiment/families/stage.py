@@ -21,18 +21,15 @@ from ...multitarget import MultiTargetBaseBoost
 from ...selection import BaseBoostCV, BasisChoiceCV, LabelGroupKFold
 from ..errors import ConfigError
 from ..space import draw_params, has_ranges
+from .choices import by_complexity
 
 if TYPE_CHECKING:
     from ...datasets import Dataset
     from ..config import ExperimentConfig
 
-__all__ = ["SIZE_PARAMS", "booster_cv", "by_complexity", "candidate_settings", "cv_mse",
-           "has_candidates", "make_booster", "per_target_boost", "selection_cv", "stage_scores",
-           "target_inputs"]
+__all__ = ["booster_cv", "candidate_settings", "cv_mse", "has_candidates", "make_booster",
+           "per_target_boost", "selection_cv", "stage_scores", "target_inputs"]
 
-#: The basis parameters whose product is a drawn setting's size in :func:`by_complexity`:
-#: a tree ensemble's trees times the leaves of each, the leaf values it fits.
-SIZE_PARAMS = ("n_estimators", "num_leaves")
 
 
 def make_booster(settings: dict[str, Any], prior: Any, inputs: list[str] | None,
@@ -145,48 +142,6 @@ def candidate_settings(settings: dict[str, Any],
                             "line_search_loss": line, "link": link,
                             "input_transform": transform}))
     return out
-
-
-def by_complexity(candidates: list[tuple[str, dict[str, Any]]],
-                  settings: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:
-    """Sort candidates simplest first: the order of complexity of ``[selection] rule``.
-
-    :class:`~workbench.selection.BasisChoiceCV` takes its candidates' order as their order
-    of complexity (after the prior, before the mean of the best), so ``rule = "one_se"``
-    keeps the first candidate within one standard error of the best. The order, key by key:
-
-    1. the basis, in the order of the list ``basis`` (list the simplest first: ``["ridge",
-       "lightgbm"]``);
-    2. the link, ``"identity"`` first (the stages add to the prior), then the others in the
-       order of ``link``: another link is kept only where CV prefers it beyond noise;
-    3. the size of a drawn setting, the product of its :data:`SIZE_PARAMS` (a tree
-       ensemble's trees times leaves; 1 where a setting has neither);
-    4. then as listed: loss, line-search loss, input transform, draw.
-
-    Parameters
-    ----------
-    candidates : list of (str, dict)
-        :func:`candidate_settings`' candidates.
-    settings : dict
-        The target's settings they came from (the lists of bases and links).
-
-    Returns
-    -------
-    list of (str, dict)
-        The same candidates, simplest first.
-    """
-    bases = settings["basis"] if isinstance(settings["basis"], list) else [settings["basis"]]
-    links = settings.get("link", "identity")
-    links = links if isinstance(links, list) else [links]
-    link_rank = {link: 1 + i for i, link in enumerate(links)} | {"identity": 0}
-
-    def size(params: dict[str, Any]) -> float:
-        values = [params.get(k) for k in SIZE_PARAMS]
-        return float(np.prod([v for v in values if isinstance(v, (int, float))]))
-
-    return sorted(candidates, key=lambda c: (bases.index(c[1]["basis"]),
-                                             link_rank[c[1]["link"]],
-                                             size(c[1]["basis_params"])))
 
 
 def target_inputs(settings: dict[str, Any], ds: Dataset, priors: list[str]) -> list[str]:
