@@ -154,9 +154,9 @@ def choose(scores: dict[str, Any], rule: str = "best") -> str:
     if rule == "best":
         return best
     top = np.asarray(scores[best], dtype=float)
-    return next(name for name in scores
-                if np.mean(top - np.asarray(scores[name], dtype=float))
-                <= paired_standard_error(top, scores[name]))
+    return next((name for name in scores
+                 if np.mean(top - np.asarray(scores[name], dtype=float))
+                 <= paired_standard_error(top, scores[name])), best)
 
 
 class BaseBoostCV(CachedParamNames, MetaEstimatorMixin, RegressorMixin, BaseEstimator):
