@@ -44,7 +44,10 @@ def test_the_basis_that_captures_what_the_prior_misses_wins(kind, expected):
     model = BasisChoiceCV(_candidates(), cv=5, random_state=0).fit(X, y)
     assert model.selected_candidate_ == expected
     assert model.selected_ == ("prior" if expected is None else "boosted")
-    assert set(model.candidate_scores_) == {"ridge", "lightgbm"}
+    # the prior is a candidate too, listed first (the simplest)
+    assert list(model.candidate_scores_) == ["prior", "ridge", "lightgbm"]
+    np.testing.assert_array_equal(model.candidate_scores_["prior"], model.cv_scores_prior_)
+    assert model.best_candidate_ == (expected or "prior")
     if expected is not None:  # the winner's scores are the ones reported
         best = model.candidate_scores_[expected].mean()
         assert best == max(s.mean() for s in model.candidate_scores_.values())
@@ -160,7 +163,7 @@ def test_the_mean_of_the_best_candidates_wins_where_cv_says_it_helps():
     model = BasisChoiceCV(_halves(), cv=5, random_state=0, ensemble=2).fit(X, y)
     assert model.selected_candidate_ == "mean of 2"
     assert isinstance(model.estimator_, CandidateMean)
-    assert set(model.candidate_scores_) == {"ridge_x1", "trees_x0", "mean of 2"}
+    assert list(model.candidate_scores_) == ["prior", "ridge_x1", "trees_x0", "mean of 2"]
     # scored on the shared folds from the members' out-of-fold predictions
     np.testing.assert_allclose(model.cv_score_, model.candidate_scores_["mean of 2"].mean())
     assert model.cv_score_ > single.cv_score_

@@ -11,6 +11,7 @@ from workbench import (
     PriorDerivedInputs,
     StageChoiceCV,
 )
+from workbench.selection import BasisChoiceCV
 
 # Expected failures, each with its reason (empty: every check passes).
 EXPECTED_FAILED: dict[str, str] = {}
@@ -18,7 +19,10 @@ EXPECTED_FAILED: dict[str, str] = {}
 
 @parametrize_with_checks(
     [BaseBoostRegressor(), BaseBoostRegressor(n_stages=3, loss="absolute_error"),
-     BaseBoostCV(BaseBoostRegressor(), cv=3), PriorDerivedInputs(),
+     BaseBoostCV(BaseBoostRegressor(), cv=3),
+     BaseBoostCV(BaseBoostRegressor(), cv=3, rule="one_se"),
+     BasisChoiceCV([("one", BaseBoostRegressor()), ("two", BaseBoostRegressor(n_stages=2))],
+                   cv=3, ensemble=2, rule="one_se"), PriorDerivedInputs(),
      ARDGaussianProcess(max_rows=20, random_state=0),
      StageChoiceCV([("ridge", Ridge()), ("tree", DecisionTreeRegressor(max_depth=2))],
                    random_state=0),

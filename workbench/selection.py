@@ -14,15 +14,15 @@ from sklearn.exceptions import FitFailedWarning
 from sklearn.metrics import check_scoring
 from sklearn.model_selection import BaseCrossValidator, GroupKFold, check_cv
 from sklearn.utils import _safe_indexing, check_random_state
-from sklearn.utils._param_validation import HasMethods, Interval
+from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
 from sklearn.utils.metaestimators import _BaseComposition
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .boosting import BaseBoostRegressor, CachedParamNames, PriorModel, seed_estimator
 from .parallel import Plan, Task, gather, run_plans
 
-__all__ = ["BaseBoostCV", "BasisChoiceCV", "CandidateMean", "LabelGroupKFold",
-           "LabelTimeSeriesSplit", "find_prior"]
+__all__ = ["RULES", "BaseBoostCV", "BasisChoiceCV", "CandidateMean", "LabelGroupKFold",
+           "LabelTimeSeriesSplit", "choose", "find_prior", "paired_standard_error"]
 
 
 def find_prior(estimator: Any) -> Any:
@@ -133,12 +133,78 @@ def _refit(estimator: Any, X: Any, y: Any) -> tuple[Any, str | None]:
         return None, f"{type(exc).__name__}: {exc}"
 
 
+#: The rules that choose among the prior and the candidates from their fold scores
+#: (:func:`choose`).
+RULES = ("best", "one_se")
+
+
+def paired_standard_error(a: Any, b: Any) -> float:
+    """The standard error of the mean of the paired fold differences ``a - b``.
+
+    Two models scored on the same folds differ fold by fold; the noise of their mean
+    difference is ``std(a - b, ddof=1) / sqrt(n_folds)``. The fold-to-fold variation both
+    models share (a hard fold is hard for both) cancels in the differences, so this is
+    smaller than either model's own standard error.
+
+    Parameters
+    ----------
+    a, b : array-like of shape (n_folds,)
+        Two models' scores on the same folds.
+
+    Returns
+    -------
+    float
+        The standard error (0 with a single fold: no spread to measure).
+    """
+    d = np.asarray(a, dtype=float) - np.asarray(b, dtype=float)
+    if d.size < 2:
+        return 0.0
+    return float(np.std(d, ddof=1) / np.sqrt(d.size))
+
+
+def choose(scores: dict[str, Any], rule: str = "best") -> str:
+    """Choose among models from their fold scores, listed simplest first.
+
+    Parameters
+    ----------
+    scores : dict of str -> array-like of shape (n_folds,)
+        Each model's scores on the same folds (greater is better; all finite), in order of
+        complexity: the simplest first (in :class:`BasisChoiceCV`: the prior, then the
+        candidates as listed, then the mean of the best ones).
+    rule : {"best", "one_se"}, default="best"
+        ``"best"``: the model with the best mean score; the simplest of those tied for it.
+        ``"one_se"``: the one-standard-error rule (Breiman et al. 1984; Hastie, Tibshirani
+        and Friedman, *The Elements of Statistical Learning*, 7.10), on paired differences:
+        the simplest model whose mean score is within one standard error of the best's,
+        where each model's standard error is that of its paired fold differences from the
+        best (:func:`paired_standard_error`), i.e. the first ``m`` with
+        ``mean(best - m) <= paired_standard_error(best, m)``. A gain the folds cannot tell
+        from noise does not buy complexity.
+
+    Returns
+    -------
+    str
+        The chosen model's name.
+    """
+    if rule not in RULES:
+        raise ValueError(f"unknown rule {rule!r}; valid rules are: {', '.join(RULES)}")
+    means = {name: float(np.mean(s)) for name, s in scores.items()}
+    best = max(means, key=lambda name: means[name])  # the first of those tied
+    if rule == "best":
+        return best
+    top = np.asarray(scores[best], dtype=float)
+    return next((name for name in scores
+                 if np.mean(top - np.asarray(scores[name], dtype=float))
+                 <= paired_standard_error(top, scores[name])), best)
+
+
 class BaseBoostCV(CachedParamNames, MetaEstimatorMixin, RegressorMixin, BaseEstimator):
     """Choose between the prior alone (the incumbent) and a boosted candidate by CV.
 
     Both are scored on the same folds of the training rows. The candidate is selected only
-    if every one of its folds succeeded and its mean score is strictly better; ties and
-    failures go to the prior (with a ``FitFailedWarning`` for failures).
+    if every one of its folds succeeded and its mean score is strictly better (``rule=
+    "one_se"``: better by more than one standard error of the paired fold differences);
+    ties and failures go to the prior (with a ``FitFailedWarning`` for failures).
 
     Parameters
     ----------
@@ -160,6 +226,11 @@ class BaseBoostCV(CachedParamNames, MetaEstimatorMixin, RegressorMixin, BaseEsti
     return_train_score : bool, default=False
         Also score the candidate on each fold's own training rows (one more prediction per
         fold): ``cv_train_scores_boosted_``, the whole-fold point of a learning curve.
+    rule : {"best", "one_se"}, default="best"
+        How CV chooses (:func:`choose`, the prior counting as the simpler model):
+        ``"best"``, the better mean score; ``"one_se"``, the one-standard-error rule, the
+        prior unless the candidate's mean gain exceeds one standard error of the paired
+        fold differences.
 
     Attributes
     ----------
@@ -190,13 +261,14 @@ class BaseBoostCV(CachedParamNames, MetaEstimatorMixin, RegressorMixin, BaseEsti
         "n_jobs": [numbers.Integral, None],
         "random_state": ["random_state"],
         "return_train_score": ["boolean"],
+        "rule": [StrOptions(set(RULES))],
     }
 
     def __init__(self, estimator: Any = None, *, incumbent: Any = None, cv: Any = 5,
                  scoring: str | Callable = "neg_mean_absolute_error", refit: bool = True,
                  n_jobs: int | None = None,
                  random_state: int | np.random.RandomState | None = None,
-                 return_train_score: bool = False) -> None:
+                 return_train_score: bool = False, rule: str = "best") -> None:
         self.estimator = estimator
         self.incumbent = incumbent
         self.cv = cv
@@ -205,6 +277,7 @@ class BaseBoostCV(CachedParamNames, MetaEstimatorMixin, RegressorMixin, BaseEsti
         self.n_jobs = n_jobs
         self.random_state = random_state
         self.return_train_score = return_train_score
+        self.rule = rule
 
     def _candidate(self) -> Any:
         est = BaseBoostRegressor() if self.estimator is None else clone(self.estimator)
@@ -269,7 +342,9 @@ class BaseBoostCV(CachedParamNames, MetaEstimatorMixin, RegressorMixin, BaseEsti
             warnings.warn(f"{len(self.fit_errors_)} of {len(folds)} candidate fits failed; "
                           f"selecting the prior. First error: {self.fit_errors_[0]}",
                           FitFailedWarning, stacklevel=2)
-        wins = boosted_ok and self.cv_scores_boosted_.mean() > self.cv_scores_prior_.mean()
+        wins = boosted_ok and choose({"prior": self.cv_scores_prior_,
+                                      "boosted": self.cv_scores_boosted_},
+                                     self.rule) == "boosted"
         self.selected_ = "boosted" if wins else "prior"
         if self.refit:
             if wins:
@@ -384,8 +459,10 @@ class CandidateMean(_BaseComposition, RegressorMixin, BaseEstimator):
 
 class BasisChoiceCV(_BaseComposition, BaseBoostCV):
     """The prior alone against several boosted candidates (e.g. one per basis family), all
-    scored on the same CV folds of the training rows: the candidate with the best mean score
-    is selected if it beats the prior (ties and failed candidates go to the prior).
+    scored on the same CV folds of the training rows: with ``rule="best"`` the candidate
+    with the best mean score is selected if it beats the prior (ties and failed candidates
+    go to the prior); with ``rule="one_se"`` the simplest model whose mean score is within
+    one standard error of the best's (the prior being the simplest of all).
 
     A flexible stage for a physics model: which basis (ridge, kernel ridge, LightGBM, the
     paper's stacking, ...) captures what the physics misses is decided by CV per target,
@@ -394,10 +471,23 @@ class BasisChoiceCV(_BaseComposition, BaseBoostCV):
     Parameters
     ----------
     candidates : list of (str, regressor) tuples
-        The boosted candidates by name (each with the same ``prior``); their parameters are
-        nested as ``<name>__<param>``, as in a Pipeline.
+        The boosted candidates by name (each with the same ``prior``), listed simplest
+        first: ``rule="one_se"`` takes this order as the order of complexity, after the
+        prior (the simplest) and before the mean of the best (the most complex). Their
+        parameters are nested as ``<name>__<param>``, as in a Pipeline; ``"prior"`` is not
+        a candidate's name.
     incumbent, cv, scoring, refit, n_jobs, random_state :
-        As in :class:`BaseBoostCV` (one seed reaches every candidate).
+        As in :class:`BaseBoostCV` (one seed reaches every candidate). ``cv`` splits once:
+        every candidate is scored on the same folds.
+    rule : {"best", "one_se"}, default="best"
+        How CV chooses among the prior, the candidates and their mean (:func:`choose`, in
+        that order of complexity). ``"best"``: the best mean score (ties to the simpler).
+        ``"one_se"``: the one-standard-error rule, the simplest whose mean score is within
+        one standard error of the paired fold differences from the best's. Out of 50
+        candidates on five folds the best is partly the luckiest; the one-SE rule keeps the
+        prior (or a simpler candidate) unless the folds can tell the gain from noise, which
+        holds up better when the test rows differ from the training rows (later dates, new
+        devices).
     ensemble : int, default=1
         Above 1, the mean of the ``ensemble`` best candidates (:class:`CandidateMean`) is a
         candidate too, scored on the same folds from their out-of-fold predictions (no
@@ -413,7 +503,13 @@ class BasisChoiceCV(_BaseComposition, BaseBoostCV):
         The winning candidate's name (``None`` when the prior is selected); the ensemble's
         is ``"mean of <k>"``.
     candidate_scores_ : dict of str -> ndarray of shape (n_splits,)
-        Every candidate's fold scores (and the ensemble's, with ``ensemble`` > 1).
+        The fold scores of the prior (``"prior"``), of every candidate (NaN where a fit
+        failed) and of the ensemble (with ``ensemble`` > 1), in the rule's order of
+        complexity.
+    best_candidate_ : str or None
+        The model with the best mean CV score (``"prior"`` possibly; ``None`` when every
+        candidate failed): the rule's reference; the selected one unless ``rule="one_se"``
+        chose a simpler one.
     candidate_predictions_ : dict of str -> ndarray of shape (n_samples,)
         Every candidate's out-of-fold predictions on the training rows (those whose fits
         succeeded), from the same folds: for stacking or other ways of combining them.
@@ -436,9 +532,10 @@ class BasisChoiceCV(_BaseComposition, BaseBoostCV):
                  cv: Any = 5, scoring: str | Callable = "neg_mean_absolute_error",
                  refit: bool = True, n_jobs: int | None = None,
                  random_state: int | np.random.RandomState | None = None,
-                 ensemble: int = 1) -> None:
+                 ensemble: int = 1, rule: str = "best") -> None:
         self.candidates = candidates
         self.ensemble = ensemble
+        self.rule = rule
         self.incumbent = incumbent
         self.cv = cv
         self.scoring = scoring
@@ -477,52 +574,63 @@ class BasisChoiceCV(_BaseComposition, BaseBoostCV):
             raise ValueError(f"candidates must be a non-empty list of (name, regressor) "
                              f"tuples, got {self.candidates!r}")
         self._validate_names([name for name, _ in self.candidates])
+        if "prior" in dict(self.candidates):
+            raise ValueError("'prior' names the prior alone, not a candidate: rename the "
+                             "candidate")
         candidates = dict(self.candidates)
+        validate_data(self, X, y, y_numeric=True, dtype=float)
+        X_all = X if hasattr(X, "iloc") else np.asarray(X)
+        y_all = np.ravel(np.asarray(y, dtype=float))
+        # one split shared by every candidate: the one-SE rule pairs their fold scores
+        splits = list(check_cv(self.cv, y_all, classifier=False).split(X_all, y_all))
         # a failing candidate is simply not chosen (no warning)
         runs = dict(zip(candidates, (yield from gather(
-            BaseBoostCV(candidate, incumbent=self.incumbent, cv=self.cv, scoring=self.scoring,
+            BaseBoostCV(candidate, incumbent=self.incumbent, cv=splits, scoring=self.scoring,
                         refit=False, n_jobs=self.n_jobs,
                         random_state=self.random_state)._fit_plan(X, y, warn=False)
             for candidate in candidates.values()))))
-        self.candidate_scores_ = {n: r.cv_scores_boosted_ for n, r in runs.items()}
+        first = next(iter(runs.values()))
+        self.candidate_scores_ = {"prior": first.cv_scores_prior_,
+                                  **{n: r.cv_scores_boosted_ for n, r in runs.items()}}
         ok = {n: r for n, r in runs.items()
               if not r.fit_errors_ and np.all(np.isfinite(r.cv_scores_boosted_))}
         self.candidate_predictions_ = {n: r.cv_predictions_boosted_ for n, r in ok.items()}
-        first = next(iter(runs.values()))
-        best = max(ok, key=lambda n: ok[n].cv_scores_boosted_.mean()) if ok else None
-        chosen = runs[best] if best is not None else first
+        single = choose({n: r.cv_scores_boosted_ for n, r in ok.items()}) if ok else None
+        mean = self._ensemble(ok, candidates, X, y) if ok else None
+        pool = {"prior": first.cv_scores_prior_,
+                **{n: r.cv_scores_boosted_ for n, r in ok.items()},
+                **({mean[0]: mean[1]} if mean is not None else {})}
+        self.best_candidate_ = choose(pool) if ok else None
+        winner = choose(pool, self.rule)
+        # the boosted model reported beside the prior: the winner, else the best of the rest
+        boosted = winner if winner != "prior" else (
+            choose({n: v for n, v in pool.items() if n != "prior"}) if ok else None)
+        base = boosted if boosted in runs else single  # the mean: its best member's folds
+        chosen = runs[base] if base is not None else first
         for attr in ("cv_scores_prior_", "cv_scores_boosted_", "cv_predictions_prior_",
-                     "cv_predictions_boosted_", "cv_splits_", "fit_errors_", "n_features_in_"):
-            if hasattr(chosen, attr):
-                setattr(self, attr, getattr(chosen, attr))
-        if hasattr(chosen, "feature_names_in_"):
-            self.feature_names_in_ = chosen.feature_names_in_
-        self.estimator_ = candidates[best if best is not None else next(iter(runs))]
-        mean = self._ensemble(ok, candidates, X, y) if best is not None else None
-        if mean is not None and mean[1].mean() > chosen.cv_scores_boosted_.mean():
-            best, scores, oof, self.estimator_ = mean
-            self.cv_scores_boosted_, self.cv_predictions_boosted_ = scores, oof
-        wins = best is not None and self.cv_scores_boosted_.mean() > \
-            self.cv_scores_prior_.mean()
+                     "cv_predictions_boosted_", "cv_splits_", "fit_errors_"):
+            setattr(self, attr, getattr(chosen, attr))
+        self.estimator_ = candidates[base if base is not None else next(iter(runs))]
+        if mean is not None and boosted == mean[0]:
+            _, self.cv_scores_boosted_, self.cv_predictions_boosted_, self.estimator_ = mean
+        wins = winner != "prior"
         self.selected_ = "boosted" if wins else "prior"
-        self.selected_candidate_ = best if wins else None
+        self.selected_candidate_ = winner if wins else None
         if self.refit:
             refit = BaseBoostCV(self.estimator_, incumbent=self.incumbent, cv=self.cv,
                                 scoring=self.scoring, random_state=self.random_state)
             incumbent = (PriorModel(prior=find_prior(candidates[next(iter(candidates))]))
                          if self.incumbent is None else self.incumbent)
-            X_all = X if hasattr(X, "iloc") else np.asarray(X)
             if wins:
-                fitted, error = (yield [Task(_refit, refit._candidate(), X_all,
-                                             np.ravel(y))])[0]
+                fitted, error = (yield [Task(_refit, refit._candidate(), X_all, y_all)])[0]
                 if error is None:
                     self.best_estimator_ = fitted
                 else:
-                    warnings.warn(f"refitting {best} on all rows failed ({error}); selecting "
+                    warnings.warn(f"refitting {winner} on all rows failed ({error}); selecting "
                                   "the prior", FitFailedWarning, stacklevel=2)
                     self.selected_, self.selected_candidate_ = "prior", None
             if self.selected_ == "prior":
-                self.best_estimator_ = clone(incumbent).fit(X_all, np.ravel(y))
+                self.best_estimator_ = clone(incumbent).fit(X_all, y_all)
         return self
 
     def _ensemble(self, ok: dict[str, Any], candidates: dict[str, Any], X: Any,

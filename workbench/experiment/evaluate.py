@@ -246,6 +246,79 @@ def _interval(bounds: Any) -> str:
     return f"[{bounds[0]:.3f}, {bounds[1]:.3f}]"
 
 
+def _value(values: Any, j: int) -> float | None:
+    """``values[j]`` where it is a finite number, else ``None``."""
+    try:
+        value = float(values[j])
+    except (TypeError, IndexError, ValueError):
+        return None
+    return value if np.isfinite(value) else None
+
+
+def choice_lines(result: Result) -> list[str]:
+    """Say per target what CV chose and how it compares with the prior.
+
+    Where CV chose among candidates: the chosen one with its CV MAE beside the prior's and
+    the lowest CV MAEs; ``keeps the prior`` where the prior won, with the best candidate's
+    CV MAE and, when it was within noise of the prior (``rule = "one_se"``), the standard
+    error of their paired fold differences; and a line when a chosen candidate's CV gain
+    over the prior is within that noise. Elsewhere, ``keeps the prior`` where the prior was
+    selected.
+
+    Parameters
+    ----------
+    result : Result
+        The scores (its ``candidates`` details,
+        :func:`~workbench.experiment.families.choices.candidate_choices`).
+
+    Returns
+    -------
+    list of str
+        One or two lines per target that CV chose for; none for a boosted target without
+        candidates.
+    """
+    lines = []
+    choices = result.details.get("candidates", {})
+    for target, choice in choices.items():
+        mae, chosen = choice["cv_mae"], choice["chosen"]
+        prior, se = mae["prior"], choice.get("se_vs_prior", {})
+        rivals = {n: v for n, v in mae.items() if n != "prior" and np.isfinite(v)}
+        if chosen == "prior":
+            rival = min(rivals, key=rivals.__getitem__, default=None)
+            if rival is None:
+                lines.append(f"{target}: keeps the prior (CV MAE {prior:.4g}; every "
+                             "candidate failed)")
+            elif rivals[rival] < prior and "best" in se:
+                verdict = ("within noise" if prior - rivals[rival] <= se["best"]
+                           else "the best candidate's refit failed")
+                lines.append(f"{target}: keeps the prior (CV MAE {prior:.4g} vs best candidate "
+                             f"{rival} {rivals[rival]:.4g} +- {se['best']:.2g}: {verdict})")
+            else:
+                lines.append(f"{target}: keeps the prior (CV MAE {prior:.4g}; best candidate "
+                             f"{rival} {rivals[rival]:.4g})")
+            continue
+        best = choice.get("best", chosen)
+        simplest = (f", the simplest within one SE of the best, {best} {mae[best]:.4g}"
+                    if best != chosen else "")
+        lowest = sorted(mae, key=mae.__getitem__)[:3]
+        lines.append(f"{target}: CV chose {chosen} (CV MAE {mae[chosen]:.4g}{simplest}; prior "
+                     f"{prior:.4g}); lowest CV MAE "
+                     + ", ".join(f"{name} {mae[name]:.4g}" for name in lowest)
+                     + f" of {len(mae)} (the prior included)")
+        if "chosen" in se and prior - mae[chosen] <= se["chosen"]:
+            lines.append(f"{target}: its CV gain over the prior is within noise (CV MAE "
+                         f"{mae[chosen]:.4g} vs prior {prior:.4g} +- {se['chosen']:.2g})")
+    for j, target in enumerate(result.targets):
+        if target not in choices and j < len(result.model.selected) \
+                and result.model.selected[j] == "prior":
+            prior_cv = _value(result.prior.cv_mae, j)
+            boosted = _value(result.model.extra.get("cv_mae_boosted"), j)
+            versus = f" vs boosted {boosted:.4g}" if boosted is not None else ""
+            lines.append(f"{target}: keeps the prior" + (
+                f" (CV MAE {prior_cv:.4g}{versus})" if prior_cv is not None else ""))
+    return lines
+
+
 def format_table(result: Result) -> str:
     """Format a per-target table of a result.
 
@@ -293,13 +366,7 @@ def format_table(result: Result) -> str:
                      f"{', '.join(f'{c:.0%}' for c in model.test_coverage)}), mean width "
                      f"{model.avg('test_width'):.3f}; CV coverage "
                      f"{model.avg('cv_coverage'):.1%}, width {model.avg('cv_width'):.3f}")
-    for target, choice in result.details.get("candidates", {}).items():
-        scores = choice["cv_mae"]
-        best = sorted(scores, key=scores.get)[:3]
-        lines.append(f"{target}: CV chose {choice['chosen']} (CV MAE "
-                     f"{scores[choice['chosen']]:.4g}); lowest CV MAE "
-                     + ", ".join(f"{name} {scores[name]:.4g}" for name in best)
-                     + f" of {len(scores)} (the prior included)")
+    lines += choice_lines(result)
     for target, chosen in result.details.get("stages", {}).items():
         lines.append(f"{target}: each stage's basis by CV on its residuals: "
                      + " > ".join(chosen))

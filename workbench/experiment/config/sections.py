@@ -14,6 +14,7 @@ from sklearn.metrics import get_scorer_names
 
 from ...boosting import BaseBoostRegressor
 from ...conformal import ConformalRegressor
+from ...selection import BasisChoiceCV
 from ..errors import shorten
 from ..schema import MAX_INT, ParameterOf, Section, Seed
 
@@ -153,6 +154,13 @@ class SelectionConfig(Section):
     ensemble : int, default=1
         With candidates: the mean of this many best candidates is a candidate too
         (:class:`~workbench.selection.BasisChoiceCV`; 1: none).
+    rule : str, default="best"
+        How CV chooses among the prior, the candidates (simplest first: the bases as listed,
+        the identity link before the others, smaller tree ensembles first) and their mean.
+        ``"best"``: the best mean CV score. ``"one_se"``: the one-standard-error rule, the
+        simplest within one standard error of the paired fold differences from the best
+        (the prior first), so the prior, the identity link or a simpler basis is kept unless
+        CV tells the gain from noise (the generic config's choice).
     """
 
     cv: int = Field(default=5, ge=2, le=10_000)
@@ -160,6 +168,8 @@ class SelectionConfig(Section):
     scoring: str = "neg_mean_absolute_error"
     groups: bool = True  # whole groups per fold when the dataset has groups (e.g. devices)
     ensemble: int = Field(default=1, ge=1, le=1_000)
+    # "one_se": the simplest model within one standard error of the best (BasisChoiceCV)
+    rule: Annotated[str, ParameterOf(BasisChoiceCV)] = "best"
 
     @model_validator(mode="after")
     def _scorer(self) -> SelectionConfig:

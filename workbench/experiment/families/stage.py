@@ -21,6 +21,7 @@ from ...selection import BaseBoostCV, BasisChoiceCV
 from ..errors import ConfigError
 from ..folds import selection_cv as _selection_cv
 from ..space import draw_params, has_ranges
+from .choices import by_complexity
 
 if TYPE_CHECKING:
     from ...datasets import Dataset
@@ -316,11 +317,12 @@ def target_selection(cfg: ExperimentConfig, ds: Dataset, target: str,
     if has_candidates(s):  # the basis family, its settings or the loss too by CV
         kwargs.pop("return_train_score", None)
         candidates = [(name, make_booster(c, prior=start, inputs=inputs, n_priors=len(priors)))
-                      for name, c in candidate_settings(s, cfg.random_state)]
+                      for name, c in by_complexity(candidate_settings(s, cfg.random_state), s)]
         return BasisChoiceCV(candidates, cv=cv, scoring=cfg.selection.scoring,
-                             ensemble=cfg.selection.ensemble, **kwargs)
+                             ensemble=cfg.selection.ensemble, rule=cfg.selection.rule,
+                             **kwargs)
     return BaseBoostCV(make_booster(s, prior=start, inputs=inputs, n_priors=len(priors)),
-                       cv=cv, scoring=cfg.selection.scoring, **kwargs)
+                       cv=cv, scoring=cfg.selection.scoring, rule=cfg.selection.rule, **kwargs)
 
 
 def booster_cv(cfg: ExperimentConfig, ds: Dataset, target: str, settings: dict[str, Any],
