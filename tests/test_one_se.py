@@ -46,12 +46,24 @@ def test_a_gain_within_noise_keeps_the_prior_a_clear_gain_wins() -> None:
     assert choose(scores, "one_se") == "clear"
 
 
+def test_prior_se_guards_the_prior_only() -> None:
+    # within noise of the prior: the prior; clearly better: the best, not the simplest
+    # candidate within noise of it (as one_se would take)
+    assert choose({"prior": PRIOR, "small": SMALL}, "prior_se") == "prior"
+    best = CLEAR + [0.1, -0.05, 0.1, -0.05]
+    scores = {"prior": PRIOR, "small": SMALL, "clear": CLEAR, "mean of 2": best}
+    assert choose(scores, "prior_se") == "mean of 2"
+    assert choose(scores, "one_se") == "clear"
+    # the prior best of all: the prior
+    assert choose({"prior": CLEAR, "a": PRIOR}, "prior_se") == "prior"
+
+
 def test_ties_go_to_the_simplest() -> None:
-    for rule in ("best", "one_se"):
+    for rule in ("best", "one_se", "prior_se"):
         assert choose({"prior": PRIOR, "a": PRIOR.copy()}, rule) == "prior"
         assert choose({"prior": PRIOR, "a": CLEAR, "b": CLEAR.copy()}, rule) == "a"
         assert choose({"prior": PRIOR, "b": CLEAR.copy(), "a": CLEAR}, rule) == "b"
-    with pytest.raises(ValueError, match="valid rules are: best, one_se"):
+    with pytest.raises(ValueError, match="valid rules are: best, one_se, prior_se"):
         choose({"prior": PRIOR}, "1se")
 
 

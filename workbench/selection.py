@@ -135,7 +135,7 @@ def _refit(estimator: Any, X: Any, y: Any) -> tuple[Any, str | None]:
 
 #: The rules that choose among the prior and the candidates from their fold scores
 #: (:func:`choose`).
-RULES = ("best", "one_se")
+RULES = ("best", "one_se", "prior_se")
 
 
 def paired_standard_error(a: Any, b: Any) -> float:
@@ -171,7 +171,7 @@ def choose(scores: dict[str, Any], rule: str = "best") -> str:
         Each model's scores on the same folds (greater is better; all finite), in order of
         complexity: the simplest first (in :class:`BasisChoiceCV`: the prior, then the
         candidates as listed, then the mean of the best ones).
-    rule : {"best", "one_se"}, default="best"
+    rule : {"best", "one_se", "prior_se"}, default="best"
         ``"best"``: the model with the best mean score; the simplest of those tied for it.
         ``"one_se"``: the one-standard-error rule (Breiman et al. 1984; Hastie, Tibshirani
         and Friedman, *The Elements of Statistical Learning*, 7.10), on paired differences:
@@ -180,6 +180,10 @@ def choose(scores: dict[str, Any], rule: str = "best") -> str:
         best (:func:`paired_standard_error`), i.e. the first ``m`` with
         ``mean(best - m) <= paired_standard_error(best, m)``. A gain the folds cannot tell
         from noise does not buy complexity.
+        ``"prior_se"``: the one-standard-error rule between the prior and the best only:
+        the prior (the first model) unless the best beats it by more than one standard
+        error of their paired fold differences, else the best. It guards against losing to
+        the prior without giving up the best candidate's gain for a simpler candidate's.
 
     Returns
     -------
@@ -192,6 +196,11 @@ def choose(scores: dict[str, Any], rule: str = "best") -> str:
     best = max(means, key=lambda name: means[name])  # the first of those tied
     if rule == "best":
         return best
+    if rule == "prior_se":
+        first = next(iter(scores))
+        gain = np.asarray(scores[best], dtype=float) - np.asarray(scores[first], dtype=float)
+        return first if np.mean(gain) <= paired_standard_error(scores[best], scores[first]) \
+            else best
     top = np.asarray(scores[best], dtype=float)
     return next((name for name in scores
                  if np.mean(top - np.asarray(scores[name], dtype=float))
@@ -226,11 +235,11 @@ class BaseBoostCV(CachedParamNames, MetaEstimatorMixin, RegressorMixin, BaseEsti
     return_train_score : bool, default=False
         Also score the candidate on each fold's own training rows (one more prediction per
         fold): ``cv_train_scores_boosted_``, the whole-fold point of a learning curve.
-    rule : {"best", "one_se"}, default="best"
+    rule : {"best", "one_se", "prior_se"}, default="best"
         How CV chooses (:func:`choose`, the prior counting as the simpler model):
-        ``"best"``, the better mean score; ``"one_se"``, the one-standard-error rule, the
-        prior unless the candidate's mean gain exceeds one standard error of the paired
-        fold differences.
+        ``"best"``, the better mean score; ``"one_se"`` and ``"prior_se"`` (the same with
+        one candidate), the one-standard-error rule, the prior unless the candidate's mean
+        gain exceeds one standard error of the paired fold differences.
 
     Attributes
     ----------
@@ -479,7 +488,7 @@ class BasisChoiceCV(_BaseComposition, BaseBoostCV):
     incumbent, cv, scoring, refit, n_jobs, random_state :
         As in :class:`BaseBoostCV` (one seed reaches every candidate). ``cv`` splits once:
         every candidate is scored on the same folds.
-    rule : {"best", "one_se"}, default="best"
+    rule : {"best", "one_se", "prior_se"}, default="best"
         How CV chooses among the prior, the candidates and their mean (:func:`choose`, in
         that order of complexity). ``"best"``: the best mean score (ties to the simpler).
         ``"one_se"``: the one-standard-error rule, the simplest whose mean score is within
@@ -487,7 +496,8 @@ class BasisChoiceCV(_BaseComposition, BaseBoostCV):
         candidates on five folds the best is partly the luckiest; the one-SE rule keeps the
         prior (or a simpler candidate) unless the folds can tell the gain from noise, which
         holds up better when the test rows differ from the training rows (later dates, new
-        devices).
+        devices). ``"prior_se"``: the prior unless the best beats it by more than one
+        standard error of their paired fold differences, else the best.
     ensemble : int, default=1
         Above 1, the mean of the ``ensemble`` best candidates (:class:`CandidateMean`) is a
         candidate too, scored on the same folds from their out-of-fold predictions (no

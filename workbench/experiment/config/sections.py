@@ -160,7 +160,8 @@ class SelectionConfig(Section):
         ``"best"``: the best mean CV score. ``"one_se"``: the one-standard-error rule, the
         simplest within one standard error of the paired fold differences from the best
         (the prior first), so the prior, the identity link or a simpler basis is kept unless
-        CV tells the gain from noise (the generic config's choice).
+        CV tells the gain from noise. ``"prior_se"``: the prior unless the best beats it by
+        more than one standard error of their paired fold differences, else the best.
     """
 
     cv: int = Field(default=5, ge=2, le=10_000)
