@@ -36,6 +36,7 @@ The full run (``make bench-outside``)::
 from __future__ import annotations
 
 import argparse
+import json
 import resource
 import subprocess
 import sys
@@ -188,6 +189,9 @@ def main(argv: list[str] | None = None) -> None:
     reduced = (args.trials != FULL_TRIALS or bool(overrides) or args.sets != list(SETS)
                or Path(args.config).resolve() != ROOT / "experiments" / "generic.toml")
     before = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+    # the code measured is the tree at the start: its commit, and whether a measured file
+    # differed from it (the JSON then stands for no commit, and tests/test_outside.py fails)
+    commit, dirty = git("rev-parse", "HEAD"), bool(git("status", "--porcelain", "--", *MEASURED))
     print(f"config {args.config}{' with ' + ' '.join(args.overrides) if args.overrides else ''};"
           f" peer: {args.trials} trials, objective searched; test MAE"
           + (" (REDUCED run)" if reduced else ""), flush=True)
@@ -203,12 +207,15 @@ def main(argv: list[str] | None = None) -> None:
           f"{total['more_than_3pct_behind_peer']}; {total['verdicts']}")
     after = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
     if args.json:
-        dirty = git("status", "--porcelain", "--", *MEASURED)
+        dirty = dirty or git("rev-parse", "HEAD") != commit  # a commit during the run
         write_json(args.json, {
-            "commit_full": git("rev-parse", "HEAD"), "measured_files": list(MEASURED),
-            "measured_dirty": bool(dirty), "config": Path(args.config).name,
-            "overrides": args.overrides, "trials": args.trials, "reduced": reduced,
-            "summary": total, "rows": rows}, before, after)
+            "commit_full": commit, "measured_files": list(MEASURED), "measured_dirty": dirty,
+            "config": Path(args.config).name, "overrides": args.overrides,
+            "trials": args.trials, "reduced": reduced, "summary": total, "rows": rows},
+            before, after)
+        data = json.loads(args.json.read_text())  # write_json records HEAD at the end
+        data["measured"]["commit"] = commit[:7]
+        args.json.write_text(json.dumps(data, indent=1) + "\n")
 
 
 if __name__ == "__main__":
