@@ -94,7 +94,21 @@ def _timed(func):
 
 
 def run(name: str, args, overrides: dict, tmp: Path) -> dict:
+    """One set's row; a set on which the config (or the peer) fails is a row too, with the
+    error: the goal is no failure."""
     from outside_data import SETS
+
+    spec = SETS[name]()
+    try:
+        return _measure(spec, args, overrides, tmp)
+    except Exception as exc:  # noqa: BLE001 - recorded, reported, and the run goes on
+        train, test = spec.rows
+        return dict(set=name, kind=spec.kind, description=spec.description, unit=spec.unit,
+                    train_rows=train, test_rows=test,
+                    error=f"{type(exc).__name__}: {str(exc).splitlines()[0]}")
+
+
+def _measure(spec, args, overrides: dict, tmp: Path) -> dict:
     from peers import write_config
 
     from workbench.experiment.bootstrap import bootstrap_error_interval
@@ -103,7 +117,7 @@ def run(name: str, args, overrides: dict, tmp: Path) -> dict:
     from workbench.experiment.paper.peer import peer_predict
     from workbench.experiment.prepare import load_config
 
-    spec = SETS[name]()
+    name = spec.name
     csv = tmp / f"{name}.csv"
     spec.frame.to_csv(csv, index=False)
     cfg = load_config(write_config(Path(args.config), spec.data(str(csv)), tmp / f"{name}.toml"),
@@ -139,27 +153,37 @@ def run(name: str, args, overrides: dict, tmp: Path) -> dict:
 
 def verdict(r: dict) -> str:
     """``win`` (generic ahead of the peer beyond the interval), ``loss`` (behind beyond it),
-    ``tie``; ``worse than prior`` overrides where generic - prior is above 0 throughout."""
+    ``tie``; ``worse than prior`` overrides where generic - prior is above 0 throughout;
+    ``failed`` where the run raised."""
+    if "error" in r:
+        return "failed"
     if r["generic_minus_prior"][0] > 0:
         return "worse than prior"
     low, high = r["generic_minus_peer"]
     return "win" if high < 0 else "loss" if low > 0 else "tie"
 
 
+VERDICTS = ("win", "tie", "loss", "worse than prior", "failed")
+
+
 def summary(rows: list[dict]) -> dict:
-    ratios = [r["ratio_to_peer"] for r in rows]
-    return {"sets": len(rows), "mean_ratio_to_peer": float(np.mean(ratios)),
+    """The goals' figures over the sets that ran (``failed``: those that did not)."""
+    ran = [r for r in rows if "error" not in r]
+    ratios = [r["ratio_to_peer"] for r in ran] or [float("nan")]
+    return {"sets": len(rows), "failed": len(rows) - len(ran),
+            "mean_ratio_to_peer": float(np.mean(ratios)),
             "worst_ratio_to_peer": float(np.max(ratios)),
-            "worse_than_prior": sum(r["generic_minus_prior"][0] > 0 for r in rows),
-            "more_than_3pct_behind_peer": sum(x > 1.03 for x in ratios),
-            "verdicts": {v: sum(verdict(r) == v for r in rows)
-                         for v in ("win", "tie", "loss", "worse than prior")}}
+            "worse_than_prior": sum(r["generic_minus_prior"][0] > 0 for r in ran),
+            "more_than_3pct_behind_peer": sum(r["ratio_to_peer"] > 1.03 for r in ran),
+            "verdicts": {v: sum(verdict(r) == v for r in rows) for v in VERDICTS}}
 
 
 def _line(r: dict) -> str:
     def ci(pair) -> str:
         return f"[{pair[0]:+.4g}, {pair[1]:+.4g}]"
 
+    if "error" in r:
+        return f"{r['set']}: FAILED: {r['error']}"
     s = r["seconds"]
     chosen = ", ".join(c["chosen"] for c in r["cv"].values()) or ",".join(r["selected"])
     return (f"{r['set']} ({r['train_rows']} train / {r['test_rows']} test rows, {r['unit']}): "
@@ -201,7 +225,8 @@ def main(argv: list[str] | None = None) -> None:
             rows.append(run(name, args, overrides, Path(tmp)))
             print(_line(rows[-1]), flush=True)
     total = summary(rows)
-    print(f"{total['sets']} sets: generic / peer mean {total['mean_ratio_to_peer']:.3f}, worst "
+    print(f"{total['sets']} sets ({total['failed']} failed): generic / peer mean "
+          f"{total['mean_ratio_to_peer']:.3f}, worst "
           f"{total['worst_ratio_to_peer']:.3f}; worse than the prior on "
           f"{total['worse_than_prior']}; more than 3% behind the peer on "
           f"{total['more_than_3pct_behind_peer']}; {total['verdicts']}")

@@ -189,6 +189,8 @@ def outside(data: dict) -> str:
         return f"{pair[0]:+.3g} to {pair[1]:+.3g}"
 
     def verdict(r: dict) -> str:
+        if "error" in r:
+            return "**failed**"
         if r["generic_minus_prior"][0] > 0:
             return "**worse than prior**"
         low, high = r["generic_minus_peer"]
@@ -198,6 +200,11 @@ def outside(data: dict) -> str:
              "| generic - prior | generic - peer | generic / peer | vs peer | CV chose "
              "| wall / CPU s: peer, generic |", "|---" * 12 + "|"]
     for r in data["rows"]:
+        if "error" in r:
+            lines.append(f"| {r['kind']} | `{r['set']}`: {r['description']} | "
+                         f"{r['train_rows']:,} / {r['test_rows']:,} | | | | | | | "
+                         f"{verdict(r)} | {r['error'].replace('|', '/')} | |")
+            continue
         s = r["seconds"]
         chosen = ", ".join(sorted({c["chosen"] for c in r["cv"].values()})) or "-"
         lines.append(
@@ -215,10 +222,12 @@ def outside(data: dict) -> str:
             + ("; **a reduced run** (fewer trials or draws than `make bench-outside`)"
                if data["reduced"] else "") + ". Test MAE in each set's unit; intervals: "
             "paired 95% bootstrap over the test rows.")
-    foot = (f"Over {t['sets']} sets: generic / peer {t['mean_ratio_to_peer']:.3f} on average "
+    foot = (f"Over {t['sets']} sets ({t['failed']} failed): generic / peer "
+            f"{t['mean_ratio_to_peer']:.3f} on average "
             f"(goal <= 0.92), worst {t['worst_ratio_to_peer']:.3f} (goal <= 1.03); worse than "
             f"the prior beyond the interval on {t['worse_than_prior']}; against the peer "
-            f"{v['win']} wins, {v['tie']} ties, {v['loss']} losses.")
+            f"{v['win']} wins, {v['tie']} ties, {v['loss']} losses. Seen: every test score "
+            "here (a config change chosen for them would be tuned to these sets).")
     return "\n".join([_measured(data["measured"]), head, "", *lines, "", foot])
 
 

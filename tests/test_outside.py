@@ -64,12 +64,16 @@ def test_verdicts_follow_the_paired_intervals():
     assert outside.verdict({**row, "generic_minus_peer": [-0.01, 0.02]}) == "tie"
     assert outside.verdict({**row, "generic_minus_peer": [0.01, 0.02]}) == "loss"
     assert outside.verdict({**row, "generic_minus_prior": [0.01, 0.3]}) == "worse than prior"
-    rows = [row, {**row, "generic_minus_prior": [0.01, 0.3], "ratio_to_peer": 1.1}]
+    failed = {"set": "x", "error": "ValueError: too few groups"}
+    assert outside.verdict(failed) == "failed"
+    rows = [row, {**row, "generic_minus_prior": [0.01, 0.3], "ratio_to_peer": 1.1}, failed]
     total = outside.summary(rows)
+    assert total["sets"] == 3 and total["failed"] == 1
     assert total["mean_ratio_to_peer"] == pytest.approx(1.0)
     assert total["worst_ratio_to_peer"] == pytest.approx(1.1)
     assert total["worse_than_prior"] == 1 and total["more_than_3pct_behind_peer"] == 1
-    assert total["verdicts"] == {"win": 1, "tie": 0, "loss": 0, "worse than prior": 1}
+    assert total["verdicts"] == {"win": 1, "tie": 0, "loss": 0, "worse than prior": 1,
+                                 "failed": 1}
 
 
 def test_the_json_has_every_set_of_the_benchmark_and_three_kinds():
@@ -79,6 +83,8 @@ def test_the_json_has_every_set_of_the_benchmark_and_three_kinds():
     assert len({r["kind"] for r in data["rows"]}) >= 3
     for r in data["rows"]:
         assert r["train_rows"] > 0 and r["test_rows"] > 0
+        if "error" in r:
+            continue
         for key in ("prior", "peer", "generic"):
             low, high = r["ci"][key]
             assert low <= r[key] <= high
@@ -126,7 +132,7 @@ def test_simulated_sets_hold_out_devices_and_biases():
     data = _module("outside_data")
     devices = data.sim_devices().frame
     by_device = devices.groupby("device")["split"].agg(set)
-    assert all(len(s) == 1 for s in by_device) and (by_device == {"test"}).sum() == 2
+    assert all(len(s) == 1 for s in by_device) and (by_device == {"test"}).sum() == 3
     grid = data.sim_bias().frame
     mean_c = grid[[c for c in grid.columns if c.startswith("v_c")]].mean(axis=1)
     test = grid["split"] == "test"
