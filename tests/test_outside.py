@@ -137,3 +137,23 @@ def test_simulated_sets_hold_out_devices_and_biases():
     mean_c = grid[[c for c in grid.columns if c.startswith("v_c")]].mean(axis=1)
     test = grid["split"] == "test"
     assert mean_c[test].min() >= mean_c[~test].max()
+
+
+@pytest.mark.parametrize("name", ["chem_pc", "nuclear_heavy", "sim_devices"])
+def test_validation_sets_hold_no_test_row(name):
+    """benchmarks/outside_validation.py splits a set's training rows again: no test row is
+    left, and its validation rows follow the set's own kind of split."""
+    data, validation = _module("outside_data"), _module("outside_validation")
+    full = data.SETS[name]().frame
+    inner = validation.validation_set(name).frame
+    assert len(inner) == (full["split"] == "train").sum()
+    held = inner["split"] == "test"
+    assert 0 < held.sum() < len(inner)
+    if name == "chem_pc":
+        assert inner.loc[held, "MW"].min() >= inner.loc[~held, "MW"].max()
+        assert inner["MW"].max() <= full.loc[full["split"] == "test", "MW"].min()
+    elif name == "nuclear_heavy":
+        assert inner["Z"].max() <= 82 and inner.loc[held, "Z"].min() > 70
+    else:
+        assert not set(inner.loc[held, "device"]) & set(inner.loc[~held, "device"])
+        assert inner["device"].nunique() == 7
