@@ -319,3 +319,30 @@ def test_a_sweep_s_outer_and_inner_folds_chain_forward(tmp_path):
         X = ds.X.loc[ds.train_index].iloc[train]
         for inner_train, inner_val in inner_cv(cfg, ds).split(X):
             assert order[train][inner_train].max() < order[train][inner_val].min()
+
+
+def _grouped(n_groups: int):
+    from workbench.datasets import Dataset
+
+    rng = np.random.default_rng(0)
+    prior = pd.DataFrame({"p": rng.normal(size=40)})
+    groups = pd.Series(np.arange(40) % n_groups, name="device")
+    return Dataset(name="g", features=pd.DataFrame(index=prior.index), prior=prior,
+                   targets=pd.DataFrame({"y": prior["p"] + 0.1}), groups=groups,
+                   train_index=np.arange(30), test_index=np.arange(30, 40))
+
+
+def test_fewer_training_groups_than_folds_hold_one_group_out_each():
+    ds = _grouped(4)  # 4 devices, 5 folds asked for: 4 folds, one device held out in each
+    with pytest.warns(UserWarning, match="4 groups of `device`, fewer than the 5 folds"):
+        folds = make_folds(ds, 5, groups=True)
+    X = ds.prior.loc[ds.train_index]
+    splits = list(folds.split(X))
+    assert len(splits) == 4
+    for train, test in splits:
+        assert len(set(ds.groups.iloc[test])) == 1
+        assert not set(ds.groups.iloc[train]) & set(ds.groups.iloc[test])
+    assert make_folds(_grouped(8), 5, groups=True).n_splits == 5
+    with pytest.raises(ConfigError, match="1 group\\(s\\) of `device`: grouped folds need at "
+                                          "least 2"):
+        make_folds(_grouped(1), 5, groups=True)

@@ -14,12 +14,14 @@ run used.
 from __future__ import annotations
 
 import math
+import warnings
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from sklearn.model_selection import KFold
 
 from ..selection import LabelGroupKFold, LabelTimeSeriesSplit, ordered_splits
+from .errors import ConfigError
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -58,8 +60,27 @@ def make_folds(ds: Dataset | None, n_splits: int, *, shuffle: bool = False,
     if ds is not None and ds.order is not None:
         return LabelTimeSeriesSplit(ds.order, n_splits)
     if groups and ds is not None and ds.groups is not None:
+        n_splits = _group_folds(ds, n_splits)
         return LabelGroupKFold(ds.groups, n_splits, shuffle=shuffle, random_state=seed)
     return KFold(n_splits, shuffle=shuffle, random_state=seed)
+
+
+def _group_folds(ds: Dataset, n_splits: int) -> int:
+    """Count the grouped folds: ``n_splits``, or the training rows' groups if fewer.
+
+    Fewer groups than folds: one group held out per fold, with a warning; at least two
+    groups are needed (else a ConfigError naming the column).
+    """
+    n_groups = int(ds.groups.loc[ds.train_index].nunique())
+    if n_groups >= n_splits:
+        return n_splits
+    if n_groups < 2:
+        raise ConfigError(f"the training rows hold {n_groups} group(s) of `{ds.groups.name}`: "
+                          "grouped folds need at least 2 (set [selection] groups = false)")
+    warnings.warn(f"the training rows hold {n_groups} groups of `{ds.groups.name}`, fewer than "
+                  f"the {n_splits} folds: {n_groups} folds, one group held out in each",
+                  UserWarning, stacklevel=3)
+    return n_groups
 
 
 def selection_cv(cfg: ExperimentConfig, ds: Dataset | None = None) -> Any:
