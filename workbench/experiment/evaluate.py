@@ -22,7 +22,8 @@ from sklearn.model_selection import KFold, RepeatedKFold, cross_val_predict
 from .bootstrap import bootstrap_test_scores
 from .config import ExperimentConfig, load_dataset
 from .intervals import family_model, interval_scores, interval_settings, with_intervals
-from .results import CVEstimate, Result, mae, mse
+from .results import Result
+from .scores import CVEstimate, mae, mse
 from .units import unit_name
 
 if TYPE_CHECKING:

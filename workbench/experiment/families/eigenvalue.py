@@ -33,7 +33,7 @@ from ...parallel import (
 from ...selection import BaseBoostCV, BasisChoiceCV
 from ..explain import target_shap_values
 from ..figures import correction_shap_figure, learning_curve_figure, shap_figure
-from ..results import ModelScores, Scores, mae, mse
+from ..scores import ModelScores, Scores, mae, mse
 from .artifacts import Artifacts
 from .base import ModelFamily, Report
 from .choices import candidate_choices

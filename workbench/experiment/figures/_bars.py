@@ -133,7 +133,7 @@ def mae_bars(targets: Sequence[str], prior: Sequence[float], model: Sequence[flo
         Intervals drawn as error bars: ``[low, high]`` per target, then the average's (an
         interval of the average over targets is not the average of the targets' intervals:
         give the one computed with them, e.g. :meth:`Scores.ci
-        <workbench.experiment.results.Scores.ci>` ``("test_mae")``); without ``average``,
+        <workbench.experiment.scores.Scores.ci>` ``("test_mae")``); without ``average``,
         ``(n_targets, 2)`` is enough. Either may be given alone.
     ci_note : str or None
         With error bars, a note under the axis saying what they are (``None``: none); the
