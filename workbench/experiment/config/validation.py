@@ -12,7 +12,7 @@ from typing import Any
 from sklearn.base import BaseEstimator
 from sklearn.utils._param_validation import Interval, StrOptions, validate_parameter_constraints
 
-from ...bases import BASES, TRANSFORMS, make_basis, make_transform
+from ...bases import BASES, TRANSFORMS, basis_names, make_basis, make_transform
 from ..errors import listing, shorten
 from ..space import SpaceError, check_ranges, has_ranges
 
@@ -56,7 +56,7 @@ def check_boost_settings(settings: dict[str, Any]) -> None:
             check_boost_settings({**settings, "basis": name,
                                   "basis_params": params.get(name, {})})
         return
-    if settings["basis"] not in BASES:
+    if settings["basis"] not in BASES and settings["basis"] not in basis_names():  # plug-ins
         raise ValueError(f"basis = {shorten(settings['basis'])}: unknown basis; valid: "
                          f"{sorted(BASES)}")
     if settings["input_transform"] not in ("none", *TRANSFORMS):
