@@ -29,13 +29,13 @@ from typing import TYPE_CHECKING, Any, Callable
 import numpy as np
 import optuna
 from optuna.trial import TrialState
+from sklearn.metrics import mean_absolute_error
 from sklearn.model_selection import KFold, RepeatedKFold
 
 from ...parallel import Task, map_tasks
 from ..config import ExperimentConfig, load_dataset
 from ..errors import SweepTimedOut, redact
 from ..evaluate import fit_and_score
-from ..metrics import mean_absolute_error
 from ..results import OuterFold, Result, SweepSummary
 from .scheduler import is_counted, open_study, pruner, run_studies, sampler, studies_short
 from .storage import open_storage
