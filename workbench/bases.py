@@ -622,7 +622,7 @@ class NormalQuantileTransformer(CachedParamNames, TransformerMixin, BaseEstimato
         As in :class:`~sklearn.preprocessing.QuantileTransformer`.
     """
 
-    def __init__(self, n_quantiles: int = 1000, subsample: int = 10_000,
+    def __init__(self, *, n_quantiles: int = 1000, subsample: int = 10_000,
                  random_state: int | np.random.RandomState | None = None) -> None:
         self.n_quantiles = n_quantiles
         self.subsample = subsample
