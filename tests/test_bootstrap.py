@@ -14,7 +14,8 @@ from workbench.experiment.bootstrap import (
     bootstrap_method,
     bootstrap_test_scores,
 )
-from workbench.experiment.results import ModelScores, Result, Scores, mae, mse
+from workbench.experiment.results import Result
+from workbench.experiment.scores import ModelScores, Scores, mae, mse
 
 
 def _errors(n, targets=3, seed=0, scale=1.0):

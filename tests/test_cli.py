@@ -333,6 +333,19 @@ def test_missing_subcommand_is_usage_error(capsys):
     assert "command" in err and "sweep" in err and "workbench --help" in err
 
 
+def test_missing_subcommand_lists_every_command_help_shows(capsys):
+    """The list comes from the parser's own subcommands, so it cannot drift from them."""
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    usage = capsys.readouterr().out
+    shown = re.search(r"\{([a-z,]+)\}", usage).group(1).split(",")
+    assert len(shown) >= 9 and {"compare", "design"} <= set(shown)  # it read the help
+    with pytest.raises(SystemExit):
+        main([])
+    err = capsys.readouterr().err
+    assert f"({', '.join(shown)}; see workbench --help)" in err, err
+
+
 # --- the installed console script -----------------------------------------------------------
 
 def test_console_script_help():

@@ -186,6 +186,8 @@ def test_basis_params_checked_against_the_estimators_constraints(tmp_path, param
     ("lightgbm", '{ n_estimators = 0 }', "n_estimators"),
     ("lightgbm", '{ learning_rate = "fast" }', "learning_rate"),
     ("lightgbm", '{ bogus_lgbm = 1 }', "bogus_lgbm"),
+    ("lightgbm", '{ num_leaves = 1 }', r"num_leaves = 1: LightGBM: .*num_leaves"),
+    ("lightgbm", '{ n_estimators = 5, subsample = 1.5 }', r"subsample = 1\.5: LightGBM"),
     ("paper_stacking", '{ mlp_alpha = -1.0 }', "alpha"),
     ("mlp", '{ solver = "bogus" }', "solver"),
     ("kernel_ridge", '{ alpha = "x" }', "alpha"),
@@ -195,6 +197,20 @@ def test_nested_and_lightgbm_parameters_are_checked(tmp_path, basis, params, pat
     path.write_text(f'[model]\nbasis = "{basis}"\nbasis_params = {params}\n')
     with pytest.raises(ConfigError, match=pattern):
         load_config(path)
+
+
+def test_lightgbm_checks_its_own_parameters_in_one_line(tmp_path, capfd):
+    """LightGBM declares no constraints: its own checks run on a few rows at load (stopped
+    after one round), and its native error line does not reach the terminal."""
+    path = tmp_path / "c.toml"
+    path.write_text('[model]\nbasis = "lightgbm"\nbasis_params = { max_bin = 1 }\n')
+    assert main(["evaluate", str(path), "--no-track"]) == 2
+    err = capfd.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "max_bin = 1: LightGBM: Check failed" in err[0], err
+    # a setting LightGBM accepts loads, however many rounds it asks for (none are run)
+    path.write_text('[model]\nbasis = "lightgbm"\nbasis_params = { n_estimators = 10000000, '
+                    "lambda_l1 = 0.5 }\n")
+    assert load_config(path).model_for(None)["basis_params"]["n_estimators"] == 10_000_000
 
 
 @pytest.mark.parametrize("argv", [["--trials", "0"], ["--trials", "-3"], ["--workers", "0"],

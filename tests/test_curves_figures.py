@@ -279,6 +279,29 @@ def test_mae_bars_with_intervals_draws_capped_error_bars(tmp_path):
     assert not any("bootstrap" in t.get_text() for t in ax.texts)
 
 
+def test_error_bars_draw_a_result_s_errors_and_intervals():
+    from workbench.experiment.results import Result
+    from workbench.experiment.scores import ModelScores, Scores
+
+    ci = [[0.5, 1.5], [1.0, 3.0]]
+    prior = Scores(test_mae=[1.0, 2.0], test_mse=[1.5, 5.0], cv_mae=[], cv_mse=[],
+                   test_mse_ci=ci, test_mse_avg_ci=[1.0, 4.0])
+    model = ModelScores(test_mae=[0.5, 1.0], test_mse=[0.4, 1.2], cv_mae=[], cv_mse=[])
+    result = Result(name="r", config=None, family="eigenvalue", targets=["E1", "E2"],
+                    n_train=10, n_test=5, prior=prior, model=model)
+    fig = figures.error_bars(result, "MSE", unit="MHz", targets=["a", "b"], setting="s")
+    ax = fig.axes[0]
+    assert ax.get_ylabel() == "MSE (MHz²)"  # the unit squared for an MSE
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["a", "b", "average"]
+    prior_bars, model_bars = [c for c in ax.containers if hasattr(c, "patches")]
+    assert [b.get_height() for b in prior_bars] == pytest.approx([1.5, 5.0, 3.25])
+    assert [b.get_height() for b in model_bars] == pytest.approx([0.4, 1.2, 0.8])
+    assert prior_bars.errorbar is not None and model_bars.errorbar is None  # intervals given
+    fig = figures.error_bars(result, unit="MHz")  # MAE, the result's targets
+    assert fig.axes[0].get_ylabel() == "MAE (MHz)"
+    assert [t.get_text() for t in fig.axes[0].get_xticklabels()][:2] == ["E1", "E2"]
+
+
 def test_mae_bars_without_intervals_draws_no_error_bars():
     fig = figures.mae_bars(["Y1", "Y2", "Y3", "Y4", "Y5"], PRIOR_MAE, MODEL_MAE)
     ax = fig.axes[0]

@@ -1,9 +1,15 @@
-"""scikit-learn's estimator checks, one pytest test per check."""
+"""scikit-learn's estimator checks, one pytest test per check; the core's parameters by keyword."""
 
+import importlib
+import inspect
+import pkgutil
+
+from sklearn.base import BaseEstimator
 from sklearn.linear_model import Ridge
 from sklearn.tree import DecisionTreeRegressor
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
+import workbench
 from workbench import (
     ARDGaussianProcess,
     BaseBoostCV,
@@ -32,3 +38,41 @@ EXPECTED_FAILED: dict[str, str] = {}
 )
 def test_sklearn_compatible(estimator, check):
     check(estimator)
+
+
+#: The parameters a core estimator may take by position: what it wraps, first (as
+#: scikit-learn's meta-estimators take ``estimator`` and ``StackingRegressor`` its
+#: ``estimators``), and ``alpha`` where it mirrors ``KernelRidge(alpha, *, ...)``.
+WRAPPED = {"estimator", "estimators", "candidates", "members", "regressor", "physics", "boost",
+           "alpha"}
+
+
+def _core_estimators():
+    found = {}
+    for info in pkgutil.iter_modules(workbench.__path__):
+        if info.name == "experiment" or info.name.startswith("_"):
+            continue
+        module = importlib.import_module(f"workbench.{info.name}")
+        for name, cls in inspect.getmembers(module, inspect.isclass):
+            if (cls.__module__ == module.__name__ and not name.startswith("_")
+                    and issubclass(cls, BaseEstimator)):
+                found[f"{info.name}.{name}"] = cls
+    return found
+
+
+def test_core_estimators_take_their_hyperparameters_by_keyword():
+    """As scikit-learn's estimators do since 1.0: ``Est(*, param=...)``, only what an
+    estimator wraps may come first by position."""
+    estimators = _core_estimators()
+    assert {"boosting.BaseBoostRegressor", "selection.BaseBoostCV", "derived.PriorDerivedInputs",
+            "bases.NormalQuantileTransformer"} <= set(estimators)  # it sees the core
+    positional = {}
+    for name, cls in estimators.items():
+        params = list(inspect.signature(cls.__init__).parameters.values())[1:]
+        by_position = [p.name for p in params
+                       if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
+        if set(by_position) - WRAPPED:
+            positional[name] = by_position
+    assert positional == {}
+    assert "prior" not in [p.name for p in inspect.signature(
+        BaseBoostRegressor.__init__).parameters.values() if p.kind == p.POSITIONAL_OR_KEYWORD]

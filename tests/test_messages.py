@@ -21,7 +21,6 @@ import pytest
 
 from workbench.experiment.cli import main
 from workbench.experiment.errors import clip, listing, redact, redact_config
-from workbench.experiment.metrics import mean_absolute_error
 from workbench.simulate import simulate
 
 SECRET = "s3cret"
@@ -332,8 +331,3 @@ def test_clip_cuts_to_the_limit_with_an_ellipsis():
     assert clip("x" * 500, 200) == "x" * 197 + "..."
     assert listing(["a" * 40, "b"]) == f"'{'a' * 27}...', 'b'"
 
-
-def test_mean_absolute_error_pools_every_entry():
-    y = [[1.0, 2.0], [3.0, 4.0]]
-    assert mean_absolute_error(y, [[1.0, 2.0], [3.0, 8.0]]) == 1.0
-    assert isinstance(mean_absolute_error([1], [2]), float)

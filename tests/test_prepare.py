@@ -1,9 +1,8 @@
 """The prepared run: a command loads its config's data once; data sources and model families
-are found through registries (families through entry points too)."""
+are found through registries (their entry points: tests/test_plugins.py)."""
 
 from __future__ import annotations
 
-import importlib.metadata
 import json
 
 import numpy as np
@@ -52,31 +51,6 @@ def registries(monkeypatch):
     yield
     FAMILIES.clear()
     FAMILIES.update(saved)
-
-
-def _entry_points(group=None, **kwargs):
-    points = [importlib.metadata.EntryPoint(name="plugin_prior", group=families.ENTRY_POINT_GROUP,
-                                            value=f"{__name__}:PluginFamily")]
-    return [p for p in points if group in (None, p.group)]
-
-
-def test_a_family_is_found_through_its_entry_point(registries, monkeypatch, tmp_path):
-    monkeypatch.setattr(importlib.metadata, "entry_points", _entry_points)
-    assert "plugin_prior" not in FAMILIES
-    cfg = parse_config({"model": {"family": "plugin_prior"}}, tmp_path / "c.toml")
-    assert isinstance(cfg.family, PluginFamily)
-    assert families.discover_families() == []  # each entry point is loaded once
-
-
-def test_a_broken_entry_point_is_left_out(registries, monkeypatch, tmp_path, caplog):
-    broken = importlib.metadata.EntryPoint(name="broken", group=families.ENTRY_POINT_GROUP,
-                                           value="no_such_module_here:Family")
-    monkeypatch.setattr(importlib.metadata, "entry_points", lambda group=None: [broken])
-    assert families.discover_families() == []
-    assert "broken" in caplog.text
-    with pytest.raises(ConfigError, match=r"model\.family = 'broken': unknown family; valid: "
-                                          r"\['eigenvalue', 'hamiltonian'\]"):
-        parse_config({"model": {"family": "broken"}}, tmp_path / "c.toml")
 
 
 def test_an_unknown_data_source_lists_the_registered_ones(tmp_path):

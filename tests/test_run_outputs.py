@@ -72,9 +72,10 @@ def _forbidden(name: str):
 #: Every function that computes a run's figures, tables or predictions, by where the
 #: experiment layer looks it up.
 COMPUTING = [(run_outputs, "compute_outputs"), (run_outputs, "interval_artifacts"),
-             (run_outputs, "mae_bars"), (run_outputs, "_png"),
+             (run_outputs, "error_bars"), (run_outputs, "_png"),
              (run_outputs, "write_artifacts"), (intervals, "interval_artifacts"),
-             (intervals, "interval_figure"), (figures, "mae_bars"), (figures, "save_figure"),
+             (intervals, "interval_figure"), (figures, "mae_bars"), (figures, "error_bars"),
+             (figures, "save_figure"),
              (serving, "prediction_frame"), (EigenvalueFamily, "begin_artifacts"),
              (EigenvalueFamily, "outputs"), (Figure, "__init__"), (Figure, "savefig")]
 
@@ -92,13 +93,13 @@ def test_the_record_computes_nothing(fitted, tmp_path, monkeypatch, new_store):
     prediction."""
     cfg, run = fitted
     calls = Calls()
-    for owner, name in [(run_outputs, "interval_artifacts"), (run_outputs, "mae_bars"),
+    for owner, name in [(run_outputs, "interval_artifacts"), (run_outputs, "error_bars"),
                         (run_outputs, "_png"), (serving, "prediction_frame"),
                         (EigenvalueFamily, "begin_artifacts")]:
         monkeypatch.setattr(owner, name, calls.counted(name, getattr(owner, name)))
     with computed_outputs(cfg, run.result, run.model, run.dataset,
                           setting="evaluate of computed") as computed:
-        assert calls.counts == {"interval_artifacts": 1, "mae_bars": 2, "begin_artifacts": 1,
+        assert calls.counts == {"interval_artifacts": 1, "error_bars": 2, "begin_artifacts": 1,
                                 "prediction_frame": 1, "_png": 4}
         assert set(computed.files) == set(computed.figures) == {
             "plots/mae_bars.png", "plots/mse_bars.png", "plots/intervals.png",
@@ -142,7 +143,7 @@ def test_out_alone_computes_only_what_it_writes(fitted, tmp_path):
     run's figures or predictions, and no scratch directory."""
     cfg, run = fitted
     with pytest.MonkeyPatch.context() as mp:
-        for owner, name in [(run_outputs, "mae_bars"), (serving, "prediction_frame"),
+        for owner, name in [(run_outputs, "error_bars"), (serving, "prediction_frame"),
                             (EigenvalueFamily, "begin_artifacts")]:
             mp.setattr(owner, name, _forbidden(name))
         with computed_outputs(cfg, run.result, run.model, run.dataset, setting="s",

@@ -18,7 +18,7 @@ __version__ = "0.1.0"
 
 #: Public name -> the core module that defines it.
 _EXPORTS = {
-    "BASES": "bases", "TRANSFORMS": "bases", "make_basis": "bases",
+    "BASES": "bases", "TRANSFORMS": "bases", "make_basis": "bases", "register_basis": "bases",
     "make_transform": "bases", "paper_basis": "bases",
     "BaseBoostRegressor": "boosting", "PriorModel": "boosting",
     "line_search": "line_search",

@@ -1,6 +1,9 @@
 """Basis regressors by name, and the paper's stacking basis.
 
-Every entry of :data:`BASES` is a small factory ``f(**params) -> regressor``. LightGBM models
+Every entry of :data:`BASES` is a small factory ``f(**params) -> regressor``. Another basis is
+added with :func:`register_basis` or, from another package, through an entry point of the
+group :data:`BASIS_ENTRY_POINT_GROUP` (``workbench.bases``), loaded when a name is not found
+(:func:`discover_bases`). LightGBM models
 are :class:`LeanLGBMRegressor` (LightGBM's own, without its post-training model copy), built
 with ``n_jobs=1`` (the data are tiny, and on few cores its threads spin under contention when
 folds, trials or targets run in parallel) and ``verbose=-1``.
@@ -32,6 +35,7 @@ from sklearn.preprocessing import QuantileTransformer, SplineTransformer, Standa
 from sklearn.utils._param_validation import Interval
 from sklearn.utils.validation import check_is_fitted
 
+from ._plugins import load_entry_points
 from .boosting import CachedParamNames
 from .derived import PriorDerivedInputs
 from .gp import ARDGaussianProcess
@@ -39,15 +43,19 @@ from .stagewise import StageChoiceCV
 
 __all__ = [
     "BASES",
+    "BASIS_ENTRY_POINT_GROUP",
     "KERNEL_EXACT_ROWS",
     "LeanLGBMRegressor",
     "PAPER_PARAMS",
     "ScalableKernelRidge",
     "TRANSFORMS",
     "NormalQuantileTransformer",
+    "basis_names",
+    "discover_bases",
     "make_basis",
     "make_transform",
     "paper_basis",
+    "register_basis",
 ]
 
 _KEEP = threading.local()
@@ -455,16 +463,98 @@ BASES: dict[str, Callable[..., Any]] = {
 }
 
 
+#: The entry-point group other packages add bases through: each entry point names a factory
+#: ``f(**params) -> regressor`` (an estimator class is one), registered under its own name.
+BASIS_ENTRY_POINT_GROUP = "workbench.bases"
+
+_discovered: set[str] = set()
+
+
+def register_basis(name: str, factory: Callable[..., Any]) -> Callable[..., Any]:
+    """Add the basis factory ``factory`` to :data:`BASES` under ``name``.
+
+    Parameters
+    ----------
+    name : str
+        The basis's name (``[model] basis``); an identifier, as it also names
+        ``[search.basis_params.<name>]`` tables.
+    factory : callable
+        ``factory(**params) -> regressor``: a scikit-learn regressor (an estimator class is
+        a factory too).
+
+    Returns
+    -------
+    callable
+        ``factory``.
+
+    Raises
+    ------
+    ValueError
+        For a name that is not an identifier.
+    TypeError
+        For a factory that cannot be called.
+    """
+    if not isinstance(name, str) or not name.isidentifier():
+        raise ValueError(f"a basis needs an identifier as its name, got {name!r}")
+    if not callable(factory):
+        raise TypeError(f"basis {name!r}: the factory must be callable, got {factory!r}")
+    BASES[name] = factory
+    return factory
+
+
+def discover_bases() -> list[str]:
+    """Register the bases other packages declare as entry points, each once.
+
+    The group is :data:`BASIS_ENTRY_POINT_GROUP`. One that cannot be loaded is reported in
+    one warning line naming it and left out.
+
+    Returns
+    -------
+    list of str
+        The names registered by this call.
+    """
+    def register(name: str, factory: Any) -> str:
+        register_basis(name, factory)
+        return name
+
+    return load_entry_points(BASIS_ENTRY_POINT_GROUP, register, _discovered)
+
+
+def basis_names() -> list[str]:
+    """The valid basis names, plug-ins included (sorted).
+
+    Returns
+    -------
+    list of str
+        The keys of :data:`BASES` after :func:`discover_bases`.
+    """
+    discover_bases()
+    return sorted(BASES)
+
+
 def make_basis(name: str, **params: Any) -> Any:
     """Build the basis ``name`` of :data:`BASES` with ``params``.
+
+    A name not registered yet is looked up among the entry points first
+    (:func:`discover_bases`).
 
     Parameters
     ----------
     name : str
         A key of :data:`BASES`.
     **params
-        The basis's parameters."""
-    if name not in BASES:
+        The basis's parameters.
+
+    Returns
+    -------
+    estimator
+        The basis regressor.
+
+    Raises
+    ------
+    ValueError
+        For an unknown name (the message lists the valid ones)."""
+    if name not in BASES and name not in basis_names():
         raise ValueError(f"unknown basis {name!r}; valid names are: {', '.join(sorted(BASES))}")
     return BASES[name](**params)
 
@@ -532,7 +622,7 @@ class NormalQuantileTransformer(CachedParamNames, TransformerMixin, BaseEstimato
         As in :class:`~sklearn.preprocessing.QuantileTransformer`.
     """
 
-    def __init__(self, n_quantiles: int = 1000, subsample: int = 10_000,
+    def __init__(self, *, n_quantiles: int = 1000, subsample: int = 10_000,
                  random_state: int | np.random.RandomState | None = None) -> None:
         self.n_quantiles = n_quantiles
         self.subsample = subsample

@@ -119,7 +119,7 @@ class PriorModel(CachedParamNames, RegressorMixin, BaseEstimator):
         "prior": [None, str, numbers.Integral, HasMethods(["fit", "predict"]), callable],
     }
 
-    def __init__(self, prior: Any = None) -> None:
+    def __init__(self, *, prior: Any = None) -> None:
         self.prior = prior
 
     def fit(self, X: Any, y: Any) -> Self:
@@ -246,7 +246,7 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
         "out_of_bounds": [StrOptions({"extrapolate", "clip"})],
     }
 
-    def __init__(self, prior: Any = None, basis: Any = None, n_stages: int = 1,
+    def __init__(self, *, prior: Any = None, basis: Any = None, n_stages: int = 1,
                  loss: str | Loss = "squared_error",
                  line_search_loss: str | Loss = "absolute_error",
                  line_search_penalty: float = 0.1, basis_features: Any = None,

@@ -67,7 +67,7 @@ class PriorDerivedInputs(TransformerMixin, BaseEstimator):
         "then": [None, HasMethods(["fit", "transform"])],
     }
 
-    def __init__(self, n_priors: int = 1, kinds: list[str] | tuple[str, ...] | None = None,
+    def __init__(self, *, n_priors: int = 1, kinds: list[str] | tuple[str, ...] | None = None,
                  then: Any = None) -> None:
         self.n_priors = n_priors
         self.kinds = kinds

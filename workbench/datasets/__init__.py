@@ -7,13 +7,23 @@ from .csv import DatasetError, load_csv_dataset, read_numeric_columns
 from .google_5q import load_google_5q
 from .ibm_gates import load_ibm_gates
 from .ibm_qubits import load_ibm_qubits
-from .sources import SOURCES, DataSource, get_source, load_source, register_source, source_names
+from .sources import (
+    SOURCE_ENTRY_POINT_GROUP,
+    SOURCES,
+    DataSource,
+    discover_sources,
+    get_source,
+    load_source,
+    register_source,
+    source_names,
+)
 from .wheel import DataUnavailableError, WheelData
 
 #: The real benchmarks' sources (``[data] source``) and the wheels their files come from.
 BENCHMARKS: dict[str, WheelData] = {"google_5q": google_5q.WHEEL, "ibm_gates": ibm_gates.WHEEL}
 
-__all__ = ["BENCHMARKS", "SOURCES", "DataSource", "DataUnavailableError", "Dataset",
-           "DatasetError", "Hamiltonian", "get_source", "load_csv_dataset", "load_google_5q",
-           "load_ibm_gates", "load_ibm_qubits", "load_source", "read_numeric_columns",
-           "register_source", "source_names"]
+__all__ = ["BENCHMARKS", "SOURCES", "SOURCE_ENTRY_POINT_GROUP", "DataSource",
+           "DataUnavailableError", "Dataset", "DatasetError", "Hamiltonian", "discover_sources",
+           "get_source", "load_csv_dataset", "load_google_5q", "load_ibm_gates",
+           "load_ibm_qubits", "load_source", "read_numeric_columns", "register_source",
+           "source_names"]

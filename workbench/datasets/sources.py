@@ -3,8 +3,10 @@
 A source turns the options of a config's ``[data]`` table into a :class:`Dataset`, with
 relative paths resolved against a base folder (the config's). The benchmarks
 (``google_5q``, ``ibm_gates``) and a CSV of one's own (``csv``) are registered here; another
-source is a function added with :func:`register_source`. An unknown name is an error listing
-the valid ones, as for the bases and losses of the core.
+source is a function added with :func:`register_source` or, from another package, through an
+entry point of the group :data:`SOURCE_ENTRY_POINT_GROUP` (``workbench.sources``), loaded when a
+name is not found (:func:`discover_sources`). An unknown name is an error listing the valid
+ones, as for the bases and losses of the core.
 """
 
 from __future__ import annotations
@@ -14,13 +16,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from .._plugins import load_entry_points
 from .base import Dataset
 from .csv import DatasetError, load_csv_dataset
 from .google_5q import load_google_5q
 from .ibm_gates import load_ibm_gates
 
-__all__ = ["SOURCES", "DataSource", "get_source", "load_source", "register_source",
-           "source_names"]
+__all__ = ["SOURCES", "SOURCE_ENTRY_POINT_GROUP", "DataSource", "discover_sources", "get_source",
+           "load_source", "register_source", "source_names"]
 
 #: ``load(options, base, name)``: the dataset that a ``[data]`` table's ``options`` describe,
 #: relative paths taken from ``base``, ``name`` the dataset's name where it has none of its own.
@@ -61,25 +64,64 @@ def register_source(name: str, load: Loader) -> DataSource:
     -------
     DataSource
         The registered source.
+
+    Raises
+    ------
+    ValueError
+        For an empty name.
+    TypeError
+        For a loader that cannot be called.
     """
+    if not isinstance(name, str) or not name:
+        raise ValueError(f"a data source needs a name, got {name!r}")
+    if not callable(load):
+        raise TypeError(f"data source {name!r}: the loader must be callable, got {load!r}")
     source = DataSource(name, load)
     SOURCES[name] = source
     return source
 
 
-def source_names() -> list[str]:
-    """The registered source names, in registration order.
+#: The entry-point group other packages add data sources through: each entry point names a
+#: loader ``load(options, base, name) -> Dataset``, registered under its own name.
+SOURCE_ENTRY_POINT_GROUP = "workbench.sources"
+
+_discovered: set[str] = set()
+
+
+def discover_sources() -> list[str]:
+    """Register the data sources other packages declare as entry points, each once.
+
+    The group is :data:`SOURCE_ENTRY_POINT_GROUP`. One that cannot be loaded is reported in
+    one warning line naming it and left out.
 
     Returns
     -------
     list of str
-        The valid values of ``[data] source``.
+        The names registered by this call.
     """
+    def register(name: str, load: Any) -> str:
+        return register_source(name, load).name
+
+    return load_entry_points(SOURCE_ENTRY_POINT_GROUP, register, _discovered)
+
+
+def source_names() -> list[str]:
+    """The registered source names, plug-ins included, in registration order.
+
+    Returns
+    -------
+    list of str
+        The valid values of ``[data] source`` (after :func:`discover_sources`).
+    """
+    discover_sources()
     return list(SOURCES)
 
 
 def get_source(name: str) -> DataSource:
     """The source called ``name``.
+
+    A name not registered yet is looked up among the entry points first
+    (:func:`discover_sources`).
 
     Parameters
     ----------
@@ -96,10 +138,9 @@ def get_source(name: str) -> DataSource:
     DatasetError
         For an unknown name (the message lists the valid ones).
     """
-    try:
-        return SOURCES[name]
-    except KeyError:
-        raise DatasetError(f"unknown data source {name!r}; valid: {source_names()}") from None
+    if name not in SOURCES and name not in source_names():
+        raise DatasetError(f"unknown data source {name!r}; valid: {list(SOURCES)}")
+    return SOURCES[name]
 
 
 def load_source(name: str, options: Mapping[str, Any], base: Path,

@@ -21,7 +21,8 @@ from .design import Design, design
 from .evaluate import Evaluation, evaluate
 from .overrides import apply_overrides, parse_overrides
 from .prepare import PreparedRun, load_config, parse_config, prepare
-from .results import ModelScores, Result, Scores
+from .results import Result
+from .scores import ModelScores, Scores
 from .seeds import SeedsResult, SeedSummary, evaluate_seeds
 from .sweep.search import Sweep, run_sweep
 

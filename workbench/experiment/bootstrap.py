@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 if TYPE_CHECKING:
-    from .results import ModelScores, Scores
+    from .scores import ModelScores, Scores
 
 #: A seed, or a generator drawn from.
 _Seed = int | np.random.Generator | None

@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+from sklearn.metrics import mean_absolute_error
 
 from ..datasets import Dataset
 from ..datasets.csv import DatasetError, _read
@@ -38,7 +39,6 @@ from ..design import CRITERIA, Batch, DesignProblem, greedy_design
 from .config import ExperimentConfig, load_dataset
 from .errors import UsageError
 from .families.fitting import quiet_fit
-from .metrics import mean_absolute_error
 from .outputs import check_file, write_file
 from .serving import InputError, check_inputs
 

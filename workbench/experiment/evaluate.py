@@ -23,7 +23,8 @@ from .bootstrap import bootstrap_test_scores
 from .config import ExperimentConfig, load_dataset
 from .folds import describe_folds, selection_cv
 from .intervals import family_model, interval_scores, interval_settings, with_intervals
-from .results import CVEstimate, Result, mae, mse
+from .results import Result
+from .scores import CVEstimate, mae, mse
 from .units import unit_name
 
 if TYPE_CHECKING:

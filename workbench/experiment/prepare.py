@@ -123,8 +123,9 @@ def _family(where: str, model_table: dict[str, Any]) -> tuple[ModelFamily, Any]:
 
     The table is taken out of ``model_table``; a table of another family is an error.
     """
-    discover_families()
     family_name = model_table.get("family", "eigenvalue")
+    if family_name not in FAMILIES:
+        discover_families()  # a plug-in's name: entry points are read on a miss
     if family_name not in FAMILIES:
         raise _error(where, f"model.family = {shorten(family_name)}: unknown family; valid: "
                             f"{sorted(FAMILIES)}")

@@ -18,9 +18,10 @@ below 0, the model's error is the lower); the result a ``bootstrap`` section (me
 level, resamples, seed, rows). Only keys are added: a script that read the JSON before reads
 it unchanged.
 
-The score records a result holds (:class:`Scores`, :class:`ModelScores`, :class:`CVEstimate`)
-and the per-target errors (:func:`mae`, :func:`mse`) are :mod:`workbench.experiment.scores`'s,
-re-exported here.
+The score records a result holds (:class:`~workbench.experiment.scores.Scores`,
+:class:`~workbench.experiment.scores.ModelScores`,
+:class:`~workbench.experiment.scores.CVEstimate`) and the per-target errors live in
+:mod:`workbench.experiment.scores`.
 """
 
 from __future__ import annotations
@@ -29,11 +30,9 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from .scores import INTERVAL_KEYS as INTERVAL_KEYS  # re-exported: run_fields reads it here
-from .scores import CVEstimate, ModelScores, Scores, _avg, mae, mse
+from .scores import CVEstimate, ModelScores, Scores, average
 
-__all__ = ["CVEstimate", "ModelScores", "OuterFold", "Result", "Scores", "SweepSummary", "mae",
-           "mse"]
+__all__ = ["OuterFold", "Result", "SweepSummary"]
 
 
 @dataclass
@@ -118,12 +117,12 @@ class SweepSummary:
     @property
     def nested_cv_mae_avg(self) -> float:
         """The model's nested-CV MAE averaged over the targets."""
-        return _avg(self.nested_cv_mae)
+        return average(self.nested_cv_mae)
 
     @property
     def nested_cv_prior_mae_avg(self) -> float:
         """The prior's nested-CV MAE averaged over the targets."""
-        return _avg(self.nested_cv_prior_mae)
+        return average(self.nested_cv_prior_mae)
 
     def to_json(self) -> dict[str, Any]:
         """Write the summary as JSON (keys at the result's top level).

@@ -19,7 +19,8 @@ from ..datasets import BENCHMARKS, Dataset
 from .config import ExperimentConfig
 from .errors import redact_config
 from .overrides import apply_overrides, dump_config, format_overrides
-from .results import INTERVAL_KEYS, Result, Scores
+from .results import Result
+from .scores import INTERVAL_KEYS, Scores
 from .tracking.records import dataset_hash, git_commit
 from .tracking.runs import Tracker
 

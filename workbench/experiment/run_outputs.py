@@ -27,12 +27,11 @@ from ..datasets import Dataset
 from .config import ExperimentConfig
 from .errors import TrackingError
 from .families.artifacts import Artifacts
-from .figures import mae_bars
+from .figures import error_bars
 from .figures.style import PNG_DPI
 from .intervals import family_model, interval_artifacts
 from .outputs import write_artifacts
 from .results import Result
-from .units import squared
 
 __all__ = ["RunOutputs", "compute_outputs", "computed_outputs"]
 
@@ -70,19 +69,6 @@ class RunOutputs:
     data: dict[str, Any] = field(default_factory=dict)
     predictions: pd.DataFrame | None = None
     written: dict[str, Path] = field(default_factory=dict)
-
-
-def _error_bars(result: Result, unit: str | None, setting: str) -> dict[str, Any]:
-    """Draw the test MAE and MSE bars of prior and model (``mae_bars``, ``mse_bars``)."""
-    figures = {}
-    for metric, name in (("MAE", "mae_bars"), ("MSE", "mse_bars")):
-        key = f"test_{metric.lower()}"
-        figures[name] = mae_bars(result.targets, getattr(result.prior, key),
-                                 getattr(result.model, key), metric=metric,
-                                 prior_ci=result.prior.ci(key), model_ci=result.model.ci(key),
-                                 unit=unit if metric == "MAE" else squared(unit),
-                                 title=f"Test {metric} per target", setting=setting)
-    return figures
 
 
 def _merged(*parts: Artifacts) -> Artifacts:
@@ -180,7 +166,9 @@ def compute_outputs(cfg: ExperimentConfig, result: Result, model: Any, ds: Datas
         return computed
     # the family's run figures start on the worker processes while the rest is drawn here
     finish = family.begin_artifacts(cfg, ds, fitted, setting)
-    bars = _error_bars(result, ds.unit, setting)
+    bars = {f"{metric.lower()}_bars": error_bars(result, metric, unit=ds.unit, setting=setting,
+                                                 title=f"Test {metric} per target")
+            for metric in ("MAE", "MSE")}
     from .serving import prediction_frame  # (MLflow's types): a tracked run only
 
     computed.predictions = prediction_frame(model, computed.rows[1], result.targets)

@@ -5,7 +5,8 @@
 and :class:`CVEstimate` (a repeated or nested CV of the chosen model), each with a
 ``to_json`` that writes its part of the JSON
 :meth:`~workbench.experiment.results.Result.to_json` writes; :func:`mae` and :func:`mse`, the
-per-target errors they hold. :mod:`workbench.experiment.results` re-exports them all.
+per-target errors they hold, and :func:`average`, the mean over targets each ``*_avg`` key
+holds.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-__all__ = ["CVEstimate", "ModelScores", "Scores", "mae", "mse"]
+__all__ = ["CVEstimate", "ModelScores", "Scores", "average", "mae", "mse"]
 
 
 def mae(y: ArrayLike, pred: ArrayLike) -> list[float]:
@@ -52,7 +53,19 @@ def mse(y: ArrayLike, pred: ArrayLike) -> list[float]:
     return np.mean((np.asarray(y, float) - np.asarray(pred, float)) ** 2, axis=0).tolist()
 
 
-def _avg(values: list[float]) -> float:
+def average(values: list[float]) -> float:
+    """Average a figure over the targets (NaN for no target).
+
+    Parameters
+    ----------
+    values : list of float
+        One figure per target.
+
+    Returns
+    -------
+    float
+        Their mean (``nan`` when ``values`` is empty).
+    """
     return float(np.mean(values)) if len(values) else math.nan
 
 
@@ -105,7 +118,7 @@ class Scores:
         float
             The mean (NaN for an empty list).
         """
-        return _avg(getattr(self, key))
+        return average(getattr(self, key))
 
     def ci(self, key: str) -> list[list[float]] | None:
         """Gather the bootstrap intervals of ``key``.
@@ -121,10 +134,10 @@ class Scores:
             One ``[low, high]`` per target, then the average's: the rows
             :func:`~workbench.experiment.figures.mae_bars` takes (``None``: not computed).
         """
-        per_target, average = getattr(self, f"{key}_ci"), getattr(self, f"{key}_avg_ci")
-        if not per_target or not average:
+        per_target, pooled = getattr(self, f"{key}_ci"), getattr(self, f"{key}_avg_ci")
+        if not per_target or not pooled:
             return None
-        return [*map(list, per_target), list(average)]
+        return [*map(list, per_target), list(pooled)]
 
     def to_json(self) -> dict[str, Any]:
         """Write the scores as JSON, with each list's average.
@@ -141,7 +154,7 @@ class Scores:
                 continue
             out[f.name] = value
             if f.name in ("test_mae", "test_mse", "cv_mae", "cv_mse"):
-                out[f"{f.name}_avg"] = _avg(value)
+                out[f"{f.name}_avg"] = average(value)
         return out
 
 
@@ -205,7 +218,7 @@ class ModelScores(Scores):
         out.update(out.pop("extra"))
         for key in INTERVAL_KEYS:
             if out[key]:
-                out[f"{key}_avg"] = _avg(out[key])
+                out[f"{key}_avg"] = average(out[key])
             else:
                 del out[key]
         return out
@@ -251,12 +264,12 @@ class CVEstimate:
     @property
     def model_mae_avg(self) -> float:
         """The model's MAE averaged over the targets."""
-        return _avg(self.model_mae)
+        return average(self.model_mae)
 
     @property
     def prior_mae_avg(self) -> float:
         """The prior's MAE averaged over the targets."""
-        return _avg(self.prior_mae)
+        return average(self.prior_mae)
 
     def to_json(self) -> dict[str, Any]:
         """Write the estimate as JSON.
@@ -267,6 +280,6 @@ class CVEstimate:
             The fields set and the averages over targets.
         """
         out = {k: v for k, v in asdict(self).items() if v is not None}
-        out.update(model_mae_avg=self.model_mae_avg, model_mse_avg=_avg(self.model_mse),
+        out.update(model_mae_avg=self.model_mae_avg, model_mse_avg=average(self.model_mse),
                    prior_mae_avg=self.prior_mae_avg)
         return out

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any, Callable
 import numpy as np
 from sklearn.utils._param_validation import InvalidParameterError
 
-from ..bases import BASES, TRANSFORMS
+from ..bases import BASES, TRANSFORMS, basis_names
 from ..boosting import BaseBoostRegressor
 from ..losses import LOSSES
 from .errors import shorten, unknown_keys
@@ -30,13 +30,14 @@ if TYPE_CHECKING:  # Optuna and pydantic types only: nothing imported when the m
 
 __all__ = ["SearchSpace", "SpaceError", "check_ranges", "draw_params", "has_ranges"]
 
-#: The model settings a search may vary, with the valid values of the categorical ones.
-NAMED_CHOICES: dict[str, tuple[str, ...]] = {
-    "basis": tuple(BASES),
-    "loss": tuple(LOSSES),
-    "line_search_loss": tuple(LOSSES),
-    "input_transform": ("none", *TRANSFORMS),
-    "basis_inputs": ("prior", "prior+features"),
+#: The model settings a search may vary, with the valid values of the categorical ones (read
+#: when a space is checked: bases added by plug-ins count).
+NAMED_CHOICES: dict[str, Callable[[], tuple[str, ...]]] = {
+    "basis": lambda: tuple(basis_names()),
+    "loss": lambda: tuple(LOSSES),
+    "line_search_loss": lambda: tuple(LOSSES),
+    "input_transform": lambda: ("none", *TRANSFORMS),
+    "basis_inputs": lambda: ("prior", "prior+features"),
 }
 #: BaseBoostRegressor's numeric parameters a search may vary: each value a search can take
 #: (a choice, a range's ends) is checked against its ``_parameter_constraints``.
@@ -140,7 +141,8 @@ class SearchSpace:
             raise SpaceError(unknown_keys(unknown, valid_keys))
         for name, spec in table.items():
             if name != "basis_params":
-                _check_spec(name, spec, NAMED_CHOICES.get(name))
+                choices = NAMED_CHOICES.get(name)
+                _check_spec(name, spec, choices() if choices else None)
             if name in NUMERIC:
                 for value in _values(spec):
                     try:
@@ -151,7 +153,7 @@ class SearchSpace:
         if not isinstance(params, dict):
             raise SpaceError(f"basis_params must be a table of tables, got {params!r}")
         for basis, specs in params.items():
-            if basis not in BASES:
+            if basis not in BASES and basis not in basis_names():  # plug-ins: on a miss
                 raise SpaceError(f"basis_params.{basis}: unknown basis; valid: {sorted(BASES)}")
             if not isinstance(specs, dict):
                 raise SpaceError(f"basis_params.{basis} must be a table, got {specs!r}")

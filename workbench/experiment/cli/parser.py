@@ -11,10 +11,7 @@ from typing import NoReturn
 
 from . import argtypes, commands, tools, ui
 
-__all__ = ["COMMANDS", "build_parser"]
-
-#: The commands, in the order ``workbench --help`` lists them.
-COMMANDS = ("init", "evaluate", "sweep", "predict", "reproduce", "ui", "simulate")
+__all__ = ["build_parser"]
 
 #: What ``add_subparsers`` returns.
 Subparsers = argparse._SubParsersAction
@@ -27,10 +24,14 @@ class _Parser(argparse.ArgumentParser):
     class too.
     """
 
+    #: The subcommands (what ``add_subparsers`` returned): the error for a missing command
+    #: lists their names, read from the parser itself so the list cannot drift.
+    commands: Subparsers | None = None
+
     def error(self, message: str) -> NoReturn:
         """Exit with one line naming the problem (and the commands, when none was given)."""
-        if "required: command" in message:
-            message += f" ({', '.join(COMMANDS)}; see workbench --help)"
+        if "required: command" in message and self.commands is not None:
+            message += f" ({', '.join(self.commands.choices)}; see workbench --help)"
         self.exit(2, f"workbench: error: {message}\n")
 
 
@@ -43,7 +44,7 @@ def build_parser() -> argparse.ArgumentParser:
         Its subcommands set ``func``, the handler that takes the parsed arguments.
     """
     parser = _Parser(prog="workbench", description="Base boosting workbench.")
-    sub = parser.add_subparsers(dest="command", required=True)
+    sub = parser.commands = parser.add_subparsers(dest="command", required=True)
     for add in (_add_init, _add_evaluate, _add_sweep, _add_predict, _add_compare,
                 _add_reproduce, _add_ui, _add_design, _add_simulate):
         add(sub)

@@ -176,7 +176,7 @@ def simulate(args: argparse.Namespace) -> int:
         For contradictory options or values the simulation refuses.
     """
     from ...simulate import write_simulation
-    from ..metrics import mean_absolute_error
+    from ..scores import average, mae
 
     if args.settings is not None and args.experiments is not None:
         raise UsageError("--settings measures the rows of its CSV; drop --experiments")
@@ -187,8 +187,8 @@ def simulate(args: argparse.Namespace) -> int:
         csv_path, truth_path = write_simulation(sim, args.out)
     except (ValueError, OSError) as exc:
         raise UsageError(str(exc)) from None
-    prior_mae = mean_absolute_error(sim.data.filter(like="measured_E").to_numpy(),
-                                    sim.data.filter(like="model_E").to_numpy())
+    prior_mae = average(mae(sim.data.filter(like="measured_E").to_numpy(),  # over targets
+                            sim.data.filter(like="model_E").to_numpy()))
     rows = (f"{len(sim.data)} experiments" if args.settings is None
             else f"measured {len(sim.data)} settings")
     print(f"wrote {csv_path} ({rows}, {sim.truth['n_sites']} sites, "

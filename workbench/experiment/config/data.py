@@ -11,7 +11,7 @@ from typing import Any, Literal
 from pydantic import Field, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
-from ...datasets import source_names
+from ...datasets import DatasetError, get_source, source_names
 from ...hamiltonian import make_graph
 from ..schema import Section, Seed
 
@@ -146,11 +146,13 @@ class DataConfig(Section):
     @field_validator("source")
     @classmethod
     def _registered(cls, name: str) -> str:
-        names = source_names()
-        if name not in names:
+        try:
+            get_source(name)  # a plug-in's name too (entry points are read on a miss)
+        except DatasetError:
+            names = source_names()
             valid = ", ".join(repr(n) for n in names[:-1]) + f" or {names[-1]!r}"
             raise PydanticCustomError("unknown_source", "unknown data source; valid: {valid}",
-                                      {"valid": valid})
+                                      {"valid": valid}) from None
         return name
 
     @model_validator(mode="before")

@@ -1,18 +1,28 @@
 """Checks of a target's boosting settings against the estimators they make.
 
-Basis and transform names, and their parameters against each estimator's own constraints
-(scikit-learn's ``_parameter_constraints``, read by ``validate_parameter_constraints``).
+Basis and transform names, and their parameters against each estimator's own constraints:
+scikit-learn's ``_parameter_constraints`` (read by ``validate_parameter_constraints``), and
+LightGBM's own checks for a LightGBM model (which declares none). Nothing here restates an
+estimator's ranges: the typed schema checks the config's own keys, the estimators theirs.
 """
 
 from __future__ import annotations
 
-from numbers import Integral, Real
+import contextlib
+import io
+import os
+import re
+import sys
+from collections.abc import Iterator
 from typing import Any
 
-from sklearn.base import BaseEstimator
-from sklearn.utils._param_validation import Interval, StrOptions, validate_parameter_constraints
+import numpy as np
+from lightgbm import LGBMModel
+from lightgbm.callback import EarlyStopException
+from sklearn.base import BaseEstimator, clone
+from sklearn.utils._param_validation import validate_parameter_constraints
 
-from ...bases import BASES, TRANSFORMS, make_basis, make_transform
+from ...bases import BASES, TRANSFORMS, basis_names, make_basis, make_transform
 from ..errors import listing, shorten
 from ..space import SpaceError, check_ranges, has_ranges
 
@@ -56,7 +66,7 @@ def check_boost_settings(settings: dict[str, Any]) -> None:
             check_boost_settings({**settings, "basis": name,
                                   "basis_params": params.get(name, {})})
         return
-    if settings["basis"] not in BASES:
+    if settings["basis"] not in BASES and settings["basis"] not in basis_names():  # plug-ins
         raise ValueError(f"basis = {shorten(settings['basis'])}: unknown basis; valid: "
                          f"{sorted(BASES)}")
     if settings["input_transform"] not in ("none", *TRANSFORMS):
@@ -82,31 +92,82 @@ def check_boost_settings(settings: dict[str, Any]) -> None:
                          ) from None
 
 
-def _lightgbm_constraints() -> dict[str, list]:
-    """LightGBM's documented ranges of its scikit-learn estimator's parameters.
+#: A few rows for LightGBM's own checks of its parameters (:func:`_lightgbm_refusal`).
+_TRIAL_X = np.linspace(0.0, 1.0, 10).reshape(-1, 1)
+#: LightGBM's warning for a parameter it does not know (it trains on, ignoring it).
+_UNKNOWN = re.compile(r"Unknown parameter: (\S+)")
+#: Parameter sets LightGBM has checked in this process -> its verdict (:func:`_lightgbm_says`).
+_CHECKED: dict[tuple[type, str], tuple[str | None, list[str]]] = {}
 
-    LightGBM declares no ``_parameter_constraints`` and its own checks (in C++, at fit time)
-    accept values the config refuses, such as ``n_estimators = 0``: the ranges are written
-    here, in scikit-learn's constraint language.
+
+def _stop_after_one_round(env: Any) -> None:
+    raise EarlyStopException(env.iteration, env.evaluation_result_list)
+
+
+@contextlib.contextmanager
+def _native_stderr_silenced() -> Iterator[None]:
+    """Silence file descriptor 2 for a moment.
+
+    LightGBM's native library writes its fatal errors there itself (``[LightGBM] [Fatal]
+    ...``) before they are raised as exceptions: the config's error is one line.
     """
-    positive = [Interval(Real, 0, None, closed="neither")]
-    nonneg = [Interval(Real, 0, None, closed="left")]
-    fraction = [Interval(Real, 0, 1, closed="right")]
-    return {
-        "boosting_type": [StrOptions({"gbdt", "dart", "rf"})],
-        "num_leaves": [Interval(Integral, 2, 131072, closed="both")],
-        "max_depth": [Interval(Integral, -1, None, closed="left")],
-        "learning_rate": positive, "n_estimators": [Interval(Integral, 1, None, closed="left")],
-        "subsample_for_bin": [Interval(Integral, 1, None, closed="left")],
-        "objective": [str, None], "min_split_gain": nonneg, "min_child_weight": nonneg,
-        "min_child_samples": [Interval(Integral, 0, None, closed="left")],
-        "subsample": fraction, "subsample_freq": [Interval(Integral, 0, None, closed="left")],
-        "colsample_bytree": fraction, "reg_alpha": nonneg, "reg_lambda": nonneg,
-        "random_state": ["random_state"], "n_jobs": [Integral, None],
-        "importance_type": [StrOptions({"split", "gain"})], "verbose": [Integral],
-        "max_bin": [Interval(Integral, 2, None, closed="left")],
-        "data_sample_strategy": [StrOptions({"bagging", "goss"})],
-    }
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        with open(os.devnull, "w") as devnull:
+            os.dup2(devnull.fileno(), 2)
+            yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
+def _lightgbm_says(est: BaseEstimator, params: dict[str, Any]) -> tuple[str | None, list[str]]:
+    """Ask LightGBM about ``params`` on ``est``'s class: its error, and the names it ignores.
+
+    A fit on a few rows, stopped after its first round: LightGBM's own checks (its Python
+    side's and its native library's) all run, and ``n_estimators`` rounds do not. Each
+    parameter set is asked once per process.
+    """
+    key = (type(est), repr(sorted(params.items())))
+    if key not in _CHECKED:
+        trial = clone(est).set_params(**{**params, "verbose": 0})  # 0: warnings shown
+        out = io.StringIO()
+        error, unknown = None, []
+        try:
+            with contextlib.redirect_stdout(out), _native_stderr_silenced():
+                trial.fit(_TRIAL_X, _TRIAL_X[:, 0], callbacks=[_stop_after_one_round])
+        except Exception as exc:  # LightGBM's refusal, whatever its type: reported
+            error = str(exc).split(" at /")[0].strip()  # without the C++ source location
+        else:
+            unknown = sorted(set(_UNKNOWN.findall(out.getvalue())))
+        _CHECKED[key] = error, unknown
+    return _CHECKED[key]
+
+
+def _lightgbm_refusal(est: BaseEstimator) -> str | None:
+    """LightGBM's own verdict on ``est``'s parameters, naming the key it refuses.
+
+    LightGBM declares no ``_parameter_constraints``: its checks run when it fits. The
+    parameters set away from LightGBM's defaults are given to it on a few rows
+    (:func:`_lightgbm_says`); if it refuses them, each is tried alone to name the one it
+    refuses (``key = value: LightGBM: its message``). A name LightGBM does not know (it
+    would ignore it with a warning) is refused too.
+    """
+    default = type(est)()
+    defaults = default.get_params(deep=False)
+    changed = {k: v for k, v in est.get_params(deep=False).items()
+               if k not in defaults or repr(v) != repr(defaults[k])}
+    error, unknown = _lightgbm_says(default, changed)
+    if unknown:
+        return f"unknown LightGBM parameter(s) [{listing(unknown, 60)}]"
+    if error is None:
+        return None
+    for name, value in changed.items():
+        alone, _ = _lightgbm_says(default, {name: value})
+        if alone is not None:
+            return f"{name} = {shorten(value)}: LightGBM: {alone}"
+    return f"[{listing(sorted(changed), 60)}] together: LightGBM: {error}"
 
 
 def validate_estimator(estimator: BaseEstimator) -> None:
@@ -115,31 +176,26 @@ def validate_estimator(estimator: BaseEstimator) -> None:
     Parameters
     ----------
     estimator : BaseEstimator
-        The estimator; each one's ``_parameter_constraints`` (LightGBM's: the ranges of
-        :func:`_lightgbm_constraints`) are checked by scikit-learn's
-        ``validate_parameter_constraints``.
+        The estimator; each one's ``_parameter_constraints`` are checked by scikit-learn's
+        ``validate_parameter_constraints``. A LightGBM model, which declares none, is checked
+        by LightGBM itself: a fit on a few rows stopped after one round
+        (:func:`_lightgbm_refusal`).
 
     Raises
     ------
     ValueError
-        scikit-learn's message for the first bad value, or the unknown LightGBM parameters.
+        scikit-learn's message for the first bad value, or LightGBM's, naming the key.
     """
     nested = [estimator] + [v for v in estimator.get_params(deep=True).values()
                             if isinstance(v, BaseEstimator)]
-    constraints: dict[str, list[Any]] | None
     for est in nested:
-        params = est.get_params(deep=False)
-        if any(c.__module__.startswith("lightgbm") for c in type(est).__mro__[:-1]):
-            constraints = _lightgbm_constraints()
-            unknown = sorted(set(params) - set(constraints) - {"class_weight"})
-            extra = sorted(k for k in unknown if params[k] is not None)
-            if extra:
-                raise ValueError(f"unknown LightGBM parameter(s) [{listing(extra, 60)}]; "
-                                 f"valid: {listing(sorted(constraints))}")
-            params = {k: v for k, v in params.items() if k in constraints}
-        else:
-            constraints = getattr(est, "_parameter_constraints", None)
-            if constraints is None:
-                continue
-        validate_parameter_constraints(constraints, params, caller_name=type(est).__name__)
+        if isinstance(est, LGBMModel):
+            refusal = _lightgbm_refusal(est)
+            if refusal is not None:
+                raise ValueError(refusal)
+            continue
+        constraints = getattr(est, "_parameter_constraints", None)
+        if constraints is not None:
+            validate_parameter_constraints(constraints, est.get_params(deep=False),
+                                           caller_name=type(est).__name__)
 

@@ -9,8 +9,8 @@ a family's name: ``[model] family = "<name>"`` is resolved here.
 Built in: ``eigenvalue`` (base boosting per target from the control program's eigenvalues)
 and ``hamiltonian`` (the parameter-space model). A new family is a module with a
 :class:`ModelFamily` subclass, added with :func:`register_family` or, from another package,
-through an entry point of the group :data:`ENTRY_POINT_GROUP` (MLflow's plug-in
-convention)::
+through an entry point of the group :data:`FAMILY_ENTRY_POINT_GROUP` (MLflow's plug-in
+convention; bases and data sources are added the same way, :mod:`workbench._plugins`)::
 
     [project.entry-points."workbench.families"]
     my_family = "my_package.family:MyFamily"
@@ -18,22 +18,20 @@ convention)::
 
 from __future__ import annotations
 
-import importlib.metadata
-import logging
-
+from ..._plugins import load_entry_points
 from .artifacts import Artifacts
 from .base import ModelFamily
 from .eigenvalue import EigenvalueFamily
 from .hamiltonian import HamiltonianFamily
 
-__all__ = ["ENTRY_POINT_GROUP", "FAMILIES", "Artifacts", "ModelFamily", "discover_families",
+__all__ = ["FAMILIES", "FAMILY_ENTRY_POINT_GROUP", "Artifacts", "ModelFamily", "discover_families",
            "register_family"]
 
 #: Families by name.
 FAMILIES: dict[str, ModelFamily] = {}
 
 #: The entry-point group other packages add families through.
-ENTRY_POINT_GROUP = "workbench.families"
+FAMILY_ENTRY_POINT_GROUP = "workbench.families"
 
 _discovered: set[str] = set()
 
@@ -67,32 +65,25 @@ def register_family(family: ModelFamily) -> ModelFamily:
 def discover_families() -> list[str]:
     """Register the families other packages declare as entry points, each once.
 
-    The entry point group is :data:`ENTRY_POINT_GROUP`.
+    The entry point group is :data:`FAMILY_ENTRY_POINT_GROUP`.
 
     An entry point names a :class:`ModelFamily` subclass (instantiated without arguments)
-    or an instance. One that cannot be loaded is logged and left out: a broken plug-in
-    does not stop the built-in families.
+    or an instance, registered under the family's own ``name``. One that cannot be loaded
+    is reported in one warning line naming it and left out: a broken plug-in does not stop
+    the built-in families.
 
     Returns
     -------
     list of str
         The names of the families registered by this call.
     """
-    added = []
-    for entry in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
-        if entry.value in _discovered:
-            continue
-        _discovered.add(entry.value)
-        try:
-            found = entry.load()
-            family = found() if isinstance(found, type) else found
-            if not isinstance(family, ModelFamily):
-                raise TypeError(f"{entry.value} is not a ModelFamily")
-            added.append(register_family(family).name)
-        except Exception as exc:  # a broken plug-in: reported, the others still load
-            logging.getLogger("workbench").warning(
-                "model family entry point %r (%s) not loaded: %s", entry.name, entry.value, exc)
-    return added
+    def register(entry_name: str, found: object) -> str:
+        family = found() if isinstance(found, type) else found
+        if not isinstance(family, ModelFamily):
+            raise TypeError(f"{found!r} is not a ModelFamily")
+        return register_family(family).name
+
+    return load_entry_points(FAMILY_ENTRY_POINT_GROUP, register, _discovered)
 
 
 register_family(EigenvalueFamily())

@@ -17,7 +17,7 @@ import pandas as pd
 
 from ..._io import atomic_write
 from ..figures import save_figure
-from ..results import ModelScores, Scores, mae, mse
+from ..scores import ModelScores, Scores, mae, mse
 
 if TYPE_CHECKING:
     from ...datasets import Dataset

@@ -18,7 +18,7 @@ from sklearn.base import clone
 
 from ...design import DesignProblem, ensemble_blocks, robust_sd
 from ..errors import clip, listing
-from ..results import mae
+from ..scores import mae
 from ..space import SearchSpace, SpaceError
 from .artifacts import ResultMethods
 from .fitting import quiet_fit

@@ -33,7 +33,7 @@ from ...selection import BaseBoostCV, BasisChoiceCV
 from ..explain import target_shap_values
 from ..figures import correction_shap_figure, learning_curve_figure, shap_figure
 from ..folds import curve_cv, largest_curve_size, sweep_inner_cv
-from ..results import ModelScores, Scores, mae, mse
+from ..scores import ModelScores, Scores, mae, mse
 from .artifacts import Artifacts
 from .base import ModelFamily, Report
 from .choices import candidate_choices

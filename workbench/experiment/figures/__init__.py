@@ -1,7 +1,8 @@
 """Figures of the base-boosting paper, as functions that return a matplotlib ``Figure``.
 
 * :func:`mae_bars` -- per-target test error, control program vs learned model (Fig. 2, S4),
-  with the errors' bootstrap intervals as error bars when given them.
+  with the errors' bootstrap intervals as error bars when given them; :func:`error_bars`
+  draws them from an ``evaluate`` result.
 * :func:`model_comparison_bars` -- per-target error bars of 2 to 6 systems (Fig. S6, S7), with
   intervals as error bars when given them.
 * :func:`learning_curve_figure` -- the augmented learning curve (Fig. 4, S5).
@@ -23,7 +24,7 @@ A family's own figures live beside the family (e.g.
 same figure; nothing is shown, and matplotlib loads with the first figure drawn.
 """
 
-from ._bars import mae_bars, model_comparison_bars
+from ._bars import error_bars, mae_bars, model_comparison_bars
 from ._curves import learning_curve_figure
 from ._data import correlation_heatmap, prior_target_boxplots, voltage_boxplots
 from ._intervals import interval_figure
@@ -31,7 +32,7 @@ from ._seeds import seed_spread
 from ._shap import correction_shap_figure, shap_figure, shap_summary
 from .style import save_figure
 
-__all__ = ["correction_shap_figure", "correlation_heatmap", "interval_figure",
+__all__ = ["correction_shap_figure", "correlation_heatmap", "error_bars", "interval_figure",
            "learning_curve_figure", "mae_bars", "model_comparison_bars",
            "prior_target_boxplots", "save_figure", "seed_spread", "shap_figure",
            "shap_summary", "voltage_boxplots"]

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..units import with_unit
+from ..units import squared, with_unit
 from .style import (
     MODEL_COLOR,
     OTHER_SYSTEM_COLORS,
@@ -26,7 +26,9 @@ if TYPE_CHECKING:
     from matplotlib.container import BarContainer
     from matplotlib.figure import Figure
 
-__all__ = ["mae_bars", "model_comparison_bars"]
+    from ..results import Result
+
+__all__ = ["error_bars", "mae_bars", "model_comparison_bars"]
 
 #: Error bars of the bar charts: thin, dark, capped.
 ERROR_BAR_STYLE = {"ecolor": "#222222", "elinewidth": 0.8, "capsize": 3.0, "capthick": 0.8}
@@ -133,7 +135,7 @@ def mae_bars(targets: Sequence[str], prior: Sequence[float], model: Sequence[flo
         Intervals drawn as error bars: ``[low, high]`` per target, then the average's (an
         interval of the average over targets is not the average of the targets' intervals:
         give the one computed with them, e.g. :meth:`Scores.ci
-        <workbench.experiment.results.Scores.ci>` ``("test_mae")``); without ``average``,
+        <workbench.experiment.scores.Scores.ci>` ``("test_mae")``); without ``average``,
         ``(n_targets, 2)`` is enough. Either may be given alone.
     ci_note : str or None
         With error bars, a note under the axis saying what they are (``None``: none); the
@@ -180,6 +182,40 @@ def mae_bars(targets: Sequence[str], prior: Sequence[float], model: Sequence[flo
         _note_under_xlabel(ax, ci_note)
     style_axes(ax)
     return fig
+
+
+
+def error_bars(result: Result, metric: str = "MAE", *, unit: str | None = None,
+               targets: Sequence[str] | None = None, **kwargs: Any) -> Figure:
+    """Draw a result's test MAE (or MSE) per target, prior against model, with their intervals.
+
+    :func:`mae_bars` of the result's ``test_mae`` (``test_mse``) and their bootstrap
+    intervals (:meth:`~workbench.experiment.scores.Scores.ci`).
+
+    Parameters
+    ----------
+    result : Result
+        An ``evaluate`` result.
+    metric : {"MAE", "MSE"}, default="MAE"
+        The error drawn.
+    unit : str, optional
+        The targets' unit (a dataset's :attr:`~workbench.datasets.Dataset.unit`); an MSE is
+        labelled with its square.
+    targets : sequence of str, optional
+        The bar groups' labels (default: the result's targets).
+    **kwargs
+        Passed to :func:`mae_bars` (``title``, ``labels``, ``setting``, ...).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The chart.
+    """
+    key = f"test_{metric.lower()}"
+    return mae_bars(result.targets if targets is None else targets,
+                    getattr(result.prior, key), getattr(result.model, key), metric=metric,
+                    unit=unit if metric == "MAE" else squared(unit),
+                    prior_ci=result.prior.ci(key), model_ci=result.model.ci(key), **kwargs)
 
 
 def _system_colors(systems: list[str]) -> list[str]:

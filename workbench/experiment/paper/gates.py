@@ -23,8 +23,9 @@ from ..evaluate import evaluate
 from ..figures import model_comparison_bars
 from ..intervals import family_model
 from ..prepare import load_config
-from ..results import ModelScores, Result, Scores, mae, mse
+from ..results import Result
 from ..run_fields import result_metrics, run_params, score_metrics
+from ..scores import ModelScores, Scores, mae, mse
 from .peer import PEER_TRIALS, peer_predict
 from .systems import Stopwatch, System
 

@@ -23,9 +23,8 @@ import numpy as np
 import optuna
 import pandas as pd
 from lightgbm import LGBMRegressor
+from sklearn.metrics import mean_absolute_error
 from sklearn.model_selection import KFold
-
-from ..metrics import mean_absolute_error
 
 __all__ = ["PEER_OBJECTIVES", "PEER_TRIALS", "Peer", "peer_predict"]
 

@@ -33,7 +33,7 @@ from ..errors import UsageError
 from ..evaluate import evaluate
 from ..figures import (
     correlation_heatmap,
-    mae_bars,
+    error_bars,
     model_comparison_bars,
     prior_target_boxplots,
     voltage_boxplots,
@@ -162,15 +162,6 @@ class _Job:
         return self.datasets[key]
 
 
-def _error_bars(save: Save, fig_id: str, result: Result, unit: str | None, **kwargs: Any
-                ) -> None:
-    """Draw a result's test MAE (or, with ``metric="MSE"``, MSE) bars as ``fig_id``."""
-    key = f"test_{kwargs.get('metric', 'MAE').lower()}"
-    save(fig_id, mae_bars(SHORT, getattr(result.prior, key), getattr(result.model, key),
-                          prior_ci=result.prior.ci(key), model_ci=result.model.ci(key),
-                          unit=unit, **kwargs))
-
-
 def _paper(job: _Job) -> tuple[Dataset, dict[str, Any]]:
     """Run the paper settings with their figures and learning curves, then the improved ones.
 
@@ -181,10 +172,12 @@ def _paper(job: _Job) -> tuple[Dataset, dict[str, Any]]:
         run = job.evaluate("paper", paper_cfg)
         ds: Dataset = run.dataset
         paper = run.result
-        _error_bars(job.save, "fig2_mae_bars", paper, ds.unit,
-                    title="Test MAE per eigenenergy (Fig. 2)", setting="paper settings")
-        _error_bars(job.save, "figS4_mse_bars", paper, squared(ds.unit), metric="MSE",
-                    title="Test MSE per eigenenergy (Fig. S4)", setting="paper settings")
+        job.save("fig2_mae_bars", error_bars(paper, "MAE", targets=SHORT, unit=ds.unit,
+                                             title="Test MAE per eigenenergy (Fig. 2)",
+                                             setting="paper settings"))
+        job.save("figS4_mse_bars", error_bars(paper, "MSE", targets=SHORT, unit=ds.unit,
+                                              title="Test MSE per eigenenergy (Fig. S4)",
+                                              setting="paper settings"))
         correction_shap(run.model, ds, job.seed, job.quick, job.save)
         curves = learning_curves(paper_cfg, ds, job.seed, job.quick, job.save, job.same_as)
     with job.watches["improved"]:
@@ -226,9 +219,10 @@ def _hamiltonian(job: _Job, ds: Dataset) -> tuple[dict[str, str], list[Path]]:
         run = evaluate(cfg, return_model=True, dataset=job.dataset(cfg))
         job.settings["hamiltonian"], job.cfgs["hamiltonian"] = run.result, cfg
         job.keep_predictions("hamiltonian", cfg, run)
-        _error_bars(job.save, "figH1_hamiltonian_mae_bars", run.result, ds.unit,
-                    labels=("control program", "parameter-space model"),
-                    title="Test MAE per eigenenergy: corrected Hamiltonian", setting=setting)
+        job.save("figH1_hamiltonian_mae_bars", error_bars(
+            run.result, "MAE", targets=SHORT, unit=ds.unit,
+            labels=("control program", "parameter-space model"),
+            title="Test MAE per eigenenergy: corrected Hamiltonian", setting=setting))
         outputs = cfg.family.outputs(family_model(run.model), ds, setting=setting)
         job.save("figH2_parameter_corrections", outputs.figures["parameter_corrections"])
         job.save("figH3_selection_path", outputs.figures["selection_path"])

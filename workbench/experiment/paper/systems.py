@@ -19,8 +19,9 @@ import pandas as pd
 
 from ...datasets import Dataset
 from ..config import ExperimentConfig
-from ..results import Result, Scores
+from ..results import Result
 from ..run_fields import result_metrics, run_params, score_metrics
+from ..scores import Scores
 from ..units import squared, unit_suffix
 from .compute import TABULA_RASA
 

@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any, Callable
 import numpy as np
 import optuna
 from optuna.trial import TrialState
+from sklearn.metrics import mean_absolute_error
 from sklearn.model_selection import RepeatedKFold
 
 from ...parallel import Task, map_tasks
@@ -36,7 +37,6 @@ from ..config import ExperimentConfig, load_dataset
 from ..errors import SweepTimedOut, redact
 from ..evaluate import fit_and_score
 from ..folds import describe_folds, outer_order_splits, sweep_inner_cv
-from ..metrics import mean_absolute_error
 from ..results import OuterFold, Result, SweepSummary
 from .scheduler import is_counted, open_study, pruner, run_studies, sampler, studies_short
 from .storage import open_storage
