@@ -71,13 +71,15 @@ def _group_folds(ds: Dataset, n_splits: int) -> int:
     Fewer groups than folds: one group held out per fold, with a warning; at least two
     groups are needed (else a ConfigError naming the column).
     """
-    n_groups = int(ds.groups.loc[ds.train_index].nunique())
+    groups = ds.groups
+    assert groups is not None  # make_folds' caller checked
+    n_groups = int(groups.loc[ds.train_index].nunique())
     if n_groups >= n_splits:
         return n_splits
     if n_groups < 2:
-        raise ConfigError(f"the training rows hold {n_groups} group(s) of `{ds.groups.name}`: "
+        raise ConfigError(f"the training rows hold {n_groups} group(s) of `{groups.name}`: "
                           "grouped folds need at least 2 (set [selection] groups = false)")
-    warnings.warn(f"the training rows hold {n_groups} groups of `{ds.groups.name}`, fewer than "
+    warnings.warn(f"the training rows hold {n_groups} groups of `{groups.name}`, fewer than "
                   f"the {n_splits} folds: {n_groups} folds, one group held out in each",
                   UserWarning, stacklevel=3)
     return n_groups
