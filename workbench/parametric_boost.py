@@ -40,7 +40,13 @@ from .param_boost import (
     _weights,
 )
 from .param_select import SelectionResult, _fit_splits, _refit_select, _sliced, _splits
-from .parametric import ParametricModel, check_model, resolve_model
+from .parametric import (
+    ModelError,
+    ParametricModel,
+    cached_jacobian,
+    check_model,
+    resolve_model,
+)
 
 __all__ = ["ParametricBoostRegressor", "ParametricRegressor", "covariate_pool"]
 
@@ -91,6 +97,17 @@ def _targets(y: Any) -> np.ndarray:
     if y.ndim != 2 or not np.all(np.isfinite(y)):
         raise ValueError("y must be finite, of shape (rows,) or (rows, targets)")
     return y
+
+
+def _trial(model: ParametricModel, theta: np.ndarray, X: pd.DataFrame,
+           n_targets: int) -> np.ndarray | None:
+    """The model at trial parameters, or None where it fails there (NaN, an error): a trial
+    step may leave the model's domain (a negative lifetime) where its start did not."""
+    try:
+        with np.errstate(all="ignore"):
+            return model.predict(theta, X, n_targets)
+    except ModelError:
+        return None
 
 
 class ParametricRegressor(RegressorMixin, BaseEstimator):
@@ -261,7 +278,8 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
         T = Y.shape[1]
 
         def resid(b: np.ndarray) -> np.ndarray:
-            return (model.predict(start + b, X, T) - Y).ravel()
+            value = _trial(model, start + b, X, T)  # NaN outside the model's domain:
+            return np.full(Y.size, np.nan) if value is None else (value - Y).ravel()
 
         def jac(b: np.ndarray) -> np.ndarray:
             return model.jacobian(start + b, X, T).reshape(-1, len(b))
@@ -312,7 +330,7 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
         while n_iter < self.max_iter:
             n_iter += 1
             near = improvement < _NEWTON_SWITCH and self.loss in _CURVATURE
-            jac = model.jacobian(self._theta(start, phis, c), X, T)
+            jac = cached_jacobian(model, self._theta(start, phis, c), X, T)
             w, wr = _weights(self.loss, r, self.huber_delta, newton or near)
             AtWA, AtWr = _normal_equations(jac, w, r, Phi, sel_a, wr=wr)
             H = AtWA + self.alpha * np.diag(penalty)
@@ -327,7 +345,11 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
             step, accepted = 1.0, False
             for _ in range(30):
                 c_new = c + step * dc
-                r_new = Y - model.predict(self._theta(start, phis, c_new), X, T)
+                value = _trial(model, self._theta(start, phis, c_new), X, T)
+                if value is None:  # outside the model's domain: a shorter step
+                    step *= 0.5
+                    continue
+                r_new = Y - value
                 obj_new = self._objective(r_new, c_new, penalty)
                 if obj_new <= obj:
                     accepted = True
