@@ -75,7 +75,7 @@ def test_a_broken_entry_point_is_left_out(registries, monkeypatch, tmp_path, cap
     assert families.discover_families() == []
     assert "broken" in caplog.text
     with pytest.raises(ConfigError, match=r"model\.family = 'broken': unknown family; valid: "
-                                          r"\['eigenvalue', 'hamiltonian'\]"):
+                                          r"\['eigenvalue', 'hamiltonian', 'parametric'\]"):
         parse_config({"model": {"family": "broken"}}, tmp_path / "c.toml")
 
 

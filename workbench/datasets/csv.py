@@ -247,7 +247,8 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
     path : str or Path
         The CSV file.
     prior : sequence of str
-        The prior columns, ``prior[j]`` the scientific model's prediction of ``targets[j]``.
+        The prior columns, ``prior[j]`` the scientific model's prediction of ``targets[j]``;
+        empty where the model family computes the prior itself (family ``parametric``).
     targets : sequence of str
         The target columns.
     features : sequence of str, default=()
@@ -283,7 +284,7 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
     prior, targets, features = list(prior), list(targets), list(features)
     if not targets:
         raise DatasetError("no target columns given")
-    if len(prior) != len(targets):
+    if prior and len(prior) != len(targets):  # none: the model family supplies the prior
         raise DatasetError(f"{len(prior)} prior column(s) {prior} for {len(targets)} target(s) "
                            f"{targets}: give one prior column per target, in the same order")
     graph = _graph(onsite, couplings, topology, shape, edges)

@@ -32,6 +32,8 @@ __all__ = ["DEFAULT_TEST_FRACTION", "TEMPLATE", "InitResult", "csv_entry", "grou
 
 #: The template every generated config copies below its ``[data]`` section.
 TEMPLATE = "generic.toml"
+#: The template of a config whose prior is a model file (``--model``).
+PARAMETRIC_TEMPLATE = "parametric.toml"
 #: The share of rows held out for testing when no split column is given.
 DEFAULT_TEST_FRACTION = 0.3
 #: What the loader reads as a missing cell (``workbench.datasets.csv``).
@@ -194,7 +196,7 @@ def group_columns(path: str | os.PathLike[str], exclude: Sequence[str]) -> dict[
 def render_config(*, name: str, csv: str, prior: Sequence[str], targets: Sequence[str],
                   features: Sequence[str], split_column: str | None, test_fraction: float | None,
                   split_seed: int, out: str, source: str, template: str,
-                  group_column: str | None = None) -> str:
+                  group_column: str | None = None, model: str | None = None) -> str:
     """Write the config's text.
 
     A header comment (what wrote it, from which CSV, what to run next), ``name``,
@@ -223,6 +225,9 @@ def render_config(*, name: str, csv: str, prior: Sequence[str], targets: Sequenc
         The template's text.
     group_column : str, default=None
         The column whose groups CV folds keep whole.
+    model : str, default=None
+        The ``[model.parametric] model`` entry (a model file, relative to the config): the
+        prior is then the model's, ``prior`` empty.
 
     Returns
     -------
@@ -233,7 +238,8 @@ def render_config(*, name: str, csv: str, prior: Sequence[str], targets: Sequenc
         f"# A first config for the data set {toml_comment(repr(name))}, written by `workbench "
         f"init` from {toml_comment(source)}.",
         "# [data] names the CSV's columns (its csv path is relative to this file); the sections",
-        f"# after it are the template {TEMPLATE} (workbench/experiment/templates/), to edit.",
+        f"# after it are the template {TEMPLATE if model is None else PARAMETRIC_TEMPLATE} "
+        "(workbench/experiment/templates/), to edit.",
         "# Next:",
         f"#   workbench evaluate {toml_comment(shlex.quote(out))}",
         "#   workbench ui",
@@ -241,8 +247,9 @@ def render_config(*, name: str, csv: str, prior: Sequence[str], targets: Sequenc
     data = [
         "[data]",
         f"csv = {toml_string(csv)}",
-        "# one prior column per target, in the same order",
-        toml_strings("prior", prior),
+        *(["# one prior column per target, in the same order", toml_strings("prior", prior)]
+          if model is None else ["# no prior columns: the model file of [model.parametric] is "
+                                 "the prior"]),
         toml_strings("targets", targets),
         "# the basis' inputs besides the prior",
         toml_strings("features", features),
@@ -258,8 +265,14 @@ def render_config(*, name: str, csv: str, prior: Sequence[str], targets: Sequenc
                     "   # CV folds keep each group whole")
     top, rest = split_template(template)
     head = [*header, "", f"name = {toml_string(name)}", "random_state = 0"]
+    tail = "" if model is None else "\n".join([
+        "", "[model.parametric]",
+        f"model = {toml_string(model)}   # PARAMETERS, predict(params, data), optionally jacobian",
+        "loss = \"squared_error\"       # or \"huber\" with huber_delta in the targets' unit",
+        "candidates = \"auto\"          # each parameter's drift: features, squares, products",
+        "max_steps = 10", ""])
     return "\n".join(head) + "\n" + (top and top.rstrip("\n") + "\n") + "\n" \
-        + "\n".join(data) + "\n\n" + rest
+        + "\n".join(data) + "\n\n" + rest + tail
 
 
 def _check_template(template: str) -> dict[str, Any]:
@@ -274,14 +287,17 @@ def _check_template(template: str) -> dict[str, Any]:
     return tables
 
 
-def _parse(text: str, template: dict[str, Any]) -> dict[str, Any]:
+def _parse(text: str, template: dict[str, Any], own: Sequence[str] = ()) -> dict[str, Any]:
     """Read the generated text back and check it against the template.
 
     Its keys beyond init's own must be the template's, unchanged (the last guard of
     :func:`~.toml_text.split_template`).
     """
     raw = tomllib.loads(text)
-    if {k: v for k, v in raw.items() if k not in _OWN_KEYS} != template:
+    rest = {k: v for k, v in raw.items() if k not in _OWN_KEYS}
+    if own:  # [model.<own>]: written by init, not the template's
+        rest["model"] = {k: v for k, v in rest.get("model", {}).items() if k not in own}
+    if rest != template:
         raise ConfigError(f"template {TEMPLATE}: its settings change when written below "
                           f"[data] (keys before its first table?)")
     return raw
@@ -304,6 +320,17 @@ def _features(path: Path, prior: list[str], targets: list[str], features: Sequen
     return list(features), skipped, hints
 
 
+def _model_entry(model: str | os.PathLike[str], out: Path) -> str:
+    """Check the model file (one line per bad case); return its path relative to the config."""
+    from ..parametric import ModelError, load_model
+
+    try:
+        load_model(model)
+    except ModelError as exc:
+        raise UsageError(f"--model: {exc}") from None
+    return csv_entry(model, out)
+
+
 def _output(name: str, out: str | os.PathLike[str] | None, force: bool) -> Path:
     """Check ``--name`` and choose the config file to write (``<name>.toml`` by default)."""
     if not name.strip():
@@ -318,11 +345,12 @@ def _output(name: str, out: str | os.PathLike[str] | None, force: bool) -> Path:
     return path
 
 
-def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str], targets: Sequence[str],
+def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str] | None, targets: Sequence[str],
                 features: Sequence[str] | None = None, split_column: str | None = None,
                 test_fraction: float | None = None, split_seed: int | None = None,
                 name: str | None = None, out: str | os.PathLike[str] | None = None,
-                force: bool = False, group_column: str | None = None) -> InitResult:
+                force: bool = False, group_column: str | None = None,
+                model: str | os.PathLike[str] | None = None) -> InitResult:
     """Write a first config for the CSV ``csv`` and return what was written.
 
     Parameters
@@ -349,6 +377,10 @@ def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str], targets: S
         Overwrite an existing ``out``.
     group_column : str, default=None
         Each row's group (e.g. its device), kept whole by the CV folds.
+    model : path-like, default=None
+        A model file (``PARAMETERS``, ``predict``, optionally ``jacobian``: see
+        :mod:`workbench.parametric`) instead of ``prior`` columns: the config's family is then
+        ``parametric``, the model the prior.
 
     Returns
     -------
@@ -376,7 +408,11 @@ def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str], targets: S
     else:
         test_fraction = DEFAULT_TEST_FRACTION if test_fraction is None else test_fraction
         split_seed = 0 if split_seed is None else split_seed
-    prior, targets = list(prior), list(targets)
+    prior, targets = list(prior or []), list(targets)
+    if (model is None) == (not prior):
+        raise UsageError("give either --prior (the model's predictions, columns) or --model "
+                         "(the model itself, a Python file)")
+    model_entry = None if model is None else _model_entry(model, out)
     entry = csv_entry(csv, out)
     path = (out.parent / entry).resolve()  # where load_dataset will read it
     # the data with the values the config will hold: the loader's checks and messages
@@ -386,13 +422,14 @@ def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str], targets: S
     defaulted = features is None
     features, skipped, hints = _features(path, prior, targets, features, split_column,
                                          group_column)
-    template = template_text()
+    template = template_text(TEMPLATE if model is None else PARAMETRIC_TEMPLATE)
     tables = _check_template(template)
     text = render_config(name=name, csv=entry, prior=prior, targets=targets, features=features,
                          split_column=split_column, test_fraction=test_fraction,
                          split_seed=split_seed or 0, out=str(out), source=str(csv),
-                         template=template, group_column=group_column)
-    cfg = parse_config(_parse(text, tables), out)  # the project's own parser
+                         template=template, group_column=group_column, model=model_entry)
+    # the project's own parser
+    cfg = parse_config(_parse(text, tables, ("parametric",) if model else ()), out)
     dataset = load_dataset(cfg)  # exactly what evaluate loads, its size checks included
     write_file(out, text, "--out")  # atomic_write: all or nothing, a failure in one line
     return InitResult(path=out, text=text, features=features, defaulted=defaulted,

@@ -34,7 +34,7 @@ def init(args: argparse.Namespace) -> int:
     done = init_config(args.data, prior=args.prior, targets=args.target, features=args.features,
                        split_column=args.split_column, test_fraction=args.test_fraction,
                        split_seed=args.split_seed, name=args.name, out=args.out,
-                       force=args.force, group_column=args.group_column)
+                       force=args.force, group_column=args.group_column, model=args.model)
     if done.defaulted:
         left = "; not taken: " + ", ".join(f"{c!r} ({why})" for c, why in done.skipped.items())
         print(f"features: {', '.join(done.features) or '(none)'} (every other numeric column"

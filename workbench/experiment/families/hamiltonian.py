@@ -198,7 +198,8 @@ class HamiltonianFamily(ModelFamily):
     interval_method = "oof"  # FittedPriorBoost keeps its out-of-fold predictions
 
     def check_data(self, data: DataConfig) -> None:
-        """Require ``[data.hamiltonian]`` for a CSV."""
+        """Require the prior and ``[data.hamiltonian]`` for a CSV."""
+        super().check_data(data)
         if data.source == "csv" and data.hamiltonian is None:
             raise ValueError("family = \"hamiltonian\" needs the Hamiltonian's columns in "
                              "[data.hamiltonian] (onsite, couplings)")

@@ -18,6 +18,7 @@ parameters against their start values and the selection path.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar, Literal, cast
 
@@ -121,6 +122,25 @@ class ParametricFamily(ModelFamily):
     name = "parametric"
     settings: ClassVar = ParametricSettings
     interval_method = "oof"
+    computes_prior = True
+
+    def complete_data(self, cfg: ExperimentConfig, ds: Dataset) -> Dataset:
+        """Fill in the prior of a dataset without prior columns.
+
+        The prior is the model at its start values, columns ``model_<target>``.
+        """
+        if len(ds.prior.columns):
+            return ds
+        s = cast(ParametricSettings, cfg.family_settings)
+        try:
+            model = load_model(model_path(cfg, s))
+            X = _frame(ds)
+            value = model.predict(model.start(X), X, len(ds.target_names))
+        except ModelError as exc:
+            raise ConfigError(f"[model.parametric] model: {exc}") from None
+        prior = pd.DataFrame(value, index=ds.targets.index,
+                             columns=[f"model_{t}" for t in ds.target_names])
+        return dataclasses.replace(ds, prior=prior)
 
     def inputs(self, cfg: ExperimentConfig, ds: Dataset) -> pd.DataFrame:
         """Return the dataset's features and prior, and its Hamiltonian columns if any.
@@ -148,9 +168,14 @@ class ParametricFamily(ModelFamily):
     def selected(self, model: Any, targets: list[str]) -> list[str]:
         """Label per target ``"parametric:<prior|calibrated|drift>"``.
 
+        ``" (error not a drift)"`` follows the prior or the calibrated model: CV found no
+        drift of the parameters that helps.
+
         ``"+boosted"`` is added where the stage was kept.
         """
         physics = getattr(model.physics_, "choice_", "fixed")
+        if physics in ("prior", "calibrated"):  # the table says the drift did not help
+            physics += " (error not a drift)"
         stages = model.boost_.estimators_ if model.boost_stage else [None] * len(targets)
         return [f"parametric:{physics}"
                 + (f"+{getattr(e, 'selected_candidate_', None) or 'boosted'}"
