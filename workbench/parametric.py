@@ -177,8 +177,27 @@ _JACOBIANS_KEPT = 64
 
 def cached_jacobian(model: ParametricModel, theta: np.ndarray, data: pd.DataFrame,
                     n_targets: int) -> np.ndarray:
-    """:meth:`ParametricModel.jacobian`, remembered for the last few calls (keyed by the
-    model and data objects, which the cache holds, and the parameters' bytes)."""
+    """Return :meth:`ParametricModel.jacobian`, remembered for the last few calls.
+
+    The calls are keyed by the model and data objects (which the cache holds) and the
+    parameters' values.
+
+    Parameters
+    ----------
+    model : ParametricModel
+        The model.
+    theta : ndarray of shape (rows, parameters)
+        The parameters.
+    data : DataFrame
+        The rows.
+    n_targets : int
+        The prediction's targets.
+
+    Returns
+    -------
+    ndarray of shape (rows, targets, parameters)
+        The Jacobian.
+    """
     # the parameters to about 13 significant digits: a fit warm-started from another's
     # coefficients computes them in another order of summation
     key = (id(model), id(data), n_targets, (np.ascontiguousarray(theta).view(np.int64)
@@ -221,6 +240,16 @@ def load_model(path: str | os.PathLike[str]) -> ParametricModel:
 
     A file is imported once per process while it is unchanged (size and modification time).
 
+    Parameters
+    ----------
+    path : str or path-like
+        The model file.
+
+    Returns
+    -------
+    ParametricModel
+        Its model.
+
     Raises
     ------
     ModelError
@@ -255,7 +284,18 @@ def load_model(path: str | os.PathLike[str]) -> ParametricModel:
 
 
 def resolve_model(model: Any) -> ParametricModel:
-    """A :class:`ParametricModel` from a model or the path of a model file."""
+    """Return a :class:`ParametricModel` from a model or the path of a model file.
+
+    Parameters
+    ----------
+    model : ParametricModel, str or path-like
+        The model, or its file.
+
+    Returns
+    -------
+    ParametricModel
+        The model.
+    """
     if isinstance(model, ParametricModel):
         return model
     if isinstance(model, (str, os.PathLike)):
@@ -267,6 +307,17 @@ def resolve_model(model: Any) -> ParametricModel:
 def check_model(model: ParametricModel, data: pd.DataFrame, n_targets: int | None = None,
                 theta: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Evaluate ``model`` on ``data`` at ``theta`` (default: its start values) and check it.
+
+    Parameters
+    ----------
+    model : ParametricModel
+        The model.
+    data : DataFrame
+        The rows.
+    n_targets : int, default=None
+        The targets the prediction must have (None: any).
+    theta : ndarray of shape (rows, parameters), default=None
+        The parameters (None: the start values).
 
     Returns
     -------

@@ -82,8 +82,24 @@ def _term(name: str, columns: set[str]) -> tuple[str, int]:
 
 def covariate_pool(features: Sequence[str], parameters: Sequence[str], *, squares: bool = True,
                    products: bool = True) -> dict[str, list[str]]:
-    """Every parameter's candidate covariates: the features, their squares and their
-    pairwise products (each standardised when fitted)."""
+    """Return every parameter's candidate covariates.
+
+    The features, their squares and their pairwise products (each standardised when fitted).
+
+    Parameters
+    ----------
+    features : sequence of str
+        The columns.
+    parameters : sequence of str
+        The model's parameters.
+    squares, products : bool, default=True
+        Whether to add the squares, the pairwise products.
+
+    Returns
+    -------
+    dict of str -> list of str
+        The same candidates for every parameter.
+    """
     f = list(features)
     names = f + ([f"{a}^2" for a in f] if squares else []) + (
         [f"{a}*{b}" for a, b in combinations(f, 2)] if products else [])

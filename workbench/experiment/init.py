@@ -422,7 +422,7 @@ def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str] | None, tar
     defaulted = features is None
     features, skipped, hints = _features(path, prior, targets, features, split_column,
                                          group_column)
-    template = template_text(TEMPLATE if model is None else PARAMETRIC_TEMPLATE)
+    template = template_text() if model is None else template_text(PARAMETRIC_TEMPLATE)
     tables = _check_template(template)
     text = render_config(name=name, csv=entry, prior=prior, targets=targets, features=features,
                          split_column=split_column, test_fraction=test_fraction,
