@@ -51,7 +51,7 @@ def _first_line(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text[0]}" if text else type(exc).__name__
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class ParametricModel:
     """A physics model ``f(theta; data)`` with named parameters (the contract above).
 
@@ -79,6 +79,9 @@ class ParametricModel:
         """Build a model from a ``PARAMETERS`` dict and functions, checked as a file's are."""
         return _checked(dict(parameters) if isinstance(parameters, Mapping) else parameters,
                         predict, jacobian, source)
+
+    def __repr__(self) -> str:
+        return f"ParametricModel({self.source!r}, parameters={self.names})"
 
     @property
     def names(self) -> list[str]:

@@ -28,7 +28,7 @@ import pandas as pd
 from scipy.optimize import least_squares
 from sklearn.base import BaseEstimator, RegressorMixin, clone
 from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
-from sklearn.utils.validation import check_is_fitted
+from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .parallel import effective_n_jobs
 from .param_boost import (
@@ -107,12 +107,29 @@ def covariate_pool(features: Sequence[str], parameters: Sequence[str], *, square
 
 
 def _targets(y: Any) -> np.ndarray:
+    if y is None:
+        raise ValueError("this regressor requires y to be passed, but the target y is None")
     y = np.asarray(y, dtype=float)
     if y.ndim == 1:
         y = y[:, None]
     if y.ndim != 2 or not np.all(np.isfinite(y)):
         raise ValueError("y must be finite, of shape (rows,) or (rows, targets)")
     return y
+
+
+def _as_frame(est: BaseEstimator, X: Any, reset: bool) -> pd.DataFrame:
+    """``X`` as a DataFrame: a frame as is (columns by name), an array checked by
+    scikit-learn (columns ``x0``, ``x1``, ...); sets the fitted input attributes on
+    ``reset``."""
+    if isinstance(X, pd.DataFrame):
+        if len(X) == 0:
+            raise ValueError("X has no rows")
+        if reset:
+            est.n_features_in_ = X.shape[1]
+            est.feature_names_in_ = np.asarray([str(c) for c in X.columns], dtype=object)
+        return X
+    values = validate_data(est, X, reset=reset, dtype="numeric")
+    return pd.DataFrame(values, columns=[f"x{j}" for j in range(values.shape[1])])
 
 
 def _trial(model: ParametricModel, theta: np.ndarray, X: pd.DataFrame,
@@ -255,15 +272,9 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
     # ------------------------------------------------------------------ fitting
     def _setup(self, X: Any, y: Any) -> tuple[ParametricModel, np.ndarray, np.ndarray,
                                               list[np.ndarray]]:
-        self._validate_params()
-        if not isinstance(X, pd.DataFrame):
-            raise ValueError("X must be a pandas DataFrame holding the model's data columns by "
-                             f"name, got {type(X).__name__}")
-        if len(X) == 0:
-            raise ValueError("X has no rows")
         model = resolve_model(self.model)
-        self._y_1d = np.ndim(y) == 1
         Y = _targets(y)
+        self._y_1d = np.asarray(y).ndim == 1
         if len(Y) != len(X):
             raise ValueError(f"X has {len(X)} rows and y {len(Y)}")
         self.parameter_names_ = model.names
@@ -278,8 +289,6 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
         self.covariate_names_ = {p: ["intercept"] + list(covariates.get(p, []))
                                  for p in model.names}
         self.n_targets_ = Y.shape[1]
-        self.n_features_in_ = X.shape[1]
-        self.feature_names_in_ = np.asarray([str(c) for c in X.columns], dtype=object)
         start = model.start(X)
         phis = self._design(X, fitting=True)
         sizes = [phi.shape[1] for phi in phis]
@@ -310,6 +319,8 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
 
         ``coef_init``: starting coefficients keyed by (parameter, covariate) (another fit's
         :meth:`coef_dict`); then the calibration is skipped (a warm start)."""
+        self._validate_params()
+        X = _as_frame(self, X, reset=True)
         model, start, Y, phis = self._setup(X, y)
         check_model(model, X, Y.shape[1], start)  # one line per way the model is unusable
         penalty = np.ones(len(self._index))
@@ -385,8 +396,7 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
     # ------------------------------------------------------------------ results
     def _corrected(self, X: pd.DataFrame) -> np.ndarray:
         check_is_fitted(self)
-        if not isinstance(X, pd.DataFrame):
-            raise ValueError(f"X must be a pandas DataFrame, got {type(X).__name__}")
+        X = _as_frame(self, X, reset=False)
         model = resolve_model(self.model)
         return self._theta(model.start(X), self._design(X, fitting=False), self._coef)
 
@@ -394,6 +404,7 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
         """The model at the corrected parameters: ``(rows,)`` if fitted on one-dimensional
         ``y``, else ``(rows, targets)``."""
         model = resolve_model(self.model)
+        X = _as_frame(self, X, reset=False)
         out = model.predict(self._corrected(X), X, self.n_targets_)
         return out[:, 0] if self._y_1d else out
 
@@ -432,6 +443,11 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
                     rows.append(dict(parameter=p, covariate=name, coef=float(coef),
                                      covariate_sd=float(sd)))
         return pd.DataFrame(rows, columns=["parameter", "covariate", "coef", "covariate_sd"])
+
+    def __sklearn_tags__(self) -> Any:
+        tags = super().__sklearn_tags__()
+        tags.target_tags.multi_output = True  # one column per target of the user's model
+        return tags
 
     def __sklearn_is_fitted__(self) -> bool:
         return hasattr(self, "_coef")
@@ -494,8 +510,10 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
     note_ : str
     selection_ : SelectionResult or None
         The forward selection (its path).
-    cv_mae : float
+    cv_mae_ : float
         The winner's CV MAE.
+    n_iter_ : int
+        The winner's Gauss-Newton iterations.
     """
 
     _parameter_constraints: dict = {
@@ -562,8 +580,7 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
     def fit(self, X: pd.DataFrame, y: Any) -> Self:
         """Choose among prior, calibrated model and drift by CV; refit the winner."""
         self._validate_params()
-        if not isinstance(X, pd.DataFrame):
-            raise ValueError(f"X must be a pandas DataFrame, got {type(X).__name__}")
+        X = _as_frame(self, X, reset=True)
         t0 = time.perf_counter()
         model = resolve_model(self.model)
         Y = _targets(y)
@@ -606,22 +623,26 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
                                       "chosen": [k == self.choice_ for k in scores]})
         winner = {"prior": prior, "calibrated": base,
                   "drift": clone(base).set_params(covariates=drift)}[self.choice_]
-        self.estimator_ = clone(winner).fit(X, y)
-        self.cv_mae = scores[self.choice_]
-        self.n_features_in_ = X.shape[1]
-        self.feature_names_in_ = np.asarray([str(c) for c in X.columns], dtype=object)
+        self.estimator_ = clone(winner).fit(X, np.asarray(y, dtype=float))
+        self.cv_mae_ = scores[self.choice_]
+        self.n_iter_ = self.estimator_.n_iter_
         self.seconds_ = time.perf_counter() - t0
         return self
 
     def predict(self, X: pd.DataFrame) -> np.ndarray:
         """The winner's prediction."""
         check_is_fitted(self)
-        return self.estimator_.predict(X)
+        return self.estimator_.predict(_as_frame(self, X, reset=False))
 
     def corrected_parameters(self, X: pd.DataFrame) -> pd.DataFrame:
         """The winner's parameters per row."""
         check_is_fitted(self)
-        return self.estimator_.corrected_parameters(X)
+        return self.estimator_.corrected_parameters(_as_frame(self, X, reset=False))
+
+    def __sklearn_tags__(self) -> Any:
+        tags = super().__sklearn_tags__()
+        tags.target_tags.multi_output = True  # one column per target of the user's model
+        return tags
 
     def __sklearn_is_fitted__(self) -> bool:
         return hasattr(self, "estimator_")
