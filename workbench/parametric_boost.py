@@ -584,7 +584,7 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         t0 = time.perf_counter()
         model = resolve_model(self.model)
         Y = _targets(y)
-        common = dict(model=self.model, alpha=self.alpha, alpha_l1=self.alpha_l1,
+        common: dict[str, Any] = dict(model=self.model, alpha=self.alpha, alpha_l1=self.alpha_l1,
                       loss=self.loss, huber_delta=self.huber_delta, max_iter=self.max_iter,
                       tol=self.tol)
         base = ParametricRegressor(**common)

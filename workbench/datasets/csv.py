@@ -247,8 +247,7 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
     path : str or Path
         The CSV file.
     prior : sequence of str
-        The prior columns, ``prior[j]`` the scientific model's prediction of ``targets[j]``;
-        empty where the model family computes the prior itself (family ``parametric``).
+        The prior columns, ``prior[j]`` predicting ``targets[j]`` (empty: the family's own).
     targets : sequence of str
         The target columns.
     features : sequence of str, default=()

@@ -196,7 +196,7 @@ def group_columns(path: str | os.PathLike[str], exclude: Sequence[str]) -> dict[
 def render_config(*, name: str, csv: str, prior: Sequence[str], targets: Sequence[str],
                   features: Sequence[str], split_column: str | None, test_fraction: float | None,
                   split_seed: int, out: str, source: str, template: str,
-                  group_column: str | None = None, model: str | None = None) -> str:
+                  group_column: str | None = None, section: str | None = None) -> str:
     """Write the config's text.
 
     A header comment (what wrote it, from which CSV, what to run next), ``name``,
@@ -225,9 +225,8 @@ def render_config(*, name: str, csv: str, prior: Sequence[str], targets: Sequenc
         The template's text.
     group_column : str, default=None
         The column whose groups CV folds keep whole.
-    model : str, default=None
-        The ``[model.parametric] model`` entry (a model file, relative to the config): the
-        prior is then the model's, ``prior`` empty.
+    section : str, default=None
+        The model file's table (``--model``), after the template's; ``prior`` is then empty.
 
     Returns
     -------
@@ -238,7 +237,7 @@ def render_config(*, name: str, csv: str, prior: Sequence[str], targets: Sequenc
         f"# A first config for the data set {toml_comment(repr(name))}, written by `workbench "
         f"init` from {toml_comment(source)}.",
         "# [data] names the CSV's columns (its csv path is relative to this file); the sections",
-        f"# after it are the template {TEMPLATE if model is None else PARAMETRIC_TEMPLATE} "
+        f"# after it are the template {TEMPLATE if section is None else PARAMETRIC_TEMPLATE} "
         "(workbench/experiment/templates/), to edit.",
         "# Next:",
         f"#   workbench evaluate {toml_comment(shlex.quote(out))}",
@@ -248,8 +247,8 @@ def render_config(*, name: str, csv: str, prior: Sequence[str], targets: Sequenc
         "[data]",
         f"csv = {toml_string(csv)}",
         *(["# one prior column per target, in the same order", toml_strings("prior", prior)]
-          if model is None else ["# no prior columns: the model file of [model.parametric] is "
-                                 "the prior"]),
+          if section is None else ["# no prior columns: the model file of [model.parametric] "
+                                   "is the prior"]),
         toml_strings("targets", targets),
         "# the basis' inputs besides the prior",
         toml_strings("features", features),
@@ -265,14 +264,8 @@ def render_config(*, name: str, csv: str, prior: Sequence[str], targets: Sequenc
                     "   # CV folds keep each group whole")
     top, rest = split_template(template)
     head = [*header, "", f"name = {toml_string(name)}", "random_state = 0"]
-    tail = "" if model is None else "\n".join([
-        "", "[model.parametric]",
-        f"model = {toml_string(model)}   # PARAMETERS, predict(params, data), optionally jacobian",
-        "loss = \"squared_error\"       # or \"huber\" with huber_delta in the targets' unit",
-        "candidates = \"auto\"          # each parameter's drift: features, squares, products",
-        "max_steps = 10", ""])
     return "\n".join(head) + "\n" + (top and top.rstrip("\n") + "\n") + "\n" \
-        + "\n".join(data) + "\n\n" + rest + tail
+        + "\n".join(data) + "\n\n" + rest + (section or "")
 
 
 def _check_template(template: str) -> dict[str, Any]:
@@ -320,15 +313,34 @@ def _features(path: Path, prior: list[str], targets: list[str], features: Sequen
     return list(features), skipped, hints
 
 
-def _model_entry(model: str | os.PathLike[str], out: Path) -> str:
-    """Check the model file (one line per bad case); return its path relative to the config."""
-    from ..parametric import ModelError, load_model
+def _prior_or_model(prior: Sequence[str] | None, model: str | os.PathLike[str] | None,
+                    out: Path) -> tuple[list[str], str | None]:
+    """Return the prior columns, or the model file's table of the config (file checked)."""
+    if (model is None) == (not prior):
+        raise UsageError("give either --prior (the model's predictions, columns) or --model "
+                         "(the model itself, a Python file)")
+    if model is None:
+        return list(prior or []), None
+    from .families.parametric import config_section
 
     try:
-        load_model(model)
-    except ModelError as exc:
+        return [], config_section(csv_entry(model, out), model)
+    except ConfigError as exc:
         raise UsageError(f"--model: {exc}") from None
-    return csv_entry(model, out)
+
+
+def _split_options(split_column: str | None, test_fraction: float | None,
+                   split_seed: int | None) -> tuple[float | None, int]:
+    """Return the test share and seed of the split (``--split-column``'s, or random)."""
+    if split_column is not None:
+        if test_fraction is not None:
+            raise UsageError("give either --split-column or --test-fraction, not both")
+        if split_seed is not None:
+            raise UsageError("--split-seed draws the random split of --test-fraction; "
+                             "--split-column gives the split")
+        return None, 0
+    return (DEFAULT_TEST_FRACTION if test_fraction is None else test_fraction,
+            0 if split_seed is None else split_seed)
 
 
 def _output(name: str, out: str | os.PathLike[str] | None, force: bool) -> Path:
@@ -345,8 +357,9 @@ def _output(name: str, out: str | os.PathLike[str] | None, force: bool) -> Path:
     return path
 
 
-def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str] | None, targets: Sequence[str],
-                features: Sequence[str] | None = None, split_column: str | None = None,
+def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str] | None,
+                targets: Sequence[str], features: Sequence[str] | None = None,
+                split_column: str | None = None,
                 test_fraction: float | None = None, split_seed: int | None = None,
                 name: str | None = None, out: str | os.PathLike[str] | None = None,
                 force: bool = False, group_column: str | None = None,
@@ -399,20 +412,9 @@ def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str] | None, tar
     csv = Path(csv)
     name = csv.stem if name is None else name
     out = _output(name, out, force)
-    if split_column is not None:
-        if test_fraction is not None:
-            raise UsageError("give either --split-column or --test-fraction, not both")
-        if split_seed is not None:
-            raise UsageError("--split-seed draws the random split of --test-fraction; "
-                             "--split-column gives the split")
-    else:
-        test_fraction = DEFAULT_TEST_FRACTION if test_fraction is None else test_fraction
-        split_seed = 0 if split_seed is None else split_seed
-    prior, targets = list(prior or []), list(targets)
-    if (model is None) == (not prior):
-        raise UsageError("give either --prior (the model's predictions, columns) or --model "
-                         "(the model itself, a Python file)")
-    model_entry = None if model is None else _model_entry(model, out)
+    test_fraction, split_seed = _split_options(split_column, test_fraction, split_seed)
+    prior, section = _prior_or_model(prior, model, out)
+    targets = list(targets)
     entry = csv_entry(csv, out)
     path = (out.parent / entry).resolve()  # where load_dataset will read it
     # the data with the values the config will hold: the loader's checks and messages
@@ -427,7 +429,7 @@ def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str] | None, tar
     text = render_config(name=name, csv=entry, prior=prior, targets=targets, features=features,
                          split_column=split_column, test_fraction=test_fraction,
                          split_seed=split_seed or 0, out=str(out), source=str(csv),
-                         template=template, group_column=group_column, model=model_entry)
+                         template=template, group_column=group_column, section=section)
     # the project's own parser
     cfg = parse_config(_parse(text, tables, ("parametric",) if model else ()), out)
     dataset = load_dataset(cfg)  # exactly what evaluate loads, its size checks included

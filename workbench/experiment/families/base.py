@@ -123,16 +123,11 @@ class ModelFamily(ResultMethods):
             raise SpaceError(f"{self.name}.{key} = {value!r}: "
                              f"{err['msg'].removeprefix('Value error, ')}") from None
 
-    #: Whether the family computes the prior itself (:meth:`complete_data`), so that a CSV
-    #: needs no ``[data] prior`` columns.
+    #: Whether the family computes the prior itself (a CSV then needs no prior columns).
     computes_prior: ClassVar[bool] = False
 
     def complete_data(self, cfg: ExperimentConfig, ds: Dataset) -> Dataset:
-        """Return the dataset, completed with what the family supplies (default: as is).
-
-        A family that :attr:`computes_prior` fills in the prior of a CSV without prior
-        columns here.
-        """
+        """Return the dataset with what the family supplies (its prior; default: as is)."""
         return ds
 
     def check_data(self, data: DataConfig) -> None:

@@ -19,6 +19,7 @@ parameters against their start values and the selection path.
 from __future__ import annotations
 
 import dataclasses
+import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar, Literal, cast
 
@@ -33,6 +34,7 @@ from ...parametric_boost import ParametricBoostRegressor
 from ..errors import ConfigError
 from ..results import ModelScores, Scores, mae, mse
 from ..schema import Section
+from ..toml_text import toml_string
 from .artifacts import Artifacts
 from .base import ModelFamily
 from .hamiltonian_figures import parameter_corrections, selection_path_figure
@@ -106,6 +108,33 @@ def make_parametric(cfg: ExperimentConfig, ds: Dataset) -> ParametricBoostRegres
         min_improvement=float(s.min_improvement), alpha=float(s.alpha),
         alpha_l1=float(s.alpha_l1), loss=s.loss, huber_delta=float(s.huber_delta),
         max_iter=s.max_iter, random_state=cfg.random_state, n_jobs=cfg.n_jobs)
+
+
+def config_section(entry: str, path: str | os.PathLike[str]) -> str:
+    """Return a first ``[model.parametric]`` table for ``workbench init --model``.
+
+    Parameters
+    ----------
+    entry : str
+        The model file as the config names it (relative to the config).
+    path : str or path-like
+        The model file, checked here.
+
+    Raises
+    ------
+    ConfigError
+        For a model file that cannot be used (one line naming the problem).
+    """
+    try:
+        load_model(path)
+    except ModelError as exc:
+        raise ConfigError(str(exc)) from None
+    return "\n".join([
+        "", "[model.parametric]",
+        f"model = {toml_string(entry)}   # PARAMETERS, predict(params, data), optionally jacobian",
+        'loss = "squared_error"       # or "huber", huber_delta in the targets\' unit',
+        'candidates = "auto"          # each parameter\'s drift: features, squares, products',
+        "max_steps = 10", ""])
 
 
 def _frame(ds: Dataset) -> pd.DataFrame:
