@@ -82,3 +82,23 @@ def test_other_families_still_need_prior_columns(decay_csv, tmp_path, capsys):
     assert main(["evaluate", str(config), "--no-track"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "needs 'prior'" in err[0] and "'eigenvalue'" in err[0]
+
+
+def test_the_chain_model_file_is_the_control_program(google_5q):
+    """experiments/models/chain.py at its start values (the control program's parameters)
+    predicts the benchmark's prior; parametric_chain.toml reads it."""
+    from pathlib import Path
+
+    from workbench.experiment.prepare import load_config
+    from workbench.parametric import check_model, load_model
+
+    root = Path(__file__).resolve().parents[1]
+    model = load_model(root / "experiments" / "models" / "chain.py")
+    X = google_5q.X_physics
+    value, jac = check_model(model, X, 5)  # every parameter moves some eigenvalue
+    np.testing.assert_allclose(value, google_5q.prior.to_numpy(), atol=1e-6)
+    # Hellmann-Feynman: an onsite frequency's derivatives over the eigenvalues sum to -1
+    np.testing.assert_allclose(jac[:, :, :5].sum(axis=1), -1.0, atol=1e-5)
+    cfg = load_config(root / "experiments" / "parametric_chain.toml")
+    assert cfg.family.name == "parametric"
+    assert set(cfg.family_settings.candidates) == set(model.names)
