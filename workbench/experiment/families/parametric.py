@@ -263,7 +263,8 @@ class ParametricFamily(ModelFamily):
         out.figures["parameter_corrections"] = parameter_corrections(
             start, corrected, groups={"training rows": ds.train_index,
                                       "test rows": ds.test_index}, unit=None,
-            title="Corrected parameters against their start values", setting=setting)
+            title="Corrected parameters against their start values", setting=setting,
+            reference="start")
         if physics.selection_ is not None:
             sel = physics.selection_
             out.tables["selection_path"] = sel.path
