@@ -28,6 +28,8 @@ _EXPORTS = {
     "ARDGaussianProcess": "gp",
     "BaseBoostCV": "selection",
     "StageChoiceCV": "stagewise",
+    "ParametricModel": "parametric", "ModelError": "parametric", "load_model": "parametric",
+    "ParametricRegressor": "parametric_boost", "ParametricBoostRegressor": "parametric_boost",
 }
 
 __all__ = sorted(_EXPORTS)

@@ -261,7 +261,7 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
     path : str or Path
         The CSV file.
     prior : sequence of str
-        The prior columns, ``prior[j]`` the scientific model's prediction of ``targets[j]``.
+        The prior columns, ``prior[j]`` predicting ``targets[j]`` (empty: the family's own).
     targets : sequence of str
         The target columns.
     features : sequence of str, default=()
@@ -421,10 +421,11 @@ def _groups(frame: pd.DataFrame, group_column: str, used: list[str], path: Path)
 
 
 def _check_roles(prior: list[str], targets: list[str]) -> None:
-    """Check the prior and target columns: some targets, one prior column each."""
+    """Check the prior and target columns: some targets, one prior column each (or none:
+    the model family supplies the prior)."""
     if not targets:
         raise DatasetError("no target columns given")
-    if len(prior) != len(targets):
+    if prior and len(prior) != len(targets):
         raise DatasetError(f"{len(prior)} prior column(s) {prior} for {len(targets)} target(s) "
                            f"{targets}: give one prior column per target, in the same order")
 

@@ -183,7 +183,8 @@ def _ibm_gates(options: Mapping[str, Any], base: Path, name: str) -> Dataset:
 def _csv(options: Mapping[str, Any], base: Path, name: str) -> Dataset:
     ham = options.get("hamiltonian") or {}
     return load_csv_dataset(
-        (base / options["csv"]).resolve(), prior=options["prior"], targets=options["targets"],
+        (base / options["csv"]).resolve(), prior=options.get("prior") or (),
+        targets=options["targets"],
         features=options.get("features", []), test_fraction=options.get("test_fraction"),
         split_column=options.get("split_column"), split_seed=options.get("split_seed", 0),
         onsite=ham.get("onsite"), couplings=ham.get("couplings"), sign=ham.get("sign", -1),

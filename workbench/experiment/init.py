@@ -30,6 +30,8 @@ __all__ = ["DEFAULT_TEST_FRACTION", "TEMPLATE", "InitResult", "csv_entry", "find
 
 #: The template every generated config copies below its ``[data]`` section.
 TEMPLATE = "generic.toml"
+#: The template of a config whose prior is a model file (``--model``).
+PARAMETRIC_TEMPLATE = "parametric.toml"
 #: The share of rows held out for testing when no split column is given.
 DEFAULT_TEST_FRACTION = 0.3
 #: The keys the command writes itself; the template may not set them.
@@ -125,7 +127,7 @@ def render_config(*, name: str, csv: str, prior: Sequence[str], targets: Sequenc
                   features: Sequence[str], split_column: str | None, test_fraction: float | None,
                   split_seed: int, out: str, source: str, template: str,
                   group_column: str | None = None, order_column: str | None = None,
-                  time_split: bool = False) -> str:
+                  time_split: bool = False, section: str | None = None) -> str:
     """Write the config's text.
 
     A header comment (what wrote it, from which CSV, what to run next), ``name``,
@@ -158,6 +160,8 @@ def render_config(*, name: str, csv: str, prior: Sequence[str], targets: Sequenc
         The column the CV folds chain forward by (dates, times, run numbers).
     time_split : bool, default=False
         The test rows are the latest ``test_fraction`` by ``order_column``.
+    section : str, default=None
+        The model file's table (``--model``), after the template's; ``prior`` is then empty.
 
     Returns
     -------
@@ -168,7 +172,8 @@ def render_config(*, name: str, csv: str, prior: Sequence[str], targets: Sequenc
         f"# A first config for the data set {toml_comment(repr(name))}, written by `workbench "
         f"init` from {toml_comment(source)}.",
         "# [data] names the CSV's columns (its csv path is relative to this file); the sections",
-        f"# after it are the template {TEMPLATE} (workbench/experiment/templates/), to edit.",
+        f"# after it are the template {TEMPLATE if section is None else PARAMETRIC_TEMPLATE} "
+        "(workbench/experiment/templates/), to edit.",
         "# Next:",
         f"#   workbench evaluate {toml_comment(shlex.quote(out))}",
         "#   workbench ui",
@@ -176,8 +181,9 @@ def render_config(*, name: str, csv: str, prior: Sequence[str], targets: Sequenc
     data = [
         "[data]",
         f"csv = {toml_string(csv)}",
-        "# one prior column per target, in the same order",
-        toml_strings("prior", prior),
+        *(["# one prior column per target, in the same order", toml_strings("prior", prior)]
+          if section is None else ["# no prior columns: the model file of [model.parametric] "
+                                   "is the prior"]),
         toml_strings("targets", targets),
         "# the basis' inputs besides the prior",
         toml_strings("features", features),
@@ -200,7 +206,7 @@ def render_config(*, name: str, csv: str, prior: Sequence[str], targets: Sequenc
     top, rest = split_template(template)
     head = [*header, "", f"name = {toml_string(name)}", "random_state = 0"]
     return "\n".join(head) + "\n" + (top and top.rstrip("\n") + "\n") + "\n" \
-        + "\n".join(data) + "\n\n" + rest
+        + "\n".join(data) + "\n\n" + rest + (section or "")
 
 
 def _check_template(template: str) -> dict[str, Any]:
@@ -215,14 +221,17 @@ def _check_template(template: str) -> dict[str, Any]:
     return tables
 
 
-def _parse(text: str, template: dict[str, Any]) -> dict[str, Any]:
+def _parse(text: str, template: dict[str, Any], own: Sequence[str] = ()) -> dict[str, Any]:
     """Read the generated text back and check it against the template.
 
     Its keys beyond init's own must be the template's, unchanged (the last guard of
     :func:`~.toml_text.split_template`).
     """
     raw = tomllib.loads(text)
-    if {k: v for k, v in raw.items() if k not in _OWN_KEYS} != template:
+    rest = {k: v for k, v in raw.items() if k not in _OWN_KEYS}
+    if own:  # [model.<own>]: written by init, not the template's
+        rest["model"] = {k: v for k, v in rest.get("model", {}).items() if k not in own}
+    if rest != template:
         raise ConfigError(f"template {TEMPLATE}: its settings change when written below "
                           f"[data] (keys before its first table?)")
     return raw
@@ -261,6 +270,22 @@ def _checked_order(path: Path, *, order_column: str | None, group_column: str | 
     return given
 
 
+def _prior_or_model(prior: Sequence[str] | None, model: str | os.PathLike[str] | None,
+                    out: Path) -> tuple[list[str], str | None]:
+    """Return the prior columns, or the model file's table of the config (file checked)."""
+    if (model is None) == (not prior):
+        raise UsageError("give either --prior (the model's predictions, columns) or --model "
+                         "(the model itself, a Python file)")
+    if model is None:
+        return list(prior or []), None
+    from .families.parametric import config_section
+
+    try:
+        return [], config_section(csv_entry(model, out), model)
+    except ConfigError as exc:
+        raise UsageError(f"--model: {exc}") from None
+
+
 def _split_options(split_column: str | None, test_fraction: float | None,
                    split_seed: int | None) -> tuple[float | None, int | None]:
     """Check the split's options; return the test fraction and seed (defaults filled in)."""
@@ -289,12 +314,14 @@ def _output(name: str, out: str | os.PathLike[str] | None, force: bool) -> Path:
     return path
 
 
-def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str], targets: Sequence[str],
-                features: Sequence[str] | None = None, split_column: str | None = None,
+def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str] | None,
+                targets: Sequence[str], features: Sequence[str] | None = None,
+                split_column: str | None = None,
                 test_fraction: float | None = None, split_seed: int | None = None,
                 name: str | None = None, out: str | os.PathLike[str] | None = None,
                 force: bool = False, group_column: str | None = None,
-                order_column: str | None = "auto") -> InitResult:
+                order_column: str | None = "auto",
+                model: str | os.PathLike[str] | None = None) -> InitResult:
     """Write a first config for the CSV ``csv`` and return what was written.
 
     Parameters
@@ -324,6 +351,10 @@ def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str], targets: S
     order_column : str, default="auto"
         The column of dates or run numbers the CV folds chain forward by, the latest rows
         the test rows; ``"auto"``: :func:`~.columns.find_order_column`; ``None``: none.
+    model : path-like, default=None
+        A model file (``PARAMETERS``, ``predict``, optionally ``jacobian``: see
+        :mod:`workbench.parametric`) instead of ``prior`` columns: the config's family is then
+        ``parametric``, the model the prior.
 
     Returns
     -------
@@ -344,7 +375,8 @@ def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str], targets: S
     out = _output(name, out, force)
     random_split = split_seed is not None
     test_fraction, split_seed = _split_options(split_column, test_fraction, split_seed)
-    prior, targets = list(prior), list(targets)
+    prior, section = _prior_or_model(prior, model, out)
+    targets = list(targets)
     entry = csv_entry(csv, out)
     path = (out.parent / entry).resolve()  # where load_dataset will read it
     given = _checked_order(path, prior=prior, targets=targets, features=features or (),
@@ -355,13 +387,15 @@ def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str], targets: S
     defaulted = features is None
     features, skipped, hints = _features(path, prior, targets, features, split_column,
                                          group_column, given)
-    tables = _check_template(template := template_text())
+    template = template_text() if model is None else template_text(PARAMETRIC_TEMPLATE)
+    tables = _check_template(template)
     text = render_config(name=name, csv=entry, prior=prior, targets=targets, features=features,
                          split_column=split_column, test_fraction=test_fraction,
                          split_seed=split_seed or 0, out=str(out), source=str(csv),
                          template=template, group_column=group_column, order_column=given,
-                         time_split=time_split)
-    cfg = parse_config(_parse(text, tables), out)  # the project's own parser
+                         time_split=time_split, section=section)
+    # the project's own parser
+    cfg = parse_config(_parse(text, tables, ("parametric",) if model else ()), out)
     dataset = load_dataset(cfg)  # exactly what evaluate loads, its size checks included
     write_file(out, text, "--out")  # atomic_write: all or nothing, a failure in one line
     return InitResult(path=out, text=text, features=features, defaulted=defaulted,

@@ -57,8 +57,11 @@ def _add_init(sub: Subparsers) -> None:
                          "workbench evaluate CONFIG)")
     ini.add_argument("data", metavar="DATA.csv",
                      help="the CSV: one row per experiment, a header naming the columns")
-    ini.add_argument("--prior", nargs="+", required=True, metavar="COL",
+    ini.add_argument("--prior", nargs="+", default=None, metavar="COL",
                      help="the physics model's prediction of each target, in the targets' order")
+    ini.add_argument("--model", default=None, metavar="FILE.py",
+                     help="instead of --prior: the physics model itself, a Python file "
+                     "defining PARAMETERS and predict(params, data) (family parametric)")
     ini.add_argument("--target", nargs="+", required=True, metavar="COL",
                      help="the measured values to predict")
     ini.add_argument("--features", nargs="*", default=None, metavar="COL",

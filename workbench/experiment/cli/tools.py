@@ -35,7 +35,8 @@ def init(args: argparse.Namespace) -> int:
                        split_column=args.split_column, test_fraction=args.test_fraction,
                        split_seed=args.split_seed, name=args.name, out=args.out,
                        force=args.force, group_column=args.group_column,
-                       order_column=None if args.order_column == "none" else args.order_column)
+                       order_column=None if args.order_column == "none" else args.order_column,
+                       model=args.model)
     if done.defaulted:
         left = "; not taken: " + ", ".join(f"{c!r} ({why})" for c, why in done.skipped.items())
         print(f"features: {', '.join(done.features) or '(none)'} (every other numeric column"

@@ -102,7 +102,8 @@ class DataConfig(Section):
         A CSV of your own, one experiment per row.
     prior : list of str, default=None
         The CSV's prior columns: ``prior[j]`` is the scientific model's prediction of
-        ``targets[j]``.
+        ``targets[j]``. Every family but one that computes the prior itself (``parametric``:
+        the user's model is the prior) needs them.
     targets : list of str, default=None
         The CSV's target columns, the measured values.
     features : list of str, default=[]
@@ -184,11 +185,11 @@ class DataConfig(Section):
         if self.order_column is not None and self.group_column is not None:
             raise ValueError("give group_column or order_column, not both: the CV folds "
                              "either keep groups whole or chain forward in time")
-        for key in ("csv", "prior", "targets"):
+        for key in ("csv", "targets"):  # "prior": the family's check_data
             if getattr(self, key) is None:
                 raise ValueError(f"source = \"csv\" needs {key!r}")
-        assert self.prior is not None and self.targets is not None  # checked just above
-        if len(self.prior) != len(self.targets):
+        assert self.targets is not None  # checked just above
+        if self.prior is not None and len(self.prior) != len(self.targets):
             raise ValueError(f"{len(self.prior)} prior column(s) for {len(self.targets)} "
                              f"target(s): give one prior column per target")
         if (self.test_fraction is None) == (self.split_column is None):

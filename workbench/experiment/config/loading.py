@@ -38,6 +38,8 @@ def load_dataset(cfg: ExperimentConfig) -> Dataset:
         folds or prediction intervals.
     """
     ds = load_source(cfg.data.source, cfg.data.model_dump(), _base(cfg), cfg.name)
+    if cfg.family is not None:  # e.g. the prior a family computes itself
+        ds = cfg.family.complete_data(cfg, ds)
     check_training_rows(cfg, len(ds.train_index))
     check_ordered_rows(cfg, ds)
     return ds

@@ -6,8 +6,9 @@ space are, what a sweep's study unit is and how a trial is scored, how its resul
 assembled, and which extra artifacts it has. Nothing outside a family's own module looks at
 a family's name: ``[model] family = "<name>"`` is resolved here.
 
-Built in: ``eigenvalue`` (base boosting per target from the control program's eigenvalues)
-and ``hamiltonian`` (the parameter-space model). A new family is a module with a
+Built in: ``eigenvalue`` (base boosting per target from the control program's eigenvalues),
+``hamiltonian`` (the parameter-space model) and ``parametric`` (a user's model file,
+corrected in its own parameter space). A new family is a module with a
 :class:`ModelFamily` subclass, added with :func:`register_family` or, from another package,
 through an entry point of the group :data:`FAMILY_ENTRY_POINT_GROUP` (MLflow's plug-in
 convention; bases and data sources are added the same way, :mod:`workbench._plugins`)::
@@ -23,6 +24,7 @@ from .artifacts import Artifacts
 from .base import ModelFamily
 from .eigenvalue import EigenvalueFamily
 from .hamiltonian import HamiltonianFamily
+from .parametric import ParametricFamily
 
 __all__ = ["FAMILIES", "FAMILY_ENTRY_POINT_GROUP", "Artifacts", "ModelFamily", "discover_families",
            "register_family"]
@@ -88,3 +90,4 @@ def discover_families() -> list[str]:
 
 register_family(EigenvalueFamily())
 register_family(HamiltonianFamily())
+register_family(ParametricFamily())

@@ -123,6 +123,13 @@ class ModelFamily(ResultMethods):
             raise SpaceError(f"{self.name}.{key} = {value!r}: "
                              f"{err['msg'].removeprefix('Value error, ')}") from None
 
+    #: Whether the family computes the prior itself (a CSV then needs no prior columns).
+    computes_prior: ClassVar[bool] = False
+
+    def complete_data(self, cfg: ExperimentConfig, ds: Dataset) -> Dataset:
+        """Return the dataset with what the family supplies (its prior; default: as is)."""
+        return ds
+
     def check_data(self, data: DataConfig) -> None:
         """Check that ``[data]`` can feed this family.
 
@@ -134,8 +141,12 @@ class ModelFamily(ResultMethods):
         Raises
         ------
         ValueError
-            When it cannot (default: every ``[data]`` can).
+            When it cannot (default: a CSV needs its prior columns unless the family
+            :attr:`computes_prior`).
         """
+        if data.source == "csv" and data.prior is None and not self.computes_prior:
+            raise ValueError(f"source = \"csv\" needs 'prior' (one column per target: the "
+                             f"physics model's prediction) for family {self.name!r}")
 
     # ------------------------------------------------------------------ the model
     def inputs(self, cfg: ExperimentConfig, ds: Dataset) -> pd.DataFrame:

@@ -198,7 +198,8 @@ class HamiltonianFamily(ModelFamily):
     interval_method = "oof"  # FittedPriorBoost keeps its out-of-fold predictions
 
     def check_data(self, data: DataConfig) -> None:
-        """Require ``[data.hamiltonian]`` for a CSV."""
+        """Require the prior and ``[data.hamiltonian]`` for a CSV."""
+        super().check_data(data)
         if data.order_column is not None:  # prior_cv, selection_cv: shuffled K-fold
             raise ValueError(f"[data] order_column = {data.order_column!r}: family = "
                              f"\"hamiltonian\" fits its physics model on shuffled folds of "

@@ -33,7 +33,7 @@ __all__ = ["parameter_corrections", "selection_path_figure"]
 def parameter_corrections(control: pd.DataFrame, corrected: pd.DataFrame, *,
                           groups: Mapping[str, Iterable[object]] | None = None,
                           unit: str | None = None, title: str | None = None,
-                          setting: str | None = None) -> Figure:
+                          setting: str | None = None, reference: str = "control") -> Figure:
     """Draw each Hamiltonian parameter's correction against its control value.
 
     One panel per parameter: its correction (corrected - control) against the control model's
@@ -53,6 +53,8 @@ def parameter_corrections(control: pd.DataFrame, corrected: pd.DataFrame, *,
         Default: "Hamiltonian parameters: correction vs control model (mean ± sd)".
     setting : str, optional
         A second title line naming the setting.
+    reference : str, default="control"
+        What the x axes call the parameters' uncorrected values (e.g. "start").
 
     Returns
     -------
@@ -91,7 +93,7 @@ def parameter_corrections(control: pd.DataFrame, corrected: pd.DataFrame, *,
         d = delta[name]
         ax.set_title(f"{name}: {d.mean():+.2f} ± {d.std():.2f}{unit_suffix(unit)}",
                      fontsize=10)
-        ax.set_xlabel(with_unit(f"control {name}", unit), fontsize=9)
+        ax.set_xlabel(with_unit(f"{reference} {name}", unit), fontsize=9)
         ax.set_ylabel(with_unit("correction", unit), fontsize=9)
         style_axes(ax)
         ax.tick_params(labelsize=8)

@@ -1,0 +1,169 @@
+"""The parametric family's core: a user's model file, its checks, calibration, drift, choice."""
+
+import textwrap
+
+import numpy as np
+import pandas as pd
+import pytest
+from sklearn.base import clone
+
+from workbench.parametric import ModelError, ParametricModel, load_model
+from workbench.parametric_boost import ParametricBoostRegressor, ParametricRegressor
+
+# A textbook law: exponential decay towards an offset, y = A exp(-t / tau) + B.
+DECAY = """
+import numpy as np
+
+PARAMETERS = {"amplitude": 2.0, "tau": 1.0, "offset": 0.0}
+
+
+def predict(params, data):
+    t = data["t"].to_numpy()
+    return params["amplitude"] * np.exp(-t / params["tau"]) + params["offset"]
+"""
+
+JACOBIAN = """
+
+def jacobian(params, data):
+    t = data["t"].to_numpy()
+    e = np.exp(-t / params["tau"])
+    return np.stack([e, params["amplitude"] * e * t / params["tau"] ** 2,
+                     np.ones_like(t)], axis=1)[:, None, :]
+"""
+
+
+def _write(tmp_path, text, name="model.py"):
+    path = tmp_path / name
+    path.write_text(textwrap.dedent(text))
+    return str(path)
+
+
+def _data(n=160, seed=0, drift=0.3, missing=0.0):
+    """Decay with tau drifting linearly in temp (``drift``) and, optionally, a term no
+    parameter drift of the law can make: a step in t (``missing``)."""
+    rng = np.random.default_rng(seed)
+    X = pd.DataFrame({"t": rng.uniform(0, 3, n), "temp": rng.normal(0, 1, n),
+                      "humidity": rng.normal(0, 1, n)})
+    tau = 1.5 + drift * X["temp"].to_numpy()
+    y = (2.5 * np.exp(-X["t"].to_numpy() / tau) + 0.1 + missing * (X["t"].to_numpy() > 1.5)
+         + rng.normal(0, 0.01, n))
+    return X, y
+
+
+def test_recovers_a_known_drift(tmp_path):
+    path = _write(tmp_path, DECAY)
+    X, y = _data()
+    est = ParametricBoostRegressor(path, features=["temp", "humidity"], huber_delta=0.05,
+                                   alpha=0.01, max_steps=2, random_state=0).fit(X, y)
+    assert est.choice_ == "drift" and est.note_ == ""
+    assert est.selection_.selected[0] == ("tau", "temp")
+    table = est.estimator_.coefficient_table().set_index(["parameter", "covariate"])
+    slope = table.loc[("tau", "temp"), "coef"] / table.loc[("tau", "temp"), "covariate_sd"]
+    assert slope == pytest.approx(0.3, rel=0.1)
+    start_tau = 1.0
+    assert start_tau + table.loc[("tau", "intercept"), "coef"] == pytest.approx(1.5, rel=0.05)
+    cv = est.choices_.set_index("candidate")["cv_mae"]
+    assert cv["drift"] < cv["calibrated"] < cv["prior"]
+
+
+def test_falls_back_where_the_error_is_not_a_drift(tmp_path):
+    path = _write(tmp_path, DECAY)
+    X, y = _data(drift=0.0, missing=0.2)  # a step no drift in temp or humidity makes
+    est = ParametricBoostRegressor(path, features=["temp", "humidity"], huber_delta=0.05,
+                                   random_state=0).fit(X, y)
+    cv = est.choices_.set_index("candidate")["cv_mae"]
+    chosen = float(cv[est.choice_])
+    assert est.choice_ != "drift"
+    assert "not a drift of the parameters" in est.note_
+    # never worse than the prior or the no-drift path on CV
+    assert chosen <= cv["prior"] and chosen <= cv["calibrated"]
+
+
+def test_finite_differences_match_the_analytic_jacobian(tmp_path):
+    fd = load_model(_write(tmp_path, DECAY, "fd.py"))
+    exact = load_model(_write(tmp_path, DECAY + JACOBIAN, "exact.py"))
+    X, _ = _data(n=50)
+    theta = np.column_stack([np.full(50, 2.3), 1.2 + 0.1 * X["temp"], np.full(50, 0.2)])
+    J_fd = fd.jacobian(theta, X, 1)
+    J = exact.jacobian(theta, X, 1)
+    assert J.shape == J_fd.shape == (50, 1, 3)
+    np.testing.assert_allclose(J_fd, J, rtol=1e-6, atol=1e-9)
+    # and the fits agree
+    X, y = _data()
+    a = ParametricRegressor(str(tmp_path / "fd.py"), covariates={"tau": ["temp"]}).fit(X, y)
+    b = ParametricRegressor(str(tmp_path / "exact.py"), covariates={"tau": ["temp"]}).fit(X, y)
+    np.testing.assert_allclose(a.predict(X), b.predict(X), atol=1e-5)
+
+
+BAD = {
+    "does not import": ("import numpy as np\nPARAMETERS = {'a': 1.0\n", "does not import"),
+    "no PARAMETERS": ("def predict(params, data):\n    return data['t']\n",
+                      "defines no PARAMETERS"),
+    "no predict": ("PARAMETERS = {'a': 1.0}\n", "defines no predict"),
+    "raises": ("PARAMETERS = {'a': 1.0}\ndef predict(params, data):\n    return 1 / 0\n",
+               "predict raised ZeroDivisionError"),
+    "NaN": ("import numpy as np\nPARAMETERS = {'a': 1.0}\n"
+            "def predict(params, data):\n    return np.sqrt(params['a'] - data['t'].to_numpy())\n",
+            "NaN or infinite"),
+    "wrong shape": ("import numpy as np\nPARAMETERS = {'a': 1.0}\n"
+                    "def predict(params, data):\n    return params['a'][:3]\n",
+                    "predict returned shape (3,)"),
+    "dead parameter": ("PARAMETERS = {'a': 1.0, 'b': 2.0}\n"
+                       "def predict(params, data):\n    return params['a'] * data['t']\n",
+                       "does not depend on parameter 'b'"),
+    "jacobian shape": ("import numpy as np\nPARAMETERS = {'a': 1.0}\n"
+                       "def predict(params, data):\n    return params['a'] * data['t']\n"
+                       "def jacobian(params, data):\n    return np.ones((len(data), 2))\n",
+                       "jacobian returned shape"),
+    "missing column": ("PARAMETERS = {'a': 'voltage'}\n"
+                       "def predict(params, data):\n    return params['a'] * data['t']\n",
+                       "from column 'voltage', which the data lack"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_a_bad_model_gets_one_line(tmp_path, case):
+    text, expected = BAD[case]
+    path = _write(tmp_path, text, f"bad_{case.replace(' ', '_')}.py")
+    X, y = _data(n=30)
+    with pytest.raises(ModelError) as info:
+        ParametricRegressor(path).fit(X, y)
+    message = str(info.value)
+    assert expected in message
+    assert "\n" not in message
+    assert "bad_" in message  # names the file
+
+
+def test_a_missing_file_gets_one_line(tmp_path):
+    with pytest.raises(ModelError, match="not found"):
+        load_model(tmp_path / "nowhere.py")
+
+
+def test_model_from_functions_and_targets():
+    def predict(params, data):
+        t = data["t"].to_numpy()
+        return np.column_stack([params["a"] * t, params["a"] + params["b"] * t])
+
+    model = ParametricModel.from_functions({"a": 1.0, "b": 0.5}, predict)
+    X = pd.DataFrame({"t": np.linspace(0, 1, 40)})
+    Y = np.column_stack([1.5 * X["t"], 1.5 + 0.2 * X["t"]])
+    est = ParametricRegressor(model, loss="squared_error").fit(X, Y)
+    assert est.predict(X).shape == (40, 2)
+    np.testing.assert_allclose(est.predict(X), Y, atol=1e-6)
+    with pytest.raises(ModelError, match=r"expected \(40, 3\)"):
+        ParametricRegressor(model).fit(X, np.column_stack([Y, Y[:, 0]]))
+
+
+def test_same_seed_same_numbers_and_clone(tmp_path):
+    path = _write(tmp_path, DECAY)
+    X, y = _data(n=80)
+    est = ParametricBoostRegressor(path, candidates={"tau": ["temp", "humidity"]},
+                                   huber_delta=0.05, max_steps=1, random_state=3)
+    a, b = clone(est).fit(X, y), clone(est).fit(X, y)
+    np.testing.assert_array_equal(a.predict(X), b.predict(X))
+    pd.testing.assert_frame_equal(a.choices_, b.choices_)
+    c = clone(est).set_params(random_state=4).fit(X, y)
+    assert not np.array_equal(a.choices_["cv_mae"], c.choices_["cv_mae"])  # other folds
+    assert clone(est).get_params() == est.get_params()
+    with pytest.raises(ValueError, match="loss"):
+        clone(est).set_params(loss="nope").fit(X, y)

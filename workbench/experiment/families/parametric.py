@@ -1,0 +1,274 @@
+"""Family ``parametric``: a user's physics model, corrected in its own parameter space.
+
+The user hands over the model itself, a Python file (:mod:`workbench.parametric`'s
+contract: ``PARAMETERS``, ``predict(params, data)``, optionally ``jacobian``), named by
+``[model.parametric] model`` relative to the config file. The physics model
+(:class:`~workbench.parametric_boost.ParametricBoostRegressor`) chooses by CV on the
+training rows among the prior (the model at its start values), the calibrated model (robust
+global calibration of the parameters, no drift) and linear drifts of the parameters in
+covariates chosen by forward selection; an eigenvalue-space (output-space) boosting stage on
+top (``[model]`` keys, one BaseBoostCV per target, trained on out-of-fold priors) is kept per
+target only where CV says it helps (:class:`~workbench.fitted_prior.FittedPriorBoost`).
+
+Tables: ``choices`` (each candidate's CV MAE and the winner), ``calibration`` (each
+parameter's start and calibrated offset), ``coefficients`` (the corrections'),
+``corrected_parameters`` (per experiment) and ``selection_path``; figures: the corrected
+parameters against their start values and the selection path.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, ClassVar, Literal, cast
+
+import pandas as pd
+from pydantic import Field
+from sklearn.base import clone
+from sklearn.model_selection import KFold
+
+from ...fitted_prior import FittedPriorBoost
+from ...parametric import ModelError, load_model
+from ...parametric_boost import ParametricBoostRegressor
+from ..errors import ConfigError
+from ..scores import ModelScores, Scores, mae, mse
+from ..schema import Section
+from ..toml_text import toml_string
+from .artifacts import Artifacts
+from .base import ModelFamily
+from .hamiltonian_figures import parameter_corrections, selection_path_figure
+from .stage import per_target_boost, stage_scores
+
+if TYPE_CHECKING:
+    from ...datasets import Dataset
+    from ..config import ExperimentConfig
+
+__all__ = ["ParametricFamily", "ParametricSettings", "make_parametric"]
+
+#: Prefix of the columns holding the physics model's prediction (the stage's prior).
+PRIOR_PREFIX = "prior_"
+
+
+class ParametricSettings(Section):
+    """``[model.parametric]``: the user's model and how its parameters are corrected.
+
+    ``model``: the model file, relative to the config file. ``start``: covariates every drift
+    model has, per parameter; ``candidates``: the forward selection's pool, per parameter,
+    or ``"auto"`` (the dataset's features, their squares and pairwise products, for every
+    parameter) or ``"none"`` (no drift candidate). ``loss``, ``huber_delta``, ``alpha``,
+    ``alpha_l1``, ``max_iter``: the Gauss-Newton fit's (and the calibration's loss);
+    ``selection_cv``, ``selection_repeats``, ``max_steps``, ``min_improvement``: the CV
+    that chooses among prior, calibrated model and drift, and the selection's.
+    """
+
+    model: str
+    loss: Literal["squared_error", "absolute_error", "huber"] = "huber"
+    huber_delta: float = Field(default=1.0, gt=0)
+    alpha: float = Field(default=1.0, ge=0)
+    alpha_l1: float = Field(default=0.0, ge=0)
+    max_iter: int = Field(default=20, ge=0, le=100_000)
+    start: dict[str, list[str]] = Field(default_factory=dict)
+    candidates: Literal["auto", "none"] | dict[str, list[str]] = "auto"
+    squares: bool = True
+    products: bool = True
+    selection_cv: int = Field(default=5, ge=2, le=10_000)
+    selection_repeats: int = Field(default=1, ge=1, le=1000)
+    max_steps: int = Field(default=20, ge=0, le=100_000)
+    min_improvement: float = Field(default=1e-3, ge=0)
+    boost_stage: bool = True
+    prior_cv: int = Field(default=5, ge=2, le=10_000)
+
+
+def model_path(cfg: ExperimentConfig, settings: ParametricSettings) -> Path:
+    """Return the model file, relative to the config file (or the working folder)."""
+    base = cfg.path.parent if cfg.path is not None else Path.cwd()
+    return (base / settings.model).resolve()
+
+
+def make_parametric(cfg: ExperimentConfig, ds: Dataset) -> ParametricBoostRegressor:
+    """Make the physics model that ``[model.parametric]`` describes (unfitted).
+
+    Raises
+    ------
+    ConfigError
+        For a model file that cannot be used (one line naming the problem).
+    """
+    s = cast(ParametricSettings, cfg.family_settings)
+    path = model_path(cfg, s)
+    try:
+        load_model(path)
+    except ModelError as exc:
+        raise ConfigError(f"[model.parametric] model: {exc}") from None
+    candidates: Any = (None if s.candidates == "none" else s.candidates)
+    return ParametricBoostRegressor(
+        str(path), start=s.start or None, candidates=candidates, features=ds.feature_names,
+        squares=s.squares, products=s.products, cv=s.selection_cv,
+        n_repeats=s.selection_repeats, max_steps=s.max_steps,
+        min_improvement=float(s.min_improvement), alpha=float(s.alpha),
+        alpha_l1=float(s.alpha_l1), loss=s.loss, huber_delta=float(s.huber_delta),
+        max_iter=s.max_iter, random_state=cfg.random_state, n_jobs=cfg.n_jobs)
+
+
+def config_section(entry: str, path: str | os.PathLike[str]) -> str:
+    """Return a first ``[model.parametric]`` table for ``workbench init --model``.
+
+    Parameters
+    ----------
+    entry : str
+        The model file as the config names it (relative to the config).
+    path : str or path-like
+        The model file, checked here.
+
+    Raises
+    ------
+    ConfigError
+        For a model file that cannot be used (one line naming the problem).
+    """
+    try:
+        load_model(path)
+    except ModelError as exc:
+        raise ConfigError(str(exc)) from None
+    return "\n".join([
+        "", "[model.parametric]",
+        f"model = {toml_string(entry)}   # PARAMETERS, predict(params, data), optionally jacobian",
+        'loss = "squared_error"       # or "huber", huber_delta in the targets\' unit',
+        'candidates = "auto"          # each parameter\'s drift: features, squares, products',
+        "max_steps = 10", ""])
+
+
+def _frame(ds: Dataset) -> pd.DataFrame:
+    return ds.X_physics if ds.hamiltonian is not None else ds.X
+
+
+def _records(table: pd.DataFrame) -> list[dict[str, Any]]:
+    return table.astype(object).where(table.notna(), None).to_dict(orient="records")
+
+
+class ParametricFamily(ModelFamily):
+    """A user's model: calibrated, its parameters' drifts chosen by CV, boosted on top."""
+
+    name = "parametric"
+    settings: ClassVar = ParametricSettings
+    interval_method = "oof"
+    computes_prior = True
+
+    def complete_data(self, cfg: ExperimentConfig, ds: Dataset) -> Dataset:
+        """Fill in the prior of a dataset without prior columns.
+
+        The prior is the model at its start values, columns ``model_<target>``.
+        """
+        if len(ds.prior.columns):
+            return ds
+        s = cast(ParametricSettings, cfg.family_settings)
+        try:
+            model = load_model(model_path(cfg, s))
+            X = _frame(ds)
+            value = model.predict(model.start(X), X, len(ds.target_names))
+        except ModelError as exc:
+            raise ConfigError(f"[model.parametric] model: {exc}") from None
+        prior = pd.DataFrame(value, index=ds.targets.index,
+                             columns=[f"model_{t}" for t in ds.target_names])
+        return dataclasses.replace(ds, prior=prior)
+
+    def inputs(self, cfg: ExperimentConfig, ds: Dataset) -> pd.DataFrame:
+        """Return the dataset's features and prior, and its Hamiltonian columns if any.
+
+        A model file may read any of them.
+        """
+        return _frame(ds)
+
+    def build(self, cfg: ExperimentConfig, ds: Dataset) -> FittedPriorBoost:
+        """Build a :class:`FittedPriorBoost` over :func:`make_parametric`."""
+        s = cast(ParametricSettings, cfg.family_settings)
+        priors = [f"{PRIOR_PREFIX}{t}" for t in ds.target_names]
+        boost = per_target_boost(cfg, ds, priors, boost_from_prior=False)
+        return FittedPriorBoost(make_parametric(cfg, ds), boost, prior_prefix=PRIOR_PREFIX,
+                                cv=KFold(s.prior_cv, shuffle=True,
+                                         random_state=cfg.random_state or 0),
+                                boost_stage=s.boost_stage,
+                                cv_predictions=cfg.intervals.enabled
+                                and cfg.intervals.method == "oof", n_jobs=cfg.jobs)
+
+    def fixed_choices(self, model: Any) -> Any:
+        """Keep the physics model's choice (and selected covariates)."""
+        return clone(model).set_params(physics=clone(model.physics_.estimator_))
+
+    def selected(self, model: Any, targets: list[str]) -> list[str]:
+        """Label per target ``"parametric:<prior|calibrated|drift>"``.
+
+        ``" (error not a drift)"`` follows the prior or the calibrated model: CV found no
+        drift of the parameters that helps.
+
+        ``"+boosted"`` is added where the stage was kept.
+        """
+        physics = getattr(model.physics_, "choice_", "fixed")
+        if physics in ("prior", "calibrated"):  # the table says the drift did not help
+            physics += " (error not a drift)"
+        stages = model.boost_.estimators_ if model.boost_stage else [None] * len(targets)
+        return [f"parametric:{physics}"
+                + (f"+{getattr(e, 'selected_candidate_', None) or 'boosted'}"
+                   if s == "boosted" else "")
+                for s, e in zip(model.selected_, stages)]
+
+    def scores(self, ds: Dataset, model: Any, Y_train: pd.DataFrame, prior_test: Any,
+               y_test: Any, pred: Any) -> tuple[Scores, ModelScores, dict[str, Any]]:
+        """Score prior and model, with the physics model's choice and corrections."""
+        prior_train = ds.prior.loc[Y_train.index].to_numpy()
+        nan = [float("nan")] * len(ds.target_names)
+        Y = Y_train.to_numpy(dtype=float)
+        staged = model.boost_stage
+        s: dict[str, list[Any]] = stage_scores(model.boost_.estimators_, Y) if staged else {}
+        prior = Scores(test_mae=mae(y_test, prior_test), test_mse=mse(y_test, prior_test),
+                       cv_mae=mae(Y_train, prior_train), cv_mse=mse(Y_train, prior_train))
+        stage_cv = s["prior_cv_mae"] if staged else nan
+        scores = ModelScores(test_mae=mae(y_test, pred), test_mse=mse(y_test, pred),
+                             cv_mae=s["cv_mae"] if staged else stage_cv,
+                             cv_mse=s["cv_mse"] if staged else nan,
+                             selected=self.selected(model, ds.target_names),
+                             coefs=s["coefs"] if staged else [[] for _ in nan],
+                             extra={"cv_mae_parametric": stage_cv})
+        physics = model.physics_
+        regressor = physics.estimator_
+        info: dict[str, Any] = {
+            "choice": physics.choice_, "note": physics.note_,
+            "choices": _records(physics.choices_),
+            "calibration": _records(regressor.calibration_),
+            "coefficients": _records(regressor.coefficient_table()),
+            "n_iter": regressor.n_iter_}
+        if physics.selection_ is not None:
+            sel = physics.selection_
+            info["selection"] = {"cv_mae": sel.cv_mae, "steps": len(sel.path) - 1,
+                                 "path": _records(sel.path), "seconds": sel.seconds}
+        return prior, scores, {"parametric": info}
+
+    def outputs(self, model: Any, ds: Dataset, setting: str | None = None) -> Artifacts:
+        """Make the choice, calibration, coefficient, corrected-parameter and path tables."""
+        physics = model.physics_
+        regressor = physics.estimator_
+        X = _frame(ds)
+        start = regressor.start_parameters(X)
+        corrected = regressor.corrected_parameters(X)
+        split = pd.Series("test", index=X.index, name="split")
+        split.loc[ds.train_index] = "train"
+        columns = {"experiment": pd.Series(X.index, index=X.index), "split": split}
+        for p in regressor.parameter_names_:
+            columns[f"{p}_start"] = start[p]
+            columns[f"{p}_corrected"] = corrected[p]
+            columns[f"{p}_correction"] = corrected[p] - start[p]
+        out = Artifacts(tables={"choices": physics.choices_,
+                                "calibration": regressor.calibration_,
+                                "coefficients": regressor.coefficient_table(),
+                                "corrected_parameters": pd.DataFrame(columns)})
+        out.figures["parameter_corrections"] = parameter_corrections(
+            start, corrected, groups={"training rows": ds.train_index,
+                                      "test rows": ds.test_index}, unit=None,
+            title="Corrected parameters against their start values", setting=setting,
+            reference="start")
+        if physics.selection_ is not None:
+            sel = physics.selection_
+            out.tables["selection_path"] = sel.path
+            out.figures["selection_path"] = selection_path_figure(
+                sel.path, title=f"Forward covariate selection ({sel.n_rows} training rows, "
+                                "CV MAE over all targets)", unit=ds.unit, setting=setting)
+        return out

@@ -1,0 +1,345 @@
+"""A user's physics model as a Python file: loading, evaluating and checking it.
+
+The contract (a file, ``model.py``, that defines):
+
+* ``PARAMETERS``: a dict from each parameter's name to its starting value (a float), or to
+  the name of a data column holding a per-row value (e.g. a control program's parameters
+  of each experiment);
+* ``predict(params, data)``: ``params`` a dict from name to a 1-d array (one value per
+  row), ``data`` a pandas DataFrame of the data set's columns; returns an array of shape
+  ``(rows,)`` for one target or ``(rows, targets)`` in the targets' order;
+* optionally ``jacobian(params, data)``: ``d predict / d params`` of shape
+  ``(rows, targets, parameters)`` in ``PARAMETERS``' order. Without it, the derivatives are
+  central finite differences with a step scaled to each parameter.
+
+:func:`load_model` reads such a file (or :meth:`ParametricModel.from_functions` builds the
+same from Python objects); :func:`check_model` evaluates it on data and raises a
+:class:`ModelError`, one line naming the problem, for every way it can be unusable.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import itertools
+import os
+from collections import OrderedDict
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["ModelError", "ParametricModel", "cached_jacobian", "check_model", "load_model",
+           "resolve_model"]
+
+#: Relative step of the central differences: the cube root of the machine epsilon balances
+#: truncation and rounding errors.
+FD_STEP = float(np.cbrt(np.finfo(float).eps))
+
+_counter = itertools.count()
+_cache: dict[tuple[str, int, int], ParametricModel] = {}
+
+
+class ModelError(ValueError):
+    """A user's model that cannot be used; the message is one line naming the problem."""
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {text[0]}" if text else type(exc).__name__
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class ParametricModel:
+    """A physics model ``f(theta; data)`` with named parameters (the contract above).
+
+    Parameters
+    ----------
+    parameters : dict of str -> float or str
+        Each parameter's start value, or the data column holding its per-row value.
+    predict_fn : callable
+        ``predict(params, data)``.
+    jacobian_fn : callable, default=None
+        ``jacobian(params, data)``; None: central finite differences.
+    source : str, default="<model>"
+        Where the model comes from (its file), as messages name it.
+    """
+
+    parameters: dict[str, float | str]
+    predict_fn: Callable[..., Any]
+    jacobian_fn: Callable[..., Any] | None = None
+    source: str = "<model>"
+
+    @classmethod
+    def from_functions(cls, parameters: Mapping[str, float | str], predict: Callable[..., Any],
+                       jacobian: Callable[..., Any] | None = None,
+                       source: str = "<model>") -> ParametricModel:
+        """Build a model from a ``PARAMETERS`` dict and functions, checked as a file's are."""
+        return _checked(dict(parameters) if isinstance(parameters, Mapping) else parameters,
+                        predict, jacobian, source)
+
+    def __repr__(self) -> str:
+        return f"ParametricModel({self.source!r}, parameters={self.names})"
+
+    @property
+    def names(self) -> list[str]:
+        """The parameters' names, in ``PARAMETERS``' order."""
+        return list(self.parameters)
+
+    def start(self, data: pd.DataFrame) -> np.ndarray:
+        """Start values of every row, shape ``(rows, parameters)``."""
+        n = len(data)
+        out = np.empty((n, len(self.parameters)))
+        for j, (name, value) in enumerate(self.parameters.items()):
+            if isinstance(value, str):
+                if value not in data.columns:
+                    raise ModelError(f"model {self.source}: parameter {name!r} takes its values "
+                                     f"from column {value!r}, which the data lack; columns "
+                                     f"are {[str(c) for c in data.columns]}")
+                col = pd.to_numeric(data[value], errors="coerce").to_numpy(dtype=float)
+                if not np.all(np.isfinite(col)):
+                    raise ModelError(f"model {self.source}: column {value!r} (parameter "
+                                     f"{name!r}) has missing or non-numeric values")
+                out[:, j] = col
+            else:
+                out[:, j] = float(value)
+        return out
+
+    def _params(self, theta: np.ndarray) -> dict[str, np.ndarray]:
+        return {name: theta[:, j] for j, name in enumerate(self.parameters)}
+
+    def predict(self, theta: np.ndarray, data: pd.DataFrame,
+                n_targets: int | None = None) -> np.ndarray:
+        """The model's prediction at parameters ``theta`` (rows, parameters), shape
+        ``(rows, targets)``; a :class:`ModelError` if it raises, has the wrong shape or is
+        not finite."""
+        n = len(data)
+        try:
+            out = self.predict_fn(self._params(theta), data)
+            values = np.asarray(out, dtype=float)
+        except Exception as exc:
+            raise ModelError(f"model {self.source}: predict raised {_first_line(exc)}") from None
+        if values.ndim == 1:
+            values = values[:, None]
+        if values.ndim != 2 or values.shape[0] != n or (
+                n_targets is not None and values.shape[1] != n_targets):
+            want = "(rows,) or (rows, targets)" if n_targets is None else \
+                f"({n},)" if n_targets == 1 else f"({n}, {n_targets})"
+            raise ModelError(f"model {self.source}: predict returned shape "
+                             f"{np.shape(out)}, expected {want} for {n} rows")
+        bad = ~np.isfinite(values).all(axis=1)
+        if bad.any():
+            raise ModelError(f"model {self.source}: predict returned NaN or infinite values "
+                             f"on {int(bad.sum())} of {n} rows (first rows: "
+                             f"{np.flatnonzero(bad)[:5].tolist()})")
+        return values
+
+    def jacobian(self, theta: np.ndarray, data: pd.DataFrame, n_targets: int) -> np.ndarray:
+        """``d predict / d theta``, shape ``(rows, targets, parameters)``: the model's own
+        ``jacobian`` or central finite differences (step :data:`FD_STEP` times each value,
+        at least a thousandth of the parameter's mean magnitude over the rows)."""
+        n, P = theta.shape
+        if self.jacobian_fn is not None:
+            try:
+                jac = np.asarray(self.jacobian_fn(self._params(theta), data), dtype=float)
+            except Exception as exc:
+                raise ModelError(f"model {self.source}: jacobian raised "
+                                 f"{_first_line(exc)}") from None
+            if n_targets == 1 and jac.shape == (n, P):
+                jac = jac[:, None, :]
+            if jac.shape != (n, n_targets, P):
+                raise ModelError(f"model {self.source}: jacobian returned shape {jac.shape}, "
+                                 f"expected (rows, targets, parameters) = ({n}, {n_targets}, "
+                                 f"{P})")
+            if not np.all(np.isfinite(jac)):
+                raise ModelError(f"model {self.source}: jacobian returned NaN or infinite "
+                                 "values")
+            return jac
+        scale = np.abs(theta).mean(axis=0)
+        scale = np.where(scale > 0, scale, 1.0)
+        jac = np.empty((n, n_targets, P))
+        for p in range(P):
+            h = FD_STEP * np.maximum(np.abs(theta[:, p]), 1e-3 * scale[p])
+            up, down = theta.copy(), theta.copy()
+            up[:, p] += h
+            down[:, p] -= h
+            h = up[:, p] - down[:, p]  # the steps actually taken (rounding)
+            jac[:, :, p] = (self.predict(up, data, n_targets)
+                            - self.predict(down, data, n_targets)) / h[:, None]
+        return jac
+
+
+#: Jacobians of recent (model, data, parameters): a forward selection refits every candidate
+#: from the same coefficients on each fold, so each fit's first Jacobian is the same.
+_JACOBIANS: OrderedDict[tuple[int, int, int, bytes], tuple[Any, Any, np.ndarray]] = \
+    OrderedDict()
+_JACOBIANS_KEPT = 64
+
+
+def cached_jacobian(model: ParametricModel, theta: np.ndarray, data: pd.DataFrame,
+                    n_targets: int) -> np.ndarray:
+    """Return :meth:`ParametricModel.jacobian`, remembered for the last few calls.
+
+    The calls are keyed by the model and data objects (which the cache holds) and the
+    parameters' values.
+
+    Parameters
+    ----------
+    model : ParametricModel
+        The model.
+    theta : ndarray of shape (rows, parameters)
+        The parameters.
+    data : DataFrame
+        The rows.
+    n_targets : int
+        The prediction's targets.
+
+    Returns
+    -------
+    ndarray of shape (rows, targets, parameters)
+        The Jacobian.
+    """
+    # the parameters to about 13 significant digits: a fit warm-started from another's
+    # coefficients computes them in another order of summation
+    key = (id(model), id(data), n_targets, (np.ascontiguousarray(theta).view(np.int64)
+                                            >> 8).tobytes())
+    hit = _JACOBIANS.get(key)
+    if hit is not None and hit[0] is model and hit[1] is data:
+        _JACOBIANS.move_to_end(key)
+        return hit[2]
+    jac = model.jacobian(theta, data, n_targets)
+    _JACOBIANS[key] = (model, data, jac)
+    while len(_JACOBIANS) > _JACOBIANS_KEPT:
+        _JACOBIANS.popitem(last=False)
+    return jac
+
+
+def _checked(parameters: Any, predict: Any, jacobian: Any, source: str) -> ParametricModel:
+    """A :class:`ParametricModel` from the contract's objects, each checked."""
+    if not isinstance(parameters, dict) or not parameters:
+        raise ModelError(f"model {source}: PARAMETERS must be a non-empty dict from each "
+                         f"parameter's name to its start value or a data column, got "
+                         f"{type(parameters).__name__}")
+    for name, value in parameters.items():
+        if not isinstance(name, str) or not name:
+            raise ModelError(f"model {source}: PARAMETERS' keys must be names (str), got "
+                             f"{name!r}")
+        if isinstance(value, bool) or not isinstance(value, (int, float, str)) or (
+                not isinstance(value, str) and not np.isfinite(value)):
+            raise ModelError(f"model {source}: PARAMETERS[{name!r}] must be a finite number "
+                             f"(its start value) or a column name, got {value!r}")
+    if not callable(predict):
+        raise ModelError(f"model {source}: predict must be a function predict(params, data)")
+    if jacobian is not None and not callable(jacobian):
+        raise ModelError(f"model {source}: jacobian must be a function jacobian(params, data)")
+    values = {k: v if isinstance(v, str) else float(v) for k, v in parameters.items()}
+    return ParametricModel(values, predict, jacobian, source)
+
+
+def load_model(path: str | os.PathLike[str]) -> ParametricModel:
+    """Import a model file (see the module's docstring) and check its definitions.
+
+    A file is imported once per process while it is unchanged (size and modification time).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The model file.
+
+    Returns
+    -------
+    ParametricModel
+        Its model.
+
+    Raises
+    ------
+    ModelError
+        One line: the file is missing or does not import, or lacks ``PARAMETERS`` or
+        ``predict``, or they are of the wrong kind.
+    """
+    file = Path(path).expanduser().resolve()
+    if not file.is_file():
+        raise ModelError(f"model file {path} not found")
+    stat = file.stat()
+    key = (str(file), stat.st_mtime_ns, stat.st_size)
+    if key in _cache:
+        return _cache[key]
+    name = f"workbench_user_model_{next(_counter)}"
+    spec = importlib.util.spec_from_file_location(name, file)
+    if spec is None or spec.loader is None:
+        raise ModelError(f"model file {path} does not import: not a Python file")
+    module = importlib.util.module_from_spec(spec)
+    try:
+        spec.loader.exec_module(module)
+    except Exception as exc:  # the user's code: anything
+        raise ModelError(f"model file {path} does not import: {_first_line(exc)}") from None
+    for required in ("PARAMETERS", "predict"):
+        if not hasattr(module, required):
+            raise ModelError(f"model file {path} defines no {required} (a model file defines "
+                             "PARAMETERS, predict(params, data) and optionally "
+                             "jacobian(params, data))")
+    model = _checked(module.PARAMETERS, module.predict, getattr(module, "jacobian", None),
+                     str(path))
+    _cache[key] = model
+    return model
+
+
+def resolve_model(model: Any) -> ParametricModel:
+    """Return a :class:`ParametricModel` from a model or the path of a model file.
+
+    Parameters
+    ----------
+    model : ParametricModel, str or path-like
+        The model, or its file.
+
+    Returns
+    -------
+    ParametricModel
+        The model.
+    """
+    if isinstance(model, ParametricModel):
+        return model
+    if isinstance(model, (str, os.PathLike)):
+        return load_model(model)
+    raise ModelError("model must be the path of a model file or a ParametricModel, got "
+                     f"{type(model).__name__}")
+
+
+def check_model(model: ParametricModel, data: pd.DataFrame, n_targets: int | None = None,
+                theta: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Evaluate ``model`` on ``data`` at ``theta`` (default: its start values) and check it.
+
+    Parameters
+    ----------
+    model : ParametricModel
+        The model.
+    data : DataFrame
+        The rows.
+    n_targets : int, default=None
+        The targets the prediction must have (None: any).
+    theta : ndarray of shape (rows, parameters), default=None
+        The parameters (None: the start values).
+
+    Returns
+    -------
+    prediction : ndarray of shape (rows, targets)
+    jacobian : ndarray of shape (rows, targets, parameters)
+
+    Raises
+    ------
+    ModelError
+        One line: the model raises, returns NaN or the wrong shape, its Jacobian has the
+        wrong shape, or a parameter's derivative is zero on every row.
+    """
+    theta = model.start(data) if theta is None else theta
+    value = model.predict(theta, data, n_targets)
+    jac = cached_jacobian(model, theta, data, value.shape[1])
+    flat = np.abs(jac).max(axis=(0, 1))
+    dead = [name for name, m in zip(model.names, flat) if not m > 0]
+    if dead:
+        raise ModelError(f"model {model.source}: the prediction does not depend on parameter"
+                         f"{'s' if len(dead) > 1 else ''} {', '.join(map(repr, dead))} (its "
+                         "derivative is zero on every row)")
+    return value, jac

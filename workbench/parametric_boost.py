@@ -1,0 +1,648 @@
+"""Any physics model, corrected in its own parameter space.
+
+:class:`ParametricRegressor` fits ``y ~ f(theta(x); x)`` for a user's model ``f``
+(:mod:`workbench.parametric`): ``theta_p(x) = start_p(x) + delta_p(x)`` with
+``delta_p(x) = phi_p(x) . c_p`` linear in standardised covariates (an intercept, the
+calibration offset, and the covariates it is given). It first calibrates the intercepts
+globally (Kennedy and O'Hagan's calibration: :func:`scipy.optimize.least_squares` with a
+robust loss), then fits every coefficient by the Gauss-Newton engine of the Hamiltonian
+family (:mod:`workbench.param_boost`: the same normal equations, IRLS weights, ridge and
+L1 penalties), with the model's Jacobian or central finite differences.
+
+:class:`ParametricBoostRegressor` chooses by cross-validation on the rows it is given among
+the prior (the model at its start values), the calibrated model (no drift) and linear
+drifts whose covariates forward selection picks (:mod:`workbench.param_select`'s engine).
+"""
+
+from __future__ import annotations
+
+import numbers
+import os
+import time
+from collections.abc import Callable, Sequence
+from itertools import combinations
+from typing import Any, Self
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import least_squares
+from sklearn.base import BaseEstimator, RegressorMixin, clone
+from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
+from sklearn.utils.validation import check_is_fitted, validate_data
+
+from .parallel import effective_n_jobs
+from .param_boost import (
+    _CURVATURE,
+    _NEWTON_SWITCH,
+    PARAM_LOSSES,
+    _lasso_quadratic,
+    _normal_equations,
+    _weights,
+)
+from .param_select import SelectionResult, _fit_splits, _refit_select, _sliced, _splits
+from .parametric import (
+    ModelError,
+    ParametricModel,
+    cached_jacobian,
+    check_model,
+    resolve_model,
+)
+
+__all__ = ["ParametricBoostRegressor", "ParametricRegressor", "covariate_pool"]
+
+#: scipy's robust losses for the calibration, by the regressor's ``loss``.
+_SCIPY_LOSS = {"squared_error": "linear", "absolute_error": "soft_l1", "huber": "huber"}
+
+_MODEL = [str, os.PathLike, HasMethods(["predict", "jacobian", "start"])]
+
+
+def _variable(name: str, columns: set[str]) -> tuple[str, ...] | None:
+    """A variable: a column ``(c,)``, a product ``("*", a, b)`` or a difference
+    ``("-", a, b)`` of two columns; None if ``name`` is none of these."""
+    if name in columns:
+        return (name,)
+    for op in ("*", "-"):
+        for k, char in enumerate(name):
+            if char == op and name[:k] in columns and name[k + 1:] in columns:
+                return (op, name[:k], name[k + 1:])
+    return None
+
+
+def _term(name: str, columns: set[str]) -> tuple[str, int]:
+    """Covariate name -> (variable, power): ``"x"``, ``"x^2"``, ``"a*b"``, ``"a-b^2"``."""
+    if _variable(name, columns):
+        return name, 1
+    base, sep, power = name.rpartition("^")
+    if sep and _variable(base, columns) and power.isdigit() and int(power) >= 1:
+        return base, int(power)
+    raise ValueError(f"unknown covariate {name!r}: a covariate is a column of X, a product "
+                     "'a*b' or a difference 'a-b' of two columns, optionally followed by "
+                     f"'^k'; X's columns are {sorted(columns)}")
+
+
+def covariate_pool(features: Sequence[str], parameters: Sequence[str], *, squares: bool = True,
+                   products: bool = True) -> dict[str, list[str]]:
+    """Return every parameter's candidate covariates.
+
+    The features, their squares and their pairwise products (each standardised when fitted).
+
+    Parameters
+    ----------
+    features : sequence of str
+        The columns.
+    parameters : sequence of str
+        The model's parameters.
+    squares, products : bool, default=True
+        Whether to add the squares, the pairwise products.
+
+    Returns
+    -------
+    dict of str -> list of str
+        The same candidates for every parameter.
+    """
+    f = list(features)
+    names = f + ([f"{a}^2" for a in f] if squares else []) + (
+        [f"{a}*{b}" for a, b in combinations(f, 2)] if products else [])
+    return {p: list(names) for p in parameters}
+
+
+def _targets(y: Any) -> np.ndarray:
+    if y is None:
+        raise ValueError("this regressor requires y to be passed, but the target y is None")
+    y = np.asarray(y, dtype=float)
+    if y.ndim == 1:
+        y = y[:, None]
+    if y.ndim != 2 or not np.all(np.isfinite(y)):
+        raise ValueError("y must be finite, of shape (rows,) or (rows, targets)")
+    return y
+
+
+def _as_frame(est: BaseEstimator, X: Any, reset: bool) -> pd.DataFrame:
+    """``X`` as a DataFrame: a frame as is (columns by name), an array checked by
+    scikit-learn (columns ``x0``, ``x1``, ...); sets the fitted input attributes on
+    ``reset``."""
+    if isinstance(X, pd.DataFrame):
+        if len(X) == 0:
+            raise ValueError("X has no rows")
+        if reset:
+            est.n_features_in_ = X.shape[1]
+            est.feature_names_in_ = np.asarray([str(c) for c in X.columns], dtype=object)
+        return X
+    values = validate_data(est, X, reset=reset, dtype="numeric")
+    return pd.DataFrame(values, columns=[f"x{j}" for j in range(values.shape[1])])
+
+
+def _trial(model: ParametricModel, theta: np.ndarray, X: pd.DataFrame,
+           n_targets: int) -> np.ndarray | None:
+    """The model at trial parameters, or None where it fails there (NaN, an error): a trial
+    step may leave the model's domain (a negative lifetime) where its start did not."""
+    try:
+        with np.errstate(all="ignore"):
+            return model.predict(theta, X, n_targets)
+    except ModelError:
+        return None
+
+
+class ParametricRegressor(RegressorMixin, BaseEstimator):
+    """A user's physics model with parameters calibrated and drifting linearly in covariates.
+
+    ``predict(X) = f(start(X) + delta(X); X)``, ``delta_p(x) = c_p0 + sum_k c_pk z_pk(x)``:
+    ``z_pk`` the covariates of ``covariates[p]`` (a column, a product ``a*b`` of two columns
+    (each factor centred), a difference ``a-b``, optionally to a power ``^k`` after centring;
+    standardised with the training rows' mean and sd). The coefficients are in the
+    parameter's units per covariate sd.
+
+    ``fit`` calibrates the intercepts ``c_p0`` first (``calibrate``: robust least squares
+    over the training rows, the loss matching ``loss``), then minimises ``sum rho(y - f) +
+    alpha / 2 ||c||^2 + alpha_l1 ||c||_1`` (intercepts unpenalised) by Gauss-Newton with IRLS
+    weights and step halving, as
+    :class:`~workbench.param_boost.HamiltonianParameterRegressor` does.
+
+    Parameters
+    ----------
+    model : str or ParametricModel
+        The path of a model file (:func:`~workbench.parametric.load_model`) or a model.
+    covariates : dict of str -> list of str, default=None
+        Each parameter's covariates (None or a parameter left out: intercept only, the
+        calibrated model).
+    calibrate : bool, default=True
+        Start from the robust global calibration of the intercepts (else from 0).
+    alpha, alpha_l1 : float, default=1.0, 0.0
+        Ridge and L1 penalties of the non-intercept coefficients.
+    loss : {"squared_error", "absolute_error", "huber"}, default="huber"
+    huber_delta : float, default=1.0
+        Huber's threshold (targets' units); also the calibration's ``f_scale``.
+    max_iter : int, default=20
+        Gauss-Newton iterations (0: the calibrated model, or the start values without
+        ``calibrate``).
+    tol : float, default=1e-6
+        Relative decrease of the objective below which iteration stops.
+
+    Attributes
+    ----------
+    parameter_names_ : list of str
+    covariate_names_ : dict of str -> list of str
+        Each parameter's covariates, ``"intercept"`` first.
+    calibration_ : DataFrame
+        Per parameter its start (a value or a column's name) and the calibrated offset.
+    n_iter_ : int
+    train_loss_ : ndarray
+    n_targets_ : int
+    """
+
+    _parameter_constraints: dict = {
+        "model": _MODEL,
+        "covariates": [None, dict],
+        "calibrate": ["boolean"],
+        "alpha": [Interval(numbers.Real, 0, None, closed="left")],
+        "alpha_l1": [Interval(numbers.Real, 0, None, closed="left")],
+        "loss": [StrOptions(set(PARAM_LOSSES))],
+        "huber_delta": [Interval(numbers.Real, 0, None, closed="neither")],
+        "max_iter": [Interval(numbers.Integral, 0, None, closed="left")],
+        "tol": [Interval(numbers.Real, 0, None, closed="left")],
+    }
+
+    def __init__(self, model: str | ParametricModel | None = None, *,
+                 covariates: dict[str, list[str]] | None = None, calibrate: bool = True,
+                 alpha: float = 1.0, alpha_l1: float = 0.0, loss: str = "huber",
+                 huber_delta: float = 1.0, max_iter: int = 20, tol: float = 1e-6) -> None:
+        self.model = model
+        self.covariates = covariates
+        self.calibrate = calibrate
+        self.alpha = alpha
+        self.alpha_l1 = alpha_l1
+        self.loss = loss
+        self.huber_delta = huber_delta
+        self.max_iter = max_iter
+        self.tol = tol
+
+    # ------------------------------------------------------------------ design
+    def _values(self, X: pd.DataFrame, name: str) -> np.ndarray:
+        var = _variable(name, self._columns)
+        assert var is not None
+        if len(var) == 1:
+            return pd.to_numeric(X[name], errors="coerce").to_numpy(dtype=float)
+        op, a, b = var
+        va, vb = self._values(X, a), self._values(X, b)
+        if op == "-":
+            return va - vb
+        return (va - self.factor_mean_[a]) * (vb - self.factor_mean_[b])
+
+    def _design(self, X: pd.DataFrame, fitting: bool) -> list[np.ndarray]:
+        n = len(X)
+        if fitting:
+            self.factor_mean_ = {}
+            for ts in self.terms_.values():
+                for v, _ in ts:
+                    var = _variable(v, self._columns)
+                    if var and var[0] == "*":
+                        for f in var[1:]:
+                            self.factor_mean_[f] = float(self._values(X, f).mean())
+            self.var_mean_, self.col_mean_, self.col_scale_ = {}, {}, {}
+        cache: dict[str, np.ndarray] = {}
+        phis = []
+        for p in self.parameter_names_:
+            cols = []
+            for v, k in self.terms_[p]:
+                if v not in cache:
+                    cache[v] = self._values(X, v)
+                    if fitting:
+                        self.var_mean_[v] = float(cache[v].mean())
+                cols.append((cache[v] - self.var_mean_[v]) ** k)
+            raw = np.column_stack(cols) if cols else np.empty((n, 0))
+            if not np.all(np.isfinite(raw)):
+                raise ValueError(f"the covariates of parameter {p!r} have missing or "
+                                 "non-numeric values")
+            if fitting:
+                sd = raw.std(axis=0)
+                self.col_mean_[p] = raw.mean(axis=0)
+                self.col_scale_[p] = np.where(sd > 0, sd, 1.0)
+            phis.append(np.column_stack([np.ones(n),
+                                         (raw - self.col_mean_[p]) / self.col_scale_[p]]))
+        return phis
+
+    def _theta(self, start: np.ndarray, phis: list[np.ndarray], c: np.ndarray) -> np.ndarray:
+        return start + np.column_stack([phi @ c[sl] for phi, sl in zip(phis, self._slices)])
+
+    def _objective(self, r: np.ndarray, c: np.ndarray, penalty: np.ndarray) -> float:
+        data = PARAM_LOSSES[self.loss](r, self.huber_delta)[0].sum()
+        pc = penalty * c
+        return float(data + 0.5 * self.alpha * np.sum(pc * c) + self.alpha_l1 * np.abs(pc).sum())
+
+    # ------------------------------------------------------------------ fitting
+    def _setup(self, X: Any, y: Any) -> tuple[ParametricModel, np.ndarray, np.ndarray,
+                                              list[np.ndarray]]:
+        model = resolve_model(self.model)
+        Y = _targets(y)
+        self._y_1d = np.asarray(y).ndim == 1
+        if len(Y) != len(X):
+            raise ValueError(f"X has {len(X)} rows and y {len(Y)}")
+        self.parameter_names_ = model.names
+        covariates = self.covariates or {}
+        unknown = [p for p in covariates if p not in model.parameters]
+        if unknown:
+            raise ValueError(f"covariates name unknown parameter(s) {unknown}; the model's "
+                             f"parameters are {model.names}")
+        self._columns = {str(c) for c in X.columns}
+        self.terms_ = {p: [_term(c, self._columns) for c in covariates.get(p, [])]
+                       for p in model.names}
+        self.covariate_names_ = {p: ["intercept"] + list(covariates.get(p, []))
+                                 for p in model.names}
+        self.n_targets_ = Y.shape[1]
+        start = model.start(X)
+        phis = self._design(X, fitting=True)
+        sizes = [phi.shape[1] for phi in phis]
+        ends = np.cumsum(sizes)
+        self._slices = [slice(e - s, e) for s, e in zip(sizes, ends)]
+        self._index = [(p, c) for p in model.names for c in self.covariate_names_[p]]
+        return model, start, Y, phis
+
+    def _calibrate(self, model: ParametricModel, X: pd.DataFrame, start: np.ndarray,
+                   Y: np.ndarray) -> np.ndarray:
+        """Robust global offsets of the parameters (the calibration)."""
+        T = Y.shape[1]
+
+        def resid(b: np.ndarray) -> np.ndarray:
+            value = _trial(model, start + b, X, T)  # NaN outside the model's domain:
+            return np.full(Y.size, np.nan) if value is None else (value - Y).ravel()
+
+        def jac(b: np.ndarray) -> np.ndarray:
+            return model.jacobian(start + b, X, T).reshape(-1, len(b))
+
+        fit = least_squares(resid, np.zeros(start.shape[1]), jac=jac,
+                            loss=_SCIPY_LOSS[self.loss], f_scale=float(self.huber_delta),
+                            x_scale="jac", max_nfev=50 * start.shape[1])
+        return fit.x
+
+    def fit(self, X: pd.DataFrame, y: Any, coef_init: Any = None) -> Self:
+        """Calibrate, then fit the corrections' coefficients on ``X`` and ``y``.
+
+        ``coef_init``: starting coefficients keyed by (parameter, covariate) (another fit's
+        :meth:`coef_dict`); then the calibration is skipped (a warm start)."""
+        self._validate_params()
+        X = _as_frame(self, X, reset=True)
+        model, start, Y, phis = self._setup(X, y)
+        check_model(model, X, Y.shape[1], start)  # one line per way the model is unusable
+        penalty = np.ones(len(self._index))
+        penalty[[s.start for s in self._slices]] = 0.0
+        c = np.zeros(len(self._index))
+        if coef_init is not None:
+            known = dict(coef_init)
+            c = np.array([float(known.get(k, 0.0)) for k in self._index])
+        elif self.calibrate:
+            c[[s.start for s in self._slices]] = self._calibrate(model, X, start, Y)
+        self.calibration_ = pd.DataFrame({
+            "parameter": model.names,
+            "start": [v if isinstance(v, str) else float(v) for v in model.parameters.values()],
+            "offset": c[[s.start for s in self._slices]]})
+        self._coef = self._gauss_newton(model, X, start, Y, phis, c, penalty)
+        return self
+
+    def _gauss_newton(self, model: ParametricModel, X: pd.DataFrame, start: np.ndarray,
+                      Y: np.ndarray, phis: list[np.ndarray], c: np.ndarray,
+                      penalty: np.ndarray) -> np.ndarray:
+        """The robust, penalised Gauss-Newton fit (param_boost's normal equations)."""
+        P, K = len(phis), max(phi.shape[1] for phi in phis)
+        Phi = np.zeros((len(X), P, K))
+        sel: list[int] = []
+        for p, phi in enumerate(phis):
+            Phi[:, p, :phi.shape[1]] = phi
+            sel.extend(p * K + np.arange(phi.shape[1]))
+        sel_a = np.asarray(sel)
+        T = Y.shape[1]
+        r = Y - model.predict(self._theta(start, phis, c), X, T)
+        obj = self._objective(r, c, penalty)
+        history, n_iter, improvement = [obj], 0, np.inf
+        newton = False  # IRLS steps (a majorisation) until close; then the curvature
+        while n_iter < self.max_iter:
+            n_iter += 1
+            near = improvement < _NEWTON_SWITCH and self.loss in _CURVATURE
+            jac = cached_jacobian(model, self._theta(start, phis, c), X, T)
+            w, wr = _weights(self.loss, r, self.huber_delta, newton or near)
+            AtWA, AtWr = _normal_equations(jac, w, r, Phi, sel_a, wr=wr)
+            H = AtWA + self.alpha * np.diag(penalty)
+            g = AtWr - self.alpha * penalty * c
+            if self.alpha_l1 > 0:
+                dc = _lasso_quadratic(H, g + H @ c, self.alpha_l1 * penalty, c) - c
+            else:
+                try:
+                    dc = np.linalg.solve(H, g)
+                except np.linalg.LinAlgError:
+                    dc = np.linalg.lstsq(H, g, rcond=None)[0]
+            step, accepted = 1.0, False
+            for _ in range(30):
+                c_new = c + step * dc
+                value = _trial(model, self._theta(start, phis, c_new), X, T)
+                if value is None:  # outside the model's domain: a shorter step
+                    step *= 0.5
+                    continue
+                r_new = Y - value
+                obj_new = self._objective(r_new, c_new, penalty)
+                if obj_new <= obj:
+                    accepted = True
+                    break
+                step *= 0.5
+            if not accepted:
+                break
+            improvement = (obj - obj_new) / max(obj, np.finfo(float).tiny)
+            c, r, obj = c_new, r_new, obj_new
+            history.append(obj)
+            if improvement < self.tol:
+                break
+        self.n_iter_ = n_iter
+        self.train_loss_ = np.asarray(history)
+        return c
+
+    # ------------------------------------------------------------------ results
+    def _corrected(self, X: pd.DataFrame) -> np.ndarray:
+        check_is_fitted(self)
+        X = _as_frame(self, X, reset=False)
+        model = resolve_model(self.model)
+        return self._theta(model.start(X), self._design(X, fitting=False), self._coef)
+
+    def predict(self, X: pd.DataFrame) -> np.ndarray:
+        """The model at the corrected parameters: ``(rows,)`` if fitted on one-dimensional
+        ``y``, else ``(rows, targets)``."""
+        model = resolve_model(self.model)
+        X = _as_frame(self, X, reset=False)
+        out = model.predict(self._corrected(X), X, self.n_targets_)
+        return out[:, 0] if self._y_1d else out
+
+    def corrected_parameters(self, X: pd.DataFrame) -> pd.DataFrame:
+        """``start(X) + delta(X)`` per row, one column per parameter."""
+        return pd.DataFrame(self._corrected(X), columns=self.parameter_names_, index=X.index)
+
+    def start_parameters(self, X: pd.DataFrame) -> pd.DataFrame:
+        """The model's start values per row (the prior's parameters)."""
+        check_is_fitted(self)
+        return pd.DataFrame(resolve_model(self.model).start(X), columns=self.parameter_names_,
+                            index=X.index)
+
+    @property
+    def coef_(self) -> pd.DataFrame:
+        """One row per (parameter, covariate), column ``"coef"``."""
+        check_is_fitted(self)
+        index = pd.MultiIndex.from_tuples(self._index, names=["parameter", "covariate"])
+        return pd.DataFrame({"coef": self._coef}, index=index)
+
+    def coef_dict(self) -> dict[tuple[str, str], float]:
+        """``{(parameter, covariate): coefficient}`` (a ``coef_init``)."""
+        check_is_fitted(self)
+        return dict(zip(self._index, self._coef.tolist()))
+
+    def coefficient_table(self) -> pd.DataFrame:
+        """The non-zero coefficients: parameter, covariate, coefficient (the parameter's
+        units per covariate sd; the intercept is the calibrated offset) and the covariate's
+        training sd."""
+        check_is_fitted(self)
+        rows = []
+        for p, sl in zip(self.parameter_names_, self._slices):
+            sds = np.concatenate([[np.nan], self.col_scale_[p]])
+            for name, coef, sd in zip(self.covariate_names_[p], self._coef[sl], sds):
+                if coef != 0.0:
+                    rows.append(dict(parameter=p, covariate=name, coef=float(coef),
+                                     covariate_sd=float(sd)))
+        return pd.DataFrame(rows, columns=["parameter", "covariate", "coef", "covariate_sd"])
+
+    def __sklearn_tags__(self) -> Any:
+        tags = super().__sklearn_tags__()
+        tags.target_tags.multi_output = True  # one column per target of the user's model
+        return tags
+
+    def __sklearn_is_fitted__(self) -> bool:
+        return hasattr(self, "_coef")
+
+
+#: The candidates :class:`ParametricBoostRegressor` compares, simplest first.
+CANDIDATES = ("prior", "calibrated", "drift")
+
+
+class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
+    """A user's model calibrated, with parameter drifts chosen by CV, or neither.
+
+    ``fit`` scores on the same repeated K-fold splits of the rows it is given: the prior
+    (the model at its start values; no fit, so its training MAE), the calibrated model
+    (:class:`ParametricRegressor` without covariates) and the linear drift whose covariates
+    forward selection chooses from ``start`` over ``candidates``
+    (:func:`workbench.param_select.forward_select`'s engine: each candidate refitted on
+    every split, warm-started). A more complex candidate wins only by more than
+    ``min_improvement``; the winner is refitted on all rows (``estimator_``).
+    :attr:`choices_` tells the CV MAE of each and which won; where the drift does not win,
+    :attr:`note_` says the error is not a drift of the parameters.
+
+    Parameters
+    ----------
+    model : str or ParametricModel
+        The path of a model file or a model.
+    start : dict of str -> list of str, default=None
+        Covariates every drift model has (None: intercepts only).
+    candidates : "auto", dict of str -> list of str or None, default="auto"
+        The selection's pool; ``"auto"``: :func:`covariate_pool` of ``features`` for every
+        parameter; None: no drift candidate.
+    features : list of str, default=None
+        The columns the ``"auto"`` pool is built from (None: every numeric column of ``X``
+        that is no parameter's column).
+    squares, products : bool, default=True
+        Whether the ``"auto"`` pool has the features' squares and pairwise products.
+    cv, n_repeats : int, default=5, 1
+        The repeated K-fold splits.
+    max_steps : int, default=20
+        The most covariates the selection adds.
+    min_improvement : float, default=1e-3
+        The CV MAE (targets' units) a covariate, or a more complex candidate, must gain.
+    alpha, alpha_l1, loss, huber_delta, max_iter, tol
+        :class:`ParametricRegressor`'s.
+    random_state : int, default=None
+        Seeds the splits (None: 0).
+    n_jobs : int, default=None
+        Processes scoring the selection's candidates (:mod:`workbench.parallel`).
+    verbose : bool, default=False
+        Print a line per selection step.
+
+    Attributes
+    ----------
+    estimator_ : ParametricRegressor
+        The winner, refitted on all rows.
+    choice_ : str
+        ``"prior"``, ``"calibrated"`` or ``"drift"``.
+    choices_ : DataFrame
+        ``candidate``, ``cv_mae``, ``chosen``.
+    note_ : str
+    selection_ : SelectionResult or None
+        The forward selection (its path).
+    cv_mae_ : float
+        The winner's CV MAE.
+    n_iter_ : int
+        The winner's Gauss-Newton iterations.
+    """
+
+    _parameter_constraints: dict = {
+        "model": _MODEL,
+        "start": [None, dict],
+        "candidates": [None, StrOptions({"auto"}), dict],
+        "features": [None, list, tuple],
+        "squares": ["boolean"],
+        "products": ["boolean"],
+        "cv": [Interval(numbers.Integral, 2, None, closed="left")],
+        "n_repeats": [Interval(numbers.Integral, 1, None, closed="left")],
+        "max_steps": [Interval(numbers.Integral, 0, None, closed="left")],
+        "min_improvement": [Interval(numbers.Real, 0, None, closed="left")],
+        **{k: v for k, v in ParametricRegressor._parameter_constraints.items()
+           if k not in ("model", "covariates", "calibrate")},
+        "random_state": [None, numbers.Integral],
+        "n_jobs": [None, numbers.Integral],
+        "verbose": ["boolean"],
+    }
+
+    def __init__(self, model: str | ParametricModel | None = None, *,
+                 start: dict[str, list[str]] | None = None,
+                 candidates: str | dict[str, list[str]] | None = "auto",
+                 features: Sequence[str] | None = None, squares: bool = True,
+                 products: bool = True, cv: int = 5, n_repeats: int = 1, max_steps: int = 20,
+                 min_improvement: float = 1e-3, alpha: float = 1.0, alpha_l1: float = 0.0,
+                 loss: str = "huber", huber_delta: float = 1.0, max_iter: int = 20,
+                 tol: float = 1e-6, random_state: int | None = None, n_jobs: int | None = None,
+                 verbose: bool = False) -> None:
+        self.model = model
+        self.start = start
+        self.candidates = candidates
+        self.features = features
+        self.squares = squares
+        self.products = products
+        self.cv = cv
+        self.n_repeats = n_repeats
+        self.max_steps = max_steps
+        self.min_improvement = min_improvement
+        self.alpha = alpha
+        self.alpha_l1 = alpha_l1
+        self.loss = loss
+        self.huber_delta = huber_delta
+        self.max_iter = max_iter
+        self.tol = tol
+        self.random_state = random_state
+        self.n_jobs = n_jobs
+        self.verbose = verbose
+
+    def _pool(self, model: ParametricModel, X: pd.DataFrame) -> dict[str, list[str]]:
+        if self.candidates is None:
+            return {}
+        if isinstance(self.candidates, dict):
+            return {p: list(v) for p, v in self.candidates.items()}
+        if self.features is not None:
+            features = list(self.features)
+        else:
+            used = {v for v in model.parameters.values() if isinstance(v, str)}
+            features = [str(c) for c in X.columns if str(c) not in used
+                        and pd.api.types.is_numeric_dtype(X[c])]
+        return covariate_pool(features, model.names, squares=self.squares,
+                              products=self.products)
+
+    def fit(self, X: pd.DataFrame, y: Any) -> Self:
+        """Choose among prior, calibrated model and drift by CV; refit the winner."""
+        self._validate_params()
+        X = _as_frame(self, X, reset=True)
+        t0 = time.perf_counter()
+        model = resolve_model(self.model)
+        Y = _targets(y)
+        common: dict[str, Any] = dict(model=self.model, alpha=self.alpha, alpha_l1=self.alpha_l1,
+                      loss=self.loss, huber_delta=self.huber_delta, max_iter=self.max_iter,
+                      tol=self.tol)
+        base = ParametricRegressor(**common)
+        prior = ParametricRegressor(**{**common, "max_iter": 0}, calibrate=False)
+        prior_fit = clone(prior).fit(X, Y)  # also checks the model (one line per bad case)
+        scores = {"prior": float(np.mean(np.abs(prior_fit.predict(X) - Y)))}
+        rs = 0 if self.random_state is None else int(self.random_state)
+        folds = _sliced(X, Y, _splits(len(X), self.cv, self.n_repeats, rs))
+        scores["calibrated"] = float(_fit_splits(base, {}, folds, [None] * len(folds))[0])
+        pool = self._pool(model, X)
+        unknown = [p for p in list(pool) + list(self.start or {}) if p not in model.parameters]
+        if unknown:
+            raise ValueError(f"start and candidates name unknown parameter(s) {unknown}; the "
+                             f"model's parameters are {model.names}")
+        current = {p: list((self.start or {}).get(p, [])) for p in model.names}
+        pairs = [(p, c) for p in model.names for c in dict.fromkeys(pool.get(p, []))
+                 if c not in current[p]]
+        self.selection_: SelectionResult | None = None
+        drift: dict[str, list[str]] | None = None
+        if pairs or any(current.values()):
+            progress: Callable[[str], None] | None = print if self.verbose else None
+            self.selection_ = _refit_select(X, base, current, pairs, folds,
+                                            effective_n_jobs(self.n_jobs), self.max_steps,
+                                            self.min_improvement, progress, t0, common)
+            drift = self.selection_.covariates
+            scores["drift"] = float(self.selection_.cv_mae)
+        self.choice_ = "prior"
+        for name in CANDIDATES[1:]:
+            if name in scores and scores[self.choice_] - scores[name] > self.min_improvement:
+                self.choice_ = name
+        self.note_ = ("" if self.choice_ == "drift" else
+                      "the error is not a drift of the parameters: the drift did not beat "
+                      f"the {'calibrated model' if 'drift' in scores else 'other candidates'}"
+                      " in CV")
+        self.choices_ = pd.DataFrame({"candidate": list(scores), "cv_mae": list(scores.values()),
+                                      "chosen": [k == self.choice_ for k in scores]})
+        winner = {"prior": prior, "calibrated": base,
+                  "drift": clone(base).set_params(covariates=drift)}[self.choice_]
+        self.estimator_ = clone(winner).fit(X, np.asarray(y, dtype=float))
+        self.cv_mae_ = scores[self.choice_]
+        self.n_iter_ = self.estimator_.n_iter_
+        self.seconds_ = time.perf_counter() - t0
+        return self
+
+    def predict(self, X: pd.DataFrame) -> np.ndarray:
+        """The winner's prediction."""
+        check_is_fitted(self)
+        return self.estimator_.predict(_as_frame(self, X, reset=False))
+
+    def corrected_parameters(self, X: pd.DataFrame) -> pd.DataFrame:
+        """The winner's parameters per row."""
+        check_is_fitted(self)
+        return self.estimator_.corrected_parameters(_as_frame(self, X, reset=False))
+
+    def __sklearn_tags__(self) -> Any:
+        tags = super().__sklearn_tags__()
+        tags.target_tags.multi_output = True  # one column per target of the user's model
+        return tags
+
+    def __sklearn_is_fitted__(self) -> bool:
+        return hasattr(self, "estimator_")
