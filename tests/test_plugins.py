@@ -195,7 +195,8 @@ def test_an_unknown_name_lists_the_valid_ones_plug_ins_included(install, tmp_pat
                                            r"'ibm_gates', 'csv', 'tiny'\]"):
         get_source("nope")
     with pytest.raises(ConfigError, match=r"model\.family = 'nope': unknown family; valid: "
-                                          r"\['eigenvalue', 'hamiltonian', 'plugin_prior'\]"):
+                                          r"\['eigenvalue', 'hamiltonian', 'parametric', "
+                                          r"'plugin_prior'\]"):
         parse_config({"model": {"family": "nope"}}, tmp_path / "c.toml")
     with pytest.raises(ConfigError, match=r"model.basis = 'nope': unknown basis; valid: .*"
                                           r"'shrunk_ridge'"):
