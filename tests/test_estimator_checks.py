@@ -56,7 +56,7 @@ def _expected_failed(estimator):
                    random_state=0),
      BaseBoostRegressor(n_stages=2, basis=StageChoiceCV(
          [("ridge", Ridge()), ("tree", DecisionTreeRegressor(max_depth=2))])),
-     ParametricRegressor(LINE), ParametricBoostRegressor(LINE, candidates=None, cv=3)],
+     ParametricRegressor(model=LINE), ParametricBoostRegressor(model=LINE, candidates=None, cv=3)],
     expected_failed_checks=_expected_failed,
 )
 def test_sklearn_compatible(estimator, check):

@@ -53,7 +53,7 @@ def _data(n=160, seed=0, drift=0.3, missing=0.0):
 def test_recovers_a_known_drift(tmp_path):
     path = _write(tmp_path, DECAY)
     X, y = _data()
-    est = ParametricBoostRegressor(path, features=["temp", "humidity"], huber_delta=0.05,
+    est = ParametricBoostRegressor(model=path, features=["temp", "humidity"], huber_delta=0.05,
                                    alpha=0.01, max_steps=2, random_state=0).fit(X, y)
     assert est.choice_ == "drift" and est.note_ == ""
     assert est.selection_.selected[0] == ("tau", "temp")
@@ -69,7 +69,7 @@ def test_recovers_a_known_drift(tmp_path):
 def test_falls_back_where_the_error_is_not_a_drift(tmp_path):
     path = _write(tmp_path, DECAY)
     X, y = _data(drift=0.0, missing=0.2)  # a step no drift in temp or humidity makes
-    est = ParametricBoostRegressor(path, features=["temp", "humidity"], huber_delta=0.05,
+    est = ParametricBoostRegressor(model=path, features=["temp", "humidity"], huber_delta=0.05,
                                    random_state=0).fit(X, y)
     cv = est.choices_.set_index("candidate")["cv_mae"]
     chosen = float(cv[est.choice_])
@@ -90,8 +90,9 @@ def test_finite_differences_match_the_analytic_jacobian(tmp_path):
     np.testing.assert_allclose(J_fd, J, rtol=1e-6, atol=1e-9)
     # and the fits agree
     X, y = _data()
-    a = ParametricRegressor(str(tmp_path / "fd.py"), covariates={"tau": ["temp"]}).fit(X, y)
-    b = ParametricRegressor(str(tmp_path / "exact.py"), covariates={"tau": ["temp"]}).fit(X, y)
+    cov = {"tau": ["temp"]}
+    a = ParametricRegressor(model=str(tmp_path / "fd.py"), covariates=cov).fit(X, y)
+    b = ParametricRegressor(model=str(tmp_path / "exact.py"), covariates=cov).fit(X, y)
     np.testing.assert_allclose(a.predict(X), b.predict(X), atol=1e-5)
 
 
@@ -127,7 +128,7 @@ def test_a_bad_model_gets_one_line(tmp_path, case):
     path = _write(tmp_path, text, f"bad_{case.replace(' ', '_')}.py")
     X, y = _data(n=30)
     with pytest.raises(ModelError) as info:
-        ParametricRegressor(path).fit(X, y)
+        ParametricRegressor(model=path).fit(X, y)
     message = str(info.value)
     assert expected in message
     assert "\n" not in message
@@ -147,17 +148,17 @@ def test_model_from_functions_and_targets():
     model = ParametricModel.from_functions({"a": 1.0, "b": 0.5}, predict)
     X = pd.DataFrame({"t": np.linspace(0, 1, 40)})
     Y = np.column_stack([1.5 * X["t"], 1.5 + 0.2 * X["t"]])
-    est = ParametricRegressor(model, loss="squared_error").fit(X, Y)
+    est = ParametricRegressor(model=model, loss="squared_error").fit(X, Y)
     assert est.predict(X).shape == (40, 2)
     np.testing.assert_allclose(est.predict(X), Y, atol=1e-6)
     with pytest.raises(ModelError, match=r"expected \(40, 3\)"):
-        ParametricRegressor(model).fit(X, np.column_stack([Y, Y[:, 0]]))
+        ParametricRegressor(model=model).fit(X, np.column_stack([Y, Y[:, 0]]))
 
 
 def test_same_seed_same_numbers_and_clone(tmp_path):
     path = _write(tmp_path, DECAY)
     X, y = _data(n=80)
-    est = ParametricBoostRegressor(path, candidates={"tau": ["temp", "humidity"]},
+    est = ParametricBoostRegressor(model=path, candidates={"tau": ["temp", "humidity"]},
                                    huber_delta=0.05, max_steps=1, random_state=3)
     a, b = clone(est).fit(X, y), clone(est).fit(X, y)
     np.testing.assert_array_equal(a.predict(X), b.predict(X))

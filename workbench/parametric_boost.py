@@ -202,7 +202,7 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
         "tol": [Interval(numbers.Real, 0, None, closed="left")],
     }
 
-    def __init__(self, model: str | ParametricModel | None = None, *,
+    def __init__(self, *, model: str | ParametricModel | None = None,
                  covariates: dict[str, list[str]] | None = None, calibrate: bool = True,
                  alpha: float = 1.0, alpha_l1: float = 0.0, loss: str = "huber",
                  huber_delta: float = 1.0, max_iter: int = 20, tol: float = 1e-6) -> None:
@@ -534,7 +534,7 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         "verbose": ["boolean"],
     }
 
-    def __init__(self, model: str | ParametricModel | None = None, *,
+    def __init__(self, *, model: str | ParametricModel | None = None,
                  start: dict[str, list[str]] | None = None,
                  candidates: str | dict[str, list[str]] | None = "auto",
                  features: Sequence[str] | None = None, squares: bool = True,

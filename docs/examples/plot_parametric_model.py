@@ -37,7 +37,7 @@ train = np.arange(n) < 200
 
 # %%
 # Prior, calibrated model and drift, scored by 5-fold CV on the training rows.
-est = ParametricBoostRegressor(model, features=["temp", "humidity"], loss="squared_error",
+est = ParametricBoostRegressor(model=model, features=["temp", "humidity"], loss="squared_error",
                                max_steps=4, random_state=0).fit(data[train], v[train])
 print(est.choices_.to_string(index=False))
 print(est.estimator_.coefficient_table().to_string(index=False))

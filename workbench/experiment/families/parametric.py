@@ -32,8 +32,8 @@ from ...fitted_prior import FittedPriorBoost
 from ...parametric import ModelError, load_model
 from ...parametric_boost import ParametricBoostRegressor
 from ..errors import ConfigError
-from ..scores import ModelScores, Scores, mae, mse
 from ..schema import Section
+from ..scores import ModelScores, Scores, mae, mse
 from ..toml_text import toml_string
 from .artifacts import Artifacts
 from .base import ModelFamily
@@ -102,7 +102,7 @@ def make_parametric(cfg: ExperimentConfig, ds: Dataset) -> ParametricBoostRegres
         raise ConfigError(f"[model.parametric] model: {exc}") from None
     candidates: Any = (None if s.candidates == "none" else s.candidates)
     return ParametricBoostRegressor(
-        str(path), start=s.start or None, candidates=candidates, features=ds.feature_names,
+        model=str(path), start=s.start or None, candidates=candidates, features=ds.feature_names,
         squares=s.squares, products=s.products, cv=s.selection_cv,
         n_repeats=s.selection_repeats, max_steps=s.max_steps,
         min_improvement=float(s.min_improvement), alpha=float(s.alpha),
