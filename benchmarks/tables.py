@@ -13,7 +13,10 @@ tests/test_readme.py fails until docs/benchmarks.md is remade).
 
 README.md's results, between ``<!-- results -->`` and ``<!-- /results -->``, are made the
 same way from ``make run``'s ``reports/results.json`` (:func:`readme_results`; ``make run``
-remakes them). ``reproduce --quick`` computes the rows of :data:`QUICK_ROWS` as the full run
+remakes them). Each part names the command that made it: the Google table ``make run``,
+the IBM gates' paragraph ``workbench reproduce --all``; a results.json without the IBM
+benchmark (``make run``'s) leaves the README's paragraph as it was (its last ``--all``
+values). ``reproduce --quick`` computes the rows of :data:`QUICK_ROWS` as the full run
 does, and tests/test_reproduce.py checks the README's against its JSON.
 """
 
@@ -181,9 +184,24 @@ def peer_bound(data: dict) -> str:
     return "\n".join([_measured(data["measured"]), head, "", *lines])
 
 
-def readme_results(res: dict) -> str:
-    """README.md's results block from ``reports/results.json`` (``res``)."""
-    settings, gates = res["settings"], res["ibm_gates"]
+#: The first words of the README's paragraph on the IBM gates (``reproduce --all``'s).
+GATES_PARAGRAPH = "On the IBM two-qubit gates"
+
+
+def readme_gates(gates: dict) -> str:
+    """The README's paragraph on the IBM gates from results.json's ``ibm_gates``."""
+    return "\n".join([
+        f"{GATES_PARAGRAPH} (`workbench reproduce --all`; {gates['generic']['n_test']:,} test "
+        f"gates of devices", "never seen, gate error in percent): coherence limit "
+        f"{gates['generic']['prior']['test_mae_avg']:.3f}, a tuned LightGBM boosted from",
+        f"the prior {gates['peer']['model']['test_mae_avg']:.3f}, the generic config "
+        f"`experiments/generic.toml` {gates['generic']['model']['test_mae_avg']:.3f}."])
+
+
+def readme_results(res: dict, old: str | None = None) -> str:
+    """README.md's results block from ``reports/results.json`` (``res``); without its IBM
+    benchmark (``make run``'s), the IBM paragraph of ``old`` (the block as it was) is kept."""
+    settings = res["settings"]
     reference = res["reference"]["scikit-physlearn, paper settings (mean of 8 runs)"]
 
     def row(label: str, values: list[float], average: float) -> str:
@@ -202,21 +220,23 @@ def readme_results(res: dict) -> str:
         row(QUICK_ROWS[1], *reference),
         row(QUICK_ROWS[2], *scores(settings["paper"]["model"])),
         row("workbench, parameter-space model (`hamiltonian.toml`)",
-            *scores(settings["hamiltonian"]["model"])), "",
-        f"On the IBM two-qubit gates ({gates['generic']['n_test']:,} test gates of devices never "
-        f"seen, gate error in", f"percent): coherence limit "
-        f"{gates['generic']['prior']['test_mae_avg']:.3f}, a tuned LightGBM boosted from the "
-        f"prior {gates['peer']['model']['test_mae_avg']:.3f},", f"the generic config "
-        f"`experiments/generic.toml` {gates['generic']['model']['test_mae_avg']:.3f}."]
+            *scores(settings["hamiltonian"]["model"]))]
+    if "ibm_gates" in res:
+        lines += ["", readme_gates(res["ibm_gates"])]
+    elif old is not None and GATES_PARAGRAPH in old:
+        kept = old[old.index(GATES_PARAGRAPH):].split("\n\n")[0].rstrip("\n")
+        lines += ["", kept]
     return "\n".join(lines)
 
 
 def render_readme(text: str, res: dict) -> str:
     """``text`` (README.md's) with its ``<!-- results -->`` block remade from ``res``."""
     pattern = re.compile(r"(<!-- results -->\n).*?(<!-- /results -->)", re.S)
-    if not pattern.search(text):
+    match = pattern.search(text)
+    if match is None:
         raise ValueError("README.md has no <!-- results --> block")
-    return pattern.sub(lambda m: m.group(1) + readme_results(res) + "\n" + m.group(2), text)
+    block = readme_results(res, text[match.end(1):match.start(2)])
+    return pattern.sub(lambda m: m.group(1) + block + "\n" + m.group(2), text)
 
 
 TABLES: dict[str, Callable[[dict], str]] = {"scaling": scaling, "bootstrap": bootstrap,
