@@ -48,14 +48,18 @@ run: $(INSTALLED)
 	$(VENV)/bin/workbench reproduce --out reports
 	$(PY) benchmarks/tables.py --readme reports/results.json
 
-# Benchmarks (about 15 minutes; run alone on a quiet machine): the scaling, bootstrap and
-# reference figures as JSON under benchmarks/results/, then docs/benchmarks.md's tables remade
+# Benchmarks (about 25 minutes; run alone on a quiet machine): the scaling, bootstrap and
+# reference figures, and a newcomer's first two commands (a fresh install, make run's
+# reproduction, make test's suite with each file's CPU seconds) beside the reference script's
+# time, as JSON under benchmarks/results/, then docs/benchmarks.md's tables remade
 # from them (benchmarks/tables.py; a test checks the page against the JSON). The reference side runs
 # where its virtualenv exists (bash ../shared/bench/reference/setup.sh /tmp/reference-venv).
 bench: $(INSTALLED)
 	$(PY) benchmarks/scaling.py --max-rows 30000 --json benchmarks/results/scaling.json
 	$(PY) benchmarks/bootstrap.py --json benchmarks/results/bootstrap.json
 	$(PY) benchmarks/vs_reference.py --json benchmarks/results/reference.json
+	$(PY) benchmarks/first_run.py --fresh --json benchmarks/results/first_run.json \
+	  --suite-json benchmarks/results/suite_cost.json
 	$(PY) benchmarks/tables.py
 
 # The recommended config against the peer on every benchmark split (about 25 minutes):

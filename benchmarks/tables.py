@@ -7,7 +7,8 @@
 Each table sits in docs/benchmarks.md between ``<!-- bench:NAME -->`` and
 ``<!-- /bench:NAME -->`` and is made from ``benchmarks/results/NAME.json`` (written by
 ``scaling.py --json``, ``bootstrap.py --json``, ``vs_reference.py --json``,
-``peers.py --json``) with the date, commit, machine and load it was measured on. A number
+``peers.py --json``, ``first_run.py --json --suite-json``) with the date, commit, machine
+and load it was measured on; a block whose JSON is not there yet says so. A number
 in those tables is never typed by hand: a slower or faster run changes the table (and
 tests/test_readme.py fails until docs/benchmarks.md is remade).
 
@@ -184,6 +185,42 @@ def peer_bound(data: dict) -> str:
     return "\n".join([_measured(data["measured"]), head, "", *lines])
 
 
+FIRST_RUN_STEPS = {
+    "reference": "the reference implementation's paper-settings script (median of {runs})",
+    "install": "`make install`: a new venv, empty caches (uv's, the data's)",
+    "reproduce": "`make run`'s reproduction (`workbench reproduce`)",
+    "suite": "`make test`'s suite after its lint (`pytest -n 2`)",
+}
+
+
+def first_run(data: dict) -> str:
+    """A newcomer's first commands against the reference script (``first_run.py``)."""
+    steps, ref = data["steps"], data["steps"].get("reference")
+    lines = ["| step | wall s | CPU s | wall / reference script |", "|---" * 4 + "|"]
+    for key, label in FIRST_RUN_STEPS.items():
+        step = steps.get(key)
+        if step is None:
+            continue
+        ratio = f"{step['wall_s'] / ref['wall_s']:.1f}x" if ref else ""
+        lines.append(f"| {label.format(runs=step.get('runs', 1))} | {step['wall_s']:.1f} | "
+                     f"{step['cpu_s']:.1f} | {ratio} |")
+    targets = data["targets"]
+    names = {"make_run": "`make run` whole (install + reproduction)",
+             "reproduce": "the reproduction", "suite": "the suite"}
+    shown = [f"{names[k]} {v:.1f}x (target <= {targets[k]:.0f}x)"
+             for k, v in data["ratios"].items() if k in names]
+    tail = ["", "Against the reference script: " + "; ".join(shown) + "."] if shown else []
+    return "\n".join([_measured(data["measured"]), "", *lines, *tail])
+
+
+def suite_cost(data: dict) -> str:
+    """The default suite's files by CPU seconds (``suite_cost.py``), the 15 costliest."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from suite_cost import table
+
+    return "\n".join([_measured(data["measured"]), "", table(data, top=15)])
+
+
 #: The first words of the README's paragraph on the IBM gates (``reproduce --all``'s).
 GATES_PARAGRAPH = "On the IBM two-qubit gates"
 
@@ -241,7 +278,10 @@ def render_readme(text: str, res: dict) -> str:
 
 TABLES: dict[str, Callable[[dict], str]] = {"scaling": scaling, "bootstrap": bootstrap,
                                             "reference": reference, "peers": peers,
-                                            "peer_bound": peer_bound}
+                                            "peer_bound": peer_bound, "first_run": first_run,
+                                            "suite_cost": suite_cost}
+#: What a block says before its JSON is written.
+NOT_MEASURED = "Not measured yet: `make bench` writes `benchmarks/results/{name}.json`."
 
 
 def render(text: str) -> str:
@@ -250,7 +290,9 @@ def render(text: str) -> str:
         pattern = re.compile(rf"(<!-- bench:{name} -->\n).*?(<!-- /bench:{name} -->)", re.S)
         if not pattern.search(text):
             continue
-        table = make(json.loads((RESULTS / f"{name}.json").read_text()))
+        path = RESULTS / f"{name}.json"
+        table = (make(json.loads(path.read_text())) if path.is_file()
+                 else NOT_MEASURED.format(name=name))
         text = pattern.sub(lambda m, t=table: m.group(1) + t + "\n" + m.group(2), text)
     return text
 
