@@ -164,9 +164,9 @@ def _table(rep: Reproduction) -> str:
 def _search_text(rep: Reproduction) -> str:
     """Write what the report says of the nested-CV search: its row, or how to get it."""
     if "search" not in rep.settings:
-        return ("The workbench's own nested-CV search (`experiments/paper_search.toml`) and "
-                "the second benchmark, the IBM two-qubit gates, are not part of this run: "
-                "`workbench reproduce --all` adds them (their rows, figures and MLflow runs).")
+        return ("The workbench's own\nnested-CV search (`experiments/paper_search.toml`) and "
+                "the second benchmark, the IBM\ntwo-qubit gates, are not part of this run: "
+                "`workbench reproduce --all` adds them (their\nrows, figures and MLflow runs).")
     nested = rep.settings["search"].sweep
     assert nested is not None  # a sweep's result
     return f"""The search row

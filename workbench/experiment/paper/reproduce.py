@@ -27,7 +27,8 @@ from sklearn.exceptions import ConvergenceWarning
 
 from ..._io import atomic_write
 from ...datasets import Dataset
-from ...parallel import Started, Task, run_plans, start
+from ...parallel import Started, Task, run_plans
+from ...parallel import start as start_on_worker
 from ..config import (
     ExperimentConfig,
     check_training_rows,
@@ -234,7 +235,8 @@ def _start_phases(job: _Job, ds: Dataset, all_systems: bool) -> dict[str, Starte
         calls = {"gates": (gates_benchmark, job.configs, job.seed, job.quick, say), **calls}
     say("started on the workers while the paper settings' figures are drawn: "
         + ", ".join(calls))
-    return {key: start(Task(timed, job.clock, *call)) for key, call in calls.items()}
+    return {key: start_on_worker(Task(timed, job.clock, *call))
+            for key, call in calls.items()}
 
 
 def _keep(job: _Job, key: str, phase: Phase) -> Phase:
@@ -362,6 +364,7 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
         gate_runs = gate_systems(gates, job.files["figG1_gates_mae"])
         atomic_write(job.out / "systems_ibm_gates.csv",
                      summary_table(gates.generic.targets, gate_runs).to_csv(index=False))
+
     def ordered(d: dict[str, Any]) -> dict[str, Any]:
         return dict(sorted(d.items(), key=lambda kv: ORDER.index(kv[0])))
 
