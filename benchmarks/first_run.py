@@ -16,8 +16,9 @@ Times, one after another on the same machine:
 * ``make run``'s reproduction, ``workbench reproduce`` into a temporary folder and MLflow
   store (the environment ``make run`` gives it; with ``--fresh`` its data are downloaded
   first, as on a fresh clone);
-* the default test suite as ``make test`` runs it after its lint (``benchmarks/suite_cost.py``:
-  each file's CPU seconds too, written to ``--suite-json``).
+* ``make test``'s lint (``ruff check`` and ``mypy``, as ``make lint``) and its default test
+  suite (``benchmarks/suite_cost.py``: each file's CPU seconds too, written to
+  ``--suite-json``).
 
 Each step's wall and CPU seconds (user + system of the process and every child it waited
 for) and its wall as a multiple of the reference script's go to ``--json``;
@@ -101,6 +102,10 @@ def main() -> int:
              "--tracking-uri", f"sqlite:///{tmp}/mlflow.db"],
             {**env, "PYTHONPATH": str(ROOT)}, Path(tmp))
         print(f"reproduce: {steps['reproduce']['wall_s']:.1f} s wall", flush=True)
+        bin_dir = Path(python).parent
+        lint = [_timed([str(bin_dir / "ruff"), "check"], env, ROOT),
+                _timed([str(bin_dir / "mypy")], env, ROOT)]
+        steps["lint"] = {k: sum(step[k] for step in lint) for k in ("wall_s", "cpu_s")}
         cost = suite_cost(2, python=python)
         print(table(cost, top=20), flush=True)
     steps["suite"] = {"wall_s": cost["wall_s"], "cpu_s": cost["cpu_s"],
@@ -110,7 +115,9 @@ def main() -> int:
     if ref is not None:
         install = steps.get("install") or {"wall_s": 0.0}
         ratios = {"reproduce": steps["reproduce"]["wall_s"] / ref["wall_s"],
-                  "suite": steps["suite"]["wall_s"] / ref["wall_s"]}
+                  "suite": steps["suite"]["wall_s"] / ref["wall_s"],
+                  "make_test": (steps["lint"]["wall_s"] + steps["suite"]["wall_s"])
+                  / ref["wall_s"]}
         if "install" in steps:
             ratios["make_run"] = ((install["wall_s"] + steps["reproduce"]["wall_s"])
                                   / ref["wall_s"])

@@ -189,7 +189,8 @@ FIRST_RUN_STEPS = {
     "reference": "the reference implementation's paper-settings script (median of {runs})",
     "install": "`make install`: a new venv, empty caches (uv's, the data's)",
     "reproduce": "`make run`'s reproduction (`workbench reproduce`)",
-    "suite": "`make test`'s suite after its lint (`pytest -n 2`)",
+    "lint": "`make test`'s lint (`ruff check`, `mypy`)",
+    "suite": "`make test`'s suite (`pytest -n 2`)",
 }
 
 
@@ -206,7 +207,8 @@ def first_run(data: dict) -> str:
                      f"{step['cpu_s']:.1f} | {ratio} |")
     targets = data["targets"]
     names = {"make_run": "`make run` whole (install + reproduction)",
-             "reproduce": "the reproduction", "suite": "the suite"}
+             "reproduce": "the reproduction", "make_test": "`make test` (lint + suite)",
+             "suite": "the suite"}
     shown = [f"{names[k]} {v:.1f}x (target <= {targets[k]:.0f}x)"
              for k, v in data["ratios"].items() if k in names]
     tail = ["", "Against the reference script: " + "; ".join(shown) + "."] if shown else []
