@@ -301,6 +301,11 @@ def _compare(job: _Job, systems: list[System], ds: Dataset) -> None:
         title="Test MAE per eigenenergy, every system of this reproduction"))
 
 
+def _ordered(d: dict[str, Any]) -> dict[str, Any]:
+    """``d`` with its keys in :data:`ORDER`."""
+    return dict(sorted(d.items(), key=lambda kv: ORDER.index(kv[0])))
+
+
 def _write(path: Path, obj: Any) -> None:
     """Write ``obj`` as indented JSON."""
     atomic_write(path, json.dumps(obj, indent=2, default=str) + "\n")
@@ -364,14 +369,10 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
         gate_runs = gate_systems(gates, job.files["figG1_gates_mae"])
         atomic_write(job.out / "systems_ibm_gates.csv",
                      summary_table(gates.generic.targets, gate_runs).to_csv(index=False))
-
-    def ordered(d: dict[str, Any]) -> dict[str, Any]:
-        return dict(sorted(d.items(), key=lambda kv: ORDER.index(kv[0])))
-
-    job.files = ordered(job.files)
+    job.files = _ordered(job.files)
     rep = Reproduction(
         targets=ds.target_names, seed=seed, quick=quick, all_systems=all_systems,
-        settings=ordered(job.settings),
+        settings=_ordered(job.settings),
         tabula_rasa=tabula, correlation=correlation, learning_curves=curves,
         figures={k: [str(p.relative_to(job.out)) for p in v] for k, v in job.files.items()},
         hamiltonian_tables=tables, gates=gates, unit=ds.unit)
