@@ -7,13 +7,17 @@
 Each table sits in docs/benchmarks.md between ``<!-- bench:NAME -->`` and
 ``<!-- /bench:NAME -->`` and is made from ``benchmarks/results/NAME.json`` (written by
 ``scaling.py --json``, ``bootstrap.py --json``, ``vs_reference.py --json``,
-``peers.py --json``, ``outside.py --json``) with the date, commit, machine and load it was
-measured on. A number in those tables is never typed by hand: a slower or faster run
-changes the table (and tests/test_readme.py fails until docs/benchmarks.md is remade).
+``peers.py --json``, ``outside.py --json``, ``first_run.py --json --suite-json``) with the
+date, commit, machine and load it was measured on; a block whose JSON is not there yet says
+so. A number in those tables is never typed by hand: a slower or faster run changes the table
+(and tests/test_readme.py fails until docs/benchmarks.md is remade).
 
 README.md's results, between ``<!-- results -->`` and ``<!-- /results -->``, are made the
 same way from ``make run``'s ``reports/results.json`` (:func:`readme_results`; ``make run``
-remakes them). ``reproduce --quick`` computes the rows of :data:`QUICK_ROWS` as the full run
+remakes them). Each part names the command that made it: the Google table ``make run``,
+the IBM gates' paragraph ``workbench reproduce --all``; a results.json without the IBM
+benchmark (``make run``'s) leaves the README's paragraph as it was (its last ``--all``
+values). ``reproduce --quick`` computes the rows of :data:`QUICK_ROWS` as the full run
 does, and tests/test_reproduce.py checks the README's against its JSON.
 """
 
@@ -231,9 +235,62 @@ def outside(data: dict) -> str:
     return "\n".join([_measured(data["measured"]), head, "", *lines, "", foot])
 
 
-def readme_results(res: dict) -> str:
-    """README.md's results block from ``reports/results.json`` (``res``)."""
-    settings, gates = res["settings"], res["ibm_gates"]
+FIRST_RUN_STEPS = {
+    "reference": "the reference implementation's paper-settings script (median of {runs})",
+    "install": "`make install`: a new venv, empty caches (uv's, the data's)",
+    "reproduce": "`make run`'s reproduction (`workbench reproduce`)",
+    "lint": "`make test`'s lint (`ruff check`, `mypy`)",
+    "suite": "`make test`'s suite (`pytest -n 2`)",
+}
+
+
+def first_run(data: dict) -> str:
+    """A newcomer's first commands against the reference script (``first_run.py``)."""
+    steps, ref = data["steps"], data["steps"].get("reference")
+    lines = ["| step | wall s | CPU s | wall / reference script |", "|---" * 4 + "|"]
+    for key, label in FIRST_RUN_STEPS.items():
+        step = steps.get(key)
+        if step is None:
+            continue
+        ratio = f"{step['wall_s'] / ref['wall_s']:.1f}x" if ref else ""
+        lines.append(f"| {label.format(runs=step.get('runs', 1))} | {step['wall_s']:.1f} | "
+                     f"{step['cpu_s']:.1f} | {ratio} |")
+    targets = data["targets"]
+    names = {"make_run": "`make run` whole (install + reproduction)",
+             "reproduce": "the reproduction", "make_test": "`make test` (lint + suite)",
+             "suite": "the suite"}
+    shown = [f"{names[k]} {v:.1f}x (target <= {targets[k]:.0f}x)"
+             for k, v in data["ratios"].items() if k in names]
+    tail = ["", "Against the reference script: " + "; ".join(shown) + "."] if shown else []
+    return "\n".join([_measured(data["measured"]), "", *lines, *tail])
+
+
+def suite_cost(data: dict) -> str:
+    """The default suite's files by CPU seconds (``suite_cost.py``), the 15 costliest."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from suite_cost import table
+
+    return "\n".join([_measured(data["measured"]), "", table(data, top=15)])
+
+
+#: The first words of the README's paragraph on the IBM gates (``reproduce --all``'s).
+GATES_PARAGRAPH = "On the IBM two-qubit gates"
+
+
+def readme_gates(gates: dict) -> str:
+    """The README's paragraph on the IBM gates from results.json's ``ibm_gates``."""
+    return "\n".join([
+        f"{GATES_PARAGRAPH} (`workbench reproduce --all`; {gates['generic']['n_test']:,} test "
+        f"gates of devices", "never seen, gate error in percent): coherence limit "
+        f"{gates['generic']['prior']['test_mae_avg']:.3f}, a tuned LightGBM boosted from",
+        f"the prior {gates['peer']['model']['test_mae_avg']:.3f}, the generic config "
+        f"`experiments/generic.toml` {gates['generic']['model']['test_mae_avg']:.3f}."])
+
+
+def readme_results(res: dict, old: str | None = None) -> str:
+    """README.md's results block from ``reports/results.json`` (``res``); without its IBM
+    benchmark (``make run``'s), the IBM paragraph of ``old`` (the block as it was) is kept."""
+    settings = res["settings"]
     reference = res["reference"]["scikit-physlearn, paper settings (mean of 8 runs)"]
 
     def row(label: str, values: list[float], average: float) -> str:
@@ -252,26 +309,31 @@ def readme_results(res: dict) -> str:
         row(QUICK_ROWS[1], *reference),
         row(QUICK_ROWS[2], *scores(settings["paper"]["model"])),
         row("workbench, parameter-space model (`hamiltonian.toml`)",
-            *scores(settings["hamiltonian"]["model"])), "",
-        f"On the IBM two-qubit gates ({gates['generic']['n_test']:,} test gates of devices never "
-        f"seen, gate error in", f"percent): coherence limit "
-        f"{gates['generic']['prior']['test_mae_avg']:.3f}, a tuned LightGBM boosted from the "
-        f"prior {gates['peer']['model']['test_mae_avg']:.3f},", f"the generic config "
-        f"`experiments/generic.toml` {gates['generic']['model']['test_mae_avg']:.3f}."]
+            *scores(settings["hamiltonian"]["model"]))]
+    if "ibm_gates" in res:
+        lines += ["", readme_gates(res["ibm_gates"])]
+    elif old is not None and GATES_PARAGRAPH in old:
+        kept = old[old.index(GATES_PARAGRAPH):].split("\n\n")[0].rstrip("\n")
+        lines += ["", kept]
     return "\n".join(lines)
 
 
 def render_readme(text: str, res: dict) -> str:
     """``text`` (README.md's) with its ``<!-- results -->`` block remade from ``res``."""
     pattern = re.compile(r"(<!-- results -->\n).*?(<!-- /results -->)", re.S)
-    if not pattern.search(text):
+    match = pattern.search(text)
+    if match is None:
         raise ValueError("README.md has no <!-- results --> block")
-    return pattern.sub(lambda m: m.group(1) + readme_results(res) + "\n" + m.group(2), text)
+    block = readme_results(res, text[match.end(1):match.start(2)])
+    return pattern.sub(lambda m: m.group(1) + block + "\n" + m.group(2), text)
 
 
 TABLES: dict[str, Callable[[dict], str]] = {"scaling": scaling, "bootstrap": bootstrap,
                                             "reference": reference, "peers": peers,
-                                            "peer_bound": peer_bound, "outside": outside}
+                                            "peer_bound": peer_bound, "outside": outside,
+                                            "first_run": first_run, "suite_cost": suite_cost}
+#: What a block says before its JSON is written.
+NOT_MEASURED = "Not measured yet: `make bench` writes `benchmarks/results/{name}.json`."
 
 
 def render(text: str) -> str:
@@ -280,7 +342,9 @@ def render(text: str) -> str:
         pattern = re.compile(rf"(<!-- bench:{name} -->\n).*?(<!-- /bench:{name} -->)", re.S)
         if not pattern.search(text):
             continue
-        table = make(json.loads((RESULTS / f"{name}.json").read_text()))
+        path = RESULTS / f"{name}.json"
+        table = (make(json.loads(path.read_text())) if path.is_file()
+                 else NOT_MEASURED.format(name=name))
         text = pattern.sub(lambda m, t=table: m.group(1) + t + "\n" + m.group(2), text)
     return text
 

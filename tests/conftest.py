@@ -16,7 +16,7 @@ SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "
 # measured: a file's share of the suite's time (sum of --durations under `make test` on 2
 # cores, 2026-11-26; about 450 s on a quiet machine).
 LONG_FILES = [
-    "test_reproduce.py",  # 13%, one `reproduce --quick`
+    "test_reproduce.py",  # 13%, one `reproduce --quick --all`
     "test_lifecycle.py",  # 9%, sweep and evaluate processes killed and rerun
     "test_candidate_matrix.py",  # about 53 CPU-s alone (not a --durations share): five
     # kinds of model through evaluate (tracked, untracked, seeds), predict and a sweep

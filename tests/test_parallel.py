@@ -27,6 +27,7 @@ from workbench.parallel import (
     in_worker,
     map_tasks,
     run_plans,
+    start,
     worker_pool,
 )
 from workbench.selection import BasisChoiceCV
@@ -193,6 +194,24 @@ def test_warnings_of_workers_are_issued_in_the_parent():
         warnings.simplefilter("error")
         warnings.simplefilter("ignore", FitFailedWarning)  # the parent's filters apply
         assert map_tasks([Task(_warns, 2)], n_jobs=2) == [2]
+
+
+def test_a_started_task_runs_on_a_worker_beside_the_plans():
+    """start: the task runs on a worker of the pool while this process runs plans on the
+    other; its value, error and warnings come with result(). Without a pool (or n_jobs=1)
+    it runs here, at result()."""
+    with worker_pool(2, eager=True):
+        started = start(Task(_slow_pid, 7))
+        plans = map_tasks([Task(_pid_and_flag, i) for i in range(4)], 2)
+        pid, in_a_worker, value = started.result()
+        assert in_a_worker and pid != os.getpid() and value == 49
+        assert [o[2] for o in plans] == [0, 1, 4, 9]
+        with pytest.raises(ValueError, match="task two failed"):
+            start(Task(_boom, 2)).result()
+        with pytest.warns(FitFailedWarning, match="careful with 3"):
+            assert start(Task(_warns, 3)).result() == 3
+    for n_jobs in (1, -1):  # no pool, or one process: here, when the result is taken
+        assert start(Task(_pid_and_flag, 2), n_jobs).result() == (os.getpid(), False, 4)
 
 
 def test_effective_n_jobs():

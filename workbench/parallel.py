@@ -12,6 +12,10 @@
   plans and positions. With
   ``n_jobs=1`` (or inside a worker) every task runs in this process, in order.
 * :func:`map_tasks`: the results of independent tasks, in order.
+* :func:`start`: one task started now on a worker of the enclosing :func:`worker_pool`, its
+  result collected later (:meth:`Started.result`), while this process goes on with other
+  work (its own plans share the workers): independent phases of one command side by side.
+  Without a pool it runs at :meth:`Started.result`, in this process.
 * :func:`worker_pool`: ``with worker_pool(n_jobs):`` keeps one set of workers for every call
   inside the block (a command's fit, learning curves and figures); without it, each parallel
   call starts its workers and ends them.
@@ -42,10 +46,9 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
-__all__ = ["Task", "die_with_parent", "effective_n_jobs", "gather", "in_worker", "init_worker",
-           "map_tasks", "pid_alive",
-           "prioritised", "run_plans", "start_workers",
-           "worker_pool"]
+__all__ = ["Started", "Task", "die_with_parent", "effective_n_jobs", "gather", "in_worker",
+           "init_worker", "map_tasks", "pid_alive", "prioritised", "run_plans", "start",
+           "start_workers", "worker_pool"]
 
 THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
               "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
@@ -450,6 +453,56 @@ def gather(plans: Iterable[Plan]) -> Plan:
 
 def _tasks_plan(tasks: list[Task]) -> Plan:
     return (yield tasks)
+
+
+class Started:
+    """A task under way (:func:`start`): :meth:`result` waits for it and returns its value."""
+
+    def __init__(self, task: Task, future: Any = None, pool: _Pool | None = None) -> None:
+        self._task, self._future, self._pool = task, future, pool
+
+    def result(self) -> Any:
+        """The task's value (its exception raised here; its warnings issued here)."""
+        if self._future is None:  # no pool: run it now, in this process
+            return self._task()
+        try:
+            value, caught = self._future.result()
+        except BrokenProcessPool as exc:
+            raise RuntimeError(f"a worker process died ({exc}); was it killed or out of "
+                               "memory?") from None
+        except BaseException:
+            if self._pool is not None and not self._future.done():  # interrupted: end it
+                self._pool.close(kill=True)
+            raise
+        _reissue(caught)
+        return value
+
+
+def start(task: Task, n_jobs: int | None = -1) -> Started:
+    """Start ``task`` now on a worker of the enclosing :func:`worker_pool` and return at once.
+
+    The worker runs it serially (one process: inside a worker ``n_jobs`` is 1), beside the
+    tasks of this process's plans, which share the other workers (and this one when it is
+    done). Its value does not depend on where it runs. Without a pool of several processes
+    (``n_jobs`` 1, inside a worker, no ``fork``), it runs when :meth:`Started.result` is
+    called, in this process.
+
+    Parameters
+    ----------
+    task : Task
+        The call (picklable, its value a function of its arguments).
+    n_jobs : int, default=-1
+        Processes allowed (1: run it here, at :meth:`Started.result`).
+
+    Returns
+    -------
+    Started
+        Its :meth:`~Started.result` waits for it.
+    """
+    if not _AMBIENT or effective_n_jobs(n_jobs) <= 1 or not _fork_available():
+        return Started(task)
+    pool = _AMBIENT[-1]
+    return Started(task, pool.executor.submit(_call, task), pool)
 
 
 def map_tasks(tasks: Iterable[Task], n_jobs: int | None = None) -> list:

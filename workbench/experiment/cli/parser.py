@@ -194,13 +194,17 @@ def _add_reproduce(sub: Subparsers) -> None:
     rep.add_argument("--out", default="reports", help="output folder (default: reports)")
     rep.add_argument("--quick", action="store_true",
                      help="fewer curve points, SHAP rows, search trials and folds (for tests)")
+    rep.add_argument("--all", action="store_true",
+                     help="also the workbench's own nested-CV search (paper_search.toml) and "
+                     "the IBM two-qubit gates benchmark (the longest phases; not in make run)")
     rep.add_argument("--seed", type=int, default=0)
     rep.add_argument("--experiments", metavar="DIR", default=None,
                      help="folder with the configs it runs (paper_main_body.toml, "
                      "paper_improved.toml, paper_search.toml, hamiltonian.toml; default: the "
                      "checkout's experiments/, else ./experiments)")
     rep.add_argument("--storage", default=None,
-                     help="Optuna storage of the search (a journal file path or an RDB URL)")
+                     help="Optuna storage of the search of --all (a journal file path or an "
+                     "RDB URL)")
     _repair_arg(rep)
     _tracking_args(rep)
     rep.set_defaults(func=commands.reproduce)

@@ -1,50 +1,43 @@
-"""The reproduction's own fits.
+"""The reproduction's own fits of the paper settings, and its settings.
 
-The paper settings' learning curves and the SHAP summaries of their correction, the tabula
-rasa MLPs on the voltages, and the parameter-space model's settings.
-
-Each function fits, draws its figures through ``save(fig_id, figure, name)`` (which writes the
-file and files it under the paper's figure id) and returns the numbers the report and the
-MLflow runs show.
+The paper settings' learning curves and the SHAP summaries of their correction (each a plan
+of tasks for the workers, :mod:`workbench.parallel`, and a function drawing its figures
+through ``save(fig_id, figure, name)``, which writes the file and files it under the paper's
+figure id), the parameter-space model's settings, and the progress lines. The tabula rasa
+MLPs are in :mod:`.phases`.
 """
 
 from __future__ import annotations
 
 import logging
 import time
-import warnings
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-import pandas as pd
-from sklearn.exceptions import ConvergenceWarning
-from sklearn.neural_network import MLPRegressor
-from sklearn.pipeline import Pipeline, make_pipeline
-
-from ...bases import NormalQuantileTransformer
 from ...curves import learning_curve_plan
 from ...datasets import Dataset
-from ...parallel import Task, map_tasks, run_plans
-from ..bootstrap import bootstrap_error_interval
+from ...parallel import Plan, Task, gather
 from ..config import ExperimentConfig, without_intervals
-from ..explain import shap_values, target_shap_values
+from ..explain import target_shap_values
 from ..figures import correction_shap_figure, learning_curve_figure, save_figure, shap_figure
 from ..intervals import family_model
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["PAPER_SIZES", "SHORT", "TABULA_RASA", "TABULA_RASA_SEEDS", "SameAs", "Save",
-           "correction_shap", "figure_saver", "hamiltonian_config", "learning_curves",
-           "say", "seeded", "start_clock", "tabula_rasa_system"]
+__all__ = ["CURVE_FOLDS", "PAPER_SIZES", "SHORT", "TABULA_RASA", "TABULA_RASA_SEEDS",
+           "SameAs", "Save", "correction_shap_plan", "draw_correction_shap",
+           "draw_learning_curves", "figure_saver", "hamiltonian_config", "learning_curves_plan",
+           "say", "seeded", "set_clock", "start_clock"]
 
 #: The paper's short names of the five eigenenergies.
 SHORT = ["Y1", "Y2", "Y3", "Y4", "Y5"]
 #: The paper's learning-curve training sizes (23 ... 95 training rows).
 PAPER_SIZES = [23, 33, 43, 54, 64, 74, 85, 95]
+#: Folds of the learning curves (5-fold CV on the training rows).
+CURVE_FOLDS = 5
 #: Tabula rasa MLPs on the 9 voltages (paper_params.md): hidden, alpha, max_iter per target.
 TABULA_RASA = [((10,), 15.0, 4600), ((10,), 15.0, 5020), ((10,), 13.0, 5780),
                ((10,), 19.0, 4160), ((8,), 19.0, 5240)]
@@ -69,6 +62,20 @@ def start_clock() -> float:
     """
     _T0[0] = time.perf_counter()
     return _T0[0]
+
+
+def set_clock(start: float) -> None:
+    """Time the progress lines of this process from ``start`` (:func:`say`).
+
+    A worker process, forked before the reproduction started its clock, shows its phase's
+    lines on the reproduction's clock.
+
+    Parameters
+    ----------
+    start : float
+        The reproduction's start, on :func:`time.perf_counter`'s clock (system-wide).
+    """
+    _T0[0] = start
 
 
 def say(text: str) -> None:
@@ -137,11 +144,12 @@ def hamiltonian_config(cfg: ExperimentConfig, seed: int, quick: bool) -> Experim
                   seed)
 
 
-def learning_curves(paper_cfg: ExperimentConfig, ds: Dataset, seed: int, quick: bool,
-                    save: Save, same_as: SameAs) -> dict[str, Any]:
-    """Compute and draw the paper settings' augmented learning curves.
+def learning_curves_plan(paper_cfg: ExperimentConfig, ds: Dataset, seed: int,
+                         quick: bool) -> Plan:
+    """Plan the paper settings' augmented learning curves (:mod:`workbench.parallel`).
 
-    Fig. S5, one panel per target; Fig. 4 is its Y3 panel.
+    The five targets' (size, fold) fits as one plan; it returns the sizes and the curves,
+    for :func:`draw_learning_curves`.
 
     Parameters
     ----------
@@ -154,17 +162,14 @@ def learning_curves(paper_cfg: ExperimentConfig, ds: Dataset, seed: int, quick: 
         Seeds the folds.
     quick : bool
         Two sizes (the smallest and the largest) instead of every paper size.
-    save, same_as
-        File the figures (see :data:`Save`, :data:`SameAs`).
 
     Returns
     -------
-    dict
-        ``train_sizes``, ``folds`` and the ``curves`` (short target name -> the curve's JSON).
+    Plan
+        Returns ``(sizes, curves)``: the training sizes and a curve per target.
     """
     X_train, _, y_train, _ = ds.split()
-    folds = 5
-    largest = len(X_train) - -(-len(X_train) // folds)
+    largest = len(X_train) - -(-len(X_train) // CURVE_FOLDS)
     sizes = [s for s in PAPER_SIZES if s <= largest]
     sizes = sorted(set(sizes + [largest]))
     if quick:  # the curve's two ends: a third fewer fits, the largest size still checked
@@ -173,26 +178,53 @@ def learning_curves(paper_cfg: ExperimentConfig, ds: Dataset, seed: int, quick: 
         f"(5-fold CV on the training rows: at most {largest} rows)")
     model = paper_cfg.family.build(paper_cfg, ds)
     candidates = [model.target_estimators[t].estimator for t in ds.target_names]
-    # the five curves' (size, fold) fits share the worker processes (every core)
-    fitted = run_plans([learning_curve_plan(est, X_train, y_train[target].to_numpy(),
-                                            train_sizes=sizes, cv=folds, random_state=seed)
-                        for target, est in zip(ds.target_names, candidates)], -1)
-    curves = {}
-    for j, (target, curve) in enumerate(zip(ds.target_names, fitted)):
-        curves[SHORT[j]] = curve.to_dict()
+    curves = yield from gather([
+        learning_curve_plan(est, X_train, y_train[target].to_numpy(), train_sizes=sizes,
+                            cv=CURVE_FOLDS, random_state=seed)
+        for target, est in zip(ds.target_names, candidates)])
+    return sizes, curves
+
+
+def draw_learning_curves(sizes: list[int], curves: list[Any], ds: Dataset, save: Save,
+                         same_as: SameAs) -> dict[str, Any]:
+    """Draw the learning curves of :func:`learning_curves_plan`: Fig. S5, one panel per target.
+
+    Fig. 4 is its Y3 panel.
+
+    Parameters
+    ----------
+    sizes : list of int
+        The training sizes.
+    curves : list of LearningCurve
+        A curve per target.
+    ds : Dataset
+        The Google 5-qubit data.
+    save, same_as
+        File the figures (see :data:`Save`, :data:`SameAs`).
+
+    Returns
+    -------
+    dict
+        ``train_sizes``, ``folds`` and the ``curves`` (short target name -> the curve's JSON).
+    """
+    out = {}
+    for j, (target, curve) in enumerate(zip(ds.target_names, curves)):
+        out[SHORT[j]] = curve.to_dict()
         fig = learning_curve_figure(curve, target=f"{SHORT[j]} ({target})", unit=ds.unit,
                                     setting="paper settings")
         path = save("figS5_learning_curves", fig, f"figS5_learning_curve_{SHORT[j]}")
         if SHORT[j] == "Y3":
             same_as("fig4_learning_curve_Y3", path)
-    return {"train_sizes": sizes, "folds": folds, "curves": curves}
+    return {"train_sizes": sizes, "folds": CURVE_FOLDS, "curves": out}
 
 
-def correction_shap(model: Any, ds: Dataset, seed: int, quick: bool, save: Save) -> None:
-    """Draw, per target, the SHAP summaries of what the paper settings learned.
+def correction_shap_plan(model: Any, ds: Dataset, seed: int, quick: bool) -> Plan:
+    """Plan the SHAP values of what the paper settings learned (:mod:`workbench.parallel`).
 
-    The correction (model − prior) beside the whole prediction, on the training rows (figures
-    ``figR2_shap_correction`` and ``figR3_shap_prediction``), computed on the workers.
+    Per target, the correction's (model − prior) and the whole prediction's on the training
+    rows, one task each (the longest tasks of the paper settings: they go first). Returns
+    their :func:`~workbench.experiment.explain.target_shap_values`, for
+    :func:`draw_correction_shap`.
 
     Parameters
     ----------
@@ -201,18 +233,42 @@ def correction_shap(model: Any, ds: Dataset, seed: int, quick: bool, save: Save)
     ds : Dataset
         The data it was fitted on.
     seed : int
-        Seeds the SHAP background and the beeswarms.
+        Seeds the SHAP background.
     quick : bool
         Explain 30 training rows instead of all.
-    save : Save
-        Files the figures.
+
+    Returns
+    -------
+    Plan
+        Returns a list of SHAP values per target.
     """
     say("SHAP of the paper settings' correction (model − prior) and whole prediction")
     X_train = ds.split()[0]
     rows = X_train.iloc[:30] if quick else X_train
-    estimators = family_model(model).estimators_
-    done = map_tasks([Task(target_shap_values, est, rows, random_state=seed)
-                      for est in estimators], -1)
+    tasks = [Task(target_shap_values, est, rows, random_state=seed)
+             for est in family_model(model).estimators_]
+    for task in tasks:
+        task.priority = 10 ** 6
+    return (yield tasks)
+
+
+def draw_correction_shap(done: list[Any], ds: Dataset, seed: int, save: Save) -> None:
+    """Draw, per target, the SHAP summaries of :func:`correction_shap_plan`.
+
+    The correction (model − prior) beside the whole prediction (figures
+    ``figR2_shap_correction`` and ``figR3_shap_prediction``).
+
+    Parameters
+    ----------
+    done : list
+        The SHAP values per target.
+    ds : Dataset
+        The data.
+    seed : int
+        Seeds the beeswarms.
+    save : Save
+        Files the figures.
+    """
     for j, (target, shap) in enumerate(zip(ds.target_names, done)):
         name = f"{SHORT[j]} ({target})"
         save("figR2_shap_correction", correction_shap_figure(
@@ -223,108 +279,6 @@ def correction_shap(model: Any, ds: Dataset, seed: int, quick: bool, save: Save)
             shap.prediction.values, shap.prediction.expected, shap.prediction.rows,
             target=name, unit=ds.unit, random_state=seed, setting="paper settings",
             explained="prediction"), f"figR3_shap_prediction_{SHORT[j]}")
-
-
-def _tabula_rasa(j: int, seed: int) -> Pipeline:
-    """Build target ``j``'s tabula rasa model: normal quantiles of the voltages, an MLP.
-
-    The voltages mapped to normal quantiles, then the paper's MLP.
-
-    The reference's ``Regressor`` puts the same transform before every model by default
-    (``pipeline_transform="quantilenormal"``); without it the voltages' scale (standard
-    deviations 0.006 to 0.1) against the penalty alpha = 13 to 19 leaves the MLP near a
-    constant (about 19.8 MHz average test MAE for every seed, against about 11 with it).
-    """
-    hidden, alpha, max_iter = TABULA_RASA[j]
-    return make_pipeline(
-        NormalQuantileTransformer(random_state=seed),
-        MLPRegressor(hidden_layer_sizes=hidden, activation="relu", solver="lbfgs",
-                     alpha=alpha, max_iter=max_iter, random_state=seed))
-
-
-def _tabula_rasa_target(j: int, seed: int, V_train: pd.DataFrame, y_train: pd.Series,
-                        V_test: pd.DataFrame, y_test: pd.Series,
-                        shap_rows: pd.DataFrame | None, background: int
-                        ) -> tuple[np.ndarray | None, float | None, np.ndarray]:
-    """Fit target ``j``'s tabula rasa MLP on the voltages.
-
-    Returns (unless ``shap_rows`` is ``None``) the SHAP values and expected value of its
-    predictions on ``shap_rows``, and its test residuals.
-    """
-    with warnings.catch_warnings():  # the paper's max_iter, kept as published
-        warnings.simplefilter("ignore", ConvergenceWarning)
-        mlp = _tabula_rasa(j, seed).fit(V_train.to_numpy(), y_train.to_numpy())
-    err = y_test.to_numpy() - mlp.predict(V_test.to_numpy())
-    values = expected = None
-    if shap_rows is not None:
-        values, expected = shap_values(lambda a: mlp.predict(a), shap_rows,
-                                       background_size=background, random_state=seed)
-    return values, expected, err
-
-
-def tabula_rasa_system(ds: Dataset, seed: int, quick: bool, save: Save,
-                       same_as: SameAs) -> dict[str, Any]:
-    """Fit the tabula rasa MLPs over :data:`TABULA_RASA_SEEDS` seeds and draw their SHAP.
-
-    The seeds are ``seed``, ``seed + 1``, ...; the SHAP summaries (Fig. S8; Fig. 5 is its Y1
-    panel) are the first seed's MLPs'.
-
-    Parameters
-    ----------
-    ds : Dataset
-        The Google 5-qubit data (the MLPs see its voltages only).
-    seed : int
-        The first seed.
-    quick : bool
-        3 seeds, 30 SHAP rows and a background of 10.
-    save, same_as
-        File the figures.
-
-    Returns
-    -------
-    dict
-        Per target the mean test MAE and MSE over the seeds with their bootstrap intervals,
-        each seed's errors and average, the average's spread over the seeds.
-    """
-    n_seeds = 3 if quick else TABULA_RASA_SEEDS
-    seeds = list(range(seed, seed + n_seeds))
-    say(f"tabula rasa MLPs on the 9 voltages ({n_seeds} seeds), SHAP summaries")
-    X_train, X_test, y_train, y_test = ds.split()
-    targets = ds.target_names
-    V_train, V_test = X_train[ds.feature_names], X_test[ds.feature_names]
-    shap_rows = V_train.iloc[:30] if quick else V_train
-    background = 10 if quick else 50
-    # one task per (target, seed) on the workers (fit, test errors; SHAP for the first seed)
-    tasks = [Task(_tabula_rasa_target, j, s, V_train, y_train[target], V_test, y_test[target],
-                  shap_rows if s == seed else None, background)
-             for s in seeds for j, target in enumerate(targets)]
-    done = map_tasks(tasks, -1)
-    # test residuals, seeds x targets x rows
-    errors = np.array([d[2] for d in done]).reshape(n_seeds, len(targets), -1)
-    per_seed = np.abs(errors).mean(axis=2)  # seeds x targets
-    per_seed_mse = (errors ** 2).mean(axis=2)
-    # per test row and target, the seeds' mean absolute and root mean squared error: their
-    # bootstrap over rows is that of the seed-averaged MAE and MSE
-    mae_ci = bootstrap_error_interval(np.abs(errors).mean(axis=0).T, random_state=seed)
-    mse_ci = bootstrap_error_interval(np.sqrt((errors ** 2).mean(axis=0)).T, squared=True,
-                                      random_state=seed)
-    for j, target in enumerate(targets):
-        values, expected, _ = done[j]  # the first seed's
-        path = save("figS8_shap", shap_figure(
-            values, expected, shap_rows, target=f"{SHORT[j]} ({target})", unit=ds.unit,
-            random_state=seed, setting="MLP on the 9 voltages"), f"figS8_shap_{SHORT[j]}")
-        if SHORT[j] == "Y1":
-            same_as("fig5_shap_Y1", path)
-    avg = per_seed.mean(axis=1)
-    return {"test_mae": per_seed.mean(axis=0).tolist(),
-            "test_mse": per_seed_mse.mean(axis=0).tolist(),
-            "seeds": seeds, "test_mae_per_seed": per_seed.tolist(),
-            "test_mae_avg_per_seed": avg.tolist(),
-            "test_mae_avg_min": float(avg.min()), "test_mae_avg_max": float(avg.max()),
-            "test_mae_avg_sd": float(avg.std(ddof=1)) if n_seeds > 1 else 0.0,
-            "test_mae_ci": [*mae_ci.per_target, mae_ci.average],
-            "test_mse_ci": [*mse_ci.per_target, mse_ci.average],
-            "input_transform": "quantile_normal"}
 
 
 def figure_saver(figdir: Path, files: dict[str, list[Path]]) -> tuple[Save, SameAs]:

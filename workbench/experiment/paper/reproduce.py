@@ -1,5 +1,10 @@
 """``workbench reproduce``: every result and figure of the paper from the Google 5-qubit data.
 
+By default (``make run``) the paper's settings with their figures, learning curves and SHAP,
+the improved settings, the parameter-space model and the tabula rasa MLPs; with
+``all_systems`` (``--all``) also the workbench's own nested-CV search and the second
+benchmark, the IBM two-qubit gates (:data:`ALL_ONLY`).
+
 Writes PNG figures, ``results.json``, ``systems.csv`` (test MAE of every system),
 ``manifest.json`` (figure id -> file(s)) and a ``README.md`` report under the output folder,
 and logs the same numbers and figures to the MLflow experiment ``paper-reproduction``: a parent
@@ -22,6 +27,8 @@ from sklearn.exceptions import ConvergenceWarning
 
 from ..._io import atomic_write
 from ...datasets import Dataset
+from ...parallel import Started, Task, run_plans
+from ...parallel import start as start_on_worker
 from ..config import (
     ExperimentConfig,
     check_training_rows,
@@ -38,32 +45,39 @@ from ..figures import (
     prior_target_boxplots,
     voltage_boxplots,
 )
-from ..intervals import family_model
 from ..prepare import load_config
 from ..results import Result
 from ..serving import prediction_frame
 from ..sweep.search import Sweep, run_sweep
-from ..units import squared
 from .compute import (
     SHORT,
     SameAs,
     Save,
-    correction_shap,
+    correction_shap_plan,
+    draw_correction_shap,
+    draw_learning_curves,
     figure_saver,
     hamiltonian_config,
-    learning_curves,
+    learning_curves_plan,
     say,
     seeded,
     start_clock,
-    tabula_rasa_system,
 )
 from .gates import gate_systems, gates_benchmark, gates_figure
+from .phases import (
+    Phase,
+    draw_tabula_rasa,
+    evaluate_phase,
+    hamiltonian_phase,
+    tabula_rasa_phase,
+    timed,
+)
 from .report import report
 from .reproduction import Reproduction
 from .runs import log_reproduction
 from .systems import SYSTEMS, Stopwatch, System, paper_systems, summary_table
 
-__all__ = ["CONFIGS", "experiments_dir", "reproduce"]
+__all__ = ["ALL_ONLY", "CONFIGS", "experiments_dir", "reproduce"]
 
 #: The source checkout the package may have been imported from (an installed wheel's
 #: site-packages has no ``experiments/``).
@@ -71,6 +85,17 @@ CHECKOUT = Path(__file__).resolve().parents[3]
 #: The configs the reproduction runs, read from an experiments folder.
 CONFIGS = ("paper_main_body.toml", "paper_improved.toml", "paper_search.toml",
            "hamiltonian.toml")
+#: The order of the settings and figures in ``results.json`` and ``manifest.json`` (that of
+#: running the phases one after another; they may end in another order).
+ORDER = ("paper", "improved", "search", "hamiltonian", "fig2_mae_bars", "figS4_mse_bars",
+         "figR2_shap_correction", "figR3_shap_prediction", "figS5_learning_curves",
+         "fig4_learning_curve_Y3", "figH1_hamiltonian_mae_bars", "figH2_parameter_corrections",
+         "figH3_selection_path", "figS8_shap", "fig5_shap_Y1", "figS6_tabula_rasa_mae",
+         "figS7_tabula_rasa_mse", "figG1_gates_mae", "fig3_correlation",
+         "figS2_voltage_boxplots", "figS3_prior_target_boxplots", "figR1_systems_mae")
+#: What only ``reproduce --all`` runs: the longest phases, beside the paper's own figures.
+ALL_ONLY = ("the workbench's own nested-CV search (experiments/paper_search.toml)",
+            "the IBM two-qubit gates benchmark (experiments/generic.toml against the peer)")
 
 
 def experiments_dir(explicit: str | Path | None = None) -> Path:
@@ -108,14 +133,15 @@ def experiments_dir(explicit: str | Path | None = None) -> Path:
 class _Job:
     """A reproduction under way.
 
-    Its settings, the figures written and each system's stopwatch, result and config as they
-    come.
+    Its settings (``clock``: its start on :func:`time.perf_counter`'s clock), the figures
+    written and each system's stopwatch, result and config as they come.
     """
 
     out: Path
     configs: Path
     seed: int
     quick: bool
+    clock: float
     files: dict[str, list[Path]] = field(default_factory=dict)
     watches: dict[str, Stopwatch] = field(
         default_factory=lambda: {key: Stopwatch() for key in SYSTEMS})
@@ -162,15 +188,22 @@ class _Job:
         return self.datasets[key]
 
 
-def _paper(job: _Job) -> tuple[Dataset, dict[str, Any]]:
-    """Run the paper settings with their figures and learning curves, then the improved ones.
+def _paper(job: _Job, all_systems: bool) -> tuple[Dataset, dict[str, Any], dict[str, Started]]:
+    """Run the paper settings with their figures, SHAP and learning curves.
 
-    Returns the Google data and the learning curves.
+    Its model, then its SHAP values and curves (one run of the workers, the long SHAP tasks
+    first); then the other phases start on the workers (:func:`_start_phases`) while this
+    process draws its figures. Returns the Google data, the learning curves and the
+    started phases.
     """
     with job.watches["paper"]:
         paper_cfg = load_config(job.configs / "paper_main_body.toml")
         run = job.evaluate("paper", paper_cfg)
         ds: Dataset = run.dataset
+        shap, (sizes, fitted) = run_plans(
+            [correction_shap_plan(run.model, ds, job.seed, job.quick),
+             learning_curves_plan(paper_cfg, ds, job.seed, job.quick)], -1)
+        phases = _start_phases(job, ds, all_systems)
         paper = run.result
         job.save("fig2_mae_bars", error_bars(paper, "MAE", targets=SHORT, unit=ds.unit,
                                              title="Test MAE per eigenenergy (Fig. 2)",
@@ -178,11 +211,45 @@ def _paper(job: _Job) -> tuple[Dataset, dict[str, Any]]:
         job.save("figS4_mse_bars", error_bars(paper, "MSE", targets=SHORT, unit=ds.unit,
                                               title="Test MSE per eigenenergy (Fig. S4)",
                                               setting="paper settings"))
-        correction_shap(run.model, ds, job.seed, job.quick, job.save)
-        curves = learning_curves(paper_cfg, ds, job.seed, job.quick, job.save, job.same_as)
-    with job.watches["improved"]:
-        job.evaluate("improved", load_config(job.configs / "paper_improved.toml"))
-    return ds, curves
+        draw_correction_shap(shap, ds, job.seed, job.save)
+        curves = draw_learning_curves(sizes, fitted, ds, job.save, job.same_as)
+    return ds, curves, phases
+
+
+def _start_phases(job: _Job, ds: Dataset, all_systems: bool) -> dict[str, Started]:
+    """Start the phases independent of the paper settings on the workers (:mod:`.phases`).
+
+    The improved settings, the parameter-space model, the tabula rasa MLPs and, with
+    ``all_systems``, the IBM benchmark; each runs serially in a worker process (the workers
+    take them in this order as they come free), while this process draws the paper
+    settings' figures and runs the search (every core busy); without workers each runs when
+    its result is taken.
+    """
+    improved = seeded(load_config(job.configs / "paper_improved.toml"), job.seed)
+    ham = hamiltonian_config(load_config(job.configs / "hamiltonian.toml"), job.seed, job.quick)
+    job.cfgs.update(improved=improved, hamiltonian=ham)
+    calls: dict[str, tuple[Any, ...]] = {
+        "hamiltonian": (hamiltonian_phase, ham, job.dataset(ham), job.out),
+        "tabula_rasa": (tabula_rasa_phase, ds, job.seed, job.quick, job.out),
+        "improved": (evaluate_phase, improved, job.dataset(improved))}
+    if all_systems:  # the longest: first
+        calls = {"gates": (gates_benchmark, job.configs, job.seed, job.quick, say), **calls}
+    say("started on the workers while the paper settings' figures are drawn: "
+        + ", ".join(calls))
+    return {key: start_on_worker(Task(timed, job.clock, *call))
+            for key, call in calls.items()}
+
+
+def _keep(job: _Job, key: str, phase: Phase) -> Phase:
+    """Keep a finished phase's result, predictions, figures and time."""
+    job.watches[key] = phase.watch
+    if phase.result is not None:
+        job.settings[key] = phase.result
+    if phase.predictions is not None:
+        job.predictions[key] = phase.predictions
+    for fig_id, paths in phase.files.items():
+        job.files.setdefault(fig_id, []).extend(paths)
+    return phase
 
 
 def _search(job: _Job, storage: str | None) -> Sweep:
@@ -203,54 +270,6 @@ def _search(job: _Job, storage: str | None) -> Sweep:
         search = run_sweep(cfg, progress=True, dataset=job.dataset(cfg))
     job.settings["search"], job.cfgs["search"] = search.result, cfg
     return search
-
-
-def _hamiltonian(job: _Job, ds: Dataset) -> tuple[dict[str, str], list[Path]]:
-    """Run the parameter-space model and write its figures and tables.
-
-    Returns the tables (name -> file relative to the report folder) and their files.
-    """
-    setting = "experiments/hamiltonian.toml"
-    with job.watches["hamiltonian"]:
-        cfg = hamiltonian_config(load_config(job.configs / "hamiltonian.toml"), job.seed,
-                                 job.quick)
-        say("the parameter-space model (experiments/hamiltonian.toml): covariate "
-            "selection by CV on the training rows")
-        run = evaluate(cfg, return_model=True, dataset=job.dataset(cfg))
-        job.settings["hamiltonian"], job.cfgs["hamiltonian"] = run.result, cfg
-        job.keep_predictions("hamiltonian", cfg, run)
-        job.save("figH1_hamiltonian_mae_bars", error_bars(
-            run.result, "MAE", targets=SHORT, unit=ds.unit,
-            labels=("control program", "parameter-space model"),
-            title="Test MAE per eigenenergy: corrected Hamiltonian", setting=setting))
-        outputs = cfg.family.outputs(family_model(run.model), ds, setting=setting)
-        job.save("figH2_parameter_corrections", outputs.figures["parameter_corrections"])
-        job.save("figH3_selection_path", outputs.figures["selection_path"])
-        written = outputs.write(job.out / "hamiltonian", figures=False)
-    return ({name: str(path.relative_to(job.out)) for name, path in written.items()},
-            list(written.values()))
-
-
-def _tabula_rasa(job: _Job, ds: Dataset) -> dict[str, Any]:
-    """Run the tabula rasa MLPs and draw them against the paper settings (Fig. S6-S8)."""
-    with job.watches["tabula_rasa"]:
-        tabula = tabula_rasa_system(ds, job.seed, job.quick, job.save, job.same_as)
-    paper = job.settings["paper"]
-    for metric, fig_id, unit in (("mae", "figS6_tabula_rasa_mae", ds.unit),
-                                 ("mse", "figS7_tabula_rasa_mse", squared(ds.unit))):
-        name = f"tabula rasa MLP (voltages only, mean of {len(tabula['seeds'])} seeds)"
-        values = {name: tabula[f"test_{metric}"],
-                  "control program": getattr(paper.prior, f"test_{metric}"),
-                  "base boosting (paper settings)": getattr(paper.model, f"test_{metric}")}
-        intervals = {name: tabula[f"test_{metric}_ci"],
-                     "control program": paper.prior.ci(f"test_{metric}"),
-                     "base boosting (paper settings)": paper.model.ci(f"test_{metric}")}
-        job.save(fig_id, model_comparison_bars(
-            SHORT, values, metric=metric.upper(), unit=unit, log=True,
-            intervals={k: v for k, v in intervals.items() if v is not None},
-            title=f"Tabula rasa vs base boosting, test {metric.upper()} (Fig. "
-                  f"{'S6' if metric == 'mae' else 'S7'})"))
-    return tabula
 
 
 def _data_figures(job: _Job, ds: Dataset) -> dict[str, Any]:
@@ -283,6 +302,11 @@ def _compare(job: _Job, systems: list[System], ds: Dataset) -> None:
         title="Test MAE per eigenenergy, every system of this reproduction"))
 
 
+def _ordered(d: dict[str, Any]) -> dict[str, Any]:
+    """``d`` with its keys in :data:`ORDER`."""
+    return dict(sorted(d.items(), key=lambda kv: ORDER.index(kv[0])))
+
+
 def _write(path: Path, obj: Any) -> None:
     """Write ``obj`` as indented JSON."""
     atomic_write(path, json.dumps(obj, indent=2, default=str) + "\n")
@@ -290,7 +314,7 @@ def _write(path: Path, obj: Any) -> None:
 
 def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
               storage: str | None = None, quick: bool = False, track: bool = True, seed: int = 0,
-              experiments: str | Path | None = None) -> Reproduction:
+              experiments: str | Path | None = None, all_systems: bool = False) -> Reproduction:
     """Compute the paper's results and figures, write them and log them.
 
     Each system is computed in one stretch (its MLflow run's duration); with ``track`` each
@@ -312,6 +336,8 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
         The seed of every system.
     experiments : str or Path, optional
         The configs' folder (see :func:`experiments_dir`).
+    all_systems : bool, default=False
+        Also run :data:`ALL_ONLY` (``--all``): the nested-CV search and the IBM benchmark.
 
     Returns
     -------
@@ -319,13 +345,18 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
         What was computed (also written as ``results.json``).
     """
     start, started = start_clock(), time.time()
-    job = _Job(Path(out), experiments_dir(experiments), seed, quick)
-    ds, curves = _paper(job)
-    search = _search(job, storage)
-    tables, table_files = _hamiltonian(job, ds)
-    tabula = _tabula_rasa(job, ds)
-    gates = gates_benchmark(job.configs, seed, quick, say)
-    job.save("figG1_gates_mae", gates_figure(gates))
+    job = _Job(Path(out), experiments_dir(experiments), seed, quick, start)
+    ds, curves, phases = _paper(job, all_systems)
+    search = _search(job, storage) if all_systems else None
+    ham = _keep(job, "hamiltonian", phases["hamiltonian"].result())
+    tables = {name: str(path.relative_to(job.out)) for name, path in ham.tables.items()}
+    table_files = list(ham.tables.values())
+    tabula = _keep(job, "tabula_rasa", phases["tabula_rasa"].result()).numbers
+    draw_tabula_rasa(job.save, ds, job.settings["paper"], tabula)
+    _keep(job, "improved", phases["improved"].result())
+    gates = phases["gates"].result() if all_systems else None
+    if gates is not None:
+        job.save("figG1_gates_mae", gates_figure(gates))
     correlation = _data_figures(job, ds)
     systems = paper_systems(job.settings, job.cfgs, tabula, search, job.watches, job.files,
                             {"hamiltonian": table_files}, ds)
@@ -334,11 +365,15 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
     _compare(job, systems, ds)
     atomic_write(job.out / "systems.csv",
                  summary_table(ds.target_names, systems).to_csv(index=False))
-    gate_runs = gate_systems(gates, job.files["figG1_gates_mae"])
-    atomic_write(job.out / "systems_ibm_gates.csv",
-                 summary_table(gates.generic.targets, gate_runs).to_csv(index=False))
+    gate_runs = []
+    if gates is not None:
+        gate_runs = gate_systems(gates, job.files["figG1_gates_mae"])
+        atomic_write(job.out / "systems_ibm_gates.csv",
+                     summary_table(gates.generic.targets, gate_runs).to_csv(index=False))
+    job.files = _ordered(job.files)
     rep = Reproduction(
-        targets=ds.target_names, seed=seed, quick=quick, settings=job.settings,
+        targets=ds.target_names, seed=seed, quick=quick, all_systems=all_systems,
+        settings=_ordered(job.settings),
         tabula_rasa=tabula, correlation=correlation, learning_curves=curves,
         figures={k: [str(p.relative_to(job.out)) for p in v] for k, v in job.files.items()},
         hamiltonian_tables=tables, gates=gates, unit=ds.unit)

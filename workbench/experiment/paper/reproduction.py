@@ -39,25 +39,28 @@ class Reproduction:
     quick : bool
         Whether ``--quick`` reduced the work.
     settings : dict of str to Result
-        A result per setting: "paper", "improved", "search", "hamiltonian".
+        A result per setting: "paper", "improved", "hamiltonian" and, with ``--all``,
+        "search".
     tabula_rasa : dict
-        The tabula rasa MLPs' test errors (:func:`.compute.tabula_rasa_system`).
+        The tabula rasa MLPs' test errors (:func:`.phases.tabula_rasa_system`).
     correlation : dict
         The training rows' correlation matrix.
     learning_curves : dict
-        The paper settings' learning curves (:func:`.compute.learning_curves`).
+        The paper settings' learning curves (:func:`.compute.draw_learning_curves`).
     figures : dict of str to list of str
         Figure id -> its files, relative to the report folder.
     hamiltonian_tables : dict of str to str
         The parameter-space model's tables: name -> file, relative to the report folder.
     gates : Gates, optional
-        The IBM benchmark's results.
+        The IBM benchmark's results (``--all``).
     mlflow : dict of str to str
         The tracking URI and run ids (empty without tracking).
     wall_s : float
         The whole command's seconds.
     unit : str, optional
         The Google benchmark's unit (its dataset's).
+    all_systems : bool
+        Whether ``--all`` ran the nested-CV search and the IBM benchmark too.
     """
 
     targets: list[str]
@@ -73,6 +76,7 @@ class Reproduction:
     mlflow: dict[str, str] = field(default_factory=dict)
     wall_s: float = float("nan")
     unit: str | None = None
+    all_systems: bool = False
 
     def to_json(self) -> dict[str, Any]:
         """Write the reproduction as JSON (``results.json``).
@@ -84,7 +88,7 @@ class Reproduction:
             benchmark's under ``ibm_gates``.
         """
         out = {"targets": self.targets, "short": SHORT, "unit": self.unit, "seed": self.seed,
-               "quick": self.quick,
+               "quick": self.quick, "all": self.all_systems,
                "settings": {k: r.to_json() for k, r in self.settings.items()},
                "reference": REFERENCE,
                "tabula_rasa": {**self.tabula_rasa,

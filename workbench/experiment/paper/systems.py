@@ -147,7 +147,8 @@ def _tabula_rasa_metrics(targets: list[str], tabula: dict[str, Any]) -> dict[str
 
 
 def paper_systems(settings: dict[str, Result], cfgs: dict[str, ExperimentConfig],
-                  tabula: dict[str, Any], search: Sweep, watches: dict[str, Stopwatch],
+                  tabula: dict[str, Any], search: Sweep | None,
+                  watches: dict[str, Stopwatch],
                   files: dict[str, list[Path]], tables: dict[str, list[Path]],
                   ds: Dataset) -> list[System]:
     """Gather the reproduction's systems (:data:`SYSTEMS`) in the shared schema.
@@ -159,9 +160,9 @@ def paper_systems(settings: dict[str, Result], cfgs: dict[str, ExperimentConfig]
     cfgs : dict of str to ExperimentConfig
         Their configs, as run.
     tabula : dict
-        The tabula rasa MLPs' numbers (:func:`.compute.tabula_rasa_system`).
-    search : Sweep
-        The nested-CV search.
+        The tabula rasa MLPs' numbers (:func:`.phases.tabula_rasa_system`).
+    search : Sweep or None
+        The nested-CV search (``None``: not run, and no system of it).
     watches : dict of str to Stopwatch
         Each system's time.
     files : dict of str to list of Path
@@ -174,7 +175,7 @@ def paper_systems(settings: dict[str, Result], cfgs: dict[str, ExperimentConfig]
     Returns
     -------
     list of System
-        One per catalogue entry, in its order.
+        One per catalogue entry that was run, in its order.
     """
     paper = settings["paper"]
     targets = ds.target_names
@@ -182,6 +183,8 @@ def paper_systems(settings: dict[str, Result], cfgs: dict[str, ExperimentConfig]
         if ds.unit else "errors in the targets' units (MSE squared)"
     out = []
     for key, (name, description) in SYSTEMS.items():
+        if key == "search" and search is None:  # `reproduce --all` only
+            continue
         watch = watches[key]
         system = System(key, name, watch.started, watch.ended,
                         description=f"{description} Test rows scored once; {unit}.",
