@@ -42,7 +42,7 @@ MAX_WIDTH = 16.0
 
 
 def _group_inches(names: list[str], least: float) -> float:
-    """The width of one group of bars: ``least``, or more for its name's longest line."""
+    """Measure one group of bars: ``least``, or more for its name's longest line (inches)."""
     longest = max(len(line) for name in names for line in name.split("\n"))
     return max(least, text_inches(min(longest, NAME_CHARS), 10) + 0.2)
 

@@ -38,7 +38,7 @@ NAME_CHARS = 16
 
 
 def _name_inches(names: Sequence[str], least: float, fontsize: float = 10) -> float:
-    """The room of one column's tick label: ``least``, or its longest line's (wrapped)."""
+    """Measure one column's tick label: ``least``, or its longest line's (inches, wrapped)."""
     longest = max(len(line) for name in names for line in str(name).split("\n"))
     return max(least, text_inches(min(longest, NAME_CHARS), fontsize) + 0.2)
 

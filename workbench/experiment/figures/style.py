@@ -52,7 +52,7 @@ _BREAK = re.compile(r"[^ _/,-]*[ _/,-]*")  # a word with the separators after it
 
 
 def text_inches(chars: int, fontsize: float) -> float:
-    """The width in inches of ``chars`` characters at ``fontsize`` points (an estimate)."""
+    """Estimate the width in inches of ``chars`` characters at ``fontsize`` points."""
     return chars * CHAR_EM * fontsize / 72
 
 
