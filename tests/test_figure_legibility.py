@@ -354,3 +354,42 @@ def test_the_check_finds_a_title_off_the_canvas_and_overlapping_labels():
     problems = illegible(fig)
     assert any("leaves the canvas" in p and "a title much" in p for p in problems)
     assert any("overlaps" in p and "a long tick label" in p for p in problems)
+
+
+# --------------------------------------------------------------------------- the prior's name
+
+
+def _csv(tmp_path):
+    rng = _rng()
+    x = rng.normal(size=30)
+    frame = pd.DataFrame({"v": x, "model_E": x + 1.0, "measured_E": x + 1.1})
+    path = tmp_path / "lab.csv"
+    frame.to_csv(path, index=False)
+    return {"csv": path.name, "prior": ["model_E"], "targets": ["measured_E"],
+            "features": ["v"], "test_fraction": 0.3}
+
+
+def test_the_figures_call_the_prior_as_the_data_set_names_it(tmp_path):
+    from workbench.datasets import load_source
+    from workbench.experiment.config import DataConfig
+    from workbench.experiment.run_outputs import _error_bars
+
+    options = _csv(tmp_path)
+    assert load_source("csv", options, tmp_path, "lab").prior_label == "prior"
+    named = DataConfig(**options, prior_label="mass formula").model_dump()
+    ds = load_source("csv", named, tmp_path, "lab")
+    assert ds.prior_label == "mass formula"
+    scores = types.SimpleNamespace(test_mae=[1.0], test_mse=[1.0], ci=lambda key: None)
+    result = types.SimpleNamespace(targets=ds.target_names, prior=scores, model=scores)
+    for fig in _error_bars(result, ds, "evaluate of lab").values():
+        legend = fig.axes[0].get_legend() or fig.legends[0]
+        assert [t.get_text() for t in legend.get_texts()] == ["mass formula", "base boosting"]
+    with pytest.raises(ValueError, match="apply to source"):
+        DataConfig(source="google_5q", prior_label="control program")
+
+
+def test_the_benchmarks_name_their_priors(google_5q, ibm_gates_dir):
+    from workbench.datasets import load_ibm_gates
+
+    assert google_5q.prior_label == "control program"
+    assert load_ibm_gates(ibm_gates_dir, download=False).prior_label == "coherence limit"

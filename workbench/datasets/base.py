@@ -81,6 +81,9 @@ class Dataset:
     unit : str, default=None
         The targets' (and priors') unit, as figures and summaries label it (e.g. ``"MHz"``);
         ``None``: no unit is shown.
+    prior_label : str, default="prior"
+        What figures and tables call the prior (e.g. ``"control program"``, ``"coherence
+        limit"``).
     """
 
     name: str
@@ -92,6 +95,7 @@ class Dataset:
     hamiltonian: Hamiltonian | None = None
     groups: pd.Series | None = None
     unit: str | None = None
+    prior_label: str = "prior"
 
     @property
     def target_names(self) -> list[str]:

@@ -149,7 +149,8 @@ def _csv(options: Mapping[str, Any], base: Path, name: str) -> Dataset:
         topology=ham.get("topology", "chain"), shape=ham.get("shape"), edges=ham.get("edges"),
         qubit_features=ham.get("qubit_features"),
         coupler_features=ham.get("coupler_features"),
-        group_column=options.get("group_column"), name=name, unit=options.get("unit"))
+        group_column=options.get("group_column"), name=name, unit=options.get("unit"),
+        prior_label=options.get("prior_label"))
 
 
 register_source("google_5q", _google_5q)

@@ -72,8 +72,12 @@ class RunOutputs:
     written: dict[str, Path] = field(default_factory=dict)
 
 
-def _error_bars(result: Result, unit: str | None, setting: str) -> dict[str, Any]:
-    """Draw the test MAE and MSE bars of prior and model (``mae_bars``, ``mse_bars``)."""
+def _error_bars(result: Result, ds: Dataset, setting: str) -> dict[str, Any]:
+    """Draw the test MAE and MSE bars of prior and model (``mae_bars``, ``mse_bars``).
+
+    The prior is named as the data set names it (:attr:`Dataset.prior_label`).
+    """
+    unit = ds.unit
     figures = {}
     for metric, name in (("MAE", "mae_bars"), ("MSE", "mse_bars")):
         key = f"test_{metric.lower()}"
@@ -81,6 +85,7 @@ def _error_bars(result: Result, unit: str | None, setting: str) -> dict[str, Any
                                  getattr(result.model, key), metric=metric,
                                  prior_ci=result.prior.ci(key), model_ci=result.model.ci(key),
                                  unit=unit if metric == "MAE" else squared(unit),
+                                 labels=(ds.prior_label, "base boosting"),
                                  title=f"Test {metric} per target", setting=setting)
     return figures
 
@@ -180,7 +185,7 @@ def compute_outputs(cfg: ExperimentConfig, result: Result, model: Any, ds: Datas
         return computed
     # the family's run figures start on the worker processes while the rest is drawn here
     finish = family.begin_artifacts(cfg, ds, fitted, setting)
-    bars = _error_bars(result, ds.unit, setting)
+    bars = _error_bars(result, ds, setting)
     from .serving import prediction_frame  # (MLflow's types): a tracked run only
 
     computed.predictions = prediction_frame(model, computed.rows[1], result.targets)

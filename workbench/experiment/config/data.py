@@ -81,7 +81,8 @@ class DataConfig(Section):
     ``source = "google_5q"`` (optional ``data_dir``), ``source = "ibm_gates"``
     (optional ``data_dir``, ``split = "time"`` or ``"devices"`` with ``split_seed``), or a CSV
     of your own (``csv``, one ``prior`` column per ``targets`` column, ``features``, either
-    ``test_fraction`` or ``split_column``, and optionally the targets' ``unit``). Paths are
+    ``test_fraction`` or ``split_column``, and optionally the targets' ``unit`` and the
+    prior's name, ``prior_label``). Paths are
     relative to the config file.
 
     Parameters
@@ -116,6 +117,10 @@ class DataConfig(Section):
         together (``[selection] groups``).
     unit : str, default=None
         The targets' unit (e.g. ``"meV"``) that figures and summaries show.
+    prior_label : str, default=None
+        What the figures call the prior columns' model (e.g. ``"mass formula"``); ``None``:
+        ``"prior"``. The benchmarks name theirs (``"control program"``, ``"coherence
+        limit"``).
     hamiltonian : HamiltonianData, default=None
         ``[data.hamiltonian]``: the Hamiltonian's columns, for the physics-aware families.
     """
@@ -132,6 +137,7 @@ class DataConfig(Section):
     split_seed: int = Seed()
     group_column: str | None = None
     unit: str | None = None
+    prior_label: str | None = Field(default=None, min_length=1)
     hamiltonian: HamiltonianData | None = None
 
     @field_validator("source")
@@ -154,7 +160,8 @@ class DataConfig(Section):
     @model_validator(mode="after")
     def _consistent(self) -> DataConfig:
         csv_keys = sorted(k for k in ("csv", "prior", "targets", "test_fraction",
-                                      "split_column", "group_column", "hamiltonian", "unit")
+                                      "split_column", "group_column", "hamiltonian", "unit",
+                                      "prior_label")
                           if getattr(self, k) is not None) + (["features"] if self.features
                                                               else [])
         if self.source != "csv":

@@ -164,7 +164,11 @@ class _Job:
 
 def _error_bars(save: Save, fig_id: str, result: Result, unit: str | None, **kwargs: Any
                 ) -> None:
-    """Draw a result's test MAE (or, with ``metric="MSE"``, MSE) bars as ``fig_id``."""
+    """Draw a result's test MAE (or, with ``metric="MSE"``, MSE) bars as ``fig_id``.
+
+    The prior is the control program (the Google data's name of it) unless ``labels`` say.
+    """
+    kwargs.setdefault("labels", ("control program", "base boosting"))
     key = f"test_{kwargs.get('metric', 'MAE').lower()}"
     save(fig_id, mae_bars(SHORT, getattr(result.prior, key), getattr(result.model, key),
                           prior_ci=result.prior.ci(key), model_ci=result.model.ci(key),
@@ -272,7 +276,7 @@ def _data_figures(job: _Job, ds: Dataset) -> dict[str, Any]:
         ds.features.loc[ds.train_index], title="Bias voltages, training rows (Fig. S2)"))
     job.save("figS3_prior_target_boxplots", prior_target_boxplots(
         train[ds.prior_names].set_axis(SHORT, axis=1), y_train.set_axis(SHORT, axis=1),
-        unit=ds.unit,
+        unit=ds.unit, labels=(f"{ds.prior_label} (X)", "measured (Y)"),
         title="Control program (X) and measured (Y) eigenenergies (Fig. S3)"))
     return frame.corr().round(6).to_dict()
 
