@@ -47,7 +47,7 @@ def _group_inches(names: list[str], least: float) -> float:
     return max(least, text_inches(min(longest, NAME_CHARS), 10) + 0.2)
 
 
-def _legend(fig: Figure, ax: Axes, labels: list[str], *, inside: str | None = None) -> None:
+def _legend(fig: Figure, ax: Axes, labels: list[str], *, inside: Any = None) -> None:
     """Draw the legend of the bars in rows under the axes, as many columns as fit the width.
 
     With ``inside`` (a location such as ``"upper right"``), in the axes on one row instead,

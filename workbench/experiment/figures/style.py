@@ -90,14 +90,23 @@ def wrap(text: str, width: int) -> str:
     return "\n".join(lines)
 
 
-def _wrap_to(text: Any, inches: float, renderer: Any, *, vertical: bool = False) -> None:
+def _wrap_to(text: Any, inches: float, renderer: Any, *, vertical: bool = False,
+             obstacles: list[Any] | None = None) -> None:
     """Wrap a Text artist that is longer than ``inches`` (its height if ``vertical``).
 
-    Measured with ``renderer``; a text that fits is left as it is.
+    Measured with ``renderer``; a text that fits is left as it is. With ``obstacles``
+    (window extents), a text that is longer but stays on the canvas clear of them is left
+    too.
     """
     content = text.get_text()
     if not content or not text.get_visible() or inches <= 0:
         return
+    if obstacles is not None:
+        box = text.get_window_extent(renderer)
+        canvas = text.figure.bbox.padded(-2)
+        if (box.x0 >= canvas.x0 and box.x1 <= canvas.x1
+                and not any(box.overlaps(other) for other in obstacles)):
+            return
     room = inches * text.figure.dpi
     longest = max(len(line) for line in content.split("\n"))
     for _ in range(4):  # characters differ in width: narrow further while it does not fit
@@ -109,15 +118,18 @@ def _wrap_to(text: Any, inches: float, renderer: Any, *, vertical: bool = False)
         text.set_text(wrap(content, longest))
 
 
-def _category_ticks(ax: Axes, fig_width: float, renderer: Any) -> None:
-    """Wrap the x tick labels of a categorical axis to the space between two ticks."""
+def _category_ticks(ax: Axes, fig_width: float, renderer: Any) -> bool:
+    """Wrap the x tick labels of a categorical axis to the space between two ticks.
+
+    Returns whether a label changed.
+    """
     from matplotlib.ticker import FixedLocator  # deferred: as new_figure
 
     labels = ax.get_xticklabels()
     locs = ax.get_xticks()
     if (len(locs) < 1 or not isinstance(ax.xaxis.get_major_locator(), FixedLocator)
             or any(t.get_rotation() for t in labels)):
-        return
+        return False
     low, high = ax.get_xlim()
     axes_inches = ax.get_position().width * fig_width
     step = float(min(abs(b - a) for a, b in zip(locs[:-1], locs[1:]))) if len(locs) > 1 \
@@ -126,18 +138,22 @@ def _category_ticks(ax: Axes, fig_width: float, renderer: Any) -> None:
     for label in labels:
         _wrap_to(label, 0.92 * step / abs(high - low) * axes_inches, renderer)
     after = [t.get_text() for t in labels]
-    if after != before:
-        ax.set_xticks(locs, after, fontsize=labels[0].get_fontsize())
+    if after == before:
+        return False
+    ax.set_xticks(locs, after, fontsize=labels[0].get_fontsize())
+    return True
 
 
 def fit_text(fig: Figure) -> Figure:
     """Wrap a figure's texts that do not fit their place, once the layout is known.
 
     Lays ``fig`` out (without rendering it), then wraps each axes' title and x-axis label that
-    is wider than the axes, its y-axis label taller than the axes, the tick labels of a
+    is wider than the axes and leaves the canvas or meets another axes (with its tick labels,
+    title and labels), its y-axis label taller than the axes, the tick labels of a
     categorical x axis (ticks at fixed places, labels not rotated) wider than the space
-    between two ticks, and the figure's title wider than the figure. Texts that fit are left
-    as they are. Call it last, when every text is set.
+    between two ticks (first: the axes move when they shrink), and the figure's title wider
+    than the figure. Texts that fit are left as they are. Call it last, when every text is
+    set.
 
     Parameters
     ----------
@@ -155,15 +171,19 @@ def fit_text(fig: Figure) -> Figure:
     # a renderer of the figure's size measures the texts (the figure's canvas is kept)
     renderer = RendererAgg(int(fig.bbox.width), int(fig.bbox.height), fig.dpi)
     width, height = fig.get_figwidth(), fig.get_figheight()
-    for ax in fig.axes:
-        if not ax.get_visible():
-            continue
+    shown = [ax for ax in fig.axes if ax.get_visible()]
+    ticks = [ax for ax in shown if ax.axison and _category_ticks(ax, width, renderer)]
+    if ticks:  # the axes move when their tick labels shrink
+        fig.draw_without_rendering()
+    # a title or x label wider than its axes stays where it is on the canvas and clear of
+    # the other axes (their tick labels, titles and labels too)
+    tight = {ax: ax.get_tightbbox(renderer) for ax in shown}
+    for ax in shown:
+        others = [box for other, box in tight.items() if other is not ax and box is not None]
         box = ax.get_position()
-        _wrap_to(ax.title, box.width * width, renderer)
-        _wrap_to(ax.xaxis.label, box.width * width, renderer)
+        _wrap_to(ax.title, box.width * width, renderer, obstacles=others)
+        _wrap_to(ax.xaxis.label, box.width * width, renderer, obstacles=others)
         _wrap_to(ax.yaxis.label, box.height * height, renderer, vertical=True)
-        if ax.axison:
-            _category_ticks(ax, width, renderer)
     title = getattr(fig, "_suptitle", None)  # matplotlib keeps no public handle on it
     if title is not None:
         _wrap_to(title, width - 0.3, renderer)
