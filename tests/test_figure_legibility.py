@@ -87,9 +87,8 @@ def _curve(n_folds=5):
 
 
 def _learning_curve(targets, unit, prior_label, setting):
-    for target in targets[:3]:
-        yield figures.learning_curve_figure(_curve(), target=target, unit=unit,
-                                            setting=setting)
+    target = max(targets, key=len)
+    yield figures.learning_curve_figure(_curve(), target=target, unit=unit, setting=setting)
 
 
 def _shap_rows(targets):
@@ -117,11 +116,11 @@ def _shap_summary(targets, unit, prior_label, setting):
 
 def _correction_shap(targets, unit, prior_label, setting):
     X = _shap_rows(targets)
-    for target in targets[:2]:
-        yield figures.correction_shap_figure(None, target=target, unit=unit,
-                                             note="CV chose the prior", setting=setting)
-        yield figures.correction_shap_figure(ShapValues(X.to_numpy() * 0.1, 0.0, X),
-                                             target=target, unit=unit, setting=setting)
+    target = max(targets, key=len)
+    yield figures.correction_shap_figure(None, target=target, unit=unit,
+                                         note="CV chose the prior", setting=setting)
+    yield figures.correction_shap_figure(ShapValues(X.to_numpy() * 0.1, 0.0, X),
+                                         target=target, unit=unit, setting=setting)
 
 
 def _frame(names, rows=30):
