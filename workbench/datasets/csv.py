@@ -239,7 +239,7 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
                      topology: str = "chain", shape: Sequence[int] | None = None,
                      edges: Sequence[Sequence[int]] | None = None,
                      group_column: str | None = None, name: str | None = None,
-                     unit: str | None = None, prior_label: str | None = None) -> Dataset:
+                     unit: str | None = None, prior_label: str = "prior") -> Dataset:
     """Read a CSV of experiments into a :class:`Dataset`.
 
     Parameters
@@ -276,10 +276,8 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
         Each row's group (e.g. its device): the dataset's ``groups``, which CV folds keep whole.
     name : str, default=None
         The dataset's name (``None``: the file's stem).
-    unit : str, default=None
-        The targets' unit (e.g. ``"meV"``) figures and summaries show (``None``: none).
-    prior_label : str, default=None
-        What figures call the prior (e.g. ``"mass formula"``; ``None``: ``"prior"``).
+    unit, prior_label : str, default=None, "prior"
+        The targets' unit (e.g. ``"meV"``; ``None``: none) and the prior's name, as shown.
     """
     path = Path(path)
     prior, targets, features = list(prior), list(targets), list(features)
@@ -311,8 +309,7 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
     groups = None if group_column is None else _groups(frame, group_column, used, path)
     return Dataset(name=name or path.stem, features=data[features], prior=data[prior],
                    targets=data[targets], train_index=train, test_index=test,
-                   hamiltonian=hamiltonian, groups=groups, unit=unit,
-                   prior_label=prior_label or "prior")
+                   hamiltonian=hamiltonian, groups=groups, unit=unit, prior_label=prior_label)
 
 
 def _graph(onsite: Sequence[str] | None, couplings: Sequence[str] | None, topology: str,

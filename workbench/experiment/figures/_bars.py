@@ -41,10 +41,19 @@ NAME_CHARS = 16
 MAX_WIDTH = 16.0
 
 
-def _group_inches(names: list[str], least: float) -> float:
-    """Measure one group of bars: ``least``, or more for its name's longest line (inches)."""
+def _names(targets: Sequence[str]) -> list[str]:
+    """Return the targets' names, or raise a ValueError when there are none."""
+    names = [str(t) for t in targets]
+    if not names:
+        raise ValueError("targets is empty")
+    return names
+
+
+def _width(names: list[str], group: float) -> float:
+    """Measure a bar chart: groups of at least ``group`` inches, wider for long names."""
     longest = max(len(line) for name in names for line in name.split("\n"))
-    return max(least, text_inches(min(longest, NAME_CHARS), 10) + 0.2)
+    group = max(group, text_inches(min(longest, NAME_CHARS), 10) + 0.2)
+    return min(MAX_WIDTH, max(5.0, group * len(names) + 1.8))
 
 
 def _legend(fig: Figure, ax: Axes, labels: list[str], *, inside: Any = None) -> None:
@@ -159,9 +168,8 @@ def mae_bars(targets: Sequence[str], prior: Sequence[float], model: Sequence[flo
     title : str, optional
         Default: ``"Test <metric> per target: <labels[0]> vs <labels[1]>"``.
     labels : (str, str)
-        Legend entries of the prior's and the model's bars: the data set's name of its prior
-        (:attr:`~workbench.datasets.Dataset.prior_label`, e.g. ``"control program"``) and
-        the model's.
+        Legend entries of the prior's and the model's bars (the data set's name of its prior:
+        :attr:`~workbench.datasets.Dataset.prior_label`).
     setting : str, optional
         A second title line naming the setting (e.g. the config).
     average : bool, default=True
@@ -187,9 +195,7 @@ def mae_bars(targets: Sequence[str], prior: Sequence[float], model: Sequence[flo
     ValueError
         If ``targets`` is empty, or the errors or intervals do not match the targets.
     """
-    names = [str(t) for t in targets]
-    if not names:
-        raise ValueError("targets is empty")
+    names = _names(targets)
     n_targets = len(names)
     prior_v = _values("prior", prior, n_targets)
     model_v = _values("model", model, n_targets)
@@ -201,8 +207,7 @@ def mae_bars(targets: Sequence[str], prior: Sequence[float], model: Sequence[flo
               for name, ci, values in (("prior_ci", prior_ci, prior_v),
                                        ("model_ci", model_ci, model_v))]
 
-    fig = new_figure(min(MAX_WIDTH, max(5.0, _group_inches(names, 0.95) * len(names) + 1.8)),
-                     4.0)
+    fig = new_figure(_width(names, 0.95), 4.0)
     ax = fig.add_subplot()
     _grouped_bars(ax, names, [(labels[0], prior_v, PRIOR_COLOR),
                               (labels[1], model_v, MODEL_COLOR)], average=average, errors=errors)
@@ -361,9 +366,7 @@ def model_comparison_bars(targets: Sequence[str], values: Mapping[str, Sequence[
         do not match the targets or are not finite (positive with ``log``), or an interval
         names an unknown system or does not match the targets.
     """
-    names = [str(t) for t in targets]
-    if not names:
-        raise ValueError("targets is empty")
+    names = _names(targets)
     n_targets = len(names)
     systems, arrays = _comparison_values(values, n_targets, log, average)
     colors = _system_colors(systems)
@@ -371,8 +374,7 @@ def model_comparison_bars(targets: Sequence[str], values: Mapping[str, Sequence[
         names = [*names, "average"]
     errors = _comparison_errors(intervals, systems, arrays, n_targets, average)
     n = len(systems)
-    group = _group_inches(names, 0.42 * n + 0.15)
-    fig = new_figure(min(MAX_WIDTH, max(5.0, group * len(names) + 1.8)), 4.4)
+    fig = new_figure(_width(names, 0.42 * n + 0.15), 4.4)
     ax = fig.add_subplot()
     every = np.concatenate(arrays)
     biggest = np.abs(every).max()

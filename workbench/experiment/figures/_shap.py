@@ -135,8 +135,7 @@ def shap_figure(values: np.ndarray, expected: float, X: pd.DataFrame, *, target:
     explanation = shap.Explanation(values=values, base_values=np.full(len(data), expected),
                                    data=data, feature_names=names)
     n_shown = min(len(names), max_display)
-    longest = max(map(len, names))  # the features' names take room from the beeswarm
-    fig = new_figure(max(7.0, 5.8 + text_inches(longest, 10)), 0.42 * n_shown + 1.9)
+    fig = new_figure(max(7.0, 5.8 + text_inches(max(map(len, names)), 10)), 0.42 * n_shown + 1.9)
     ax = fig.add_subplot()
     # shap's beeswarm jitters with numpy's global generator: seed it, then restore it.
     state = np.random.get_state()
