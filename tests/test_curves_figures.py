@@ -227,7 +227,7 @@ def test_mae_bars(tmp_path):
     assert [t.get_text() for t in ax.get_xticklabels()][-1] == "average"
     legend = ax.get_legend()
     assert legend is not None
-    assert [t.get_text() for t in legend.get_texts()] == ["control program", "base boosting"]
+    assert [t.get_text() for t in legend.get_texts()] == ["prior", "base boosting"]
     assert "paper settings" in ax.get_title()
     annotations = [t.get_text() for t in ax.texts]
     assert "1.34" in annotations and "1.08" in annotations  # the averages are annotated
@@ -265,8 +265,7 @@ def test_mae_bars_with_intervals_draws_capped_error_bars(tmp_path):
             assert label.xy[1] == pytest.approx(high)
     assert ax.get_ylim()[1] > max(r[1] for r in prior_ci + model_ci)
     # the legend as without intervals; a note says what the error bars are
-    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["control program",
-                                                                   "base boosting"]
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["prior", "base boosting"]
     assert any("95% bootstrap intervals" in t.get_text() for t in ax.texts)
     _png(fig, tmp_path, "bars_ci.png")
     assert _no_pyplot_figures()

@@ -144,8 +144,7 @@ def test_prior_target_boxplots_pairs_each_eigenenergy(train, tmp_path):
     colours = {tuple(np.round(b.get_facecolor(), 3)) for b in boxes}
     assert len(colours) == 2
     assert ax.get_ylabel() == "eigenenergy (MHz)"
-    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["control program (X)",
-                                                                   "measured (Y)"]
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["prior (X)", "measured (Y)"]
     assert [t.get_text() for t in ax.get_xticklabels()] == [f"X{j} | Y{j}" for j in range(1, 6)]
     lo, hi = ax.get_ylim()  # plotted as given, about -6000 MHz
     assert -6100 < lo <= min(prior.min().min(), targets.min().min())
@@ -240,7 +239,7 @@ def test_model_comparison_bars_with_two_systems_matches_mae_bars_geometry():
 @pytest.mark.parametrize("values, kwargs, match", [
     ({"only one": PRIOR_MAE}, {}, r"2 to 6 systems; got 1: \['only one'\]"),
     ({f"s{i}": PRIOR_MAE for i in range(7)}, {}, "2 to 6 systems; got 7"),
-    ({f"s{i}": PRIOR_MAE for i in range(5)}, {}, "more than 4 systems other than the control"),
+    ({f"s{i}": PRIOR_MAE for i in range(5)}, {}, "more than 4 systems other than the prior"),
     ({"a": PRIOR_MAE, "b": MODEL_MAE[:4]}, {}, r"values\['b'\] must have one value per target"),
     ({"a": PRIOR_MAE, "b": [np.nan, 1, 1, 1, 1]}, {}, r"values\['b'\] has non-finite"),
     ({"a": PRIOR_MAE, "b": [0.0, 1, 1, 1, 1]}, {"log": True}, r"log=True needs positive.*'b'"),

@@ -235,6 +235,7 @@ def test_figures_show_the_json_numbers_and_mlflow_has_them(quick_run, tmp_path):
                                    model_ci=[*paper["model"]["test_mae_ci"],
                                              paper["model"]["test_mae_avg_ci"]],
                                    unit=res["unit"], title="Test MAE per eigenenergy (Fig. 2)",
+                                   labels=("control program", "base boosting"),
                                    setting="paper settings"), tmp_path / "fig2.png")
     assert redrawn.read_bytes() == (out / "figures" / "fig2_mae_bars.png").read_bytes()
     client = MlflowClient(uri)

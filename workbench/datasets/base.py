@@ -84,6 +84,9 @@ class Dataset:
     order : Series, default=None
         Each row's place in time (numbers, or datetimes; larger is later), e.g. the date a
         row was measured: CV folds follow it (forward-chaining), and it is no feature.
+    prior_label : str, default="prior"
+        What figures and tables call the prior (e.g. ``"control program"``, ``"coherence
+        limit"``).
     """
 
     name: str
@@ -96,6 +99,7 @@ class Dataset:
     groups: pd.Series | None = None
     unit: str | None = None
     order: pd.Series | None = None
+    prior_label: str = "prior"
 
     @property
     def target_names(self) -> list[str]:

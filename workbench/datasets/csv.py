@@ -253,7 +253,7 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
                      edges: Sequence[Sequence[int]] | None = None,
                      group_column: str | None = None, name: str | None = None,
                      unit: str | None = None, order_column: str | None = None,
-                     split: str | None = None) -> Dataset:
+                     split: str | None = None, prior_label: str = "prior") -> Dataset:
     """Read a CSV of experiments into a :class:`Dataset`.
 
     Parameters
@@ -290,8 +290,8 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
         Each row's group (e.g. its device): the dataset's ``groups``, which CV folds keep whole.
     name : str, default=None
         The dataset's name (``None``: the file's stem).
-    unit : str, default=None
-        The targets' unit (e.g. ``"meV"``) figures and summaries show (``None``: none).
+    unit, prior_label : str, default=None, "prior"
+        The targets' unit (e.g. ``"meV"``; ``None``: none) and the prior's name, as shown.
     order_column : str, default=None
         Each row's place in time, dates (``2024-03-01``, ``2024-03-01T09:30:00Z``; no zone:
         UTC) or numbers (run numbers): the dataset's ``order``, which CV folds follow.
@@ -321,7 +321,8 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
     groups = None if group_column is None else _groups(frame, group_column, used, path)
     return Dataset(name=name or path.stem, features=data[features], prior=data[prior],
                    targets=data[targets], train_index=train, test_index=test,
-                   hamiltonian=hamiltonian, groups=groups, unit=unit, order=order)
+                   hamiltonian=hamiltonian, groups=groups, unit=unit, order=order,
+                   prior_label=prior_label)
 
 
 def _hamiltonian(data: pd.DataFrame, onsite: Sequence[str], couplings: Sequence[str] | None,

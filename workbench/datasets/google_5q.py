@@ -121,6 +121,7 @@ def load_google_5q(data_dir: str | os.PathLike[str] | None = None, *,
     return Dataset(
         name="google_5q",
         unit="MHz",
+        prior_label="control program",
         features=X[FEATURES].copy(),
         prior=X[PRIOR].copy(),
         targets=y[TARGETS].copy(),

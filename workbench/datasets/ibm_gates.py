@@ -275,4 +275,4 @@ def load_ibm_gates(data_dir: str | os.PathLike[str] | None = None, *,
     return Dataset(name="ibm_gates", features=table[FEATURES].copy(),
                    prior=table[[PRIOR]].copy(), targets=table[[TARGET]].copy(),
                    train_index=index[~test.to_numpy()], test_index=index[test.to_numpy()],
-                   groups=devices.copy(), unit="%")
+                   groups=devices.copy(), unit="%", prior_label="coherence limit")

@@ -192,7 +192,8 @@ def _csv(options: Mapping[str, Any], base: Path, name: str) -> Dataset:
         qubit_features=ham.get("qubit_features"),
         coupler_features=ham.get("coupler_features"),
         group_column=options.get("group_column"), name=name, unit=options.get("unit"),
-        order_column=options.get("order_column"), split=options.get("split"))
+        order_column=options.get("order_column"), split=options.get("split"),
+        prior_label=options.get("prior_label") or "prior")
 
 
 register_source("google_5q", _google_5q)

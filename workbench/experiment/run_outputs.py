@@ -167,6 +167,7 @@ def compute_outputs(cfg: ExperimentConfig, result: Result, model: Any, ds: Datas
     # the family's run figures start on the worker processes while the rest is drawn here
     finish = family.begin_artifacts(cfg, ds, fitted, setting)
     bars = {f"{metric.lower()}_bars": error_bars(result, metric, unit=ds.unit, setting=setting,
+                                                 labels=(ds.prior_label, "base boosting"),
                                                  title=f"Test {metric} per target")
             for metric in ("MAE", "MSE")}
     from .serving import prediction_frame  # (MLflow's types): a tracked run only

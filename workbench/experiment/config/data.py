@@ -82,7 +82,8 @@ class DataConfig(Section):
     (optional ``data_dir``, ``split = "time"`` or ``"devices"`` with ``split_seed``), or a CSV
     of your own (``csv``, one ``prior`` column per ``targets`` column, ``features``, either
     ``test_fraction`` or ``split_column``, optionally a ``group_column`` or an
-    ``order_column`` that the CV folds follow, and the targets' ``unit``). Paths are
+    ``order_column`` that the CV folds follow, the targets' ``unit`` and the prior's name,
+    ``prior_label``). Paths are
     relative to the config file.
 
     Parameters
@@ -125,6 +126,10 @@ class DataConfig(Section):
         named in ``features`` too; not with ``group_column``.
     unit : str, default=None
         The targets' unit (e.g. ``"meV"``) that figures and summaries show.
+    prior_label : str, default=None
+        What the figures call the prior columns' model (e.g. ``"mass formula"``); ``None``:
+        ``"prior"``. The benchmarks name theirs (``"control program"``, ``"coherence
+        limit"``).
     hamiltonian : HamiltonianData, default=None
         ``[data.hamiltonian]``: the Hamiltonian's columns, for the physics-aware families.
     """
@@ -142,6 +147,7 @@ class DataConfig(Section):
     group_column: str | None = None
     order_column: str | None = None
     unit: str | None = None
+    prior_label: str | None = Field(default=None, min_length=1)
     hamiltonian: HamiltonianData | None = None
 
     @field_validator("source")
@@ -167,7 +173,7 @@ class DataConfig(Section):
     def _consistent(self) -> DataConfig:
         csv_keys = sorted(k for k in ("csv", "prior", "targets", "test_fraction",
                                       "split_column", "group_column", "order_column",
-                                      "hamiltonian", "unit")
+                                      "hamiltonian", "unit", "prior_label")
                           if getattr(self, k) is not None) + (["features"] if self.features
                                                               else [])
         if self.source != "csv":

@@ -17,10 +17,13 @@ from ..figures.style import (
     MODEL_COLOR,
     OTHER_SYSTEM_COLORS,
     TRAIN_COLOR,
+    fit_text,
     new_figure,
     numeric_frame,
     style_axes,
+    text_inches,
     with_setting,
+    wrap,
 )
 from ..units import unit_suffix, with_unit
 
@@ -102,7 +105,7 @@ def parameter_corrections(control: pd.DataFrame, corrected: pd.DataFrame, *,
     axes.ravel()[0].legend(frameon=False, fontsize=8)
     fig.suptitle(with_setting(title or "Hamiltonian parameters: correction vs control model "
                               "(mean ± sd)", setting), fontsize=12)
-    return fig
+    return fit_text(fig)
 
 
 def selection_path_figure(path: pd.DataFrame, *, unit: str | None = None,
@@ -135,9 +138,14 @@ def selection_path_figure(path: pd.DataFrame, *, unit: str | None = None,
     if missing or path.empty:
         raise ValueError(f"path needs rows and the columns step, parameter, covariate, cv_mae; "
                          f"missing {sorted(missing)}" if missing else "path has no rows")
-    labels = ["start" if i == 0 else f"{p} ← {c}" for i, (p, c) in
+    labels = ["start" if i == 0 else wrap(f"{p} ← {c}", 36) for i, (p, c) in
               enumerate(zip(path["parameter"], path["covariate"]))]
-    fig = new_figure(max(5.0, 0.42 * len(labels) + 2.0), 4.2)
+    lines = [label.split("\n") for label in labels]
+    longest = max(len(line) for label in lines for line in label)
+    # the labels hang at 60 degrees under the axis: the figure grows to hold them, and a
+    # label of several lines needs the room of as many
+    fig = new_figure(max(5.0, 0.42 * max(map(len, lines)) * len(labels) + 2.0),
+                     4.2 + max(0.0, 0.87 * text_inches(longest, 8) - 1.0))
     ax = fig.add_subplot()
     ax.plot(np.arange(len(labels)), path["cv_mae"].to_numpy(dtype=float), marker="o",
             color=MODEL_COLOR)
@@ -146,4 +154,4 @@ def selection_path_figure(path: pd.DataFrame, *, unit: str | None = None,
     ax.set_ylabel(with_unit("CV MAE", unit), fontsize=11)
     ax.set_title(with_setting(title or "Forward covariate selection", setting), fontsize=12)
     style_axes(ax)
-    return fig
+    return fit_text(fig)

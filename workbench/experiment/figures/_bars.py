@@ -1,7 +1,8 @@
 """Bar charts of per-target errors, with the errors' intervals as error bars.
 
-The control program against the model (Fig. 2, S4), and 2 to 6 systems side by side (Fig. S6,
-S7).
+The prior against the model (Fig. 2, S4), and 2 to 6 systems side by side (Fig. S6, S7).
+Figures grow with the number of targets and the length of their names, which wrap to the
+space of their bars (:func:`~.style.fit_text`).
 """
 
 from __future__ import annotations
@@ -16,8 +17,10 @@ from .style import (
     MODEL_COLOR,
     OTHER_SYSTEM_COLORS,
     PRIOR_COLOR,
+    fit_text,
     new_figure,
     style_axes,
+    text_inches,
     with_setting,
 )
 
@@ -34,6 +37,47 @@ __all__ = ["error_bars", "mae_bars", "model_comparison_bars"]
 ERROR_BAR_STYLE = {"ecolor": "#222222", "elinewidth": 0.8, "capsize": 3.0, "capthick": 0.8}
 #: The note under a chart with error bars, by default.
 CI_NOTE = "error bars: 95% bootstrap intervals over the test rows"
+#: Most characters of a target's name on one line under its bars (longer names wrap).
+NAME_CHARS = 16
+#: The widest bar chart, in inches (beyond it, the targets' names wrap to narrower groups).
+MAX_WIDTH = 16.0
+
+
+def _names(targets: Sequence[str]) -> list[str]:
+    """Return the targets' names, or raise a ValueError when there are none."""
+    names = [str(t) for t in targets]
+    if not names:
+        raise ValueError("targets is empty")
+    return names
+
+
+def _width(names: list[str], group: float) -> float:
+    """Measure a bar chart: groups of at least ``group`` inches, wider for long names."""
+    longest = max(len(line) for name in names for line in name.split("\n"))
+    group = max(group, text_inches(min(longest, NAME_CHARS), 10) + 0.2)
+    return min(MAX_WIDTH, max(5.0, group * len(names) + 1.8))
+
+
+def _legend(fig: Figure, ax: Axes, labels: list[str], *, inside: Any = None) -> None:
+    """Draw the legend of the bars in rows under the axes, as many columns as fit the width.
+
+    With ``inside`` (a location such as ``"upper right"``), in the axes on one row instead,
+    where that row takes less than 60% of the axes' width (estimated); legends fill column by
+    column, so with two columns the entries are reordered to keep the bars' order in rows.
+    """
+    handles, texts = ax.get_legend_handles_labels()
+    entry = [text_inches(len(t), 10) + 0.6 for t in labels]  # the patch and the gap too
+    if inside is not None and sum(entry) <= 0.6 * (fig.get_figwidth() - 1.0):
+        ax.legend(loc=inside, frameon=False, fontsize=10, ncols=len(labels))
+        return
+    ncols = len(labels)
+    while ncols > 1 and sum(sorted(entry)[-ncols:]) > fig.get_figwidth() - 0.3:
+        ncols -= 1
+    if ncols == 2 and len(labels) in (3, 4):  # keep the bars' order in rows
+        order = (0, 2, 1, 3)[:len(labels)] if len(labels) == 4 else (0, 2, 1)
+        handles, texts = [handles[i] for i in order], [texts[i] for i in order]
+    fig.legend(handles, texts, loc="outside lower center", ncols=ncols, frameon=False,
+               fontsize=10)
 
 
 def _values(name: str, values: Any, n: int) -> np.ndarray:
@@ -104,7 +148,7 @@ def _note_under_xlabel(ax: Axes, note: str) -> None:
 
 def mae_bars(targets: Sequence[str], prior: Sequence[float], model: Sequence[float], *,
              metric: str = "MAE", unit: str | None = None, title: str | None = None,
-             labels: tuple[str, str] = ("control program", "base boosting"),
+             labels: tuple[str, str] = ("prior", "base boosting"),
              setting: str | None = None, average: bool = True, prior_ci: Any = None,
              model_ci: Any = None, ci_note: str | None = CI_NOTE) -> Figure:
     """Draw a per-target error of the prior and the model as grouped bars.
@@ -117,7 +161,7 @@ def mae_bars(targets: Sequence[str], prior: Sequence[float], model: Sequence[flo
     targets : sequence of str
         Target names, one bar group each.
     prior, model : sequence of float
-        The error of the control program (prior) and of the learned model per target.
+        The error of the prior and of the learned model per target.
     metric : str, default="MAE"
         The error's name on the axis.
     unit : str, optional
@@ -126,7 +170,8 @@ def mae_bars(targets: Sequence[str], prior: Sequence[float], model: Sequence[flo
     title : str, optional
         Default: ``"Test <metric> per target: <labels[0]> vs <labels[1]>"``.
     labels : (str, str)
-        Legend entries of the prior's and the model's bars.
+        Legend entries of the prior's and the model's bars (the data set's name of its prior:
+        :attr:`~workbench.datasets.Dataset.prior_label`).
     setting : str, optional
         A second title line naming the setting (e.g. the config).
     average : bool, default=True
@@ -152,9 +197,7 @@ def mae_bars(targets: Sequence[str], prior: Sequence[float], model: Sequence[flo
     ValueError
         If ``targets`` is empty, or the errors or intervals do not match the targets.
     """
-    names = [str(t) for t in targets]
-    if not names:
-        raise ValueError("targets is empty")
+    names = _names(targets)
     n_targets = len(names)
     prior_v = _values("prior", prior, n_targets)
     model_v = _values("model", model, n_targets)
@@ -166,7 +209,7 @@ def mae_bars(targets: Sequence[str], prior: Sequence[float], model: Sequence[flo
               for name, ci, values in (("prior_ci", prior_ci, prior_v),
                                        ("model_ci", model_ci, model_v))]
 
-    fig = new_figure(max(5.0, 0.95 * len(names) + 1.8), 4.0)
+    fig = new_figure(_width(names, 0.95), 4.0)
     ax = fig.add_subplot()
     _grouped_bars(ax, names, [(labels[0], prior_v, PRIOR_COLOR),
                               (labels[1], model_v, MODEL_COLOR)], average=average, errors=errors)
@@ -175,13 +218,13 @@ def mae_bars(targets: Sequence[str], prior: Sequence[float], model: Sequence[flo
             for values, err in zip((prior_v, model_v), errors)]
     top = np.nanmax(np.concatenate(tops)) if np.any(np.isfinite(prior_v)) else 1.0
     ax.set_ylim(0, top * 1.22 if np.isfinite(top) and top > 0 else 1.0)
-    ax.legend(loc="upper right", frameon=False, fontsize=10, ncols=2)
+    _legend(fig, ax, list(labels), inside="upper right")
     ax.set_title(with_setting(title or f"Test {metric} per target: {labels[0]} vs {labels[1]}",
                               setting), fontsize=12)
     if ci_note and any(err is not None for err in errors):
         _note_under_xlabel(ax, ci_note)
     style_axes(ax)
-    return fig
+    return fit_text(fig)
 
 
 
@@ -219,23 +262,24 @@ def error_bars(result: Result, metric: str = "MAE", *, unit: str | None = None,
 
 
 def _system_colors(systems: list[str]) -> list[str]:
-    """Colour each system: the control program grey, base boosting blue, the rest in turn.
+    """Colour each system: the prior grey, base boosting blue, the rest in turn.
 
-    As in :func:`mae_bars`; other systems get the next unused colour of
-    :data:`OTHER_SYSTEM_COLORS`, in order.
+    As in :func:`mae_bars`: a system named "prior ..." or "control program ..." is grey;
+    other systems get the next unused colour of :data:`OTHER_SYSTEM_COLORS`, in order.
     """
     colors: list[str] = []
     used: set[str] = set()
     others = iter(OTHER_SYSTEM_COLORS)
     for system in systems:
         name = system.lower()
-        color = (PRIOR_COLOR if "control program" in name else
+        prior = "control program" in name or name == "prior" or name.startswith("prior ")
+        color = (PRIOR_COLOR if prior else
                  MODEL_COLOR if "base boost" in name else None)
         if color is None or color in used:
             color = next((c for c in others if c not in used), None)
             if color is None:
                 raise ValueError(f"more than {len(OTHER_SYSTEM_COLORS)} systems other than "
-                                 f"the control program and base boosting: {systems}")
+                                 f"the prior and base boosting: {systems}")
         used.add(color)
         colors.append(color)
     return colors
@@ -251,7 +295,7 @@ def _comparison_values(values: Any, n_targets: int, log: bool,
         raise TypeError(f"values must map each system's name to its values; got "
                         f"{type(values).__name__}")
     systems = [str(s) for s in values]
-    most = len(OTHER_SYSTEM_COLORS) + 2  # the control program and base boosting: their own
+    most = len(OTHER_SYSTEM_COLORS) + 2  # the prior and base boosting: their own
     if not 2 <= len(systems) <= most:
         raise ValueError(f"model_comparison_bars compares 2 to {most} systems; got "
                          f"{len(systems)}: {systems}")
@@ -306,18 +350,6 @@ def _value_axis(ax: Axes, every: np.ndarray, *, metric: str, unit: str | None,
             ax.axhline(0.0, color="#333333", lw=0.8)
 
 
-def _system_legend(fig: Figure, ax: Axes, systems: list[str]) -> None:
-    """Draw the legend of :func:`model_comparison_bars` under the axes, in the bars' order."""
-    handles, legend_labels = ax.get_legend_handles_labels()
-    n = len(systems)
-    ncols = n if sum(map(len, systems)) <= 100 else 2
-    if ncols == 2 and n == 4:  # legends fill column by column: keep the bars' order in rows
-        handles, legend_labels = ([seq[i] for i in (0, 2, 1, 3)]
-                                  for seq in (handles, legend_labels))
-    fig.legend(handles, legend_labels, loc="outside lower center", ncols=ncols, frameon=False,
-               fontsize=10)
-
-
 def model_comparison_bars(targets: Sequence[str], values: Mapping[str, Sequence[float]], *,
                           metric: str = "MAE", unit: str | None = None,
                           title: str | None = None, setting: str | None = None,
@@ -326,7 +358,7 @@ def model_comparison_bars(targets: Sequence[str], values: Mapping[str, Sequence[
                           ci_note: str | None = CI_NOTE) -> Figure:
     """Draw a per-target error of 2 to 6 systems as grouped bars (Fig. S6, S7).
 
-    At most 4 systems besides the control program and base boosting; their averages are
+    At most 4 systems besides the prior and base boosting; their averages are
     appended, with error bars for the systems given intervals.
 
     Parameters
@@ -335,7 +367,7 @@ def model_comparison_bars(targets: Sequence[str], values: Mapping[str, Sequence[
         Target names, one bar group each.
     values : mapping of str to sequence of float
         System name (legend entry) -> its error per target, in the order of the bars. A system
-        named "control program ..." is grey and "base boosting ..." blue, as in
+        named "prior ..." or "control program ..." is grey and "base boosting ..." blue, as in
         :func:`mae_bars`.
     metric : str, default="MAE"
         The error's name on the axis.
@@ -370,9 +402,7 @@ def model_comparison_bars(targets: Sequence[str], values: Mapping[str, Sequence[
         do not match the targets or are not finite (positive with ``log``), or an interval
         names an unknown system or does not match the targets.
     """
-    names = [str(t) for t in targets]
-    if not names:
-        raise ValueError("targets is empty")
+    names = _names(targets)
     n_targets = len(names)
     systems, arrays = _comparison_values(values, n_targets, log, average)
     colors = _system_colors(systems)
@@ -380,7 +410,7 @@ def model_comparison_bars(targets: Sequence[str], values: Mapping[str, Sequence[
         names = [*names, "average"]
     errors = _comparison_errors(intervals, systems, arrays, n_targets, average)
     n = len(systems)
-    fig = new_figure(max(5.0, (0.42 * n + 0.15) * len(names) + 1.8), 4.4)
+    fig = new_figure(_width(names, 0.42 * n + 0.15), 4.4)
     ax = fig.add_subplot()
     every = np.concatenate(arrays)
     biggest = np.abs(every).max()
@@ -391,10 +421,10 @@ def model_comparison_bars(targets: Sequence[str], values: Mapping[str, Sequence[
     ends = [every] + [edge for arr, err in zip(arrays, errors) if err is not None
                       for edge in (arr - err[0], arr + err[1])]
     _value_axis(ax, np.concatenate(ends), metric=metric, unit=unit, log=log)
-    _system_legend(fig, ax, systems)
+    _legend(fig, ax, systems)
     default = f"Test {metric} per target: " + " vs ".join(systems)
     ax.set_title(with_setting(title or default, setting), fontsize=12)
     if ci_note and any(err is not None for err in errors):
         _note_under_xlabel(ax, ci_note)
     style_axes(ax)
-    return fig
+    return fit_text(fig)

@@ -11,7 +11,15 @@ import numpy as np
 
 from ...curves import LearningCurve
 from ..units import squared, with_unit
-from .style import INCUMBENT_COLOR, MODEL_COLOR, TRAIN_COLOR, new_figure, style_axes, with_setting
+from .style import (
+    INCUMBENT_COLOR,
+    MODEL_COLOR,
+    TRAIN_COLOR,
+    fit_text,
+    new_figure,
+    style_axes,
+    with_setting,
+)
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -76,4 +84,4 @@ def learning_curve_figure(curve: LearningCurve, *, target: str, unit: str | None
                f"~{n_val} validation rows per fold")
     ax.set_title(with_setting(title or default, setting), fontsize=12)
     style_axes(ax)
-    return fig
+    return fit_text(fig)

@@ -18,10 +18,13 @@ from .style import (
     MEASURED_COLOR,
     PRIOR_COLOR,
     QUBIT_COLOR,
+    fit_text,
     new_figure,
     numeric_frame,
     style_axes,
+    text_inches,
     with_setting,
+    wrap,
 )
 
 if TYPE_CHECKING:
@@ -29,6 +32,15 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
 __all__ = ["correlation_heatmap", "prior_target_boxplots", "voltage_boxplots"]
+
+#: Most characters of a column's name on one line (longer names wrap).
+NAME_CHARS = 16
+
+
+def _name_inches(names: Sequence[str], least: float, fontsize: float = 10) -> float:
+    """Measure one column's tick label: ``least``, or its longest line's (inches, wrapped)."""
+    longest = max(len(line) for name in names for line in str(name).split("\n"))
+    return max(least, text_inches(min(longest, NAME_CHARS), fontsize) + 0.2)
 
 
 def _column_data(name: str, frame: pd.DataFrame) -> list[np.ndarray]:
@@ -92,14 +104,15 @@ def correlation_heatmap(frame: pd.DataFrame, *, title: str | None = None,
     if len(frame) < 2:
         raise ValueError(f"a correlation needs at least 2 rows; got {len(frame)}")
     corr = frame.corr(method="pearson")
-    names = [str(c) for c in corr.columns]
+    names = [wrap(str(c), 2 * NAME_CHARS) for c in corr.columns]
     n = len(names)
     values = corr.to_numpy(dtype=float)
 
     import matplotlib  # deferred: as style.new_figure
 
     cmap = matplotlib.colormaps["RdBu_r"].with_extremes(bad="#d9d9d9")
-    side = max(4.0, 0.58 * n + 1.6)
+    labels = max(0.0, _name_inches(names, 0.0) - 0.6) if max(map(len, names)) > 4 else 0.0
+    side = max(4.0, 0.58 * n + 1.6) + labels  # the cells keep their size beside long names
     fig = new_figure(side + 1.1, side)
     ax = fig.add_subplot()
     image = ax.imshow(np.ma.masked_invalid(values), cmap=cmap, vmin=-1.0, vmax=1.0,
@@ -123,7 +136,7 @@ def correlation_heatmap(frame: pd.DataFrame, *, title: str | None = None,
     bar.ax.tick_params(labelsize=9)
     default = f"Pairwise Pearson correlation, {len(frame)} rows x {n} columns"
     ax.set_title(with_setting(title or default, setting), fontsize=12)
-    return fig
+    return fit_text(fig)
 
 
 def voltage_boxplots(voltages: pd.DataFrame, *, title: str | None = None,
@@ -170,7 +183,8 @@ def voltage_boxplots(voltages: pd.DataFrame, *, title: str | None = None,
               (("qubit", qubits, QUBIT_COLOR), ("coupler", couplers, COUPLER_COLOR)) if cols]
 
     widths = [len(cols) for _, cols, _ in panels]
-    fig = new_figure(max(6.0, 0.72 * sum(widths) + 2.6), 4.4)
+    column = _name_inches(columns, 0.72)
+    fig = new_figure(max(6.0, column * sum(widths) + 2.6), 4.4)
     axes = fig.subplots(1, len(panels), width_ratios=widths, squeeze=False)[0]
     for ax, (kind, cols, color) in zip(axes, panels, strict=True):
         data = _column_data("voltages", voltages[cols])
@@ -186,20 +200,21 @@ def voltage_boxplots(voltages: pd.DataFrame, *, title: str | None = None,
         ax.set_axisbelow(True)
         style_axes(ax)
     fig.suptitle(title or f"Bias voltages, {len(voltages)} rows", fontsize=12)
-    return fig
+    return fit_text(fig)
 
 
 def _pair_label(j: int, prior_name: str, target_name: str) -> str:
     label = f"X{j} | Y{j}"
     if prior_name != target_name and (prior_name, target_name) != (f"X{j}", f"Y{j}"):
-        label += f"\n{prior_name} | {target_name}"
+        names = f"{prior_name} | {target_name}"
+        label += f"\n{names}" if len(names) <= NAME_CHARS else f"\n{prior_name} |\n{target_name}"
     return label
 
 
 def prior_target_boxplots(prior: pd.DataFrame, targets: pd.DataFrame, *,
                           unit: str | None = None,
                           title: str | None = None,
-                          labels: tuple[str, str] = ("control program (X)", "measured (Y)")
+                          labels: tuple[str, str] = ("prior (X)", "measured (Y)")
                           ) -> Figure:
     """Draw joint boxplots of prior and targets (Fig. S3).
 
@@ -219,7 +234,8 @@ def prior_target_boxplots(prior: pd.DataFrame, targets: pd.DataFrame, *,
     title : str, optional
         Default: the labels and the number of rows.
     labels : (str, str)
-        Legend entries of the prior's and the targets' boxes.
+        Legend entries of the prior's and the targets' boxes (the prior's: the data set's
+        name of its prior, :attr:`~workbench.datasets.Dataset.prior_label`, and ``(X)``).
 
     Returns
     -------
@@ -244,14 +260,14 @@ def prior_target_boxplots(prior: pd.DataFrame, targets: pd.DataFrame, *,
     n = prior.shape[1]
     x = np.arange(1, n + 1, dtype=float)
     offset, width = 0.2, 0.36
-    fig = new_figure(max(6.0, 1.15 * n + 2.2), 4.6)
+    names = [_pair_label(j, str(p), str(t))
+             for j, p, t in zip(range(1, n + 1), prior.columns, targets.columns, strict=True)]
+    fig = new_figure(max(6.0, _name_inches(names, 1.15) * n + 2.2), 4.6)
     ax = fig.add_subplot()
     box_prior = _boxplot(ax, _column_data("prior", prior), x - offset, PRIOR_COLOR,
                          width=width)
     box_target = _boxplot(ax, _column_data("targets", targets), x + offset, MEASURED_COLOR,
                           width=width)
-    names = [_pair_label(j, str(p), str(t))
-             for j, p, t in zip(range(1, n + 1), prior.columns, targets.columns, strict=True)]
     ax.set_xticks(x, names, fontsize=10)
     ax.set_xlim(0.4, n + 0.6)
     ax.ticklabel_format(axis="y", useOffset=False, style="plain")
@@ -264,4 +280,4 @@ def prior_target_boxplots(prior: pd.DataFrame, targets: pd.DataFrame, *,
     default = f"{labels[0]} and {labels[1]} eigenenergies, {len(prior)} rows"
     ax.set_title(title or default, fontsize=12)
     style_axes(ax)
-    return fig
+    return fit_text(fig)

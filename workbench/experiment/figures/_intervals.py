@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 
 from ..units import unit_suffix, with_unit
-from .style import INCUMBENT_COLOR, MODEL_COLOR, new_figure, style_axes, with_setting
+from .style import INCUMBENT_COLOR, MODEL_COLOR, fit_text, new_figure, style_axes, with_setting
 
 if TYPE_CHECKING:
     from matplotlib.artist import Artist
@@ -111,4 +111,4 @@ def interval_figure(table: pd.DataFrame, *, level: float, unit: str | None = Non
                frameon=False, fontsize=8)
     fig.suptitle(with_setting(title or f"{level:.0%} prediction intervals", setting),
                  fontsize=12)
-    return fig
+    return fit_text(fig)

@@ -9,7 +9,16 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..units import with_unit
-from .style import INCUMBENT_COLOR, MODEL_COLOR, PRIOR_COLOR, new_figure, style_axes, with_setting
+from .style import (
+    INCUMBENT_COLOR,
+    MODEL_COLOR,
+    PRIOR_COLOR,
+    fit_text,
+    new_figure,
+    style_axes,
+    text_inches,
+    with_setting,
+)
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -20,7 +29,7 @@ __all__ = ["seed_spread"]
 def seed_spread(targets: Sequence[str], errors: ArrayLike, *, seeds: Sequence[int],
                 prior: Sequence[float] | None = None, metric: str = "test MAE",
                 unit: str | None = None, title: str | None = None,
-                setting: str | None = None) -> Figure:
+                setting: str | None = None, prior_label: str = "prior") -> Figure:
     """Draw how a model's error spreads over seeds, per target and on average.
 
     Per target (and their average, set apart by a dotted line) each seed's error as a point,
@@ -45,6 +54,9 @@ def seed_spread(targets: Sequence[str], errors: ArrayLike, *, seeds: Sequence[in
         Default: ``"<metric> over <n> seeds"``.
     setting : str, optional
         A second title line naming the setting.
+    prior_label : str, default="prior"
+        The prior's legend entry (the data set's name of its prior,
+        :attr:`~workbench.datasets.Dataset.prior_label`).
 
     Returns
     -------
@@ -67,7 +79,10 @@ def seed_spread(targets: Sequence[str], errors: ArrayLike, *, seeds: Sequence[in
     values = np.column_stack([values, values.mean(axis=1)])
     names.append("average")
     x = np.arange(len(names), dtype=float)
-    fig = new_figure(max(4.5, 1.1 * len(names) + 1.5), 4.2)
+    rotate = len(names) > 6
+    longest = min(max(map(len, names)), 16)  # longer names wrap (fit_text)
+    column = 1.1 if rotate else max(1.1, text_inches(longest, 10) + 0.2)
+    fig = new_figure(max(4.5, column * len(names) + 1.5), 4.2)
     ax = fig.subplots()
     jitter = np.linspace(-0.18, 0.18, len(seeds))
     for i in range(len(seeds)):
@@ -80,13 +95,14 @@ def seed_spread(targets: Sequence[str], errors: ArrayLike, *, seeds: Sequence[in
         p = np.asarray(prior, dtype=float)
         p = np.append(p, p.mean())
         ax.hlines(p, x - 0.3, x + 0.3, color=PRIOR_COLOR, lw=1.6, zorder=2,
-                  label="control program")
+                  label=prior_label)
     ax.axvline(len(names) - 1.5, color=INCUMBENT_COLOR, lw=0.8, ls=":")
-    ax.set_xticks(x, names, rotation=30 if len(names) > 6 else 0)
+    ax.set_xticks(x, names, rotation=30 if rotate else 0, ha="right" if rotate else "center",
+                  rotation_mode="anchor")
     ax.set_ylabel(with_unit(metric, unit))
     style_axes(ax)
     fig.legend(loc="outside lower center", ncols=3, frameon=False, fontsize=8)
     shown = ", ".join(str(s) for s in seeds[:8]) + (", ..." if len(seeds) > 8 else "")
     fig.suptitle(with_setting(title or f"{metric[:1].upper()}{metric[1:]} over {len(seeds)} "
                               f"seeds ({shown})", setting), fontsize=12)
-    return fig
+    return fit_text(fig)

@@ -14,7 +14,7 @@ import pandas as pd
 
 from ..explain import ShapValues, check_shap_frame, shap_values
 from ..units import unit_suffix, with_unit
-from .style import new_figure, with_setting
+from .style import fit_text, new_figure, text_inches, with_setting
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -135,7 +135,7 @@ def shap_figure(values: np.ndarray, expected: float, X: pd.DataFrame, *, target:
     explanation = shap.Explanation(values=values, base_values=np.full(len(data), expected),
                                    data=data, feature_names=names)
     n_shown = min(len(names), max_display)
-    fig = new_figure(7.0, 0.42 * n_shown + 1.9)
+    fig = new_figure(max(7.0, 5.8 + text_inches(max(map(len, names)), 10)), 0.42 * n_shown + 1.9)
     ax = fig.add_subplot()
     # shap's beeswarm jitters with numpy's global generator: seed it, then restore it.
     state = np.random.get_state()
@@ -155,7 +155,7 @@ def shap_figure(values: np.ndarray, expected: float, X: pd.DataFrame, *, target:
         default = f"SHAP summary of {EXPLAINED[explained]}: {target}\n{size}"
     ax.tick_params("y", labelsize=10)
     ax.set_title(with_setting(title or default, setting), fontsize=12)
-    return fig
+    return fit_text(fig)
 
 
 def correction_shap_figure(shap: ShapValues | None, *, target: str, unit: str | None = None,
@@ -198,4 +198,4 @@ def correction_shap_figure(shap: ShapValues | None, *, target: str, unit: str | 
             ha="center", va="center", fontsize=11, transform=ax.transAxes, wrap=True)
     default = f"SHAP summary of {EXPLAINED['correction']}: {target}"
     ax.set_title(with_setting(title or default, setting), fontsize=12)
-    return fig
+    return fit_text(fig)

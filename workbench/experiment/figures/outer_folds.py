@@ -1,7 +1,7 @@
 """The outer folds of a sweep's nested CV in one figure.
 
 :func:`outer_folds_figure`: a bar per outer fold of every study unit, its length the chosen
-configuration's MAE on the fold's validation rows, the control program's beside it, each
+configuration's MAE on the fold's validation rows, the prior's beside it, each
 labelled with the configuration the fold's study chose (its best trial's parameters).
 """
 
@@ -11,7 +11,7 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 from ..units import with_unit
-from .style import MODEL_COLOR, PRIOR_COLOR, new_figure, style_axes
+from .style import MODEL_COLOR, PRIOR_COLOR, fit_text, new_figure, style_axes
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -53,7 +53,8 @@ def configuration_label(params: dict[str, Any] | None) -> str:
 
 
 def outer_folds_figure(folds: Sequence[OuterFold], unit: str | None = None,
-                       title: str = "Nested CV: each outer fold's choice") -> Figure:
+                       title: str = "Nested CV: each outer fold's choice", *,
+                       prior_label: str = "prior") -> Figure:
     """Draw each outer fold's chosen configuration and its score on the fold's held-out rows.
 
     Parameters
@@ -64,6 +65,9 @@ def outer_folds_figure(folds: Sequence[OuterFold], unit: str | None = None,
         The targets' unit (``None``: none shown).
     title : str, default="Nested CV: each outer fold's choice"
         The figure's title.
+    prior_label : str, default="prior"
+        The prior's legend entry (the data set's name of its prior,
+        :attr:`~workbench.datasets.Dataset.prior_label`).
 
     Returns
     -------
@@ -76,7 +80,7 @@ def outer_folds_figure(folds: Sequence[OuterFold], unit: str | None = None,
     style_axes(ax)
     rows = list(range(n))[::-1]
     ax.barh([r + 0.2 for r in rows], [f.prior_mae for f in folds], height=0.4,
-            color=PRIOR_COLOR, label="control program")
+            color=PRIOR_COLOR, label=prior_label)
     ax.barh([r - 0.2 for r in rows], [f.mae for f in folds], height=0.4, color=MODEL_COLOR,
             label="chosen configuration")
     ax.set_yticks(rows, [f"{f.unit} fold {f.fold}: {configuration_label(f.params)}"
@@ -84,4 +88,4 @@ def outer_folds_figure(folds: Sequence[OuterFold], unit: str | None = None,
     ax.set_xlabel(with_unit("MAE on the fold's validation rows", unit))
     ax.set_title(title)
     ax.legend(loc="lower right", fontsize=8)
-    return fig
+    return fit_text(fig)

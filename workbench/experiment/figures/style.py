@@ -11,6 +11,7 @@ when the first figure is drawn, so a command that draws nothing does not load it
 from __future__ import annotations
 
 import io
+import re
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -23,8 +24,9 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
 __all__ = ["COUPLER_COLOR", "INCUMBENT_COLOR", "MEASURED_COLOR", "MODEL_COLOR",
-           "OTHER_SYSTEM_COLORS", "PRIOR_COLOR", "QUBIT_COLOR", "TRAIN_COLOR", "new_figure",
-           "PNG_DPI", "numeric_frame", "save_figure", "style_axes", "with_setting"]
+           "OTHER_SYSTEM_COLORS", "PRIOR_COLOR", "QUBIT_COLOR", "TRAIN_COLOR", "fit_text",
+           "new_figure", "PNG_DPI", "numeric_frame", "save_figure", "style_axes", "text_inches",
+           "with_setting", "wrap"]
 
 #: The resolution of every PNG the workbench writes (``--out``, a run's figures, the report).
 PNG_DPI = 120
@@ -40,6 +42,152 @@ COUPLER_COLOR = "#E69F00"
 #: Colours of the systems of :func:`~workbench.experiment.figures.model_comparison_bars` not
 #: named after a known system.
 OTHER_SYSTEM_COLORS = ("#D55E00", "#009E73", "#CC79A7", "#56B4E9")
+
+
+#: A character's width as a share of its font size (DejaVu Sans, matplotlib's font: 0.55-0.6
+#: for names and numbers), used to estimate how many characters fit a width.
+CHAR_EM = 0.62
+
+_BREAK = re.compile(r"[^ _/,-]*[ _/,-]*")  # a word with the separators after it
+
+
+def text_inches(chars: int, fontsize: float) -> float:
+    """Estimate the width in inches of ``chars`` characters at ``fontsize`` points."""
+    return chars * CHAR_EM * fontsize / 72
+
+
+def wrap(text: str, width: int) -> str:
+    """Wrap each line of ``text`` at ``width`` characters.
+
+    Lines break after a space, an underscore, a hyphen, a slash or a comma (column names such
+    as ``two_qubit_gate_error`` have no spaces); a word longer than ``width`` is cut.
+
+    Parameters
+    ----------
+    text : str
+        The text; its own line breaks are kept.
+    width : int
+        The most characters of a line (at least 4).
+
+    Returns
+    -------
+    str
+        The wrapped text.
+    """
+    width = max(4, int(width))
+    lines: list[str] = []
+    for line in text.split("\n"):
+        current = ""
+        for piece in filter(None, _BREAK.findall(line)):
+            if current and len(current) + len(piece.rstrip()) > width:
+                lines.append(current.rstrip())
+                current = ""
+            while len(piece.rstrip()) > width:
+                lines.append(piece[:width])
+                piece = piece[width:]
+            current += piece
+        lines.append(current.rstrip())
+    return "\n".join(lines)
+
+
+def _wrap_to(text: Any, inches: float, renderer: Any, *, vertical: bool = False,
+             obstacles: list[Any] | None = None) -> None:
+    """Wrap a Text artist that is longer than ``inches`` (its height if ``vertical``).
+
+    Measured with ``renderer``; a text that fits is left as it is. With ``obstacles``
+    (window extents), a text that is longer but stays on the canvas clear of them is left
+    too.
+    """
+    content = text.get_text()
+    if not content or not text.get_visible() or inches <= 0:
+        return
+    if obstacles is not None:
+        box = text.get_window_extent(renderer)
+        canvas = text.figure.bbox.padded(-2)
+        if (box.x0 >= canvas.x0 and box.x1 <= canvas.x1
+                and not any(box.overlaps(other) for other in obstacles)):
+            return
+    room = inches * text.figure.dpi
+    longest = max(len(line) for line in content.split("\n"))
+    for _ in range(4):  # characters differ in width: narrow further while it does not fit
+        box = text.get_window_extent(renderer)
+        size = box.height if vertical else box.width
+        if size <= room or longest <= 6:
+            return
+        longest = max(6, min(longest - 1, int(longest * room / size)))
+        text.set_text(wrap(content, longest))
+
+
+def _category_ticks(ax: Axes, fig_width: float, renderer: Any) -> bool:
+    """Wrap the x tick labels of a categorical axis to the space between two ticks.
+
+    Returns whether a label changed.
+    """
+    from matplotlib.ticker import FixedLocator  # deferred: as new_figure
+
+    labels = ax.get_xticklabels()
+    locs = ax.get_xticks()
+    if (len(locs) < 1 or not isinstance(ax.xaxis.get_major_locator(), FixedLocator)
+            or any(t.get_rotation() for t in labels)):
+        return False
+    low, high = ax.get_xlim()
+    axes_inches = ax.get_position().width * fig_width
+    step = float(min(abs(b - a) for a, b in zip(locs[:-1], locs[1:]))) if len(locs) > 1 \
+        else abs(high - low)
+    before = [t.get_text() for t in labels]
+    for label in labels:
+        _wrap_to(label, 0.92 * step / abs(high - low) * axes_inches, renderer)
+    after = [t.get_text() for t in labels]
+    if after == before:
+        return False
+    ax.set_xticks(locs, after, fontsize=labels[0].get_fontsize())
+    return True
+
+
+def fit_text(fig: Figure) -> Figure:
+    """Wrap a figure's texts that do not fit their place, once the layout is known.
+
+    Lays ``fig`` out (without rendering it), then wraps each axes' title and x-axis label that
+    is wider than the axes and leaves the canvas or meets another axes (with its tick labels,
+    title and labels), its y-axis label taller than the axes, the tick labels of a
+    categorical x axis (ticks at fixed places, labels not rotated) wider than the space
+    between two ticks (first: the axes move when they shrink), and the figure's title wider
+    than the figure. Texts that fit are left as they are. Call it last, when every text is
+    set.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure, drawn.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        ``fig``.
+    """
+    from matplotlib.backends.backend_agg import RendererAgg  # deferred: as new_figure
+
+    fig.draw_without_rendering()
+    # a renderer of the figure's size measures the texts (the figure's canvas is kept)
+    renderer = RendererAgg(int(fig.bbox.width), int(fig.bbox.height), fig.dpi)
+    width, height = fig.get_figwidth(), fig.get_figheight()
+    shown = [ax for ax in fig.axes if ax.get_visible()]
+    ticks = [ax for ax in shown if ax.axison and _category_ticks(ax, width, renderer)]
+    if ticks:  # the axes move when their tick labels shrink
+        fig.draw_without_rendering()
+    # a title or x label wider than its axes stays where it is on the canvas and clear of
+    # the other axes (their tick labels, titles and labels too)
+    tight = {ax: ax.get_tightbbox(renderer) for ax in shown}
+    for ax in shown:
+        others = [box for other, box in tight.items() if other is not ax and box is not None]
+        box = ax.get_position()
+        _wrap_to(ax.title, box.width * width, renderer, obstacles=others)
+        _wrap_to(ax.xaxis.label, box.width * width, renderer, obstacles=others)
+        _wrap_to(ax.yaxis.label, box.height * height, renderer, vertical=True)
+    title = getattr(fig, "_suptitle", None)  # matplotlib keeps no public handle on it
+    if title is not None:
+        _wrap_to(title, width - 0.3, renderer)
+    return fig
 
 
 def new_figure(width: float, height: float) -> Figure:

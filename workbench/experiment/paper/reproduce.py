@@ -205,12 +205,12 @@ def _paper(job: _Job, all_systems: bool) -> tuple[Dataset, dict[str, Any], dict[
              learning_curves_plan(paper_cfg, ds, job.seed, job.quick)], -1)
         phases = _start_phases(job, ds, all_systems)
         paper = run.result
-        job.save("fig2_mae_bars", error_bars(paper, "MAE", targets=SHORT, unit=ds.unit,
-                                             title="Test MAE per eigenenergy (Fig. 2)",
-                                             setting="paper settings"))
-        job.save("figS4_mse_bars", error_bars(paper, "MSE", targets=SHORT, unit=ds.unit,
-                                              title="Test MSE per eigenenergy (Fig. S4)",
-                                              setting="paper settings"))
+        for metric, fig_id, fig in (("MAE", "fig2_mae_bars", "Fig. 2"),
+                                    ("MSE", "figS4_mse_bars", "Fig. S4")):
+            job.save(fig_id, error_bars(paper, metric, targets=SHORT, unit=ds.unit,
+                                        labels=(ds.prior_label, "base boosting"),
+                                        title=f"Test {metric} per eigenenergy ({fig})",
+                                        setting="paper settings"))
         draw_correction_shap(shap, ds, job.seed, job.save)
         curves = draw_learning_curves(sizes, fitted, ds, job.save, job.same_as)
     return ds, curves, phases
@@ -285,7 +285,7 @@ def _data_figures(job: _Job, ds: Dataset) -> dict[str, Any]:
         ds.features.loc[ds.train_index], title="Bias voltages, training rows (Fig. S2)"))
     job.save("figS3_prior_target_boxplots", prior_target_boxplots(
         train[ds.prior_names].set_axis(SHORT, axis=1), y_train.set_axis(SHORT, axis=1),
-        unit=ds.unit,
+        unit=ds.unit, labels=(f"{ds.prior_label} (X)", "measured (Y)"),
         title="Control program (X) and measured (Y) eigenenergies (Fig. S3)"))
     return frame.corr().round(6).to_dict()
 

@@ -109,7 +109,8 @@ def write_sweep_figures(sweep: Sweep, directory: str | Path, seed: int,
             log.info("[%s] no %s figure: %s", name, figure, why)
         tables.append(importances.assign(study=name)[["study", "param", "importance"]])
     atomic_write(folder / "importances.csv", pd.concat(tables).to_csv(index=False))
-    save_figure(outer_folds_figure(sweep.outer_folds, sweep.dataset.unit),
+    save_figure(outer_folds_figure(sweep.outer_folds, sweep.dataset.unit,
+                                   prior_label=sweep.dataset.prior_label),
                 folder / "outer_folds.png", dpi=DPI)
     return folder
 
