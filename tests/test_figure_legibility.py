@@ -68,6 +68,21 @@ def _mae_bars(targets, unit, prior_label, setting):
     yield figures.mae_bars(targets, prior, model, unit=unit, metric="MSE")  # default title
 
 
+def _error_bars(targets, unit, prior_label, setting):
+    from types import SimpleNamespace
+
+    def scores(values):  # what error_bars reads of a Result's prior and model scores
+        return SimpleNamespace(test_mae=values, test_mse=values ** 2,
+                               ci=lambda key: _ci(values if key == "test_mae" else values ** 2))
+
+    result = SimpleNamespace(targets=list(targets), prior=scores(_errors(len(targets), 2.0)),
+                             model=scores(_errors(len(targets))))
+    for metric in ("MAE", "MSE"):
+        yield figures.error_bars(result, metric, unit=unit, setting=setting,
+                                 labels=(prior_label, "base boosting"),
+                                 title=f"Test {metric} per target")
+
+
 def _comparison(targets, unit, prior_label, setting):
     names = [prior_label, "LightGBM from the prior, tuned by CV",
              "base boosting, generic config"]
@@ -210,6 +225,7 @@ def _gates(targets, unit, prior_label, setting):
 #: label, setting).
 DRAW = {
     figures.mae_bars: _mae_bars,
+    figures.error_bars: _error_bars,
     figures.model_comparison_bars: _comparison,
     figures.learning_curve_figure: _learning_curve,
     figures.shap_figure: _shap_figure,
@@ -371,7 +387,7 @@ def _csv(tmp_path):
 def test_the_figures_call_the_prior_as_the_data_set_names_it(tmp_path):
     from workbench.datasets import load_source
     from workbench.experiment.config import DataConfig
-    from workbench.experiment.run_outputs import _error_bars
+    from workbench.experiment.run_outputs import _run_bars
 
     options = _csv(tmp_path)
     assert load_source("csv", options, tmp_path, "lab").prior_label == "prior"
@@ -380,7 +396,7 @@ def test_the_figures_call_the_prior_as_the_data_set_names_it(tmp_path):
     assert ds.prior_label == "mass formula"
     scores = types.SimpleNamespace(test_mae=[1.0], test_mse=[1.0], ci=lambda key: None)
     result = types.SimpleNamespace(targets=ds.target_names, prior=scores, model=scores)
-    for fig in _error_bars(result, ds, "evaluate of lab").values():
+    for fig in _run_bars(result, ds, "evaluate of lab").values():
         legend = fig.axes[0].get_legend() or fig.legends[0]
         assert [t.get_text() for t in legend.get_texts()] == ["mass formula", "base boosting"]
     with pytest.raises(ValueError, match="apply to source"):

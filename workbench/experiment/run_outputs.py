@@ -71,6 +71,17 @@ class RunOutputs:
     written: dict[str, Path] = field(default_factory=dict)
 
 
+def _run_bars(result: Result, ds: Dataset, setting: str) -> dict[str, Any]:
+    """Draw the run's test MAE and MSE bars (``mae_bars``, ``mse_bars``).
+
+    The prior is named as the data set names it (:attr:`Dataset.prior_label`).
+    """
+    return {f"{metric.lower()}_bars": error_bars(result, metric, unit=ds.unit, setting=setting,
+                                                 labels=(ds.prior_label, "base boosting"),
+                                                 title=f"Test {metric} per target")
+            for metric in ("MAE", "MSE")}
+
+
 def _merged(*parts: Artifacts) -> Artifacts:
     """Join artifacts, a later part's name replacing an earlier one's."""
     out = Artifacts()
@@ -166,10 +177,7 @@ def compute_outputs(cfg: ExperimentConfig, result: Result, model: Any, ds: Datas
         return computed
     # the family's run figures start on the worker processes while the rest is drawn here
     finish = family.begin_artifacts(cfg, ds, fitted, setting)
-    bars = {f"{metric.lower()}_bars": error_bars(result, metric, unit=ds.unit, setting=setting,
-                                                 labels=(ds.prior_label, "base boosting"),
-                                                 title=f"Test {metric} per target")
-            for metric in ("MAE", "MSE")}
+    bars = _run_bars(result, ds, setting)
     from .serving import prediction_frame  # (MLflow's types): a tracked run only
 
     computed.predictions = prediction_frame(model, computed.rows[1], result.targets)
