@@ -177,6 +177,11 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
         ``calibrate``).
     tol : float, default=1e-6
         Relative decrease of the objective below which iteration stops.
+    out_of_bounds : {"extrapolate", "clip"}, default="extrapolate"
+        ``"clip"``: a new row's correction ``delta_p(x)`` of each parameter stays within the
+        range it took on the training rows (the drift's squares and products must not
+        extrapolate without bound beyond the training data), as ``BaseBoostRegressor``'s
+        ``out_of_bounds`` does for an output-space stage.
 
     Attributes
     ----------
@@ -188,6 +193,8 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
     n_iter_ : int
     train_loss_ : ndarray
     n_targets_ : int
+    delta_range_ : ndarray of shape (2, parameters)
+        Each parameter's smallest and largest correction on the training rows.
     """
 
     _parameter_constraints: dict = {
@@ -200,12 +207,14 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
         "huber_delta": [Interval(numbers.Real, 0, None, closed="neither")],
         "max_iter": [Interval(numbers.Integral, 0, None, closed="left")],
         "tol": [Interval(numbers.Real, 0, None, closed="left")],
+        "out_of_bounds": [StrOptions({"extrapolate", "clip"})],
     }
 
     def __init__(self, *, model: str | ParametricModel | None = None,
                  covariates: dict[str, list[str]] | None = None, calibrate: bool = True,
                  alpha: float = 1.0, alpha_l1: float = 0.0, loss: str = "huber",
-                 huber_delta: float = 1.0, max_iter: int = 20, tol: float = 1e-6) -> None:
+                 huber_delta: float = 1.0, max_iter: int = 20, tol: float = 1e-6,
+                 out_of_bounds: str = "extrapolate") -> None:
         self.model = model
         self.covariates = covariates
         self.calibrate = calibrate
@@ -215,6 +224,7 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
         self.huber_delta = huber_delta
         self.max_iter = max_iter
         self.tol = tol
+        self.out_of_bounds = out_of_bounds
 
     # ------------------------------------------------------------------ design
     def _values(self, X: pd.DataFrame, name: str) -> np.ndarray:
@@ -336,6 +346,8 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
             "start": [v if isinstance(v, str) else float(v) for v in model.parameters.values()],
             "offset": c[[s.start for s in self._slices]]})
         self._coef = self._gauss_newton(model, X, start, Y, phis, c, penalty)
+        delta = self._theta(np.zeros_like(start), phis, self._coef)
+        self.delta_range_ = np.vstack([delta.min(axis=0), delta.max(axis=0)])
         return self
 
     def _gauss_newton(self, model: ParametricModel, X: pd.DataFrame, start: np.ndarray,
@@ -398,7 +410,11 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
         check_is_fitted(self)
         X = _as_frame(self, X, reset=False)
         model = resolve_model(self.model)
-        return self._theta(model.start(X), self._design(X, fitting=False), self._coef)
+        start = model.start(X)
+        delta = self._theta(np.zeros_like(start), self._design(X, fitting=False), self._coef)
+        if self.out_of_bounds == "clip":
+            delta = np.clip(delta, self.delta_range_[0], self.delta_range_[1])
+        return start + delta
 
     def predict(self, X: pd.DataFrame) -> np.ndarray:
         """The model at the corrected parameters: ``(rows,)`` if fitted on one-dimensional
@@ -490,7 +506,7 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         The most covariates the selection adds.
     min_improvement : float, default=1e-3
         The CV MAE (targets' units) a covariate, or a more complex candidate, must gain.
-    alpha, alpha_l1, loss, huber_delta, max_iter, tol
+    alpha, alpha_l1, loss, huber_delta, max_iter, tol, out_of_bounds
         :class:`ParametricRegressor`'s.
     random_state : int, default=None
         Seeds the splits (None: 0).
@@ -541,7 +557,8 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
                  products: bool = True, cv: int = 5, n_repeats: int = 1, max_steps: int = 20,
                  min_improvement: float = 1e-3, alpha: float = 1.0, alpha_l1: float = 0.0,
                  loss: str = "huber", huber_delta: float = 1.0, max_iter: int = 20,
-                 tol: float = 1e-6, random_state: int | None = None, n_jobs: int | None = None,
+                 tol: float = 1e-6, out_of_bounds: str = "extrapolate",
+                 random_state: int | None = None, n_jobs: int | None = None,
                  verbose: bool = False) -> None:
         self.model = model
         self.start = start
@@ -559,6 +576,7 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         self.huber_delta = huber_delta
         self.max_iter = max_iter
         self.tol = tol
+        self.out_of_bounds = out_of_bounds
         self.random_state = random_state
         self.n_jobs = n_jobs
         self.verbose = verbose
@@ -586,7 +604,7 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         Y = _targets(y)
         common: dict[str, Any] = dict(model=self.model, alpha=self.alpha, alpha_l1=self.alpha_l1,
                       loss=self.loss, huber_delta=self.huber_delta, max_iter=self.max_iter,
-                      tol=self.tol)
+                      tol=self.tol, out_of_bounds=self.out_of_bounds)
         base = ParametricRegressor(**common)
         prior = ParametricRegressor(**{**common, "max_iter": 0}, calibrate=False)
         prior_fit = clone(prior).fit(X, Y)  # also checks the model (one line per bad case)
