@@ -178,10 +178,11 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
     tol : float, default=1e-6
         Relative decrease of the objective below which iteration stops.
     out_of_bounds : {"extrapolate", "clip"}, default="extrapolate"
-        ``"clip"``: a new row's correction ``delta_p(x)`` of each parameter stays within the
-        range it took on the training rows (the drift's squares and products must not
-        extrapolate without bound beyond the training data), as ``BaseBoostRegressor``'s
-        ``out_of_bounds`` does for an output-space stage.
+        ``"clip"``: the columns the covariates are made of are clipped to their training
+        range, so a new row's corrections are the drift's at the nearest point of the
+        training rows' box (the drift's squares and products do not extrapolate without
+        bound, and the parameters' corrections stay consistent with each other; clipping
+        each parameter's correction on its own would break their compensations).
 
     Attributes
     ----------
@@ -193,8 +194,8 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
     n_iter_ : int
     train_loss_ : ndarray
     n_targets_ : int
-    delta_range_ : ndarray of shape (2, parameters)
-        Each parameter's smallest and largest correction on the training rows.
+    column_range_ : dict of str -> (float, float)
+        The training range of every column the covariates are made of.
     """
 
     _parameter_constraints: dict = {
@@ -231,7 +232,10 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
         var = _variable(name, self._columns)
         assert var is not None
         if len(var) == 1:
-            return pd.to_numeric(X[name], errors="coerce").to_numpy(dtype=float)
+            values = pd.to_numeric(X[name], errors="coerce").to_numpy(dtype=float)
+            if self.out_of_bounds == "clip" and name in self.column_range_:
+                values = np.clip(values, *self.column_range_[name])
+            return values
         op, a, b = var
         va, vb = self._values(X, a), self._values(X, b)
         if op == "-":
@@ -241,6 +245,12 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
     def _design(self, X: pd.DataFrame, fitting: bool) -> list[np.ndarray]:
         n = len(X)
         if fitting:
+            self.column_range_ = {}
+            columns = {c for ts in self.terms_.values() for v, _ in ts
+                       for c in _variable(v, self._columns)[-2:] if c in self._columns}
+            for c in sorted(columns):
+                values = self._values(X, c)
+                self.column_range_[c] = (float(np.nanmin(values)), float(np.nanmax(values)))
             self.factor_mean_ = {}
             for ts in self.terms_.values():
                 for v, _ in ts:
@@ -346,8 +356,6 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
             "start": [v if isinstance(v, str) else float(v) for v in model.parameters.values()],
             "offset": c[[s.start for s in self._slices]]})
         self._coef = self._gauss_newton(model, X, start, Y, phis, c, penalty)
-        delta = self._theta(np.zeros_like(start), phis, self._coef)
-        self.delta_range_ = np.vstack([delta.min(axis=0), delta.max(axis=0)])
         return self
 
     def _gauss_newton(self, model: ParametricModel, X: pd.DataFrame, start: np.ndarray,
@@ -410,11 +418,7 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
         check_is_fitted(self)
         X = _as_frame(self, X, reset=False)
         model = resolve_model(self.model)
-        start = model.start(X)
-        delta = self._theta(np.zeros_like(start), self._design(X, fitting=False), self._coef)
-        if self.out_of_bounds == "clip":
-            delta = np.clip(delta, self.delta_range_[0], self.delta_range_[1])
-        return start + delta
+        return self._theta(model.start(X), self._design(X, fitting=False), self._coef)
 
     def predict(self, X: pd.DataFrame) -> np.ndarray:
         """The model at the corrected parameters: ``(rows,)`` if fitted on one-dimensional

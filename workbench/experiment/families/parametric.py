@@ -60,9 +60,9 @@ class ParametricSettings(Section):
     ``alpha_l1``, ``max_iter``: the Gauss-Newton fit's (and the calibration's loss);
     ``selection_cv``, ``selection_repeats``, ``max_steps``, ``min_improvement``: the CV
     that chooses among prior, calibrated model and drift, and the selection's.
-    ``out_of_bounds = "clip"``: a new row's correction of each parameter stays within the
-    range it took on the training rows (``workbench init --model`` writes it; the default
-    ``"extrapolate"`` lets the drift's squares and products grow beyond them).
+    ``out_of_bounds = "clip"``: a new row's covariates are clipped to their training range,
+    its corrections the drift's at the nearest training point (``workbench init --model``
+    writes it; the default ``"extrapolate"`` lets the drift's squares and products grow).
     """
 
     model: str
@@ -139,7 +139,7 @@ def config_section(entry: str, path: str | os.PathLike[str]) -> str:
         f"model = {toml_string(entry)}   # PARAMETERS, predict(params, data), optionally jacobian",
         'loss = "squared_error"       # or "huber", huber_delta in the targets\' unit',
         'candidates = "auto"          # each parameter\'s drift: features, squares, products',
-        'out_of_bounds = "clip"       # a new row\'s corrections within the training range',
+        'out_of_bounds = "clip"       # a new row\'s covariates clipped to the training range',
         "max_steps = 10", ""])
 
 
