@@ -247,7 +247,7 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
         if fitting:
             self.column_range_ = {}
             columns = {c for ts in self.terms_.values() for v, _ in ts
-                       for c in _variable(v, self._columns)[-2:] if c in self._columns}
+                       for c in (_variable(v, self._columns) or ())[-2:] if c in self._columns}
             for c in sorted(columns):
                 values = self._values(X, c)
                 self.column_range_[c] = (float(np.nanmin(values)), float(np.nanmax(values)))
