@@ -61,8 +61,8 @@ class ParametricSettings(Section):
     ``selection_cv``, ``selection_repeats``, ``max_steps``, ``min_improvement``: the CV
     that chooses among prior, calibrated model and drift, and the selection's.
     ``out_of_bounds = "clip"``: a new row's covariates are clipped to their training range,
-    its corrections the drift's at the nearest training point (``workbench init --model``
-    writes it; the default ``"extrapolate"`` lets the drift's squares and products grow).
+    its corrections the drift's at the nearest training point (the default
+    ``"extrapolate"`` lets the drift's squares and products grow beyond them).
     """
 
     model: str
@@ -139,7 +139,6 @@ def config_section(entry: str, path: str | os.PathLike[str]) -> str:
         f"model = {toml_string(entry)}   # PARAMETERS, predict(params, data), optionally jacobian",
         'loss = "squared_error"       # or "huber", huber_delta in the targets\' unit',
         'candidates = "auto"          # each parameter\'s drift: features, squares, products',
-        'out_of_bounds = "clip"       # a new row\'s covariates clipped to the training range',
         "max_steps = 10", ""])
 
 
