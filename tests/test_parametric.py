@@ -168,3 +168,27 @@ def test_same_seed_same_numbers_and_clone(tmp_path):
     assert clone(est).get_params() == est.get_params()
     with pytest.raises(ValueError, match="loss"):
         clone(est).set_params(loss="nope").fit(X, y)
+
+
+def test_clip_evaluates_the_drift_at_the_nearest_training_point(tmp_path):
+    """out_of_bounds="clip": far outside the training covariates the corrections are the
+    drift's at the covariates clipped to their training range, so every parameter's
+    correction stays within its training range; "extrapolate" follows the drift."""
+    path = _write(tmp_path, DECAY)
+    X, y = _data()
+    low, high = X["temp"].min(), X["temp"].max()
+    far = X.iloc[:3].assign(temp=[20.0, -20.0, 0.0])
+    fits = {how: ParametricRegressor(model=path, covariates={"tau": ["temp", "temp^2"]},
+                                     huber_delta=0.05, alpha=0.01, out_of_bounds=how).fit(X, y)
+            for how in ("extrapolate", "clip")}
+    clip, free = fits["clip"], fits["extrapolate"]
+    np.testing.assert_allclose(clip.predict(X), free.predict(X))  # training rows: unchanged
+    assert clip.column_range_ == {"temp": (low, high)}
+    edge = far.assign(temp=[high, low, 0.0])
+    np.testing.assert_allclose(clip.corrected_parameters(far),
+                               free.corrected_parameters(edge))
+    train_tau = free.corrected_parameters(X)["tau"]
+    tau = clip.corrected_parameters(far)["tau"]
+    assert tau.between(train_tau.min() - 1e-9, train_tau.max() + 1e-9).all()
+    assert abs(free.corrected_parameters(far)["tau"].iloc[0]) > train_tau.max() + 1.0
+    assert ParametricRegressor().out_of_bounds == "extrapolate"

@@ -177,6 +177,12 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
         ``calibrate``).
     tol : float, default=1e-6
         Relative decrease of the objective below which iteration stops.
+    out_of_bounds : {"extrapolate", "clip"}, default="extrapolate"
+        ``"clip"``: the columns the covariates are made of are clipped to their training
+        range, so a new row's corrections are the drift's at the nearest point of the
+        training rows' box (the drift's squares and products do not extrapolate without
+        bound, and the parameters' corrections stay consistent with each other; clipping
+        each parameter's correction on its own would break their compensations).
 
     Attributes
     ----------
@@ -188,6 +194,8 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
     n_iter_ : int
     train_loss_ : ndarray
     n_targets_ : int
+    column_range_ : dict of str -> (float, float)
+        The training range of every column the covariates are made of.
     """
 
     _parameter_constraints: dict = {
@@ -200,12 +208,14 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
         "huber_delta": [Interval(numbers.Real, 0, None, closed="neither")],
         "max_iter": [Interval(numbers.Integral, 0, None, closed="left")],
         "tol": [Interval(numbers.Real, 0, None, closed="left")],
+        "out_of_bounds": [StrOptions({"extrapolate", "clip"})],
     }
 
     def __init__(self, *, model: str | ParametricModel | None = None,
                  covariates: dict[str, list[str]] | None = None, calibrate: bool = True,
                  alpha: float = 1.0, alpha_l1: float = 0.0, loss: str = "huber",
-                 huber_delta: float = 1.0, max_iter: int = 20, tol: float = 1e-6) -> None:
+                 huber_delta: float = 1.0, max_iter: int = 20, tol: float = 1e-6,
+                 out_of_bounds: str = "extrapolate") -> None:
         self.model = model
         self.covariates = covariates
         self.calibrate = calibrate
@@ -215,13 +225,17 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
         self.huber_delta = huber_delta
         self.max_iter = max_iter
         self.tol = tol
+        self.out_of_bounds = out_of_bounds
 
     # ------------------------------------------------------------------ design
     def _values(self, X: pd.DataFrame, name: str) -> np.ndarray:
         var = _variable(name, self._columns)
         assert var is not None
         if len(var) == 1:
-            return pd.to_numeric(X[name], errors="coerce").to_numpy(dtype=float)
+            values = pd.to_numeric(X[name], errors="coerce").to_numpy(dtype=float)
+            if self.out_of_bounds == "clip" and name in self.column_range_:
+                values = np.clip(values, *self.column_range_[name])
+            return values
         op, a, b = var
         va, vb = self._values(X, a), self._values(X, b)
         if op == "-":
@@ -231,6 +245,12 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
     def _design(self, X: pd.DataFrame, fitting: bool) -> list[np.ndarray]:
         n = len(X)
         if fitting:
+            self.column_range_ = {}
+            columns = {c for ts in self.terms_.values() for v, _ in ts
+                       for c in (_variable(v, self._columns) or ())[-2:] if c in self._columns}
+            for c in sorted(columns):
+                values = self._values(X, c)
+                self.column_range_[c] = (float(np.nanmin(values)), float(np.nanmax(values)))
             self.factor_mean_ = {}
             for ts in self.terms_.values():
                 for v, _ in ts:
@@ -490,7 +510,7 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         The most covariates the selection adds.
     min_improvement : float, default=1e-3
         The CV MAE (targets' units) a covariate, or a more complex candidate, must gain.
-    alpha, alpha_l1, loss, huber_delta, max_iter, tol
+    alpha, alpha_l1, loss, huber_delta, max_iter, tol, out_of_bounds
         :class:`ParametricRegressor`'s.
     random_state : int, default=None
         Seeds the splits (None: 0).
@@ -541,7 +561,8 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
                  products: bool = True, cv: int = 5, n_repeats: int = 1, max_steps: int = 20,
                  min_improvement: float = 1e-3, alpha: float = 1.0, alpha_l1: float = 0.0,
                  loss: str = "huber", huber_delta: float = 1.0, max_iter: int = 20,
-                 tol: float = 1e-6, random_state: int | None = None, n_jobs: int | None = None,
+                 tol: float = 1e-6, out_of_bounds: str = "extrapolate",
+                 random_state: int | None = None, n_jobs: int | None = None,
                  verbose: bool = False) -> None:
         self.model = model
         self.start = start
@@ -559,6 +580,7 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         self.huber_delta = huber_delta
         self.max_iter = max_iter
         self.tol = tol
+        self.out_of_bounds = out_of_bounds
         self.random_state = random_state
         self.n_jobs = n_jobs
         self.verbose = verbose
@@ -586,7 +608,7 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         Y = _targets(y)
         common: dict[str, Any] = dict(model=self.model, alpha=self.alpha, alpha_l1=self.alpha_l1,
                       loss=self.loss, huber_delta=self.huber_delta, max_iter=self.max_iter,
-                      tol=self.tol)
+                      tol=self.tol, out_of_bounds=self.out_of_bounds)
         base = ParametricRegressor(**common)
         prior = ParametricRegressor(**{**common, "max_iter": 0}, calibrate=False)
         prior_fit = clone(prior).fit(X, Y)  # also checks the model (one line per bad case)

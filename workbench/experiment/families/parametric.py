@@ -60,6 +60,9 @@ class ParametricSettings(Section):
     ``alpha_l1``, ``max_iter``: the Gauss-Newton fit's (and the calibration's loss);
     ``selection_cv``, ``selection_repeats``, ``max_steps``, ``min_improvement``: the CV
     that chooses among prior, calibrated model and drift, and the selection's.
+    ``out_of_bounds = "clip"``: a new row's covariates are clipped to their training range,
+    its corrections the drift's at the nearest training point (the default
+    ``"extrapolate"`` lets the drift's squares and products grow beyond them).
     """
 
     model: str
@@ -68,6 +71,7 @@ class ParametricSettings(Section):
     alpha: float = Field(default=1.0, ge=0)
     alpha_l1: float = Field(default=0.0, ge=0)
     max_iter: int = Field(default=20, ge=0, le=100_000)
+    out_of_bounds: Literal["extrapolate", "clip"] = "extrapolate"
     start: dict[str, list[str]] = Field(default_factory=dict)
     candidates: Literal["auto", "none"] | dict[str, list[str]] = "auto"
     squares: bool = True
@@ -107,7 +111,8 @@ def make_parametric(cfg: ExperimentConfig, ds: Dataset) -> ParametricBoostRegres
         n_repeats=s.selection_repeats, max_steps=s.max_steps,
         min_improvement=float(s.min_improvement), alpha=float(s.alpha),
         alpha_l1=float(s.alpha_l1), loss=s.loss, huber_delta=float(s.huber_delta),
-        max_iter=s.max_iter, random_state=cfg.random_state, n_jobs=cfg.n_jobs)
+        max_iter=s.max_iter, out_of_bounds=s.out_of_bounds, random_state=cfg.random_state,
+        n_jobs=cfg.n_jobs)
 
 
 def config_section(entry: str, path: str | os.PathLike[str]) -> str:
