@@ -298,7 +298,29 @@ def _normal_equations(jac: np.ndarray, w: np.ndarray, r: np.ndarray, Phi: np.nda
     return H, g
 
 
-class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
+class Coefficients:
+    """The fitted drift coefficients of a parameter-space regressor (``_coef``, ``_index``).
+
+    Shared by :class:`HamiltonianParameterRegressor` and the parametric regressors.
+    """
+
+    _coef: np.ndarray
+    _index: list[tuple[str, str]]
+
+    @property
+    def coef_(self) -> pd.DataFrame:
+        """One row per (parameter, covariate), column ``"coef"``."""
+        check_is_fitted(self)
+        index = pd.MultiIndex.from_tuples(self._index, names=["parameter", "covariate"])
+        return pd.DataFrame({"coef": self._coef}, index=index)
+
+    def coef_dict(self) -> dict[tuple[str, str], float]:
+        """``{(parameter, covariate): coefficient}`` (a cheap ``coef_init``)."""
+        check_is_fitted(self)
+        return dict(zip(self._index, self._coef.tolist()))
+
+
+class HamiltonianParameterRegressor(Coefficients, RegressorMixin, BaseEstimator):
     """Multi-output regressor of a device's N eigenvalues via corrections of its Hamiltonian.
 
     ``predict(X)`` = ascending eigenvalues of ``sign * H(theta(X) + delta(X))`` with
@@ -690,18 +712,6 @@ class HamiltonianParameterRegressor(RegressorMixin, BaseEstimator):
         self.n_iter_ = n_iter
         self.train_loss_ = np.asarray(history)
         return self
-
-    @property
-    def coef_(self) -> pd.DataFrame:
-        """One row per (parameter, covariate), column ``"coef"``."""
-        check_is_fitted(self)
-        index = pd.MultiIndex.from_tuples(self._index, names=["parameter", "covariate"])
-        return pd.DataFrame({"coef": self._coef}, index=index)
-
-    def coef_dict(self) -> dict[tuple[str, str], float]:
-        """``{(parameter, covariate): coefficient}`` (a cheap ``coef_init``)."""
-        check_is_fitted(self)
-        return dict(zip(self._index, self._coef.tolist()))
 
     def _check_X(self, X: Any) -> None:
         check_is_fitted(self)

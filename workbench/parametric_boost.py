@@ -35,6 +35,7 @@ from .param_boost import (
     _CURVATURE,
     _NEWTON_SWITCH,
     PARAM_LOSSES,
+    Coefficients,
     _lasso_quadratic,
     _normal_equations,
     _weights,
@@ -143,7 +144,7 @@ def _trial(model: ParametricModel, theta: np.ndarray, X: pd.DataFrame,
         return None
 
 
-class ParametricRegressor(RegressorMixin, BaseEstimator):
+class ParametricRegressor(Coefficients, RegressorMixin, BaseEstimator):
     """A user's physics model with parameters calibrated and drifting linearly in covariates.
 
     ``predict(X) = f(start(X) + delta(X); X)``, ``delta_p(x) = c_p0 + sum_k c_pk z_pk(x)``:
@@ -437,18 +438,6 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
         check_is_fitted(self)
         return pd.DataFrame(resolve_model(self.model).start(X), columns=self.parameter_names_,
                             index=X.index)
-
-    @property
-    def coef_(self) -> pd.DataFrame:
-        """One row per (parameter, covariate), column ``"coef"``."""
-        check_is_fitted(self)
-        index = pd.MultiIndex.from_tuples(self._index, names=["parameter", "covariate"])
-        return pd.DataFrame({"coef": self._coef}, index=index)
-
-    def coef_dict(self) -> dict[tuple[str, str], float]:
-        """``{(parameter, covariate): coefficient}`` (a ``coef_init``)."""
-        check_is_fitted(self)
-        return dict(zip(self._index, self._coef.tolist()))
 
     def coefficient_table(self) -> pd.DataFrame:
         """The non-zero coefficients: parameter, covariate, coefficient (the parameter's
