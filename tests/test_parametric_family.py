@@ -102,3 +102,50 @@ def test_the_chain_model_file_is_the_control_program(google_5q):
     cfg = load_config(root / "experiments" / "parametric_chain.toml")
     assert cfg.family.name == "parametric"
     assert set(cfg.family_settings.candidates) == set(model.names)
+
+
+def _decay_config(tmp_path, extra=""):
+    config = tmp_path / "c.toml"
+    config.write_text('random_state = 0\n[data]\ncsv = "decay.csv"\ntargets = ["y"]\n'
+                      'features = ["t", "temp"]\ntest_fraction = 0.3\n[model]\n'
+                      'family = "parametric"\n[model.parametric]\nmodel = "models/decay.py"\n'
+                      'loss = "squared_error"\nmax_steps = 1\nproducts = false\n'
+                      'boost_stage = false\nprior_cv = 2\nselection_cv = 3\n' + extra)
+    return config
+
+
+def test_new_rows_need_only_the_features_when_the_model_is_the_prior(decay_csv, tmp_path):
+    """The prior the family computed is no input: workbench predict and serving take the
+    features alone (it used to ask new rows for the column model_y)."""
+    from workbench.experiment.prepare import load_config, prepare
+
+    run = prepare(load_config(_decay_config(tmp_path)))
+    ds = run.dataset
+    X = run.family.inputs(run.config, ds)
+    assert list(X.columns) == ["t", "temp"] and ds.prior_names == ["model_y"]
+    model = run.family.build(run.config, ds).fit(X.loc[ds.train_index],
+                                                 ds.targets.loc[ds.train_index])
+    new = pd.DataFrame({"t": [1.0, 2.0], "temp": [0.5, -0.3]})
+    pred = np.asarray(model.predict(new), dtype=float)
+    truth = 2.5 * np.exp(-new["t"] / (1.5 + 0.3 * new["temp"])) + 0.1
+    np.testing.assert_allclose(pred.ravel(), truth, atol=0.05)
+
+
+def test_a_sweep_varies_the_parametric_settings(decay_csv, tmp_path):
+    """[search.parametric] is checked key by key: the model file the search does not vary
+    is no error (it used to be 'Field required'); a bad value or key still is."""
+    from optuna.trial import FixedTrial
+
+    from workbench.experiment.prepare import load_config
+    from workbench.experiment.space import SpaceError
+
+    search = ('[search.parametric]\nalpha = { low = 0.1, high = 10.0, log = true }\n'
+              'loss = ["huber", "squared_error"]\n')
+    cfg = load_config(_decay_config(tmp_path, search))
+    trial = FixedTrial({"parametric.alpha": 3.0, "parametric.loss": "huber"})
+    chosen = cfg.family.with_trial(cfg, trial, ["y"]).family_settings
+    assert (chosen.alpha, chosen.loss, chosen.model) == (3.0, "huber", "models/decay.py")
+    for bad, message in (('loss = ["cubic"]', "parametric.loss"),
+                         ("max_stepz = [1, 2]", "unknown key")):
+        with pytest.raises((SpaceError, ValueError), match=message):
+            load_config(_decay_config(tmp_path, f"[search.parametric]\n{bad}\n"))

@@ -119,9 +119,12 @@ class ModelFamily(ResultMethods):
         try:
             settings.model_validate({key: value})
         except ValidationError as exc:
-            err = exc.errors(include_url=False)[0]
-            raise SpaceError(f"{self.name}.{key} = {value!r}: "
-                             f"{err['msg'].removeprefix('Value error, ')}") from None
+            # only this key's errors: a required setting the search does not vary (family
+            # parametric's model file) is missing from the one-key table, not wrong
+            errors = [e for e in exc.errors(include_url=False) if e["loc"][:1] == (key,)]
+            if errors:
+                raise SpaceError(f"{self.name}.{key} = {value!r}: "
+                                 f"{errors[0]['msg'].removeprefix('Value error, ')}") from None
 
     #: Whether the family computes the prior itself (a CSV then needs no prior columns).
     computes_prior: ClassVar[bool] = False

@@ -146,6 +146,11 @@ def _frame(ds: Dataset) -> pd.DataFrame:
     return ds.X_physics if ds.hamiltonian is not None else ds.X
 
 
+def _computed_prior(cfg: ExperimentConfig) -> bool:
+    """Tell whether the prior is the model's own (a CSV that names no prior columns)."""
+    return cfg.data.source == "csv" and cfg.data.prior is None
+
+
 def _records(table: pd.DataFrame) -> list[dict[str, Any]]:
     return table.astype(object).where(table.notna(), None).to_dict(orient="records")
 
@@ -179,9 +184,14 @@ class ParametricFamily(ModelFamily):
     def inputs(self, cfg: ExperimentConfig, ds: Dataset) -> pd.DataFrame:
         """Return the dataset's features and prior, and its Hamiltonian columns if any.
 
-        A model file may read any of them.
+        A model file may read any of them. A prior the family computed (a CSV without
+        prior columns, :meth:`complete_data`) is left out: the model makes it from the
+        features, so new rows (``workbench predict``, serving) need only those.
         """
-        return _frame(ds)
+        X = _frame(ds)
+        if _computed_prior(cfg):
+            X = X.drop(columns=ds.prior_names)
+        return X
 
     def build(self, cfg: ExperimentConfig, ds: Dataset) -> FittedPriorBoost:
         """Build a :class:`FittedPriorBoost` over :func:`make_parametric`."""
