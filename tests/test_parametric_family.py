@@ -149,3 +149,53 @@ def test_a_sweep_varies_the_parametric_settings(decay_csv, tmp_path):
                          ("max_stepz = [1, 2]", "unknown key")):
         with pytest.raises((SpaceError, ValueError), match=message):
             load_config(_decay_config(tmp_path, f"[search.parametric]\n{bad}\n"))
+
+
+def test_a_fitted_model_needs_no_model_file(decay_csv, tmp_path):
+    """The model file travels inside the fitted model (its source code): unpickled after the
+    file is gone (a model server, another machine), it predicts the same."""
+    import pickle
+
+    from workbench.experiment.prepare import load_config, prepare
+
+    run = prepare(load_config(_decay_config(tmp_path)))
+    ds = run.dataset
+    X = run.family.inputs(run.config, ds)
+    model = run.family.build(run.config, ds).fit(X.loc[ds.train_index],
+                                                 ds.targets.loc[ds.train_index])
+    blob = pickle.dumps(model)
+    (tmp_path / "models" / "decay.py").unlink()
+    again = pickle.loads(blob)
+    np.testing.assert_array_equal(again.predict(X), model.predict(X))
+
+
+def test_a_tracked_run_logs_registers_and_serves(decay_csv, tmp_path):
+    """MLflow: the calibrated parameters and the choice's CV MAE as metrics, the family's
+    tables as artifacts, the registered model predicting a CSV of features alone after the
+    model file moved."""
+    import mlflow
+
+    uri = f"sqlite:///{tmp_path}/mlflow.db"
+    out = tmp_path / "result.json"
+    assert main(["evaluate", str(_decay_config(tmp_path)), "--tracking-uri", uri,
+                 "--register", "decay", "--json", str(out), "--jobs", "1",
+                 "--no-intervals"]) == 0
+    result = json.loads(out.read_text())
+    client = mlflow.MlflowClient(uri)
+    run = client.get_run(result["mlflow"]["run_id"])
+    metrics = run.data.metrics
+    calibration = {r["parameter"]: r for r in result["parametric"]["calibration"]}
+    assert metrics["parametric/calibrated/tau"] == pytest.approx(
+        calibration["tau"]["start"] + calibration["tau"]["offset"])
+    assert {"parametric/cv_mae/prior", "parametric/cv_mae/calibrated",
+            "parametric/cv_mae/drift"} <= set(metrics)
+    logged = {a.path for a in client.list_artifacts(run.info.run_id, "parametric")}
+    assert {"parametric/calibration.csv", "parametric/selection_path.csv"} <= logged
+    (tmp_path / "models").rename(tmp_path / "elsewhere")
+    pd.DataFrame({"t": [1.0, 2.0], "temp": [0.5, -0.3]}).to_csv(tmp_path / "new.csv",
+                                                                  index=False)
+    assert main(["predict", "models:/decay@champion", str(tmp_path / "new.csv"),
+                 "--out", str(tmp_path / "p.csv"), "--tracking-uri", uri]) == 0
+    pred = pd.read_csv(tmp_path / "p.csv")["y"].to_numpy()
+    np.testing.assert_allclose(pred, [2.5 * np.exp(-1 / 1.65) + 0.1,
+                                      2.5 * np.exp(-2 / 1.41) + 0.1], atol=0.05)

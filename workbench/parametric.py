@@ -19,9 +19,9 @@ same from Python objects); :func:`check_model` evaluates it on data and raises a
 
 from __future__ import annotations
 
-import importlib.util
 import itertools
 import os
+import types
 from collections import OrderedDict
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -40,6 +40,7 @@ FD_STEP = float(np.cbrt(np.finfo(float).eps))
 
 _counter = itertools.count()
 _cache: dict[tuple[str, int, int], ParametricModel] = {}
+_by_text: dict[tuple[str, str], ParametricModel] = {}
 
 
 class ModelError(ValueError):
@@ -65,12 +66,28 @@ class ParametricModel:
         ``jacobian(params, data)``; None: central finite differences.
     source : str, default="<model>"
         Where the model comes from (its file), as messages name it.
+    text : str, default=None
+        The model file's source code (:func:`load_model`'s models). Such a model is
+        pickled as that text and imported again where it is unpickled: a fitted estimator
+        (a logged MLflow model, a worker process) does not need the file.
     """
 
     parameters: dict[str, float | str]
     predict_fn: Callable[..., Any]
     jacobian_fn: Callable[..., Any] | None = None
     source: str = "<model>"
+    text: str | None = None
+
+    def __reduce_ex__(self, protocol: Any) -> Any:
+        if self.text is None:  # functions from Python: pickled as they are
+            return object.__reduce_ex__(self, protocol)
+        return _from_text, (self.text, self.source)
+
+    def __copy__(self) -> ParametricModel:
+        return self  # immutable: clone() keeps the one model (and its caches' keys)
+
+    def __deepcopy__(self, memo: Any) -> ParametricModel:
+        return self
 
     @classmethod
     def from_functions(cls, parameters: Mapping[str, float | str], predict: Callable[..., Any],
@@ -216,7 +233,8 @@ def cached_jacobian(model: ParametricModel, theta: np.ndarray, data: pd.DataFram
     return jac
 
 
-def _checked(parameters: Any, predict: Any, jacobian: Any, source: str) -> ParametricModel:
+def _checked(parameters: Any, predict: Any, jacobian: Any, source: str,
+             text: str | None = None) -> ParametricModel:
     """A :class:`ParametricModel` from the contract's objects, each checked."""
     if not isinstance(parameters, dict) or not parameters:
         raise ModelError(f"model {source}: PARAMETERS must be a non-empty dict from each "
@@ -235,7 +253,32 @@ def _checked(parameters: Any, predict: Any, jacobian: Any, source: str) -> Param
     if jacobian is not None and not callable(jacobian):
         raise ModelError(f"model {source}: jacobian must be a function jacobian(params, data)")
     values = {k: v if isinstance(v, str) else float(v) for k, v in parameters.items()}
-    return ParametricModel(values, predict, jacobian, source)
+    return ParametricModel(values, predict, jacobian, source, text)
+
+
+def _from_text(text: str, source: str) -> ParametricModel:
+    """Import a model file's source code ``text`` (once per process), as :func:`load_model`.
+
+    ``source`` names the file in messages (and is the module's ``__file__``).
+    """
+    key = (source, text)
+    if key in _by_text:
+        return _by_text[key]
+    module = types.ModuleType(f"workbench_user_model_{next(_counter)}")
+    module.__file__ = source
+    try:
+        exec(compile(text, source, "exec"), module.__dict__)  # the user's model file
+    except Exception as exc:  # the user's code: anything
+        raise ModelError(f"model file {source} does not import: {_first_line(exc)}") from None
+    for required in ("PARAMETERS", "predict"):
+        if not hasattr(module, required):
+            raise ModelError(f"model file {source} defines no {required} (a model file defines "
+                             "PARAMETERS, predict(params, data) and optionally "
+                             "jacobian(params, data))")
+    model = _checked(module.PARAMETERS, module.predict, getattr(module, "jacobian", None),
+                     source, text)
+    _by_text[key] = model
+    return model
 
 
 def load_model(path: str | os.PathLike[str]) -> ParametricModel:
@@ -266,22 +309,11 @@ def load_model(path: str | os.PathLike[str]) -> ParametricModel:
     key = (str(file), stat.st_mtime_ns, stat.st_size)
     if key in _cache:
         return _cache[key]
-    name = f"workbench_user_model_{next(_counter)}"
-    spec = importlib.util.spec_from_file_location(name, file)
-    if spec is None or spec.loader is None:
-        raise ModelError(f"model file {path} does not import: not a Python file")
-    module = importlib.util.module_from_spec(spec)
     try:
-        spec.loader.exec_module(module)
-    except Exception as exc:  # the user's code: anything
+        text = file.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
         raise ModelError(f"model file {path} does not import: {_first_line(exc)}") from None
-    for required in ("PARAMETERS", "predict"):
-        if not hasattr(module, required):
-            raise ModelError(f"model file {path} defines no {required} (a model file defines "
-                             "PARAMETERS, predict(params, data) and optionally "
-                             "jacobian(params, data))")
-    model = _checked(module.PARAMETERS, module.predict, getattr(module, "jacobian", None),
-                     str(path))
+    model = _from_text(text, str(path))
     _cache[key] = model
     return model
 

@@ -179,7 +179,8 @@ def record(cfg: ExperimentConfig, result: Result, model: Any, ds: Dataset,
         log.info("[%s] tracking in %s (run %s)", cfg.name, redact(tracker.tracking_uri),
                  run_id)
         # a command's run gets its whole wall time at the end (record_wall_time)
-        tracker.log_metrics(run_id, result_metrics(result, wall=not live))
+        tracker.log_metrics(run_id, {**result_metrics(result, wall=not live),
+                                     **cfg.family.run_metrics(result.details)})
         log_inputs(tracker, run_id, cfg, ds, X_train, X_test, y_train, y_test)
         config = config_text(cfg)
         if config is not None and cfg.path is not None:  # both or neither

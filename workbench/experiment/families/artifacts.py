@@ -139,6 +139,21 @@ class ResultMethods:
                              selected=self.selected(model, ds.target_names))
         return prior, scores, {}
 
+    def run_metrics(self, details: dict[str, Any]) -> dict[str, float]:
+        """Give the MLflow metrics a tracked run has beyond every run's scores.
+
+        Parameters
+        ----------
+        details : dict
+            The family's section of the result (:meth:`scores`' details).
+
+        Returns
+        -------
+        dict of str to float
+            Metric name -> value (default: none).
+        """
+        return {}
+
     def begin_artifacts(self, cfg: ExperimentConfig, ds: Dataset, model: Any, setting: str,
                         quick: bool = False) -> Callable[..., Artifacts]:
         """Start the figures and tables a tracked run has beyond :meth:`outputs`.

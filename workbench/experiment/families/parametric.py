@@ -101,12 +101,12 @@ def make_parametric(cfg: ExperimentConfig, ds: Dataset) -> ParametricBoostRegres
     s = cast(ParametricSettings, cfg.family_settings)
     path = model_path(cfg, s)
     try:
-        load_model(path)
+        model = load_model(path)  # pickled with its source code: the fitted model needs no file
     except ModelError as exc:
         raise ConfigError(f"[model.parametric] model: {exc}") from None
     candidates: Any = (None if s.candidates == "none" else s.candidates)
     return ParametricBoostRegressor(
-        model=str(path), start=s.start or None, candidates=candidates, features=ds.feature_names,
+        model=model, start=s.start or None, candidates=candidates, features=ds.feature_names,
         squares=s.squares, products=s.products, cv=s.selection_cv,
         n_repeats=s.selection_repeats, max_steps=s.max_steps,
         min_improvement=float(s.min_improvement), alpha=float(s.alpha),
@@ -256,6 +256,25 @@ class ParametricFamily(ModelFamily):
             info["selection"] = {"cv_mae": sel.cv_mae, "steps": len(sel.path) - 1,
                                  "path": _records(sel.path), "seconds": sel.seconds}
         return prior, scores, {"parametric": info}
+
+    def run_metrics(self, details: dict[str, Any]) -> dict[str, float]:
+        """Log the calibration and the choice as metrics, to compare runs by them.
+
+        ``parametric/calibrated/<p>`` (start plus offset; a parameter that starts from a
+        column has its ``parametric/offset/<p>`` only) and ``parametric/cv_mae/<candidate>``
+        (prior, calibrated, drift: the CV MAE the choice was made on).
+        """
+        info = details.get("parametric") or {}
+        out: dict[str, float] = {}
+        for row in info.get("calibration", []):
+            p, offset, start = row["parameter"], row["offset"], row.get("start")
+            out[f"parametric/offset/{p}"] = float(offset)
+            if isinstance(start, (int, float)):
+                out[f"parametric/calibrated/{p}"] = float(start) + float(offset)
+        for row in info.get("choices", []):
+            if row.get("cv_mae") is not None:
+                out[f"parametric/cv_mae/{row['candidate']}"] = float(row["cv_mae"])
+        return out
 
     def outputs(self, model: Any, ds: Dataset, setting: str | None = None) -> Artifacts:
         """Make the choice, calibration, coefficient, corrected-parameter and path tables."""
