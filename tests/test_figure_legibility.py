@@ -19,6 +19,7 @@ import pandas as pd
 import pytest
 
 import workbench.experiment.families.hamiltonian_figures as family_figures
+import workbench.experiment.families.parametric_figures as parametric_figures
 import workbench.experiment.figures as figures
 from workbench.curves import LearningCurve
 from workbench.experiment.explain import ShapValues
@@ -206,6 +207,16 @@ def _selection_path(targets, unit, prior_label, setting):
         title="Forward covariate selection (120 training rows, CV MAE over all targets)")
 
 
+def _parameter_drift(targets, unit, prior_label, setting):
+    names = [f"E_J_{t}" for t in targets]
+    corrected = _frame(names, 20)
+    day = np.arange(20.0)
+    axes_by = {name: (f"days_since_cooldown_{name}", day) for name in names}
+    yield parametric_figures.parameter_drift_figure(
+        corrected, axes_by, calibrated={name: 0.0 for name in names},
+        groups={"training rows": range(15), "test rows": range(15, 20)}, setting=setting)
+
+
 def _gates(targets, unit, prior_label, setting):
     def scores(values):
         return types.SimpleNamespace(test_mae=list(values), ci=lambda key: _ci(values))
@@ -239,15 +250,17 @@ DRAW = {
     outer_folds.outer_folds_figure: _outer_folds,
     family_figures.parameter_corrections: _parameter_corrections,
     family_figures.selection_path_figure: _selection_path,
+    parametric_figures.parameter_drift_figure: _parameter_drift,
     gates_figure: _gates,
 }
 
 #: Public functions of those modules that draw no figure.
-NOT_FIGURES = {figures.save_figure, outer_folds.configuration_label}
+NOT_FIGURES = {figures.save_figure, outer_folds.configuration_label,
+               parametric_figures.covariate_axis, parametric_figures.drift_axes}
 
 
 def _public_functions():
-    for module in (figures, outer_folds, family_figures):
+    for module in (figures, outer_folds, family_figures, parametric_figures):
         for name in module.__all__:
             yield getattr(module, name)
 

@@ -54,6 +54,34 @@ def test_init_with_a_model_file_then_evaluate(decay_csv, tmp_path, capsys):
     assert list(choices["candidate"]) == ["prior", "calibrated", "drift"]
     for table in ("calibration", "coefficients", "corrected_parameters", "selection_path"):
         assert (tmp_path / "tables" / f"{table}.csv").exists()
+    for figure in ("parameter_corrections", "parameter_drift", "selection_path"):
+        assert (tmp_path / "tables" / f"{figure}.png").exists()
+
+
+def test_the_drift_figure_draws_each_parameter_against_its_strongest_covariate():
+    from workbench.experiment.families.parametric_figures import (
+        covariate_axis,
+        drift_axes,
+        parameter_drift_figure,
+    )
+
+    X = pd.DataFrame({"a": [1.0, 2.0, 3.0], "b": [0.5, 0.0, -1.0]})
+    assert covariate_axis("a^2", X)[0] == "a"
+    np.testing.assert_array_equal(covariate_axis("a*b", X)[1], [0.5, 0.0, -3.0])
+    np.testing.assert_array_equal(covariate_axis("a-b^2", X)[1], [0.5, 2.0, 4.0])
+    assert covariate_axis("c", X) is None
+    coefficients = pd.DataFrame({"parameter": ["p", "p", "p", "q"],
+                                 "covariate": ["intercept", "a", "b^2", "intercept"],
+                                 "coef": [1.0, 0.1, -0.3, 2.0]})
+    axes_by = drift_axes(coefficients, X)
+    assert list(axes_by) == ["p"] and axes_by["p"][0] == "b"  # q has no drift
+    corrected = pd.DataFrame({"p": [1.0, 1.1, 1.3], "q": [2.0, 2.0, 2.0]})
+    fig = parameter_drift_figure(corrected, axes_by, calibrated={"p": 1.1},
+                                 groups={"train": [0, 1], "test": [2]})
+    ax = fig.axes[0]
+    assert ax.get_xlabel() == "b" and ax.get_ylabel() == "corrected p"
+    with pytest.raises(ValueError, match="missing"):
+        parameter_drift_figure(corrected, {"r": ("a", X["a"].to_numpy())})
 
 
 def test_a_bad_model_file_is_one_line(decay_csv, tmp_path, capsys):

@@ -13,7 +13,8 @@ target only where CV says it helps (:class:`~workbench.fitted_prior.FittedPriorB
 Tables: ``choices`` (each candidate's CV MAE and the winner), ``calibration`` (each
 parameter's start and calibrated offset), ``coefficients`` (the corrections'),
 ``corrected_parameters`` (per experiment) and ``selection_path``; figures: the corrected
-parameters against their start values and the selection path.
+parameters against their start values and against the covariates they drift with, and the
+selection path.
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ from ..toml_text import toml_string
 from .artifacts import Artifacts
 from .base import ModelFamily
 from .hamiltonian_figures import parameter_corrections, selection_path_figure
+from .parametric_figures import drift_axes, parameter_drift_figure
 from .stage import per_target_boost, stage_scores
 
 if TYPE_CHECKING:
@@ -299,6 +301,17 @@ class ParametricFamily(ModelFamily):
                                       "test rows": ds.test_index}, unit=None,
             title="Corrected parameters against their start values", setting=setting,
             reference="start")
+        coefficients = out.tables["coefficients"]
+        axes_by = drift_axes(coefficients, X)
+        if axes_by:  # the drift was chosen: each parameter against what it drifts with
+            cal = regressor.calibration_
+            calibrated = {str(p): float(start) + float(offset) for p, start, offset
+                          in zip(cal["parameter"], cal["start"], cal["offset"])
+                          if not isinstance(start, str)}
+            out.figures["parameter_drift"] = parameter_drift_figure(
+                corrected, axes_by, calibrated=calibrated,
+                groups={"training rows": ds.train_index, "test rows": ds.test_index},
+                setting=setting)
         if physics.selection_ is not None:
             sel = physics.selection_
             out.tables["selection_path"] = sel.path
