@@ -199,8 +199,8 @@ def test_a_fitted_model_needs_no_model_file(decay_csv, tmp_path):
 
 def test_a_tracked_run_logs_registers_and_serves(decay_csv, tmp_path):
     """MLflow: the calibrated parameters and the choice's CV MAE as metrics, the family's
-    tables as artifacts, the registered model predicting a CSV of features alone after the
-    model file moved."""
+    tables, a learning curve and SHAP of the correction as artifacts, the registered model
+    predicting a CSV of features alone after the model file moved."""
     import mlflow
 
     uri = f"sqlite:///{tmp_path}/mlflow.db"
@@ -219,6 +219,14 @@ def test_a_tracked_run_logs_registers_and_serves(decay_csv, tmp_path):
             "parametric/cv_mae/drift"} <= set(metrics)
     logged = {a.path for a in client.list_artifacts(run.info.run_id, "parametric")}
     assert {"parametric/calibration.csv", "parametric/selection_path.csv"} <= logged
+    plots = {a.path for a in client.list_artifacts(run.info.run_id, "plots")}
+    assert {"plots/learning_curve.png", "plots/shap_y.png", "plots/shap_correction_y.png",
+            "plots/parameter_drift.png", "plots/mae_bars.png"} <= plots
+    curves = client.download_artifacts(run.info.run_id, "learning_curves.json", str(tmp_path))
+    curve = json.loads(open(curves).read())["y"]
+    # the drift learned from the training rows beats the start values at every size
+    assert np.all(np.nanmean(curve["cv_error"], axis=1)
+                  < np.nanmean(curve["incumbent_error"], axis=1))
     (tmp_path / "models").rename(tmp_path / "elsewhere")
     pd.DataFrame({"t": [1.0, 2.0], "temp": [0.5, -0.3]}).to_csv(tmp_path / "new.csv",
                                                                   index=False)

@@ -14,13 +14,15 @@ Tables: ``choices`` (each candidate's CV MAE and the winner), ``calibration`` (e
 parameter's start and calibrated offset), ``coefficients`` (the corrections'),
 ``corrected_parameters`` (per experiment) and ``selection_path``; figures: the corrected
 parameters against their start values and against the covariates they drift with, and the
-selection path.
+selection path; a tracked run adds a learning curve and SHAP summaries of the correction
+(:mod:`.parametric_artifacts`).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar, Literal, cast
 
@@ -39,6 +41,7 @@ from ..toml_text import toml_string
 from .artifacts import Artifacts
 from .base import ModelFamily
 from .hamiltonian_figures import parameter_corrections, selection_path_figure
+from .parametric_artifacts import run_artifacts
 from .parametric_figures import drift_axes, parameter_drift_figure
 from .stage import per_target_boost, stage_scores
 
@@ -258,6 +261,25 @@ class ParametricFamily(ModelFamily):
             info["selection"] = {"cv_mae": sel.cv_mae, "steps": len(sel.path) - 1,
                                  "path": _records(sel.path), "seconds": sel.seconds}
         return prior, scores, {"parametric": info}
+
+    def begin_artifacts(self, cfg: ExperimentConfig, ds: Dataset, model: Any, setting: str,
+                        quick: bool = False) -> Callable[..., Artifacts]:
+        """Draw a tracked run's learning curve and SHAP summaries of the correction.
+
+        :func:`~.parametric_artifacts.run_artifacts`: one augmented learning curve over all
+        targets (the model with its choices kept, against the user's model at its start
+        values), and per target the SHAP summaries of the whole prediction and of the
+        correction (prediction less that prior). Computed when ``finish`` is called.
+        """
+        def finish(emit: Callable[[str, Any], None] | None = None) -> Artifacts:
+            out = run_artifacts(cfg, ds, self.inputs(cfg, ds), model,
+                                self.fixed_choices(model), setting, quick=quick)
+            for name, fig in out.figures.items():
+                if emit is not None:
+                    emit(name, fig)
+            return out
+
+        return finish
 
     def run_metrics(self, details: dict[str, Any]) -> dict[str, float]:
         """Log the calibration and the choice as metrics, to compare runs by them.
