@@ -31,6 +31,13 @@ from services import command_env, tiny_sweep, workbench_cmd
 ENDS_WITHIN_S = 10
 
 
+def _within_s() -> float:
+    """:data:`ENDS_WITHIN_S`, times how oversubscribed the cores are: at load 16 on 2 cores a
+    process gets an eighth of a core, and 10 s failed (twice in three runs of this file at
+    load 15-17) where a quiet machine ends the command in a second or two."""
+    return ENDS_WITHIN_S * max(1.0, os.getloadavg()[0] / (os.cpu_count() or 1))
+
+
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory):
     return tiny_sweep(tmp_path_factory.mktemp("tiny"), trials=8)
@@ -68,18 +75,18 @@ def _alive(pid: int) -> bool:
 def _ends(proc: subprocess.Popen, signum: int, *, group: bool = False) -> float:
     """Send ``signum`` (to the process group with ``group``, as Ctrl-C in a terminal does);
     return the seconds until ``proc`` exits (killed, and the test failed, after
-    :data:`ENDS_WITHIN_S`)."""
-    start = time.monotonic()
+    :func:`_within_s`)."""
+    start, within = time.monotonic(), _within_s()
     if group:
         os.killpg(proc.pid, signum)
     else:
         proc.send_signal(signum)
     try:
-        proc.wait(timeout=ENDS_WITHIN_S)
+        proc.wait(timeout=within)
     except subprocess.TimeoutExpired:
         os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
-        pytest.fail(f"still running {ENDS_WITHIN_S} s after {signal.Signals(signum).name}")
+        pytest.fail(f"still running {within:.0f} s after {signal.Signals(signum).name}")
     return time.monotonic() - start
 
 
@@ -250,7 +257,7 @@ def test_an_interrupt_in_a_sqlite_store_call_leaves_the_database_unlocked(tmp_pa
     assert caught.value.code == 130
     start = time.monotonic()
     tracker.end_run(run, "KILLED")
-    assert time.monotonic() - start < ENDS_WITHIN_S
+    assert time.monotonic() - start < ENDS_WITHIN_S  # unscaled: below the 20 s busy wait
 
 
 _CLOSE_AFTER_INTERRUPT = """
