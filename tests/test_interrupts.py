@@ -31,6 +31,13 @@ from services import command_env, tiny_sweep, workbench_cmd
 ENDS_WITHIN_S = 10
 
 
+def _within_s() -> float:
+    """:data:`ENDS_WITHIN_S`, times how oversubscribed the cores are: at load 16 on 2 cores a
+    process gets an eighth of a core, and 10 s failed (twice in three runs of this file at
+    load 15-17) where a quiet machine ends the command in a second or two."""
+    return ENDS_WITHIN_S * max(1.0, os.getloadavg()[0] / (os.cpu_count() or 1))
+
+
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory):
     return tiny_sweep(tmp_path_factory.mktemp("tiny"), trials=8)
@@ -68,18 +75,18 @@ def _alive(pid: int) -> bool:
 def _ends(proc: subprocess.Popen, signum: int, *, group: bool = False) -> float:
     """Send ``signum`` (to the process group with ``group``, as Ctrl-C in a terminal does);
     return the seconds until ``proc`` exits (killed, and the test failed, after
-    :data:`ENDS_WITHIN_S`)."""
-    start = time.monotonic()
+    :func:`_within_s`)."""
+    start, within = time.monotonic(), _within_s()
     if group:
         os.killpg(proc.pid, signum)
     else:
         proc.send_signal(signum)
     try:
-        proc.wait(timeout=ENDS_WITHIN_S)
+        proc.wait(timeout=within)
     except subprocess.TimeoutExpired:
         os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
-        pytest.fail(f"still running {ENDS_WITHIN_S} s after {signal.Signals(signum).name}")
+        pytest.fail(f"still running {within:.0f} s after {signal.Signals(signum).name}")
     return time.monotonic() - start
 
 
@@ -101,12 +108,13 @@ def _statuses(uri: str) -> list[str]:
 @pytest.mark.parametrize("signum, group", [(signal.SIGTERM, False), (signal.SIGINT, True)],
                          ids=["SIGTERM", "Ctrl-C"])
 def test_an_interrupted_sweep_with_two_workers_ends_and_resumes_exactly(tiny, tmp_path,
-                                                                        signum, group):
+                                                                        new_store, signum,
+                                                                        group):
     """SIGTERM to ``sweep --workers 2`` (or Ctrl-C, which reaches its workers too) ends it
     with 143 / 130 within seconds, its workers gone, no ``--json``, the run KILLED; the
     same command then completes every study to exactly its budget, every trial completed
     before kept, none left running or queued."""
-    uri = f"sqlite:///{tmp_path / 'mlflow.db'}"
+    uri = new_store(tmp_path / "mlflow.db")  # a store's first use: tests/test_lifecycle.py
     journal, out, err = tmp_path / "s.journal", tmp_path / "out.json", tmp_path / "err.log"
     cmd = workbench_cmd("sweep", tiny, "--storage", journal, "--tracking-uri", uri,
                         "--workers", "2", "--json", out)
@@ -129,8 +137,12 @@ def test_an_interrupted_sweep_with_two_workers_ends_and_resumes_exactly(tiny, tm
     names = optuna.get_all_study_names(storage)
     before = {n: optuna.load_study(study_name=n, storage=storage).get_trials() for n in names}
     assert not [t for ts in before.values() for t in ts if t.state == TrialState.RUNNING]
-    rerun = subprocess.run(cmd, cwd=tmp_path, env=command_env(), capture_output=True,
-                           text=True, timeout=240)
+    # the studies' resume is the check: untracked, the rerun skips the final model's figures
+    # and SHAP and the studies' figures (a tracked sweep of this config resumed with nothing
+    # left to search: 18.7 CPU-s; untracked from the start: 5.7, at load ~13); a tracked
+    # sweep resumed to its end: tests/test_services.py (after a SIGKILL, its plots checked)
+    rerun = subprocess.run(cmd + ["--no-track"], cwd=tmp_path, env=command_env(),
+                           capture_output=True, text=True, timeout=240)
     assert rerun.returncode == 0, rerun.stderr[-3000:]
     assert out.exists()
     for name in names:
@@ -194,11 +206,11 @@ def test_an_interrupt_ending_another_thread_stops_the_command():
     (signal.SIGTERM, False, "] fitting the model"),
     (signal.SIGINT, True, "] tracking in ")],
     ids=["Ctrl-C-figures", "SIGTERM-figures", "SIGTERM-fitting", "Ctrl-C-logging"])
-def test_an_interrupted_evaluate_ends(tiny, tmp_path, signum, group, phase):
+def test_an_interrupted_evaluate_ends(tiny, tmp_path, new_store, signum, group, phase):
     """Ctrl-C or SIGTERM while ``evaluate`` fits, logs, or computes and draws its learning
     curves and SHAP summaries: 130 / 143 within seconds, one line, no ``--json``, the run
     KILLED, its worker processes gone."""
-    uri = f"sqlite:///{tmp_path / 'mlflow.db'}"
+    uri = new_store(tmp_path / "mlflow.db")  # a store's first use: tests/test_lifecycle.py
     out, err = tmp_path / "out.json", tmp_path / "err.log"
     cmd = workbench_cmd("evaluate", tiny, "--tracking-uri", uri, "--jobs", "2",
                         "--json", out)
@@ -215,14 +227,15 @@ def test_an_interrupted_evaluate_ends(tiny, tmp_path, signum, group, phase):
     assert not any(_alive(p) for p in workers), "workers outlived the command"
 
 
-def test_an_interrupt_in_a_sqlite_store_call_leaves_the_database_unlocked(tmp_path):
+def test_an_interrupt_in_a_sqlite_store_call_leaves_the_database_unlocked(tmp_path,
+                                                                          new_store):
     """Ctrl-C at random moments of a run's logging to SQLite: while the interrupt is being
     handled (its traceback alive, as when the run's end is written), no connection of the
     process holds the database's lock, and the run ends at once. Raised inside SQLAlchemy,
     about one interrupt in ten left the lock held and the end waited MLflow's 20 s busy
     timeout (the command still running 10 s after Ctrl-C)."""
     db = tmp_path / "mlflow.db"
-    tracker = Tracker(f"sqlite:///{db}", "interrupts")
+    tracker = Tracker(new_store(db), "interrupts")
     run = tracker.start_run("interrupted")
     main, rng = threading.main_thread().ident, random.Random(0)
     for i in range(40):
@@ -244,7 +257,7 @@ def test_an_interrupt_in_a_sqlite_store_call_leaves_the_database_unlocked(tmp_pa
     assert caught.value.code == 130
     start = time.monotonic()
     tracker.end_run(run, "KILLED")
-    assert time.monotonic() - start < ENDS_WITHIN_S
+    assert time.monotonic() - start < ENDS_WITHIN_S  # unscaled: below the 20 s busy wait
 
 
 _CLOSE_AFTER_INTERRUPT = """

@@ -73,11 +73,11 @@ def _kill_with_trials_claimed(proc, journal, tmp_path) -> None:
     raise AssertionError("no moment with every running trial claimed")
 
 
-def test_runs_never_left_running(tiny, tmp_path):
+def test_runs_never_left_running(tiny, tmp_path, new_store):
     """SIGKILL leaves a RUNNING run that the next command marks FAILED at its start (its
     process is gone); SIGINT and SIGTERM end the run KILLED, print one line and exit 130 /
     143; every interrupted trial is failed and queued again."""
-    uri = f"sqlite:///{tmp_path / 'mlflow.db'}"
+    uri = new_store(tmp_path / "mlflow.db")  # first use: the concurrent evaluates below
     journal = tmp_path / "s.journal"
     # 30 trials a study: the search lasts seconds, so the kill lands while trials run
     cmd = workbench_cmd("sweep", tiny, "--storage", journal, "--tracking-uri", uri,
@@ -297,10 +297,10 @@ def test_processes_draw_distinct_streams(tmp_path):
     assert optuna.get_all_study_names(storage) == ["c"]
 
 
-def test_rerun_after_killing_a_sweep_and_its_workers(tiny, tmp_path):
+def test_rerun_after_killing_a_sweep_and_its_workers(tiny, tmp_path, new_store):
     """SIGKILL on the parent of ``--workers 2``: the workers end with it (their trials are
     queued again); the rerun does not wait for ``stale_after_s`` (600 s here)."""
-    uri = f"sqlite:///{tmp_path / 'mlflow.db'}"
+    uri = new_store(tmp_path / "mlflow.db")  # first use: the concurrent evaluates below
     storage = str(tmp_path / "w.journal")
     cmd = workbench_cmd("sweep", tiny, "--storage", storage, "--tracking-uri", uri,
                         "--workers", "2")

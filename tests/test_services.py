@@ -184,4 +184,8 @@ def test_dashboard_serves_the_studies_on_loopback(tmp_path):
         assert [s["study_name"] for s in body["study_summaries"]] == ["tiny.measured_E1.final"]
     finally:
         proc.terminate()
-        proc.wait(timeout=10)
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:  # not the check: seen at load 18 on 2 cores
+            proc.kill()
+            proc.wait()

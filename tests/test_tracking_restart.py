@@ -17,8 +17,9 @@ SECRET = "s3cret-pw"
 
 
 @pytest.fixture
-def server(tmp_path):
-    srv = MlflowServer(f"sqlite:///{tmp_path / 'server' / 'mlflow.db'}",
+def server(tmp_path, new_store):
+    # a copy of an empty store: a server given a new one runs MLflow's migrations first
+    srv = MlflowServer(new_store(tmp_path / "server" / "mlflow.db"),
                        tmp_path / "server" / "artifacts", tmp_path / "server.log")
     yield srv
     srv.stop()

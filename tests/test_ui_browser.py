@@ -59,10 +59,10 @@ def render(url: str, tmp: Path, *, screenshot: Path | None = None, budget_ms: in
     return done.stdout
 
 
-def _store(root: Path) -> str:
-    """A store shaped like a reproduction's: the parent run, its system runs (test MAE per
-    target), the experiment's runs view."""
-    uri = f"sqlite:///{root / 'mlruns' / 'mlflow.db'}"
+def _store(root: Path, new_store) -> str:
+    """A store shaped like a reproduction's (in a copy of an empty one): the parent run, its
+    system runs (test MAE per target), the experiment's runs view."""
+    uri = new_store(root / "mlruns" / "mlflow.db")
     tracker = Tracker(uri, "paper-reproduction")
     with tracker.run("paper reproduction", tags={NOTE_TAG: "the reproduction"}) as parent:
         for k, (name, avg) in enumerate(SYSTEMS.items()):
@@ -75,11 +75,11 @@ def _store(root: Path) -> str:
 
 
 @pytest.fixture(scope="module")
-def ui(tmp_path_factory):
+def ui(tmp_path_factory, new_store):
     """A store with a reproduction-like experiment, and `workbench ui` serving it; yields
     the addresses it printed."""
     root = tmp_path_factory.mktemp("ui")
-    uri = os.environ.get("WORKBENCH_UI_STORE") or _store(root)
+    uri = os.environ.get("WORKBENCH_UI_STORE") or _store(root, new_store)
     port = free_port()
     log = root / "ui.log"
     with open(log, "w") as out:  # workbench ui's own server settings (one worker, no jobs)
