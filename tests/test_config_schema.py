@@ -283,3 +283,26 @@ def test_a_grid_and_parasitic_couplings_load(tmp_path):
                     'parasitic = "diagonal"\n')
     cfg = load_config(path)
     assert cfg.data.hamiltonian.shape == [2, 2] and cfg.family_settings.parasitic == "diagonal"
+
+
+@pytest.mark.parametrize("section, old, new", [
+    ("evaluation", "seeds = [0, 1]", "random_states"),
+    ("cv", "seed = 3", "sweep_seed"),
+])
+def test_a_renamed_key_fails_naming_its_new_name(tmp_path, capsys, section, old, new):
+    """A config with a key's old name is refused (not read differently), in one line."""
+    path = tmp_path / "old.toml"
+    path.write_text(f"[{section}]\n{old}\n")
+    with pytest.raises(ConfigError, match=rf"{section}.*is now '{new}'") as info:
+        load_config(path)
+    assert "\n" not in str(info.value)
+    assert main(["evaluate", str(path), "--no-track"]) == 2
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
+
+
+def test_a_renamed_option_fails_naming_its_new_name(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["evaluate", "any.toml", "--seeds", "0-2"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--seeds is now --random-states" in err, err

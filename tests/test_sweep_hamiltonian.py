@@ -67,7 +67,7 @@ SWEEP = """
 [cv]
 outer_folds = 2
 inner_folds = 3
-seed = 0
+sweep_seed = 0
 
 [study]
 trials = 3
@@ -216,7 +216,7 @@ def test_sweep_nested_cv_results_and_resume(project, capsys):
     assert res2["nested_cv_mae"] == pytest.approx(res["nested_cv_mae"])
     assert res2["model"]["test_mae"] == pytest.approx(res["model"]["test_mae"])
     folds = sweep.outer_folds
-    assert [(f.unit, f.fold, f.study) for f in folds] == [
+    assert [(f.block, f.fold, f.study) for f in folds] == [
         ("all", 0, "hsweep.all.outer0"), ("all", 1, "hsweep.all.outer1")]
     for f in folds:
         assert f.selected == ",".join(["hamiltonian"] * N)
