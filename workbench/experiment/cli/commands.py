@@ -201,7 +201,6 @@ def sweep(args: argparse.Namespace) -> int:
 def _evaluate_config(args: argparse.Namespace) -> Any:
     """Load the config ``evaluate`` runs: the file's, with the command line's overrides."""
     from ..config import without_intervals
-    from ..evaluate import has_outputs
     from ..prepare import load_config
 
     cfg = without_intervals(load_config(args.config, dict(args.overrides)), args.no_intervals)
@@ -217,10 +216,6 @@ def _evaluate_config(args: argparse.Namespace) -> Any:
         raise UsageError("--register registers one model; with random_states there is one "
                          "per seed (register one: --set random_state=N, without "
                          "random_states)")
-    if args.out is not None and not cfg.evaluation.random_states and not has_outputs(cfg):
-        raise UsageError(f"--out writes a model family's tables and figures and the "
-                         f"prediction intervals'; family {cfg.family.name!r} has none and "
-                         f"[intervals] is off ({args.config})")
     return cfg
 
 

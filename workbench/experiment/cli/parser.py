@@ -127,9 +127,10 @@ def _add_evaluate(sub: Subparsers) -> None:
                     "not with --register)")
     ev.add_argument("--seeds", action=argtypes.Renamed, new="--random-states")
     ev.add_argument("--out", metavar="DIR", default=None,
-                    help="write the model family's tables (CSV) and figures (PNG) to DIR "
-                    "(family hamiltonian: coefficients, corrected parameters, selection; "
-                    "with --random-states: the seeds' spread figure and table)")
+                    help="write every figure (PNG), table (CSV) and data file (JSON) the run "
+                    "logs to DIR, for every family: the MAE/MSE bars, the intervals', the "
+                    "family's own (e.g. learning curves and SHAP, or coefficients and "
+                    "selection) (with --random-states: the seeds' spread figure and table)")
     _model_args(ev)
     _set_arg(ev)
     ev.set_defaults(func=commands.evaluate)
