@@ -104,9 +104,9 @@ def _counts(storage, names):
 
 # --- the search space ---------------------------------------------------------------------
 
-def test_study_names_have_one_unit_for_all_targets(project):
+def test_study_names_have_one_block_for_all_targets(project):
     cfg = load_config(write(project))
-    assert [(s.name, s.unit, s.fold) for s in study_names(cfg, TARGETS)] == [
+    assert [(s.name, s.block, s.fold) for s in study_names(cfg, TARGETS)] == [
         ("hsweep.all.outer0", "all", 0), ("hsweep.all.outer1", "all", 1),
         ("hsweep.all.final", "all", None)]
     assert all(s.targets == TARGETS for s in study_names(cfg, TARGETS))
@@ -114,7 +114,7 @@ def test_study_names_have_one_unit_for_all_targets(project):
                             name="e.toml"))
     assert len(study_names(eig, TARGETS)) == 3 * N  # eigenvalue: per target, as before
     first = study_names(eig, TARGETS)[0]
-    assert (first.name, first.unit, first.targets, first.fold) == (
+    assert (first.name, first.block, first.targets, first.fold) == (
         "hsweep.measured_E1.outer0", "measured_E1", ["measured_E1"], 0)
 
 
