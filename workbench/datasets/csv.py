@@ -21,6 +21,7 @@ from collections import Counter
 from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from contextvars import ContextVar
+from os import PathLike
 from pathlib import Path
 from typing import Any
 
@@ -165,14 +166,14 @@ def read_once() -> Iterator[None]:
         _ONCE.reset(token)
 
 
-def read_csv_cells(path: str | Path) -> pd.DataFrame:
+def read_csv_cells(path: str | PathLike[str]) -> pd.DataFrame:
     """Read every cell of a CSV file as text, with the loader's checks and messages.
 
     Inside :func:`read_once`, the file is read once.
 
     Parameters
     ----------
-    path : str or Path
+    path : str or path-like
         The CSV file.
 
     Returns
@@ -364,6 +365,16 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
         UTC) or numbers (run numbers): the dataset's ``order``, which CV folds follow.
     split : {"time"}, default=None
         ``"time"``: the test rows are the latest ``test_fraction`` by ``order_column``.
+
+    Returns
+    -------
+    Dataset
+        The data and their split.
+
+    Raises
+    ------
+    DatasetError
+        Unusable data, in one line naming the file and what is wrong.
     """
     path = Path(path)
     _check_time_split(split, order_column)
