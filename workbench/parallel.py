@@ -73,9 +73,11 @@ class Task:
         self.priority = 0
 
     def __call__(self) -> Any:
+        """Run the task: ``func(*args, **kwargs)``."""
         return self.func(*self.args, **self.kwargs)
 
     def __repr__(self) -> str:
+        """Name the task's function."""
         return f"Task({getattr(self.func, '__qualname__', self.func)!r})"
 
 

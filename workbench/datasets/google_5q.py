@@ -95,6 +95,11 @@ def load_google_5q(data_dir: str | os.PathLike[str] | None = None, *,
     download : bool, default=True
         Whether to fetch (and verify) the files when they are missing.
 
+    Returns
+    -------
+    Dataset
+        The data and their split.
+
     Raises
     ------
     DataUnavailableError

@@ -253,6 +253,11 @@ def load_ibm_gates(data_dir: str | os.PathLike[str] | None = None, *,
     download : bool, default=True
         Whether to fetch (and verify) the wheel when it is missing.
 
+    Returns
+    -------
+    Dataset
+        The data and their split.
+
     Raises
     ------
     DataUnavailableError

@@ -152,6 +152,11 @@ def load_ibm_qubits(data_dir: str | os.PathLike[str] | None = None, *,
         Which devices the ``"devices"`` split holds out.
     download : bool, default=True
         Whether to fetch (and verify) the wheel when it is missing.
+
+    Returns
+    -------
+    Dataset
+        The data and their split.
     """
     if target not in QUBIT_TARGETS:
         raise ValueError(f"unknown target {target!r}; the targets are {list(QUBIT_TARGETS)}")

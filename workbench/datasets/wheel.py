@@ -76,6 +76,18 @@ class WheelData:
         )
 
     def fail(self, problem: str) -> DataUnavailableError:
+        """Make the error for ``problem``, with the steps to fetch the files by hand.
+
+        Parameters
+        ----------
+        problem : str
+            What went wrong.
+
+        Returns
+        -------
+        DataUnavailableError
+            The error, to raise.
+        """
         return DataUnavailableError(f"{self.name} data unavailable: {problem}\n"
                                     f"{self.manual_steps()}")
 

@@ -127,7 +127,20 @@ class ModelFamily(ResultMethods):
     computes_prior: ClassVar[bool] = False
 
     def complete_data(self, cfg: ExperimentConfig, ds: Dataset) -> Dataset:
-        """Return the dataset with what the family supplies (its prior; default: as is)."""
+        """Return the dataset with what the family supplies (its prior; default: as is).
+
+        Parameters
+        ----------
+        cfg : ExperimentConfig
+            The config.
+        ds : Dataset
+            The data as the source loaded them.
+
+        Returns
+        -------
+        Dataset
+            The data the family's model is fitted on.
+        """
         return ds
 
     def check_data(self, data: DataConfig) -> None:

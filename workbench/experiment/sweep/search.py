@@ -69,7 +69,23 @@ class StudySpec:
 
 @dataclass
 class Sweep:
-    """A finished sweep: the result, the fitted final model and what led to it."""
+    """A finished sweep: the result, the fitted final model and what led to it.
+
+    Parameters
+    ----------
+    result : Result
+        The sweep's result (its ``sweep`` the nested CV's summary).
+    model : estimator
+        The final model, refitted on all training rows with the final studies' settings.
+    dataset : Dataset
+        The data.
+    config : ExperimentConfig
+        The config swept.
+    studies : dict of str to optuna.Study
+        The studies by name.
+    storage : str
+        Where the studies are stored.
+    """
 
     result: Result
     model: Any
