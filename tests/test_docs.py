@@ -130,13 +130,24 @@ def test_the_api_reference_names_modules_and_names_that_exist():
 PARAMETER_CHECKS = {"GL08", "PR01", "PR02", "RT01"}
 
 
+def _core_modules():
+    """The core's public modules: ``workbench/*.py`` and ``workbench/datasets/*.py`` (not
+    ``_private.py``)."""
+    package = ROOT / "workbench"
+    return [f"workbench.{p.stem}" for p in sorted(package.glob("*.py"))
+            if not p.stem.startswith("_")] + \
+        [f"workbench.datasets.{p.stem}" for p in sorted((package / "datasets").glob("*.py"))
+         if not p.stem.startswith("_")]
+
+
 def _public_names():
-    """``{qualified name: object}`` of every function and class the API reference lists, and
-    of the experiment API's names (``workbench.experiment.api``)."""
+    """``{qualified name: object}`` of every function and class the API reference lists, of
+    every public name of the core's modules, and of the experiment API's names
+    (``workbench.experiment.api``)."""
     text = (DOCS / "reference" / "api.rst").read_text()
     out = {}
     for module_name in [*re.findall(r"^   (workbench[\w.]*)$", text, flags=re.M),
-                        "workbench.experiment.api"]:
+                        *_core_modules(), "workbench.experiment.api"]:
         module = importlib.import_module(module_name)
         for name in getattr(module, "__all__", []):
             obj = getattr(module, name)
@@ -165,13 +176,14 @@ def _public_methods(names):
 
 
 def test_every_public_name_documents_its_parameters_and_returns():
-    """numpydoc's own validation of every public function, class and method of the API
-    reference (``make docs`` fails on their reST errors)."""
+    """numpydoc's own validation of every public function, class and method of the core and
+    of the API reference (``make docs`` fails on their reST errors)."""
     from numpydoc.validate import get_doc_object, validate
 
     problems, names = [], _public_names()
     methods = _public_methods(names)
     assert "workbench.boosting.BaseBoostRegressor.fit" in methods  # the walk finds methods
+    assert "workbench.parallel.run_plans" in names  # and the core's modules off the reference
     for name, obj in sorted(names.items()):
         problems += [f"{name}: {code} {message}" for code, message in
                      validate(get_doc_object(obj))["errors"] if code in PARAMETER_CHECKS]

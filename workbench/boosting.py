@@ -44,7 +44,20 @@ LINKS = ("identity", "log")
 
 
 def seed_estimator(estimator: Any, seed: int) -> Any:
-    """Set every ``random_state`` parameter of ``estimator`` (nested ones too) to ``seed``."""
+    """Set every ``random_state`` parameter of ``estimator`` (nested ones too) to ``seed``.
+
+    Parameters
+    ----------
+    estimator : estimator
+        A scikit-learn estimator.
+    seed : int
+        The seed.
+
+    Returns
+    -------
+    estimator
+        ``estimator``, changed in place.
+    """
     keys = [k for k in estimator.get_params(deep=True)
             if k == "random_state" or k.endswith("__random_state")]
     if keys:
@@ -89,7 +102,27 @@ def _column_index(key: str | int, feature_names: Iterable[str] | None, n_feature
 
 
 def check_predictions(values: ArrayLike, n: int, what: str) -> np.ndarray:
-    """``values`` as a finite float array of shape ``(n,)``, or a ValueError naming ``what``."""
+    """``values`` as a finite float array of shape ``(n,)``, or a ValueError naming ``what``.
+
+    Parameters
+    ----------
+    values : array-like
+        Predictions, one per row (a single column is flattened).
+    n : int
+        The rows.
+    what : str
+        What made them, in the message.
+
+    Returns
+    -------
+    ndarray of shape (n,)
+        The values.
+
+    Raises
+    ------
+    ValueError
+        A wrong shape, or NaN or infinite values.
+    """
     arr = np.asarray(values, dtype=float)
     if arr.ndim == 2 and arr.shape[1] == 1:
         arr = arr[:, 0]

@@ -22,7 +22,22 @@ __all__ = ["MultiTargetBaseBoost", "check_targets"]
 
 def check_targets(X: Any, Y: Any) -> tuple[np.ndarray, list[str]]:
     """``Y`` (a DataFrame, or a 2-D array whose targets are named ``y0, y1, ...``) as a float
-    array with ``len(X)`` rows, and the target names."""
+    array with ``len(X)`` rows, and the target names.
+
+    Parameters
+    ----------
+    X : array-like
+        The inputs (their rows counted).
+    Y : array-like of shape (n_samples, n_targets)
+        The targets.
+
+    Returns
+    -------
+    Y : ndarray of shape (n_samples, n_targets)
+        The targets as floats.
+    names : list of str
+        The targets' names.
+    """
     if isinstance(Y, pd.DataFrame):
         names = [str(c) for c in Y.columns]
         Y = Y.to_numpy(dtype=float)
