@@ -300,9 +300,20 @@ def test_a_renamed_key_fails_naming_its_new_name(tmp_path, capsys, section, old,
     assert len(capsys.readouterr().err.strip().splitlines()) == 1
 
 
-def test_a_renamed_option_fails_naming_its_new_name(capsys):
+@pytest.mark.parametrize("argv, new", [
+    (["evaluate", "any.toml", "--seeds", "0-2"], "--seeds is now --random-states"),
+    (["reproduce", "--seed", "1"], "--seed is now --random-state"),
+])
+def test_a_renamed_option_fails_naming_its_new_name(capsys, argv, new):
     with pytest.raises(SystemExit) as exc:
-        main(["evaluate", "any.toml", "--seeds", "0-2"])
+        main(argv)
     assert exc.value.code == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "--seeds is now --random-states" in err, err
+    assert err.count("\n") == 1 and new in err, err
+
+
+def test_reproduce_takes_the_random_state():
+    from workbench.experiment.cli.parser import build_parser
+
+    args = build_parser().parse_args(["reproduce", "--random-state", "3"])
+    assert args.random_state == 3 and not hasattr(args, "seed")

@@ -200,7 +200,9 @@ def _add_reproduce(sub: Subparsers) -> None:
     rep.add_argument("--all", action="store_true",
                      help="also the workbench's own nested-CV search (paper_search.toml) and "
                      "the IBM two-qubit gates benchmark (the longest phases; not in make run)")
-    rep.add_argument("--seed", type=int, default=0)
+    rep.add_argument("--random-state", type=argtypes.seed, default=0, metavar="N",
+                     help="every config's random_state (default: 0)")
+    rep.add_argument("--seed", action=argtypes.Renamed, new="--random-state")
     rep.add_argument("--experiments", metavar="DIR", default=None,
                      help="folder with the configs it runs (paper_main_body.toml, "
                      "paper_improved.toml, paper_search.toml, hamiltonian.toml; default: the "
