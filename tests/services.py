@@ -171,7 +171,7 @@ alpha = {{ low = 0.001, high = 100.0, log = true }}
 [cv]
 outer_folds = 2
 inner_folds = 3
-seed = 0
+sweep_seed = 0
 
 [study]
 trials = {trials}

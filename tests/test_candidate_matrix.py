@@ -20,7 +20,7 @@ Each command runs once for all five (module fixtures); ``test_kind_through_path[
 The paths: ``evaluate`` tracked (learning curves, SHAP, per-target bars, intervals, the
 logged and registered model), ``predict`` from the registry, the scoring server's request
 handler, ``evaluate --no-track --out`` (with CV+ intervals: the whole model refitted per
-fold), ``evaluate --seeds`` and a tiny ``sweep``.
+fold), ``evaluate --random-states`` and a tiny ``sweep``.
 """
 
 from __future__ import annotations
@@ -95,7 +95,7 @@ line_search_penalty = { low = 0.0, high = 0.2 }
 [cv]
 outer_folds = 2
 inner_folds = 2
-seed = 0
+sweep_seed = 0
 
 [study]
 trials = 1
@@ -227,9 +227,9 @@ def untracked(project):
 
 @pytest.fixture(scope="module")
 def seeds(project):
-    """``evaluate --seeds 0,1``, tracked (a parent run and a child run per seed)."""
+    """``evaluate --random-states 0,1``, tracked (a parent run and a child run per seed)."""
     root = project.root
-    res = ran(run_main("evaluate", project.config, "--seeds", "0,1", "--tracking-uri",
+    res = ran(run_main("evaluate", project.config, "--random-states", "0,1", "--tracking-uri",
                        project.uri, "--out", root / "out_seeds", "--json", root / "seeds.json"))
     return SimpleNamespace(res=res, result=json.loads((root / "seeds.json").read_text()),
                            out=root / "out_seeds")
@@ -404,11 +404,11 @@ def check_cv_plus(request, target):
 
 
 def check_seeds(request, target):
-    """``--seeds``: seed 0 is the evaluate of random_state 0; each seed's MAE finite."""
+    """``--random-states``: seed 0 is the evaluate of random_state 0; each seed's MAE finite."""
     s = request.getfixturevalue("seeds")
     t = request.getfixturevalue("tracked")
     j = TARGETS.index(target)
-    runs = {r["seed"]: r for r in s.result["runs"]}
+    runs = {r["random_state"]: r for r in s.result["runs"]}
     assert runs[0]["model"]["test_mae"][j] == t.result["model"]["test_mae"][j]
     assert np.isfinite(runs[1]["model"]["test_mae"][j])
     table = pd.read_csv(s.out / "seed_test_mae.csv")

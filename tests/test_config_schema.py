@@ -283,3 +283,37 @@ def test_a_grid_and_parasitic_couplings_load(tmp_path):
                     'parasitic = "diagonal"\n')
     cfg = load_config(path)
     assert cfg.data.hamiltonian.shape == [2, 2] and cfg.family_settings.parasitic == "diagonal"
+
+
+@pytest.mark.parametrize("section, old, new", [
+    ("evaluation", "seeds = [0, 1]", "random_states"),
+    ("cv", "seed = 3", "sweep_seed"),
+])
+def test_a_renamed_key_fails_naming_its_new_name(tmp_path, capsys, section, old, new):
+    """A config with a key's old name is refused (not read differently), in one line."""
+    path = tmp_path / "old.toml"
+    path.write_text(f"[{section}]\n{old}\n")
+    with pytest.raises(ConfigError, match=rf"{section}.*is now '{new}'") as info:
+        load_config(path)
+    assert "\n" not in str(info.value)
+    assert main(["evaluate", str(path), "--no-track"]) == 2
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("argv, new", [
+    (["evaluate", "any.toml", "--seeds", "0-2"], "--seeds is now --random-states"),
+    (["reproduce", "--seed", "1"], "--seed is now --random-state"),
+])
+def test_a_renamed_option_fails_naming_its_new_name(capsys, argv, new):
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and new in err, err
+
+
+def test_reproduce_takes_the_random_state():
+    from workbench.experiment.cli.parser import build_parser
+
+    args = build_parser().parse_args(["reproduce", "--random-state", "3"])
+    assert args.random_state == 3 and not hasattr(args, "seed")

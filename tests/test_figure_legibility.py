@@ -174,17 +174,18 @@ def _intervals(targets, unit, prior_label, setting):
 def _seed_spread(targets, unit, prior_label, setting):
     seeds = list(range(10))
     errors = _rng().random((len(seeds), len(targets))) + 1.0
-    yield figures.seed_spread(targets, errors, seeds=seeds, prior=_errors(len(targets), 2.0),
+    yield figures.seed_spread(targets, errors, random_states=seeds,
+                              prior=_errors(len(targets), 2.0),
                               unit=unit, setting=setting, prior_label=prior_label)
 
 
 def _outer_folds(targets, unit, prior_label, setting):
     params = {"basis": "lightgbm", "learning_rate": 0.0512345, "num_leaves": 31,
               "min_child_samples": 20, "reg_lambda": 1.234e-3, "subsample": 0.8}
-    folds = [OuterFold(unit=unit_name, fold=k, study=f"s.{unit_name}.outer{k}", mae=1.0,
+    folds = [OuterFold(block=block, fold=k, study=f"s.{block}.outer{k}", mae=1.0,
                        prior_mae=1.5, selected="boosted", n_train=80, n_val=20,
                        params=params if k else None, target_mae={}, target_prior_mae={})
-             for unit_name in targets[:3] for k in range(3)]
+             for block in targets[:3] for k in range(3)]
     yield outer_folds.outer_folds_figure(folds, unit, prior_label=prior_label)
 
 

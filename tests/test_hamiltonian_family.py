@@ -288,19 +288,6 @@ def parse_config_from(path: Path):
         update={"cv_repeats": 0, "nested_folds": 0}))
 
 
-def test_out_needs_family_hamiltonian_or_intervals(device, capsys):
-    """Family eigenvalue has no tables of its own: without prediction intervals --out has
-    nothing to write (exit 2 before any fit)."""
-    raw = _raw()
-    raw["model"] = {"basis": "ridge"}
-    raw["intervals"] = {"enabled": False}
-    cfg = _toml(device / "eigen.toml", raw)
-    assert main(["evaluate", str(cfg), "--no-track", "--out", str(device / "x")]) == 2
-    assert ("--out writes a model family's tables and figures and the prediction intervals'; "
-            "family 'eigenvalue' has none and [intervals] is off") in capsys.readouterr().err
-    assert not (device / "x").exists()
-
-
 def test_same_seed_same_numbers(device):
     # one selection step (a CV over every candidate, then the refit): 2 s of CPU per evaluate
     # instead of 5 with FAST's three

@@ -401,3 +401,58 @@ def test_the_user_guide_s_two_commands(tmp_path, monkeypatch):
     assert rc == 0, err
     assert f"next: workbench evaluate {evaluate_argv[2]}" in out
     load_dataset(load_config(tmp_path / evaluate_argv[2]))
+
+
+@pytest.mark.parametrize("options", [
+    [],                                               # features, order and groups found
+    ["--group-column", "device"],                     # groups given
+    ["--split-column", "split", "--features", *FEATURES],
+    ["--order-column", "date", "--split-seed", "3"],  # an order column, a random split
+])
+def test_init_reads_the_csv_once(tmp_path, monkeypatch, options):
+    """One read of the CSV per ``init``, however many steps look at it (the loader's checks,
+    the features, the order and group columns, the config's own load); the dataset it
+    reports is the one ``evaluate`` loads."""
+    monkeypatch.chdir(tmp_path)
+    dates = pd.date_range("2024-01-01", periods=120, freq="D").strftime("%Y-%m-%d")
+    path = write_csv(tmp_path / "d.csv", date=list(dates))
+    real, reads = pd.read_csv, []
+
+    def counted(source, *args, **kwargs):
+        reads.append(Path(source).resolve())
+        return real(source, *args, **kwargs)
+
+    monkeypatch.setattr(pd, "read_csv", counted)
+    done = init_module.init_config(path, prior=PRIOR, targets=TARGETS, out="c.toml",
+                                   **_init_options(options))
+    assert reads == [path.resolve()]
+    ds = load_dataset(load_config(tmp_path / "c.toml"))  # outside init: a read of its own
+    assert len(reads) == 2
+    assert (done.n_train, done.n_test) == (len(ds.train_index), len(ds.test_index))
+
+
+def _init_options(argv: list[str]) -> dict:
+    """``init``'s command-line options as :func:`init_config`'s keywords."""
+    out, key = {}, None
+    for item in argv:
+        if item.startswith("--"):
+            key = item[2:].replace("-", "_")
+            out[key] = [] if key == "features" else None
+        elif key == "features":
+            out[key].append(item)
+        else:
+            out[key] = int(item) if key == "split_seed" else item
+    return out
+
+
+def test_read_once_reuses_a_file_only_inside_its_block(tmp_path, monkeypatch):
+    from workbench.datasets import read_csv_cells, read_once
+
+    path = write_csv(tmp_path / "d.csv")
+    real, reads = pd.read_csv, []
+    monkeypatch.setattr(pd, "read_csv", lambda *a, **k: reads.append(1) or real(*a, **k))
+    with read_once():
+        first = read_csv_cells(path)
+        assert read_csv_cells(path) is first and len(reads) == 1
+    read_csv_cells(path)
+    assert len(reads) == 2

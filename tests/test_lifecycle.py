@@ -278,7 +278,7 @@ def test_processes_draw_distinct_streams(tmp_path):
     the storage holds the study alone (no bookkeeping beside it)."""
     from types import SimpleNamespace
 
-    cfg = SimpleNamespace(cv=SimpleNamespace(seed=0), study=SimpleNamespace(sampler="tpe"))
+    cfg = SimpleNamespace(cv=SimpleNamespace(sweep_seed=0), study=SimpleNamespace(sampler="tpe"))
     storage = open_storage(str(tmp_path / "c.journal"), tmp_path)
     optuna.create_study(study_name="c", storage=storage)
     drawn: dict[int, float] = {}

@@ -109,9 +109,9 @@ def test_evaluate_loads_the_dataset_once(counted, tmp_path):
 
 
 def test_evaluate_with_seeds_loads_the_dataset_once(counted, tmp_path):
-    """One load for every seed of ``evaluate --seeds``."""
+    """One load for every seed of ``evaluate --random-states``."""
     path, log = counted
-    assert main(["evaluate", str(path), "--no-track", "--seeds", "0-2"]) == 0
+    assert main(["evaluate", str(path), "--no-track", "--random-states", "0-2"]) == 0
     assert log.read_text().split() == ["once"]
 
 

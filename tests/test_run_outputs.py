@@ -138,20 +138,20 @@ def test_the_record_computes_nothing(fitted, tmp_path, monkeypatch, new_store):
                        computed.predictions[["y1", "y2"]].to_numpy())
 
 
-def test_out_alone_computes_only_what_it_writes(fitted, tmp_path):
-    """``--out`` without tracking: the intervals' figure and table, written; none of the
-    run's figures or predictions, and no scratch directory."""
+def test_out_alone_writes_what_a_run_logs_but_the_predictions(fitted, tmp_path):
+    """``--out`` without tracking: the bars, the intervals' figure and table, the family's
+    run figures, tables and data, written; no predictions and no scratch directory."""
     cfg, run = fitted
     with pytest.MonkeyPatch.context() as mp:
-        for owner, name in [(run_outputs, "error_bars"), (serving, "prediction_frame"),
-                            (EigenvalueFamily, "begin_artifacts")]:
-            mp.setattr(owner, name, _forbidden(name))
+        mp.setattr(serving, "prediction_frame", _forbidden("prediction_frame"))
         with computed_outputs(cfg, run.result, run.model, run.dataset, setting="s",
                               track=False, out=tmp_path / "out") as computed:
             assert not computed.files and computed.predictions is None
-    assert set(computed.written) == {"intervals", "test_intervals"}
-    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["intervals.png",
-                                                                    "test_intervals.csv"]
+    assert set(computed.written) == {"mae_bars", "mse_bars", "intervals", "test_intervals",
+                                     "curve_y1", "curve_table", "learning_curves"}
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [
+        "curve_table.csv", "curve_y1.png", "intervals.png", "learning_curves.json",
+        "mae_bars.png", "mse_bars.png", "test_intervals.csv"]
 
 
 def test_out_and_tracking_log_the_files_out_wrote(fitted, tmp_path):
@@ -160,9 +160,9 @@ def test_out_and_tracking_log_the_files_out_wrote(fitted, tmp_path):
     cfg, run = fitted
     with computed_outputs(cfg, run.result, run.model, run.dataset, setting="s",
                           out=tmp_path / "out") as computed:
-        assert computed.files["plots/intervals.png"] == tmp_path / "out" / "intervals.png"
+        for name in ("intervals", "mae_bars", "curve_y1"):
+            assert computed.files[f"plots/{name}.png"] == tmp_path / "out" / f"{name}.png"
         bars = computed.files["plots/mae_bars.png"]
-        assert bars.parent.name == "plots"
         # a run's PNG is the bytes --out (save_figure) writes of the same figure
         again = figures.save_figure(computed.figures["plots/mae_bars.png"], tmp_path / "a.png")
         assert bars.read_bytes() == again.read_bytes()

@@ -1,4 +1,4 @@
-"""``workbench evaluate --seeds``: a fit per seed, a child run each under one parent whose
+"""``workbench evaluate --random-states``: a fit per seed, a child run each under one parent whose
 metrics are the mean and sd of the children's test MAE (issue 34)."""
 
 from __future__ import annotations
@@ -74,9 +74,9 @@ def _runs(experiment: str) -> list:
 
 @pytest.fixture(scope="module")
 def tracked(config, tmp_path_factory):
-    """``evaluate --seeds 0-2`` once, tracked, with ``--json`` and ``--out``."""
+    """``evaluate --random-states 0-2`` once, tracked, with ``--json`` and ``--out``."""
     root = tmp_path_factory.mktemp("tracked")
-    rc, out, err = _main("evaluate", config, "--seeds", "0-2", "--set",
+    rc, out, err = _main("evaluate", config, "--random-states", "0-2", "--set",
                          "tracking.experiment=seeds_tracked", "--json", root / "out.json",
                          "--out", root / "out", "--jobs", "1")
     assert rc == 0, err
@@ -94,7 +94,8 @@ def test_one_parent_whose_metrics_are_the_mean_and_sd_of_its_three_children(trac
     assert {r.info.status for r in runs} == {"FINISHED"}
     children.sort(key=lambda r: int(r.data.params["random_state"]))
     assert [r.data.params["random_state"] for r in children] == ["0", "1", "2"]
-    assert parent.data.params["seeds"] == "0,1,2" and "random_state" not in parent.data.params
+    params = parent.data.params
+    assert params["random_states"] == "0,1,2" and "random_state" not in params
     m = parent.data.metrics
     for target in [*TARGETS, None]:
         key = f"test_mae/{target}" if target else "test_mae_avg"
@@ -116,8 +117,8 @@ def test_one_parent_whose_metrics_are_the_mean_and_sd_of_its_three_children(trac
 
 def test_json_out_and_table(tracked):
     data = tracked["json"]
-    assert data["seeds"] == [0, 1, 2] and data["targets"] == TARGETS
-    assert [r["seed"] for r in data["runs"]] == [0, 1, 2]
+    assert data["random_states"] == [0, 1, 2] and data["targets"] == TARGETS
+    assert [r["random_state"] for r in data["runs"]] == [0, 1, 2]
     summary = data["summary"]
     per_seed = np.array([r["model"]["test_mae"] for r in data["runs"]])
     assert summary["test_mae"] == per_seed.tolist()
@@ -138,31 +139,32 @@ def test_json_out_and_table(tracked):
 @pytest.mark.parametrize("value", ["2-0", "a", "", "3", "1,1"])
 def test_a_bad_seeds_value_is_one_line(value, capsys):
     with pytest.raises(SystemExit) as exc:
-        main(["evaluate", "any.toml", "--seeds", value])
+        main(["evaluate", "any.toml", "--random-states", value])
     assert exc.value.code == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.startswith("workbench: error: argument --seeds: "), err
+    assert err.count("\n") == 1, err
+    assert err.startswith("workbench: error: argument --random-states: "), err
 
 
 def test_config_seeds_run_untracked_and_are_checked(config, tmp_path):
     cfg = config.parent / "from_config.toml"
-    cfg.write_text(CONFIG + "\n[evaluation]\nseeds = [3, 5]\n")
+    cfg.write_text(CONFIG + "\n[evaluation]\nrandom_states = [3, 5]\n")
     rc, out, err = _main("evaluate", cfg, "--no-track", "--jobs", "1")
     assert rc == 0, err
     assert "test MAE over 2 seeds (3, 5)" in out and "tracked" not in out
     bad = config.parent / "bad.toml"
     for seeds, needle in (("[4]", "two or more"), ("[1, 1]", "twice")):
-        bad.write_text(CONFIG + f"\n[evaluation]\nseeds = {seeds}\n")
+        bad.write_text(CONFIG + f"\n[evaluation]\nrandom_states = {seeds}\n")
         rc, _, err = _main("evaluate", bad, "--no-track")
         assert rc == 2 and needle in err and err.count("\n") == 1, err
-    rc, _, err = _main("evaluate", config, "--seeds", "0,1", "--register", "m")
+    rc, _, err = _main("evaluate", config, "--random-states", "0,1", "--register", "m")
     assert rc == 2 and "--register" in err
 
 
 def test_the_api_matches_and_checks_its_seeds(config):
     cfg = load_config(config)
     done = evaluate_seeds(cfg, [0, 1])
-    assert done.seeds == [0, 1] and len(done.results) == 2
+    assert done.random_states == [0, 1] and len(done.results) == 2
     assert done.summary.test_mae_avg_mean == pytest.approx(
         np.mean([r.model.avg("test_mae") for r in done.results]))
     with pytest.raises(ValueError, match="two or more"):
@@ -183,7 +185,7 @@ def test_an_interrupt_ends_the_parent_and_the_current_child_killed(config, tmp_p
         return real(cfg, *args, **kwargs)
 
     monkeypatch.setattr(seeds_module, "evaluate", evaluate)
-    rc, _, err = _main("evaluate", config, "--seeds", "0-2", "--set",
+    rc, _, err = _main("evaluate", config, "--random-states", "0-2", "--set",
                        "tracking.experiment=seeds_interrupted", "--jobs", "1", "--json",
                        tmp_path / "out.json")
     assert rc == 130 and signals.MESSAGE in err

@@ -111,7 +111,7 @@ def test_smoke_sweep_json_and_tracking(smoke_run, tmp_path, project):
     # recognisable as one sweep's in the dashboard: the name's prefix and user attributes
     attrs = optuna.load_study(study_name="smoke.eeig2.outer1", storage=journal).user_attrs
     assert attrs == {"sweep": "smoke", "config": str(project),
-                     "unit": "eeig2", "targets": ["eeig2"], "fold": 1}
+                     "block": "eeig2", "targets": ["eeig2"], "fold": 1}
     assert optuna.load_study(study_name="smoke.eeig2.final",
                              storage=journal).user_attrs["fold"] == "final"
     assert run.data.tags["dataset_hash"] and run.data.tags["git_commit"]
@@ -268,7 +268,7 @@ def test_trial_of_a_vanished_machine_is_failed_and_rerun(tmp_path):
 def _cfg(sampler="tpe", trials=14, seed=3):
     from types import SimpleNamespace
 
-    return SimpleNamespace(cv=SimpleNamespace(seed=seed), study=SimpleNamespace(
+    return SimpleNamespace(cv=SimpleNamespace(sweep_seed=seed), study=SimpleNamespace(
         sampler=sampler, trials=trials, timeout=None, stale_after_s=60))
 
 

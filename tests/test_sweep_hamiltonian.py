@@ -67,7 +67,7 @@ SWEEP = """
 [cv]
 outer_folds = 2
 inner_folds = 3
-seed = 0
+sweep_seed = 0
 
 [study]
 trials = 3
@@ -104,9 +104,9 @@ def _counts(storage, names):
 
 # --- the search space ---------------------------------------------------------------------
 
-def test_study_names_have_one_unit_for_all_targets(project):
+def test_study_names_have_one_block_for_all_targets(project):
     cfg = load_config(write(project))
-    assert [(s.name, s.unit, s.fold) for s in study_names(cfg, TARGETS)] == [
+    assert [(s.name, s.block, s.fold) for s in study_names(cfg, TARGETS)] == [
         ("hsweep.all.outer0", "all", 0), ("hsweep.all.outer1", "all", 1),
         ("hsweep.all.final", "all", None)]
     assert all(s.targets == TARGETS for s in study_names(cfg, TARGETS))
@@ -114,7 +114,7 @@ def test_study_names_have_one_unit_for_all_targets(project):
                             name="e.toml"))
     assert len(study_names(eig, TARGETS)) == 3 * N  # eigenvalue: per target, as before
     first = study_names(eig, TARGETS)[0]
-    assert (first.name, first.unit, first.targets, first.fold) == (
+    assert (first.name, first.block, first.targets, first.fold) == (
         "hsweep.measured_E1.outer0", "measured_E1", ["measured_E1"], 0)
 
 
@@ -216,7 +216,7 @@ def test_sweep_nested_cv_results_and_resume(project, capsys):
     assert res2["nested_cv_mae"] == pytest.approx(res["nested_cv_mae"])
     assert res2["model"]["test_mae"] == pytest.approx(res["model"]["test_mae"])
     folds = sweep.outer_folds
-    assert [(f.unit, f.fold, f.study) for f in folds] == [
+    assert [(f.block, f.fold, f.study) for f in folds] == [
         ("all", 0, "hsweep.all.outer0"), ("all", 1, "hsweep.all.outer1")]
     for f in folds:
         assert f.selected == ",".join(["hamiltonian"] * N)

@@ -139,7 +139,22 @@ importance_type, **kwargs
         LightGBM's order: the same numbers, without LightGBM's per-row, per-tree traversal
         (on small trees the bulk of the time, e.g. for SHAP values; on larger trees every row
         through every node costs more than the traversal: 2.8x LightGBM's time for 600 trees
-        of 63 leaves on 3,420 rows)."""
+        of 63 leaves on 3,420 rows).
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_features)
+            The inputs.
+        raw_score, start_iteration, num_iteration, pred_leaf, pred_contrib, \
+validate_features, **kwargs
+            As in :meth:`lightgbm.LGBMRegressor.predict`.
+
+        Returns
+        -------
+        ndarray
+            The predictions, of shape (n_samples,) (other shapes for ``pred_leaf`` and
+            ``pred_contrib``, as LightGBM's).
+        """
         if (len(X) >= NUMPY_PREDICT_ROWS and self._small_trees()
                 and not (raw_score or pred_leaf or pred_contrib or kwargs or validate_features)
                 and start_iteration == 0 and num_iteration is None):
@@ -174,6 +189,7 @@ importance_type, **kwargs
         return trees
 
     def __getstate__(self) -> dict[str, Any]:
+        """Pickle without the training set and the compiled trees (made again on demand)."""
         state = super().__getstate__()
         state.pop("_train_set", None)  # the booster is stored as text without it
         state.pop("_trees", None)
@@ -290,7 +306,18 @@ def paper_basis(target: str | int,
     target : str or int
         ``"Y1"`` to ``"Y5"``, or the position 0 to 4.
     random_state : int, RandomState instance or None, default=None
-        Seeds the stacking's estimators."""
+        Seeds the stacking's estimators.
+
+    Returns
+    -------
+    StackingRegressor
+        The unfitted basis.
+
+    Raises
+    ------
+    ValueError
+        An unknown target.
+    """
     key = f"Y{target + 1}" if isinstance(target, int) else target
     if key not in PAPER_PARAMS:
         raise ValueError(f"unknown paper target {target!r}; valid: {', '.join(PAPER_PARAMS)}")
@@ -360,6 +387,20 @@ class ScalableKernelRidge(CachedParamNames, RegressorMixin, BaseEstimator):
         self.random_state = random_state
 
     def fit(self, X: Any, y: Any) -> Self:
+        """Fit the exact kernel ridge, or Nystroem features and a ridge above ``exact_max_rows``.
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_features)
+            The inputs.
+        y : array-like of shape (n_samples,)
+            The target.
+
+        Returns
+        -------
+        self
+            The fitted model.
+        """
         self._validate_params()
         kernel = dict(kernel=self.kernel, gamma=self.gamma, degree=self.degree,
                       coef0=self.coef0, kernel_params=self.kernel_params)
@@ -376,6 +417,18 @@ class ScalableKernelRidge(CachedParamNames, RegressorMixin, BaseEstimator):
         return self
 
     def predict(self, X: Any) -> Any:
+        """Predict with the fitted model.
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_features)
+            The inputs.
+
+        Returns
+        -------
+        ndarray of shape (n_samples,)
+            The predictions.
+        """
         check_is_fitted(self)
         return self.estimator_.predict(X)
 
@@ -629,6 +682,20 @@ class NormalQuantileTransformer(CachedParamNames, TransformerMixin, BaseEstimato
         self.random_state = random_state
 
     def fit(self, X: Any, y: Any = None) -> Self:
+        """Fit the quantiles of each column, at most one per row.
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_features)
+            The inputs.
+        y : None
+            Ignored.
+
+        Returns
+        -------
+        self
+            The fitted transformer.
+        """
         n_rows = len(X)
         self.transformer_ = _NormalQuantiles(
             n_quantiles=max(1, min(self.n_quantiles, n_rows)), output_distribution="normal",
@@ -637,6 +704,18 @@ class NormalQuantileTransformer(CachedParamNames, TransformerMixin, BaseEstimato
         return self
 
     def transform(self, X: Any) -> np.ndarray:
+        """Map each column to a standard normal through its fitted quantiles.
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_features)
+            The inputs.
+
+        Returns
+        -------
+        ndarray of shape (n_samples, n_features)
+            The transformed inputs.
+        """
         check_is_fitted(self)
         return self.transformer_.transform(X)
 
@@ -665,7 +744,18 @@ def make_transform(name: str | None, **params: Any) -> Any:
     name : str or None
         A key of :data:`TRANSFORMS`; ``None`` or ``"none"``: no transform.
     **params
-        The transform's parameters."""
+        The transform's parameters.
+
+    Returns
+    -------
+    transformer or None
+        The unfitted transform; ``None`` for no transform.
+
+    Raises
+    ------
+    ValueError
+        An unknown name, listing the valid ones.
+    """
     if name is None or name == "none":
         return None
     if name not in TRANSFORMS:

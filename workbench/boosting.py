@@ -44,7 +44,20 @@ LINKS = ("identity", "log")
 
 
 def seed_estimator(estimator: Any, seed: int) -> Any:
-    """Set every ``random_state`` parameter of ``estimator`` (nested ones too) to ``seed``."""
+    """Set every ``random_state`` parameter of ``estimator`` (nested ones too) to ``seed``.
+
+    Parameters
+    ----------
+    estimator : estimator
+        A scikit-learn estimator.
+    seed : int
+        The seed.
+
+    Returns
+    -------
+    estimator
+        ``estimator``, changed in place.
+    """
     keys = [k for k in estimator.get_params(deep=True)
             if k == "random_state" or k.endswith("__random_state")]
     if keys:
@@ -89,7 +102,27 @@ def _column_index(key: str | int, feature_names: Iterable[str] | None, n_feature
 
 
 def check_predictions(values: ArrayLike, n: int, what: str) -> np.ndarray:
-    """``values`` as a finite float array of shape ``(n,)``, or a ValueError naming ``what``."""
+    """``values`` as a finite float array of shape ``(n,)``, or a ValueError naming ``what``.
+
+    Parameters
+    ----------
+    values : array-like
+        Predictions, one per row (a single column is flattened).
+    n : int
+        The rows.
+    what : str
+        What made them, in the message.
+
+    Returns
+    -------
+    ndarray of shape (n,)
+        The values.
+
+    Raises
+    ------
+    ValueError
+        A wrong shape, or NaN or infinite values.
+    """
     arr = np.asarray(values, dtype=float)
     if arr.ndim == 2 and arr.shape[1] == 1:
         arr = arr[:, 0]
@@ -123,6 +156,20 @@ class PriorModel(CachedParamNames, RegressorMixin, BaseEstimator):
         self.prior = prior
 
     def fit(self, X: Any, y: Any) -> Self:
+        """Fit the prior: the targets' mean, the column's index, or the estimator on ``(X, y)``.
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_features)
+            The inputs.
+        y : array-like of shape (n_samples,)
+            The target.
+
+        Returns
+        -------
+        self
+            The fitted prior.
+        """
         self._validate_params()
         X_raw = X
         X, y = validate_data(self, X, y, y_numeric=True, dtype=float,
@@ -148,6 +195,18 @@ class PriorModel(CachedParamNames, RegressorMixin, BaseEstimator):
         return self
 
     def predict(self, X: Any) -> np.ndarray:
+        """Predict the prior for ``X``.
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_features)
+            The inputs.
+
+        Returns
+        -------
+        ndarray of shape (n_samples,)
+            The prior's predictions.
+        """
         check_is_fitted(self)
         X_raw = X
         X = validate_data(self, X, reset=False, dtype=float,
@@ -166,6 +225,7 @@ class PriorModel(CachedParamNames, RegressorMixin, BaseEstimator):
         return check_predictions(self.prior(X_raw), n, "prior callable output")
 
     def __sklearn_is_fitted__(self) -> bool:
+        """Tell scikit-learn whether :meth:`fit` has run."""
         return hasattr(self, "n_features_in_")
 
 
@@ -294,7 +354,20 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
         return Z
 
     def fit(self, X: Any, y: Any) -> Self:
-        """Fit the prior and ``n_stages`` stages on ``(X, y)``; returns ``self``."""
+        """Fit the prior and ``n_stages`` stages on ``(X, y)``.
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_features)
+            The inputs (the prior's column among them, for a column prior).
+        y : array-like of shape (n_samples,)
+            The target.
+
+        Returns
+        -------
+        self
+            The fitted estimator.
+        """
         loss, line_loss, basis = self._check_params()
         X_raw = X
         X, y = validate_data(self, X, y, y_numeric=True, dtype=float)
@@ -357,7 +430,18 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
         return values if self.link == "identity" else np.exp(values)
 
     def predict_prior(self, X: Any) -> np.ndarray:
-        """The prior term alone for ``X``."""
+        """The prior term alone for ``X``.
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_features)
+            The inputs.
+
+        Returns
+        -------
+        ndarray of shape (n_samples,)
+            The prior's predictions.
+        """
         check_is_fitted(self)
         return self.prior_model_.predict(X)
 
@@ -366,7 +450,18 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
         correction, ``predict(X) - predict_prior(X)`` up to rounding (exactly 0 where every
         coefficient is 0; a stage whose coefficient is 0 is not evaluated). With the identity
         link it is ``sum_k coef_k * b_k(T(X))``; with the log link
-        ``prior(X) * (exp(sum_k ...) - 1)``."""
+        ``prior(X) * (exp(sum_k ...) - 1)``.
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_features)
+            The inputs.
+
+        Returns
+        -------
+        ndarray of shape (n_samples,)
+            The correction.
+        """
         check_is_fitted(self)
         X_raw, X = X, validate_data(self, X, reset=False, dtype=float)
         out = np.zeros(X.shape[0])
@@ -383,7 +478,18 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
         return prior * np.expm1(out)
 
     def staged_predict(self, X: Any) -> Iterator[np.ndarray]:
-        """Yield the prediction after each stage ``k = 1..n_stages``."""
+        """Yield the prediction after each stage ``k = 1..n_stages``.
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_features)
+            The inputs.
+
+        Yields
+        ------
+        ndarray of shape (n_samples,)
+            The prediction after stage ``k``.
+        """
         check_is_fitted(self)
         X_raw, X = X, validate_data(self, X, reset=False, dtype=float)
         start = self._to_link(self.prior_model_._predict_validated(X_raw, X), "the prior")
@@ -408,6 +514,17 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
 
     def predict(self, X: Any) -> np.ndarray:
         """``prior(X) + sum_k coef_k * b_k(T(X))`` (``link="log"``: ``prior(X) *
-        exp(sum_k ...)``)."""
+        exp(sum_k ...)``).
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_features)
+            The inputs.
+
+        Returns
+        -------
+        ndarray of shape (n_samples,)
+            The predictions.
+        """
         (pred,) = deque(self.staged_predict(X), maxlen=1)  # the last stage's (n_stages >= 1)
         return pred

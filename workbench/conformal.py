@@ -101,7 +101,13 @@ def conformal_rank(n: int, alpha: float) -> int:
     n : int
         The number of calibration values.
     alpha : float
-        The miscoverage level."""
+        The miscoverage level.
+
+    Returns
+    -------
+    int
+        The rank.
+    """
     # round first so that e.g. (1 - 0.1) * 20 = 18.000000000000004 is not ceiled to 19
     return int(math.ceil(round((1.0 - alpha) * (n + 1), 9)))
 
@@ -144,7 +150,13 @@ def interval_coverage(y: ArrayLike, intervals: ArrayLike) -> list[float]:
     y : array-like of shape (n_samples, n_targets)
         The measured values.
     intervals : array-like of shape (n_samples, n_targets, 2)
-        The lower and upper bounds."""
+        The lower and upper bounds.
+
+    Returns
+    -------
+    list of float
+        The coverage per target.
+    """
     y = _as_2d(y)
     iv = np.asarray(intervals, dtype=float)
     inside = (y >= iv[..., 0]) & (y <= iv[..., 1])
@@ -157,7 +169,13 @@ def interval_width(intervals: ArrayLike) -> list[float]:
     Parameters
     ----------
     intervals : array-like of shape (n_samples, n_targets, 2)
-        The lower and upper bounds (:meth:`ConformalRegressor.predict_interval`)."""
+        The lower and upper bounds (:meth:`ConformalRegressor.predict_interval`).
+
+    Returns
+    -------
+    list of float
+        The mean width per target.
+    """
     iv = np.asarray(intervals, dtype=float)
     return np.mean(iv[..., 1] - iv[..., 0], axis=0).tolist()
 
@@ -246,7 +264,20 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
     # ------------------------------------------------------------------ fit
     def fit(self, X: Any, y: Any) -> Self:
         """Fit ``estimator_`` on all rows, then the fold (or split) models, and keep the
-        out-of-fold absolute residuals."""
+        out-of-fold absolute residuals.
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_features)
+            The training inputs.
+        y : array-like of shape (n_samples,) or (n_samples, n_targets)
+            The targets.
+
+        Returns
+        -------
+        self
+            The fitted wrapper.
+        """
         if y is None:
             raise ValueError(f"{type(self).__name__} requires y to be passed, but the target "
                              "y is None")
@@ -381,14 +412,36 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
     # ------------------------------------------------------------------ predict
     def predict(self, X: Any) -> Any:
         """The point predictions of ``estimator_`` (same type and columns as without the
-        wrapper)."""
+        wrapper).
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_features)
+            The inputs.
+
+        Returns
+        -------
+        ndarray or pandas.DataFrame
+            What ``estimator_.predict`` returns.
+        """
         check_is_fitted(self)
         return self.estimator_.predict(X)
 
     def predict_interval(self, X: Any) -> np.ndarray:
         """Lower and upper bounds, shape ``(n_samples, n_targets, 2)``: ``[..., 0]`` the lower
         and ``[..., 1]`` the upper bound; targets in the order of :attr:`target_names_`
-        (also for a 1-D ``y``: ``n_targets`` = 1)."""
+        (also for a 1-D ``y``: ``n_targets`` = 1).
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_features)
+            The inputs.
+
+        Returns
+        -------
+        ndarray of shape (n_samples, n_targets, 2)
+            The bounds.
+        """
         check_is_fitted(self)
         n_new = _n_rows(X)
         out = np.empty((n_new, self.n_targets_, 2))
@@ -414,7 +467,18 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
     def predict_frame(self, X: Any) -> pd.DataFrame:
         """Point predictions and intervals as one frame (index of ``X`` when it has one):
         a column per target (``target_names_``), then ``<target>_lower`` and
-        ``<target>_upper`` for each target."""
+        ``<target>_upper`` for each target.
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_features)
+            The inputs.
+
+        Returns
+        -------
+        pandas.DataFrame
+            The point predictions and the bounds.
+        """
         point = _as_2d(self.predict(X))
         iv = self.predict_interval(X)
         index = X.index if isinstance(X, pd.DataFrame) else None
@@ -433,13 +497,20 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         ``"cv_plus"``, ``"cv"`` and ``"oof"``: each training row is held out with its fold; its
         interval is its out-of-fold prediction (from the model that did not see it) +- the conformal
         quantile of the *other* folds' out-of-fold residuals. ``"split"``: leave-one-out over the
-        calibration rows (each row against the conformal quantile of the others). Returns
-        ``(coverage, width)``, lists over targets.
+        calibration rows (each row against the conformal quantile of the others).
 
         This describes ``"cv"``'s intervals ``+- q`` (around an out-of-fold prediction, not
         the model on all rows); CV+'s own intervals on new rows are wider by the fold models'
         disagreement, so where that is large (unstable inner choices) the estimate is below
-        the coverage on new rows."""
+        the coverage on new rows.
+
+        Returns
+        -------
+        coverage : list of float
+            Per target, the share of rows inside their interval.
+        width : list of float
+            Per target, the intervals' mean width.
+        """
         check_is_fitted(self)
         if self.fold_of_row_.ndim == 2:  # "oof": each target's own folds
             cover, width = [], []
@@ -477,6 +548,7 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         return np.mean(covered, axis=0).tolist(), np.mean(width, axis=0).tolist()
 
     def __sklearn_tags__(self) -> Any:
+        """Multi-output, with the wrapped estimator's input tags."""
         tags = super().__sklearn_tags__()
         tags.target_tags.multi_output = True
         if self.estimator is not None:
@@ -484,4 +556,5 @@ class ConformalRegressor(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         return tags
 
     def __sklearn_is_fitted__(self) -> bool:
+        """Tell scikit-learn whether :meth:`fit` has run."""
         return hasattr(self, "estimator_")

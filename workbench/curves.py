@@ -111,6 +111,7 @@ class LearningCurve:
     fit_errors: tuple[str, ...] = field(default=())
 
     def __post_init__(self) -> None:
+        """Check the arrays' shapes and store them read-only."""
         sizes = _readonly(self.train_sizes, int)
         object.__setattr__(self, "train_sizes", sizes)
         rows = _readonly(self.n_train_rows, int)
@@ -133,6 +134,7 @@ class LearningCurve:
 
     @property
     def n_folds(self) -> int:
+        """The number of folds."""
         return int(self.n_train_rows.shape[1])
 
     @property
@@ -144,14 +146,17 @@ class LearningCurve:
     # with the incumbent's, which is measured on every fold.
     @property
     def train_error_mean(self) -> np.ndarray:
+        """Mean training error over folds per size."""
         return self.train_error.mean(axis=1)
 
     @property
     def train_error_std(self) -> np.ndarray:
+        """Standard deviation of the training error across folds per size (``ddof=0``)."""
         return self.train_error.std(axis=1)
 
     @property
     def cv_error_mean(self) -> np.ndarray:
+        """Mean validation error over folds per size."""
         return self.cv_error.mean(axis=1)
 
     @property
@@ -161,14 +166,22 @@ class LearningCurve:
 
     @property
     def incumbent_error_mean(self) -> np.ndarray:
+        """The incumbent's mean validation error over folds per size."""
         return self.incumbent_error.mean(axis=1)
 
     @property
     def incumbent_error_std(self) -> np.ndarray:
+        """Standard deviation of the incumbent's validation error across folds (``ddof=0``)."""
         return self.incumbent_error.std(axis=1)
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready: plain lists, NaN as ``None``."""
+        """Write the curve as JSON-ready data: plain lists, NaN as ``None``.
+
+        Returns
+        -------
+        dict
+            The fields and the means over folds by name.
+        """
         return {
             "scoring": self.scoring,
             "n_folds": self.n_folds,
@@ -321,7 +334,14 @@ def learning_curve_plan(estimator: Any, X: Any, y: ArrayLike, *, train_sizes: Ar
     Parameters
     ----------
     estimator, X, y, train_sizes, cv, incumbent, scoring, random_state
-        As in :func:`augmented_learning_curve`."""
+        As in :func:`augmented_learning_curve`.
+
+    Returns
+    -------
+    Plan
+        The plan (a generator); run by :func:`~workbench.parallel.run_plans`, its value is the
+        :class:`LearningCurve`.
+    """
     X, y, sizes = _inputs(X, y, scoring, train_sizes)
     rng = check_random_state(random_state)
     cv_seed, estimator_seed = (int(s) for s in rng.randint(_SEED_MAX, size=2))
@@ -360,7 +380,13 @@ def selection_learning_curve(model: Any, X: Any, y: ArrayLike, *, train_sizes: A
     random_state : int, RandomState instance or None, default=None
         Seeds the per-fold row permutations.
     n_jobs : int, default=None
-        Processes for the fits (:mod:`workbench.parallel`; ``None``: 1)."""
+        Processes for the fits (:mod:`workbench.parallel`; ``None``: 1).
+
+    Returns
+    -------
+    LearningCurve
+        The curve.
+    """
     return run_plans([selection_curve_plan(model, X, y, train_sizes=train_sizes,
                                            random_state=random_state)], n_jobs)[0]
 
@@ -372,7 +398,14 @@ def selection_curve_plan(model: Any, X: Any, y: ArrayLike, *, train_sizes: Array
     Parameters
     ----------
     model, X, y, train_sizes, random_state
-        As in :func:`selection_learning_curve`."""
+        As in :func:`selection_learning_curve`.
+
+    Returns
+    -------
+    Plan
+        The plan (a generator); run by :func:`~workbench.parallel.run_plans`, its value is the
+        :class:`LearningCurve`.
+    """
     if not hasattr(model, "cv_splits_"):
         raise ValueError(f"{type(model).__name__} is not a fitted BaseBoostCV (no cv_splits_)")
     scoring = model.scoring

@@ -110,7 +110,13 @@ def robust_sd(residuals: ArrayLike, axis: int | tuple[int, ...] | None = None) -
     residuals : array-like
         The residuals.
     axis : int or tuple of int, default=None
-        Over which axes (``None``: all)."""
+        Over which axes (``None``: all).
+
+    Returns
+    -------
+    ndarray
+        The robust sd, the ``axis`` axes removed.
+    """
     r = np.asarray(residuals, dtype=float)
     med = np.median(r, axis=axis, keepdims=True)
     return np.maximum(1.4826 * np.median(np.abs(r - med), axis=axis), 1e-12)
@@ -174,6 +180,11 @@ def greedy_design(blocks: ArrayLike, information: ArrayLike, n: int, *, criterio
         (``None``: the candidates themselves).
     repeats : bool, default=False
         Whether a candidate may be chosen again (a replicate measurement).
+
+    Returns
+    -------
+    Batch
+        The chosen candidates in the order picked, each with its gain and predictive sd.
     """
     B, F, R = _check(blocks, information, n, criterion, reference, repeats)
     m, q, D = B.shape
@@ -224,7 +235,7 @@ def ensemble_blocks(predictions: ArrayLike, noise_sd: ArrayLike) -> tuple[np.nda
 
     Output ``t`` is modelled as ``mean + E_t(x) . w_t`` with ``w_t ~ N(0, I_K)`` and ``E_t`` the
     deviations from the ensemble mean over ``sqrt(K - 1)`` (so the predictive variance is the
-    ensemble's variance). Returns ``(blocks (m, q, K q), information = I)``.
+    ensemble's variance).
 
     Parameters
     ----------
@@ -232,6 +243,13 @@ def ensemble_blocks(predictions: ArrayLike, noise_sd: ArrayLike) -> tuple[np.nda
         K models' predictions of q outputs at m settings.
     noise_sd : array-like of shape (q,) or float
         The measurement noise's sd per output.
+
+    Returns
+    -------
+    blocks : ndarray of shape (m, q, K q)
+        The candidates' blocks, each output divided by its noise sd.
+    information : ndarray of shape (K q, K q)
+        The identity (the prior on ``w``).
     """
     P = np.asarray(predictions, dtype=float)
     if P.ndim != 3 or P.shape[0] < 2:

@@ -51,7 +51,7 @@ def _fold_prediction(model: Any, fit_params: dict[str, Any], X: pd.DataFrame, Y:
 
 
 class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
-    """A multi-output model as the prior of per-target base boosting.
+    r"""A multi-output model as the prior of per-target base boosting.
 
     Parameters
     ----------
@@ -61,7 +61,7 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
     boost : MultiTargetBaseBoost, default=None
         The per-target stage (``None``: ``MultiTargetBaseBoost()``, i.e. ``BaseBoostCV`` with
         its defaults). Its ``priors`` are set to the prior columns added here.
-    prior_prefix : str, default="prior\\_"
+    prior_prefix : str, default="prior\_"
         The prior of target ``t`` is added to ``X`` as column ``prior_prefix + t``; the
         boosting stage's ``basis_features`` may name these columns.
     cv : int or CV splitter, default=5
@@ -135,6 +135,20 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         return pd.concat([X, added], axis=1)
 
     def fit(self, X: pd.DataFrame, Y: Any) -> Self:
+        """Fit the physics model on all rows, its out-of-fold prior, then the stage on top.
+
+        Parameters
+        ----------
+        X : pandas.DataFrame of shape (n_samples, n_features)
+            The inputs, by column name.
+        Y : array-like of shape (n_samples, n_targets)
+            The targets.
+
+        Returns
+        -------
+        self
+            The fitted model.
+        """
         self._validate_params()
         if not isinstance(X, pd.DataFrame):
             raise ValueError(f"X must be a pandas DataFrame, got {type(X).__name__}")
@@ -178,7 +192,18 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
 
     def predict_prior(self, X: pd.DataFrame) -> np.ndarray:
         """The prior of the stage: the physics model's prediction (the control prediction for
-        targets where it fell back), shape ``(n, n_targets)``."""
+        targets where it fell back), shape ``(n, n_targets)``.
+
+        Parameters
+        ----------
+        X : pandas.DataFrame of shape (n_samples, n_features)
+            The inputs, by column name.
+
+        Returns
+        -------
+        ndarray of shape (n_samples, n_targets)
+            The prior.
+        """
         check_is_fitted(self)
         prior = np.asarray(self.physics_.predict(X), dtype=float)
         if self.fallback is not None and not self.physics_selected_.all():
@@ -187,7 +212,18 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         return prior
 
     def predict(self, X: pd.DataFrame) -> pd.DataFrame:
-        """Predictions as a DataFrame with one column per target."""
+        """Predictions as a DataFrame with one column per target.
+
+        Parameters
+        ----------
+        X : pandas.DataFrame of shape (n_samples, n_features)
+            The inputs, by column name.
+
+        Returns
+        -------
+        pandas.DataFrame of shape (n_samples, n_targets)
+            The predictions, indexed as ``X``.
+        """
         check_is_fitted(self)
         prior = self.predict_prior(X)
         if not self.boost_stage:
@@ -232,4 +268,5 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         return self.boost_.selected_
 
     def __sklearn_is_fitted__(self) -> bool:
+        """Tell scikit-learn whether :meth:`fit` has run."""
         return hasattr(self, "physics_")

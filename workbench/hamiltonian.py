@@ -70,20 +70,53 @@ class CouplingGraph:
     # ------------------------------------------------------------------ constructors
     @classmethod
     def chain(cls, n: int) -> CouplingGraph:
-        """Nearest-neighbour chain: edges ``(0, 1), (1, 2), ..., (n-2, n-1)``."""
+        """Nearest-neighbour chain: edges ``(0, 1), (1, 2), ..., (n-2, n-1)``.
+
+        Parameters
+        ----------
+        n : int
+            The number of sites, 2 or more.
+
+        Returns
+        -------
+        CouplingGraph
+            The graph.
+        """
         n = _int(n, "a chain's number of sites", 2)
         return cls(n, tuple((i, i + 1) for i in range(n - 1)), "chain")
 
     @classmethod
     def ring(cls, n: int) -> CouplingGraph:
-        """Ring: the chain's edges and ``(n-1, 0)``."""
+        """Ring: the chain's edges and ``(n-1, 0)``.
+
+        Parameters
+        ----------
+        n : int
+            The number of sites, 3 or more.
+
+        Returns
+        -------
+        CouplingGraph
+            The graph.
+        """
         n = _int(n, "a ring's number of sites", 3)
         return cls(n, tuple((i, (i + 1) % n) for i in range(n)), "ring")
 
     @classmethod
     def grid(cls, rows: int, cols: int) -> CouplingGraph:
         """``rows x cols`` square lattice, site ``r * cols + c``; the horizontal edges row by
-        row, then the vertical edges row by row."""
+        row, then the vertical edges row by row.
+
+        Parameters
+        ----------
+        rows, cols : int
+            The lattice's shape, 2 sites or more.
+
+        Returns
+        -------
+        CouplingGraph
+            The graph.
+        """
         rows, cols = _int(rows, "grid rows", 1), _int(cols, "grid cols", 1)
         if rows * cols < 2:
             raise ValueError(f"a grid needs at least 2 sites, got shape {rows}x{cols}")
@@ -95,7 +128,20 @@ class CouplingGraph:
 
     @classmethod
     def from_edges(cls, n_sites: int, edges: Iterable[Sequence[int]]) -> CouplingGraph:
-        """Any graph: ``edges`` a list of site pairs ``[i, j]`` (0-based)."""
+        """Any graph: ``edges`` a list of site pairs ``[i, j]`` (0-based).
+
+        Parameters
+        ----------
+        n_sites : int
+            The number of sites, 2 or more.
+        edges : iterable of (int, int)
+            The coupled site pairs, none twice and no self-loop.
+
+        Returns
+        -------
+        CouplingGraph
+            The graph.
+        """
         n = _int(n_sites, "n_sites", 2)
         graph = cls(n, _check_edges(n, edges), "edges")
         return graph
@@ -103,30 +149,86 @@ class CouplingGraph:
     # ------------------------------------------------------------------ structure
     @property
     def n_edges(self) -> int:
+        """The number of edges."""
         return len(self.edges)
 
     def site_edges(self, i: int) -> list[int]:
-        """Indices of the edges touching site ``i``."""
+        """Indices of the edges touching site ``i``.
+
+        Parameters
+        ----------
+        i : int
+            The site.
+
+        Returns
+        -------
+        list of int
+            The edges' indices, ascending.
+        """
         return [e for e, (a, b) in enumerate(self.edges) if i in (a, b)]
 
     def neighbours(self, i: int) -> list[int]:
-        """Sites coupled to site ``i``, ascending."""
+        """Sites coupled to site ``i``, ascending.
+
+        Parameters
+        ----------
+        i : int
+            The site.
+
+        Returns
+        -------
+        list of int
+            The neighbouring sites.
+        """
         return sorted({b if a == i else a for a, b in self.edges if i in (a, b)})
 
     def edge_neighbours(self, e: int) -> list[int]:
-        """Indices of the other edges sharing a site with edge ``e``."""
+        """Indices of the other edges sharing a site with edge ``e``.
+
+        Parameters
+        ----------
+        e : int
+            The edge's index.
+
+        Returns
+        -------
+        list of int
+            The other edges' indices, ascending.
+        """
         a, b = self.edges[e]
         return [k for k, (c, d) in enumerate(self.edges) if k != e and {a, b} & {c, d}]
 
     def edge_index(self, i: int, j: int) -> int | None:
-        """Index of the edge between ``i`` and ``j`` (either order), or None."""
+        """Index of the edge between ``i`` and ``j`` (either order), or None.
+
+        Parameters
+        ----------
+        i, j : int
+            The sites.
+
+        Returns
+        -------
+        int or None
+            The edge's index; ``None``: the sites are not coupled.
+        """
         for e, pair in enumerate(self.edges):
             if set(pair) == {i, j}:
                 return e
         return None
 
     def paths2(self, i: int, j: int) -> list[tuple[int, int]]:
-        """Pairs of edge indices ``(e1, e2)`` forming a path ``i - m - j`` of two edges."""
+        """Pairs of edge indices ``(e1, e2)`` forming a path ``i - m - j`` of two edges.
+
+        Parameters
+        ----------
+        i, j : int
+            The path's ends.
+
+        Returns
+        -------
+        list of (int, int)
+            One pair per middle site ``m``, by ascending ``m``.
+        """
         out = []
         for m in self.neighbours(i):
             if m != j and j in self.neighbours(m):
@@ -141,6 +243,21 @@ class CouplingGraph:
         ``"next_nearest"``: every pair at graph distance 2 (chain: ``(i, i+2)``; grid:
         diagonals and straight two-steps). ``"diagonal"``: pairs joined by two different
         two-edge paths (the grid's diagonals). ``"none"``: no pair.
+
+        Parameters
+        ----------
+        kind : {"next_nearest", "diagonal", "none"}
+            Which pairs.
+
+        Returns
+        -------
+        list of (int, int)
+            The pairs ``(i, j)``, ``i < j``, in ascending order.
+
+        Raises
+        ------
+        ValueError
+            An unknown ``kind``, listing the valid ones.
         """
         if kind not in PARASITIC_KINDS:
             raise ValueError(f"unknown parasitic coupling kind {kind!r}; valid: "
@@ -158,11 +275,29 @@ class CouplingGraph:
         return out
 
     def with_edges(self, extra: Iterable[Sequence[int]]) -> CouplingGraph:
-        """This graph plus the ``extra`` edges (appended, in order)."""
+        """Return the graph with the ``extra`` edges appended, in order.
+
+        Parameters
+        ----------
+        extra : iterable of (int, int)
+            The edges to add (none already in the graph).
+
+        Returns
+        -------
+        CouplingGraph
+            A new graph of topology ``"edges"``.
+        """
         return CouplingGraph(self.n_sites, _check_edges(self.n_sites, [*self.edges, *extra]),
                              "edges")
 
     def to_dict(self) -> dict:
+        """Write the graph as JSON-ready data.
+
+        Returns
+        -------
+        dict
+            ``topology``, ``n_sites``, ``shape`` (or ``None``) and ``edges`` (pairs as lists).
+        """
         return {"topology": self.topology, "n_sites": self.n_sites,
                 "shape": list(self.shape) if self.shape else None,
                 "edges": [list(e) for e in self.edges]}
@@ -205,7 +340,19 @@ def make_graph(n_sites: int | None = None, topology: str = "chain",
     shape : (int, int), default=None
         ``(rows, cols)`` of a grid.
     edges : iterable of (int, int), default=None
-        An explicit list of coupled site pairs."""
+        An explicit list of coupled site pairs.
+
+    Returns
+    -------
+    CouplingGraph
+        The graph.
+
+    Raises
+    ------
+    ValueError
+        An unknown topology, a shape without a grid or a grid without one, or a number of
+        sites that does not match.
+    """
     if edges is not None:
         if n_sites is None:
             flat = [v for e in edges for v in e]
@@ -293,7 +440,13 @@ def graph_hamiltonian(onsite: ArrayLike, couplings: ArrayLike,
     couplings : array-like of shape (n, E)
         One coupling per edge of ``graph``.
     graph : CouplingGraph, default=None
-        The graph (``None``: the chain)."""
+        The graph (``None``: the chain).
+
+    Returns
+    -------
+    ndarray of shape (n, N, N)
+        The symmetric Hamiltonians.
+    """
     f, g, graph = _check(onsite, couplings, graph)
     return _build(f, g, graph)
 
@@ -380,7 +533,13 @@ def chain_hamiltonian(onsite: ArrayLike, couplings: ArrayLike) -> np.ndarray:
     onsite : array-like of shape (n, N)
         The diagonal entries (an array or a DataFrame).
     couplings : array-like of shape (n, N - 1)
-        The nearest-neighbour couplings."""
+        The nearest-neighbour couplings.
+
+    Returns
+    -------
+    ndarray of shape (n, N, N)
+        The tridiagonal Hamiltonians.
+    """
     return graph_hamiltonian(onsite, couplings, None)
 
 
@@ -396,5 +555,13 @@ def chain_spectrum(onsite: ArrayLike, couplings: ArrayLike,
     couplings : array-like of shape (n, N - 1)
         The nearest-neighbour couplings.
     sign : int, default=-1
-        The sign of ``H``."""
+        The sign of ``H``.
+
+    Returns
+    -------
+    eigenvalues : ndarray of shape (n, N)
+        Ascending.
+    jacobian : ndarray of shape (n, N, 2N - 1)
+        Their derivatives by the onsite terms, then the couplings.
+    """
     return graph_spectrum(onsite, couplings, None, sign)

@@ -35,19 +35,58 @@ class Loss:
     name: str = ""
 
     def bind(self, residual: np.ndarray) -> Loss:
-        """Return a loss whose data-dependent parameters are fixed from ``residual``."""
+        """Return a loss whose data-dependent parameters are fixed from ``residual``.
+
+        Parameters
+        ----------
+        residual : ndarray of shape (n_samples,)
+            The residuals ``y - prediction`` the loss is bound to.
+
+        Returns
+        -------
+        Loss
+            The bound loss (this one, for a loss without such parameters).
+        """
         return self
 
     def elementwise(self, u: np.ndarray) -> np.ndarray:
-        """Loss of each residual ``u = y - prediction``."""
+        """Loss of each residual ``u = y - prediction``.
+
+        Parameters
+        ----------
+        u : ndarray
+            The residuals.
+
+        Returns
+        -------
+        ndarray
+            The loss of each, of ``u``'s shape.
+        """
         raise NotImplementedError
 
     def psi(self, u: np.ndarray) -> np.ndarray:
-        """Negative gradient with respect to the prediction, as a function of ``u``."""
+        """Negative gradient with respect to the prediction, as a function of ``u``.
+
+        Parameters
+        ----------
+        u : ndarray
+            The residuals.
+
+        Returns
+        -------
+        ndarray
+            ``-dL/dpred`` at each, of ``u``'s shape.
+        """
         raise NotImplementedError
 
     def kinks(self) -> tuple[float, ...]:
-        """Residual values between which the loss is a single quadratic (or linear) piece."""
+        """Residual values between which the loss is a single quadratic (or linear) piece.
+
+        Returns
+        -------
+        tuple of float
+            The kinks, ascending (none for a loss quadratic everywhere).
+        """
         return ()
 
     def __call__(self, y: np.ndarray, pred: np.ndarray) -> float:
@@ -55,7 +94,20 @@ class Loss:
         return float(np.mean(self.elementwise(np.asarray(y) - np.asarray(pred))))
 
     def negative_gradient(self, y: np.ndarray, pred: np.ndarray) -> np.ndarray:
-        """Pseudo-residuals ``-dL/dpred`` at ``pred`` (a bound copy of the loss is used)."""
+        """Pseudo-residuals ``-dL/dpred`` at ``pred`` (a bound copy of the loss is used).
+
+        Parameters
+        ----------
+        y : ndarray of shape (n_samples,)
+            The targets.
+        pred : ndarray of shape (n_samples,)
+            The predictions.
+
+        Returns
+        -------
+        ndarray of shape (n_samples,)
+            The pseudo-residuals.
+        """
         u = np.asarray(y, dtype=float) - np.asarray(pred, dtype=float)
         return self.bind(u).psi(u)
 
@@ -67,9 +119,11 @@ class SquaredError(Loss):
     name = "squared_error"
 
     def elementwise(self, u: np.ndarray) -> np.ndarray:
+        """``u**2``."""
         return u * u
 
     def psi(self, u: np.ndarray) -> np.ndarray:
+        """``u`` (a copy)."""
         return np.array(u, dtype=float, copy=True)
 
 
@@ -80,12 +134,15 @@ class AbsoluteError(Loss):
     name = "absolute_error"
 
     def elementwise(self, u: np.ndarray) -> np.ndarray:
+        """``|u|``."""
         return np.abs(u)
 
     def psi(self, u: np.ndarray) -> np.ndarray:
+        """``sign(u)``."""
         return np.sign(u).astype(float)
 
     def kinks(self) -> tuple[float, ...]:
+        """A kink at 0."""
         return (0.0,)
 
 
@@ -107,12 +164,14 @@ class Huber(Loss):
     name = "huber"
 
     def __post_init__(self) -> None:
+        """Check ``quantile`` and ``delta``."""
         if not 0.0 < self.quantile <= 1.0:
             raise ValueError(f"huber quantile must be in (0, 1], got {self.quantile!r}")
         if self.delta is not None and not self.delta >= 0.0:
             raise ValueError(f"huber delta must be >= 0, got {self.delta!r}")
 
     def bind(self, residual: np.ndarray) -> Loss:
+        """Fix ``delta`` as the ``quantile`` quantile of ``|residual|`` (kept when given)."""
         if self.delta is not None:
             return self
         delta = float(np.quantile(np.abs(residual), self.quantile)) if len(residual) else 0.0
@@ -124,19 +183,23 @@ class Huber(Loss):
         return self.delta
 
     def elementwise(self, u: np.ndarray) -> np.ndarray:
+        """``u**2 / 2`` within ``delta``, linear beyond (a bound loss)."""
         d = self._delta()
         a = np.abs(u)
         return np.where(a <= d, 0.5 * u * u, d * (a - 0.5 * d))
 
     def psi(self, u: np.ndarray) -> np.ndarray:
+        """``u`` clipped to ``[-delta, delta]`` (a bound loss)."""
         d = self._delta()
         return np.clip(u, -d, d).astype(float)
 
     def kinks(self) -> tuple[float, ...]:
+        """Kinks at ``-delta`` and ``delta`` (a bound loss)."""
         d = self._delta()
         return (-d, d) if d > 0 else (0.0,)
 
     def __call__(self, y: np.ndarray, pred: np.ndarray) -> float:
+        """Mean loss of ``pred`` against ``y``, bound to their residuals."""
         u = np.asarray(y, dtype=float) - np.asarray(pred, dtype=float)
         return float(np.mean(self.bind(u).elementwise(u)))
 
@@ -155,16 +218,20 @@ class Quantile(Loss):
     name = "quantile"
 
     def __post_init__(self) -> None:
+        """Check ``alpha``."""
         if not 0.0 < self.alpha < 1.0:
             raise ValueError(f"quantile alpha must be in (0, 1), got {self.alpha!r}")
 
     def elementwise(self, u: np.ndarray) -> np.ndarray:
+        """``alpha * u`` above 0, ``(alpha - 1) * u`` below."""
         return np.where(u > 0, self.alpha * u, (self.alpha - 1.0) * u)
 
     def psi(self, u: np.ndarray) -> np.ndarray:
+        """``alpha`` above 0, ``alpha - 1`` below."""
         return np.where(u > 0, self.alpha, self.alpha - 1.0).astype(float)
 
     def kinks(self) -> tuple[float, ...]:
+        """A kink at 0."""
         return (0.0,)
 
 
@@ -187,6 +254,16 @@ def get_loss(loss: str | Loss, alpha: float = 0.9) -> Loss:
     alpha : float, default=0.9
         Huber's ``quantile`` and the quantile loss's level, as ``alpha`` in scikit-learn's
         ``GradientBoostingRegressor``; other losses ignore it.
+
+    Returns
+    -------
+    Loss
+        The loss.
+
+    Raises
+    ------
+    ValueError
+        An unknown name, listing the valid ones.
     """
     if isinstance(loss, Loss):
         return loss

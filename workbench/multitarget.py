@@ -22,7 +22,22 @@ __all__ = ["MultiTargetBaseBoost", "check_targets"]
 
 def check_targets(X: Any, Y: Any) -> tuple[np.ndarray, list[str]]:
     """``Y`` (a DataFrame, or a 2-D array whose targets are named ``y0, y1, ...``) as a float
-    array with ``len(X)`` rows, and the target names."""
+    array with ``len(X)`` rows, and the target names.
+
+    Parameters
+    ----------
+    X : array-like
+        The inputs (their rows counted).
+    Y : array-like of shape (n_samples, n_targets)
+        The targets.
+
+    Returns
+    -------
+    Y : ndarray of shape (n_samples, n_targets)
+        The targets as floats.
+    names : list of str
+        The targets' names.
+    """
     if isinstance(Y, pd.DataFrame):
         names = [str(c) for c in Y.columns]
         Y = Y.to_numpy(dtype=float)
@@ -125,7 +140,20 @@ class MultiTargetBaseBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         return ests
 
     def fit(self, X: Any, Y: Any) -> Self:
-        """Fit each target's estimator on ``(X, Y[:, j])``; returns ``self``."""
+        """Fit each target's estimator on ``(X, Y[:, j])``.
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_features)
+            The inputs (each target's prior column among them, for column priors).
+        Y : array-like of shape (n_samples, n_targets)
+            The targets (a DataFrame's column names name them).
+
+        Returns
+        -------
+        self
+            The fitted model.
+        """
         return run_plans([self._fit_plan(X, Y)], self.n_jobs)[0]
 
     def _fit_plan(self, X: Any, Y: Any) -> Plan:
@@ -144,7 +172,18 @@ class MultiTargetBaseBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         return self
 
     def predict(self, X: Any) -> pd.DataFrame:
-        """Predictions as a DataFrame with one column per target (``X``'s index if any)."""
+        """Predictions as a DataFrame with one column per target (``X``'s index if any).
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_features)
+            The inputs.
+
+        Returns
+        -------
+        pandas.DataFrame of shape (n_samples, n_targets)
+            The predictions.
+        """
         check_is_fitted(self)
         pred = np.column_stack([est.predict(X) for est in self.estimators_])
         return pd.DataFrame(pred, columns=self.target_names_, index=getattr(X, "index", None))

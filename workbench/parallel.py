@@ -64,7 +64,15 @@ _WARNING_REGISTRY: dict = {}  # "default"-action bookkeeping of re-issued warnin
 class Task:
     """A picklable call: ``Task(func, *args, **kwargs)()`` is ``func(*args, **kwargs)``.
     ``priority`` (default 0): on several processes, among ready tasks of the same stage,
-    higher goes first (e.g. the expected cost, so long tasks do not come last)."""
+    higher goes first (e.g. the expected cost, so long tasks do not come last).
+
+    Parameters
+    ----------
+    func : callable
+        The function (picklable: a module's, not a lambda).
+    *args, **kwargs
+        Its arguments.
+    """
 
     __slots__ = ("func", "args", "kwargs", "priority")
 
@@ -73,9 +81,11 @@ class Task:
         self.priority = 0
 
     def __call__(self) -> Any:
+        """Run the task: ``func(*args, **kwargs)``."""
         return self.func(*self.args, **self.kwargs)
 
     def __repr__(self) -> str:
+        """Name the task's function."""
         return f"Task({getattr(self.func, '__qualname__', self.func)!r})"
 
 
@@ -84,7 +94,23 @@ Plan = Generator[list, list, Any]
 
 def effective_n_jobs(n_jobs: int | None) -> int:
     """Processes for ``n_jobs`` (``None``: 1; ``-1``: every core this process may use;
-    ``-k``: all but ``k - 1``); 1 inside a worker."""
+    ``-k``: all but ``k - 1``); 1 inside a worker.
+
+    Parameters
+    ----------
+    n_jobs : int or None
+        The processes asked for.
+
+    Returns
+    -------
+    int
+        The processes to use, 1 or more.
+
+    Raises
+    ------
+    ValueError
+        For 0.
+    """
     if _IN_WORKER or n_jobs is None:
         return 1
     n_jobs = int(n_jobs)
@@ -100,7 +126,13 @@ def effective_n_jobs(n_jobs: int | None) -> int:
 
 
 def in_worker() -> bool:
-    """Whether this process is one of :func:`run_plans`'s workers."""
+    """Whether this process is one of :func:`run_plans`'s workers.
+
+    Returns
+    -------
+    bool
+        True in a worker.
+    """
     return _IN_WORKER
 
 
@@ -108,7 +140,18 @@ def in_worker() -> bool:
 
 
 def pid_alive(pid: int) -> bool:
-    """Whether process ``pid`` exists (on this host; another user's counts)."""
+    """Whether process ``pid`` exists (on this host; another user's counts).
+
+    Parameters
+    ----------
+    pid : int
+        The process id.
+
+    Returns
+    -------
+    bool
+        Whether it exists.
+    """
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -120,7 +163,15 @@ def pid_alive(pid: int) -> bool:
 
 def die_with_parent(parent: int, sig: int = signal.SIGKILL) -> None:
     """End this process with ``sig`` when its parent ``parent`` ends (Linux's
-    ``PR_SET_PDEATHSIG``), and exit now if ``parent`` is gone already."""
+    ``PR_SET_PDEATHSIG``), and exit now if ``parent`` is gone already.
+
+    Parameters
+    ----------
+    parent : int
+        The parent's process id.
+    sig : int, default=signal.SIGKILL
+        The signal.
+    """
     if sys.platform.startswith("linux"):
         try:
             import ctypes
@@ -138,7 +189,13 @@ def init_worker(parent: int) -> None:
     (the parent spreads the work; no nested processes), one BLAS/OpenMP thread, SIGINT
     ignored (the parent handles it and ends its workers; a task may handle signals itself,
     as a sweep's worker does to queue its running trial again), and killed with its parent
-    (:func:`die_with_parent`)."""
+    (:func:`die_with_parent`).
+
+    Parameters
+    ----------
+    parent : int
+        The parent's process id.
+    """
     global _IN_WORKER
     _IN_WORKER = True
     _AMBIENT.clear()
@@ -232,8 +289,21 @@ def _fork_available() -> bool:
 def worker_pool(n_jobs: int | None, *, eager: bool = False) -> Iterator[int]:
     """Keep ``n_jobs`` workers for every parallel call inside the block (forked on first
     use, or at once with ``eager``: a command enters it before it starts any thread, so
-    that no process is forked while another thread holds a lock); yields the number of
-    processes. With one process (or inside a worker) it does nothing."""
+    that no process is forked while another thread holds a lock). With one process (or
+    inside a worker) it does nothing.
+
+    Parameters
+    ----------
+    n_jobs : int or None
+        Processes: ``None`` 1, ``-1`` every core, ``-k`` all but ``k - 1``.
+    eager : bool, default=False
+        Fork the workers on entering the block.
+
+    Yields
+    ------
+    int
+        The number of processes.
+    """
     jobs = effective_n_jobs(n_jobs)
     if jobs <= 1 or not _fork_available():
         yield jobs
@@ -254,7 +324,13 @@ def worker_pool(n_jobs: int | None, *, eager: bool = False) -> Iterator[int]:
 def start_workers(n_jobs: int | None) -> None:
     """Fork the enclosing :func:`worker_pool`'s processes now, from this thread (no-op
     without a pool or when they run already): call it before starting a thread that will
-    run plans, so that no process is forked while another thread of this one holds a lock."""
+    run plans, so that no process is forked while another thread of this one holds a lock.
+
+    Parameters
+    ----------
+    n_jobs : int or None
+        Processes: ``None`` 1, ``-1`` every core, ``-k`` all but ``k - 1``.
+    """
     if not _AMBIENT or effective_n_jobs(n_jobs) <= 1 or not _fork_available():
         return
     pool = _AMBIENT[-1]
@@ -330,8 +406,21 @@ def _run_joblib(plans: list[Plan], jobs: int) -> list:
 
 
 def run_plans(plans: Iterable[Plan], n_jobs: int | None = None) -> list:
-    """Run plans (see the module doc) on ``n_jobs`` processes; returns their results in
-    order. The result is the same for every ``n_jobs``."""
+    """Run plans (see the module doc) on ``n_jobs`` processes; the result is the same for
+    every ``n_jobs``.
+
+    Parameters
+    ----------
+    plans : iterable of Plan
+        The plans.
+    n_jobs : int, default=None
+        Processes (``None``: 1; ``-1``: every core).
+
+    Returns
+    -------
+    list
+        Each plan's value, in order.
+    """
     plans = list(plans)
     jobs = effective_n_jobs(n_jobs)
     if jobs <= 1 or not plans:
@@ -408,7 +497,20 @@ def _drive(plans: list[Plan], executor: ProcessPoolExecutor, jobs: int) -> list:
 
 def prioritised(plan: Plan, offset: float) -> Plan:
     """``plan`` with ``offset`` added to the priority of each of its tasks (higher runs
-    first), e.g. to finish one group of plans before the next starts."""
+    first), e.g. to finish one group of plans before the next starts.
+
+    Parameters
+    ----------
+    plan : Plan
+        The plan.
+    offset : float
+        Added to each task's priority.
+
+    Returns
+    -------
+    Plan
+        The plan, its value ``plan``'s.
+    """
     try:
         batch = next(plan)
         while True:
@@ -425,8 +527,18 @@ def prioritised(plan: Plan, offset: float) -> Plan:
 
 
 def gather(plans: Iterable[Plan]) -> Plan:
-    """One plan running several plans side by side (their batches yielded together);
-    returns their results in order."""
+    """One plan running several plans side by side (their batches yielded together).
+
+    Parameters
+    ----------
+    plans : iterable of Plan
+        The plans.
+
+    Returns
+    -------
+    Plan
+        The plan, its value the plans' values in order.
+    """
     plans = list(plans)
     out, batches = _first_batches(plans)
     while batches:
@@ -456,13 +568,29 @@ def _tasks_plan(tasks: list[Task]) -> Plan:
 
 
 class Started:
-    """A task under way (:func:`start`): :meth:`result` waits for it and returns its value."""
+    """A task under way (:func:`start`): :meth:`result` waits for it and returns its value.
+
+    Parameters
+    ----------
+    task : Task
+        The task.
+    future : concurrent.futures.Future, default=None
+        Its run on a worker (``None``: it runs at :meth:`result`, here).
+    pool : default=None
+        The pool it runs on (ended on an interrupt).
+    """
 
     def __init__(self, task: Task, future: Any = None, pool: _Pool | None = None) -> None:
         self._task, self._future, self._pool = task, future, pool
 
     def result(self) -> Any:
-        """The task's value (its exception raised here; its warnings issued here)."""
+        """The task's value (its exception raised here; its warnings issued here).
+
+        Returns
+        -------
+        object
+            What the task returned.
+        """
         if self._future is None:  # no pool: run it now, in this process
             return self._task()
         try:
@@ -506,7 +634,20 @@ def start(task: Task, n_jobs: int | None = -1) -> Started:
 
 
 def map_tasks(tasks: Iterable[Task], n_jobs: int | None = None) -> list:
-    """The results of independent tasks, in order, computed on ``n_jobs`` processes."""
+    """The results of independent tasks, in order, computed on ``n_jobs`` processes.
+
+    Parameters
+    ----------
+    tasks : iterable of Task
+        The tasks.
+    n_jobs : int, default=None
+        Processes (``None``: 1; ``-1``: every core).
+
+    Returns
+    -------
+    list
+        Each task's value, in order.
+    """
     tasks = list(tasks)
     if not tasks:
         return []

@@ -126,7 +126,15 @@ def resolve_graph(n_sites: int, edges: Iterable[Sequence[int]] | None = None,
     edges : iterable of (int, int), default=None
         The coupling graph's site pairs (``None``: the chain).
     parasitic : str or iterable of (int, int), default=None
-        ``None`` or ``"none"``, ``"next_nearest"``, ``"diagonal"`` or a list of site pairs."""
+        ``None`` or ``"none"``, ``"next_nearest"``, ``"diagonal"`` or a list of site pairs.
+
+    Returns
+    -------
+    graph : CouplingGraph
+        The control model's graph.
+    pairs : list of (int, int)
+        The parasitic site pairs.
+    """
     graph = CouplingGraph.chain(n_sites) if edges is None else \
         CouplingGraph.from_edges(n_sites, edges)
     if parasitic is None:
@@ -150,7 +158,13 @@ def parasitic_names(onsite: Iterable[str], pairs: Iterable[tuple[int, int]]) -> 
     onsite : iterable of str
         The onsite parameters' names, in site order.
     pairs : iterable of (int, int)
-        The parasitic site pairs."""
+        The parasitic site pairs.
+
+    Returns
+    -------
+    list of str
+        One name per pair.
+    """
     on = list(onsite)
     return [f"{on[i]}~{on[j]}" for i, j in pairs]
 
@@ -190,6 +204,11 @@ def default_library(onsite: Iterable[str], couplings: Iterable[str],
         The coupling graph's site pairs (``None``: the chain).
     parasitic : str or iterable of (int, int), default=None
         The parasitic couplings, as :func:`resolve_graph` reads them.
+
+    Returns
+    -------
+    dict of str to list of str
+        Parameter name -> its covariates' names.
     """
     on, co = list(onsite), list(couplings)
     graph, pairs = resolve_graph(len(on), edges, parasitic)
@@ -315,7 +334,13 @@ class Coefficients:
         return pd.DataFrame({"coef": self._coef}, index=index)
 
     def coef_dict(self) -> dict[tuple[str, str], float]:
-        """``{(parameter, covariate): coefficient}`` (a cheap ``coef_init``)."""
+        """``{(parameter, covariate): coefficient}`` (a cheap ``coef_init``).
+
+        Returns
+        -------
+        dict
+            ``(parameter, covariate)`` -> coefficient.
+        """
         check_is_fitted(self)
         return dict(zip(self._index, self._coef.tolist()))
 
@@ -658,10 +683,22 @@ class HamiltonianParameterRegressor(Coefficients, RegressorMixin, BaseEstimator)
     def fit(self, X: pd.DataFrame, y: Any, coef_init: Any = None) -> Self:
         """Fit the coefficients on ``X`` (DataFrame) and ``y`` (n, N ascending eigenvalues).
 
-        ``coef_init``: starting coefficients, e.g. another fit's ``coef_`` (or
-        ``coef_dict()``); entries are
-        matched by (parameter, covariate), missing ones start at 0 and ones this model's
-        covariates lack are ignored (a warm start when covariates are added or removed).
+        Parameters
+        ----------
+        X : pandas.DataFrame of shape (n_samples, n_features)
+            The onsite, coupling and covariate columns, by name.
+        y : array-like of shape (n_samples, N)
+            The measured eigenvalues, ascending.
+        coef_init : pandas.DataFrame or dict, default=None
+            Starting coefficients, e.g. another fit's ``coef_`` (or ``coef_dict()``); entries
+            are matched by (parameter, covariate), missing ones start at 0 and ones this
+            model's covariates lack are ignored (a warm start when covariates are added or
+            removed).
+
+        Returns
+        -------
+        self
+            The fitted model.
         """
         theta0, y, phis, index, penalty = self._setup(X, y)
         Phi, sel = self._padded(phis)
@@ -727,12 +764,34 @@ class HamiltonianParameterRegressor(Coefficients, RegressorMixin, BaseEstimator)
 
     def corrected_parameters(self, X: pd.DataFrame) -> pd.DataFrame:
         """``theta(X) + delta(X)``, columns named like the onsite and coupling inputs (and
-        the active parasitic couplings)."""
+        the active parasitic couplings).
+
+        Parameters
+        ----------
+        X : pandas.DataFrame of shape (n_samples, n_features)
+            The onsite, coupling and covariate columns, by name.
+
+        Returns
+        -------
+        pandas.DataFrame
+            The corrected parameters, indexed as ``X``.
+        """
         return pd.DataFrame(self._corrected(X), columns=self.parameter_names_, index=X.index)
 
     def control_parameters(self, X: pd.DataFrame) -> pd.DataFrame:
         """The control model's parameters ``theta(X)`` in :attr:`parameter_names_` order
-        (0 for the parasitic couplings it lacks)."""
+        (0 for the parasitic couplings it lacks).
+
+        Parameters
+        ----------
+        X : pandas.DataFrame of shape (n_samples, n_features)
+            The onsite, coupling and covariate columns, by name.
+
+        Returns
+        -------
+        pandas.DataFrame
+            The control parameters, indexed as ``X``.
+        """
         self._check_X(X)
         theta0 = _columns(X, self.onsite_ + self.couplings_, "parameter")
         full = np.zeros((len(X), len(self.parameter_names_)))
@@ -741,7 +800,13 @@ class HamiltonianParameterRegressor(Coefficients, RegressorMixin, BaseEstimator)
 
     def coefficient_table(self) -> pd.DataFrame:
         """The non-zero coefficients: parameter, covariate, coefficient in MHz per covariate sd
-        (``coef``) and, for non-intercept terms, the covariate's training sd (``covariate_sd``)."""
+        (``coef``) and, for non-intercept terms, the covariate's training sd (``covariate_sd``).
+
+        Returns
+        -------
+        pandas.DataFrame
+            Columns ``parameter``, ``covariate``, ``coef``, ``covariate_sd``.
+        """
         check_is_fitted(self)
         rows = []
         for p in self.parameter_names_:
@@ -757,7 +822,18 @@ class HamiltonianParameterRegressor(Coefficients, RegressorMixin, BaseEstimator)
         """``d predict(X)[j, k] / d coef[d]`` at the fitted coefficients, shape ``(n, N, D)``
         (coefficients in :attr:`coef_`'s order): the Hellmann-Feynman Jacobian of the
         eigenvalues times each parameter's covariates, the rows of the Gauss-Newton
-        design matrix."""
+        design matrix.
+
+        Parameters
+        ----------
+        X : pandas.DataFrame of shape (n_samples, n_features)
+            The onsite, coupling and covariate columns, by name.
+
+        Returns
+        -------
+        ndarray of shape (n_samples, N, D)
+            The Jacobian.
+        """
         self._check_X(X)
         theta0, variables = self._variables(X)
         phis = self._design(variables, len(theta0), fitting=False)
@@ -768,7 +844,18 @@ class HamiltonianParameterRegressor(Coefficients, RegressorMixin, BaseEstimator)
     def information(self, X: pd.DataFrame) -> np.ndarray:
         """The Gauss-Newton information of the coefficients from the rows of ``X``:
         ``A^T A + alpha P`` (``A`` = :meth:`coef_jacobian`, ``P`` the ridge penalty's
-        diagonal: 0 for the intercepts), in units of the measurement noise's variance."""
+        diagonal: 0 for the intercepts), in units of the measurement noise's variance.
+
+        Parameters
+        ----------
+        X : pandas.DataFrame of shape (n_samples, n_features)
+            The onsite, coupling and covariate columns, by name.
+
+        Returns
+        -------
+        ndarray of shape (D, D)
+            The information matrix.
+        """
         A = self.coef_jacobian(X)
         return np.einsum("nkd,nke->de", A, A) + self.alpha * np.diag(self._penalty())
 
@@ -776,8 +863,20 @@ class HamiltonianParameterRegressor(Coefficients, RegressorMixin, BaseEstimator)
         return self._slices[self.parameter_names_.index(p)]
 
     def predict(self, X: pd.DataFrame) -> np.ndarray:
-        """Ascending eigenvalues of ``sign * H(theta(X) + delta(X))``, shape (n, N)."""
+        """Ascending eigenvalues of ``sign * H(theta(X) + delta(X))``, shape (n, N).
+
+        Parameters
+        ----------
+        X : pandas.DataFrame of shape (n_samples, n_features)
+            The onsite, coupling and covariate columns, by name.
+
+        Returns
+        -------
+        ndarray of shape (n_samples, N)
+            The predicted eigenvalues.
+        """
         return self._spectrum(self._corrected(X), jacobian=False)
 
     def __sklearn_is_fitted__(self) -> bool:
+        """Tell scikit-learn whether :meth:`fit` has run."""
         return hasattr(self, "_coef")

@@ -229,6 +229,24 @@ def linear_scores(est: HamiltonianParameterRegressor, X_fit: pd.DataFrame, y_fit
     and O(n_val (D_pad + N P) C) for the held-out predictions, C candidates, D coefficients
     and P parameters; the held-out predictions are made for blocks of candidates of about
     ``chunk_elements`` entries.
+
+    Parameters
+    ----------
+    est : HamiltonianParameterRegressor
+        The current model, fitted on ``X_fit``.
+    X_fit, X_val : pandas.DataFrame
+        The fold's fitting and held-out rows.
+    y_fit, y_val : array-like of shape (rows, N)
+        Their measured eigenvalues.
+    candidates : list of (str, str)
+        The ``(parameter, covariate)`` pairs to score.
+    chunk_elements : int, default=4_000_000
+        The size of a block of held-out predictions.
+
+    Returns
+    -------
+    ndarray of shape (n_candidates,)
+        Each candidate's held-out absolute-error sum.
     """
     y_fit, y_val = np.asarray(y_fit, float), np.asarray(y_val, float)
     N = len(est.onsite_)

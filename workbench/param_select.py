@@ -102,6 +102,11 @@ def candidate_pool(onsite: Sequence[str], couplings: Sequence[str],
     edges, parasitic : default=None
         The coupling graph's site pairs (``None``: the chain) and the parasitic couplings
         (:func:`~workbench.param_boost.resolve_graph`).
+
+    Returns
+    -------
+    dict of str to list of str
+        Parameter name -> its candidate covariates.
     """
     on, co = list(onsite), list(couplings)
     graph, pairs = resolve_graph(len(on), edges, parasitic)
@@ -161,7 +166,13 @@ def crosstalk_candidates(onsite: Sequence[str], couplings: Sequence[str],
     onsite, couplings, qubit_features, coupler_features, neighbours
         As in :func:`candidate_pool`.
     graph : CouplingGraph
-        The coupling graph."""
+        The coupling graph.
+
+    Returns
+    -------
+    dict of str to list of str
+        Parameter name -> its bias products.
+    """
     qf, cf = list(qubit_features or []), list(coupler_features or [])
     out: dict[str, list[str]] = {}
     for i, p in enumerate(onsite):
@@ -211,7 +222,13 @@ def cv_mae(estimator: Any, X: pd.DataFrame, y: ArrayLike, *, cv: int = 5, n_repe
     n_repeats : int, default=1
         Repeats of the K-fold split.
     random_state : int, default=0
-        Seeds the ``RepeatedKFold``."""
+        Seeds the ``RepeatedKFold``.
+
+    Returns
+    -------
+    float
+        The MAE over every held-out value of every repeat.
+    """
     y = np.asarray(y, dtype=float)
     abs_sum, count = 0.0, 0
     for fit_rows, val_rows in _splits(len(X), cv, n_repeats, random_state):
@@ -289,7 +306,18 @@ class SelectionResult:
         return [tuple(r) for r in self.path.iloc[1:][["parameter", "covariate"]].to_numpy()]
 
     def estimator(self, **params: Any) -> HamiltonianParameterRegressor:
-        """An unfitted regressor with the selected covariates."""
+        """An unfitted regressor with the selected covariates.
+
+        Parameters
+        ----------
+        **params
+            Parameters overriding the selection's regressor's.
+
+        Returns
+        -------
+        HamiltonianParameterRegressor
+            The regressor.
+        """
         return HamiltonianParameterRegressor(covariates=self.covariates,
                                              **{**self.regressor_params, **params})
 
@@ -363,6 +391,11 @@ def forward_select(X: pd.DataFrame, y: ArrayLike, *, candidates: dict[str, list[
     **regressor_params
         Passed to :class:`~workbench.param_boost.HamiltonianParameterRegressor`
         (``onsite``, ``couplings``, ``sign``, ``alpha``, ``loss``, ...; not ``covariates``).
+
+    Returns
+    -------
+    SelectionResult
+        The selected covariates, the path and its CV scores.
     """
     t0 = time.perf_counter()
     y, base, current, pool = _selection_setup(X, y, candidates, start, max_steps, method,
@@ -650,6 +683,20 @@ class HamiltonianSelectionCV(RegressorMixin, BaseEstimator):
         self.verbose = verbose
 
     def fit(self, X: pd.DataFrame, y: ArrayLike) -> Self:
+        """Select the covariates forward by CV, then refit the regressor on all rows.
+
+        Parameters
+        ----------
+        X : pandas.DataFrame of shape (n_samples, n_features)
+            The onsite, coupling and covariate columns, by name.
+        y : array-like of shape (n_samples, N)
+            The measured eigenvalues, ascending.
+
+        Returns
+        -------
+        self
+            The fitted selection.
+        """
         self._validate_params()
         regressor = HamiltonianParameterRegressor() if self.regressor is None else self.regressor
         params = {k: v for k, v in regressor.get_params(deep=False).items() if k != "covariates"}
@@ -673,13 +720,37 @@ class HamiltonianSelectionCV(RegressorMixin, BaseEstimator):
         return self
 
     def predict(self, X: pd.DataFrame) -> np.ndarray:
+        """Predict with the refitted regressor.
+
+        Parameters
+        ----------
+        X : pandas.DataFrame of shape (n_samples, n_features)
+            The onsite, coupling and covariate columns, by name.
+
+        Returns
+        -------
+        ndarray of shape (n_samples, N)
+            The predicted eigenvalues.
+        """
         check_is_fitted(self)
         return self.estimator_.predict(X)
 
     def corrected_parameters(self, X: pd.DataFrame) -> pd.DataFrame:
-        """The refitted regressor's corrected Hamiltonian parameters."""
+        """The refitted regressor's corrected Hamiltonian parameters.
+
+        Parameters
+        ----------
+        X : pandas.DataFrame of shape (n_samples, n_features)
+            The onsite, coupling and covariate columns, by name.
+
+        Returns
+        -------
+        pandas.DataFrame
+            The corrected parameters, indexed as ``X``.
+        """
         check_is_fitted(self)
         return self.estimator_.corrected_parameters(X)
 
     def __sklearn_is_fitted__(self) -> bool:
+        """Tell scikit-learn whether :meth:`fit` has run."""
         return hasattr(self, "estimator_")

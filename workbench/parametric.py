@@ -93,11 +93,35 @@ class ParametricModel:
     def from_functions(cls, parameters: Mapping[str, float | str], predict: Callable[..., Any],
                        jacobian: Callable[..., Any] | None = None,
                        source: str = "<model>") -> ParametricModel:
-        """Build a model from a ``PARAMETERS`` dict and functions, checked as a file's are."""
+        """Build a model from a ``PARAMETERS`` dict and functions, checked as a file's are.
+
+        Parameters
+        ----------
+        parameters : mapping of str to float or str
+            Each parameter's start value, or the data column holding it per row.
+        predict : callable
+            ``predict(params, data)``: the prediction, ``(rows,)`` or ``(rows, targets)``.
+        jacobian : callable, default=None
+            ``jacobian(params, data)``: ``d predict / d params``, ``(rows, targets,
+            parameters)`` (``None``: central finite differences).
+        source : str, default="<model>"
+            Where the model comes from, in messages.
+
+        Returns
+        -------
+        ParametricModel
+            The model.
+
+        Raises
+        ------
+        ModelError
+            A ``PARAMETERS`` or function that is not usable.
+        """
         return _checked(dict(parameters) if isinstance(parameters, Mapping) else parameters,
                         predict, jacobian, source)
 
     def __repr__(self) -> str:
+        """Name the model's source and parameters."""
         return f"ParametricModel({self.source!r}, parameters={self.names})"
 
     @property
@@ -106,7 +130,23 @@ class ParametricModel:
         return list(self.parameters)
 
     def start(self, data: pd.DataFrame) -> np.ndarray:
-        """Start values of every row, shape ``(rows, parameters)``."""
+        """Start values of every row, shape ``(rows, parameters)``.
+
+        Parameters
+        ----------
+        data : pandas.DataFrame
+            The rows (the columns a parameter takes its values from among them).
+
+        Returns
+        -------
+        ndarray of shape (rows, parameters)
+            The start values.
+
+        Raises
+        ------
+        ModelError
+            A column a parameter names is missing or not numeric.
+        """
         n = len(data)
         out = np.empty((n, len(self.parameters)))
         for j, (name, value) in enumerate(self.parameters.items()):
@@ -131,7 +171,22 @@ class ParametricModel:
                 n_targets: int | None = None) -> np.ndarray:
         """The model's prediction at parameters ``theta`` (rows, parameters), shape
         ``(rows, targets)``; a :class:`ModelError` if it raises, has the wrong shape or is
-        not finite."""
+        not finite.
+
+        Parameters
+        ----------
+        theta : ndarray of shape (rows, parameters)
+            The parameters.
+        data : pandas.DataFrame
+            The rows.
+        n_targets : int, default=None
+            The targets expected (``None``: any).
+
+        Returns
+        -------
+        ndarray of shape (rows, targets)
+            The prediction.
+        """
         n = len(data)
         try:
             out = self.predict_fn(self._params(theta), data)
@@ -156,7 +211,22 @@ class ParametricModel:
     def jacobian(self, theta: np.ndarray, data: pd.DataFrame, n_targets: int) -> np.ndarray:
         """``d predict / d theta``, shape ``(rows, targets, parameters)``: the model's own
         ``jacobian`` or central finite differences (step :data:`FD_STEP` times each value,
-        at least a thousandth of the parameter's mean magnitude over the rows)."""
+        at least a thousandth of the parameter's mean magnitude over the rows).
+
+        Parameters
+        ----------
+        theta : ndarray of shape (rows, parameters)
+            The parameters.
+        data : pandas.DataFrame
+            The rows.
+        n_targets : int
+            The prediction's targets.
+
+        Returns
+        -------
+        ndarray of shape (rows, targets, parameters)
+            The Jacobian.
+        """
         n, P = theta.shape
         if self.jacobian_fn is not None:
             try:

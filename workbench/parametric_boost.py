@@ -338,8 +338,21 @@ class ParametricRegressor(Coefficients, RegressorMixin, BaseEstimator):
     def fit(self, X: pd.DataFrame, y: Any, coef_init: Any = None) -> Self:
         """Calibrate, then fit the corrections' coefficients on ``X`` and ``y``.
 
-        ``coef_init``: starting coefficients keyed by (parameter, covariate) (another fit's
-        :meth:`coef_dict`); then the calibration is skipped (a warm start)."""
+        Parameters
+        ----------
+        X : pandas.DataFrame of shape (n_samples, n_features)
+            The model's and the covariates' columns, by name.
+        y : array-like of shape (n_samples,) or (n_samples, n_targets)
+            The measured targets.
+        coef_init : dict, default=None
+            Starting coefficients keyed by (parameter, covariate) (another fit's
+            :meth:`coef_dict`); then the calibration is skipped (a warm start).
+
+        Returns
+        -------
+        self
+            The fitted model.
+        """
         self._validate_params()
         X = _as_frame(self, X, reset=True)
         model, start, Y, phis = self._setup(X, y)
@@ -423,18 +436,51 @@ class ParametricRegressor(Coefficients, RegressorMixin, BaseEstimator):
 
     def predict(self, X: pd.DataFrame) -> np.ndarray:
         """The model at the corrected parameters: ``(rows,)`` if fitted on one-dimensional
-        ``y``, else ``(rows, targets)``."""
+        ``y``, else ``(rows, targets)``.
+
+        Parameters
+        ----------
+        X : pandas.DataFrame of shape (n_samples, n_features)
+            The model's and the covariates' columns, by name.
+
+        Returns
+        -------
+        ndarray
+            The predictions.
+        """
         model = resolve_model(self.model)
         X = _as_frame(self, X, reset=False)
         out = model.predict(self._corrected(X), X, self.n_targets_)
         return out[:, 0] if self._y_1d else out
 
     def corrected_parameters(self, X: pd.DataFrame) -> pd.DataFrame:
-        """``start(X) + delta(X)`` per row, one column per parameter."""
+        """``start(X) + delta(X)`` per row, one column per parameter.
+
+        Parameters
+        ----------
+        X : pandas.DataFrame of shape (n_samples, n_features)
+            The model's and the covariates' columns, by name.
+
+        Returns
+        -------
+        pandas.DataFrame
+            One column per parameter, indexed as ``X``.
+        """
         return pd.DataFrame(self._corrected(X), columns=self.parameter_names_, index=X.index)
 
     def start_parameters(self, X: pd.DataFrame) -> pd.DataFrame:
-        """The model's start values per row (the prior's parameters)."""
+        """The model's start values per row (the prior's parameters).
+
+        Parameters
+        ----------
+        X : pandas.DataFrame of shape (n_samples, n_features)
+            The model's and the covariates' columns, by name.
+
+        Returns
+        -------
+        pandas.DataFrame
+            One column per parameter, indexed as ``X``.
+        """
         check_is_fitted(self)
         return pd.DataFrame(resolve_model(self.model).start(X), columns=self.parameter_names_,
                             index=X.index)
@@ -442,7 +488,13 @@ class ParametricRegressor(Coefficients, RegressorMixin, BaseEstimator):
     def coefficient_table(self) -> pd.DataFrame:
         """The non-zero coefficients: parameter, covariate, coefficient (the parameter's
         units per covariate sd; the intercept is the calibrated offset) and the covariate's
-        training sd."""
+        training sd.
+
+        Returns
+        -------
+        pandas.DataFrame
+            Columns ``parameter``, ``covariate``, ``coef``, ``covariate_sd``.
+        """
         check_is_fitted(self)
         rows = []
         for p, sl in zip(self.parameter_names_, self._slices):
@@ -454,11 +506,13 @@ class ParametricRegressor(Coefficients, RegressorMixin, BaseEstimator):
         return pd.DataFrame(rows, columns=["parameter", "covariate", "coef", "covariate_sd"])
 
     def __sklearn_tags__(self) -> Any:
+        """Multi-output: one column per target of the user's model."""
         tags = super().__sklearn_tags__()
         tags.target_tags.multi_output = True  # one column per target of the user's model
         return tags
 
     def __sklearn_is_fitted__(self) -> bool:
+        """Tell scikit-learn whether :meth:`fit` has run."""
         return hasattr(self, "_coef")
 
 
@@ -589,7 +643,20 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
                               products=self.products)
 
     def fit(self, X: pd.DataFrame, y: Any) -> Self:
-        """Choose among prior, calibrated model and drift by CV; refit the winner."""
+        """Choose among prior, calibrated model and drift by CV; refit the winner.
+
+        Parameters
+        ----------
+        X : pandas.DataFrame of shape (n_samples, n_features)
+            The model's and the covariates' columns, by name.
+        y : array-like of shape (n_samples,) or (n_samples, n_targets)
+            The measured targets.
+
+        Returns
+        -------
+        self
+            The fitted model.
+        """
         self._validate_params()
         X = _as_frame(self, X, reset=True)
         t0 = time.perf_counter()
@@ -641,19 +708,44 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         return self
 
     def predict(self, X: pd.DataFrame) -> np.ndarray:
-        """The winner's prediction."""
+        """The winner's prediction.
+
+        Parameters
+        ----------
+        X : pandas.DataFrame of shape (n_samples, n_features)
+            The model's and the covariates' columns, by name.
+
+        Returns
+        -------
+        ndarray
+            The predictions: ``(rows,)`` if fitted on one-dimensional ``y``, else
+            ``(rows, targets)``.
+        """
         check_is_fitted(self)
         return self.estimator_.predict(_as_frame(self, X, reset=False))
 
     def corrected_parameters(self, X: pd.DataFrame) -> pd.DataFrame:
-        """The winner's parameters per row."""
+        """The winner's parameters per row.
+
+        Parameters
+        ----------
+        X : pandas.DataFrame of shape (n_samples, n_features)
+            The model's and the covariates' columns, by name.
+
+        Returns
+        -------
+        pandas.DataFrame
+            One column per parameter, indexed as ``X``.
+        """
         check_is_fitted(self)
         return self.estimator_.corrected_parameters(_as_frame(self, X, reset=False))
 
     def __sklearn_tags__(self) -> Any:
+        """Multi-output: one column per target of the user's model."""
         tags = super().__sklearn_tags__()
         tags.target_tags.multi_output = True  # one column per target of the user's model
         return tags
 
     def __sklearn_is_fitted__(self) -> bool:
+        """Tell scikit-learn whether :meth:`fit` has run."""
         return hasattr(self, "estimator_")

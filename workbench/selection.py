@@ -296,12 +296,26 @@ class BaseBoostCV(CachedParamNames, MetaEstimatorMixin, RegressorMixin, BaseEsti
 
     def fit(self, X: Any, y: Any,
             fold_callback: Callable[[int, float, float], None] | None = None) -> Self:
-        """Score both models by CV, then (if ``refit``) refit the selected one; returns ``self``.
+        """Score both models by CV, then (if ``refit``) refit the selected one.
 
         ``fold_callback(fold, prior_score, boosted_score)``, if given, is called after each
         fold (folds then run one after another); an exception it raises stops the fit. This
         lets a hyperparameter search report per-fold scores to a pruner without the core
         knowing about it.
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_features)
+            The inputs.
+        y : array-like of shape (n_samples,)
+            The target.
+        fold_callback : callable, default=None
+            ``fold_callback(fold, prior_score, boosted_score)`` after each fold.
+
+        Returns
+        -------
+        self
+            The fitted selection.
         """
         (fitted,) = run_plans([self._fit_plan(X, y, fold_callback)],
                               1 if fold_callback is not None else self.n_jobs)
@@ -393,6 +407,18 @@ class BaseBoostCV(CachedParamNames, MetaEstimatorMixin, RegressorMixin, BaseEsti
         return float(np.mean(scores))
 
     def predict(self, X: Any) -> Any:
+        """Predict with the selected model (the prior alone, or the boosted one).
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_features)
+            The inputs.
+
+        Returns
+        -------
+        ndarray of shape (n_samples,)
+            The predictions.
+        """
         check_is_fitted(self)
         if not hasattr(self, "best_estimator_"):
             raise AttributeError("BaseBoostCV was fitted with refit=False: it has fold scores "
@@ -400,6 +426,7 @@ class BaseBoostCV(CachedParamNames, MetaEstimatorMixin, RegressorMixin, BaseEsti
         return self.best_estimator_.predict(X)
 
     def __sklearn_is_fitted__(self) -> bool:
+        """Tell scikit-learn whether :meth:`fit` has run."""
         return hasattr(self, "selected_")
 
 
@@ -426,13 +453,51 @@ class CandidateMean(_BaseComposition, RegressorMixin, BaseEstimator):
         self.members = members
 
     def get_params(self, deep: bool = True) -> dict[str, Any]:
+        """Get the parameters, the members' own nested as ``<name>__<param>``.
+
+        Parameters
+        ----------
+        deep : bool, default=True
+            Include the members' parameters.
+
+        Returns
+        -------
+        dict
+            Parameter name -> value.
+        """
         return self._get_params("members", deep=deep)
 
     def set_params(self, **params: Any) -> Self:
+        """Set parameters, a member's as ``<name>__<param>``.
+
+        Parameters
+        ----------
+        **params
+            Parameter name -> value.
+
+        Returns
+        -------
+        self
+            The estimator.
+        """
         self._set_params("members", **params)
         return self
 
     def fit(self, X: Any, y: Any) -> Self:
+        """Fit a clone of each member on ``(X, y)``.
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_features)
+            The inputs.
+        y : array-like of shape (n_samples,)
+            The target.
+
+        Returns
+        -------
+        self
+            The fitted mean.
+        """
         self._validate_params()
         if not self.members:
             raise ValueError("members must be a non-empty list of (name, regressor) tuples")
@@ -444,25 +509,61 @@ class CandidateMean(_BaseComposition, RegressorMixin, BaseEstimator):
         return self
 
     def predict(self, X: Any) -> np.ndarray:
+        """Average the members' predictions.
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_features)
+            The inputs.
+
+        Returns
+        -------
+        ndarray of shape (n_samples,)
+            The mean prediction.
+        """
         check_is_fitted(self)
         return np.mean([np.asarray(m.predict(X), dtype=float) for m in self.members_], axis=0)
 
     def predict_prior(self, X: Any) -> np.ndarray:
-        """The members' common prior for ``X``."""
+        """The members' common prior for ``X``.
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_features)
+            The inputs.
+
+        Returns
+        -------
+        ndarray of shape (n_samples,)
+            The prior.
+        """
         check_is_fitted(self)
         return self.members_[0].predict_prior(X)
 
     def predict_correction(self, X: Any) -> np.ndarray:
-        """What the mean adds to the prior, in the target's units."""
+        """What the mean adds to the prior, in the target's units.
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_features)
+            The inputs.
+
+        Returns
+        -------
+        ndarray of shape (n_samples,)
+            The correction.
+        """
         check_is_fitted(self)
         return np.mean([m.predict_correction(X) for m in self.members_], axis=0)
 
     @property
     def coefs_(self) -> np.ndarray:
+        """The members' stage coefficients one after another."""
         check_is_fitted(self)
         return np.concatenate([np.ravel(getattr(m, "coefs_", [1.0])) for m in self.members_])
 
     def __sklearn_is_fitted__(self) -> bool:
+        """Tell scikit-learn whether :meth:`fit` has run."""
         return hasattr(self, "members_")
 
 
@@ -554,17 +655,41 @@ class BasisChoiceCV(_BaseComposition, BaseBoostCV):
         self.random_state = random_state
 
     def get_params(self, deep: bool = True) -> dict[str, Any]:
+        """Get the parameters, the candidates' own nested as ``<name>__<param>``.
+
+        Parameters
+        ----------
+        deep : bool, default=True
+            Include the candidates' parameters.
+
+        Returns
+        -------
+        dict
+            Parameter name -> value.
+        """
         return self._get_params("candidates", deep=deep)
 
     def set_params(self, **params: Any) -> Self:
+        """Set parameters, a candidate's as ``<name>__<param>``.
+
+        Parameters
+        ----------
+        **params
+            Parameter name -> value.
+
+        Returns
+        -------
+        self
+            The estimator.
+        """
         self._set_params("candidates", **params)
         return self
 
     def fit(self, X: Any, y: Any,
             fold_callback: Callable[[int, float, float], None] | None = None) -> Self:
         """Score the prior and every candidate on the same folds, then (if ``refit``) refit
-        the selected model; returns ``self``. ``fold_callback`` is not supported (it would be
-        called once per candidate and fold)."""
+        the selected model. ``fold_callback`` is not supported (it would be called once per
+        candidate and fold)."""
         if fold_callback is not None:
             raise TypeError("BasisChoiceCV takes no fold_callback")
         (fitted,) = run_plans([self._fit_plan(X, y)], self.n_jobs)
@@ -693,10 +818,38 @@ class LabelGroupKFold(BaseCrossValidator):
         self.random_state = random_state
 
     def get_n_splits(self, X: Any = None, y: Any = None, groups: Any = None) -> int:
+        """Return the number of folds.
+
+        Parameters
+        ----------
+        X, y, groups : None
+            Ignored.
+
+        Returns
+        -------
+        int
+            ``n_splits``.
+        """
         return self.n_splits
 
     def split(self, X: Any, y: Any = None,
               groups: Any = None) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        """Yield the training and held-out positions of each fold.
+
+        Parameters
+        ----------
+        X : pandas.DataFrame
+            The rows, by the dataset's row labels.
+        y : None
+            Ignored.
+        groups : None
+            Ignored (the groups are the estimator's).
+
+        Yields
+        ------
+        train, test : ndarray of int
+            The fold's training and held-out positions.
+        """
         if not hasattr(X, "index"):
             raise TypeError("LabelGroupKFold looks the rows' groups up by label: X must be a "
                             "DataFrame with the dataset's row labels")
@@ -744,10 +897,38 @@ class LabelTimeSeriesSplit(BaseCrossValidator):
         self.n_splits = n_splits
 
     def get_n_splits(self, X: Any = None, y: Any = None, groups: Any = None) -> int:
+        """Return the number of folds.
+
+        Parameters
+        ----------
+        X, y, groups : None
+            Ignored.
+
+        Returns
+        -------
+        int
+            ``n_splits``.
+        """
         return self.n_splits
 
     def split(self, X: Any, y: Any = None,
               groups: Any = None) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        """Yield the training and held-out positions of each fold.
+
+        Parameters
+        ----------
+        X : pandas.DataFrame
+            The rows, by the dataset's row labels.
+        y : None
+            Ignored.
+        groups : None
+            Ignored (the order is the estimator's).
+
+        Yields
+        ------
+        train, test : ndarray of int
+            The fold's training and held-out positions.
+        """
         if not hasattr(X, "index"):
             raise TypeError("LabelTimeSeriesSplit looks the rows' order up by label: X must "
                             "be a DataFrame with the dataset's row labels")

@@ -84,6 +84,7 @@ class Mismatch:
     misidentified_rate: float = 0.0
 
     def __post_init__(self) -> None:
+        """Check every size is a finite number >= 0 and the misidentified rate <= 1."""
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
             if not (np.isfinite(value) and value >= 0):
@@ -105,7 +106,23 @@ class Mismatch:
 
     @classmethod
     def only(cls, *names: str) -> Mismatch:
-        """The named mechanisms at their default sizes, the others off."""
+        """The named mechanisms at their default sizes, the others off.
+
+        Parameters
+        ----------
+        *names : str
+            Names of :data:`MECHANISMS`.
+
+        Returns
+        -------
+        Mismatch
+            The mismatch.
+
+        Raises
+        ------
+        ValueError
+            An unknown name, listing the valid ones.
+        """
         unknown = [n for n in names if n not in MECHANISMS]
         if unknown:
             raise ValueError(f"unknown mismatch mechanism(s) {unknown}; valid names are: "
@@ -114,6 +131,13 @@ class Mismatch:
         return cls(**{MECHANISMS[n]: getattr(default, MECHANISMS[n]) for n in names})
 
     def to_dict(self) -> dict:
+        """Write the sizes as JSON-ready data.
+
+        Returns
+        -------
+        dict
+            Each mechanism's field and size.
+        """
         return dataclasses.asdict(self)
 
 
@@ -343,7 +367,13 @@ def bias_columns(n_sites: int, n_edges: int) -> list[str]:
     n_sites : int
         The qubits, N.
     n_edges : int
-        The couplers, E."""
+        The couplers, E.
+
+    Returns
+    -------
+    list of str
+        The column names.
+    """
     return ([f"v_q{k}" for k in range(1, n_sites + 1)]
             + [f"v_c{k}" for k in range(1, n_edges + 1)])
 
@@ -379,6 +409,11 @@ def simulate(n_sites: int | None = 5, n_experiments: int = 136, *, seed: int | N
         Where the next_nearest_coupling mismatch puts its parasitic couplings:
         ``"next_nearest"``, ``"diagonal"``, ``"none"`` or a list of site pairs (``None``:
         :func:`default_parasitic`).
+
+    Returns
+    -------
+    Simulation
+        The table (biases, control model, measured peaks) and the device's truth.
     """
     if int(n_experiments) != n_experiments or n_experiments < 1:
         raise ValueError(f"n_experiments must be an integer >= 1, got {n_experiments!r}")
@@ -420,6 +455,11 @@ def measure(settings: pd.DataFrame, *, seed: int | None = 0, mismatch: Mismatch 
         Seeds the noise and the misidentified peaks; ``None``: a seed derived from ``seed``
         and the settings' values (the same settings measure the same, different settings get
         independent noise).
+
+    Returns
+    -------
+    Simulation
+        The table (biases, control model, measured peaks) and the device's truth.
 
     Raises
     ------
@@ -475,7 +515,13 @@ def write_simulation(sim: Simulation, out: str | Path) -> tuple[Path, Path]:
     sim : Simulation
         What to write.
     out : str or Path
-        The CSV file."""
+        The CSV file.
+
+    Returns
+    -------
+    csv, truth : Path
+        The files written.
+    """
     out = Path(out)
     stem = out.with_suffix("") if out.suffix.lower() == ".csv" else out
     truth_path = stem.parent / f"{stem.name}.truth.json"

@@ -72,9 +72,33 @@ class StageChoiceCV(CachedParamNames, RegressorMixin, _BaseComposition):
         self.random_state = random_state
 
     def get_params(self, deep: bool = True) -> dict[str, Any]:
+        """Get the parameters, the candidates' own nested as ``<name>__<param>``.
+
+        Parameters
+        ----------
+        deep : bool, default=True
+            Include the candidates' parameters.
+
+        Returns
+        -------
+        dict
+            Parameter name -> value.
+        """
         return self._get_params("estimators", deep=deep)
 
     def set_params(self, **params: Any) -> Self:
+        """Set parameters, a candidate's as ``<name>__<param>``.
+
+        Parameters
+        ----------
+        **params
+            Parameter name -> value.
+
+        Returns
+        -------
+        self
+            The estimator.
+        """
         self._set_params("estimators", **params)
         return self
 

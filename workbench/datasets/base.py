@@ -103,14 +103,17 @@ class Dataset:
 
     @property
     def target_names(self) -> list[str]:
+        """The targets' column names."""
         return [str(c) for c in self.targets.columns]
 
     @property
     def prior_names(self) -> list[str]:
+        """The prior columns' names."""
         return [str(c) for c in self.prior.columns]
 
     @property
     def feature_names(self) -> list[str]:
+        """The features' column names."""
         return [str(c) for c in self.features.columns]
 
     @property
@@ -130,7 +133,20 @@ class Dataset:
     def split(self, X: pd.DataFrame | None = None
               ) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame, pd.DataFrame]:
         """``X_train, X_test, y_train, y_test`` for the dataset's split (of ``X``, default
-        :attr:`X`)."""
+        :attr:`X`).
+
+        Parameters
+        ----------
+        X : pandas.DataFrame, default=None
+            Inputs indexed as the dataset's rows (``None``: :attr:`X`).
+
+        Returns
+        -------
+        X_train, X_test : pandas.DataFrame
+            The inputs' training and test rows.
+        y_train, y_test : pandas.DataFrame
+            The targets' training and test rows.
+        """
         X = self.X if X is None else X
         return (
             X.loc[self.train_index],

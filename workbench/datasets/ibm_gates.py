@@ -146,7 +146,20 @@ def coherence_limit(length_ns: ArrayLike, t1_a: ArrayLike, t2_a: ArrayLike, t1_b
                     t2_b: ArrayLike) -> np.ndarray:
     """The average gate infidelity (a fraction) that T1 and T2 (us) of two qubits alone cause
     in a gate of ``length_ns``: ``4/5 (1 - F_a F_b)``, ``F = (1 + e^(-t/T1) + 2 e^(-t/T2))/4``,
-    ``T2`` capped at ``2 T1``."""
+    ``T2`` capped at ``2 T1``.
+
+    Parameters
+    ----------
+    length_ns : array-like
+        The gate's length (ns).
+    t1_a, t2_a, t1_b, t2_b : array-like
+        The two qubits' T1 and T2 (us).
+
+    Returns
+    -------
+    ndarray
+        The infidelity.
+    """
     t = np.asarray(length_ns, dtype=float) * 1e-3
 
     def fidelity(t1: Any, t2: Any) -> np.ndarray:
@@ -216,7 +229,20 @@ def gate_table(data_dir: str | os.PathLike[str] | None = None, *,
                download: bool = True) -> pd.DataFrame:
     """Every kept two-qubit gate of every snapshot: ``device``, ``snapshot`` (the date),
     ``gate`` (its name, e.g. ``ecr62_72``), the target, the prior and the features; one row
-    per gate, devices in alphabetical order, gates in the file's order."""
+    per gate, devices in alphabetical order, gates in the file's order.
+
+    Parameters
+    ----------
+    data_dir : str or path-like, default=None
+        Where the files are (``None``: the user cache).
+    download : bool, default=True
+        Whether to fetch (and verify) the files when they are missing.
+
+    Returns
+    -------
+    pandas.DataFrame
+        The gates.
+    """
     directory = WHEEL.directory(data_dir, download=download)
     rows: list[dict] = []
     for name in sorted(WHEEL.files):
@@ -252,6 +278,11 @@ def load_ibm_gates(data_dir: str | os.PathLike[str] | None = None, *,
         Which devices the ``"devices"`` split holds out.
     download : bool, default=True
         Whether to fetch (and verify) the wheel when it is missing.
+
+    Returns
+    -------
+    Dataset
+        The data and their split.
 
     Raises
     ------

@@ -56,6 +56,18 @@ _UNITS = {"readout_length": ("ns",)}
 def sx_limit(length_ns: ArrayLike, t1_us: ArrayLike, t2_us: ArrayLike) -> np.ndarray:
     """The average infidelity (a fraction) T1 and T2 (us) alone cause in a one-qubit gate of
     ``length_ns``: ``2/3 (1 - F)``, ``F = (1 + e^(-t/T1) + 2 e^(-t/T2)) / 4``, ``T2 <= 2 T1``.
+
+    Parameters
+    ----------
+    length_ns : array-like
+        The gate's length (ns).
+    t1_us, t2_us : array-like
+        The qubit's T1 and T2 (us).
+
+    Returns
+    -------
+    ndarray
+        The infidelity.
     """
     t = np.asarray(length_ns, dtype=float) * 1e-3
     t1 = np.asarray(t1_us, dtype=float)
@@ -64,7 +76,20 @@ def sx_limit(length_ns: ArrayLike, t1_us: ArrayLike, t2_us: ArrayLike) -> np.nda
 
 
 def readout_limit(length_ns: ArrayLike, t1_us: ArrayLike) -> np.ndarray:
-    """The T1-limited readout assignment error (a fraction): ``(1 - e^(-t_ro/T1)) / 2``."""
+    """The T1-limited readout assignment error (a fraction): ``(1 - e^(-t_ro/T1)) / 2``.
+
+    Parameters
+    ----------
+    length_ns : array-like
+        The readout's length (ns).
+    t1_us : array-like
+        The qubit's T1 (us).
+
+    Returns
+    -------
+    ndarray
+        The error.
+    """
     t = np.asarray(length_ns, dtype=float) * 1e-3
     return (1 - np.exp(-t / np.asarray(t1_us, dtype=float))) / 2
 
@@ -104,7 +129,20 @@ def _qubit_rows(device: str, props: dict) -> list[dict]:
 def qubit_table(data_dir: str | os.PathLike[str] | None = None, *,
                 download: bool = True) -> pd.DataFrame:
     """Every kept qubit of every snapshot: ``device``, ``snapshot`` (the date), ``qubit``, both
-    targets, both priors (``readout_limit`` NaN without a readout length) and the features."""
+    targets, both priors (``readout_limit`` NaN without a readout length) and the features.
+
+    Parameters
+    ----------
+    data_dir : str or path-like, default=None
+        Where the files are (``None``: the user cache).
+    download : bool, default=True
+        Whether to fetch (and verify) the files when they are missing.
+
+    Returns
+    -------
+    pandas.DataFrame
+        The qubits.
+    """
     directory = WHEEL.directory(data_dir, download=download)
     rows: list[dict] = []
     for name in sorted(WHEEL.files):
@@ -152,6 +190,11 @@ def load_ibm_qubits(data_dir: str | os.PathLike[str] | None = None, *,
         Which devices the ``"devices"`` split holds out.
     download : bool, default=True
         Whether to fetch (and verify) the wheel when it is missing.
+
+    Returns
+    -------
+    Dataset
+        The data and their split.
     """
     if target not in QUBIT_TARGETS:
         raise ValueError(f"unknown target {target!r}; the targets are {list(QUBIT_TARGETS)}")

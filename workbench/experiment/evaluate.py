@@ -30,8 +30,8 @@ from .units import unit_name
 if TYPE_CHECKING:
     from ..datasets import Dataset
 
-__all__ = ["Evaluation", "evaluate", "fit_and_score", "format_table", "has_outputs",
-           "nested_cv_all", "repeated_cv"]
+__all__ = ["Evaluation", "evaluate", "fit_and_score", "format_table", "nested_cv_all",
+           "repeated_cv"]
 
 log = logging.getLogger("workbench")
 
@@ -223,24 +223,6 @@ def fit_and_score(cfg: ExperimentConfig, ds: Dataset, model: Any) -> tuple[Resul
                     intervals=interval_settings(cfg), bootstrap=bootstrap, unit=ds.unit,
                     folds=describe_folds(selection_cv(cfg, ds)))
     return result, model
-
-
-def has_outputs(cfg: ExperimentConfig) -> bool:
-    """Tell whether ``evaluate --out`` has anything to write.
-
-    That is the family's tables and figures, or the intervals' figure and table.
-
-    Parameters
-    ----------
-    cfg : ExperimentConfig
-        The checked config.
-
-    Returns
-    -------
-    bool
-        Whether the family writes outputs or ``[intervals]`` is on.
-    """
-    return cfg.family.writes_outputs or cfg.intervals.enabled
 
 
 def _interval(bounds: Any) -> str:

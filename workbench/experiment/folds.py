@@ -112,7 +112,7 @@ def selection_cv(cfg: ExperimentConfig, ds: Dataset | None = None) -> Any:
 def sweep_inner_cv(cfg: ExperimentConfig, ds: Dataset | None = None) -> Any:
     """Make a sweep's inner folds.
 
-    ``[cv]`` inner_folds, shuffled with its seed; forward-chaining when the dataset has an
+    ``[cv]`` inner_folds, shuffled with its ``sweep_seed``; forward-chaining when the dataset has an
     order.
 
     Parameters
@@ -127,7 +127,7 @@ def sweep_inner_cv(cfg: ExperimentConfig, ds: Dataset | None = None) -> Any:
     cross-validator
         The folds.
     """
-    return make_folds(ds, cfg.cv.inner_folds, shuffle=True, random_state=cfg.cv.seed)
+    return make_folds(ds, cfg.cv.inner_folds, shuffle=True, random_state=cfg.cv.sweep_seed)
 
 
 def outer_order_splits(cfg: ExperimentConfig, ds: Dataset) -> list[tuple[np.ndarray, np.ndarray]]:

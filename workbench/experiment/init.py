@@ -5,6 +5,8 @@ The config's ``[data]`` section is written from the command's options; everythin
 ``workbench/experiment/templates/generic.toml``, copied with its comments. First the data
 are loaded as ``workbench evaluate`` will load them (same loader, values and one-line
 errors) and the config is parsed by the project's parser; then it is written all or nothing.
+The CSV is read from disk once (:func:`~workbench.datasets.read_once`), however many of
+these steps look at it.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any, Sequence
 
-from ..datasets import load_csv_dataset
+from ..datasets import load_csv_dataset, read_once
 from .columns import OrderColumn, find_order_column, group_columns, numeric_columns
 from .config import load_dataset
 from .errors import ConfigError, UsageError
@@ -370,6 +372,21 @@ def init_config(csv: str | os.PathLike[str], *, prior: Sequence[str] | None,
     ConfigError
         A template that does not combine with the generated ``[data]``.
     """
+    with read_once():  # the loader's checks, the columns proposed, the config's own load
+        return _init_config(csv, prior=prior, targets=targets, features=features,
+                            split_column=split_column, test_fraction=test_fraction,
+                            split_seed=split_seed, name=name, out=out, force=force,
+                            group_column=group_column, order_column=order_column, model=model)
+
+
+def _init_config(csv: str | os.PathLike[str], *, prior: Sequence[str] | None,
+                 targets: Sequence[str], features: Sequence[str] | None,
+                 split_column: str | None, test_fraction: float | None,
+                 split_seed: int | None, name: str | None,
+                 out: str | os.PathLike[str] | None, force: bool, group_column: str | None,
+                 order_column: str | None,
+                 model: str | os.PathLike[str] | None) -> InitResult:
+    """Write the config of :func:`init_config` (its CSV read once by the caller's block)."""
     csv = Path(csv)
     name = csv.stem if name is None else name
     out = _output(name, out, force)

@@ -230,7 +230,7 @@ def record_wall_time(cfg: ExperimentConfig, result: Result, *, tracking_uri: str
 
 def record_seed(cfg: ExperimentConfig, run: Evaluation, predictions: pd.DataFrame, *,
                 tracking_uri: str | None, run_id: str) -> dict[str, str]:
-    """Log one seed of ``evaluate --seeds`` into its child run.
+    """Log one seed of ``evaluate --random-states`` into its child run.
 
     Its metrics (the schema of every evaluate), params (``random_state`` the seed), tags,
     ``result.json`` and the test rows' predictions (so that ``workbench compare`` pairs two
@@ -257,7 +257,7 @@ def record_seed(cfg: ExperimentConfig, run: Evaluation, predictions: pd.DataFram
     tracker = tracker_for(cfg, tracking_uri)
     ds, result = run.dataset, run.result
     tracker.set_tags(run_id, {**run_tags(cfg, ds, "evaluate"), "workbench.kind": "seed",
-                              "workbench.seed": cfg.random_state,
+                              "workbench.random_state": cfg.random_state,
                               NOTE_TAG: _description(cfg, ds, "evaluate", result)})
     tracker.log_params(run_id, run_params(cfg, result.targets, result.n_train, result.n_test,
                                           result.folds))
@@ -272,10 +272,10 @@ def record_seed(cfg: ExperimentConfig, run: Evaluation, predictions: pd.DataFram
 def record_seeds(cfg: ExperimentConfig, done: SeedsResult, ds: Dataset, *,
                  tracking_uri: str | None, run_id: str,
                  artifacts: Artifacts) -> dict[str, str]:
-    """Log ``evaluate --seeds`` into its parent run, whose children are the seeds.
+    """Log ``evaluate --random-states`` into its parent run, whose children are the seeds.
 
     The summary's metrics (:meth:`~.seeds.SeedSummary.metrics`), the config's params with
-    ``seeds`` (no ``random_state``: each child has its own), the tags, a description with
+    ``random_states`` (no ``random_state``: each child has its own), the tags, a description with
     the per-target table, the config file, the data as MLflow datasets, the spread figure
     (``plots/seed_spread.png``), each seed's test MAE (``seeds/seed_test_mae.csv``) and
     ``result.json`` (what ``--json`` writes).
@@ -302,16 +302,16 @@ def record_seeds(cfg: ExperimentConfig, done: SeedsResult, ds: Dataset, *,
     """
     tracker = tracker_for(cfg, tracking_uri)
     X_train, X_test, y_train, y_test = ds.split(cfg.family.inputs(cfg, ds))
-    seeds = ",".join(str(s) for s in done.seeds)
-    note = (f"`workbench evaluate --seeds {seeds}` of "
+    seeds = ",".join(str(s) for s in done.random_states)
+    note = (f"`workbench evaluate --random-states {seeds}` of "
             f"{f'`{cfg.path}`' if cfg.path else repr(cfg.name)} on {ds.name}: one child run "
             f"per seed (the seed its `random_state`).\n\n"
             + format_seeds_table(done, markdown=True))
-    tracker.set_tags(run_id, {**run_tags(cfg, ds, "evaluate"), "workbench.seeds": seeds,
+    tracker.set_tags(run_id, {**run_tags(cfg, ds, "evaluate"), "workbench.random_states": seeds,
                               NOTE_TAG: note})
     params = run_params(cfg, done.summary.targets, len(X_train), len(X_test))
     params.pop("random_state")
-    tracker.log_params(run_id, {**params, "seeds": seeds})
+    tracker.log_params(run_id, {**params, "random_states": seeds})
     tracker.log_metrics(run_id, {**done.summary.metrics(), "wall_s": done.wall_s})
     log_inputs(tracker, run_id, cfg, ds, X_train, X_test, y_train, y_test)
     config = config_text(cfg)

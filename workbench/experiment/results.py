@@ -44,15 +44,15 @@ class OuterFold:
 
     Parameters
     ----------
-    unit : str
-        The study unit: the targets the study chose settings for together (the family's
-        :meth:`~workbench.experiment.families.base.ModelFamily.units`).
+    block : str
+        The study block: the targets the study chose settings for together (the family's
+        :meth:`~workbench.experiment.families.base.ModelFamily.blocks`).
     fold : int
         The outer fold's index (over all ``[cv] repeats``).
     study : str
-        The study's name (``<sweep>.<unit>.outer<fold>``).
+        The study's name (``<sweep>.<block>.outer<fold>``).
     mae : float
-        The refitted model's MAE on the validation rows, averaged over the unit's targets.
+        The refitted model's MAE on the validation rows, averaged over the block's targets.
     prior_mae : float
         The prior's, likewise.
     selected : str
@@ -63,10 +63,10 @@ class OuterFold:
     params : dict or None
         The best trial's settings (``None``: no trial completed).
     target_mae, target_prior_mae : dict of str to float
-        Per target of the unit, the model's and the prior's MAE on the validation rows.
+        Per target of the block, the model's and the prior's MAE on the validation rows.
     """
 
-    unit: str
+    block: str
     fold: int
     study: str
     mae: float
@@ -83,7 +83,7 @@ class OuterFold:
 class SweepSummary:
     """What a sweep adds to a result.
 
-    Nested-CV estimates, the chosen parameters per target (a unit's choice repeated for each
+    Nested-CV estimates, the chosen parameters per target (a block's choice repeated for each
     of its targets), the trial counts; every list one value per target.
 
     Parameters
@@ -101,7 +101,7 @@ class SweepSummary:
         The trials that used a study's budget, over all studies (stale trials re-queued and
         surplus ones not counted).
     studies : int
-        The studies: per unit, one per outer fold and the final one.
+        The studies: per block, one per outer fold and the final one.
     outer_folds : list of OuterFold, default=[]
         Each outer fold's refit and scores.
     """

@@ -149,7 +149,7 @@ def log_sweep_children(tracker: Tracker, parent: str, sweep: Any, trials: bool =
             tracker.end_run(run, "FINISHED" if t.state.name in ("COMPLETE", "PRUNED")
                             else "FAILED")
     for fold in sweep.outer_folds:
-        run = tracker.start_run(f"{fold.unit} outer fold {fold.fold}", parent_run_id=parent,
+        run = tracker.start_run(f"{fold.block} outer fold {fold.fold}", parent_run_id=parent,
                                 tags={"workbench.kind": "outer_fold", "study": fold.study,
                                       "selected": fold.selected},
                                 params=fold.params or {"prior_only": True})

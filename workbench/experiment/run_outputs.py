@@ -8,8 +8,9 @@
 learning curves and SHAP summaries) and the test rows' predictions
 (:func:`~.serving.prediction_frame`). The figures are written as PNG files there. The result,
 a :class:`RunOutputs`, is handed down: the MLflow record (:func:`.record.record`) logs its
-files and values and computes nothing, and ``evaluate --out DIR`` writes its part (the
-intervals' and the family's outputs) in the same call, with or without tracking.
+files and values and computes nothing, and ``evaluate --out DIR`` writes every figure, table
+and data file the run logs (all but the test rows' predictions) in the same call, with or
+without tracking.
 """
 
 from __future__ import annotations
@@ -110,12 +111,12 @@ def _tracked(computed: RunOutputs, family: str, shown: Artifacts, own: Artifacts
     A figure ``evaluate --out`` wrote already is its file in the directory (not rendered again).
     """
     logged = _merged(own, extra)
-    at_out = {**shown.figures, **own.figures} if computed.written else {}
     for name, fig in {**bars, **shown.figures, **logged.figures}.items():
         artifact = f"{PLOTS}/{name}.png"
         computed.figures[artifact] = fig
         try:
-            computed.files[artifact] = (computed.written[name] if at_out.get(name) is fig
+            done = computed.written.get(name)
+            computed.files[artifact] = (done if done is not None and done.suffix == ".png"
                                         else _png(fig, scratch / PLOTS / f"{name}.png"))
         except OSError as exc:
             raise TrackingError(f"cannot write the run's figure {name}.png in {scratch}: "
@@ -134,8 +135,9 @@ def compute_outputs(cfg: ExperimentConfig, result: Result, model: Any, ds: Datas
     intervals' figure and table, the family's outputs and its run figures (started on the
     worker processes while the bars and predictions are made here), the test rows'
     predictions, the figures rendered as PNG files in ``scratch``.
-    With ``out``, the intervals' figure and table and the family's outputs
-    (:meth:`~.families.base.ModelFamily.outputs`), written all or nothing.
+    With ``out``, the same figures, tables and data, for every family, written all or
+    nothing (flat: ``<name>.png``, ``<name>.csv``, ``<name>.json``); the predictions only
+    when tracked.
 
     Parameters
     ----------
@@ -169,19 +171,23 @@ def compute_outputs(cfg: ExperimentConfig, result: Result, model: Any, ds: Datas
     family = cfg.family
     fitted = family_model(model)
     computed = RunOutputs(rows=ds.split(family.inputs(cfg, ds)))
+    if out is None and scratch is None:
+        return computed
     shown = interval_artifacts(cfg, ds, model, setting)
     own = (family.outputs(fitted, ds, setting) if family.writes_outputs else None) or Artifacts()
-    if out is not None:  # before the run's figures: a directory that fails costs no more work
-        computed.written = write_artifacts(_merged(shown, own), out)
-    if scratch is None:
-        return computed
     # the family's run figures start on the worker processes while the rest is drawn here
     finish = family.begin_artifacts(cfg, ds, fitted, setting)
     bars = _run_bars(result, ds, setting)
-    from .serving import prediction_frame  # (MLflow's types): a tracked run only
+    if scratch is not None:
+        from .serving import prediction_frame  # (MLflow's types): a tracked run only
 
-    computed.predictions = prediction_frame(model, computed.rows[1], result.targets)
-    _tracked(computed, family.name, shown, own, finish(), bars, scratch)
+        computed.predictions = prediction_frame(model, computed.rows[1], result.targets)
+    extra = finish()
+    if out is not None:
+        computed.written = write_artifacts(
+            _merged(Artifacts(figures=bars), shown, own, extra), out)
+    if scratch is not None:
+        _tracked(computed, family.name, shown, own, extra, bars, scratch)
     return computed
 
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import typing
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 from pydantic import BaseModel, ConfigDict, Field, GetCoreSchemaHandler, model_validator
 from pydantic_core import PydanticCustomError, core_schema
@@ -32,14 +32,23 @@ MAX_MESSAGE = 280
 
 
 class Section(BaseModel):
-    """A config table: strict types (TOML's), unknown keys an error listing the valid ones."""
+    """A config table: strict types (TOML's), unknown keys an error listing the valid ones.
+
+    A key renamed is an error naming its new name (:attr:`renamed`): an old config fails
+    rather than being read differently.
+    """
 
     model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
+    #: Old key -> its new name, for the error an old config gets.
+    renamed: ClassVar[dict[str, str]] = {}
 
     @model_validator(mode="before")
     @classmethod
     def _known_keys(cls, data: Any) -> Any:
         if isinstance(data, dict):
+            old = sorted(set(data) & set(cls.renamed))
+            if old:
+                raise ValueError(f"key {old[0]!r} is now {cls.renamed[old[0]]!r}: rename it")
             unknown = sorted(set(data) - set(cls.model_fields))
             if unknown:
                 raise ValueError(unknown_keys(unknown, cls.model_fields))

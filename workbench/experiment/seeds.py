@@ -1,8 +1,9 @@
-"""``workbench evaluate --seeds``: one config fitted once per seed, the seeds side by side.
+"""``workbench evaluate --random-states``: one config fitted once per seed, side by side.
 
-Each seed is the config's ``random_state`` (reaching every random component, as in one
-``evaluate``); the data are loaded once and keep their split, and the CV folds their own
-seeds (``[evaluation] cv_seed``, ``nested_seed``): what changes between seeds is the model's
+Each seed is one value of the config's ``random_state`` (reaching every random component, as
+in one ``evaluate``), listed in ``[evaluation] random_states``; the data are loaded once and
+keep their split (``[data] split_seed``), and the CV folds their own fixed draws
+(``[evaluation] cv_seed``, ``nested_seed``): what changes between seeds is the model's
 own randomness (and the bootstrap's resamples). Each seed runs the one evaluate code path
 (:func:`~workbench.experiment.evaluate.evaluate`), one after another; the
 :class:`SeedSummary` holds per target the mean and the sample standard deviation of the test
@@ -55,8 +56,8 @@ class SeedSummary:
 
     Parameters
     ----------
-    seeds : list of int
-        The seeds, in the order run.
+    random_states : list of int
+        The ``random_state`` values (the seeds), in the order run.
     targets : list of str
         The targets.
     test_mae : list of list of float
@@ -75,7 +76,7 @@ class SeedSummary:
         The targets' unit.
     """
 
-    seeds: list[int]
+    random_states: list[int]
     targets: list[str]
     test_mae: list[list[float]]
     test_mae_mean: list[float]
@@ -88,13 +89,13 @@ class SeedSummary:
     unit: str | None = None
 
     @classmethod
-    def of(cls, seeds: Sequence[int], results: Sequence[Result]) -> SeedSummary:
+    def of(cls, random_states: Sequence[int], results: Sequence[Result]) -> SeedSummary:
         """Summarize the results of the seeds.
 
         Parameters
         ----------
-        seeds : sequence of int
-            Two or more seeds.
+        random_states : sequence of int
+            Two or more ``random_state`` values.
         results : sequence of Result
             Each seed's result, in the seeds' order, all of the same targets.
 
@@ -106,7 +107,7 @@ class SeedSummary:
         mae = np.array([r.model.test_mae for r in results], dtype=float)
         avg = mae.mean(axis=1)
         first = results[0]
-        return cls(seeds=[int(s) for s in seeds], targets=list(first.targets),
+        return cls(random_states=[int(s) for s in random_states], targets=list(first.targets),
                    test_mae=mae.tolist(), test_mae_mean=mae.mean(axis=0).tolist(),
                    test_mae_sd=_sd(mae, axis=0).tolist(), test_mae_avg=avg.tolist(),
                    test_mae_avg_mean=float(avg.mean()), test_mae_avg_sd=float(_sd(avg)),
@@ -126,7 +127,7 @@ class SeedSummary:
         m: dict[str, float] = {"test_mae_avg_mean": self.test_mae_avg_mean,
                                "test_mae_avg_sd": self.test_mae_avg_sd,
                                "prior_test_mae_avg": self.prior_test_mae_avg,
-                               "n_seeds": len(self.seeds)}
+                               "n_seeds": len(self.random_states)}
         for t, mean, sd, prior in zip(self.targets, self.test_mae_mean, self.test_mae_sd,
                                       self.prior_test_mae):
             m.update({f"test_mae_mean/{t}": mean, f"test_mae_sd/{t}": sd,
@@ -139,10 +140,10 @@ class SeedSummary:
         Returns
         -------
         pandas.DataFrame
-            One row per seed: ``seed``, a column per target and ``average``.
+            One row per seed: ``random_state``, a column per target and ``average``.
         """
         frame = pd.DataFrame(self.test_mae, columns=self.targets)
-        frame.insert(0, "seed", self.seeds)
+        frame.insert(0, "random_state", self.random_states)
         frame["average"] = self.test_mae_avg
         return frame
 
@@ -188,25 +189,27 @@ class SeedsResult:
     wall_s: float = math.nan
 
     @property
-    def seeds(self) -> list[int]:
-        """The seeds, in the order run."""
-        return self.summary.seeds
+    def random_states(self) -> list[int]:
+        """The ``random_state`` values (the seeds), in the order run."""
+        return self.summary.random_states
 
     def to_json(self) -> dict[str, Any]:
-        """Write the result as the JSON ``evaluate --seeds --json`` writes.
+        """Write the result as the JSON ``evaluate --random-states --json`` writes.
 
         Returns
         -------
         dict
-            ``name``, ``config``, ``seeds``, ``targets``, ``unit``, ``summary``
+            ``name``, ``config``, ``random_states``, ``targets``, ``unit``, ``summary``
             (:meth:`SeedSummary.to_json`), ``runs`` (each seed's :meth:`Result.to_json`
-            with its ``seed``), ``outputs`` and ``mlflow`` when present, and ``wall_s``.
+            with its ``random_state``), ``outputs`` and ``mlflow`` when present, and
+            ``wall_s``.
         """
         out: dict[str, Any] = {
-            "name": self.name, "config": self.config, "seeds": self.seeds,
+            "name": self.name, "config": self.config, "random_states": self.random_states,
             "targets": self.summary.targets, "unit": self.summary.unit,
             "summary": self.summary.to_json(),
-            "runs": [{"seed": s, **r.to_json()} for s, r in zip(self.seeds, self.results)]}
+            "runs": [{"random_state": s, **r.to_json()}
+                     for s, r in zip(self.random_states, self.results)]}
         if self.outputs:
             out["outputs"] = self.outputs
         if self.mlflow:
@@ -215,33 +218,33 @@ class SeedsResult:
         return out
 
 
-def check_seeds(seeds: Sequence[int]) -> list[int]:
-    """Check the seeds of :func:`evaluate_seeds`.
+def check_seeds(random_states: Sequence[int]) -> list[int]:
+    """Check the ``random_state`` values of :func:`evaluate_seeds`.
 
     Parameters
     ----------
-    seeds : sequence of int
-        The seeds.
+    random_states : sequence of int
+        The values.
 
     Returns
     -------
     list of int
-        The seeds, as a list.
+        The values, as a list.
 
     Raises
     ------
     ValueError
         Unless they are two or more distinct integers >= 0.
     """
-    out = list(seeds)
+    out = list(random_states)
     if any(isinstance(s, bool) or not isinstance(s, (int, np.integer)) or s < 0 for s in out):
-        raise ValueError(f"seeds must be integers >= 0, got {out[:10]}")
+        raise ValueError(f"random_states must be integers >= 0, got {out[:10]}")
     if len(out) < 2 or len(set(out)) != len(out):
-        raise ValueError(f"seeds must be two or more distinct seeds, got {out[:10]}")
+        raise ValueError(f"random_states must be two or more distinct values, got {out[:10]}")
     return [int(s) for s in out]
 
 
-def evaluate_seeds(cfg: ExperimentConfig, seeds: Sequence[int] | None = None, *,
+def evaluate_seeds(cfg: ExperimentConfig, random_states: Sequence[int] | None = None, *,
                    dataset: Dataset | None = None,
                    runner: SeedRunner | None = None) -> SeedsResult:
     """Evaluate a config once per seed, one seed after another, and summarize.
@@ -253,8 +256,9 @@ def evaluate_seeds(cfg: ExperimentConfig, seeds: Sequence[int] | None = None, *,
     ----------
     cfg : ExperimentConfig
         The checked config.
-    seeds : sequence of int, optional
-        Two or more distinct seeds; default: the config's ``[evaluation] seeds``.
+    random_states : sequence of int, optional
+        Two or more distinct ``random_state`` values; default: the config's
+        ``[evaluation] random_states``.
     dataset : Dataset, optional
         The config's dataset, already loaded and checked; loaded here when not given.
     runner : SeedRunner, optional
@@ -268,9 +272,10 @@ def evaluate_seeds(cfg: ExperimentConfig, seeds: Sequence[int] | None = None, *,
     Raises
     ------
     ValueError
-        If the seeds are not two or more distinct integers >= 0.
+        If the values are not two or more distinct integers >= 0.
     """
-    chosen = check_seeds(cfg.evaluation.seeds if seeds is None else seeds)
+    chosen = check_seeds(cfg.evaluation.random_states if random_states is None
+                         else random_states)
     start = time.perf_counter()
     ds = dataset if dataset is not None else load_dataset(cfg)
     results = []
@@ -316,8 +321,8 @@ def format_seeds_table(done: SeedsResult, markdown: bool = False) -> str:
         The table, lines joined.
     """
     s = done.summary
-    seeds = ", ".join(str(x) for x in s.seeds)
-    head = (f"test MAE over {len(s.seeds)} seeds ({seeds}) in {unit_name(s.unit)}; sd: "
+    seeds = ", ".join(str(x) for x in s.random_states)
+    head = (f"test MAE over {len(s.random_states)} seeds ({seeds}) in {unit_name(s.unit)}; sd: "
             "the sample standard deviation over the seeds")
     if markdown:
         lines = [head + ".", "", "| target | prior | model mean | model sd | lowest | highest |",
@@ -335,7 +340,7 @@ def format_seeds_table(done: SeedsResult, markdown: bool = False) -> str:
         lines.append(f"{t:<{w}}{p:>11.3f}{m:>12.3f}{sd:>10.3f}{lo:>11.3f}{hi:>11.3f}")
     lines.append(head)
     lines.append("average per seed: " + ", ".join(
-        f"{seed}: {v:.3f}" for seed, v in zip(s.seeds, s.test_mae_avg)))
+        f"{seed}: {v:.3f}" for seed, v in zip(s.random_states, s.test_mae_avg)))
     lines.append(f"wall time {done.wall_s:.1f} s")
     if done.results and done.results[0].folds:  # the same folds for every seed's choices
         lines.append(f"folds: {done.results[0].folds}")
@@ -343,7 +348,7 @@ def format_seeds_table(done: SeedsResult, markdown: bool = False) -> str:
 
 
 def seed_artifacts(done: SeedsResult, setting: str) -> Artifacts:
-    """Make what ``evaluate --seeds --out DIR`` writes and its parent run logs.
+    """Make what ``evaluate --random-states --out DIR`` writes and its parent run logs.
 
     Parameters
     ----------
@@ -359,6 +364,6 @@ def seed_artifacts(done: SeedsResult, setting: str) -> Artifacts:
         the table ``seed_test_mae`` (:meth:`SeedSummary.table`).
     """
     s = done.summary
-    fig = seed_spread(s.targets, s.test_mae, seeds=s.seeds, prior=s.prior_test_mae,
+    fig = seed_spread(s.targets, s.test_mae, random_states=s.random_states, prior=s.prior_test_mae,
                       unit=s.unit, setting=setting)
     return Artifacts(figures={"seed_spread": fig}, tables={"seed_test_mae": s.table()})

@@ -9,9 +9,10 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-__all__ = ["count", "fraction", "nested_folds", "override", "seconds", "seed", "seeds"]
+__all__ = ["Renamed", "count", "fraction", "nested_folds", "override", "random_states",
+           "seconds", "seed"]
 
-#: Most seeds ``--seeds`` takes (each is one more fit of the whole model).
+#: Most seeds ``--random-states`` takes (each is one more fit of the whole model).
 MAX_SEEDS = 1000
 
 
@@ -98,7 +99,7 @@ def seconds(value: str) -> float:
 
 
 def seed(value: str) -> int:
-    """``--split-seed``: an integer >= 0.
+    """``--split-seed``, ``reproduce --random-state``: an integer >= 0.
 
     Parameters
     ----------
@@ -124,8 +125,34 @@ def seed(value: str) -> int:
     return number
 
 
-def seeds(value: str) -> list[int]:
-    """``--seeds``: two or more distinct seeds, ``A-B`` (``A`` to ``B``) or ``A,B,C`` or both.
+class Renamed(argparse.Action):
+    """An option renamed: giving it is an error naming its new name (a hidden option).
+
+    Parameters
+    ----------
+    option_strings : list of str
+        The old option.
+    dest : str
+        Unused (nothing is stored).
+    new : str
+        The new option's name.
+    **kwargs
+        argparse's other arguments of an action.
+    """
+
+    def __init__(self, option_strings: list[str], dest: str, *, new: str, **kwargs: Any):
+        self.new = new
+        super().__init__(option_strings, dest, nargs="?", default=argparse.SUPPRESS,
+                         help=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
+                 values: Any, option_string: str | None = None) -> None:
+        """Fail with the new name."""
+        parser.error(f"{option_string} is now {self.new}")
+
+
+def random_states(value: str) -> list[int]:
+    """``--random-states``: two or more distinct seeds, ``A-B`` (``A`` to ``B``), ``A,B,C`` or both.
 
     E.g. ``0-4`` is 0, 1, 2, 3, 4 and ``0,3,7-9`` is 0, 3, 7, 8, 9.
 

@@ -115,7 +115,7 @@ def reproduce(args: argparse.Namespace) -> int:
     check_stores(tracker, storage, args.repair, repair_hint(args))
     with worker_pool(-1, eager=True):  # forked before any thread of this process
         res = run(args.out, tracking_uri=args.tracking_uri, storage=args.storage,
-                  quick=args.quick, track=not args.no_track, seed=args.seed,
+                  quick=args.quick, track=not args.no_track, seed=args.random_state,
                   experiments=configs, all_systems=args.all)
     s = res.settings
     search = (f"; nested-CV search {s['search'].model.avg('test_mae'):.3f}" if "search" in s
@@ -201,7 +201,6 @@ def sweep(args: argparse.Namespace) -> int:
 def _evaluate_config(args: argparse.Namespace) -> Any:
     """Load the config ``evaluate`` runs: the file's, with the command line's overrides."""
     from ..config import without_intervals
-    from ..evaluate import has_outputs
     from ..prepare import load_config
 
     cfg = without_intervals(load_config(args.config, dict(args.overrides)), args.no_intervals)
@@ -210,16 +209,13 @@ def _evaluate_config(args: argparse.Namespace) -> Any:
     if args.nested is not None:
         cfg = dataclasses.replace(cfg, evaluation=cfg.evaluation.model_copy(
             update={"nested_folds": args.nested}))
-    if args.seeds is not None:
+    if args.random_states is not None:
         cfg = dataclasses.replace(cfg, evaluation=cfg.evaluation.model_copy(
-            update={"seeds": args.seeds}))
-    if cfg.evaluation.seeds and args.register is not None:
-        raise UsageError("--register registers one model; with seeds there is one per seed "
-                         "(register one: --set random_state=N, without seeds)")
-    if args.out is not None and not cfg.evaluation.seeds and not has_outputs(cfg):
-        raise UsageError(f"--out writes a model family's tables and figures and the "
-                         f"prediction intervals'; family {cfg.family.name!r} has none and "
-                         f"[intervals] is off ({args.config})")
+            update={"random_states": args.random_states}))
+    if cfg.evaluation.random_states and args.register is not None:
+        raise UsageError("--register registers one model; with random_states there is one "
+                         "per seed (register one: --set random_state=N, without "
+                         "random_states)")
     return cfg
 
 
@@ -270,7 +266,7 @@ def evaluate(args: argparse.Namespace) -> int:
     from ...parallel import worker_pool
     from ..lifecycle import command_run
 
-    if cfg.evaluation.seeds:
+    if cfg.evaluation.random_states:
         return _evaluate_seeds(args, cfg, prepared.dataset, tracker)
 
     # one set of worker processes for the fit, the curves and the figures, forked before
@@ -302,7 +298,7 @@ def evaluate(args: argparse.Namespace) -> int:
 
 def _evaluate_seeds(args: argparse.Namespace, cfg: ExperimentConfig, dataset: Dataset,
                     tracker: Tracker | None) -> int:
-    """``workbench evaluate`` with seeds: a fit per seed, a child run each, their summary."""
+    """``workbench evaluate`` with random_states: a fit per seed, a child run each, a summary."""
     from ...parallel import worker_pool
     from ..lifecycle import command_run
     from ..seeds import evaluate_seeds, format_seeds_table, seed_artifacts
@@ -325,7 +321,8 @@ def _evaluate_seeds(args: argparse.Namespace, cfg: ExperimentConfig, dataset: Da
 
     with worker_pool(cfg.jobs, eager=True), \
             command_run(tracker, "evaluate", cfg.name,
-                        tags={"workbench.seeds": ",".join(map(str, cfg.evaluation.seeds))}
+                        tags={"workbench.random_states":
+                              ",".join(map(str, cfg.evaluation.random_states))}
                         ) as run_id:
         done = evaluate_seeds(cfg, dataset=dataset, runner=runner)
         extra = seed_artifacts(done, f"evaluate of {cfg.name}")
@@ -343,7 +340,8 @@ def _evaluate_seeds(args: argparse.Namespace, cfg: ExperimentConfig, dataset: Da
             _write_json(args.json, done.to_json())
     print(format_seeds_table(done))
     if done.mlflow:
-        print(f"tracked: parent run {done.mlflow['run_id']} with {len(done.seeds)} child runs")
+        print(f"tracked: parent run {done.mlflow['run_id']} with "
+              f"{len(done.random_states)} child runs")
     if args.out is not None:
         print(f"wrote {', '.join(sorted(Path(p).name for p in done.outputs.values()))} "
               f"to {args.out}")

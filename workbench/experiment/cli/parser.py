@@ -118,16 +118,19 @@ def _add_evaluate(sub: Subparsers) -> None:
                     help="also a nested CV over all rows with K outer folds, every choice "
                     "remade in each (K more fits of the whole model; overrides [evaluation] "
                     "nested_folds; 0: none)")
-    ev.add_argument("--seeds", type=argtypes.seeds, default=None, metavar="SEEDS",
-                    help="fit the config once per seed, each seed its random_state, one "
-                    "after another: SEEDS is A-B or A,B,C (e.g. 0-4 or 0,3,7); prints the "
-                    "mean and sd of the test MAE per target, tracked as a parent run with a "
-                    "child run per seed, --out and --json get the seeds' spread (overrides "
-                    "[evaluation] seeds; not with --register)")
+    ev.add_argument("--random-states", type=argtypes.random_states, default=None,
+                    metavar="SEEDS",
+                    help="fit the config once per random_state, one after another: SEEDS is "
+                    "A-B or A,B,C (e.g. 0-4 or 0,3,7); prints the mean and sd of the test MAE "
+                    "per target, tracked as a parent run with a child run per seed, --out "
+                    "and --json get the seeds' spread (overrides [evaluation] random_states; "
+                    "not with --register)")
+    ev.add_argument("--seeds", action=argtypes.Renamed, new="--random-states")
     ev.add_argument("--out", metavar="DIR", default=None,
-                    help="write the model family's tables (CSV) and figures (PNG) to DIR "
-                    "(family hamiltonian: coefficients, corrected parameters, selection; "
-                    "with seeds: the seeds' spread figure and table)")
+                    help="write every figure (PNG), table (CSV) and data file (JSON) the run "
+                    "logs to DIR, for every family: the MAE/MSE bars, the intervals', the "
+                    "family's own (e.g. learning curves and SHAP, or coefficients and "
+                    "selection) (with --random-states: the seeds' spread figure and table)")
     _model_args(ev)
     _set_arg(ev)
     ev.set_defaults(func=commands.evaluate)
@@ -197,7 +200,9 @@ def _add_reproduce(sub: Subparsers) -> None:
     rep.add_argument("--all", action="store_true",
                      help="also the workbench's own nested-CV search (paper_search.toml) and "
                      "the IBM two-qubit gates benchmark (the longest phases; not in make run)")
-    rep.add_argument("--seed", type=int, default=0)
+    rep.add_argument("--random-state", type=argtypes.seed, default=0, metavar="N",
+                     help="every config's random_state (default: 0)")
+    rep.add_argument("--seed", action=argtypes.Renamed, new="--random-state")
     rep.add_argument("--experiments", metavar="DIR", default=None,
                      help="folder with the configs it runs (paper_main_body.toml, "
                      "paper_improved.toml, paper_search.toml, hamiltonian.toml; default: the "

@@ -7,7 +7,7 @@ that holds them (:class:`TopLevel`).
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
 from pydantic import Field, model_validator
 from sklearn.metrics import get_scorer_names
@@ -194,17 +194,18 @@ class EvaluationConfig(Section):
         Repeats of a ``cv_folds``-fold CV of the chosen model on the training rows
         (``RepeatedKFold``; 0: none).
     cv_seed : int, default=1000
-        Seeds the repeated CV's folds.
+        Seeds the repeated CV's folds (a fixed draw: not the model's ``random_state``).
     nested_folds : int, default=0
         The outer folds of a nested CV over all rows, training and test, every choice of the
         model remade inside each (0: none; else 2 or more).
     nested_seed : int, default=0
-        Seeds the nested CV's outer folds.
-    seeds : list of int, default=[]
-        Two or more distinct seeds: ``evaluate`` fits the config once per seed, each seed
-        its ``random_state`` (the data, their split and the CV folds stay), and reports the
+        Seeds the nested CV's outer folds (a fixed draw).
+    random_states : list of int, default=[]
+        Two or more distinct values of the top-level ``random_state``: ``evaluate`` fits the
+        config once with each (the data, their split and the CV folds stay), and reports the
         mean and sd of the test MAE over them (:mod:`workbench.experiment.seeds`;
-        ``--seeds`` overrides it; empty: one fit with ``random_state``).
+        ``--random-states`` overrides it; empty: one fit with ``random_state``). Formerly
+        ``seeds``.
     """
 
     cv_folds: int = Field(default=5, ge=2, le=10_000)
@@ -213,7 +214,9 @@ class EvaluationConfig(Section):
     nested_folds: int = Field(default=0, ge=0, le=10_000)
     nested_seed: int = Seed()
     # max_length: a cap of its own (each seed is one more fit of the whole model)
-    seeds: list[Annotated[int, Field(ge=0, le=MAX_INT)]] = Field(default=[], max_length=1000)
+    random_states: list[Annotated[int, Field(ge=0, le=MAX_INT)]] = Field(default=[],
+                                                                         max_length=1000)
+    renamed: ClassVar[dict[str, str]] = {"seeds": "random_states"}
 
     @model_validator(mode="after")
     def _nested(self) -> EvaluationConfig:
@@ -222,12 +225,13 @@ class EvaluationConfig(Section):
         return self
 
     @model_validator(mode="after")
-    def _seeds(self) -> EvaluationConfig:
-        if len(self.seeds) == 1:
-            raise ValueError(f"seeds = {self.seeds}: give two or more seeds to compare (one "
-                             "seed: random_state), or none")
-        if len(set(self.seeds)) != len(self.seeds):
-            raise ValueError(f"seeds = {shorten(self.seeds)}: a seed given twice")
+    def _random_states(self) -> EvaluationConfig:
+        states = self.random_states
+        if len(states) == 1:
+            raise ValueError(f"random_states = {states}: give two or more to compare (one: "
+                             "random_state), or none")
+        if len(set(states)) != len(states):
+            raise ValueError(f"random_states = {shorten(states)}: a value given twice")
         return self
 
 
@@ -284,14 +288,16 @@ class CVConfig(Section):
         The folds of the outer (scoring) and the inner (searching) CV.
     repeats : int, default=1
         Repeats of the outer folds (``RepeatedKFold``).
-    seed : int, default=0
-        Seeds the folds.
+    sweep_seed : int, default=0
+        Seeds the sweep's fixed draws: its outer and inner folds and each trial's sampler
+        (not the model's ``random_state``). Formerly ``seed``.
     """
 
     outer_folds: int = Field(default=5, ge=2, le=10_000)
     inner_folds: int = Field(default=5, ge=2, le=10_000)
     repeats: int = Field(default=1, ge=1, le=1000)
-    seed: int = Seed()
+    sweep_seed: int = Seed()
+    renamed: ClassVar[dict[str, str]] = {"seed": "sweep_seed"}
 
 
 class StudyConfig(Section):

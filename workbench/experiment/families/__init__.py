@@ -2,7 +2,7 @@
 
 A family (:class:`~workbench.experiment.families.base.ModelFamily`) knows how to build its
 estimator from a config, what its ``[model.<family>]`` settings and ``[search.<family>]``
-space are, what a sweep's study unit is and how a trial is scored, how its result is
+space are, what a sweep's study block is and how a trial is scored, how its result is
 assembled, and which extra artifacts it has. Nothing outside a family's own module looks at
 a family's name: ``[model] family = "<name>"`` is resolved here.
 

@@ -8,6 +8,7 @@ predicts every target together.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -44,25 +45,30 @@ class Artifacts:
     tables: dict[str, pd.DataFrame] = field(default_factory=dict)
     data: dict[str, Any] = field(default_factory=dict)
 
-    def write(self, directory: str | Path, *, tables: bool = True,
-              figures: bool = True) -> dict[str, Any]:
-        """Write the tables as ``<directory>/<name>.csv`` (no index column), figures as PNG.
+    def write(self, directory: str | Path, *, tables: bool = True, figures: bool = True,
+              data: bool = True) -> dict[str, Any]:
+        """Write the tables as CSV (no index column), the figures as PNG, the data as JSON.
+
+        As ``<directory>/<name>.csv``, ``<name>.png`` and ``<name>.json``.
 
         Parameters
         ----------
         directory : str or Path
             Created if missing.
-        tables, figures : bool, default=True
-            Whether to write the tables, the figures.
+        tables, figures, data : bool, default=True
+            Whether to write the tables, the figures, the data.
 
         Returns
         -------
         dict
-            Name -> path written.
+            Name -> path written (a figure's, where a table or data share its name).
         """
         directory = Path(directory)
         directory.mkdir(parents=True, exist_ok=True)
         written: dict[str, Any] = {}
+        for name, value in (self.data.items() if data else ()):
+            written[name] = atomic_write(directory / f"{name}.json",
+                                         json.dumps(value, indent=2, default=str))
         for name, table in (self.tables.items() if tables else ()):
             written[name] = atomic_write(directory / f"{name}.csv", table.to_csv(index=False))
         for name, fig in (self.figures.items() if figures else ()):

@@ -1,7 +1,7 @@
 """The model-family interface.
 
 Its defaults suit a family whose one model predicts every target together (a sweep's study
-unit is then "all targets"); the part that reports a fitted model is
+block is then "all targets"); the part that reports a fitted model is
 :class:`~workbench.experiment.families.artifacts.ResultMethods`.
 """
 
@@ -29,7 +29,7 @@ if TYPE_CHECKING:
 
 __all__ = ["ALL_TARGETS", "ModelFamily", "Report"]
 
-#: The study unit of a family whose one model predicts every target.
+#: The study block of a family whose one model predicts every target.
 ALL_TARGETS = "all"
 
 #: Fold models whose spread is a family's default uncertainty for ``workbench design``.
@@ -130,7 +130,20 @@ class ModelFamily(ResultMethods):
     computes_prior: ClassVar[bool] = False
 
     def complete_data(self, cfg: ExperimentConfig, ds: Dataset) -> Dataset:
-        """Return the dataset with what the family supplies (its prior; default: as is)."""
+        """Return the dataset with what the family supplies (its prior; default: as is).
+
+        Parameters
+        ----------
+        cfg : ExperimentConfig
+            The config.
+        ds : Dataset
+            The data as the source loaded them.
+
+        Returns
+        -------
+        Dataset
+            The data the family's model is fitted on.
+        """
         return ds
 
     def check_data(self, data: DataConfig) -> None:
@@ -200,7 +213,7 @@ class ModelFamily(ResultMethods):
         trial : optuna.trial.BaseTrial
             An Optuna trial, or ``FixedTrial`` of a finished one.
         targets : list of str
-            The study unit's targets.
+            The study block's targets.
 
         Returns
         -------
@@ -234,8 +247,8 @@ class ModelFamily(ResultMethods):
         return clone(model)
 
     # ------------------------------------------------------------------ sweeps
-    def units(self, targets: list[str]) -> dict[str, list[str]]:
-        """Group the targets into a sweep's study units.
+    def blocks(self, targets: list[str]) -> dict[str, list[str]]:
+        """Group the targets into a sweep's study blocks (the targets tuned together).
 
         Parameters
         ----------
@@ -245,7 +258,7 @@ class ModelFamily(ResultMethods):
         Returns
         -------
         dict
-            Unit name -> the targets its studies choose for (default: one unit, all).
+            Block name -> the targets its studies choose for (default: one block, all).
         """
         return {ALL_TARGETS: list(targets)}
 
@@ -260,9 +273,9 @@ class ModelFamily(ResultMethods):
         ds : Dataset
             Its dataset.
         targets : list of str
-            The study unit's targets.
+            The study block's targets.
         X, Y : DataFrame
-            The study's rows: inputs and the unit's targets.
+            The study's rows: inputs and the block's targets.
         trial : optuna.trial.Trial
             The trial.
         cv : cross-validator
@@ -291,18 +304,18 @@ class ModelFamily(ResultMethods):
         ds : Dataset
             Its dataset.
         targets : list of str
-            The study unit's targets.
+            The study block's targets.
         params : dict
             The study's best trial's parameters.
         X, Y : DataFrame
-            The rows: inputs and the unit's targets.
+            The rows: inputs and the block's targets.
         train, val : array-like of int
             Positions of the fold's training and validation rows.
 
         Returns
         -------
         pred : ndarray
-            Predictions on ``val`` rows, one column per target of the unit.
+            Predictions on ``val`` rows, one column per target of the block.
         selected : str
             What was selected, comma-separated.
         """
@@ -324,7 +337,7 @@ class ModelFamily(ResultMethods):
         ds : Dataset
             Its dataset.
         best : dict
-            Unit -> best params; a unit without a completed trial (``None``) keeps the
+            Block -> best params; a block without a completed trial (``None``) keeps the
             config's own settings.
 
         Returns
@@ -334,8 +347,8 @@ class ModelFamily(ResultMethods):
         """
         from optuna.trial import FixedTrial  # (b) Optuna: not for evaluate
 
-        for unit, targets in self.units(ds.target_names).items():
-            params = best.get(unit)
+        for block, targets in self.blocks(ds.target_names).items():
+            params = best.get(block)
             if params is not None:
                 cfg = self.with_trial(cfg, FixedTrial(params), targets)
         return cfg

@@ -3,7 +3,7 @@
 Target ``j`` boosts from prior column ``j`` with a :class:`~workbench.BaseBoostCV` (which keeps
 the prior unless CV on the training rows says boosting helps); the targets together form a
 :class:`~workbench.MultiTargetBaseBoost`. A sweep searches each target on its own (the study
-unit is the target), a trial's value read from BaseBoostCV's own fold scores.
+block is the target), a trial's value read from BaseBoostCV's own fold scores.
 """
 
 from __future__ import annotations
@@ -98,8 +98,8 @@ class EigenvalueFamily(ModelFamily):
         """Build one BaseBoostCV per target, each boosting from its prior column."""
         return per_target_boost(cfg, ds, ds.prior_names)
 
-    def units(self, targets: list[str]) -> dict[str, list[str]]:
-        """Make each target a study unit of its own."""
+    def blocks(self, targets: list[str]) -> dict[str, list[str]]:
+        """Make each target a study block of its own."""
         return {t: [t] for t in targets}
 
     def objective(self, cfg: ExperimentConfig, ds: Dataset, targets: list[str],
@@ -267,7 +267,7 @@ def cfg_inner_cv(cfg: ExperimentConfig, ds: Dataset | None = None) -> Any:
     Returns
     -------
     cross-validator
-        ``inner_folds`` shuffled folds seeded by ``[cv] seed``, forward-chaining when the
+        ``inner_folds`` shuffled folds seeded by ``[cv] sweep_seed``, forward-chaining when the
         dataset has an order (:func:`~workbench.experiment.folds.sweep_inner_cv`).
     """
     return sweep_inner_cv(cfg, ds)

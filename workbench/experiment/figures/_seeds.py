@@ -26,7 +26,7 @@ if TYPE_CHECKING:
 __all__ = ["seed_spread"]
 
 
-def seed_spread(targets: Sequence[str], errors: ArrayLike, *, seeds: Sequence[int],
+def seed_spread(targets: Sequence[str], errors: ArrayLike, *, random_states: Sequence[int],
                 prior: Sequence[float] | None = None, metric: str = "test MAE",
                 unit: str | None = None, title: str | None = None,
                 setting: str | None = None, prior_label: str = "prior") -> Figure:
@@ -42,8 +42,8 @@ def seed_spread(targets: Sequence[str], errors: ArrayLike, *, seeds: Sequence[in
         Target names, one column each.
     errors : array-like of shape (n_seeds, n_targets)
         Each seed's error per target.
-    seeds : sequence of int
-        The seeds, in the rows' order (the legend names them).
+    random_states : sequence of int
+        The seeds (each a ``random_state``), in the rows' order (the title names them).
     prior : sequence of float, optional
         The prior's error per target; ``None``: not drawn.
     metric : str, default="test MAE"
@@ -69,6 +69,7 @@ def seed_spread(targets: Sequence[str], errors: ArrayLike, *, seeds: Sequence[in
         If the errors are not one row per seed and one column per target, or there are
         fewer than two seeds.
     """
+    seeds = list(random_states)
     names = [str(t) for t in targets]
     values = np.asarray(errors, dtype=float)
     if values.ndim != 2 or values.shape != (len(seeds), len(names)) or not names:

@@ -1,6 +1,6 @@
 """The outer folds of a sweep's nested CV in one figure.
 
-:func:`outer_folds_figure`: a bar per outer fold of every study unit, its length the chosen
+:func:`outer_folds_figure`: a bar per outer fold of every study block, its length the chosen
 configuration's MAE on the fold's validation rows, the prior's beside it, each
 labelled with the configuration the fold's study chose (its best trial's parameters).
 """
@@ -83,7 +83,7 @@ def outer_folds_figure(folds: Sequence[OuterFold], unit: str | None = None,
             color=PRIOR_COLOR, label=prior_label)
     ax.barh([r - 0.2 for r in rows], [f.mae for f in folds], height=0.4, color=MODEL_COLOR,
             label="chosen configuration")
-    ax.set_yticks(rows, [f"{f.unit} fold {f.fold}: {configuration_label(f.params)}"
+    ax.set_yticks(rows, [f"{f.block} fold {f.fold}: {configuration_label(f.params)}"
                          for f in folds], fontsize=7)
     ax.set_xlabel(with_unit("MAE on the fold's validation rows", unit))
     ax.set_title(title)

@@ -257,7 +257,7 @@ def _search(job: _Job, storage: str | None) -> Sweep:
     say("nested-CV search for the workbench's own best configuration "
         "(experiments/paper_search.toml)")
     cfg = load_config(job.configs / "paper_search.toml")
-    cv = {"seed": job.seed, **({"outer_folds": 2, "inner_folds": 3} if job.quick else {})}
+    cv = {"sweep_seed": job.seed, **({"outer_folds": 2, "inner_folds": 3} if job.quick else {})}
     cfg = without_intervals(replace(cfg, random_state=job.seed,
                                     cv=cfg.cv.model_copy(update=cv)))
     # another seed, or --quick (other folds and budgets), must not resume these studies

@@ -196,7 +196,7 @@ def paper_systems(settings: dict[str, Result], cfgs: dict[str, ExperimentConfig]
                              "n_test": paper.n_test}
         elif key == "tabula_rasa":
             system.metrics = _tabula_rasa_metrics(targets, tabula)
-            system.params = {"seeds": ",".join(map(str, tabula["seeds"])),
+            system.params = {"random_states": ",".join(map(str, tabula["seeds"])),
                              "inputs": "the 9 bias voltages",
                              "input_transform": tabula["input_transform"],
                              **{f"{t}.{k}": v for t, spec in zip(targets, TABULA_RASA)

@@ -1,6 +1,6 @@
 """``workbench sweep``, one room per concern.
 
-* :mod:`~workbench.experiment.sweep.search`: nested CV over the family's study units, the
+* :mod:`~workbench.experiment.sweep.search`: nested CV over the family's study blocks, the
   outer folds' refits and the final evaluation (:func:`~.search.run_sweep`);
 * :mod:`~workbench.experiment.sweep.scheduler`: samplers, pruners and the trial scheduler
   that leaves every study with exactly its budget of counted trials;

@@ -144,7 +144,7 @@ def figures_of_sweep(done: Sweep, out: str | None, tracker: Any, run_id: str | N
     if out is None and run_id is None:
         return
     cfg = done.config
-    seed = cfg.random_state if cfg.random_state is not None else cfg.cv.seed
+    seed = cfg.random_state if cfg.random_state is not None else cfg.cv.sweep_seed
     start = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="workbench-optuna-") as tmp:
         write_sweep_figures(done, tmp, seed, cfg.jobs)

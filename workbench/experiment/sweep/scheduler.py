@@ -140,10 +140,10 @@ class TrialSeededSampler(optuna.samplers.BaseSampler):
 def sampler(cfg: ExperimentConfig) -> TrialSeededSampler:
     """Make the sampler of a sweep's study (``[study] sampler``).
 
-    It is seeded per trial from ``[cv] seed`` and the study's name
+    It is seeded per trial from ``[cv] sweep_seed`` and the study's name
     (:class:`TrialSeededSampler`).
     """
-    return TrialSeededSampler(cfg.study.sampler, cfg.cv.seed)
+    return TrialSeededSampler(cfg.study.sampler, cfg.cv.sweep_seed)
 
 
 #: What a study's value is, as the Optuna dashboard labels it (instead of "Objective 0").

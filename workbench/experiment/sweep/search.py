@@ -1,6 +1,6 @@
 """``workbench sweep``: nested cross-validation driven by Optuna studies.
 
-For each study unit of the config's family (a target for family ``eigenvalue``; all targets
+For each study block of the config's family (a target for family ``eigenvalue``; all targets
 together for a family whose one model predicts them all), on the training rows only:
 
 1. *Outer folds* estimate generalisation. In each outer fold an Optuna study searches the
@@ -57,19 +57,35 @@ log = logging.getLogger("workbench")
 class StudySpec:
     """One study of a sweep.
 
-    Its name, unit, the unit's targets, and the outer fold (``None``: the final study on all
+    Its name, block, the block's targets, and the outer fold (``None``: the final study on all
     training rows).
     """
 
     name: str
-    unit: str
+    block: str
     targets: list[str]
     fold: int | None
 
 
 @dataclass
 class Sweep:
-    """A finished sweep: the result, the fitted final model and what led to it."""
+    """A finished sweep: the result, the fitted final model and what led to it.
+
+    Parameters
+    ----------
+    result : Result
+        The sweep's result (its ``sweep`` the nested CV's summary).
+    model : estimator
+        The final model, refitted on all training rows with the final studies' settings.
+    dataset : Dataset
+        The data.
+    config : ExperimentConfig
+        The config swept.
+    studies : dict of str to optuna.Study
+        The studies by name.
+    storage : str
+        Where the studies are stored.
+    """
 
     result: Result
     model: Any
@@ -91,19 +107,19 @@ def _root() -> Path:
 
 
 def study_names(cfg: ExperimentConfig, targets: list[str]) -> list[StudySpec]:
-    """List the sweep's studies in order: per unit, one per outer fold, then the final one.
+    """List the sweep's studies in order: per block, one per outer fold, then the final one.
 
-    All are named ``<sweep>.<unit>.outer<k>`` / ``<sweep>.<unit>.final`` (``<sweep>``:
+    All are named ``<sweep>.<block>.outer<k>`` / ``<sweep>.<block>.final`` (``<sweep>``:
     :func:`sweep_name`), so that the sweep's name finds them (the dashboard's "Search
     study" box).
     """
     base = sweep_name(cfg)
     n_outer = cfg.cv.outer_folds * cfg.cv.repeats
     out = []
-    for unit, unit_targets in cfg.family.units(targets).items():
-        out += [StudySpec(f"{base}.{unit}.outer{k}", unit, unit_targets, k)
+    for block, block_targets in cfg.family.blocks(targets).items():
+        out += [StudySpec(f"{base}.{block}.outer{k}", block, block_targets, k)
                 for k in range(n_outer)]
-        out.append(StudySpec(f"{base}.{unit}.final", unit, unit_targets, None))
+        out.append(StudySpec(f"{base}.{block}.final", block, block_targets, None))
     return out
 
 
@@ -115,10 +131,10 @@ def sweep_name(cfg: ExperimentConfig) -> str:
 def study_attrs(cfg: ExperimentConfig, spec: StudySpec) -> dict[str, Any]:
     """Build a study's user attributes (the dashboard shows them on the study's page).
 
-    The sweep it belongs to, its config, unit, targets and outer fold (``"final"``: the
+    The sweep it belongs to, its config, block, targets and outer fold (``"final"``: the
     final study on all training rows).
     """
-    return {"sweep": sweep_name(cfg), "config": cfg.label, "unit": spec.unit,
+    return {"sweep": sweep_name(cfg), "config": cfg.label, "block": spec.block,
             "targets": list(spec.targets),
             "fold": "final" if spec.fold is None else spec.fold}
 
@@ -132,14 +148,14 @@ def outer_splits(cfg: ExperimentConfig, n_rows: int,
     c = cfg.cv
     if ds is not None and ds.order is not None:
         return outer_order_splits(cfg, ds)
-    splitter = RepeatedKFold(n_splits=c.outer_folds, n_repeats=c.repeats, random_state=c.seed)
+    splitter = RepeatedKFold(n_splits=c.outer_folds, n_repeats=c.repeats, random_state=c.sweep_seed)
     return list(splitter.split(np.zeros((n_rows, 1))))
 
 
 def inner_cv(cfg: ExperimentConfig, ds: Dataset | None = None) -> Any:
     """Make the inner folds of every trial.
 
-    ``[cv]`` inner_folds, shuffled with the seed; forward-chaining when ``ds`` has an order.
+    ``[cv]`` inner_folds, shuffled with ``sweep_seed``; forward-chaining when ``ds`` has an order.
     """
     return sweep_inner_cv(cfg, ds)
 
@@ -270,7 +286,7 @@ def _outer_folds(cfg: ExperimentConfig, ds: Dataset, specs: list[StudySpec],
         for t, m, p in zip(spec.targets, maes, prior_maes):
             nested.setdefault(t, []).append(m)
             nested_prior.setdefault(t, []).append(p)
-        folds.append(OuterFold(unit=spec.unit, fold=spec.fold, study=spec.name,
+        folds.append(OuterFold(block=spec.block, fold=spec.fold, study=spec.name,
                                mae=float(np.mean(maes)), prior_mae=float(np.mean(prior_maes)),
                                selected=selected, n_train=len(train), n_val=len(val),
                                params=params, target_mae=dict(zip(spec.targets, maes)),
@@ -331,19 +347,19 @@ def run_sweep(cfg: ExperimentConfig, *, progress: bool = True,
                for s in specs}
     _check_complete(cfg, list(studies.values()), storage_url)
     params_of = {spec.name: _best_params(studies[spec.name]) for spec in specs}
-    best = {spec.unit: params_of[spec.name] for spec in specs if spec.fold is None}
+    best = {spec.block: params_of[spec.name] for spec in specs if spec.fold is None}
     folds, nested, nested_prior = _outer_folds(cfg, ds, specs, params_of)
 
     chosen = family.chosen_config(cfg, ds, best)
     result, fitted = fit_and_score(chosen, ds, family.final_model(chosen, ds))
     result.folds = f"{describe_folds(inner_cv(cfg, ds))} (the sweep's inner folds)"
-    unit_of = {t: unit for unit, ts in family.units(ds.target_names).items() for t in ts}
+    block_of = {t: block for block, ts in family.blocks(ds.target_names).items() for t in ts}
     counted = sum(sum(is_counted(t) for t in s.get_trials(deepcopy=False))
                   for s in studies.values())
     result.sweep = SweepSummary(
         nested_cv_mae=[float(np.mean(nested[t])) for t in ds.target_names],
         nested_cv_prior_mae=[float(np.mean(nested_prior[t])) for t in ds.target_names],
-        best_params=[best[unit_of[t]] for t in ds.target_names],
+        best_params=[best[block_of[t]] for t in ds.target_names],
         trials_per_study=cfg.study.trials, trials_counted=counted, studies=len(studies),
         outer_folds=folds)
     result.wall_s = time.perf_counter() - start
