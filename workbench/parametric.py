@@ -79,14 +79,17 @@ class ParametricModel:
     text: str | None = None
 
     def __reduce_ex__(self, protocol: Any) -> Any:
+        """Pickle a model file's model as its source text, so it loads without the file."""
         if self.text is None:  # functions from Python: pickled as they are
             return object.__reduce_ex__(self, protocol)
         return _from_text, (self.text, self.source)
 
     def __copy__(self) -> ParametricModel:
+        """The model itself (it is immutable)."""
         return self  # immutable: clone() keeps the one model (and its caches' keys)
 
     def __deepcopy__(self, memo: Any) -> ParametricModel:
+        """The model itself (it is immutable)."""
         return self
 
     @classmethod
