@@ -282,7 +282,10 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
 
         def objective(rho: float, d: np.ndarray) -> float:
             value = _trial(model, theta + self.learning_rate * rho * d, X, Y.shape[1])
-            return np.inf if value is None else _loss(self.loss, Y - value, self.huber_delta)
+            if value is None:
+                return np.inf
+            with np.errstate(over="ignore"):  # a trial far off: an infinite loss
+                return _loss(self.loss, Y - value, self.huber_delta)
 
         now = objective(0.0, D)
         options = ([(name, self.parameter_names_.index(name)) for name in fits]
@@ -291,7 +294,7 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
         for name, j in options:
             d = D if name is None else np.where(np.arange(D.shape[1]) == j, D, 0.0)
             found = minimize_scalar(objective, bounds=(0.0, 2.0), args=(d,), method="bounded",
-                                    options={"xatol": 1e-3})
+                                    options={"xatol": 1e-2})
             if found.fun < best[0]:
                 best = (float(found.fun), float(found.x), name)
         if best[1] <= 0.0 or not fits:
