@@ -385,9 +385,9 @@ def boost_candidate(template: ParameterSpaceBoostRegressor, folds: list[tuple],
     for X_fit, y_fit, X_val, y_val in folds:
         fitted = clone(template).fit(X_fit, y_fit)
         y_val = np.asarray(y_val, dtype=float)
-        last = None
+        last = 0.0
         for m, pred in enumerate(fitted.staged_predict(X_val)):
-            last = np.abs(np.reshape(pred, y_val.shape) - y_val).sum()
+            last = float(np.abs(np.reshape(pred, y_val.shape) - y_val).sum())
             abs_sum[m] += last
         abs_sum[fitted.n_iter_ + 1:] += last  # a fold that stopped early keeps its last
         count += y_val.size
