@@ -48,6 +48,7 @@ from .parametric import (
     check_model,
     resolve_model,
 )
+from .parametric_gbm import boost_candidate
 
 __all__ = ["ParametricBoostRegressor", "ParametricRegressor", "covariate_pool"]
 
@@ -517,7 +518,7 @@ class ParametricRegressor(Coefficients, RegressorMixin, BaseEstimator):
 
 
 #: The candidates :class:`ParametricBoostRegressor` compares, simplest first.
-CANDIDATES = ("prior", "calibrated", "drift")
+CANDIDATES = ("prior", "calibrated", "drift", "boost")
 
 
 class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
@@ -531,7 +532,9 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
     every split, warm-started). A more complex candidate wins only by more than
     ``min_improvement``; the winner is refitted on all rows (``estimator_``).
     :attr:`choices_` tells the CV MAE of each and which won; where the drift does not win,
-    :attr:`note_` says the error is not a drift of the parameters.
+    :attr:`note_` says the error is not a drift of the parameters. With ``boost``, the
+    parameter-space boosting (:mod:`workbench.parametric_gbm`, any scikit-learn regressor
+    per parameter) is a fourth candidate, its rounds chosen on the same folds.
 
     Parameters
     ----------
@@ -561,13 +564,16 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         Processes scoring the selection's candidates (:mod:`workbench.parallel`).
     verbose : bool, default=False
         Print a line per selection step.
+    boost : ParameterSpaceBoostRegressor, default=None
+        The ``"boost"`` candidate's template (None: no such candidate); its ``model``,
+        ``loss``, ``huber_delta`` and ``random_state`` are set from these.
 
     Attributes
     ----------
-    estimator_ : ParametricRegressor
+    estimator_ : ParametricRegressor or ParameterSpaceBoostRegressor
         The winner, refitted on all rows.
     choice_ : str
-        ``"prior"``, ``"calibrated"`` or ``"drift"``.
+        ``"prior"``, ``"calibrated"``, ``"drift"`` or ``"boost"``.
     choices_ : DataFrame
         ``candidate``, ``cv_mae``, ``chosen``.
     note_ : str
@@ -595,6 +601,7 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         "random_state": [None, numbers.Integral],
         "n_jobs": [None, numbers.Integral],
         "verbose": ["boolean"],
+        "boost": [None, HasMethods(["fit", "staged_predict"])],
     }
 
     def __init__(self, *, model: str | ParametricModel | None = None,
@@ -606,7 +613,7 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
                  loss: str = "huber", huber_delta: float = 1.0, max_iter: int = 20,
                  tol: float = 1e-6, out_of_bounds: str = "extrapolate",
                  random_state: int | None = None, n_jobs: int | None = None,
-                 verbose: bool = False) -> None:
+                 verbose: bool = False, boost: Any = None) -> None:
         self.model = model
         self.start = start
         self.candidates = candidates
@@ -627,6 +634,7 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         self.random_state = random_state
         self.n_jobs = n_jobs
         self.verbose = verbose
+        self.boost = boost
 
     def _pool(self, model: ParametricModel, X: pd.DataFrame) -> dict[str, list[str]]:
         if self.candidates is None:
@@ -689,18 +697,23 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
                                             self.min_improvement, progress, t0, common)
             drift = self.selection_.covariates
             scores["drift"] = float(self.selection_.cv_mae)
+        booster = None
+        if self.boost is not None:
+            booster, scores["boost"] = boost_candidate(clone(self.boost).set_params(
+                model=self.model, loss=self.loss, huber_delta=self.huber_delta,
+                random_state=rs), folds, drift and clone(base).set_params(covariates=drift))[:2]
         self.choice_ = "prior"
         for name in CANDIDATES[1:]:
             if name in scores and scores[self.choice_] - scores[name] > self.min_improvement:
                 self.choice_ = name
-        self.note_ = ("" if self.choice_ == "drift" else
+        self.note_ = ("" if self.choice_ in ("drift", "boost") else
                       "the error is not a drift of the parameters: the drift did not beat "
                       f"the {'calibrated model' if 'drift' in scores else 'other candidates'}"
                       " in CV")
         self.choices_ = pd.DataFrame({"candidate": list(scores), "cv_mae": list(scores.values()),
                                       "chosen": [k == self.choice_ for k in scores]})
         winner = {"prior": prior, "calibrated": base,
-                  "drift": clone(base).set_params(covariates=drift)}[self.choice_]
+                  "drift": clone(base).set_params(covariates=drift), "boost": booster}[self.choice_]
         self.estimator_ = clone(winner).fit(X, np.asarray(y, dtype=float))
         self.cv_mae_ = scores[self.choice_]
         self.n_iter_ = self.estimator_.n_iter_

@@ -27,13 +27,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar, Literal, cast
 
 import pandas as pd
-from pydantic import Field
+from pydantic import Field, field_validator
 from sklearn.base import clone
 from sklearn.model_selection import KFold
 
 from ...fitted_prior import FittedPriorBoost
 from ...parametric import ModelError, load_model
 from ...parametric_boost import ParametricBoostRegressor
+from ...parametric_gbm import ParameterSpaceBoostRegressor, make_regressor
 from ..errors import ConfigError
 from ..schema import Section
 from ..scores import ModelScores, Scores, mae, mse
@@ -55,6 +56,36 @@ __all__ = ["ParametricFamily", "ParametricSettings", "make_parametric"]
 PRIOR_PREFIX = "prior_"
 
 
+class ParameterBoostSettings(Section):
+    """``[model.parametric.boost]``: boosting in the model's parameter space, a candidate.
+
+    ``regressor``: the regressor fitted per parameter and round to the parameter-space
+    pseudo-residuals, ``"tree"`` (a decision tree, default ``max_depth = 3``) or a basis name
+    (``"lightgbm"``, ``"ridge"``, ...), with ``params``; ``rounds`` the most rounds (CV on
+    the choice's folds picks how many), ``learning_rate`` the shrinkage, ``step``
+    ``"newton"`` (curvature-weighted) or ``"gradient"``, ``update`` ``"joint"`` (every
+    parameter each round) or ``"greedy"`` (the best one), ``subsample`` the rows each round
+    sees, ``parameters`` the parameters boosted (empty: all), ``start`` ``"calibrated"`` or
+    ``"drift"`` (the linear drift forward selection chose, where there is one).
+    """
+
+    regressor: str = "tree"
+    params: dict[str, Any] = Field(default_factory=dict)
+    rounds: int = Field(default=200, ge=1, le=100_000)
+    learning_rate: float = Field(default=0.1, gt=0, le=1)
+    step: Literal["newton", "gradient"] = "newton"
+    update: Literal["joint", "greedy"] = "joint"
+    subsample: float = Field(default=1.0, gt=0, le=1)
+    parameters: list[str] = Field(default_factory=list)
+    start: Literal["calibrated", "drift"] = "calibrated"
+
+    @field_validator("regressor")
+    @classmethod
+    def _known(cls, value: str) -> str:
+        make_regressor(value)  # an unknown name: the error lists the valid ones
+        return value
+
+
 class ParametricSettings(Section):
     """``[model.parametric]``: the user's model and how its parameters are corrected.
 
@@ -68,6 +99,8 @@ class ParametricSettings(Section):
     ``out_of_bounds = "clip"``: a new row's covariates are clipped to their training range,
     its corrections the drift's at the nearest training point (the default
     ``"extrapolate"`` lets the drift's squares and products grow beyond them).
+    ``boost``: the table :class:`ParameterBoostSettings`, parameter-space boosting as a
+    fourth candidate (absent: none).
     """
 
     model: str
@@ -87,6 +120,7 @@ class ParametricSettings(Section):
     min_improvement: float = Field(default=1e-3, ge=0)
     boost_stage: bool = True
     prior_cv: int = Field(default=5, ge=2, le=10_000)
+    boost: ParameterBoostSettings | None = None
 
 
 def model_path(cfg: ExperimentConfig, settings: ParametricSettings) -> Path:
@@ -117,7 +151,19 @@ def make_parametric(cfg: ExperimentConfig, ds: Dataset) -> ParametricBoostRegres
         min_improvement=float(s.min_improvement), alpha=float(s.alpha),
         alpha_l1=float(s.alpha_l1), loss=s.loss, huber_delta=float(s.huber_delta),
         max_iter=s.max_iter, out_of_bounds=s.out_of_bounds, random_state=cfg.random_state,
-        n_jobs=cfg.n_jobs)
+        n_jobs=cfg.n_jobs, boost=_booster(s.boost, ds.feature_names))
+
+
+def _booster(b: ParameterBoostSettings | None,
+             features: list[str]) -> ParameterSpaceBoostRegressor | None:
+    """Make the ``boost`` candidate's template (the choice sets its model, loss and seed)."""
+    if b is None:
+        return None
+    return ParameterSpaceBoostRegressor(
+        estimator=make_regressor(b.regressor, b.params), n_estimators=b.rounds,
+        learning_rate=float(b.learning_rate), step=b.step, update=b.update,
+        subsample=float(b.subsample), parameters=list(b.parameters) or None,
+        init="drift" if b.start == "drift" else None, features=list(features))
 
 
 def config_section(entry: str, path: str | os.PathLike[str]) -> str:
