@@ -4,7 +4,8 @@ Used by ``benchmarks/peer_gap.py`` (``VARIANTS``' extra candidate kinds):
 
 * ``"tuned"``: the peer itself as one more candidate: a base-boosting stage whose basis
   (:class:`TunedLGBM`) runs the peer's own search (its space and objectives, Optuna's TPE,
-  shuffled 5-fold CV, ``trials`` trials) on the rows it is fitted on, inside every CV fold;
+  shuffled 5-fold CV, ``trials`` trials) on the rows it is fitted on, inside every CV fold
+  (``"tuned10"``: 10 trials, the reduced run);
 * ``"peer_params"``: the peer's chosen settings (tuned by its search on all the rows the
   config is fitted on) as one fixed LightGBM candidate: cheap (six fits), but its CV score is
   optimistic (the search saw every fold's rows), which tilts CV towards it;
@@ -92,6 +93,7 @@ class EarlyLGBM(RegressorMixin, BaseEstimator):
 
 
 BASES = {"tuned": lambda seed: TunedLGBM(random_state=seed),
+         "tuned10": lambda seed: TunedLGBM(trials=10, random_state=seed),
          "early": lambda seed: EarlyLGBM(random_state=seed)}
 
 

@@ -20,6 +20,16 @@ training rows, per set:
   scored on the fifth left. If an oracle's mean ratio to the peer is above a goal, no way of
   choosing among these candidates reaches it.
 
+``--cache DIR`` keeps each set's peer (seeded; the same for every variant), so the sets and
+variants can run in several processes and ``--merge`` joins their JSONs (a variant that did
+not reach every set is compared with the first complete one on the sets it ran on, under
+``partial``, and left out of the table). The run in ``benchmarks/results/peer_gap.json``
+(docs/benchmarks.md, "Why it trails the peer")::
+
+    python benchmarks/peer_gap.py --oracle --variants base early --cache C --json A.json
+    python benchmarks/peer_gap.py --variants peer_params --cache C --json B.json   # etc.
+    python benchmarks/peer_gap.py --merge A.json B.json ... --json benchmarks/results/peer_gap.json
+
 Printed per set and variant: validation MAE (average over targets) and its ratio to the
 peer's and to the prior's; summed up: the mean and worst ratio to the peer over the sets and
 the sets where a variant is worse than the prior. The outside sets' test rows are never
@@ -57,7 +67,7 @@ VARIANTS: dict[str, tuple[dict[str, Any], tuple[str, ...]]] = {
     "plain_folds": ({"selection.groups": False}, ()),
     "tuned": ({}, ("tuned",)),
     "early": ({}, ("early",)),
-    "tuned_early": ({}, ("tuned", "early")),
+    "tuned10": ({}, ("tuned10",)),
     "peer_params": ({}, ("peer_params",)),
 }
 
@@ -187,6 +197,18 @@ def merge(paths: list[Path], out: Path | None) -> None:
                 row["oracle"] = r["oracle"]
     complete = [v for v in variants if all(v in r["variants"] for r in rows.values())]
     summary = summarise(list(rows.values()), complete)
+    # a variant that did not reach every set (time ran out): compared with the first
+    # complete one on the sets it ran on, and left out of the table
+    partial = {}
+    for v in (v for v in variants if v not in complete):
+        ran = [r for r in rows.values() if v in r["variants"]]
+        partial[v] = {"sets": [r["set"] for r in ran],
+                      **{k: summarise(ran, [k])[k] for k in (v, complete[0])}}
+        for r in ran:
+            r.setdefault("partial_variants", {})[v] = r["variants"].pop(v)
+        print(f"{v} (on {len(ran)} sets only): mean "
+              f"{partial[v][v]['mean_ratio_to_peer']:.3f} against {complete[0]}'s "
+              f"{partial[v][complete[0]]['mean_ratio_to_peer']:.3f} on the same sets")
     for r in rows.values():
         print(_line(r))
     for k, s in summary.items():
@@ -199,7 +221,8 @@ def merge(paths: list[Path], out: Path | None) -> None:
                          "load_after": runs[-1]["measured"]["load_after"],
                          "commits": sorted({run["measured"]["commit"] for run in runs})},
             **{k: runs[0][k] for k in ("config", "overrides", "trials")},
-            "variants": variants, "summary": summary, "rows": list(rows.values())},
+            "variants": {v: variants[v] for v in complete}, "summary": summary,
+            "partial": partial, "rows": list(rows.values())},
             indent=1) + "\n")
 
 

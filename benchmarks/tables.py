@@ -193,9 +193,9 @@ def peer_gap(data: dict) -> str:
     variants = list(data["variants"])
     oracle = ("best_single", "best_mean", "held_out_single", "held_out_mean")
     has_oracle = all("oracle" in r for r in data["rows"])
-    names = {"best_single": "oracle, best single", "best_mean": "oracle, best mean",
-             "held_out_single": "held-out oracle, single", "held_out_mean":
-             "held-out oracle, mean"}
+    names = {"prior": "prior", "best_single": "oracle, best single",
+             "best_mean": "oracle, best mean", "held_out_single": "held-out oracle, single",
+             "held_out_mean": "held-out oracle, mean"}
     cols = ["prior", *variants, *(oracle if has_oracle else ())]
     lines = ["| set | inner train / validation rows | peer | "
              + " | ".join(names.get(c, f"`{c}`") for c in cols) + " |",
