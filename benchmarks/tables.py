@@ -185,6 +185,41 @@ def peer_bound(data: dict) -> str:
     return "\n".join([_measured(data["measured"]), head, "", *lines])
 
 
+def peer_gap(data: dict) -> str:
+    """The generic config against the peer on the outside sets' validation rows (their
+    training rows split again; ``benchmarks/peer_gap.py``): per set, the validation MAE of
+    the prior, the peer, each variant of the config and the bound of its candidates chosen
+    on the validation rows, each as a ratio to the peer's; then the mean and worst ratio."""
+    variants = list(data["variants"])
+    oracle = ("best_single", "best_mean", "held_out_single", "held_out_mean")
+    has_oracle = all("oracle" in r for r in data["rows"])
+    names = {"prior": "prior", "best_single": "oracle, best single",
+             "best_mean": "oracle, best mean", "held_out_single": "held-out oracle, single",
+             "held_out_mean": "held-out oracle, mean"}
+    cols = ["prior", *variants, *(oracle if has_oracle else ())]
+    lines = ["| set | inner train / validation rows | peer | "
+             + " | ".join(names.get(c, f"`{c}`") for c in cols) + " |",
+             "|---" * (3 + len(cols)) + "|"]
+    for r in data["rows"]:
+        values = {"prior": r["prior"], **{v: r["variants"][v]["mae"] for v in variants},
+                  **(r["oracle"] if has_oracle else {})}
+        lines.append(f"| `{r['set']}` | {r['train_rows']:,} / {r['validation_rows']:,} | "
+                     f"{r['peer']:.4g} | "
+                     + " | ".join(f"{values[c] / r['peer']:.3f}" for c in cols) + " |")
+    summary = data["summary"]
+    keys = [*variants, *(f"oracle:{k}" for k in oracle if has_oracle)]
+    mean = " | ".join(f"{summary[k]['mean_ratio_to_peer']:.3f}" for k in keys)
+    worst = " | ".join(f"{summary[k]['worst_ratio_to_peer']:.3f}" for k in keys)
+    prior = [r["prior"] / r["peer"] for r in data["rows"]]
+    lines.append(f"| mean | | | {sum(prior) / len(prior):.3f} | {mean} |")
+    lines.append(f"| worst | | | {max(prior):.3f} | {worst} |")
+    worse = ", ".join(f"`{v}` {summary[v]['worse_than_prior']}" for v in variants)
+    head = (f"Config `{data['config']}`; the peer: {data['trials']} Optuna trials; validation "
+            f"MAE / the peer's (1 = the peer; below 1 ahead of it). Sets where a variant is "
+            f"worse than the prior: {worse}.")
+    return "\n".join([_measured(data["measured"]), head, "", *lines])
+
+
 def outside(data: dict) -> str:
     """The recommended config against the prior and the peer on the outside sets
     (``benchmarks/outside.py``): one row per set, a win, tie or loss against the peer by the
@@ -331,6 +366,7 @@ def render_readme(text: str, res: dict) -> str:
 TABLES: dict[str, Callable[[dict], str]] = {"scaling": scaling, "bootstrap": bootstrap,
                                             "reference": reference, "peers": peers,
                                             "peer_bound": peer_bound, "outside": outside,
+                                            "peer_gap": peer_gap,
                                             "first_run": first_run, "suite_cost": suite_cost}
 #: What a block says before its JSON is written.
 NOT_MEASURED = "Not measured yet: `make bench` writes `benchmarks/results/{name}.json`."
