@@ -201,6 +201,13 @@ WORKER = textwrap.dedent("""
     from workbench.experiment.sweep.scheduler import run_study
     from workbench.experiment.sweep.storage import open_storage
     study = optuna.load_study(study_name="w", storage=open_storage(sys.argv[1], Path(".")))
+    # both workers start their trials together: under load one process's imports can
+    # outlast the other's twelve trials
+    ready = Path(sys.argv[2])
+    (ready / sys.argv[3]).touch()
+    deadline = time.monotonic() + 100
+    while len(list(ready.iterdir())) < 2 and time.monotonic() < deadline:
+        time.sleep(0.02)
     def objective(trial):
         time.sleep(0.05)
         return trial.suggest_float("x", -1, 1) ** 2
@@ -211,7 +218,10 @@ WORKER = textwrap.dedent("""
 def test_two_workers_finish_exactly_n_trials(tmp_path):
     journal = str(tmp_path / "w.journal")
     optuna.create_study(study_name="w", storage=open_storage(journal, tmp_path))
-    procs = [subprocess.Popen([sys.executable, "-c", WORKER, journal]) for _ in range(2)]
+    ready = tmp_path / "ready"
+    ready.mkdir()
+    procs = [subprocess.Popen([sys.executable, "-c", WORKER, journal, str(ready), str(i)])
+             for i in range(2)]
     assert [p.wait(timeout=120) for p in procs] == [0, 0]
     trials = optuna.load_study(study_name="w", storage=open_storage(journal, tmp_path)).get_trials()
     counted = [t for t in trials if is_counted(t)]
