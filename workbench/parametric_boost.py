@@ -31,20 +31,11 @@ from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .parallel import effective_n_jobs
-from .param_boost import (
-    _CURVATURE,
-    _NEWTON_SWITCH,
-    PARAM_LOSSES,
-    Coefficients,
-    _lasso_quadratic,
-    _normal_equations,
-    _weights,
-)
+from .param_engine import PARAM_LOSSES, Coefficients, gauss_newton
 from .param_select import SelectionResult, _fit_splits, _refit_select, _sliced, _splits
 from .parametric import (
     ModelError,
     ParametricModel,
-    cached_jacobian,
     check_model,
     resolve_model,
 )
@@ -285,11 +276,6 @@ class ParametricRegressor(Coefficients, RegressorMixin, BaseEstimator):
     def _theta(self, start: np.ndarray, phis: list[np.ndarray], c: np.ndarray) -> np.ndarray:
         return start + np.column_stack([phi @ c[sl] for phi, sl in zip(phis, self._slices)])
 
-    def _objective(self, r: np.ndarray, c: np.ndarray, penalty: np.ndarray) -> float:
-        data = PARAM_LOSSES[self.loss](r, self.huber_delta)[0].sum()
-        pc = penalty * c
-        return float(data + 0.5 * self.alpha * np.sum(pc * c) + self.alpha_l1 * np.abs(pc).sum())
-
     # ------------------------------------------------------------------ fitting
     def _setup(self, X: Any, y: Any) -> tuple[ParametricModel, np.ndarray, np.ndarray,
                                               list[np.ndarray]]:
@@ -362,57 +348,16 @@ class ParametricRegressor(Coefficients, RegressorMixin, BaseEstimator):
     def _gauss_newton(self, model: ParametricModel, X: pd.DataFrame, start: np.ndarray,
                       Y: np.ndarray, phis: list[np.ndarray], c: np.ndarray,
                       penalty: np.ndarray) -> np.ndarray:
-        """The robust, penalised Gauss-Newton fit (param_boost's normal equations)."""
-        P, K = len(phis), max(phi.shape[1] for phi in phis)
-        Phi = np.zeros((len(X), P, K))
-        sel: list[int] = []
-        for p, phi in enumerate(phis):
-            Phi[:, p, :phi.shape[1]] = phi
-            sel.extend(p * K + np.arange(phi.shape[1]))
-        sel_a = np.asarray(sel)
-        T = Y.shape[1]
-        r = Y - model.predict(self._theta(start, phis, c), X, T)
-        obj = self._objective(r, c, penalty)
-        history, n_iter, improvement = [obj], 0, np.inf
-        newton = False  # IRLS steps (a majorisation) until close; then the curvature
-        while n_iter < self.max_iter:
-            n_iter += 1
-            near = improvement < _NEWTON_SWITCH and self.loss in _CURVATURE
-            jac = cached_jacobian(model, self._theta(start, phis, c), X, T)
-            w, wr = _weights(self.loss, r, self.huber_delta, newton or near)
-            AtWA, AtWr = _normal_equations(jac, w, r, Phi, sel_a, wr=wr)
-            H = AtWA + self.alpha * np.diag(penalty)
-            g = AtWr - self.alpha * penalty * c
-            if self.alpha_l1 > 0:
-                dc = _lasso_quadratic(H, g + H @ c, self.alpha_l1 * penalty, c) - c
-            else:
-                try:
-                    dc = np.linalg.solve(H, g)
-                except np.linalg.LinAlgError:
-                    dc = np.linalg.lstsq(H, g, rcond=None)[0]
-            step, accepted = 1.0, False
-            for _ in range(30):
-                c_new = c + step * dc
-                value = _trial(model, self._theta(start, phis, c_new), X, T)
-                if value is None:  # outside the model's domain: a shorter step
-                    step *= 0.5
-                    continue
-                r_new = Y - value
-                obj_new = self._objective(r_new, c_new, penalty)
-                if obj_new <= obj:
-                    accepted = True
-                    break
-                step *= 0.5
-            if not accepted:
-                break
-            improvement = (obj - obj_new) / max(obj, np.finfo(float).tiny)
-            c, r, obj = c_new, r_new, obj_new
-            history.append(obj)
-            if improvement < self.tol:
-                break
-        self.n_iter_ = n_iter
-        self.train_loss_ = np.asarray(history)
-        return c
+        """The robust, penalised Gauss-Newton fit (:func:`~workbench.param_engine.gauss_newton`,
+        the engine the Hamiltonian family uses too): Newton weights once close to the optimum,
+        stopping where a step finds no decrease."""
+        fit = gauss_newton(model, X, start, Y, phis, c, penalty, loss=self.loss,
+                           huber_delta=self.huber_delta, alpha=self.alpha,
+                           alpha_l1=self.alpha_l1, max_iter=self.max_iter, tol=self.tol,
+                           solver="newton", irls_fallback=False)
+        self.n_iter_ = fit.n_iter
+        self.train_loss_ = fit.history
+        return fit.coef
 
     # ------------------------------------------------------------------ results
     def _corrected(self, X: pd.DataFrame) -> np.ndarray:
