@@ -469,26 +469,6 @@ class HamiltonianParameterRegressor(Coefficients, RegressorMixin, BaseEstimator)
             return model.predict_and_jacobian(theta, out=out)
         return model.predict(theta)
 
-    def _initial(self, coef_init: Any, index: list[tuple[str, str]]) -> np.ndarray:
-        c = np.zeros(len(index))
-        if coef_init is None:
-            return c
-        if isinstance(coef_init, pd.DataFrame) and "coef" in coef_init.columns:
-            coef_init = coef_init["coef"]
-        if isinstance(coef_init, pd.Series):
-            known = coef_init.to_dict()
-        elif isinstance(coef_init, dict):
-            known = coef_init
-        else:
-            raise ValueError("coef_init must be a fitted model's coef_ (a DataFrame or Series "
-                             "indexed by (parameter, covariate)) or a dict keyed by "
-                             f"(parameter, covariate), got {type(coef_init).__name__}")
-        for j, key in enumerate(index):
-            value = known.get(key)
-            if value is not None and np.isfinite(value):
-                c[j] = value
-        return c
-
     def _setup(self, X: pd.DataFrame, y: Any) -> tuple[np.ndarray, np.ndarray, list[np.ndarray],
                                                      list[tuple[str, str]], np.ndarray]:
         """Validate, resolve the covariates and build the design of the training rows."""
@@ -526,16 +506,8 @@ class HamiltonianParameterRegressor(Coefficients, RegressorMixin, BaseEstimator)
             p: ["intercept"] + [v if k == 1 else f"{v}^{k}" for v, k in self.terms_[p]]
             for p in self.parameter_names_}
         index = [(p, name) for p in self.parameter_names_ for name in self.covariate_names_[p]]
-        sizes = [phi.shape[1] for phi in phis]
-        ends = np.cumsum(sizes)
-        self._slices = [slice(e - s, e) for s, e in zip(sizes, ends)]
+        self._layout(phis)
         return theta0, y, phis, index, self._penalty()
-
-    def _penalty(self) -> np.ndarray:
-        """The ridge and L1 penalties' weight of each coefficient: 0 for the intercepts."""
-        penalty = np.ones(self._slices[-1].stop)
-        penalty[[s.start for s in self._slices]] = 0.0
-        return penalty
 
     def fit(self, X: pd.DataFrame, y: Any, coef_init: Any = None) -> Self:
         """Fit the coefficients on ``X`` (DataFrame) and ``y`` (n, N ascending eigenvalues).
@@ -547,7 +519,7 @@ class HamiltonianParameterRegressor(Coefficients, RegressorMixin, BaseEstimator)
         """
         theta0, y, phis, index, penalty = self._setup(X, y)
         fit = gauss_newton(self.model_, X, self._start(theta0), y, phis,
-                           self._initial(coef_init, index), penalty, loss=self.loss,
+                           self._coef_start(coef_init, index), penalty, loss=self.loss,
                            huber_delta=self.huber_delta, alpha=self.alpha,
                            alpha_l1=self.alpha_l1, max_iter=self.max_iter, tol=self.tol,
                            solver=self.solver)
@@ -581,20 +553,6 @@ class HamiltonianParameterRegressor(Coefficients, RegressorMixin, BaseEstimator)
         full = np.zeros((len(X), len(self.parameter_names_)))
         full[:, :theta0.shape[1]] = theta0
         return pd.DataFrame(full, columns=self.parameter_names_, index=X.index)
-
-    def coefficient_table(self) -> pd.DataFrame:
-        """The non-zero coefficients: parameter, covariate, coefficient in MHz per covariate sd
-        (``coef``) and, for non-intercept terms, the covariate's training sd (``covariate_sd``)."""
-        check_is_fitted(self)
-        rows = []
-        for p in self.parameter_names_:
-            sds = np.concatenate([[np.nan], self.col_scale_[p]])
-            for name, coef, sd in zip(self.covariate_names_[p], self._coef[self._slice_of(p)],
-                                      sds):
-                if coef != 0.0:
-                    rows.append(dict(parameter=p, covariate=name, coef=float(coef),
-                                     covariate_sd=float(sd)))
-        return pd.DataFrame(rows, columns=["parameter", "covariate", "coef", "covariate_sd"])
 
     def coef_jacobian(self, X: pd.DataFrame) -> np.ndarray:
         """``d predict(X)[j, k] / d coef[d]`` at the fitted coefficients, shape ``(n, N, D)``

@@ -151,13 +151,71 @@ def _normal_equations(jac: np.ndarray, w: np.ndarray, r: np.ndarray, Phi: np.nda
 
 
 class Coefficients:
-    """The fitted drift coefficients of a parameter-space regressor (``_coef``, ``_index``).
+    """The drift coefficients of a parameter-space regressor: their layout, start and table.
 
-    Shared by :class:`HamiltonianParameterRegressor` and the parametric regressors.
+    Shared by :class:`~workbench.param_boost.HamiltonianParameterRegressor` and
+    :class:`~workbench.parametric_boost.ParametricRegressor`: ``_index`` the
+    (parameter, covariate) of each coefficient, ``_slices`` each parameter's block,
+    ``_coef`` the fitted values; ``parameter_names_``, ``covariate_names_`` and
+    ``col_scale_`` (each parameter's covariates' training sd) are the regressor's.
     """
 
     _coef: np.ndarray
     _index: list[tuple[str, str]]
+    _slices: list[slice]
+    parameter_names_: list[str]
+    covariate_names_: dict[str, list[str]]
+    col_scale_: dict[str, np.ndarray]
+
+    def _layout(self, phis: list[np.ndarray]) -> None:
+        """Each parameter's block of coefficients (``_slices``) from its covariates."""
+        sizes = [phi.shape[1] for phi in phis]
+        ends = np.cumsum(sizes)
+        self._slices = [slice(e - s, e) for s, e in zip(sizes, ends)]
+
+    def _penalty(self) -> np.ndarray:
+        """The ridge and L1 penalties' weight of each coefficient: 0 for the intercepts."""
+        penalty = np.ones(self._slices[-1].stop)
+        penalty[[s.start for s in self._slices]] = 0.0
+        return penalty
+
+    @staticmethod
+    def _coef_start(coef_init: Any, index: list[tuple[str, str]]) -> np.ndarray:
+        """Starting coefficients: ``coef_init``'s (a fitted model's ``coef_``, a Series or a
+        dict keyed by (parameter, covariate)) where it has a finite value, else 0."""
+        c = np.zeros(len(index))
+        if coef_init is None:
+            return c
+        if isinstance(coef_init, pd.DataFrame) and "coef" in coef_init.columns:
+            coef_init = coef_init["coef"]
+        if isinstance(coef_init, pd.Series):
+            known = coef_init.to_dict()
+        elif isinstance(coef_init, dict):
+            known = coef_init
+        else:
+            raise ValueError("coef_init must be a fitted model's coef_ (a DataFrame or Series "
+                             "indexed by (parameter, covariate)) or a dict keyed by "
+                             f"(parameter, covariate), got {type(coef_init).__name__}")
+        for j, key in enumerate(index):
+            value = known.get(key)
+            if value is not None and np.isfinite(value):
+                c[j] = value
+        return c
+
+    def coefficient_table(self) -> pd.DataFrame:
+        """The non-zero coefficients: parameter, covariate, coefficient (``coef``, the
+        parameter's units per covariate sd: MHz for a Hamiltonian; an intercept is the
+        parameter's offset) and, for non-intercept terms, the covariate's training sd
+        (``covariate_sd``)."""
+        check_is_fitted(self)
+        rows = []
+        for p, sl in zip(self.parameter_names_, self._slices):
+            sds = np.concatenate([[np.nan], self.col_scale_[p]])
+            for name, coef, sd in zip(self.covariate_names_[p], self._coef[sl], sds):
+                if coef != 0.0:
+                    rows.append(dict(parameter=p, covariate=name, coef=float(coef),
+                                     covariate_sd=float(sd)))
+        return pd.DataFrame(rows, columns=["parameter", "covariate", "coef", "covariate_sd"])
 
     @property
     def coef_(self) -> pd.DataFrame:
@@ -230,8 +288,17 @@ def objective(r: np.ndarray, c: np.ndarray, penalty: np.ndarray, *, loss: str,
 
 @dataclass(frozen=True)
 class GaussNewtonFit:
-    """What :func:`gauss_newton` found: the coefficients, the iterations taken and the
-    objective at the start and after each accepted iteration."""
+    """What :func:`gauss_newton` found.
+
+    Parameters
+    ----------
+    coef : ndarray
+        The fitted coefficients, parameter by parameter.
+    n_iter : int
+        The iterations taken.
+    history : ndarray
+        The objective at the start and after each accepted iteration.
+    """
 
     coef: np.ndarray
     n_iter: int

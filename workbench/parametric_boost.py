@@ -298,9 +298,7 @@ class ParametricRegressor(Coefficients, RegressorMixin, BaseEstimator):
         self.n_targets_ = Y.shape[1]
         start = model.start(X)
         phis = self._design(X, fitting=True)
-        sizes = [phi.shape[1] for phi in phis]
-        ends = np.cumsum(sizes)
-        self._slices = [slice(e - s, e) for s, e in zip(sizes, ends)]
+        self._layout(phis)
         self._index = [(p, c) for p in model.names for c in self.covariate_names_[p]]
         return model, start, Y, phis
 
@@ -330,13 +328,9 @@ class ParametricRegressor(Coefficients, RegressorMixin, BaseEstimator):
         X = _as_frame(self, X, reset=True)
         model, start, Y, phis = self._setup(X, y)
         check_model(model, X, Y.shape[1], start)  # one line per way the model is unusable
-        penalty = np.ones(len(self._index))
-        penalty[[s.start for s in self._slices]] = 0.0
-        c = np.zeros(len(self._index))
-        if coef_init is not None:
-            known = dict(coef_init)
-            c = np.array([float(known.get(k, 0.0)) for k in self._index])
-        elif self.calibrate:
+        penalty = self._penalty()
+        c = self._coef_start(coef_init, self._index)
+        if coef_init is None and self.calibrate:
             c[[s.start for s in self._slices]] = self._calibrate(model, X, start, Y)
         self.calibration_ = pd.DataFrame({
             "parameter": model.names,
@@ -383,20 +377,6 @@ class ParametricRegressor(Coefficients, RegressorMixin, BaseEstimator):
         check_is_fitted(self)
         return pd.DataFrame(resolve_model(self.model).start(X), columns=self.parameter_names_,
                             index=X.index)
-
-    def coefficient_table(self) -> pd.DataFrame:
-        """The non-zero coefficients: parameter, covariate, coefficient (the parameter's
-        units per covariate sd; the intercept is the calibrated offset) and the covariate's
-        training sd."""
-        check_is_fitted(self)
-        rows = []
-        for p, sl in zip(self.parameter_names_, self._slices):
-            sds = np.concatenate([[np.nan], self.col_scale_[p]])
-            for name, coef, sd in zip(self.covariate_names_[p], self._coef[sl], sds):
-                if coef != 0.0:
-                    rows.append(dict(parameter=p, covariate=name, coef=float(coef),
-                                     covariate_sd=float(sd)))
-        return pd.DataFrame(rows, columns=["parameter", "covariate", "coef", "covariate_sd"])
 
     def __sklearn_tags__(self) -> Any:
         tags = super().__sklearn_tags__()
