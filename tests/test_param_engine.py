@@ -66,6 +66,10 @@ def test_one_engine_fits_both_families_alike(device):
     assert np.allclose(hamiltonian.coef_["coef"], parametric.coef_["coef"], rtol=1e-9,
                        atol=1e-9)
     assert np.allclose(hamiltonian.predict(test), parametric.predict(test), rtol=0, atol=1e-9)
+    # one core: the Gauss-Newton information of the coefficients is the same too
+    info = hamiltonian.information(test)
+    assert info.shape == (len(parametric.coef_),) * 2
+    assert np.allclose(info, parametric.information(test), rtol=1e-7, atol=1e-7)
     # the model file written from the model object (finite differences) fits the same
     from_file = ParametricModel.from_functions(*model.file_functions()[:2])
     again = ParametricRegressor(model=from_file, covariates=covariates, calibrate=False,

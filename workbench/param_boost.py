@@ -6,7 +6,9 @@ model's onsite frequencies and couplings (columns of ``X``) and the correction o
 parameter ``p`` is linear in a small covariate library, ``delta_p(x) = phi_p(x) . c_p``.
 The coefficients are fitted by (robust, regularised) Gauss-Newton with an exact
 re-diagonalisation at every iteration; the Jacobian comes from Hellmann-Feynman
-(:func:`workbench.hamiltonian.graph_spectrum`).
+(:func:`workbench.hamiltonian.graph_spectrum`). The fit is the parameter-space engine both
+families share: the regressor is :class:`workbench.param_engine.DriftRegressor` with the
+physics of :class:`workbench.hamiltonian.HamiltonianModel` and this family's covariates.
 
 The device is any :class:`~workbench.hamiltonian.CouplingGraph` (``edges``; default the
 nearest-neighbour chain), optionally with *parasitic* couplings the control model lacks
@@ -23,7 +25,6 @@ from typing import Any, Self
 
 import numpy as np
 import pandas as pd
-from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils._param_validation import Interval, Options, StrOptions
 from sklearn.utils.validation import check_is_fitted
 
@@ -34,6 +35,7 @@ from .param_engine import (  # noqa: F401  (re-exported: the engine's names were
     PARAM_LOSSES,
     SOLVERS,
     Coefficients,
+    DriftRegressor,
     _lasso_quadratic,
     _normal_equations,
     _weights,
@@ -200,7 +202,7 @@ def _parse(name: str, variables: Collection[str]) -> tuple[str, int]:
                      f"X's columns are {sorted(v for v in variables)}")
 
 
-class HamiltonianParameterRegressor(Coefficients, RegressorMixin, BaseEstimator):
+class HamiltonianParameterRegressor(DriftRegressor):
     """Multi-output regressor of a device's N eigenvalues via corrections of its Hamiltonian.
 
     ``predict(X)`` = ascending eigenvalues of ``sign * H(theta(X) + delta(X))`` with
@@ -443,10 +445,6 @@ class HamiltonianParameterRegressor(Coefficients, RegressorMixin, BaseEstimator)
         return padded(phis)
 
     # ------------------------------------------------------------------ model
-    def _objective(self, r: np.ndarray, c: np.ndarray, penalty: np.ndarray) -> float:
-        return objective(r, c, penalty, loss=self.loss, huber_delta=self.huber_delta,
-                         alpha=self.alpha, alpha_l1=self.alpha_l1)
-
     def _start(self, theta0: np.ndarray) -> np.ndarray:
         """The parameters' start values: the control values, 0 for parasitic couplings."""
         if theta0.shape[1] == len(self.parameter_names_):
@@ -454,20 +452,6 @@ class HamiltonianParameterRegressor(Coefficients, RegressorMixin, BaseEstimator)
         start = np.zeros((len(theta0), len(self.parameter_names_)))
         start[:, :theta0.shape[1]] = theta0
         return start
-
-    def _theta(self, theta0: np.ndarray, phis: list[np.ndarray], c: np.ndarray) -> np.ndarray:
-        """Corrected parameters: control values (0 for parasitic couplings) plus corrections."""
-        return self._start(theta0) + drift(phis, c)
-
-    def _spectrum(self, theta: np.ndarray, jacobian: bool = True,
-                  out: np.ndarray | None = None) -> Any:
-        model = getattr(self, "model_", None)
-        if model is None:  # a model pickled before model_ existed
-            model = HamiltonianModel(tuple(self.onsite_), tuple(self.couplings_), self.graph_,
-                                     tuple(self.parasitic_), self.sign)
-        if jacobian:
-            return model.predict_and_jacobian(theta, out=out)
-        return model.predict(theta)
 
     def _setup(self, X: pd.DataFrame, y: Any) -> tuple[np.ndarray, np.ndarray, list[np.ndarray],
                                                      list[tuple[str, str]], np.ndarray]:
@@ -518,14 +502,10 @@ class HamiltonianParameterRegressor(Coefficients, RegressorMixin, BaseEstimator)
         covariates lack are ignored (a warm start when covariates are added or removed).
         """
         theta0, y, phis, index, penalty = self._setup(X, y)
-        fit = gauss_newton(self.model_, X, self._start(theta0), y, phis,
-                           self._coef_start(coef_init, index), penalty, loss=self.loss,
-                           huber_delta=self.huber_delta, alpha=self.alpha,
-                           alpha_l1=self.alpha_l1, max_iter=self.max_iter, tol=self.tol,
-                           solver=self.solver)
-        self._coef, self._index = fit.coef, index
-        self.n_iter_ = fit.n_iter
-        self.train_loss_ = fit.history
+        self._fit_drift(self.model_, X, self._start(theta0), y, phis,
+                        self._coef_start(coef_init, index), penalty, solver=self.solver,
+                        irls_fallback=True)
+        self._index = index
         return self
 
     def _check_X(self, X: Any) -> None:
@@ -534,11 +514,20 @@ class HamiltonianParameterRegressor(Coefficients, RegressorMixin, BaseEstimator)
             raise ValueError("X must be a pandas DataFrame holding the onsite, coupling and "
                              f"covariate columns by name, got {type(X).__name__}")
 
-    def _corrected(self, X: pd.DataFrame) -> np.ndarray:
+    def _physics(self) -> HamiltonianModel:
+        model = getattr(self, "model_", None)
+        if model is None:  # a model pickled before model_ existed
+            model = HamiltonianModel(tuple(self.onsite_), tuple(self.couplings_), self.graph_,
+                                     tuple(self.parasitic_), self.sign)
+        return model
+
+    def _n_outputs(self) -> int:
+        return len(self.onsite_)
+
+    def _rows(self, X: Any) -> tuple[pd.DataFrame, np.ndarray, list[np.ndarray]]:
         self._check_X(X)
         theta0, variables = self._variables(X)
-        return self._theta(theta0, self._design(variables, len(theta0), fitting=False),
-                           self._coef)
+        return X, self._start(theta0), self._design(variables, len(theta0), fitting=False)
 
     def corrected_parameters(self, X: pd.DataFrame) -> pd.DataFrame:
         """``theta(X) + delta(X)``, columns named like the onsite and coupling inputs (and
@@ -554,31 +543,12 @@ class HamiltonianParameterRegressor(Coefficients, RegressorMixin, BaseEstimator)
         full[:, :theta0.shape[1]] = theta0
         return pd.DataFrame(full, columns=self.parameter_names_, index=X.index)
 
-    def coef_jacobian(self, X: pd.DataFrame) -> np.ndarray:
-        """``d predict(X)[j, k] / d coef[d]`` at the fitted coefficients, shape ``(n, N, D)``
-        (coefficients in :attr:`coef_`'s order): the Hellmann-Feynman Jacobian of the
-        eigenvalues times each parameter's covariates, the rows of the Gauss-Newton
-        design matrix."""
-        self._check_X(X)
-        theta0, variables = self._variables(X)
-        phis = self._design(variables, len(theta0), fitting=False)
-        jac = self._spectrum(self._theta(theta0, phis, self._coef))[1]
-        return np.concatenate([jac[:, :, p, None] * phi[:, None, :]
-                               for p, phi in enumerate(phis)], axis=2)
-
-    def information(self, X: pd.DataFrame) -> np.ndarray:
-        """The Gauss-Newton information of the coefficients from the rows of ``X``:
-        ``A^T A + alpha P`` (``A`` = :meth:`coef_jacobian`, ``P`` the ridge penalty's
-        diagonal: 0 for the intercepts), in units of the measurement noise's variance."""
-        A = self.coef_jacobian(X)
-        return np.einsum("nkd,nke->de", A, A) + self.alpha * np.diag(self._penalty())
-
     def _slice_of(self, p: str) -> slice:
         return self._slices[self.parameter_names_.index(p)]
 
     def predict(self, X: pd.DataFrame) -> np.ndarray:
         """Ascending eigenvalues of ``sign * H(theta(X) + delta(X))``, shape (n, N)."""
-        return self._spectrum(self._corrected(X), jacobian=False)
+        return self._physics().predict(self._corrected(X))
 
     def __sklearn_is_fitted__(self) -> bool:
         return hasattr(self, "_coef")

@@ -30,13 +30,14 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils.validation import check_is_fitted
 
 from .losses import AbsoluteError, Huber, SquaredError
 from .parametric import ModelError, cached_jacobian
 
-__all__ = ["PARAM_LOSSES", "SOLVERS", "Coefficients", "GaussNewtonFit", "drift", "gauss_newton",
-           "objective"]
+__all__ = ["PARAM_LOSSES", "SOLVERS", "Coefficients", "DriftRegressor", "GaussNewtonFit", "drift",
+           "gauss_newton", "objective"]
 
 
 def _squared(r: np.ndarray, delta: float) -> tuple[np.ndarray, np.ndarray]:
@@ -430,3 +431,92 @@ def gauss_newton(model: Any, data: pd.DataFrame, start: np.ndarray, Y: np.ndarra
         if improvement < tol:
             break
     return GaussNewtonFit(c, n_iter, np.asarray(history))
+
+
+class DriftRegressor(Coefficients, RegressorMixin, BaseEstimator):
+    """The one estimator core of the parameter-space families.
+
+    A physics model (a model object, :func:`gauss_newton`'s) at the parameters
+    ``start(X) + drift(X)``, ``drift_p(x) = phi_p(x) . c_p``, the coefficients fitted by
+    :func:`gauss_newton`. :class:`~workbench.param_boost.HamiltonianParameterRegressor` (the
+    Hamiltonian model, its covariate library of detunings, geometric means and parasitic
+    couplings) and :class:`~workbench.parametric_boost.ParametricRegressor` (a user's model,
+    covariates made of data columns, a calibration first) are this core with their own
+    covariates; a subclass provides ``_physics()`` (its model object), ``_n_outputs()`` and
+    ``_rows(X)`` (new rows' data, start values and covariates), and ends its ``fit`` in
+    :meth:`_fit_drift`. It has ``loss``, ``huber_delta``, ``alpha``, ``alpha_l1``,
+    ``max_iter`` and ``tol`` (:func:`gauss_newton`'s).
+    """
+
+    loss: str
+    huber_delta: float
+    alpha: float
+    alpha_l1: float
+    max_iter: int
+    tol: float
+
+    def _physics(self) -> Any:
+        raise NotImplementedError
+
+    def _n_outputs(self) -> int:
+        raise NotImplementedError
+
+    def _rows(self, X: Any) -> tuple[pd.DataFrame, np.ndarray, list[np.ndarray]]:
+        raise NotImplementedError
+
+    def _fit_drift(self, model: Any, X: pd.DataFrame, start: np.ndarray, Y: np.ndarray,
+                   phis: list[np.ndarray], coef: np.ndarray, penalty: np.ndarray, *,
+                   solver: str, irls_fallback: bool) -> None:
+        """Fit the coefficients (:func:`gauss_newton` with this regressor's settings) and
+        set ``_coef``, ``n_iter_`` and ``train_loss_``."""
+        fit = gauss_newton(model, X, start, Y, phis, coef, penalty, loss=self.loss,
+                           huber_delta=self.huber_delta, alpha=self.alpha,
+                           alpha_l1=self.alpha_l1, max_iter=self.max_iter, tol=self.tol,
+                           solver=solver, irls_fallback=irls_fallback)
+        self._coef = fit.coef
+        self.n_iter_ = fit.n_iter
+        self.train_loss_ = fit.history
+
+    def _corrected(self, X: Any) -> np.ndarray:
+        """The corrected parameters of each row, ``start + drift`` (rows, parameters)."""
+        _, start, phis = self._rows(X)
+        return start + drift(phis, self._coef)
+
+    def coef_jacobian(self, X: pd.DataFrame) -> np.ndarray:
+        """``d predict(X)[j, k] / d coef[d]`` at the fitted coefficients.
+
+        The model's Jacobian (a Hamiltonian's: Hellmann-Feynman) times each parameter's
+        covariates: the rows of the Gauss-Newton design matrix.
+
+        Parameters
+        ----------
+        X : DataFrame
+            The rows.
+
+        Returns
+        -------
+        ndarray of shape (rows, targets, coefficients)
+            In :attr:`coef_`'s order.
+        """
+        data, start, phis = self._rows(X)
+        jac = self._physics().jacobian(start + drift(phis, self._coef), data, self._n_outputs())
+        return np.concatenate([jac[:, :, p, None] * phi[:, None, :]
+                               for p, phi in enumerate(phis)], axis=2)
+
+    def information(self, X: pd.DataFrame) -> np.ndarray:
+        """The Gauss-Newton information of the coefficients from the rows of ``X``.
+
+        ``A^T A + alpha P`` (``A`` = :meth:`coef_jacobian`, ``P`` the ridge penalty's
+        diagonal: 0 for the intercepts), in units of the measurement noise's variance.
+
+        Parameters
+        ----------
+        X : DataFrame
+            The rows.
+
+        Returns
+        -------
+        ndarray of shape (coefficients, coefficients)
+        """
+        A = self.coef_jacobian(X)
+        return np.einsum("nkd,nke->de", A, A) + self.alpha * np.diag(self._penalty())

@@ -5,9 +5,12 @@
 ``delta_p(x) = phi_p(x) . c_p`` linear in standardised covariates (an intercept, the
 calibration offset, and the covariates it is given). It first calibrates the intercepts
 globally (Kennedy and O'Hagan's calibration: :func:`scipy.optimize.least_squares` with a
-robust loss), then fits every coefficient by the Gauss-Newton engine of the Hamiltonian
-family (:mod:`workbench.param_boost`: the same normal equations, IRLS weights, ridge and
-L1 penalties), with the model's Jacobian or central finite differences.
+robust loss), then fits every coefficient by the parameter-space engine the Hamiltonian
+family uses too (:class:`workbench.param_engine.DriftRegressor`: the same normal equations,
+IRLS and Newton weights, ridge and L1 penalties), with the model's Jacobian or central finite
+differences. The model may be a model object, e.g.
+:class:`workbench.hamiltonian.HamiltonianModel` (the Hamiltonian family's physics, with its
+Hellmann-Feynman Jacobian).
 
 :class:`ParametricBoostRegressor` chooses by cross-validation on the rows it is given among
 the prior (the model at its start values), the calibrated model (no drift) and linear
@@ -31,7 +34,7 @@ from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .parallel import effective_n_jobs
-from .param_engine import PARAM_LOSSES, Coefficients, gauss_newton
+from .param_engine import PARAM_LOSSES, DriftRegressor
 from .param_select import SelectionResult, _fit_splits, _refit_select, _sliced, _splits
 from .parametric import (
     ModelError,
@@ -135,7 +138,7 @@ def _trial(model: ParametricModel, theta: np.ndarray, X: pd.DataFrame,
         return None
 
 
-class ParametricRegressor(Coefficients, RegressorMixin, BaseEstimator):
+class ParametricRegressor(DriftRegressor):
     """A user's physics model with parameters calibrated and drifting linearly in covariates.
 
     ``predict(X) = f(start(X) + delta(X); X)``, ``delta_p(x) = c_p0 + sum_k c_pk z_pk(x)``:
@@ -273,10 +276,6 @@ class ParametricRegressor(Coefficients, RegressorMixin, BaseEstimator):
                                          (raw - self.col_mean_[p]) / self.col_scale_[p]]))
         return phis
 
-    def _theta(self, start: np.ndarray, phis: list[np.ndarray], c: np.ndarray) -> np.ndarray:
-        return start + np.column_stack([phi @ c[sl] for phi, sl in zip(phis, self._slices)])
-
-    # ------------------------------------------------------------------ fitting
     def _setup(self, X: Any, y: Any) -> tuple[ParametricModel, np.ndarray, np.ndarray,
                                               list[np.ndarray]]:
         model = resolve_model(self.model)
@@ -336,29 +335,22 @@ class ParametricRegressor(Coefficients, RegressorMixin, BaseEstimator):
             "parameter": model.names,
             "start": [v if isinstance(v, str) else float(v) for v in model.parameters.values()],
             "offset": c[[s.start for s in self._slices]]})
-        self._coef = self._gauss_newton(model, X, start, Y, phis, c, penalty)
+        # Newton weights once close to the optimum, stopping where a step finds no decrease
+        self._fit_drift(model, X, start, Y, phis, c, penalty, solver="newton",
+                        irls_fallback=False)
         return self
 
-    def _gauss_newton(self, model: ParametricModel, X: pd.DataFrame, start: np.ndarray,
-                      Y: np.ndarray, phis: list[np.ndarray], c: np.ndarray,
-                      penalty: np.ndarray) -> np.ndarray:
-        """The robust, penalised Gauss-Newton fit (:func:`~workbench.param_engine.gauss_newton`,
-        the engine the Hamiltonian family uses too): Newton weights once close to the optimum,
-        stopping where a step finds no decrease."""
-        fit = gauss_newton(model, X, start, Y, phis, c, penalty, loss=self.loss,
-                           huber_delta=self.huber_delta, alpha=self.alpha,
-                           alpha_l1=self.alpha_l1, max_iter=self.max_iter, tol=self.tol,
-                           solver="newton", irls_fallback=False)
-        self.n_iter_ = fit.n_iter
-        self.train_loss_ = fit.history
-        return fit.coef
-
     # ------------------------------------------------------------------ results
-    def _corrected(self, X: pd.DataFrame) -> np.ndarray:
+    def _physics(self) -> ParametricModel:
+        return resolve_model(self.model)
+
+    def _n_outputs(self) -> int:
+        return int(self.n_targets_)
+
+    def _rows(self, X: Any) -> tuple[pd.DataFrame, np.ndarray, list[np.ndarray]]:
         check_is_fitted(self)
         X = _as_frame(self, X, reset=False)
-        model = resolve_model(self.model)
-        return self._theta(model.start(X), self._design(X, fitting=False), self._coef)
+        return X, resolve_model(self.model).start(X), self._design(X, fitting=False)
 
     def predict(self, X: pd.DataFrame) -> np.ndarray:
         """The model at the corrected parameters: ``(rows,)`` if fitted on one-dimensional
