@@ -232,7 +232,7 @@ class Coefficients:
 
 
 def drift(phis: list[np.ndarray], c: np.ndarray) -> np.ndarray:
-    """The parameters' corrections ``phi_p . c_p``, shape ``(rows, parameters)``.
+    """Return the parameters' corrections, each parameter's covariates times its coefficients.
 
     Parameters
     ----------
