@@ -28,7 +28,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-__all__ = ["TOPOLOGIES", "CouplingGraph", "chain_hamiltonian", "chain_spectrum",
+from .parametric import ModelError
+
+__all__ = ["TOPOLOGIES", "CouplingGraph", "HamiltonianModel", "chain_hamiltonian", "chain_spectrum",
            "graph_hamiltonian", "graph_spectrum", "make_graph"]
 
 #: Named topologies of :func:`make_graph`.
@@ -565,3 +567,226 @@ def chain_spectrum(onsite: ArrayLike, couplings: ArrayLike,
         Their derivatives by the onsite terms, then the couplings.
     """
     return graph_spectrum(onsite, couplings, None, sign)
+
+
+@dataclass(frozen=True, eq=False)
+class HamiltonianModel:
+    """A device's spectrum as a physics model in the parametric contract.
+
+    The parameters are the onsite energies and the couplings of ``graph``'s edges, in that
+    order (:mod:`workbench.parametric`'s model object: ``names``, ``parameters``,
+    ``start``, ``predict``, ``jacobian``); ``predict`` is the ascending eigenvalues of
+    ``sign * H(theta)`` and ``jacobian`` their analytic Hellmann-Feynman derivatives (no
+    finite differences), ``predict_and_jacobian`` both from one eigendecomposition.
+    Each onsite and control coupling starts at the data column of its name (the control
+    program's value); a parasitic coupling (an edge the control model lacks) starts at 0.
+    :mod:`workbench.param_engine` fits its drifts, for
+    :class:`~workbench.param_boost.HamiltonianParameterRegressor` and for
+    :class:`~workbench.parametric_boost.ParametricRegressor` alike.
+
+    Parameters
+    ----------
+    onsite : tuple of str
+        The onsite parameters (data columns), in site order.
+    couplings : tuple of str
+        The control couplings (data columns), one per edge of ``graph`` after the sites',
+        in edge order.
+    graph : CouplingGraph
+        The device: the control edges, then the parasitic ones.
+    parasitic : tuple of str, default=()
+        The parasitic couplings' names, one per edge of ``graph`` beyond ``couplings``.
+    sign : {-1, 1}, default=-1
+        The spectrum is that of ``sign * H``.
+    """
+
+    onsite: tuple[str, ...]
+    couplings: tuple[str, ...]
+    graph: CouplingGraph
+    parasitic: tuple[str, ...] = ()
+    sign: int = -1
+
+    def __post_init__(self) -> None:
+        """Check that the names match the graph's sites and edges."""
+        if not isinstance(self.graph, CouplingGraph):
+            raise ValueError(f"graph must be a CouplingGraph, got {type(self.graph).__name__}")
+        if len(self.onsite) != self.graph.n_sites:
+            raise ValueError(f"the graph has {self.graph.n_sites} sites but {len(self.onsite)} "
+                             "onsite names")
+        if len(self.couplings) + len(self.parasitic) != self.graph.n_edges:
+            raise ValueError(f"the graph has {self.graph.n_edges} edges but "
+                             f"{len(self.couplings)} couplings and {len(self.parasitic)} "
+                             "parasitic couplings")
+        _check_sign(self.sign)
+
+    @classmethod
+    def chain(cls, onsite: Sequence[str], couplings: Sequence[str],
+              sign: int = -1) -> HamiltonianModel:
+        """The nearest-neighbour chain of ``onsite`` sites.
+
+        Parameters
+        ----------
+        onsite : sequence of str
+            The sites' onsite parameter columns (N names).
+        couplings : sequence of str
+            The couplings' columns (N - 1 names).
+        sign : int, default=-1
+            The spectrum's sign convention.
+
+        Returns
+        -------
+        HamiltonianModel
+            The chain's model.
+        """
+        return cls(tuple(onsite), tuple(couplings), CouplingGraph.chain(len(onsite)), (), sign)
+
+    @property
+    def source(self) -> str:
+        """How messages name the model."""
+        return f"hamiltonian ({self.graph.topology}, {self.graph.n_sites} sites)"
+
+    @property
+    def names(self) -> list[str]:
+        """The parameters' names: onsite, couplings, parasitic couplings."""
+        return [*self.onsite, *self.couplings, *self.parasitic]
+
+    @property
+    def parameters(self) -> dict[str, float | str]:
+        """Each parameter's start: its data column, or 0.0 for a parasitic coupling."""
+        return {**{p: p for p in (*self.onsite, *self.couplings)},
+                **{p: 0.0 for p in self.parasitic}}
+
+    def __repr__(self) -> str:
+        """The model's source and parameters."""
+        return f"HamiltonianModel({self.source!r}, parameters={self.names})"
+
+    def start(self, data: Any) -> np.ndarray:
+        """The control values of every row (0 for the parasitic couplings).
+
+        Parameters
+        ----------
+        data : DataFrame
+            The rows, with the onsite and coupling columns.
+
+        Returns
+        -------
+        ndarray of shape (rows, parameters)
+            The start values.
+        """
+        control = [*self.onsite, *self.couplings]
+        missing = [c for c in control if c not in data.columns]
+        if missing:
+            raise ModelError(f"model {self.source}: the data lack the parameter column(s) "
+                               f"{missing}")
+        out = np.zeros((len(data), len(self.names)))
+        try:
+            out[:, :len(control)] = data[control].to_numpy(dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise ModelError(f"model {self.source}: the parameter columns must be numeric: "
+                               f"{exc}") from None
+        if not np.all(np.isfinite(out)):
+            raise ModelError(f"model {self.source}: the parameter columns have missing "
+                               "values")
+        return out
+
+    def _targets(self, n_targets: int | None) -> None:
+        if n_targets is not None and n_targets != self.graph.n_sites:
+            raise ModelError(f"model {self.source}: its spectrum has {self.graph.n_sites} "
+                               f"eigenvalues, not {n_targets} targets")
+
+    def predict(self, theta: np.ndarray, data: Any = None,
+                n_targets: int | None = None) -> np.ndarray:
+        """Ascending eigenvalues of ``sign * H(theta)``.
+
+        Parameters
+        ----------
+        theta : ndarray of shape (rows, parameters)
+            The parameters per row, in :attr:`names`' order.
+        data : DataFrame, optional
+            The rows' data (unused: the spectrum depends on ``theta`` alone).
+        n_targets : int, optional
+            The number of targets the caller expects (checked against the sites).
+
+        Returns
+        -------
+        ndarray of shape (rows, sites)
+            The eigenvalues.
+        """
+        self._targets(n_targets)
+        N = self.graph.n_sites
+        return graph_spectrum(theta[:, :N], theta[:, N:], self.graph, self.sign,
+                              jacobian=False)
+
+    def predict_and_jacobian(self, theta: np.ndarray, data: Any = None,
+                             n_targets: int | None = None,
+                             out: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The eigenvalues and their Hellmann-Feynman Jacobian from one eigendecomposition.
+
+        Parameters
+        ----------
+        theta : ndarray of shape (rows, parameters)
+            The parameters per row, in :attr:`names`' order.
+        data : DataFrame, optional
+            The rows' data (unused: the spectrum depends on ``theta`` alone).
+        n_targets : int, optional
+            The number of targets the caller expects (checked against the sites).
+        out : ndarray of shape (rows, sites, parameters), optional
+            An array to write the Jacobian into.
+
+        Returns
+        -------
+        eigenvalues : ndarray of shape (rows, sites)
+            As :meth:`predict`'s.
+        jacobian : ndarray of shape (rows, sites, parameters)
+            As :meth:`jacobian`'s.
+        """
+        self._targets(n_targets)
+        N = self.graph.n_sites
+        return graph_spectrum(theta[:, :N], theta[:, N:], self.graph, self.sign,
+                              jacobian=True, out=out)
+
+    def jacobian(self, theta: np.ndarray, data: Any = None,
+                 n_targets: int | None = None) -> np.ndarray:
+        """``d eigenvalues / d theta`` (Hellmann-Feynman).
+
+        Parameters
+        ----------
+        theta : ndarray of shape (rows, parameters)
+            The parameters per row, in :attr:`names`' order.
+        data : DataFrame, optional
+            The rows' data (unused: the spectrum depends on ``theta`` alone).
+        n_targets : int, optional
+            The number of targets the caller expects (checked against the sites).
+
+        Returns
+        -------
+        ndarray of shape (rows, sites, parameters)
+            The Jacobian.
+        """
+        return self.predict_and_jacobian(theta, data, n_targets)[1]
+
+    def file_functions(self) -> tuple[dict[str, float | str], Any, Any]:
+        """``(PARAMETERS, predict, jacobian)`` of a model file (the contract's functions of
+        ``params``, a dict of per-row arrays, and ``data``), e.g. for
+        :meth:`workbench.parametric.ParametricModel.from_functions`.
+
+        Returns
+        -------
+        parameters : dict
+            Each parameter's start (:attr:`parameters`).
+        predict : callable
+            ``predict(params, data)``.
+        jacobian : callable
+            ``jacobian(params, data)``.
+        """
+        names = self.names
+
+        def stack(params: dict[str, Any]) -> np.ndarray:
+            return np.column_stack([np.asarray(params[p], dtype=float) for p in names])
+
+        def predict(params: dict[str, Any], data: Any) -> np.ndarray:
+            return self.predict(stack(params), data)
+
+        def jacobian(params: dict[str, Any], data: Any) -> np.ndarray:
+            return self.jacobian(stack(params), data)
+
+        return self.parameters, predict, jacobian

@@ -6,7 +6,9 @@ model's onsite frequencies and couplings (columns of ``X``) and the correction o
 parameter ``p`` is linear in a small covariate library, ``delta_p(x) = phi_p(x) . c_p``.
 The coefficients are fitted by (robust, regularised) Gauss-Newton with an exact
 re-diagonalisation at every iteration; the Jacobian comes from Hellmann-Feynman
-(:func:`workbench.hamiltonian.graph_spectrum`).
+(:func:`workbench.hamiltonian.graph_spectrum`). The fit is the parameter-space engine both
+families share: the regressor is :class:`workbench.param_engine.DriftRegressor` with the
+physics of :class:`workbench.hamiltonian.HamiltonianModel` and this family's covariates.
 
 The device is any :class:`~workbench.hamiltonian.CouplingGraph` (``edges``; default the
 nearest-neighbour chain), optionally with *parasitic* couplings the control model lacks
@@ -23,62 +25,19 @@ from typing import Any, Self
 
 import numpy as np
 import pandas as pd
-from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils._param_validation import Interval, Options, StrOptions
 from sklearn.utils.validation import check_is_fitted
 
-from .hamiltonian import PARASITIC_KINDS, CouplingGraph, graph_spectrum
-from .losses import AbsoluteError, Huber, SquaredError
+from .hamiltonian import PARASITIC_KINDS, CouplingGraph, HamiltonianModel
+from .param_engine import (
+    PARAM_LOSSES,
+    SOLVERS,
+    DriftRegressor,
+    padded,
+)
 
-__all__ = ["HamiltonianParameterRegressor", "PARAM_LOSSES", "default_library",
+__all__ = ["HamiltonianParameterRegressor", "default_library",
            "parasitic_names", "resolve_graph"]
-
-
-def _squared(r: np.ndarray, delta: float) -> tuple[np.ndarray, np.ndarray]:
-    return 0.5 * SquaredError().elementwise(r), np.ones_like(r)
-
-
-def _absolute(r: np.ndarray, delta: float) -> tuple[np.ndarray, np.ndarray]:
-    a = AbsoluteError().elementwise(r)
-    floor = 1e-4 * max(float(np.median(a)), 1e-12)  # IRLS weights 1/|r|, bounded
-    return a, 1.0 / np.maximum(a, floor)
-
-
-def _huber(r: np.ndarray, delta: float) -> tuple[np.ndarray, np.ndarray]:
-    """:class:`workbench.losses.Huber` with a fixed ``delta``; IRLS weight ``psi(r) / r``."""
-    h = Huber(delta=float(delta))
-    big = np.abs(r) > 1e-12
-    weight = np.ones_like(r)
-    np.divide(h.psi(r), r, out=weight, where=big)
-    return h.elementwise(r), weight
-
-
-#: Losses of the parameter-space fit by name (the names of :data:`workbench.LOSSES`):
-#: ``f(residual, huber_delta) -> (loss of each residual, IRLS weight of each residual)``.
-PARAM_LOSSES = {"squared_error": _squared, "absolute_error": _absolute, "huber": _huber}
-
-#: Curvature ``rho''(r)`` of the losses that have one (the Newton solver's weights).
-_CURVATURE = {"squared_error": lambda r, delta: np.ones_like(r),
-              "huber": lambda r, delta: (np.abs(r) <= delta).astype(float)}
-
-#: Gauss-Newton weightings of :class:`HamiltonianParameterRegressor` (``solver``).
-SOLVERS = ("irls", "newton")
-#: The Newton solver takes IRLS steps until an iteration improves the objective by less
-#: than this fraction: far from the optimum (most residuals beyond Huber's delta) the
-#: curvature model is poor and IRLS, a majorisation, does better.
-_NEWTON_SWITCH = 0.1
-
-
-def _weights(loss: str, r: np.ndarray, delta: float,
-             newton: bool) -> tuple[np.ndarray, np.ndarray]:
-    """Normal-equation weights and weighted residuals ``(w, w_r)``: ``w_r = psi(r)`` (the
-    loss's negative gradient) always; ``w = psi(r) / r`` (IRLS) or, with ``newton`` and a
-    loss with curvature, ``rho''(r)``."""
-    w = PARAM_LOSSES[loss](r, delta)[1]
-    wr = w * r
-    if newton and loss in _CURVATURE:
-        w = _CURVATURE[loss](r, delta)
-    return w, wr
 
 
 def _names(value: Any, what: str) -> list[str]:
@@ -253,99 +212,7 @@ def _parse(name: str, variables: Collection[str]) -> tuple[str, int]:
                      f"X's columns are {sorted(v for v in variables)}")
 
 
-def _soft(z: np.ndarray, t: np.ndarray | float) -> np.ndarray:
-    return np.sign(z) * np.maximum(np.abs(z) - t, 0.0)
-
-
-def _lasso_quadratic(H: np.ndarray, b: np.ndarray, l1: np.ndarray | float, x0: np.ndarray,
-                     max_iter: int = 20000, tol: float = 1e-9) -> np.ndarray:
-    """argmin_x 0.5 x'Hx - b'x + sum(l1 * |x|) for positive semi-definite ``H`` (FISTA)."""
-    lipschitz = max(float(np.linalg.eigvalsh(H)[-1]), 1e-300)
-    x, z, t = x0.copy(), x0.copy(), 1.0
-    for _ in range(max_iter):
-        x_new = _soft(z - (H @ z - b) / lipschitz, l1 / lipschitz)
-        t_new = 0.5 * (1.0 + np.sqrt(1.0 + 4.0 * t * t))
-        z = x_new + ((t - 1.0) / t_new) * (x_new - x)
-        done = np.abs(x_new - x).max() <= tol * max(1.0, np.abs(x_new).max())
-        x, t = x_new, t_new
-        if done:
-            break
-    return x
-
-
-def _normal_equations(jac: np.ndarray, w: np.ndarray, r: np.ndarray, Phi: np.ndarray,
-                      sel: np.ndarray, chunk_elements: int = 8_000_000,
-                      wr: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Gauss-Newton normal equations ``A^T W A`` and ``A^T W r`` (``A^T wr`` when ``wr``,
-    the weighted residuals, is given).
-
-    ``A[(j, k), (p, c)] = jac[j, k, p] * Phi[j, p, c]`` (``Phi`` padded to (n, P, K), ``sel``
-    the flat (p, c) positions of the real coefficients). ``A`` is never formed: with
-    ``M[j, p, q] = sum_k jac[j, k, p] w[j, k] jac[j, k, q]`` (P x P per row),
-    ``(A^T W A)[(p, c), (q, d)] = sum_j Phi[j, p, c] M[j, p, q] Phi[j, q, d]``, built one
-    parameter's block row at a time over chunks of about ``chunk_elements`` entries of ``M``:
-    O(n D^2 + n N P^2) instead of O(n N D^2) for D coefficients.
-    """
-    n, N, P = jac.shape
-    K = Phi.shape[2]
-    sel = np.asarray(sel)
-    pidx = sel // K
-    flat = Phi.reshape(n, P * K)
-    D = len(sel)
-    wr = w * r if wr is None else wr
-    s = np.matmul(wr[:, None, :], jac)[:, 0, :]  # (n, P): sum_k J w r
-    g = (flat[:, sel] * s[:, pidx]).sum(axis=0)
-    H = np.zeros((D, D))
-    bounds = np.r_[0, np.flatnonzero(np.diff(pidx)) + 1, D]  # block of each active param
-    params = pidx[bounds[:-1]]
-    step = max(1, chunk_elements // max(1, P * P, N * P))
-    buffer = np.empty((min(n, step), P, P)) if P >= 64 else None
-    for a in range(0, n, step):
-        sl = slice(a, min(n, a + step))
-        Jw = np.swapaxes(jac[sl] * w[sl, :, None], 1, 2)  # (m, P, N)
-        if buffer is None:
-            M = np.matmul(Jw, jac[sl])  # (m, P, P)
-        else:  # large blocks: one BLAS product per row beats numpy's stacked matmul
-            M = buffer[:len(Jw)]
-            for i, (left, right) in enumerate(zip(Jw, jac[sl])):
-                np.matmul(left, right, out=M[i])
-        F = flat[sl][:, sel]  # (m, D)
-        for b, p in enumerate(params):
-            lo, hi = bounds[b], bounds[b + 1]
-            H[lo:hi, lo:] += F[:, lo:hi].T @ (M[:, p, pidx[lo:]] * F[:, lo:])
-    H = np.triu(H) + np.triu(H, 1).T
-    return H, g
-
-
-class Coefficients:
-    """The fitted drift coefficients of a parameter-space regressor (``_coef``, ``_index``).
-
-    Shared by :class:`HamiltonianParameterRegressor` and the parametric regressors.
-    """
-
-    _coef: np.ndarray
-    _index: list[tuple[str, str]]
-
-    @property
-    def coef_(self) -> pd.DataFrame:
-        """One row per (parameter, covariate), column ``"coef"``."""
-        check_is_fitted(self)
-        index = pd.MultiIndex.from_tuples(self._index, names=["parameter", "covariate"])
-        return pd.DataFrame({"coef": self._coef}, index=index)
-
-    def coef_dict(self) -> dict[tuple[str, str], float]:
-        """``{(parameter, covariate): coefficient}`` (a cheap ``coef_init``).
-
-        Returns
-        -------
-        dict
-            ``(parameter, covariate)`` -> coefficient.
-        """
-        check_is_fitted(self)
-        return dict(zip(self._index, self._coef.tolist()))
-
-
-class HamiltonianParameterRegressor(Coefficients, RegressorMixin, BaseEstimator):
+class HamiltonianParameterRegressor(DriftRegressor):
     """Multi-output regressor of a device's N eigenvalues via corrections of its Hamiltonian.
 
     ``predict(X)`` = ascending eigenvalues of ``sign * H(theta(X) + delta(X))`` with
@@ -585,54 +452,16 @@ class HamiltonianParameterRegressor(Coefficients, RegressorMixin, BaseEstimator)
     def _padded(self, phis: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         """``phis`` as one (n, P, K) array (zero-padded) and the flat positions of the
         coefficients in it."""
-        n, K = len(phis[0]), max(phi.shape[1] for phi in phis)
-        Phi = np.zeros((n, len(phis), K))
-        sel = []
-        for p, phi in enumerate(phis):
-            Phi[:, p, :phi.shape[1]] = phi
-            sel.extend(p * K + np.arange(phi.shape[1]))
-        return Phi, np.asarray(sel)
+        return padded(phis)
 
     # ------------------------------------------------------------------ model
-    def _objective(self, r: np.ndarray, c: np.ndarray, penalty: np.ndarray) -> float:
-        data = PARAM_LOSSES[self.loss](r, self.huber_delta)[0].sum()
-        pc = penalty * c
-        return float(data + 0.5 * self.alpha * np.sum(pc * c) + self.alpha_l1 * np.abs(pc).sum())
-
-    def _delta(self, phis: list[np.ndarray], c: np.ndarray) -> np.ndarray:
-        return np.column_stack([phi @ c[sl] for phi, sl in zip(phis, self._slices)])
-
-    def _theta(self, theta0: np.ndarray, phis: list[np.ndarray], c: np.ndarray) -> np.ndarray:
-        """Corrected parameters: control values (0 for parasitic couplings) plus corrections."""
-        delta = self._delta(phis, c)
-        delta[:, :theta0.shape[1]] += theta0
-        return delta
-
-    def _spectrum(self, theta: np.ndarray, jacobian: bool = True,
-                  out: np.ndarray | None = None) -> Any:
-        N = len(self.onsite_)
-        return graph_spectrum(theta[:, :N], theta[:, N:], self.graph_, self.sign,
-                              jacobian=jacobian, out=out)
-
-    def _initial(self, coef_init: Any, index: list[tuple[str, str]]) -> np.ndarray:
-        c = np.zeros(len(index))
-        if coef_init is None:
-            return c
-        if isinstance(coef_init, pd.DataFrame) and "coef" in coef_init.columns:
-            coef_init = coef_init["coef"]
-        if isinstance(coef_init, pd.Series):
-            known = coef_init.to_dict()
-        elif isinstance(coef_init, dict):
-            known = coef_init
-        else:
-            raise ValueError("coef_init must be a fitted model's coef_ (a DataFrame or Series "
-                             "indexed by (parameter, covariate)) or a dict keyed by "
-                             f"(parameter, covariate), got {type(coef_init).__name__}")
-        for j, key in enumerate(index):
-            value = known.get(key)
-            if value is not None and np.isfinite(value):
-                c[j] = value
-        return c
+    def _start(self, theta0: np.ndarray) -> np.ndarray:
+        """The parameters' start values: the control values, 0 for parasitic couplings."""
+        if theta0.shape[1] == len(self.parameter_names_):
+            return theta0
+        start = np.zeros((len(theta0), len(self.parameter_names_)))
+        start[:, :theta0.shape[1]] = theta0
+        return start
 
     def _setup(self, X: pd.DataFrame, y: Any) -> tuple[np.ndarray, np.ndarray, list[np.ndarray],
                                                      list[tuple[str, str]], np.ndarray]:
@@ -647,6 +476,8 @@ class HamiltonianParameterRegressor(Coefficients, RegressorMixin, BaseEstimator)
         self.parasitic_ = extra
         self.graph_ = graph
         self.parameter_names_ = onsite + couplings + extra
+        self.model_ = HamiltonianModel(tuple(onsite), tuple(couplings), graph, tuple(extra),
+                                       self.sign)
         self._derived_ = self._derived(onsite, couplings, graph)
         self.terms_, self.columns_ = self._resolve_library(X, onsite, couplings, features,
                                                            library, extra)
@@ -669,16 +500,8 @@ class HamiltonianParameterRegressor(Coefficients, RegressorMixin, BaseEstimator)
             p: ["intercept"] + [v if k == 1 else f"{v}^{k}" for v, k in self.terms_[p]]
             for p in self.parameter_names_}
         index = [(p, name) for p in self.parameter_names_ for name in self.covariate_names_[p]]
-        sizes = [phi.shape[1] for phi in phis]
-        ends = np.cumsum(sizes)
-        self._slices = [slice(e - s, e) for s, e in zip(sizes, ends)]
+        self._layout(phis)
         return theta0, y, phis, index, self._penalty()
-
-    def _penalty(self) -> np.ndarray:
-        """The ridge and L1 penalties' weight of each coefficient: 0 for the intercepts."""
-        penalty = np.ones(self._slices[-1].stop)
-        penalty[[s.start for s in self._slices]] = 0.0
-        return penalty
 
     def fit(self, X: pd.DataFrame, y: Any, coef_init: Any = None) -> Self:
         """Fit the coefficients on ``X`` (DataFrame) and ``y`` (n, N ascending eigenvalues).
@@ -701,53 +524,10 @@ class HamiltonianParameterRegressor(Coefficients, RegressorMixin, BaseEstimator)
             The fitted model.
         """
         theta0, y, phis, index, penalty = self._setup(X, y)
-        Phi, sel = self._padded(phis)
-        c = self._initial(coef_init, index)
-        lam, jac = self._spectrum(self._theta(theta0, phis, c))
-        r = y - lam
-        obj = self._objective(r, c, penalty)
-        history, n_iter = [obj], 0
-        newton = self.solver == "newton" and self.loss in _CURVATURE
-        improvement, spare = np.inf, None
-        while n_iter < self.max_iter:
-            n_iter += 1
-            near = improvement < _NEWTON_SWITCH  # Newton steps once close to the optimum
-            w, wr = _weights(self.loss, r, self.huber_delta, newton and near)
-            AtWA, AtWr = _normal_equations(jac, w, r, Phi, sel, wr=wr)
-            H = AtWA + self.alpha * np.diag(penalty)
-            g = AtWr - self.alpha * penalty * c
-            if self.alpha_l1 > 0:
-                dc = _lasso_quadratic(H, g + H @ c, self.alpha_l1 * penalty, c) - c
-            else:
-                try:
-                    dc = np.linalg.solve(H, g)
-                except np.linalg.LinAlgError:  # singular (alpha = 0, collinear covariates)
-                    dc = np.linalg.lstsq(H, g, rcond=None)[0]
-            step, accepted = 1.0, False
-            for _ in range(30):
-                c_new = c + step * dc
-                lam_new, jac_new = self._spectrum(self._theta(theta0, phis, c_new), out=spare)
-                r_new = y - lam_new
-                obj_new = self._objective(r_new, c_new, penalty)
-                if obj_new <= obj:
-                    accepted = True
-                    break
-                spare = jac_new
-                step *= 0.5
-            if not accepted:
-                if newton and near:  # the curvature model failed here: IRLS from now on
-                    newton, n_iter = False, n_iter - 1
-                    continue
-                break
-            improvement = (obj - obj_new) / max(obj, np.finfo(float).tiny)
-            spare = jac  # the Jacobians alternate between two arrays (no fresh pages)
-            c, r, jac, obj = c_new, r_new, jac_new, obj_new
-            history.append(obj)
-            if improvement < self.tol:
-                break
-        self._coef, self._index = c, index
-        self.n_iter_ = n_iter
-        self.train_loss_ = np.asarray(history)
+        self._fit_drift(self.model_, X, self._start(theta0), y, phis,
+                        self._coef_start(coef_init, index), penalty, solver=self.solver,
+                        irls_fallback=True)
+        self._index = index
         return self
 
     def _check_X(self, X: Any) -> None:
@@ -756,11 +536,20 @@ class HamiltonianParameterRegressor(Coefficients, RegressorMixin, BaseEstimator)
             raise ValueError("X must be a pandas DataFrame holding the onsite, coupling and "
                              f"covariate columns by name, got {type(X).__name__}")
 
-    def _corrected(self, X: pd.DataFrame) -> np.ndarray:
+    def _physics(self) -> HamiltonianModel:
+        model = getattr(self, "model_", None)
+        if model is None:  # a model pickled before model_ existed
+            model = HamiltonianModel(tuple(self.onsite_), tuple(self.couplings_), self.graph_,
+                                     tuple(self.parasitic_), self.sign)
+        return model
+
+    def _n_outputs(self) -> int:
+        return len(self.onsite_)
+
+    def _rows(self, X: Any) -> tuple[pd.DataFrame, np.ndarray, list[np.ndarray]]:
         self._check_X(X)
         theta0, variables = self._variables(X)
-        return self._theta(theta0, self._design(variables, len(theta0), fitting=False),
-                           self._coef)
+        return X, self._start(theta0), self._design(variables, len(theta0), fitting=False)
 
     def corrected_parameters(self, X: pd.DataFrame) -> pd.DataFrame:
         """``theta(X) + delta(X)``, columns named like the onsite and coupling inputs (and
@@ -798,72 +587,11 @@ class HamiltonianParameterRegressor(Coefficients, RegressorMixin, BaseEstimator)
         full[:, :theta0.shape[1]] = theta0
         return pd.DataFrame(full, columns=self.parameter_names_, index=X.index)
 
-    def coefficient_table(self) -> pd.DataFrame:
-        """The non-zero coefficients: parameter, covariate, coefficient in MHz per covariate sd
-        (``coef``) and, for non-intercept terms, the covariate's training sd (``covariate_sd``).
-
-        Returns
-        -------
-        pandas.DataFrame
-            Columns ``parameter``, ``covariate``, ``coef``, ``covariate_sd``.
-        """
-        check_is_fitted(self)
-        rows = []
-        for p in self.parameter_names_:
-            sds = np.concatenate([[np.nan], self.col_scale_[p]])
-            for name, coef, sd in zip(self.covariate_names_[p], self._coef[self._slice_of(p)],
-                                      sds):
-                if coef != 0.0:
-                    rows.append(dict(parameter=p, covariate=name, coef=float(coef),
-                                     covariate_sd=float(sd)))
-        return pd.DataFrame(rows, columns=["parameter", "covariate", "coef", "covariate_sd"])
-
-    def coef_jacobian(self, X: pd.DataFrame) -> np.ndarray:
-        """``d predict(X)[j, k] / d coef[d]`` at the fitted coefficients, shape ``(n, N, D)``
-        (coefficients in :attr:`coef_`'s order): the Hellmann-Feynman Jacobian of the
-        eigenvalues times each parameter's covariates, the rows of the Gauss-Newton
-        design matrix.
-
-        Parameters
-        ----------
-        X : pandas.DataFrame of shape (n_samples, n_features)
-            The onsite, coupling and covariate columns, by name.
-
-        Returns
-        -------
-        ndarray of shape (n_samples, N, D)
-            The Jacobian.
-        """
-        self._check_X(X)
-        theta0, variables = self._variables(X)
-        phis = self._design(variables, len(theta0), fitting=False)
-        jac = self._spectrum(self._theta(theta0, phis, self._coef))[1]
-        return np.concatenate([jac[:, :, p, None] * phi[:, None, :]
-                               for p, phi in enumerate(phis)], axis=2)
-
-    def information(self, X: pd.DataFrame) -> np.ndarray:
-        """The Gauss-Newton information of the coefficients from the rows of ``X``:
-        ``A^T A + alpha P`` (``A`` = :meth:`coef_jacobian`, ``P`` the ridge penalty's
-        diagonal: 0 for the intercepts), in units of the measurement noise's variance.
-
-        Parameters
-        ----------
-        X : pandas.DataFrame of shape (n_samples, n_features)
-            The onsite, coupling and covariate columns, by name.
-
-        Returns
-        -------
-        ndarray of shape (D, D)
-            The information matrix.
-        """
-        A = self.coef_jacobian(X)
-        return np.einsum("nkd,nke->de", A, A) + self.alpha * np.diag(self._penalty())
-
     def _slice_of(self, p: str) -> slice:
         return self._slices[self.parameter_names_.index(p)]
 
     def predict(self, X: pd.DataFrame) -> np.ndarray:
-        """Ascending eigenvalues of ``sign * H(theta(X) + delta(X))``, shape (n, N).
+        """Ascending eigenvalues of ``sign * H(theta(X) + delta(X))``.
 
         Parameters
         ----------
@@ -875,7 +603,7 @@ class HamiltonianParameterRegressor(Coefficients, RegressorMixin, BaseEstimator)
         ndarray of shape (n_samples, N)
             The predicted eigenvalues.
         """
-        return self._spectrum(self._corrected(X), jacobian=False)
+        return self._physics().predict(self._corrected(X))
 
     def __sklearn_is_fitted__(self) -> bool:
         """Tell scikit-learn whether :meth:`fit` has run."""

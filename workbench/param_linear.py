@@ -23,13 +23,12 @@ from .hamiltonian import _hellmann_feynman
 from .param_boost import (
     HamiltonianParameterRegressor,
     _columns,
-    _normal_equations,
     _parse,
-    _weights,
     parasitic_names,
     product_factors,
     resolve_graph,
 )
+from .param_engine import _normal_equations, _weights
 
 __all__ = ["linear_scores"]
 

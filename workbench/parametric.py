@@ -391,21 +391,29 @@ def load_model(path: str | os.PathLike[str]) -> ParametricModel:
     return model
 
 
+#: What a model object has (:class:`ParametricModel`'s interface; the parameter-space engine
+#: and the parametric regressors use nothing else).
+_INTERFACE = ("names", "parameters", "source", "start", "predict", "jacobian")
+
+
 def resolve_model(model: Any) -> ParametricModel:
     """Return a :class:`ParametricModel` from a model or the path of a model file.
 
     Parameters
     ----------
-    model : ParametricModel, str or path-like
-        The model, or its file.
+    model : ParametricModel, model object, str or path-like
+        The model (or any object with its interface: ``names``, ``parameters``,
+        ``source``, ``start``, ``predict`` and ``jacobian``, as
+        :class:`workbench.hamiltonian.HamiltonianModel`), or its file.
 
     Returns
     -------
     ParametricModel
         The model.
     """
-    if isinstance(model, ParametricModel):
-        return model
+    if isinstance(model, ParametricModel) or all(
+            hasattr(model, name) for name in _INTERFACE):
+        return model  # a model object, e.g. workbench.hamiltonian.HamiltonianModel
     if isinstance(model, (str, os.PathLike)):
         return load_model(model)
     raise ModelError("model must be the path of a model file or a ParametricModel, got "

@@ -5,9 +5,12 @@
 ``delta_p(x) = phi_p(x) . c_p`` linear in standardised covariates (an intercept, the
 calibration offset, and the covariates it is given). It first calibrates the intercepts
 globally (Kennedy and O'Hagan's calibration: :func:`scipy.optimize.least_squares` with a
-robust loss), then fits every coefficient by the Gauss-Newton engine of the Hamiltonian
-family (:mod:`workbench.param_boost`: the same normal equations, IRLS weights, ridge and
-L1 penalties), with the model's Jacobian or central finite differences.
+robust loss), then fits every coefficient by the parameter-space engine the Hamiltonian
+family uses too (:class:`workbench.param_engine.DriftRegressor`: the same normal equations,
+IRLS and Newton weights, ridge and L1 penalties), with the model's Jacobian or central finite
+differences. The model may be a model object, e.g.
+:class:`workbench.hamiltonian.HamiltonianModel` (the Hamiltonian family's physics, with its
+Hellmann-Feynman Jacobian).
 
 :class:`ParametricBoostRegressor` chooses by cross-validation on the rows it is given among
 the prior (the model at its start values), the calibrated model (no drift) and linear
@@ -31,26 +34,16 @@ from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .parallel import effective_n_jobs
-from .param_boost import (
-    _CURVATURE,
-    _NEWTON_SWITCH,
-    PARAM_LOSSES,
-    Coefficients,
-    _lasso_quadratic,
-    _normal_equations,
-    _weights,
-)
+from .param_engine import PARAM_LOSSES, DriftRegressor
 from .param_select import SelectionResult, _fit_splits, _refit_select, _sliced, _splits
 from .parametric import (
     ModelError,
     ParametricModel,
-    cached_jacobian,
     check_model,
     resolve_model,
 )
-from .parametric_gbm import boost_candidate
 
-__all__ = ["ParametricBoostRegressor", "ParametricRegressor", "covariate_pool"]
+__all__ = ["ParametricBoostRegressor", "ParametricRegressor", "boost_candidate", "covariate_pool"]
 
 #: scipy's robust losses for the calibration, by the regressor's ``loss``.
 _SCIPY_LOSS = {"squared_error": "linear", "absolute_error": "soft_l1", "huber": "huber"}
@@ -145,7 +138,7 @@ def _trial(model: ParametricModel, theta: np.ndarray, X: pd.DataFrame,
         return None
 
 
-class ParametricRegressor(Coefficients, RegressorMixin, BaseEstimator):
+class ParametricRegressor(DriftRegressor):
     """A user's physics model with parameters calibrated and drifting linearly in covariates.
 
     ``predict(X) = f(start(X) + delta(X); X)``, ``delta_p(x) = c_p0 + sum_k c_pk z_pk(x)``:
@@ -283,15 +276,6 @@ class ParametricRegressor(Coefficients, RegressorMixin, BaseEstimator):
                                          (raw - self.col_mean_[p]) / self.col_scale_[p]]))
         return phis
 
-    def _theta(self, start: np.ndarray, phis: list[np.ndarray], c: np.ndarray) -> np.ndarray:
-        return start + np.column_stack([phi @ c[sl] for phi, sl in zip(phis, self._slices)])
-
-    def _objective(self, r: np.ndarray, c: np.ndarray, penalty: np.ndarray) -> float:
-        data = PARAM_LOSSES[self.loss](r, self.huber_delta)[0].sum()
-        pc = penalty * c
-        return float(data + 0.5 * self.alpha * np.sum(pc * c) + self.alpha_l1 * np.abs(pc).sum())
-
-    # ------------------------------------------------------------------ fitting
     def _setup(self, X: Any, y: Any) -> tuple[ParametricModel, np.ndarray, np.ndarray,
                                               list[np.ndarray]]:
         model = resolve_model(self.model)
@@ -313,9 +297,7 @@ class ParametricRegressor(Coefficients, RegressorMixin, BaseEstimator):
         self.n_targets_ = Y.shape[1]
         start = model.start(X)
         phis = self._design(X, fitting=True)
-        sizes = [phi.shape[1] for phi in phis]
-        ends = np.cumsum(sizes)
-        self._slices = [slice(e - s, e) for s, e in zip(sizes, ends)]
+        self._layout(phis)
         self._index = [(p, c) for p in model.names for c in self.covariate_names_[p]]
         return model, start, Y, phis
 
@@ -358,82 +340,30 @@ class ParametricRegressor(Coefficients, RegressorMixin, BaseEstimator):
         X = _as_frame(self, X, reset=True)
         model, start, Y, phis = self._setup(X, y)
         check_model(model, X, Y.shape[1], start)  # one line per way the model is unusable
-        penalty = np.ones(len(self._index))
-        penalty[[s.start for s in self._slices]] = 0.0
-        c = np.zeros(len(self._index))
-        if coef_init is not None:
-            known = dict(coef_init)
-            c = np.array([float(known.get(k, 0.0)) for k in self._index])
-        elif self.calibrate:
+        penalty = self._penalty()
+        c = self._coef_start(coef_init, self._index)
+        if coef_init is None and self.calibrate:
             c[[s.start for s in self._slices]] = self._calibrate(model, X, start, Y)
         self.calibration_ = pd.DataFrame({
             "parameter": model.names,
             "start": [v if isinstance(v, str) else float(v) for v in model.parameters.values()],
             "offset": c[[s.start for s in self._slices]]})
-        self._coef = self._gauss_newton(model, X, start, Y, phis, c, penalty)
+        # Newton weights once close to the optimum, stopping where a step finds no decrease
+        self._fit_drift(model, X, start, Y, phis, c, penalty, solver="newton",
+                        irls_fallback=False)
         return self
 
-    def _gauss_newton(self, model: ParametricModel, X: pd.DataFrame, start: np.ndarray,
-                      Y: np.ndarray, phis: list[np.ndarray], c: np.ndarray,
-                      penalty: np.ndarray) -> np.ndarray:
-        """The robust, penalised Gauss-Newton fit (param_boost's normal equations)."""
-        P, K = len(phis), max(phi.shape[1] for phi in phis)
-        Phi = np.zeros((len(X), P, K))
-        sel: list[int] = []
-        for p, phi in enumerate(phis):
-            Phi[:, p, :phi.shape[1]] = phi
-            sel.extend(p * K + np.arange(phi.shape[1]))
-        sel_a = np.asarray(sel)
-        T = Y.shape[1]
-        r = Y - model.predict(self._theta(start, phis, c), X, T)
-        obj = self._objective(r, c, penalty)
-        history, n_iter, improvement = [obj], 0, np.inf
-        newton = False  # IRLS steps (a majorisation) until close; then the curvature
-        while n_iter < self.max_iter:
-            n_iter += 1
-            near = improvement < _NEWTON_SWITCH and self.loss in _CURVATURE
-            jac = cached_jacobian(model, self._theta(start, phis, c), X, T)
-            w, wr = _weights(self.loss, r, self.huber_delta, newton or near)
-            AtWA, AtWr = _normal_equations(jac, w, r, Phi, sel_a, wr=wr)
-            H = AtWA + self.alpha * np.diag(penalty)
-            g = AtWr - self.alpha * penalty * c
-            if self.alpha_l1 > 0:
-                dc = _lasso_quadratic(H, g + H @ c, self.alpha_l1 * penalty, c) - c
-            else:
-                try:
-                    dc = np.linalg.solve(H, g)
-                except np.linalg.LinAlgError:
-                    dc = np.linalg.lstsq(H, g, rcond=None)[0]
-            step, accepted = 1.0, False
-            for _ in range(30):
-                c_new = c + step * dc
-                value = _trial(model, self._theta(start, phis, c_new), X, T)
-                if value is None:  # outside the model's domain: a shorter step
-                    step *= 0.5
-                    continue
-                r_new = Y - value
-                obj_new = self._objective(r_new, c_new, penalty)
-                if obj_new <= obj:
-                    accepted = True
-                    break
-                step *= 0.5
-            if not accepted:
-                break
-            improvement = (obj - obj_new) / max(obj, np.finfo(float).tiny)
-            c, r, obj = c_new, r_new, obj_new
-            history.append(obj)
-            if improvement < self.tol:
-                break
-        self.n_iter_ = n_iter
-        self.train_loss_ = np.asarray(history)
-        return c
-
     # ------------------------------------------------------------------ results
-    def _corrected(self, X: pd.DataFrame) -> np.ndarray:
+    def _physics(self) -> ParametricModel:
+        return resolve_model(self.model)
+
+    def _n_outputs(self) -> int:
+        return int(self.n_targets_)
+
+    def _rows(self, X: Any) -> tuple[pd.DataFrame, np.ndarray, list[np.ndarray]]:
         check_is_fitted(self)
         X = _as_frame(self, X, reset=False)
-        model = resolve_model(self.model)
-        return self._theta(model.start(X), self._design(X, fitting=False), self._coef)
+        return X, resolve_model(self.model).start(X), self._design(X, fitting=False)
 
     def predict(self, X: pd.DataFrame) -> np.ndarray:
         """The model at the corrected parameters: ``(rows,)`` if fitted on one-dimensional
@@ -485,26 +415,6 @@ class ParametricRegressor(Coefficients, RegressorMixin, BaseEstimator):
         check_is_fitted(self)
         return pd.DataFrame(resolve_model(self.model).start(X), columns=self.parameter_names_,
                             index=X.index)
-
-    def coefficient_table(self) -> pd.DataFrame:
-        """The non-zero coefficients: parameter, covariate, coefficient (the parameter's
-        units per covariate sd; the intercept is the calibrated offset) and the covariate's
-        training sd.
-
-        Returns
-        -------
-        pandas.DataFrame
-            Columns ``parameter``, ``covariate``, ``coef``, ``covariate_sd``.
-        """
-        check_is_fitted(self)
-        rows = []
-        for p, sl in zip(self.parameter_names_, self._slices):
-            sds = np.concatenate([[np.nan], self.col_scale_[p]])
-            for name, coef, sd in zip(self.covariate_names_[p], self._coef[sl], sds):
-                if coef != 0.0:
-                    rows.append(dict(parameter=p, covariate=name, coef=float(coef),
-                                     covariate_sd=float(sd)))
-        return pd.DataFrame(rows, columns=["parameter", "covariate", "coef", "covariate_sd"])
 
     def __sklearn_tags__(self) -> Any:
         """Multi-output: one column per target of the user's model."""
@@ -762,3 +672,49 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
     def __sklearn_is_fitted__(self) -> bool:
         """Tell scikit-learn whether :meth:`fit` has run."""
         return hasattr(self, "estimator_")
+
+
+def boost_candidate(template: Any, folds: list[tuple],
+                    drift: Any = None) -> tuple[Any, float, np.ndarray]:
+    """Score ``template`` by CV on the sliced ``folds`` (``(X_fit, y_fit, X_val, y_val)``).
+
+    Each fold is fitted with ``template.n_estimators`` rounds; the CV MAE after every round
+    (the mean over all held-out values, from the staged predictions) chooses the rounds.
+    A template with ``init="drift"`` starts from ``drift`` (an unfitted ParametricRegressor
+    with the selected covariates; None: the calibrated model).
+
+    Parameters
+    ----------
+    template : ParameterSpaceBoostRegressor
+        The unfitted candidate (:mod:`workbench.parametric_gbm`; its ``n_estimators``:
+        the most rounds).
+    folds : list of tuple
+        ``(X_fit, y_fit, X_val, y_val)`` per fold.
+    drift : ParametricRegressor, optional
+        The start of an ``init="drift"`` template.
+
+    Returns
+    -------
+    estimator : ParameterSpaceBoostRegressor
+        ``template`` with ``n_estimators`` the chosen rounds (unfitted).
+    cv_mae : float
+        Its CV MAE.
+    curve : ndarray
+        The CV MAE after 0, 1, ... rounds.
+    """
+    if isinstance(template.init, str):
+        template = clone(template).set_params(init=drift)
+    n = template.n_estimators + 1
+    abs_sum, count = np.zeros(n), 0
+    for X_fit, y_fit, X_val, y_val in folds:
+        fitted = clone(template).fit(X_fit, y_fit)
+        y_val = np.asarray(y_val, dtype=float)
+        last = 0.0
+        for m, pred in enumerate(fitted.staged_predict(X_val)):
+            last = float(np.abs(np.reshape(pred, y_val.shape) - y_val).sum())
+            abs_sum[m] += last
+        abs_sum[fitted.n_iter_ + 1:] += last  # a fold that stopped early keeps its last
+        count += y_val.size
+    curve = abs_sum / count
+    rounds = int(np.argmin(curve))
+    return clone(template).set_params(n_estimators=rounds), float(curve[rounds]), curve

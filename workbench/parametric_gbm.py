@@ -15,8 +15,8 @@ second-order boosting of LightGBM and XGBoost, done per parameter);
 shrinkage ``nu`` (``learning_rate``) follow; ``update="greedy"`` moves only the parameter
 whose step lowers the loss most in each round.
 
-:func:`boost_candidate` scores such a template by CV on given folds, choosing the number of
-rounds from the folds' staged predictions
+:func:`workbench.parametric_boost.boost_candidate` scores such a template by CV on given
+folds, choosing the number of rounds from the folds' staged predictions
 (:class:`~workbench.parametric_boost.ParametricBoostRegressor`'s ``boost`` candidate).
 """
 
@@ -36,10 +36,11 @@ from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted, has_fit_parameter
 
 from .bases import basis_names, make_basis
-from .param_boost import PARAM_LOSSES
+from .param_engine import PARAM_LOSSES
 from .parametric import ParametricModel, check_model, resolve_model
+from .parametric_boost import ParametricRegressor, _as_frame, _targets, _trial
 
-__all__ = ["ParameterSpaceBoostRegressor", "boost_candidate", "make_regressor"]
+__all__ = ["ParameterSpaceBoostRegressor", "make_regressor"]
 
 _MODEL = [None, str, HasMethods(["predict", "jacobian", "start"])]
 
@@ -76,9 +77,7 @@ def make_regressor(name: str, params: dict[str, Any] | None = None) -> Any:
 
 
 def _frame(est: BaseEstimator, X: Any, reset: bool) -> pd.DataFrame:
-    from .parametric_boost import _as_frame  # the same input rules as the family's
-
-    return _as_frame(est, X, reset)
+    return _as_frame(est, X, reset)  # the same input rules as the family's
 
 
 def _loss(loss: str, r: np.ndarray, delta: float) -> float:
@@ -99,7 +98,8 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
     init : ParametricRegressor or "drift", default=None
         The start ``theta_0`` (fitted on the same rows; e.g. a linear drift); None: the
         calibrated model (``ParametricRegressor(max_iter=0)`` with this ``loss``);
-        ``"drift"``: the linear drift a choice selects (:func:`boost_candidate` replaces it).
+        ``"drift"``: the linear drift a choice selects
+        (:func:`~workbench.parametric_boost.boost_candidate` replaces it).
     parameters : list of str, default=None
         The parameters boosted (None: all).
     features : list of str, default=None
@@ -180,8 +180,6 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
 
     # ------------------------------------------------------------------ fitting
     def _start(self, X: pd.DataFrame, Y: np.ndarray) -> Any:
-        from .parametric_boost import ParametricRegressor
-
         if isinstance(self.init, str):
             raise ValueError("init='drift' is the drift a ParametricBoostRegressor selects; "
                              "alone, pass a ParametricRegressor with covariates")
@@ -207,8 +205,6 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
         self
             The fitted estimator.
         """
-        from .parametric_boost import _targets
-
         self._validate_params()
         if self.model is None:
             raise ValueError("ParameterSpaceBoostRegressor needs a model: a model file's "
@@ -303,8 +299,6 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
                      fits: dict[str, Any]) -> tuple[float, dict[str, Any], np.ndarray] | None:
         """The step ``rho`` in [0, 2] minimising the loss along ``D`` (greedy: along the best
         single parameter's column); None where no step lowers it."""
-        from .parametric_boost import _trial
-
         def objective(rho: float, d: np.ndarray) -> float:
             value = _trial(model, theta + self.learning_rate * rho * d, X, Y.shape[1])
             if value is None:
@@ -435,47 +429,3 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
         """Tell scikit-learn whether :meth:`fit` has run."""
         return hasattr(self, "estimators_")
 
-
-def boost_candidate(template: ParameterSpaceBoostRegressor, folds: list[tuple],
-                    drift: Any = None) -> tuple[ParameterSpaceBoostRegressor, float, np.ndarray]:
-    """Score ``template`` by CV on the sliced ``folds`` (``(X_fit, y_fit, X_val, y_val)``).
-
-    Each fold is fitted with ``template.n_estimators`` rounds; the CV MAE after every round
-    (the mean over all held-out values, from the staged predictions) chooses the rounds.
-    A template with ``init="drift"`` starts from ``drift`` (an unfitted ParametricRegressor
-    with the selected covariates; None: the calibrated model).
-
-    Parameters
-    ----------
-    template : ParameterSpaceBoostRegressor
-        The unfitted candidate (its ``n_estimators``: the most rounds).
-    folds : list of tuple
-        ``(X_fit, y_fit, X_val, y_val)`` per fold.
-    drift : ParametricRegressor, optional
-        The start of an ``init="drift"`` template.
-
-    Returns
-    -------
-    estimator : ParameterSpaceBoostRegressor
-        ``template`` with ``n_estimators`` the chosen rounds (unfitted).
-    cv_mae : float
-        Its CV MAE.
-    curve : ndarray
-        The CV MAE after 0, 1, ... rounds.
-    """
-    if isinstance(template.init, str):
-        template = clone(template).set_params(init=drift)
-    n = template.n_estimators + 1
-    abs_sum, count = np.zeros(n), 0
-    for X_fit, y_fit, X_val, y_val in folds:
-        fitted = clone(template).fit(X_fit, y_fit)
-        y_val = np.asarray(y_val, dtype=float)
-        last = 0.0
-        for m, pred in enumerate(fitted.staged_predict(X_val)):
-            last = float(np.abs(np.reshape(pred, y_val.shape) - y_val).sum())
-            abs_sum[m] += last
-        abs_sum[fitted.n_iter_ + 1:] += last  # a fold that stopped early keeps its last
-        count += y_val.size
-    curve = abs_sum / count
-    rounds = int(np.argmin(curve))
-    return clone(template).set_params(n_estimators=rounds), float(curve[rounds]), curve
