@@ -47,9 +47,9 @@ MOVES: dict[str, str] = {
     "space": "config.space",
     "overrides": "config.overrides",
     "toml_text": "config.toml_text",
-    # data/: the data's structure (columns, the folds that follow groups and order)
-    "columns": "data.columns",
-    "folds": "data.folds",
+    # splits/: the rows' structure (the columns that group and order them, the folds that follow)
+    "columns": "splits.columns",
+    "folds": "splits.folds",
     # scoring/: what is measured of a fitted model
     "scores": "scoring.scores",
     "results": "scoring.results",
@@ -89,11 +89,11 @@ HOMES: dict[str, str] = {
 May import: nothing of the experiment layer (the core and the standard library only).
 """
 ''',
-    "data": '''"""The data's structure as the experiment layer uses it: columns, groups and order.
+    "splits": '''"""How the rows are split: the columns that group and order them, and the CV folds.
 
-* :mod:`.columns` -- what ``workbench init`` reads off a CSV's columns (features, group
-  columns, the column that orders the rows);
-* :mod:`.folds` -- every CV fold of a command, following the data's groups or order.
+* :mod:`.columns` -- what ``workbench init`` reads off a CSV's columns (the features, the
+  columns that group the rows, the column that orders them in time);
+* :mod:`.folds` -- every CV fold of a command, following the rows' groups or order.
 
 May import: process, config.
 """
@@ -121,7 +121,7 @@ May import: nothing of the experiment layer.
   sweep logs, computing nothing;
 * :mod:`.design` -- ``workbench design``, which settings to measure next.
 
-May import: process, config, data, scoring, figures, families, tracking.
+May import: process, config, splits, scoring, figures, families, tracking.
 """
 ''',
 }
