@@ -221,18 +221,21 @@ def _relative(package: str, target: str) -> tuple[int, str]:
 
 def _new_target(package: str, old_package: str | None, level: int,
                 module: str | None) -> str | None:
-    """The absolute module a relative import should name now, or None if unchanged."""
+    """The absolute module a relative import should name now, or None if unchanged.
+
+    In a moved file an import that names an existing module from the file's new place was
+    written for it (a rewritten one); else it was written for the file's old place.
+    """
     target = _resolve(package, level, module)
-    new = _mapped(target)
-    if new is not None:
-        return new
-    if _exists(target) or old_package is None:
+    if old_package is None:
+        return _mapped(target)
+    if _exists(target):
         return None
-    old_target = _resolve(old_package, level, module)  # written for the file's old place
+    old_target = _resolve(old_package, level, module)
     new = _mapped(old_target)
     if new is not None:
         return new
-    return old_target if _exists(old_target) else None
+    return old_target if _exists(old_target) else _mapped(target)
 
 
 def _render(node: ast.ImportFrom, level: int, module: str, names: list[ast.alias]) -> str:
