@@ -89,7 +89,7 @@ def test_the_chain_model_file_is_the_control_program(google_5q):
     predicts the benchmark's prior; parametric_chain.toml reads it."""
     from pathlib import Path
 
-    from workbench.experiment.prepare import load_config
+    from workbench.experiment.runs.prepare import load_config
     from workbench.parametric import check_model, load_model
 
     root = Path(__file__).resolve().parents[1]

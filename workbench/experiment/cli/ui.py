@@ -14,7 +14,7 @@ import sys
 import time
 from pathlib import Path
 
-from ..errors import redact
+from ..process.errors import redact
 
 __all__ = ["run", "ui_command", "ui_env"]
 
@@ -57,7 +57,7 @@ def _commands(args: argparse.Namespace) -> list[list[str]]:
     storage = args.storage or "mlruns/optuna.journal"
     serve_studies = args.storage is not None or (Path.cwd() / storage).is_file()
     if serve_studies:
-        from ..sweep.storage import check_storage
+        from ..storage import check_storage
 
         check_storage(storage, Path.cwd())
     cmds = [ui_command(uri, args.port, args.workers)]
@@ -67,7 +67,7 @@ def _commands(args: argparse.Namespace) -> list[list[str]]:
     print("  (a run's own page opens in MLflow's GenAI view until the sidebar's \"Model "
           "training\" switch is clicked once; the browser remembers it)", flush=True)
     if serve_studies:  # the studies beside the runs
-        from ..sweep.storage import dashboard_command
+        from ..storage import dashboard_command
 
         cmds.append(dashboard_command(storage, args.dashboard_port, Path.cwd()))
         print(f"Optuna dashboard for {redact(storage)} at "

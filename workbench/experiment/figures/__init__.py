@@ -7,7 +7,7 @@
   intervals as error bars when given them.
 * :func:`learning_curve_figure` -- the augmented learning curve (Fig. 4, S5).
 * :func:`shap_summary` -- SHAP beeswarm summary of a model's predictions (Fig. 5, S8);
-  :func:`~workbench.experiment.explain.shap_values` and :func:`shap_figure` are its halves.
+  :func:`~workbench.experiment.scoring.explain.shap_values` and :func:`shap_figure` are its halves.
 * :func:`correction_shap_figure` -- the SHAP summary of what a base-boosting model adds to its
   prior (model - prior), or a note that the model is the prior.
 * :func:`correlation_heatmap` -- pairwise Pearson correlations of the training examples (Fig. 3).

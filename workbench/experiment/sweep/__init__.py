@@ -4,7 +4,7 @@
   outer folds' refits and the final evaluation (:func:`~.search.run_sweep`);
 * :mod:`~workbench.experiment.sweep.scheduler`: samplers, pruners and the trial scheduler
   that leaves every study with exactly its budget of counted trials;
-* :mod:`~workbench.experiment.sweep.storage`: the Optuna storage adapter (journal file or
+* :mod:`~workbench.experiment.storage`: the Optuna storage adapter (journal file or
   database, checked, repaired), the only module touching Optuna's private names;
 * :mod:`~workbench.experiment.sweep.workers`: the processes of ``--workers N``.
 

@@ -1,7 +1,7 @@
 """The trial scheduler of ``workbench sweep``.
 
 Samplers and pruners, and running studies in shared storage until each holds exactly its
-budget of counted trials (:mod:`~workbench.experiment.sweep.storage` opens the storages,
+budget of counted trials (:mod:`~workbench.experiment.storage` opens the storages,
 :mod:`~workbench.experiment.sweep.workers` starts the processes,
 :mod:`~workbench.experiment.sweep.search` holds the objectives).
 
@@ -45,16 +45,16 @@ from optuna.exceptions import ExperimentalWarning, UpdateFinishedTrialError
 from optuna.trial import FrozenTrial, TrialState
 
 from ...parallel import pid_alive
-from ..errors import StorageError
-from ..lifecycle import every
-from ..signals import interrupts_deferred
-from .storage import (
+from ..process.errors import StorageError
+from ..process.signals import interrupts_deferred
+from ..storage import (
     beat,
     heartbeat_enabled,
     heartbeat_interval,
     retry,
     set_trial_attr,
 )
+from ..tracking.lifecycle import every
 
 if TYPE_CHECKING:
     from ..config import ExperimentConfig

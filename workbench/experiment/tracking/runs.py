@@ -18,8 +18,8 @@ from mlflow import MlflowClient
 from mlflow.entities import Metric, Param, RunTag
 from mlflow.exceptions import MlflowException
 
-from ..errors import SweepTimedOut, TrackingError, redact
-from ..signals import ignoring_signals, interrupts_deferred
+from ..process.errors import SweepTimedOut, TrackingError, redact
+from ..process.signals import ignoring_signals, interrupts_deferred
 from .artifacts import ArtifactRecords
 from .models import ModelRecords
 from .records import now_ms, param_value, tag_value
@@ -224,7 +224,7 @@ class Tracker(ModelRecords, ArtifactRecords):
         """Run a block inside a run: ``with tracker.run("fold-0", parent_run_id=pid) as run_id:``.
 
         The run ends ``FINISHED``, or ``FAILED`` (``KILLED`` on ``KeyboardInterrupt`` or a
-        sweep's timeout, :class:`~workbench.experiment.errors.SweepTimedOut`) and the error
+        sweep's timeout, :class:`~workbench.experiment.process.errors.SweepTimedOut`) and the error
         is re-raised. The arguments are :meth:`start_run`'s.
 
         Yields
