@@ -1,4 +1,5 @@
-"""workbench.experiment.tracking.compare: two runs' test errors side by side, on a real MLflow store."""
+"""workbench.experiment.tracking.compare: two runs' test errors side by side, on a real MLflow
+store."""
 
 import numpy as np
 import pandas as pd

@@ -1,5 +1,5 @@
-"""Search spaces (workbench.experiment.config.space): every basis family's conditional parameters are
-sampled and give a model that fits; bad spaces name the entry."""
+"""Search spaces (workbench.experiment.config.space): every basis family's conditional
+parameters are sampled and give a model that fits; bad spaces name the entry."""
 
 from pathlib import Path
 

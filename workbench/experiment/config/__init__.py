@@ -12,7 +12,7 @@ config (see ``experiments/paper_main_body.toml`` for an annotated file)::
     [selection]    SelectionConfig  BaseBoostCV's folds and scoring
     [evaluation]   EvaluationConfig extra estimates of ``evaluate``
     [intervals]    IntervalsConfig  conformal prediction intervals of the fitted model
-    [search]       the space a sweep searches (:class:`~workbench.experiment.config.space.SearchSpace`;
+    [search]       the space a sweep searches (:class:`~.space.SearchSpace`;
                    ``[search.<family>]`` varies the family's settings)
     [cv]           CVConfig         nested CV of a sweep
     [study]        StudyConfig      the Optuna studies

@@ -166,7 +166,7 @@ def target_inputs(settings: dict[str, Any], ds: Dataset, priors: list[str]) -> l
 
 
 def selection_cv(cfg: ExperimentConfig, ds: Dataset | None = None) -> Any:
-    """Make BaseBoostCV's folds (``[selection]``; :func:`workbench.experiment.splits.folds.selection_cv`).
+    """Make BaseBoostCV's folds (``[selection]``; :func:`.folds.selection_cv`).
 
     Forward-chaining (:class:`~workbench.selection.LabelTimeSeriesSplit`) when the dataset
     has an order (``[data] order_column``); whole groups

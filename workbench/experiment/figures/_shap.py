@@ -167,8 +167,8 @@ def correction_shap_figure(shap: ShapValues | None, *, target: str, unit: str | 
     ----------
     shap : ShapValues or None
         The correction's SHAP values (the ``correction`` of
-        :func:`~workbench.experiment.scoring.explain.target_shap_values`). ``None``: the model is the
-        prior (its correction is 0 on every row), and the figure says so, with ``note``,
+        :func:`~workbench.experiment.scoring.explain.target_shap_values`). ``None``: the model
+        is the prior (its correction is 0 on every row), and the figure says so, with ``note``,
         instead of a beeswarm of zeros.
     target : str
         The target's name.

@@ -60,7 +60,8 @@ def outer_folds_figure(folds: Sequence[OuterFold], unit: str | None = None,
     Parameters
     ----------
     folds : sequence of OuterFold
-        The sweep's outer folds (:attr:`~workbench.experiment.scoring.results.SweepSummary.outer_folds`).
+        The sweep's outer folds
+        (:attr:`~workbench.experiment.scoring.results.SweepSummary.outer_folds`).
     unit : str, optional
         The targets' unit (``None``: none shown).
     title : str, default="Nested CV: each outer fold's choice"

@@ -4,9 +4,9 @@
 :class:`ModelScores` (the model's, with what it chose and its prediction intervals' figures)
 and :class:`CVEstimate` (a repeated or nested CV of the chosen model), each with a
 ``to_json`` that writes its part of the JSON
-:meth:`~workbench.experiment.scoring.results.Result.to_json` writes; :func:`mae` and :func:`mse`, the
-per-target errors they hold, and :func:`average`, the mean over targets each ``*_avg`` key
-holds.
+:meth:`~workbench.experiment.scoring.results.Result.to_json` writes; :func:`mae` and
+:func:`mse`, the per-target errors they hold, and :func:`average`, the mean over targets
+each ``*_avg`` key holds.
 """
 
 from __future__ import annotations
