@@ -102,14 +102,12 @@ def compare(args: argparse.Namespace) -> int:
     int
         The exit code (0).
     """
-    from mlflow import MlflowClient
-
     from ..tracking.compare import compare_runs, format_comparison
     from ..tracking.uris import check_store_uri, resolve_tracking_uri
 
     uri = resolve_tracking_uri(args.tracking_uri, None, Path.cwd())
     check_store_uri(uri)
-    print(format_comparison(compare_runs(MlflowClient(uri), args.run_a, args.run_b)))
+    print(format_comparison(compare_runs(uri, args.run_a, args.run_b)))
     return 0
 
 

@@ -11,8 +11,9 @@ one private module per concern, ``_journal`` (the journal file, failing safe), `
 * The journal file fails safe: a damaged line is found before anything is appended
   (:class:`JournalDamaged`, naming the command that repairs it) and :func:`repair_journal`
   recovers every complete record into a new file (``workbench sweep --repair``).
-* What the scheduler needs of Optuna's internals: :func:`beat`, :func:`heartbeat_enabled`,
-  :func:`set_trial_attr`, :func:`retry`; and the
+* What the scheduler needs of Optuna's internals and storages: :func:`beat`,
+  :func:`heartbeat_enabled`, :func:`fail_stale_trials`, :func:`set_trial_attr`,
+  :func:`retry`; and the
   ``optuna-dashboard`` command line (:func:`dashboard_command`).
 """
 
@@ -26,14 +27,21 @@ import optuna
 
 from ..process.errors import StorageError
 from ..process.outputs import OutputError, check_file
-from ._heartbeat import beat, heartbeat_enabled, heartbeat_interval, retry, set_trial_attr
+from ._heartbeat import (
+    beat,
+    fail_stale_trials,
+    heartbeat_enabled,
+    heartbeat_interval,
+    retry,
+    set_trial_attr,
+)
 from ._journal import JournalDamaged, JournalFile, find_damage, journal_file
 from ._rdb import check_rdb, rdb_storage
 from ._repair import Repair, repair_journal
 
 __all__ = ["JournalDamaged", "Repair", "StorageError", "beat", "check_storage",
-           "dashboard_command", "heartbeat_enabled", "heartbeat_interval", "open_storage",
-           "repair_journal", "retry", "set_trial_attr"]
+           "dashboard_command", "fail_stale_trials", "heartbeat_enabled", "heartbeat_interval",
+           "open_storage", "repair_journal", "retry", "set_trial_attr"]
 
 
 def open_storage(storage: str, root: Path, *, stale_after_s: float = 600,

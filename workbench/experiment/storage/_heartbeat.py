@@ -70,6 +70,19 @@ def heartbeat_enabled(study: optuna.Study) -> bool:
         and storage.get_heartbeat_interval() is not None
 
 
+def fail_stale_trials(study: optuna.Study) -> None:
+    """Fail the running trials whose heartbeat stopped, when the storage has Optuna's own.
+
+    :func:`optuna.storages.fail_stale_trials` (its experimental warning silenced); nothing
+    for a storage without a heartbeat (the journal file: the scheduler fails those by the
+    ``heartbeat`` user attribute).
+    """
+    if heartbeat_enabled(study):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+            optuna.storages.fail_stale_trials(study)
+
+
 def beat(study: optuna.Study, trial: optuna.Trial) -> None:
     """Record one heartbeat of a running trial.
 

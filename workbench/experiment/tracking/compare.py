@@ -139,14 +139,14 @@ def run_errors(client: MlflowClient, run: Any) -> pd.DataFrame:
     return measured - predicted
 
 
-def compare_runs(client: MlflowClient, ref_a: str, ref_b: str, *,
+def compare_runs(client: MlflowClient | str, ref_a: str, ref_b: str, *,
                  level: float = BOOTSTRAP_LEVEL) -> Comparison:
     """Compare two runs on the test rows and targets they share.
 
     Parameters
     ----------
-    client : MlflowClient
-        A client of the tracking store.
+    client : MlflowClient or str
+        A client of the tracking store, or the store's tracking URI.
     ref_a, ref_b : str
         Run ids or names.
     level : float, default=BOOTSTRAP_LEVEL
@@ -162,6 +162,10 @@ def compare_runs(client: MlflowClient, ref_a: str, ref_b: str, *,
         A run not found, without its predictions, or runs with no target or no test row in
         common (different data sets or splits).
     """
+    if isinstance(client, str):
+        from mlflow import MlflowClient  # (b) MLflow: the API imports this module
+
+        client = MlflowClient(client)
     runs = [find_run(client, ref) for ref in (ref_a, ref_b)]
     errors = [run_errors(client, run) for run in runs]
     names = tuple(r.info.run_name or r.info.run_id for r in runs)
