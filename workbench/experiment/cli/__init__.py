@@ -6,6 +6,9 @@ per command) and :mod:`.ui` (the servers of ``workbench ui``). Each command impo
 needs when it runs: ``workbench --help`` and ``workbench simulate`` never load MLflow,
 Optuna or SHAP (nor, for ``--help``, scikit-learn). Progress and messages go through
 :mod:`logging` (logger ``workbench``, to standard error).
+
+May import: process, config, splits, scoring, figures, families, tracking, storage, runs,
+sweep, paper (it is the top).
 """
 
 from __future__ import annotations

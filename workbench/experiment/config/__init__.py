@@ -18,12 +18,17 @@ config (see ``experiments/paper_main_body.toml`` for an annotated file)::
     [study]        StudyConfig      the Optuna studies
     [tracking]     TrackingConfig   MLflow
 
-One module per concern: :mod:`.data` (``[data]``), :mod:`.sections` (the other sections),
+One module per concern: :mod:`.schema` (``Section``, the base of every table, a family's
+settings too), :mod:`.data` (``[data]``), :mod:`.sections` (the other sections),
 :mod:`.validation` (a target's boosting settings against the estimators' own
-``_parameter_constraints``, scikit-learn's machinery), :mod:`.experiment`
-(:class:`ExperimentConfig`) and :mod:`.loading` (the config's dataset, :func:`load_dataset`).
+``_parameter_constraints``, scikit-learn's machinery), :mod:`.space` (search spaces),
+:mod:`.experiment` (:class:`ExperimentConfig`), :mod:`.loading` (the config's dataset,
+:func:`load_dataset`), :mod:`.overrides` (``--set SECTION.KEY=VALUE``) and
+:mod:`.toml_text` (TOML text as ``workbench init`` writes it).
 Reading a file, which needs the model families, is :mod:`workbench.experiment.runs.prepare`: this
 package sits below the families and imports none of them.
+
+May import: process.
 """
 
 from ..process.errors import ConfigError

@@ -22,6 +22,8 @@ A family's own figures live beside the family (e.g.
 :mod:`.style`. Every figure takes the targets' ``unit`` (a dataset's
 :attr:`~workbench.datasets.Dataset.unit`; ``None``: no unit shown). The same data give the
 same figure; nothing is shown, and matplotlib loads with the first figure drawn.
+
+May import: scoring.
 """
 
 from ._bars import error_bars, mae_bars, model_comparison_bars

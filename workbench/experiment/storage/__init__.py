@@ -1,9 +1,8 @@
-"""The Optuna storage adapter of ``workbench sweep``.
+"""The Optuna storage adapter of ``workbench sweep``: journal files and databases.
 
-The only module that touches Optuna's private names (a test checks), shaped like
-``optuna.storages``: this public front over
-one private module per concern, ``_journal`` (the journal file, failing safe), ``_repair``
-(``--repair``), ``_rdb`` (databases) and ``_heartbeat`` (heartbeats and retries).
+Shaped like ``optuna.storages``: this public front over one private module per concern,
+``_journal`` (the journal file, failing safe), ``_repair`` (``--repair``), ``_rdb``
+(databases) and ``_heartbeat`` (heartbeats and retries).
 
 * :func:`open_storage` / :func:`check_storage`: an RDB URL (with Optuna's heartbeat, a grace
   period and one retry of a stale trial) or a journal file, checked before any work; problems
@@ -15,6 +14,9 @@ one private module per concern, ``_journal`` (the journal file, failing safe), `
   :func:`heartbeat_enabled`, :func:`fail_stale_trials`, :func:`set_trial_attr`,
   :func:`retry`; and the
   ``optuna-dashboard`` command line (:func:`dashboard_command`).
+
+May import: process. The only home that touches Optuna's storages and private names (a test
+checks).
 """
 
 from __future__ import annotations
