@@ -7,7 +7,7 @@ PY     := $(VENV)/bin/python
 export MLFLOW_DISABLE_TELEMETRY := true
 export MPLCONFIGDIR := $(CURDIR)/.cache/matplotlib
 
-.PHONY: install run test lint lock clean browser bench bench-peers bench-outside docs house
+.PHONY: install run test lint lock clean browser bench bench-peers bench-outside docs house layout
 
 # The installer: uv (PyPI's `uv`; a system one on PATH, else bootstrapped into the venv by pip),
 # which resolves and downloads in parallel; pip where uv cannot be had. uv reads no pip.conf:
@@ -94,6 +94,11 @@ lint: $(INSTALLED)
 # (benchmarks/house.py; it never fails: a long module with one concern is left whole).
 house:
 	$(PYTHON) benchmarks/house.py
+
+# docs/user_guide/layout.md, generated from the packages' docstrings and imports
+# (tools/layout.py; tests/test_layering.py checks it is up to date).
+layout:
+	$(PYTHON) tools/layout.py
 
 # The browser test (tests/test_ui_browser.py) renders MLflow's UI in headless Chromium:
 # Debian's package, installed once if missing (as root, or through sudo).

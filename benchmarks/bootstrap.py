@@ -38,7 +38,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from scaling import write_json  # noqa: E402
 
-from workbench.experiment.bootstrap import (  # noqa: E402
+from workbench.experiment.scoring.bootstrap import (  # noqa: E402
     BOOTSTRAP_EXACT_ROWS,
     BOOTSTRAP_LEVEL,
     BOOTSTRAP_RESAMPLES,

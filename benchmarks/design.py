@@ -5,7 +5,7 @@
                                 [--config experiments/design_loop.toml] [--workers 2]
                                 [--tracking-uri URI] [--out reports/design]
 
-Each loop (``workbench.experiment.design.acquisition_loop``) starts from 20 experiments
+Each loop (``workbench.experiment.runs.design.acquisition_loop``) starts from 20 experiments
 drawn at random from a pool of settings (the seed draws them; both arms start alike), fits
 the config's model (experiments/design_loop.toml: the parameter-space model, covariates
 chosen by linearised forward selection with 5-fold CV on the rows measured so far), scores it
@@ -79,8 +79,8 @@ def one_loop(config: str, arm: str, seed: int, stop: int, criterion: str) -> dic
     from threadpoolctl import threadpool_limits
 
     from workbench.experiment.config import load_dataset
-    from workbench.experiment.design import acquisition_loop
-    from workbench.experiment.prepare import load_config
+    from workbench.experiment.runs.design import acquisition_loop
+    from workbench.experiment.runs.prepare import load_config
 
     with threadpool_limits(1):
         cfg = load_config(config)

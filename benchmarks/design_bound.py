@@ -60,7 +60,7 @@ def oracle(config: str):
 
     from workbench.experiment.config import load_dataset
     from workbench.experiment.families.fitting import quiet_fit
-    from workbench.experiment.prepare import load_config
+    from workbench.experiment.runs.prepare import load_config
 
     with threadpool_limits(1):
         cfg = load_config(config)

@@ -58,8 +58,8 @@ def _line(label: str, res, seconds: float) -> str:
 
 
 def google(args) -> None:
-    from workbench.experiment.evaluate import evaluate
-    from workbench.experiment.prepare import load_config
+    from workbench.experiment.runs.evaluate import evaluate
+    from workbench.experiment.runs.prepare import load_config
 
     print("Google 5-qubit benchmark, paper split (95 training / 41 test rows)", flush=True)
     for name in ("hamiltonian.toml", "paper_main_body.toml"):
@@ -85,8 +85,8 @@ def google(args) -> None:
 def simulated(args) -> None:
     from peers import write_config
 
-    from workbench.experiment.evaluate import evaluate
-    from workbench.experiment.prepare import load_config
+    from workbench.experiment.runs.evaluate import evaluate
+    from workbench.experiment.runs.prepare import load_config
     from workbench.simulate import Mismatch, simulate, write_simulation
 
     print(f"Simulated 5-site chain, {args.experiments} experiments (30% test rows), default "

@@ -29,9 +29,9 @@ def main() -> None:
     from peers import write_config
 
     from workbench.conformal import conformal_rank
-    from workbench.experiment.evaluate import evaluate
-    from workbench.experiment.intervals import family_model
-    from workbench.experiment.prepare import load_config
+    from workbench.experiment.runs.evaluate import evaluate
+    from workbench.experiment.runs.intervals import family_model
+    from workbench.experiment.runs.prepare import load_config
     from workbench.simulate import Mismatch, simulate, write_simulation
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])

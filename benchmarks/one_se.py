@@ -53,7 +53,7 @@ def one_se_model(est, X, y):
 def run_split(config: Path, split: str, draws: int, folds: int) -> dict:
     from workbench.experiment.config import load_dataset
     from workbench.experiment.families.stage import per_target_boost
-    from workbench.experiment.prepare import load_config
+    from workbench.experiment.runs.prepare import load_config
     from workbench.selection import LabelGroupKFold, choose
 
     cfg = load_config(config, overrides={"data.split": split, "model.draws": draws,

@@ -59,8 +59,8 @@ MEASURED = (
     "workbench/multitarget.py",
     "workbench/selection.py",
     "workbench/stagewise.py",
-    "workbench/experiment/evaluate.py",
-    "workbench/experiment/space.py",
+    "workbench/experiment/runs/evaluate.py",
+    "workbench/experiment/config/space.py",
     "workbench/experiment/families/choices.py",
     "workbench/experiment/families/eigenvalue.py",
     "workbench/experiment/families/fitting.py",
@@ -111,11 +111,11 @@ def run(name: str, args, overrides: dict, tmp: Path) -> dict:
 def _measure(spec, args, overrides: dict, tmp: Path) -> dict:
     from peers import write_config
 
-    from workbench.experiment.bootstrap import bootstrap_error_interval
     from workbench.experiment.config import load_dataset
-    from workbench.experiment.evaluate import evaluate
     from workbench.experiment.paper.peer import peer_predict
-    from workbench.experiment.prepare import load_config
+    from workbench.experiment.runs.evaluate import evaluate
+    from workbench.experiment.runs.prepare import load_config
+    from workbench.experiment.scoring.bootstrap import bootstrap_error_interval
 
     name = spec.name
     csv = tmp / f"{name}.csv"
@@ -198,7 +198,7 @@ def main(argv: list[str] | None = None) -> None:
     from outside_data import SETS
     from scaling import write_json
 
-    from workbench.experiment.overrides import parse_overrides
+    from workbench.experiment.config.overrides import parse_overrides
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sets", nargs="+", default=list(SETS), choices=list(SETS))

@@ -95,7 +95,7 @@ def main(argv: list[str] | None = None) -> None:
     from outside_data import SETS
     from scaling import write_json
 
-    from workbench.experiment.overrides import parse_overrides
+    from workbench.experiment.config.overrides import parse_overrides
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sets", nargs="+", default=list(SETS), choices=list(SETS))

@@ -9,8 +9,8 @@ import argparse
 import dataclasses
 import statistics
 
-from workbench.experiment.evaluate import evaluate
-from workbench.experiment.prepare import load_config
+from workbench.experiment.runs.evaluate import evaluate
+from workbench.experiment.runs.prepare import load_config
 
 
 def main() -> None:

@@ -36,7 +36,7 @@ all systems. Its goal: never worse than the prior, and level with the peer (``/ 
 
 Nothing is chosen on the test rows: every choice is the family's CV or the peer's on the
 training rows; every test score printed here has been seen (all of them). Paired bootstrap
-intervals (:func:`~workbench.experiment.bootstrap.bootstrap_error_interval`) of each
+intervals (:func:`~workbench.experiment.scoring.bootstrap.bootstrap_error_interval`) of each
 parametric system's MAE minus the peer's. The issue's goal: ``parametric / peer <= 0.75``
 on the random split and ``<= 0.85`` on an extrapolation split.
 
@@ -185,8 +185,8 @@ def ridge_config(init: Path) -> Path:
 
 def family(config: Path) -> tuple[np.ndarray, dict]:
     """``evaluate`` of a config: its test predictions and what the family chose."""
-    from workbench.experiment.evaluate import evaluate
-    from workbench.experiment.prepare import load_config
+    from workbench.experiment.runs.evaluate import evaluate
+    from workbench.experiment.runs.prepare import load_config
 
     cfg = load_config(config, {})
     ev = evaluate(cfg, return_model=True)
@@ -215,7 +215,7 @@ def critical_table() -> pd.DataFrame:
 def run_split(frame: pd.DataFrame, split: str, trials: int, tmp: Path,
               variants: Sequence[str] = VARIANTS, field: Field = NUCLEAR) -> dict:
     """Every system on one split: test MAEs, ratios, paired intervals, what CV chose."""
-    from workbench.experiment.bootstrap import bootstrap_error_interval
+    from workbench.experiment.scoring.bootstrap import bootstrap_error_interval
 
     test = frame[f"test_{split}"].to_numpy(bool)
     y = frame.loc[test, field.target].to_numpy(float)

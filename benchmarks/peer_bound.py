@@ -185,7 +185,7 @@ def _with_ratio(row: dict, key: str) -> str:
 def run(name: str, seed: int, config: Path, tmp: Path) -> dict:
     from workbench.experiment.config import load_dataset
     from workbench.experiment.families.stage import per_target_boost
-    from workbench.experiment.prepare import load_config
+    from workbench.experiment.runs.prepare import load_config
 
     data = BENCHMARKS[name](seed) if name in BENCHMARKS else simulated(name, seed, tmp)[0]
     cfg = load_config(write_config(config, data, tmp / f"{name}_{seed}.toml"))

@@ -81,7 +81,7 @@ def _load(name: str, config: Path, overrides: dict, tmp: Path):
     from peers import write_config
 
     from workbench.experiment.config import load_dataset
-    from workbench.experiment.prepare import load_config
+    from workbench.experiment.runs.prepare import load_config
 
     spec = validation_set(name)  # the test rows are gone; "test" = the validation rows
     csv = tmp / f"{name}.csv"
@@ -105,7 +105,7 @@ def fit_generic(cfg, ds, extra: tuple[str, ...], X_tr, Y_tr, peer_params=None):
 
 
 def run_set(name: str, args, tmp: Path) -> dict:
-    from workbench.experiment.overrides import parse_overrides
+    from workbench.experiment.config.overrides import parse_overrides
     from workbench.experiment.paper.peer import peer_predict
 
     cfg, ds = _load(name, args.config, parse_overrides(args.overrides), tmp)

@@ -123,11 +123,11 @@ def _ci(low_high) -> str:
 
 
 def run(name: str, seed: int, args, tmp: Path) -> dict:
-    from workbench.experiment.bootstrap import bootstrap_error_interval
     from workbench.experiment.config import load_dataset
-    from workbench.experiment.evaluate import evaluate
     from workbench.experiment.paper.peer import PEER_OBJECTIVES, peer_predict
-    from workbench.experiment.prepare import load_config
+    from workbench.experiment.runs.evaluate import evaluate
+    from workbench.experiment.runs.prepare import load_config
+    from workbench.experiment.scoring.bootstrap import bootstrap_error_interval
 
     true = None
     split_seed = seed

@@ -60,7 +60,7 @@ def run_set(name: str, config: Path, overrides: dict, rules: tuple[str, ...], tm
 
     from workbench.experiment.config import load_dataset
     from workbench.experiment.families.stage import per_target_boost
-    from workbench.experiment.prepare import load_config
+    from workbench.experiment.runs.prepare import load_config
 
     spec = validation_set(name)  # the test rows are gone; "test" here = validation rows
     csv = tmp / f"{name}.csv"
@@ -89,7 +89,7 @@ def run_set(name: str, config: Path, overrides: dict, rules: tuple[str, ...], tm
 def main(argv: list[str] | None = None) -> None:
     from outside_data import SETS
 
-    from workbench.experiment.overrides import parse_overrides
+    from workbench.experiment.config.overrides import parse_overrides
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sets", nargs="+", default=list(SETS), choices=list(SETS))

@@ -86,8 +86,8 @@ def _child(case: str, n_rows: int, n_sites: int) -> None:
     """Run one point in this process; print a JSON line."""
     import logging
 
-    from workbench.experiment.evaluate import evaluate
-    from workbench.experiment.prepare import load_config
+    from workbench.experiment.runs.evaluate import evaluate
+    from workbench.experiment.runs.prepare import load_config
     from workbench.simulate import simulate, write_simulation
 
     with tempfile.TemporaryDirectory() as tmp:

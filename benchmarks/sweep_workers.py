@@ -64,7 +64,7 @@ def _commands(args) -> None:
 
 
 def _trials(args) -> None:
-    from workbench.experiment.prepare import load_config
+    from workbench.experiment.runs.prepare import load_config
     from workbench.experiment.sweep.search import run_search, study_names
     from workbench.experiment.sweep.workers import search_in_workers
 
@@ -93,7 +93,7 @@ STORAGE_WORKER = textwrap.dedent("""
     from pathlib import Path
     import optuna
     from workbench.experiment.sweep.scheduler import run_study
-    from workbench.experiment.sweep.storage import open_storage
+    from workbench.experiment.storage import open_storage
     url, trials, fold_s, go = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), Path(sys.argv[4])
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     study = optuna.load_study(study_name="bench", sampler=optuna.samplers.RandomSampler(),
@@ -133,7 +133,7 @@ def run_overhead(uri: str, runs: int) -> float:
     """Median seconds to log one finished trial as a child run (create, one batch, end)."""
     import optuna
 
-    from workbench.experiment.lifecycle import TrialRecorder
+    from workbench.experiment.tracking.lifecycle import TrialRecorder
     from workbench.experiment.tracking.runs import Tracker
 
     tracker = Tracker(uri, "bench")

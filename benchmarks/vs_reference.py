@@ -58,7 +58,7 @@ import time
 t0 = time.perf_counter()
 from workbench.curves import augmented_learning_curve
 from workbench.experiment.config import load_dataset
-from workbench.experiment.prepare import load_config
+from workbench.experiment.runs.prepare import load_config
 cfg = load_config("experiments/paper_main_body.toml")
 ds = load_dataset(cfg)
 X_train, _, y_train, _ = ds.split()

@@ -88,7 +88,7 @@ def test_nested_params_like_a_pipeline():
 
 def test_config_list_of_bases(tmp_path):
     from workbench.experiment.config import ConfigError
-    from workbench.experiment.prepare import load_config
+    from workbench.experiment.runs.prepare import load_config
 
     path = tmp_path / "c.toml"
     path.write_text('[model]\nbasis = ["ridge", "lightgbm"]\n'
@@ -105,7 +105,7 @@ def test_config_list_of_bases(tmp_path):
 
 
 def test_config_builds_a_basis_choice_per_target(tmp_path, google_5q):
-    from workbench.experiment.prepare import load_config
+    from workbench.experiment.runs.prepare import load_config
 
     path = tmp_path / "c.toml"
     path.write_text('[model]\nbasis = ["ridge", "kernel_ridge"]\ninput_transform = "standard"\n')

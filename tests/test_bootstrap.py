@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from workbench.experiment.bootstrap import (
+from workbench.experiment.scoring.bootstrap import (
     BOOTSTRAP_EXACT_ROWS,
     ErrorInterval,
     _intervals,
@@ -14,8 +14,8 @@ from workbench.experiment.bootstrap import (
     bootstrap_method,
     bootstrap_test_scores,
 )
-from workbench.experiment.results import Result
-from workbench.experiment.scores import ModelScores, Scores, mae, mse
+from workbench.experiment.scoring.results import Result
+from workbench.experiment.scoring.scores import ModelScores, Scores, mae, mse
 
 
 def _errors(n, targets=3, seed=0, scale=1.0):

@@ -240,7 +240,7 @@ def sweep(project):
     """A tiny ``sweep`` of the same models (untracked), and the states of its trials."""
     import optuna
 
-    from workbench.experiment.sweep.storage import open_storage
+    from workbench.experiment.storage import open_storage
 
     root = project.root
     with contextlib.chdir(root):

@@ -1,18 +1,19 @@
-"""workbench.experiment.compare: two runs' test errors side by side, on a real MLflow store."""
+"""workbench.experiment.tracking.compare: two runs' test errors side by side, on a real MLflow
+store."""
 
 import numpy as np
 import pandas as pd
 import pytest
 from mlflow import MlflowClient
 
-from workbench.experiment.bootstrap import bootstrap_error_interval
-from workbench.experiment.compare import (
+from workbench.experiment.process.errors import UsageError
+from workbench.experiment.scoring.bootstrap import bootstrap_error_interval
+from workbench.experiment.tracking.compare import (
     MEASURED,
     PREDICTIONS,
     compare_runs,
     format_comparison,
 )
-from workbench.experiment.errors import UsageError
 
 ROWS = [3, 5, 8, 13, 21, 34]
 

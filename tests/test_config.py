@@ -15,7 +15,7 @@ from sklearn.model_selection import KFold
 from workbench.bases import BASES, PAPER_PARAMS, TRANSFORMS, NormalQuantileTransformer
 from workbench.boosting import BaseBoostRegressor
 from workbench.experiment.config import ConfigError, load_dataset
-from workbench.experiment.prepare import load_config
+from workbench.experiment.runs.prepare import load_config
 from workbench.losses import LOSSES
 from workbench.multitarget import MultiTargetBaseBoost
 from workbench.selection import BaseBoostCV
@@ -262,8 +262,8 @@ def test_the_delegated_keys_and_their_defaults():
     for one satisfies the estimator's constraints."""
     from workbench.conformal import ConformalRegressor
     from workbench.experiment.config import MODEL_DEFAULTS, BoostSettings, IntervalsConfig
+    from workbench.experiment.config.schema import check_values, parameters_of
     from workbench.experiment.families.hamiltonian import HamiltonianSettings
-    from workbench.experiment.schema import check_values, parameters_of
     from workbench.param_boost import HamiltonianParameterRegressor as HPR
     from workbench.param_select import HamiltonianSelectionCV as HSCV
 

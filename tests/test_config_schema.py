@@ -18,9 +18,9 @@ from sklearn.utils._param_validation import Interval, StrOptions, make_constrain
 from workbench.experiment import config as C
 from workbench.experiment.cli import main
 from workbench.experiment.config import ConfigError
+from workbench.experiment.config.schema import parameters_of
 from workbench.experiment.families import FAMILIES
-from workbench.experiment.prepare import load_config
-from workbench.experiment.schema import parameters_of
+from workbench.experiment.runs.prepare import load_config
 
 #: section path in the file -> (its schema, the config lines it needs besides itself)
 SECTIONS = {

@@ -8,7 +8,7 @@ from sklearn.tree import DecisionTreeRegressor
 
 from workbench import BaseBoostCV, BaseBoostRegressor, PriorModel
 from workbench.experiment import figures
-from workbench.experiment.explain import (
+from workbench.experiment.scoring.explain import (
     correction_predictor,
     correction_shap_values,
     model_columns,
@@ -147,9 +147,9 @@ def test_eigenvalue_runs_draw_the_correction_beside_the_whole_prediction(tmp_pat
     """Family eigenvalue's run figures: per target ``shap_<target>`` (the whole prediction)
     and ``shap_correction_<target>``; eeig2's stage is penalised to coefficient 0, so its
     model is the prior and its correction figure says so."""
-    from workbench.experiment.evaluate import evaluate
-    from workbench.experiment.intervals import family_model
-    from workbench.experiment.prepare import load_config
+    from workbench.experiment.runs.evaluate import evaluate
+    from workbench.experiment.runs.intervals import family_model
+    from workbench.experiment.runs.prepare import load_config
 
     path = tmp_path / "c.toml"
     path.write_text(f'name = "c"\nrandom_state = 0\nn_jobs = 1\n'

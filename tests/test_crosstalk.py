@@ -118,7 +118,7 @@ def test_selection_picks_a_crosstalk_product_first(crosstalk_chain, method):
 def test_config_key_offers_crosstalk(tmp_path):
     from workbench.experiment.config import ConfigError, load_dataset
     from workbench.experiment.families.hamiltonian import make_hamiltonian
-    from workbench.experiment.prepare import parse_config
+    from workbench.experiment.runs.prepare import parse_config
     from workbench.simulate import write_simulation
 
     write_simulation(simulate(N, 40, seed=1), tmp_path / "d.csv")

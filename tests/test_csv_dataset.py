@@ -195,7 +195,7 @@ def test_bad_data_from_the_command_line_is_one_line(tmp_path, capsys, extra, cv,
 
 def test_config_rejects_incomplete_csv_data(tmp_path):
     from workbench.experiment.config import ConfigError
-    from workbench.experiment.prepare import load_config
+    from workbench.experiment.runs.prepare import load_config
 
     cfg = tmp_path / "c.toml"
     cfg.write_text('[data]\ncsv = "x.csv"\ntargets = ["a"]\ntest_fraction = 0.2\n')

@@ -279,8 +279,8 @@ def test_mae_bars_with_intervals_draws_capped_error_bars(tmp_path):
 
 
 def test_error_bars_draw_a_result_s_errors_and_intervals():
-    from workbench.experiment.results import Result
-    from workbench.experiment.scores import ModelScores, Scores
+    from workbench.experiment.scoring.results import Result
+    from workbench.experiment.scoring.scores import ModelScores, Scores
 
     ci = [[0.5, 1.5], [1.0, 3.0]]
     prior = Scores(test_mae=[1.0, 2.0], test_mse=[1.5, 5.0], cv_mae=[], cv_mse=[],

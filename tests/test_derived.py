@@ -91,8 +91,8 @@ def test_candidates_and_n_priors():
 
 
 def test_config_list_and_unknown_name():
-    from workbench.experiment.errors import ConfigError
-    from workbench.experiment.prepare import parse_config
+    from workbench.experiment.process.errors import ConfigError
+    from workbench.experiment.runs.prepare import parse_config
 
     raw = {"name": "t", "data": {"source": "google_5q"},
            "model": {"basis": "ridge", "input_transform": ["standard", "derived"]}}

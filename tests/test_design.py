@@ -314,8 +314,8 @@ def test_closed_loop_design_then_simulate_the_chosen_settings(tmp_path, capsys):
 
 def test_acquisition_loop_arms_share_their_start_and_stay_in_the_pool(tmp_path):
     from workbench.experiment.config import load_dataset
-    from workbench.experiment.design import acquisition_loop
-    from workbench.experiment.prepare import load_config
+    from workbench.experiment.runs.design import acquisition_loop
+    from workbench.experiment.runs.prepare import load_config
 
     cfg = load_config(_project(tmp_path, rows=70))
     ds = load_dataset(cfg)
@@ -336,7 +336,7 @@ def test_acquisition_loop_arms_share_their_start_and_stay_in_the_pool(tmp_path):
 
 
 def test_design_loop_config_parses():
-    from workbench.experiment.prepare import load_config
+    from workbench.experiment.runs.prepare import load_config
 
     cfg = load_config(EXPERIMENTS / "design_loop.toml")
     assert cfg.family.name == "hamiltonian" and not cfg.intervals.enabled

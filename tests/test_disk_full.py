@@ -69,7 +69,7 @@ def test_a_full_disk_under_the_mlflow_store_is_one_line(tiny_disk, tmp_path):
     the run starts, the figures and the model do not fit."""
     from mlflow import MlflowClient
 
-    from workbench.experiment.lifecycle import reap_stale_runs
+    from workbench.experiment.tracking.lifecycle import reap_stale_runs
     from workbench.experiment.tracking.runs import Tracker
 
     disk = tiny_disk("store", "1200k")
@@ -152,7 +152,7 @@ def test_evaluate_on_a_tracking_server_whose_database_disk_fills(tiny_disk, tmp_
     run FAILED."""
     from mlflow import MlflowClient
 
-    from workbench.experiment.lifecycle import reap_stale_runs
+    from workbench.experiment.tracking.lifecycle import reap_stale_runs
     from workbench.experiment.tracking.runs import Tracker
 
     disk = tiny_disk("server", "2m")  # the new database takes about 0.9 MB

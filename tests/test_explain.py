@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from workbench.experiment.explain import exact_shap_values, sample_background
+from workbench.experiment.scoring.explain import exact_shap_values, sample_background
 
 
 def _model(a):

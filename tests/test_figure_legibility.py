@@ -22,11 +22,11 @@ import workbench.experiment.families.hamiltonian_figures as family_figures
 import workbench.experiment.families.parametric_figures as parametric_figures
 import workbench.experiment.figures as figures
 from workbench.curves import LearningCurve
-from workbench.experiment.explain import ShapValues
 from workbench.experiment.figures import outer_folds
 from workbench.experiment.figures.style import PNG_DPI
 from workbench.experiment.paper.gates import GATE_SYSTEMS, gates_figure
-from workbench.experiment.results import OuterFold
+from workbench.experiment.scoring.explain import ShapValues
+from workbench.experiment.scoring.results import OuterFold
 
 #: Data sets: target names, unit, the prior's name and the run's setting line.
 SHAPES = {
@@ -401,7 +401,7 @@ def _csv(tmp_path):
 def test_the_figures_call_the_prior_as_the_data_set_names_it(tmp_path):
     from workbench.datasets import load_source
     from workbench.experiment.config import DataConfig
-    from workbench.experiment.run_outputs import _run_bars
+    from workbench.experiment.runs.run_outputs import _run_bars
 
     options = _csv(tmp_path)
     assert load_source("csv", options, tmp_path, "lab").prior_label == "prior"

@@ -11,9 +11,9 @@ import pandas as pd
 import pytest
 
 from workbench.experiment.config import ConfigError
+from workbench.experiment.config.space import draw_params
 from workbench.experiment.families.stage import candidate_settings, has_candidates
-from workbench.experiment.prepare import load_config
-from workbench.experiment.space import draw_params
+from workbench.experiment.runs.prepare import load_config
 from workbench.selection import BasisChoiceCV
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -43,7 +43,7 @@ def test_draws_are_seeded_inside_their_ranges() -> None:
 
 
 def test_choices_are_drawn_too() -> None:
-    from workbench.experiment.space import check_ranges
+    from workbench.experiment.config.space import check_ranges
 
     params = {"objective": {"choices": ["regression", "regression_l1", "huber"]},
               "n": {"low": 1, "high": 9}, "fixed": [4, 8]}

@@ -261,7 +261,7 @@ def test_regressor_on_a_ring_and_bad_parasitic():
 def test_config_keys_for_graphs_and_parasitic_couplings(tmp_path):
     from workbench.experiment.config import ConfigError, load_dataset
     from workbench.experiment.families.hamiltonian import make_hamiltonian
-    from workbench.experiment.prepare import parse_config
+    from workbench.experiment.runs.prepare import parse_config
     sim = simulate(None, 60, seed=6, topology="grid", shape=(2, 3))
     write_simulation(sim, tmp_path / "grid.csv")
     c = _names(sim)

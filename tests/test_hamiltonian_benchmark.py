@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from workbench.experiment.evaluate import evaluate
-from workbench.experiment.prepare import load_config
+from workbench.experiment.runs.evaluate import evaluate
+from workbench.experiment.runs.prepare import load_config
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
 

@@ -12,8 +12,8 @@ from PIL import Image
 
 from workbench.experiment.cli import main
 from workbench.experiment.config import ConfigError, load_dataset
-from workbench.experiment.evaluate import evaluate
-from workbench.experiment.prepare import load_config, parse_config
+from workbench.experiment.runs.evaluate import evaluate
+from workbench.experiment.runs.prepare import load_config, parse_config
 from workbench.experiment.tracking.runs import Tracker
 from workbench.fitted_prior import FittedPriorBoost
 from workbench.param_boost import HamiltonianParameterRegressor

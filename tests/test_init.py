@@ -19,12 +19,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from workbench.experiment import init as init_module
 from workbench.experiment.cli import main
 from workbench.experiment.config import load_dataset
-from workbench.experiment.init import csv_entry, template_text
-from workbench.experiment.prepare import load_config
-from workbench.experiment.toml_text import split_template, toml_string
+from workbench.experiment.config.toml_text import split_template, toml_string
+from workbench.experiment.runs import init as init_module
+from workbench.experiment.runs.init import csv_entry, template_text
+from workbench.experiment.runs.prepare import load_config
 
 ROOT = Path(__file__).resolve().parents[1]
 PRIOR = ["model_E1", "model_E2"]
@@ -136,7 +136,7 @@ def test_an_installed_package_carries_the_template(tmp_path):
                    capture_output=True)
     built = lib / "workbench" / "experiment" / "templates" / "generic.toml"
     assert built.read_text() == template_text()
-    code = ("import workbench.experiment.init as m; print(m.__file__); "
+    code = ("import workbench.experiment.runs.init as m; print(m.__file__); "
             "print(len(m.template_text()))")
     env = {**os.environ, "PYTHONPATH": str(lib)}
     out = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env, check=True,
@@ -214,7 +214,7 @@ def test_a_column_that_repeats_names_is_proposed_as_the_group_column(data, tmp_p
     """Without --group-column, a text column whose values repeat (the device) is proposed,
     not forced: the config is written without it and the note says how to keep groups whole;
     the split column (two values) is not proposed, nor a column of unique names."""
-    from workbench.experiment.init import group_columns
+    from workbench.experiment.runs.init import group_columns
 
     assert group_columns(data, ["split"]) == {"device": 3}
     rc, out, err = run("init", data, *TARGET_ARGS, "--split-column", "split", "--out", "n.toml")

@@ -19,10 +19,10 @@ import pytest
 from mlflow import MlflowClient
 from optuna.trial import TrialState
 
-from workbench.experiment import signals
-from workbench.experiment.signals import MESSAGE
+from workbench.experiment.process import signals
+from workbench.experiment.process.signals import MESSAGE
+from workbench.experiment.storage import open_storage
 from workbench.experiment.sweep.scheduler import is_counted
-from workbench.experiment.sweep.storage import open_storage
 from workbench.experiment.tracking.runs import Tracker
 
 from services import command_env, tiny_sweep, workbench_cmd
@@ -263,7 +263,7 @@ def test_an_interrupt_in_a_sqlite_store_call_leaves_the_database_unlocked(tmp_pa
 _CLOSE_AFTER_INTERRUPT = """
 import sqlite3, sys
 from sqlalchemy import create_engine
-from workbench.experiment.startup import setup_logging
+from workbench.experiment.process.startup import setup_logging
 if sys.argv[2] == "command":
     setup_logging()
 engine = create_engine(f"sqlite:///{sys.argv[1]}")

@@ -1,6 +1,10 @@
-"""The core never imports the experiment layer, MLflow, Optuna or matplotlib."""
+"""The layers hold: the core never imports the experiment layer, MLflow, Optuna or matplotlib;
+the experiment layer's homes import one way, as their docstrings say; MLflow only in
+``tracking/``, Optuna's storages and private names only in ``storage/``; the layout page is
+what ``tools/layout.py`` writes."""
 
 import ast
+import importlib.util
 import subprocess
 import sys
 from pathlib import Path
@@ -234,7 +238,7 @@ def test_no_back_arrow_between_rooms():
 
 
 #: The one package allowed to use what Optuna keeps private.
-OPTUNA_ADAPTER = PACKAGE / "experiment" / "sweep" / "storage"
+OPTUNA_ADAPTER = PACKAGE / "experiment" / "storage"
 
 
 def _optuna_private_names() -> set[str]:
@@ -296,3 +300,120 @@ def test_only_the_storage_adapter_touches_optuna_s_private_names():
     assert optuna_private_uses("def f(study):\n    return study._storage\n", private)
     assert optuna_private_uses("from optuna.storages.journal._file import get_lock_file\n",
                                private)
+
+
+def _layout():
+    """tools/layout.py, the layout page's generator, as a module."""
+    path = PACKAGE.parent / "tools" / "layout.py"
+    spec = importlib.util.spec_from_file_location("layout_tool", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_no_loose_module_at_the_top_of_the_experiment_layer():
+    """Every module lives in a home (a package) but the layer's ``__init__`` and ``api``."""
+    loose = sorted(p.name for p in EXPERIMENT.glob("*.py"))
+    assert loose == ["__init__.py", "api.py"]
+    assert len(_layout().homes()) >= 10  # it sees the homes
+
+
+def _home(module: str) -> str | None:
+    parts = module.split(".")
+    if parts[:2] != ["workbench", "experiment"] or len(parts) < 3:
+        return None
+    return parts[2] if (EXPERIMENT / parts[2] / "__init__.py").is_file() else None
+
+
+def home_arrows(graph: dict[str, set[str]]) -> dict[str, set[str]]:
+    """Home -> the other homes its modules import."""
+    arrows: dict[str, set[str]] = {}
+    for module, targets in graph.items():
+        home = _home(module)
+        if home is not None:
+            arrows.setdefault(home, set()).update(
+                t for t in map(_home, targets) if t is not None and t != home)
+    return arrows
+
+
+def test_each_home_imports_only_what_its_docstring_allows():
+    """Each home's ``__init__`` says which homes it may import (``May import:``); its modules
+    import no other (type-only imports and imports inside functions included), and the
+    allowed homes form no circle, so no home imports one above it."""
+    layout = _layout()
+    homes = layout.homes()
+    for home in homes:
+        assert layout.allowed_paragraph(EXPERIMENT / home / "__init__.py"), \
+            f"{home}/__init__.py has no 'May import:' paragraph"
+    order = layout.layers()  # raises on a circle
+    assert order[0] in ("process", "scoring") and order[-1] == "cli"
+    arrows = home_arrows(import_graph(type_only=True))
+    assert {h: sorted(a - layout.allowed(h)) for h, a in arrows.items()
+            if a - layout.allowed(h)} == {}
+    assert arrows["cli"] and arrows["runs"]  # it sees the imports
+    # the check finds an arrow up when there is one: the config importing a family
+    graph = import_graph(type_only=True)
+    up = {**graph, "workbench.experiment.config.data": graph[
+        "workbench.experiment.config.data"] | {"workbench.experiment.families.base"}}
+    assert "families" in home_arrows(up)["config"] - layout.allowed("config")
+    # and the generator reads the same arrows
+    assert {h: layout.imported_homes(h) for h in homes} == {h: arrows.get(h, set())
+                                                           for h in homes}
+
+
+def test_the_layout_page_is_what_its_generator_writes():
+    """docs/user_guide/layout.md is generated (``make layout``) so it cannot drift."""
+    layout = _layout()
+    page = layout.PAGE.read_text(encoding="utf-8")
+    assert page == layout.render(), "docs/user_guide/layout.md is stale: run make layout"
+    for home in layout.homes():
+        assert f"### `{home}/`" in page
+    assert "`run_outputs.py`" in page and "`_journal.py`" in page  # modules listed
+
+
+def _imports_of(path: Path, runtime_only: bool = False) -> list[tuple[int, str]]:
+    """(line, dotted name) of each import in ``path`` (``runtime_only``: not those under
+    ``if TYPE_CHECKING:``) and of each attribute chain ``a.b.c`` read."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    skipped = set()
+    if runtime_only:
+        for node in ast.walk(tree):
+            if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+                skipped.update(id(n) for n in ast.walk(node))
+    found = []
+    for node in ast.walk(tree):
+        if id(node) in skipped:
+            continue
+        if isinstance(node, ast.Import):
+            found += [(node.lineno, a.name) for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+            found += [(node.lineno, f"{node.module}.{a.name}") for a in node.names]
+        elif isinstance(node, ast.Attribute):
+            found.append((node.lineno, ast.unparse(node)))
+    return found
+
+
+def _outside(home: str) -> list[Path]:
+    return [p for p in PACKAGE.rglob("*.py") if EXPERIMENT / home not in p.parents]
+
+
+def test_mlflow_is_imported_only_under_tracking():
+    """One home talks to MLflow; the others go through it (type-only imports count)."""
+    found = {f"{p.relative_to(PACKAGE)}:{line}": name for p in _outside("tracking")
+             for line, name in _imports_of(p) if name.split(".")[0] == "mlflow"}
+    assert found == {}
+    inside = [name for p in (EXPERIMENT / "tracking").rglob("*.py")
+              for _, name in _imports_of(p) if name.split(".")[0] == "mlflow"]
+    assert inside  # the check sees MLflow's imports
+
+
+def test_optuna_storages_are_used_only_under_storage():
+    """Opening, checking and failing stale trials of Optuna's storages is ``storage/``'s; a
+    name of ``optuna.storages`` elsewhere appears only in annotations (``if TYPE_CHECKING:``)."""
+    def uses(path: Path) -> list[str]:
+        return [f"{path.relative_to(PACKAGE)}:{line}: {name}"
+                for line, name in _imports_of(path, runtime_only=True)
+                if name.startswith("optuna.storages")]
+
+    assert [u for p in _outside("storage") for u in uses(p)] == []
+    assert [u for p in (EXPERIMENT / "storage").rglob("*.py") for u in uses(p)]

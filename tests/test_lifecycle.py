@@ -15,11 +15,12 @@ import pytest
 from mlflow import MlflowClient
 from optuna.trial import TrialState
 
-from workbench.experiment import lifecycle, signals
 from workbench.experiment.cli import main
-from workbench.experiment.errors import redact
+from workbench.experiment.process import signals
+from workbench.experiment.process.errors import redact
+from workbench.experiment.storage import open_storage
 from workbench.experiment.sweep.scheduler import fail_stale, is_counted, run_study, sampler
-from workbench.experiment.sweep.storage import open_storage
+from workbench.experiment.tracking import lifecycle
 from workbench.experiment.tracking.runs import Tracker
 
 from services import command_env, free_port, tiny_sweep, workbench_cmd

@@ -117,9 +117,9 @@ def _csv_config(tmp_path, link, y_shift=0.0):
 
 def test_config_links_are_candidates_and_the_result_says_which_won(tmp_path):
     from workbench.experiment.config import load_dataset
-    from workbench.experiment.evaluate import evaluate
     from workbench.experiment.families.stage import per_target_boost
-    from workbench.experiment.prepare import load_config
+    from workbench.experiment.runs.evaluate import evaluate
+    from workbench.experiment.runs.prepare import load_config
 
     cfg = load_config(_csv_config(tmp_path, '["identity", "log"]'))
     assert cfg.model_for("y")["link"] == ["identity", "log"]
@@ -133,7 +133,7 @@ def test_config_links_are_candidates_and_the_result_says_which_won(tmp_path):
     assert set(choice["cv_mae"]) == {"prior", "identity", "log"}
     assert choice["cv_mae"]["log"] < choice["cv_mae"]["identity"] < choice["cv_mae"]["prior"]
     assert result.to_json()["candidates"]["y"]["chosen"] == "log"
-    from workbench.experiment.evaluate import format_table
+    from workbench.experiment.runs.evaluate import format_table
 
     assert "y: CV chose log (CV MAE" in format_table(result)
     assert result.model.test_mae[0] < 0.5 * result.prior.test_mae[0]
@@ -142,7 +142,7 @@ def test_config_links_are_candidates_and_the_result_says_which_won(tmp_path):
 def test_config_log_link_on_values_that_are_not_positive(tmp_path, caplog):
     from workbench.experiment.config import ConfigError, load_dataset
     from workbench.experiment.families.stage import per_target_boost
-    from workbench.experiment.prepare import load_config
+    from workbench.experiment.runs.prepare import load_config
 
     cfg = load_config(_csv_config(tmp_path, '"log"', y_shift=-5.0))
     ds = load_dataset(cfg)

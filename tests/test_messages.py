@@ -6,7 +6,7 @@ store would be ``tmp_path/mlruns``) and checks: exit code 2, standard error one 
 ``workbench: error: ...`` under 300 characters holding the key words and none of the file's
 content or secrets, nothing on standard output, and no file written (no ``mlruns/``, no
 ``--json`` output). Then: a zero-row request to the served model, the config logged with
-its credentials redacted, and :func:`~workbench.experiment.errors.redact` itself."""
+its credentials redacted, and :func:`~workbench.experiment.process.errors.redact` itself."""
 
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ import pandas as pd
 import pytest
 
 from workbench.experiment.cli import main
-from workbench.experiment.errors import clip, listing, redact, redact_config
+from workbench.experiment.process.errors import clip, listing, redact, redact_config
 from workbench.simulate import simulate
 
 SECRET = "s3cret"
@@ -238,7 +238,7 @@ def test_served_model_answers_a_zero_row_request_in_one_short_message(tmp_path, 
     from mlflow.pyfunc import scoring_server
     from sklearn.linear_model import LinearRegression
 
-    from workbench.experiment.serving import WorkbenchModel, model_signature
+    from workbench.experiment.tracking.serving import WorkbenchModel, model_signature
 
     monkeypatch.setenv(_MLFLOW_IS_IN_SERVING_ENVIRONMENT.name, "false")  # init sets it
     X = pd.DataFrame({"a": [0.0, 1.0, 2.0], "b": [1.0, 0.0, 1.0]})

@@ -186,7 +186,7 @@ def test_the_family_lists_candidates_simplest_first() -> None:
 
 def test_the_config_rule_reaches_the_estimators(tmp_path, google_5q) -> None:
     from workbench.experiment.config import ConfigError
-    from workbench.experiment.prepare import load_config
+    from workbench.experiment.runs.prepare import load_config
 
     path = tmp_path / "c.toml"
     path.write_text('[model]\nbasis = ["ridge", "kernel_ridge"]\ninput_transform = "standard"\n'
@@ -210,7 +210,7 @@ def _result(candidates: dict, selected: list[str], targets: list[str]) -> Simple
 
 
 def test_the_lines_about_the_prior() -> None:
-    from workbench.experiment.evaluate import choice_lines
+    from workbench.experiment.runs.evaluate import choice_lines
 
     mae = {"prior": 0.81, "ridge": 0.80, "lightgbm#00": 0.9, "mean of 2": float("nan")}
     kept = {"chosen": "prior", "best": "ridge", "rule": "one_se", "cv_mae": mae,

@@ -19,15 +19,15 @@ from sklearn.model_selection import KFold, TimeSeriesSplit
 from workbench.datasets import DatasetError, load_csv_dataset
 from workbench.experiment.cli import main
 from workbench.experiment.config import DataConfig, load_dataset
-from workbench.experiment.errors import ConfigError
-from workbench.experiment.folds import (
+from workbench.experiment.process.errors import ConfigError
+from workbench.experiment.runs.prepare import load_config, parse_config
+from workbench.experiment.splits.folds import (
     describe_folds,
     largest_curve_size,
     make_folds,
     selection_cv,
     sweep_inner_cv,
 )
-from workbench.experiment.prepare import load_config, parse_config
 from workbench.selection import LabelGroupKFold, LabelTimeSeriesSplit, ordered_splits
 
 
@@ -284,8 +284,8 @@ def test_init_with_a_bad_order_column_is_one_line(tmp_path):
 
 
 def test_evaluate_with_ordered_folds_trains_every_fold_on_earlier_rows(tmp_path):
-    from workbench.experiment.evaluate import evaluate, format_table
-    from workbench.experiment.intervals import family_model
+    from workbench.experiment.runs.evaluate import evaluate, format_table
+    from workbench.experiment.runs.intervals import family_model
 
     cfg = _config(tmp_path, model={"basis": ["ridge", "spline"]})
     done = evaluate(cfg, return_model=True)

@@ -13,9 +13,9 @@ import pandas as pd
 import pytest
 
 from workbench.experiment.cli import main
-from workbench.experiment.evaluate import evaluate
-from workbench.experiment.prepare import load_config
-from workbench.experiment.run_outputs import computed_outputs
+from workbench.experiment.runs.evaluate import evaluate
+from workbench.experiment.runs.prepare import load_config
+from workbench.experiment.runs.run_outputs import computed_outputs
 from workbench.simulate import simulate, write_simulation
 
 DECAY = """import numpy as np

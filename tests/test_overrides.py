@@ -6,14 +6,14 @@ from pathlib import Path
 
 import pytest
 
-from workbench.experiment.errors import ConfigError
-from workbench.experiment.overrides import (
+from workbench.experiment.config.overrides import (
     apply_overrides,
     format_overrides,
     parse_override,
     parse_overrides,
 )
-from workbench.experiment.prepare import parse_config
+from workbench.experiment.process.errors import ConfigError
+from workbench.experiment.runs.prepare import parse_config
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -76,7 +76,7 @@ def test_format_round_trips():
 @pytest.mark.parametrize("name", ["smoke.toml", "generic.toml", "hamiltonian.toml",
                                   "paper_main_body.toml"])
 def test_dump_reads_back(name):
-    from workbench.experiment.overrides import dump_config
+    from workbench.experiment.config.overrides import dump_config
 
     raw = tomllib.loads((ROOT / "experiments" / name).read_text())
     raw = apply_overrides(raw, {"model.n_stages": 2, "model.targets.eeig1.loss": "huber"})

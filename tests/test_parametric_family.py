@@ -117,7 +117,7 @@ def test_the_chain_model_file_is_the_control_program(google_5q):
     predicts the benchmark's prior; parametric_chain.toml reads it."""
     from pathlib import Path
 
-    from workbench.experiment.prepare import load_config
+    from workbench.experiment.runs.prepare import load_config
     from workbench.parametric import check_model, load_model
 
     root = Path(__file__).resolve().parents[1]
@@ -145,7 +145,7 @@ def _decay_config(tmp_path, extra=""):
 def test_new_rows_need_only_the_features_when_the_model_is_the_prior(decay_csv, tmp_path):
     """The prior the family computed is no input: workbench predict and serving take the
     features alone (it used to ask new rows for the column model_y)."""
-    from workbench.experiment.prepare import load_config, prepare
+    from workbench.experiment.runs.prepare import load_config, prepare
 
     run = prepare(load_config(_decay_config(tmp_path)))
     ds = run.dataset
@@ -164,8 +164,8 @@ def test_a_sweep_varies_the_parametric_settings(decay_csv, tmp_path):
     is no error (it used to be 'Field required'); a bad value or key still is."""
     from optuna.trial import FixedTrial
 
-    from workbench.experiment.prepare import load_config
-    from workbench.experiment.space import SpaceError
+    from workbench.experiment.config.space import SpaceError
+    from workbench.experiment.runs.prepare import load_config
 
     search = ('[search.parametric]\nalpha = { low = 0.1, high = 10.0, log = true }\n'
               'loss = ["huber", "squared_error"]\n')
@@ -184,7 +184,7 @@ def test_a_fitted_model_needs_no_model_file(decay_csv, tmp_path):
     file is gone (a model server, another machine), it predicts the same."""
     import pickle
 
-    from workbench.experiment.prepare import load_config, prepare
+    from workbench.experiment.runs.prepare import load_config, prepare
 
     run = prepare(load_config(_decay_config(tmp_path)))
     ds = run.dataset

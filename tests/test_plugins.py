@@ -21,9 +21,9 @@ from workbench.datasets import SOURCES, DatasetError, get_source, sources
 from workbench.experiment import families
 from workbench.experiment.cli import main
 from workbench.experiment.config import ConfigError
+from workbench.experiment.config.space import SearchSpace
 from workbench.experiment.families import FAMILIES
-from workbench.experiment.prepare import parse_config, prepare
-from workbench.experiment.space import SearchSpace
+from workbench.experiment.runs.prepare import parse_config, prepare
 
 MODULE = "wb_plugin_for_tests"
 

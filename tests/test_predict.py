@@ -154,7 +154,7 @@ class IntervalModel:
 
 @pytest.mark.parametrize("kind", ["pair", "array", "frame"])
 def test_prediction_frame_adds_interval_columns(kind):
-    from workbench.experiment.serving import prediction_frame
+    from workbench.experiment.tracking.serving import prediction_frame
 
     X = pd.DataFrame({"a": [1.0, 2.0], "b": [0.5, 0.0]}, index=[10, 11])
     out = prediction_frame(IntervalModel(kind), X, ["u", "v"])
@@ -165,7 +165,7 @@ def test_prediction_frame_adds_interval_columns(kind):
 
 
 def test_check_inputs_names_the_problem_in_one_line():
-    from workbench.experiment.serving import InputError, check_inputs
+    from workbench.experiment.tracking.serving import InputError, check_inputs
 
     X = pd.DataFrame({"id": ["p", "q"], "b": [1, 2], "a": [0.5, 1.5]}, index=[7, 8])
     got = check_inputs(X, ["a", "b"])
@@ -594,7 +594,7 @@ def test_evaluate_on_a_full_disk_leaves_nothing_and_the_run_failed(google_5q_dir
 
 
 def test_out_tables_are_written_all_or_nothing(tmp_path, monkeypatch):
-    from workbench.experiment.outputs import OutputError, write_artifacts
+    from workbench.experiment.process.outputs import OutputError, write_artifacts
 
     tables = Artifacts(tables={"a": pd.DataFrame({"x": [1.0]}), "b": pd.DataFrame({"y": [2.0]})})
     calls = []

@@ -15,7 +15,7 @@ from workbench.experiment import families
 from workbench.experiment.cli import main
 from workbench.experiment.config import ConfigError
 from workbench.experiment.families import FAMILIES, ModelFamily
-from workbench.experiment.prepare import load_config, parse_config, prepare
+from workbench.experiment.runs.prepare import load_config, parse_config, prepare
 
 
 class PriorModel(RegressorMixin, BaseEstimator):

@@ -360,7 +360,7 @@ def test_quick_studies_are_not_the_full_runs(quick_run):
     out, _ = quick_run
     import optuna
 
-    from workbench.experiment.sweep.storage import open_storage
+    from workbench.experiment.storage import open_storage
 
     root = out.parent
     names = optuna.get_all_study_names(open_storage("mlruns/optuna.journal", root))

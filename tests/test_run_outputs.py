@@ -11,13 +11,15 @@ import pytest
 from matplotlib.figure import Figure
 from mlflow import MlflowClient
 
-from workbench.experiment import figures, intervals, run_outputs, serving
-from workbench.experiment.evaluate import evaluate
+from workbench.experiment import figures
 from workbench.experiment.families import Artifacts
 from workbench.experiment.families.eigenvalue import EigenvalueFamily
-from workbench.experiment.prepare import load_config
-from workbench.experiment.record import record
-from workbench.experiment.run_outputs import computed_outputs
+from workbench.experiment.runs import intervals, run_outputs
+from workbench.experiment.runs.evaluate import evaluate
+from workbench.experiment.runs.prepare import load_config
+from workbench.experiment.runs.record import record
+from workbench.experiment.runs.run_outputs import computed_outputs
+from workbench.experiment.tracking import serving
 
 
 def _config(tmp_path: Path) -> object:

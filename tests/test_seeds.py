@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 from mlflow import MlflowClient
 
-from workbench.experiment import seeds as seeds_module
-from workbench.experiment import signals
 from workbench.experiment.api import evaluate_seeds, load_config
 from workbench.experiment.cli import main
+from workbench.experiment.process import signals
+from workbench.experiment.runs import seeds as seeds_module
 from workbench.simulate import Mismatch, simulate
 
 TARGETS = ["measured_E1", "measured_E2"]

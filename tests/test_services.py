@@ -160,7 +160,7 @@ def test_dashboard_serves_the_studies_on_loopback(tmp_path):
     import json
     import urllib.request
 
-    from workbench.experiment.sweep.storage import dashboard_command, open_storage
+    from workbench.experiment.storage import dashboard_command, open_storage
 
     from services import free_port
 

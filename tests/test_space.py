@@ -1,5 +1,5 @@
-"""Search spaces (workbench.experiment.space): every basis family's conditional parameters are
-sampled and give a model that fits; bad spaces name the entry."""
+"""Search spaces (workbench.experiment.config.space): every basis family's conditional
+parameters are sampled and give a model that fits; bad spaces name the entry."""
 
 from pathlib import Path
 
@@ -9,9 +9,9 @@ import pytest
 from optuna.trial import FixedTrial
 
 from workbench.bases import BASES
+from workbench.experiment.config.space import SearchSpace, SpaceError
 from workbench.experiment.families.eigenvalue import make_booster
-from workbench.experiment.prepare import load_config
-from workbench.experiment.space import SearchSpace, SpaceError
+from workbench.experiment.runs.prepare import load_config
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
 

@@ -82,9 +82,9 @@ def test_a_config_of_heterogeneous_stages_reports_each_stage_choice(tmp_path):
     """``basis = "stagewise"`` with ``n_stages = 2`` in a config: the candidates' settings
     nested (a range drawn like any basis's), and ``evaluate`` reports the basis each stage
     chose per target."""
-    from workbench.experiment.evaluate import evaluate, format_table
     from workbench.experiment.families.stage import candidate_settings
-    from workbench.experiment.prepare import load_config
+    from workbench.experiment.runs.evaluate import evaluate, format_table
+    from workbench.experiment.runs.prepare import load_config
 
     X, y = _trend_and_step(160, 5)
     frame = pd.DataFrame({"x0": X[:, 0], "x1": X[:, 1], "prior": np.zeros(160), "y": y,

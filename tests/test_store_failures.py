@@ -14,8 +14,8 @@ import pytest
 from optuna.trial import TrialState
 
 from workbench.experiment.cli import main
+from workbench.experiment.storage import JournalDamaged, open_storage, repair_journal
 from workbench.experiment.sweep.scheduler import is_counted
-from workbench.experiment.sweep.storage import JournalDamaged, open_storage, repair_journal
 
 from services import free_port, tiny_sweep
 

@@ -15,9 +15,9 @@ import psutil
 import pytest
 from optuna.trial import TrialState
 
-from workbench.experiment.errors import StorageError
+from workbench.experiment.process.errors import StorageError
+from workbench.experiment.storage import _rdb, open_storage
 from workbench.experiment.sweep.scheduler import is_counted, run_study
-from workbench.experiment.sweep.storage import _rdb, open_storage
 
 from services import Postgres, command_env, tiny_sweep, workbench_cmd
 

@@ -12,8 +12,8 @@ import pytest
 from optuna.trial import TrialState
 
 from workbench.experiment.cli import main
+from workbench.experiment.storage import open_storage
 from workbench.experiment.sweep.scheduler import is_counted, run_study
-from workbench.experiment.sweep.storage import open_storage
 
 SMOKE = "experiments/smoke.toml"
 #: The smoke sweep as the tests run it: 5 targets, 2 outer folds (the config's 3 less one:
@@ -163,7 +163,7 @@ INTERRUPTED = textwrap.dedent("""
     import os, sys, optuna
     from pathlib import Path
     from workbench.experiment.sweep.scheduler import run_study
-    from workbench.experiment.sweep.storage import open_storage
+    from workbench.experiment.storage import open_storage
     study = optuna.create_study(study_name="s", storage=open_storage(sys.argv[1], Path(".")),
                                 load_if_exists=True)
     calls = []
@@ -199,7 +199,7 @@ WORKER = textwrap.dedent("""
     import sys, time, optuna
     from pathlib import Path
     from workbench.experiment.sweep.scheduler import run_study
-    from workbench.experiment.sweep.storage import open_storage
+    from workbench.experiment.storage import open_storage
     study = optuna.load_study(study_name="w", storage=open_storage(sys.argv[1], Path(".")))
     # both workers start their trials together: under load one process's imports can
     # outlast the other's twelve trials

@@ -13,13 +13,13 @@ from optuna.trial import FixedTrial, TrialState
 
 from workbench.experiment.cli import main
 from workbench.experiment.config import ConfigError, load_dataset
-from workbench.experiment.evaluate import evaluate
 from workbench.experiment.families import FAMILIES
-from workbench.experiment.intervals import family_model
-from workbench.experiment.prepare import load_config
+from workbench.experiment.runs.evaluate import evaluate
+from workbench.experiment.runs.intervals import family_model
+from workbench.experiment.runs.prepare import load_config
+from workbench.experiment.storage import open_storage
 from workbench.experiment.sweep.scheduler import is_counted, run_study
 from workbench.experiment.sweep.search import StudySpec, run_sweep, study_names, study_objective
-from workbench.experiment.sweep.storage import open_storage
 from workbench.simulate import Mismatch, simulate
 
 N = 5

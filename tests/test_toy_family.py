@@ -14,8 +14,8 @@ from pydantic import Field
 from sklearn.base import BaseEstimator, RegressorMixin
 
 from workbench.experiment.cli import main
+from workbench.experiment.config.schema import Section
 from workbench.experiment.families import FAMILIES, ModelFamily, register_family
-from workbench.experiment.schema import Section
 
 ROOT = Path(__file__).resolve().parents[1]
 

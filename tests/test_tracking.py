@@ -19,7 +19,7 @@ import pandas as pd
 import pytest
 
 import workbench
-from workbench.experiment.errors import TrackingError
+from workbench.experiment.process.errors import TrackingError
 from workbench.experiment.tracking.records import dataset_hash, git_commit
 from workbench.experiment.tracking.runs import (
     SKIPPED_METRICS_TAG,

@@ -20,7 +20,7 @@ from pathlib import Path
 import pytest
 
 from workbench.experiment.paper.runs import SYSTEM_TAG
-from workbench.experiment.run_fields import NOTE_TAG
+from workbench.experiment.runs.run_fields import NOTE_TAG
 from workbench.experiment.tracking.runs import Tracker, metric_view
 
 from services import (

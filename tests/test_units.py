@@ -6,11 +6,11 @@ import pandas as pd
 import pytest
 from mlflow import MlflowClient
 
-from workbench.experiment.evaluate import evaluate, format_table
-from workbench.experiment.prepare import load_config
-from workbench.experiment.record import record
-from workbench.experiment.run_fields import NOTE_TAG
-from workbench.experiment.run_outputs import computed_outputs
+from workbench.experiment.runs.evaluate import evaluate, format_table
+from workbench.experiment.runs.prepare import load_config
+from workbench.experiment.runs.record import record
+from workbench.experiment.runs.run_fields import NOTE_TAG
+from workbench.experiment.runs.run_outputs import computed_outputs
 
 
 def _config(tmp_path, unit: str | None) -> object:
@@ -88,8 +88,8 @@ def test_data_without_a_unit_show_none(tmp_path, new_store):
 
 
 def test_the_unit_is_a_csv_key_only(tmp_path):
-    from workbench.experiment.errors import ConfigError
-    from workbench.experiment.prepare import parse_config
+    from workbench.experiment.process.errors import ConfigError
+    from workbench.experiment.runs.prepare import parse_config
 
     with pytest.raises(ConfigError, match="unit"):
         parse_config({"data": {"source": "google_5q", "unit": "meV"}})

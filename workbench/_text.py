@@ -2,7 +2,7 @@
 
 :func:`clip` cuts a name or a message to a length, ending in ``...``; the core's data readers
 (:mod:`workbench.datasets.csv`) and the experiment layer's errors
-(:mod:`workbench.experiment.errors`, which the core cannot import) both use it.
+(:mod:`workbench.experiment.process.errors`, which the core cannot import) both use it.
 """
 
 from __future__ import annotations

@@ -102,7 +102,7 @@ def constraints(info: FieldInfo) -> str:
 
 
 def _checked_by(annotation: Any) -> str | None:
-    from workbench.experiment.schema import ParameterOf
+    from workbench.experiment.config.schema import ParameterOf
 
     for arg in typing.get_args(annotation):
         if isinstance(arg, ParameterOf):

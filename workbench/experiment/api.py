@@ -15,16 +15,16 @@ The names here are the promised ones; the modules they come from may move.
 
 from __future__ import annotations
 
-from .compare import Comparison, compare_runs
 from .config import ExperimentConfig, load_dataset
-from .design import Design, design
-from .evaluate import Evaluation, evaluate
-from .overrides import apply_overrides, parse_overrides
-from .prepare import PreparedRun, load_config, parse_config, prepare
-from .results import Result
-from .scores import ModelScores, Scores
-from .seeds import SeedsResult, SeedSummary, evaluate_seeds
+from .config.overrides import apply_overrides, parse_overrides
+from .runs.design import Design, design
+from .runs.evaluate import Evaluation, evaluate
+from .runs.prepare import PreparedRun, load_config, parse_config, prepare
+from .runs.seeds import SeedsResult, SeedSummary, evaluate_seeds
+from .scoring.results import Result
+from .scoring.scores import ModelScores, Scores
 from .sweep.search import Sweep, run_sweep
+from .tracking.compare import Comparison, compare_runs
 
 __all__ = ["Comparison", "Design", "Evaluation", "ExperimentConfig", "ModelScores",
            "PreparedRun", "Result", "Scores", "SeedSummary", "SeedsResult", "Sweep",

@@ -6,13 +6,16 @@ per command) and :mod:`.ui` (the servers of ``workbench ui``). Each command impo
 needs when it runs: ``workbench --help`` and ``workbench simulate`` never load MLflow,
 Optuna or SHAP (nor, for ``--help``, scikit-learn). Progress and messages go through
 :mod:`logging` (logger ``workbench``, to standard error).
+
+May import: process, config, splits, scoring, figures, families, tracking, storage, runs,
+sweep, paper (it is the top).
 """
 
 from __future__ import annotations
 
 import sys
 
-from ..errors import (
+from ..process.errors import (
     ConfigError,
     StorageError,
     SweepTimedOut,
@@ -22,7 +25,7 @@ from ..errors import (
     disk_full,
     redact_urls,
 )
-from ..startup import setup_logging
+from ..process.startup import setup_logging
 from . import commands
 from .parser import build_parser
 
@@ -51,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
     args.argv = list(sys.argv[1:] if argv is None else argv)
     setup_logging()
     from ...datasets import DatasetError, DataUnavailableError
-    from ..signals import MESSAGE, handle_signals
+    from ..process.signals import MESSAGE, handle_signals
 
     try:
         with handle_signals():  # SIGINT/SIGTERM: runs end KILLED, one line, exit 130/143

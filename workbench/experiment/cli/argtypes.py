@@ -172,7 +172,7 @@ def random_states(value: str) -> list[int]:
         For anything else: an empty item, a range that runs backwards, a negative or
         non-integer seed, a seed given twice, fewer than two or more than :data:`MAX_SEEDS`.
     """
-    from ..schema import MAX_INT  # numpy's seeds are 32-bit
+    from ..config.schema import MAX_INT  # numpy's seeds are 32-bit
 
     shown = repr(value[:40])
     out: list[int] = []
@@ -238,15 +238,15 @@ def override(value: str) -> tuple[str, Any]:
     Returns
     -------
     tuple of (str, object)
-        The dotted key and its value (:func:`workbench.experiment.overrides.parse_override`).
+        The dotted key and its value (:func:`workbench.experiment.config.overrides.parse_override`).
 
     Raises
     ------
     argparse.ArgumentTypeError
         For text that is not ``SECTION.KEY=VALUE``.
     """
-    from ..errors import ConfigError
-    from ..overrides import parse_override
+    from ..config.overrides import parse_override
+    from ..process.errors import ConfigError
 
     try:
         return parse_override(value)

@@ -1,7 +1,7 @@
 """Handlers of the commands that run a config: ``evaluate``, ``sweep``, ``design``, ``reproduce``.
 
 Each checks everything first (:mod:`.preflight`), loads the config's data once
-(:func:`~workbench.experiment.prepare.prepare`) and hands that run down.
+(:func:`~workbench.experiment.runs.prepare.prepare`) and hands that run down.
 """
 
 from __future__ import annotations
@@ -16,21 +16,21 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ..errors import UsageError
-from ..units import unit_suffix
+from ..process.errors import UsageError
+from ..scoring.units import unit_suffix
 from .preflight import check_before_work, check_outputs, check_stores, repair_hint
 
 if TYPE_CHECKING:
     from ...datasets import Dataset
     from ..config import ExperimentConfig
-    from ..evaluate import Evaluation
+    from ..runs.evaluate import Evaluation
     from ..tracking.runs import Tracker
 
 __all__ = ["RECORD_MODULES", "design", "evaluate", "mark_start", "reproduce", "sweep", "wall"]
 
 #: Modules the MLflow records of a run import (SHAP's plots, MLflow's datasets and models).
 RECORD_MODULES = ("shap", "mlflow.data.pandas_dataset", "mlflow.pyfunc", "mlflow.models",
-                  "workbench.experiment.serving")
+                  "workbench.experiment.tracking.serving")
 
 _START = [0.0]
 
@@ -52,7 +52,7 @@ def wall() -> float:
 
 
 def _write_json(path: str, payload: dict[str, Any]) -> None:
-    from ..outputs import write_file
+    from ..process.outputs import write_file
 
     write_file(path, json.dumps(payload, indent=2) + "\n", "--json")  # never half-written
 
@@ -94,9 +94,9 @@ def reproduce(args: argparse.Namespace) -> int:
         The exit code (0).
     """
     from ...parallel import worker_pool
-    from ..outputs import check_dir
     from ..paper import experiments_dir
     from ..paper import reproduce as run
+    from ..process.outputs import check_dir
 
     configs = experiments_dir(args.experiments)  # its configs, before anything else
     check_dir(args.out, "--out")
@@ -109,7 +109,7 @@ def reproduce(args: argparse.Namespace) -> int:
                           "paper-reproduction")
     storage = args.storage
     if storage is None and args.all:  # the search's own (relative to the working directory)
-        from ..prepare import load_config
+        from ..runs.prepare import load_config
 
         storage = load_config(configs / "paper_search.toml").study.storage
     check_stores(tracker, storage, args.repair, repair_hint(args))
@@ -144,8 +144,8 @@ def sweep(args: argparse.Namespace) -> int:
         The exit code (0).
     """
     from ..config import without_intervals
-    from ..evaluate import format_table
-    from ..prepare import load_config, prepare
+    from ..runs.evaluate import format_table
+    from ..runs.prepare import load_config, prepare
     from ..sweep.search import run_sweep  # imports Optuna only for sweeps
 
     cfg = without_intervals(load_config(args.config, dict(args.overrides)).with_study(
@@ -155,7 +155,7 @@ def sweep(args: argparse.Namespace) -> int:
     prepared = prepare(cfg)
     tracker = check_before_work(cfg, args, cfg.study.storage, repair_hint(args))
     from ...parallel import effective_n_jobs, worker_pool
-    from ..lifecycle import TrialRecorder, command_run
+    from ..tracking.lifecycle import TrialRecorder, command_run
 
     # worker processes for the sweep's workers (--workers), the trials' fits, the refits,
     # the curves and the figures, forked before this process starts any thread (the run's
@@ -168,8 +168,8 @@ def sweep(args: argparse.Namespace) -> int:
                          dataset=prepared.dataset)
         result = done.result
         if not args.no_track:
-            from ..record import record
-            from ..run_outputs import computed_outputs
+            from ..runs.record import record
+            from ..runs.run_outputs import computed_outputs
 
             # computed, then logged, with the chosen configuration (the family's chosen
             # settings too)
@@ -183,7 +183,7 @@ def sweep(args: argparse.Namespace) -> int:
         figures_of_sweep(done, args.out, tracker, run_id)
         result.wall_s = wall()
         if run_id is not None:  # the same figure in MLflow, the output and --json
-            from ..record import record_wall_time
+            from ..runs.record import record_wall_time
 
             record_wall_time(done.config, result, tracking_uri=args.tracking_uri,
                              run_id=run_id)
@@ -201,7 +201,7 @@ def sweep(args: argparse.Namespace) -> int:
 def _evaluate_config(args: argparse.Namespace) -> Any:
     """Load the config ``evaluate`` runs: the file's, with the command line's overrides."""
     from ..config import without_intervals
-    from ..prepare import load_config
+    from ..runs.prepare import load_config
 
     cfg = without_intervals(load_config(args.config, dict(args.overrides)), args.no_intervals)
     if args.jobs is not None:
@@ -226,7 +226,7 @@ def _evaluate_outputs(args: argparse.Namespace, cfg: Any, run: Any, run_id: str 
     """
     if args.out is None and args.no_track:
         return
-    from ..run_outputs import computed_outputs
+    from ..runs.run_outputs import computed_outputs
 
     result = run.result
     with computed_outputs(cfg, result, run.model, run.dataset,
@@ -235,7 +235,7 @@ def _evaluate_outputs(args: argparse.Namespace, cfg: Any, run: Any, run_id: str 
         if args.out is not None:
             result.outputs = {k: str(v) for k, v in computed.written.items()}
         if not args.no_track:
-            from ..record import record
+            from ..runs.record import record
 
             result.mlflow = record(cfg, result, run.model, run.dataset, computed,
                                    kind="evaluate", tracking_uri=args.tracking_uri,
@@ -255,16 +255,16 @@ def evaluate(args: argparse.Namespace) -> int:
     int
         The exit code (0).
     """
-    from ..evaluate import evaluate as run_evaluate
-    from ..evaluate import format_table
-    from ..prepare import prepare
+    from ..runs.evaluate import evaluate as run_evaluate
+    from ..runs.evaluate import format_table
+    from ..runs.prepare import prepare
 
     cfg = _evaluate_config(args)
     check_outputs(args)
     prepared = prepare(cfg)
     tracker = check_before_work(cfg, args)
     from ...parallel import worker_pool
-    from ..lifecycle import command_run
+    from ..tracking.lifecycle import command_run
 
     if cfg.evaluation.random_states:
         return _evaluate_seeds(args, cfg, prepared.dataset, tracker)
@@ -281,7 +281,7 @@ def evaluate(args: argparse.Namespace) -> int:
         _evaluate_outputs(args, cfg, run, run_id)
         result.wall_s = wall()
         if run_id is not None:  # the same figure in MLflow, the output and --json
-            from ..record import record_wall_time
+            from ..runs.record import record_wall_time
 
             record_wall_time(cfg, result, tracking_uri=args.tracking_uri, run_id=run_id)
         if args.json:
@@ -300,15 +300,15 @@ def _evaluate_seeds(args: argparse.Namespace, cfg: ExperimentConfig, dataset: Da
                     tracker: Tracker | None) -> int:
     """``workbench evaluate`` with random_states: a fit per seed, a child run each, a summary."""
     from ...parallel import worker_pool
-    from ..lifecycle import command_run
-    from ..seeds import evaluate_seeds, format_seeds_table, seed_artifacts
+    from ..runs.seeds import evaluate_seeds, format_seeds_table, seed_artifacts
+    from ..tracking.lifecycle import command_run
 
     def runner(one: ExperimentConfig, fit: Callable[[], Evaluation]) -> Evaluation:
         """Run one seed's fit inside its child run (KILLED with the parent on an interrupt)."""
         if tracker is None:
             return fit()
-        from ..record import record_seed
-        from ..serving import prediction_frame
+        from ..runs.record import record_seed
+        from ..tracking.serving import prediction_frame
 
         with tracker.run(f"evaluate {cfg.name} seed {one.random_state}",
                          parent_run_id=run_id, tags={"workbench.kind": "seed"}) as child:
@@ -327,12 +327,12 @@ def _evaluate_seeds(args: argparse.Namespace, cfg: ExperimentConfig, dataset: Da
         done = evaluate_seeds(cfg, dataset=dataset, runner=runner)
         extra = seed_artifacts(done, f"evaluate of {cfg.name}")
         if args.out is not None:
-            from ..outputs import write_artifacts
+            from ..process.outputs import write_artifacts
 
             done.outputs = {k: str(v) for k, v in write_artifacts(extra, args.out).items()}
         done.wall_s = wall()
         if run_id is not None:
-            from ..record import record_seeds
+            from ..runs.record import record_seeds
 
             record_seeds(cfg, done, dataset, tracking_uri=args.tracking_uri, run_id=run_id,
                          artifacts=extra)
@@ -364,8 +364,8 @@ def design(args: argparse.Namespace) -> int:
         The exit code (0).
     """
     from ...parallel import worker_pool
-    from ..design import design_csv
-    from ..prepare import load_config
+    from ..runs.design import design_csv
+    from ..runs.prepare import load_config
 
     cfg = load_config(args.config, dict(args.overrides))
     if args.jobs is not None:

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 from urllib.parse import urlsplit
 
-from ..errors import UsageError
+from ..process.errors import UsageError
 
 if TYPE_CHECKING:
     from ..config import ExperimentConfig
@@ -43,7 +43,7 @@ def check_outputs(args: argparse.Namespace) -> None:
     OutputError
         For an output location that cannot be written.
     """
-    from ..outputs import check_dir, check_file
+    from ..process.outputs import check_dir, check_file
 
     name = getattr(args, "register", None)
     if name is not None:
@@ -63,7 +63,7 @@ def check_before_work(cfg: ExperimentConfig, args: argparse.Namespace,
                       storage: str | None = None, hint: str | None = None) -> Tracker | None:
     """Check the stores of a command that runs a config: its MLflow store, and ``storage``.
 
-    The data are checked by loading them once (:func:`~workbench.experiment.prepare.prepare`)
+    The data are checked by loading them once (:func:`~workbench.experiment.runs.prepare.prepare`)
     before this is called.
 
     Parameters
@@ -84,7 +84,7 @@ def check_before_work(cfg: ExperimentConfig, args: argparse.Namespace,
     """
     tracker = None
     if not args.no_track:
-        from ..record import tracker_for
+        from ..runs.record import tracker_for
 
         tracker = tracker_for(cfg, args.tracking_uri)
     return check_stores(tracker, storage, getattr(args, "repair", False), hint)
@@ -120,7 +120,7 @@ def check_stores(tracker: Tracker | None, storage: str | None, repair: bool,
     if storage is not None:
         check_storage(storage, repair, hint)
     if tracker is not None:
-        from ..lifecycle import prepare_store
+        from ..tracking.lifecycle import prepare_store
 
         prepare_store(tracker)  # one process at a time creates a new store
     return tracker
@@ -138,8 +138,8 @@ def check_storage(storage: str, repair: bool, hint: str | None) -> None:
     hint : str or None
         The command line that repairs a damaged journal.
     """
-    from ..sweep.storage import check_storage as check
-    from ..sweep.storage import repair_journal
+    from ..storage import check_storage as check
+    from ..storage import repair_journal
 
     if repair:
         done = repair_journal(storage, Path.cwd())

@@ -11,7 +11,7 @@ import shlex
 from pathlib import Path
 from typing import Any
 
-from ..errors import UsageError
+from ..process.errors import UsageError
 
 __all__ = ["init", "predict", "simulate"]
 
@@ -29,7 +29,7 @@ def init(args: argparse.Namespace) -> int:
     int
         The exit code (0).
     """
-    from ..init import init_config
+    from ..runs.init import init_config
 
     done = init_config(args.data, prior=args.prior, targets=args.target, features=args.features,
                        split_column=args.split_column, test_fraction=args.test_fraction,
@@ -79,7 +79,7 @@ def predict(args: argparse.Namespace) -> int:
     int
         The exit code (0).
     """
-    from ..predict import predict_csv
+    from ..tracking.predict import predict_csv
     from ..tracking.uris import resolve_tracking_uri
 
     uri = resolve_tracking_uri(args.tracking_uri, None, Path.cwd())
@@ -102,14 +102,12 @@ def compare(args: argparse.Namespace) -> int:
     int
         The exit code (0).
     """
-    from mlflow import MlflowClient
-
-    from ..compare import compare_runs, format_comparison
+    from ..tracking.compare import compare_runs, format_comparison
     from ..tracking.uris import check_store_uri, resolve_tracking_uri
 
     uri = resolve_tracking_uri(args.tracking_uri, None, Path.cwd())
     check_store_uri(uri)
-    print(format_comparison(compare_runs(MlflowClient(uri), args.run_a, args.run_b)))
+    print(format_comparison(compare_runs(uri, args.run_a, args.run_b)))
     return 0
 
 
@@ -177,7 +175,7 @@ def simulate(args: argparse.Namespace) -> int:
         For contradictory options or values the simulation refuses.
     """
     from ...simulate import write_simulation
-    from ..scores import average, mae
+    from ..scoring.scores import average, mae
 
     if args.settings is not None and args.experiments is not None:
         raise UsageError("--settings measures the rows of its CSV; drop --experiments")

@@ -14,34 +14,11 @@ import sys
 import time
 from pathlib import Path
 
-from ..errors import redact
+from ..process.errors import redact
 
 __all__ = ["run", "ui_command", "ui_env"]
 
 log = logging.getLogger("workbench")
-
-
-def _experiment_views(uri: str, port: int) -> list[tuple[str, str]]:
-    """List the UI's address of each experiment in the store with the workbench's runs view.
-
-    That view shows its runs' test MAE per target side by side. None are listed if the store
-    cannot be read now (the UI reports that itself).
-    """
-    from ..tracking.runs import RUNS_VIEW, SHARED_VIEW_PREFIX
-    from ..tracking.uris import sqlite_path, ui_url
-
-    path = sqlite_path(uri)
-    if uri.startswith("sqlite:") and (path is None or not path.is_file()):
-        return []  # nothing stored yet; reading would create the database
-    try:
-        from mlflow import MlflowClient
-
-        experiments = MlflowClient(uri).search_experiments()
-    except Exception as exc:  # a locked or unreachable store: the UI shows the problem
-        log.debug("could not list the experiments of %s: %s", redact(uri), exc)
-        return []
-    return [(e.name, ui_url(port, e.experiment_id, RUNS_VIEW)) for e in experiments
-            if SHARED_VIEW_PREFIX + RUNS_VIEW in e.tags]
 
 
 def _commands(args: argparse.Namespace) -> list[list[str]]:
@@ -50,6 +27,7 @@ def _commands(args: argparse.Namespace) -> list[list[str]]:
     The stores are checked first, as every command checks them (a server would print a
     traceback, or sit on a store it cannot read).
     """
+    from ..tracking.runs import experiment_views
     from ..tracking.uris import check_store_uri, resolve_tracking_uri, ui_url
 
     uri = resolve_tracking_uri(args.tracking_uri, None, Path.cwd())
@@ -57,17 +35,17 @@ def _commands(args: argparse.Namespace) -> list[list[str]]:
     storage = args.storage or "mlruns/optuna.journal"
     serve_studies = args.storage is not None or (Path.cwd() / storage).is_file()
     if serve_studies:
-        from ..sweep.storage import check_storage
+        from ..storage import check_storage
 
         check_storage(storage, Path.cwd())
     cmds = [ui_command(uri, args.port, args.workers)]
     print(f"MLflow UI for {redact(uri)} at {ui_url(args.port)}", flush=True)
-    for name, url in _experiment_views(uri, args.port):
+    for name, url in experiment_views(uri, args.port):
         print(f"  {name}: {url}", flush=True)
     print("  (a run's own page opens in MLflow's GenAI view until the sidebar's \"Model "
           "training\" switch is clicked once; the browser remembers it)", flush=True)
     if serve_studies:  # the studies beside the runs
-        from ..sweep.storage import dashboard_command
+        from ..storage import dashboard_command
 
         cmds.append(dashboard_command(storage, args.dashboard_port, Path.cwd()))
         print(f"Optuna dashboard for {redact(storage)} at "

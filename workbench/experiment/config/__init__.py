@@ -12,21 +12,26 @@ config (see ``experiments/paper_main_body.toml`` for an annotated file)::
     [selection]    SelectionConfig  BaseBoostCV's folds and scoring
     [evaluation]   EvaluationConfig extra estimates of ``evaluate``
     [intervals]    IntervalsConfig  conformal prediction intervals of the fitted model
-    [search]       the space a sweep searches (:class:`~workbench.experiment.space.SearchSpace`;
+    [search]       the space a sweep searches (:class:`~.space.SearchSpace`;
                    ``[search.<family>]`` varies the family's settings)
     [cv]           CVConfig         nested CV of a sweep
     [study]        StudyConfig      the Optuna studies
     [tracking]     TrackingConfig   MLflow
 
-One module per concern: :mod:`.data` (``[data]``), :mod:`.sections` (the other sections),
+One module per concern: :mod:`.schema` (``Section``, the base of every table, a family's
+settings too), :mod:`.data` (``[data]``), :mod:`.sections` (the other sections),
 :mod:`.validation` (a target's boosting settings against the estimators' own
-``_parameter_constraints``, scikit-learn's machinery), :mod:`.experiment`
-(:class:`ExperimentConfig`) and :mod:`.loading` (the config's dataset, :func:`load_dataset`).
-Reading a file, which needs the model families, is :mod:`workbench.experiment.prepare`: this
+``_parameter_constraints``, scikit-learn's machinery), :mod:`.space` (search spaces),
+:mod:`.experiment` (:class:`ExperimentConfig`), :mod:`.loading` (the config's dataset,
+:func:`load_dataset`), :mod:`.overrides` (``--set SECTION.KEY=VALUE``) and
+:mod:`.toml_text` (TOML text as ``workbench init`` writes it).
+Reading a file, which needs the model families, is :mod:`workbench.experiment.runs.prepare`: this
 package sits below the families and imports none of them.
+
+May import: process.
 """
 
-from ..errors import ConfigError
+from ..process.errors import ConfigError
 from .data import DataConfig, HamiltonianData
 from .experiment import ExperimentConfig, without_intervals
 from .loading import check_training_rows, data_key, load_dataset

@@ -13,7 +13,7 @@ from pydantic_core import PydanticCustomError
 
 from ...datasets import DatasetError, get_source, source_names
 from ...hamiltonian import make_graph
-from ..schema import Section, Seed
+from .schema import Section, Seed
 
 __all__ = ["DataConfig", "HamiltonianData"]
 

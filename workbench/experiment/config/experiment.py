@@ -12,7 +12,6 @@ from typing import Any
 
 from pydantic import BaseModel
 
-from ..space import SearchSpace
 from .data import DataConfig
 from .sections import (
     MODEL_DEFAULTS,
@@ -24,13 +23,14 @@ from .sections import (
     StudyConfig,
     TrackingConfig,
 )
+from .space import SearchSpace
 
 __all__ = ["ExperimentConfig", "without_intervals"]
 
 
 @dataclass(frozen=True)
 class ExperimentConfig:
-    """A checked config, as :func:`workbench.experiment.prepare.parse_config` makes it.
+    """A checked config, as :func:`workbench.experiment.runs.prepare.parse_config` makes it.
 
     Sections are typed (frozen pydantic models), each a table of the file.
 

@@ -15,8 +15,8 @@ from sklearn.metrics import get_scorer_names
 from ...boosting import BaseBoostRegressor
 from ...conformal import ConformalRegressor
 from ...selection import BasisChoiceCV
-from ..errors import shorten
-from ..schema import MAX_INT, ParameterOf, Section, Seed
+from ..process.errors import shorten
+from .schema import MAX_INT, ParameterOf, Section, Seed
 
 __all__ = ["MODEL_DEFAULTS", "BoostSettings", "CVConfig", "EvaluationConfig", "IntervalsConfig",
            "ModelConfig", "SelectionConfig", "StudyConfig", "TopLevel", "TrackingConfig"]
@@ -203,7 +203,7 @@ class EvaluationConfig(Section):
     random_states : list of int, default=[]
         Two or more distinct values of the top-level ``random_state``: ``evaluate`` fits the
         config once with each (the data, their split and the CV folds stay), and reports the
-        mean and sd of the test MAE over them (:mod:`workbench.experiment.seeds`;
+        mean and sd of the test MAE over them (:mod:`workbench.experiment.runs.seeds`;
         ``--random-states`` overrides it; empty: one fit with ``random_state``). Formerly
         ``seeds``.
     """
@@ -376,7 +376,7 @@ class TopLevel(Section):
         ``[intervals]``.
     search : dict, default={}
         ``[search]``: the space a sweep searches
-        (:class:`~workbench.experiment.space.SearchSpace`).
+        (:class:`~workbench.experiment.config.space.SearchSpace`).
     cv : CVConfig, default=CVConfig()
         ``[cv]``.
     study : StudyConfig, default=StudyConfig()

@@ -23,8 +23,8 @@ from sklearn.base import BaseEstimator, clone
 from sklearn.utils._param_validation import validate_parameter_constraints
 
 from ...bases import BASES, TRANSFORMS, basis_names, make_basis, make_transform
-from ..errors import listing, shorten
-from ..space import SpaceError, check_ranges, has_ranges
+from ..process.errors import listing, shorten
+from .space import SpaceError, check_ranges, has_ranges
 
 __all__ = ["check_boost_settings", "validate_estimator"]
 

@@ -15,6 +15,9 @@ convention; bases and data sources are added the same way, :mod:`workbench._plug
 
     [project.entry-points."workbench.families"]
     my_family = "my_package.family:MyFamily"
+
+May import: process, config, splits, scoring, figures (a family module imports no other
+family).
 """
 
 from __future__ import annotations

@@ -18,7 +18,7 @@ import pandas as pd
 
 from ..._io import atomic_write
 from ..figures import save_figure
-from ..scores import ModelScores, Scores, mae, mse
+from ..scoring.scores import ModelScores, Scores, mae, mse
 
 if TYPE_CHECKING:
     from ...datasets import Dataset
@@ -166,7 +166,7 @@ class ResultMethods:
 
         They come beside the MAE/MSE bars every run has and the family's :meth:`outputs`
         (which a run logs too); they are computed before the run is recorded
-        (``workbench.experiment.run_outputs.compute_outputs``).
+        (``workbench.experiment.runs.run_outputs.compute_outputs``).
 
         In two halves: start what can run on the worker processes (e.g. learning-curve
         fits) and return a function ``finish(emit=None)`` that waits for it, draws the

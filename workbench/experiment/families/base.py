@@ -17,9 +17,9 @@ from pydantic import BaseModel, ValidationError
 from sklearn.base import clone
 
 from ...design import DesignProblem, ensemble_blocks, robust_sd
-from ..errors import clip, listing
-from ..scores import mae
-from ..space import SearchSpace, SpaceError
+from ..config.space import SearchSpace, SpaceError
+from ..process.errors import clip, listing
+from ..scoring.scores import mae
 from .artifacts import ResultMethods
 from .fitting import quiet_fit
 

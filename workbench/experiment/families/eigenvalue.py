@@ -30,10 +30,10 @@ from ...parallel import (
     start_workers,
 )
 from ...selection import BaseBoostCV, BasisChoiceCV
-from ..explain import target_shap_values
 from ..figures import correction_shap_figure, learning_curve_figure, shap_figure
-from ..folds import curve_cv, largest_curve_size, sweep_inner_cv
-from ..scores import ModelScores, Scores, mae, mse
+from ..scoring.explain import target_shap_values
+from ..scoring.scores import ModelScores, Scores, mae, mse
+from ..splits.folds import curve_cv, largest_curve_size, sweep_inner_cv
 from .artifacts import Artifacts
 from .base import ModelFamily, Report
 from .choices import candidate_choices
@@ -161,7 +161,7 @@ class EigenvalueFamily(ModelFamily):
         whole prediction (``shap_<target>``, dominated by its prior) and, on the same rows
         over the same background, its correction, model - prior, what boosting learned
         (``shap_correction_<target>``; a note instead where the model is the prior)
-        (:func:`~workbench.experiment.explain.target_shap_values`).
+        (:func:`~workbench.experiment.scoring.explain.target_shap_values`).
         """
         log = logging.getLogger("workbench")
         X_train, _, y_train, _ = ds.split()
@@ -222,7 +222,7 @@ def _target_plan(cfg: ExperimentConfig, est: Any, X_train: pd.DataFrame, y: np.n
                  sizes: list[int], cv: Any) -> Plan:
     """Plan one target's learning curve and SHAP values (:mod:`workbench.parallel`).
 
-    The curve is drawn on ``cv`` (:func:`~workbench.experiment.folds.curve_cv`), or on a
+    The curve is drawn on ``cv`` (:func:`~workbench.experiment.splits.folds.curve_cv`), or on a
     BaseBoostCV's own folds.
     """
     if isinstance(est, BaseBoostCV) and not isinstance(est, BasisChoiceCV):
@@ -268,7 +268,7 @@ def cfg_inner_cv(cfg: ExperimentConfig, ds: Dataset | None = None) -> Any:
     -------
     cross-validator
         ``inner_folds`` shuffled folds seeded by ``[cv] sweep_seed``, forward-chaining when the
-        dataset has an order (:func:`~workbench.experiment.folds.sweep_inner_cv`).
+        dataset has an order (:func:`~workbench.experiment.splits.folds.sweep_inner_cv`).
     """
     return sweep_inner_cv(cfg, ds)
 

@@ -36,9 +36,9 @@ from ...design import DesignProblem, robust_sd
 from ...fitted_prior import FittedPriorBoost
 from ...param_boost import HamiltonianParameterRegressor, default_library
 from ...param_select import HamiltonianSelectionCV, candidate_pool
-from ..errors import ConfigError
-from ..schema import ParameterOf, Section
-from ..scores import ModelScores, Scores, mae, mse
+from ..config.schema import ParameterOf, Section
+from ..process.errors import ConfigError
+from ..scoring.scores import ModelScores, Scores, mae, mse
 from .artifacts import Artifacts
 from .base import ModelFamily
 from .hamiltonian_figures import parameter_corrections, selection_path_figure

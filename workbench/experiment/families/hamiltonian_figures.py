@@ -25,7 +25,7 @@ from ..figures.style import (
     with_setting,
     wrap,
 )
-from ..units import unit_suffix, with_unit
+from ..scoring.units import unit_suffix, with_unit
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure

@@ -35,10 +35,10 @@ from ...fitted_prior import FittedPriorBoost
 from ...parametric import ModelError, load_model
 from ...parametric_boost import ParametricBoostRegressor
 from ...parametric_gbm import ParameterSpaceBoostRegressor, make_regressor
-from ..errors import ConfigError
-from ..schema import Section
-from ..scores import ModelScores, Scores, mae, mse
-from ..toml_text import toml_string
+from ..config.schema import Section
+from ..config.toml_text import toml_string
+from ..process.errors import ConfigError
+from ..scoring.scores import ModelScores, Scores, mae, mse
 from .artifacts import Artifacts
 from .base import ModelFamily
 from .hamiltonian_figures import parameter_corrections, selection_path_figure

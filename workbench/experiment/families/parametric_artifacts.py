@@ -24,9 +24,9 @@ from sklearn.base import BaseEstimator, RegressorMixin, clone
 
 from ...curves import augmented_learning_curve
 from ...parametric import resolve_model
-from ..explain import target_shap_values
 from ..figures import correction_shap_figure, learning_curve_figure, shap_figure
-from ..folds import curve_cv, largest_curve_size
+from ..scoring.explain import target_shap_values
+from ..splits.folds import curve_cv, largest_curve_size
 from .artifacts import Artifacts
 from .eigenvalue import curve_sizes
 

@@ -18,9 +18,9 @@ from ...bases import make_basis, make_transform, quadratic_basis_warning
 from ...boosting import BaseBoostRegressor
 from ...multitarget import MultiTargetBaseBoost
 from ...selection import BaseBoostCV, BasisChoiceCV
-from ..errors import ConfigError
-from ..folds import selection_cv as _selection_cv
-from ..space import draw_params, has_ranges
+from ..config.space import draw_params, has_ranges
+from ..process.errors import ConfigError
+from ..splits.folds import selection_cv as _selection_cv
 from .choices import by_complexity
 
 if TYPE_CHECKING:
@@ -166,7 +166,7 @@ def target_inputs(settings: dict[str, Any], ds: Dataset, priors: list[str]) -> l
 
 
 def selection_cv(cfg: ExperimentConfig, ds: Dataset | None = None) -> Any:
-    """Make BaseBoostCV's folds (``[selection]``; :func:`workbench.experiment.folds.selection_cv`).
+    """Make BaseBoostCV's folds (``[selection]``; :func:`.folds.selection_cv`).
 
     Forward-chaining (:class:`~workbench.selection.LabelTimeSeriesSplit`) when the dataset
     has an order (``[data] order_column``); whole groups

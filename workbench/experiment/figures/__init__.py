@@ -7,7 +7,7 @@
   intervals as error bars when given them.
 * :func:`learning_curve_figure` -- the augmented learning curve (Fig. 4, S5).
 * :func:`shap_summary` -- SHAP beeswarm summary of a model's predictions (Fig. 5, S8);
-  :func:`~workbench.experiment.explain.shap_values` and :func:`shap_figure` are its halves.
+  :func:`~workbench.experiment.scoring.explain.shap_values` and :func:`shap_figure` are its halves.
 * :func:`correction_shap_figure` -- the SHAP summary of what a base-boosting model adds to its
   prior (model - prior), or a note that the model is the prior.
 * :func:`correlation_heatmap` -- pairwise Pearson correlations of the training examples (Fig. 3).
@@ -22,6 +22,8 @@ A family's own figures live beside the family (e.g.
 :mod:`.style`. Every figure takes the targets' ``unit`` (a dataset's
 :attr:`~workbench.datasets.Dataset.unit`; ``None``: no unit shown). The same data give the
 same figure; nothing is shown, and matplotlib loads with the first figure drawn.
+
+May import: scoring.
 """
 
 from ._bars import error_bars, mae_bars, model_comparison_bars

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..units import squared, with_unit
+from ..scoring.units import squared, with_unit
 from .style import (
     MODEL_COLOR,
     OTHER_SYSTEM_COLORS,
@@ -29,7 +29,7 @@ if TYPE_CHECKING:
     from matplotlib.container import BarContainer
     from matplotlib.figure import Figure
 
-    from ..results import Result
+    from ..scoring.results import Result
 
 __all__ = ["error_bars", "mae_bars", "model_comparison_bars"]
 
@@ -166,7 +166,7 @@ def mae_bars(targets: Sequence[str], prior: Sequence[float], model: Sequence[flo
         The error's name on the axis.
     unit : str, optional
         The error's unit: axis label ``"<metric> (<unit>)"``; give the squared unit
-        (:func:`~workbench.experiment.units.squared`) for an MSE. ``None``: no unit shown.
+        (:func:`~workbench.experiment.scoring.units.squared`) for an MSE. ``None``: no unit shown.
     title : str, optional
         Default: ``"Test <metric> per target: <labels[0]> vs <labels[1]>"``.
     labels : (str, str)
@@ -180,11 +180,11 @@ def mae_bars(targets: Sequence[str], prior: Sequence[float], model: Sequence[flo
         Intervals drawn as error bars: ``[low, high]`` per target, then the average's (an
         interval of the average over targets is not the average of the targets' intervals:
         give the one computed with them, e.g. :meth:`Scores.ci
-        <workbench.experiment.scores.Scores.ci>` ``("test_mae")``); without ``average``,
+        <workbench.experiment.scoring.scores.Scores.ci>` ``("test_mae")``); without ``average``,
         ``(n_targets, 2)`` is enough. Either may be given alone.
     ci_note : str or None
         With error bars, a note under the axis saying what they are (``None``: none); the
-        default describes :func:`~workbench.experiment.bootstrap.bootstrap_test_scores`'
+        default describes :func:`~workbench.experiment.scoring.bootstrap.bootstrap_test_scores`'
         intervals, give another for other intervals.
 
     Returns
@@ -233,7 +233,7 @@ def error_bars(result: Result, metric: str = "MAE", *, unit: str | None = None,
     """Draw a result's test MAE (or MSE) per target, prior against model, with their intervals.
 
     :func:`mae_bars` of the result's ``test_mae`` (``test_mse``) and their bootstrap
-    intervals (:meth:`~workbench.experiment.scores.Scores.ci`).
+    intervals (:meth:`~workbench.experiment.scoring.scores.Scores.ci`).
 
     Parameters
     ----------

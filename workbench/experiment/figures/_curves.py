@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ...curves import LearningCurve
-from ..units import squared, with_unit
+from ..scoring.units import squared, with_unit
 from .style import (
     INCUMBENT_COLOR,
     MODEL_COLOR,

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pandas as pd
 
-from ..units import with_unit
+from ..scoring.units import with_unit
 from .style import (
     COUPLER_COLOR,
     MEASURED_COLOR,

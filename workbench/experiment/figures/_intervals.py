@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pandas as pd
 
-from ..units import unit_suffix, with_unit
+from ..scoring.units import unit_suffix, with_unit
 from .style import INCUMBENT_COLOR, MODEL_COLOR, fit_text, new_figure, style_axes, with_setting
 
 if TYPE_CHECKING:
@@ -70,7 +70,7 @@ def interval_figure(table: pd.DataFrame, *, level: float, unit: str | None = Non
     table : pandas.DataFrame
         One row per experiment and target with the columns ``target``, ``measured``,
         ``predicted``, ``lower``, ``upper`` (as
-        :func:`workbench.experiment.intervals.interval_table` writes).
+        :func:`workbench.experiment.runs.intervals.interval_table` writes).
     level : float
         The intervals' level, in (0, 1).
     unit : str, optional

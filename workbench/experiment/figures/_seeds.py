@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..units import with_unit
+from ..scoring.units import with_unit
 from .style import (
     INCUMBENT_COLOR,
     MODEL_COLOR,

@@ -12,8 +12,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pandas as pd
 
-from ..explain import ShapValues, check_shap_frame, shap_values
-from ..units import unit_suffix, with_unit
+from ..scoring.explain import ShapValues, check_shap_frame, shap_values
+from ..scoring.units import unit_suffix, with_unit
 from .style import fit_text, new_figure, text_inches, with_setting
 
 if TYPE_CHECKING:
@@ -35,7 +35,7 @@ def shap_summary(predict: Callable[[np.ndarray], np.ndarray], X: pd.DataFrame, *
     ``predict`` receives plain 2-D float arrays (the columns of ``X``, in order). The
     background is ``background_size`` rows of ``X`` sampled with ``random_state``. With
     ``nsamples="auto"`` and up to ten features the values are exact: every coalition is
-    enumerated (:func:`workbench.experiment.explain.exact_shap_values`, the values
+    enumerated (:func:`workbench.experiment.scoring.explain.exact_shap_values`, the values
     ``shap.KernelExplainer`` estimates at its default ``nsamples``) with the model called on
     all rows' coalitions at once. Otherwise ``shap.KernelExplainer`` with ``nsamples``
     (``predict`` wrapped in a lambda, never passed as a bound method: see the SHAP notes in
@@ -167,15 +167,15 @@ def correction_shap_figure(shap: ShapValues | None, *, target: str, unit: str | 
     ----------
     shap : ShapValues or None
         The correction's SHAP values (the ``correction`` of
-        :func:`~workbench.experiment.explain.target_shap_values`). ``None``: the model is the
-        prior (its correction is 0 on every row), and the figure says so, with ``note``,
+        :func:`~workbench.experiment.scoring.explain.target_shap_values`). ``None``: the model
+        is the prior (its correction is 0 on every row), and the figure says so, with ``note``,
         instead of a beeswarm of zeros.
     target : str
         The target's name.
     unit : str, optional
         The prediction's unit; ``None``: none shown.
     note : str, default=""
-        Why the model is its prior (:func:`~workbench.experiment.explain.prior_reason`).
+        Why the model is its prior (:func:`~workbench.experiment.scoring.explain.prior_reason`).
     max_display, random_state, title, setting
         As :func:`shap_figure`'s.
 

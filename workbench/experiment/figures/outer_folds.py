@@ -10,13 +10,13 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
-from ..units import with_unit
+from ..scoring.units import with_unit
 from .style import MODEL_COLOR, PRIOR_COLOR, fit_text, new_figure, style_axes
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-    from ..results import OuterFold
+    from ..scoring.results import OuterFold
 
 __all__ = ["configuration_label", "outer_folds_figure"]
 
@@ -60,7 +60,8 @@ def outer_folds_figure(folds: Sequence[OuterFold], unit: str | None = None,
     Parameters
     ----------
     folds : sequence of OuterFold
-        The sweep's outer folds (:attr:`~workbench.experiment.results.SweepSummary.outer_folds`).
+        The sweep's outer folds
+        (:attr:`~workbench.experiment.scoring.results.SweepSummary.outer_folds`).
     unit : str, optional
         The targets' unit (``None``: none shown).
     title : str, default="Nested CV: each outer fold's choice"

@@ -10,6 +10,8 @@
   :mod:`.runs` logs them as MLflow runs.
 * :mod:`.reproduction` -- what was computed (``results.json``); :mod:`.report` -- the
   Markdown report.
+
+May import: process, config, splits, scoring, figures, families, tracking, runs, sweep.
 """
 
 from .report import report

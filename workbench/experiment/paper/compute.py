@@ -20,9 +20,9 @@ from ...curves import learning_curve_plan
 from ...datasets import Dataset
 from ...parallel import Plan, Task, gather
 from ..config import ExperimentConfig, without_intervals
-from ..explain import target_shap_values
 from ..figures import correction_shap_figure, learning_curve_figure, save_figure, shap_figure
-from ..intervals import family_model
+from ..runs.intervals import family_model
+from ..scoring.explain import target_shap_values
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -223,7 +223,7 @@ def correction_shap_plan(model: Any, ds: Dataset, seed: int, quick: bool) -> Pla
 
     Per target, the correction's (model − prior) and the whole prediction's on the training
     rows, one task each (the longest tasks of the paper settings: they go first). Returns
-    their :func:`~workbench.experiment.explain.target_shap_values`, for
+    their :func:`~workbench.experiment.scoring.explain.target_shap_values`, for
     :func:`draw_correction_shap`.
 
     Parameters

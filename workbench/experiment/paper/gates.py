@@ -17,15 +17,15 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ...datasets import Dataset
-from ..bootstrap import bootstrap_error_interval, bootstrap_test_scores
 from ..config import ExperimentConfig
-from ..evaluate import evaluate
 from ..figures import model_comparison_bars
-from ..intervals import family_model
-from ..prepare import load_config
-from ..results import Result
-from ..run_fields import result_metrics, run_params, score_metrics
-from ..scores import ModelScores, Scores, mae, mse
+from ..runs.evaluate import evaluate
+from ..runs.intervals import family_model
+from ..runs.prepare import load_config
+from ..runs.run_fields import result_metrics, run_params, score_metrics
+from ..scoring.bootstrap import bootstrap_error_interval, bootstrap_test_scores
+from ..scoring.results import Result
+from ..scoring.scores import ModelScores, Scores, mae, mse
 from .peer import PEER_TRIALS, peer_predict
 from .systems import Stopwatch, System
 

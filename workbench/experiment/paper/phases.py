@@ -26,15 +26,15 @@ from sklearn.pipeline import Pipeline, make_pipeline
 from ...bases import NormalQuantileTransformer
 from ...datasets import Dataset
 from ...parallel import Task, map_tasks
-from ..bootstrap import bootstrap_error_interval
 from ..config import ExperimentConfig
-from ..evaluate import evaluate
-from ..explain import shap_values
 from ..figures import error_bars, model_comparison_bars, shap_figure
-from ..intervals import family_model
-from ..results import Result
-from ..serving import prediction_frame
-from ..units import squared
+from ..runs.evaluate import evaluate
+from ..runs.intervals import family_model
+from ..scoring.bootstrap import bootstrap_error_interval
+from ..scoring.explain import shap_values
+from ..scoring.results import Result
+from ..scoring.units import squared
+from ..tracking.serving import prediction_frame
 from .compute import (
     SHORT,
     TABULA_RASA,

@@ -10,10 +10,10 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from ..bootstrap import bootstrap_description
 from ..families.stage import candidate_settings
-from ..results import Result
-from ..units import unit_name, unit_suffix, with_unit
+from ..scoring.bootstrap import bootstrap_description
+from ..scoring.results import Result
+from ..scoring.units import unit_name, unit_suffix, with_unit
 from .compute import SHORT
 from .gates import Gates
 from .reproduction import REFERENCE, Reproduction

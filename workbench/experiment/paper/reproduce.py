@@ -36,8 +36,6 @@ from ..config import (
     load_dataset,
     without_intervals,
 )
-from ..errors import UsageError
-from ..evaluate import evaluate
 from ..figures import (
     correlation_heatmap,
     error_bars,
@@ -45,10 +43,12 @@ from ..figures import (
     prior_target_boxplots,
     voltage_boxplots,
 )
-from ..prepare import load_config
-from ..results import Result
-from ..serving import prediction_frame
+from ..process.errors import UsageError
+from ..runs.evaluate import evaluate
+from ..runs.prepare import load_config
+from ..scoring.results import Result
 from ..sweep.search import Sweep, run_sweep
+from ..tracking.serving import prediction_frame
 from .compute import (
     SHORT,
     SameAs,

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from ..results import Result
+from ..scoring.results import Result
 from .compute import SHORT
 from .gates import Gates
 

@@ -18,8 +18,8 @@ from pathlib import Path
 
 from ...datasets import Dataset
 from ..config import ExperimentConfig
-from ..errors import redact
-from ..run_fields import (
+from ..process.errors import redact
+from ..runs.run_fields import (
     NOTE_TAG,
     config_text,
     log_inputs,
@@ -27,9 +27,9 @@ from ..run_fields import (
     log_test_predictions,
     run_tags,
 )
+from ..scoring.units import unit_name
 from ..tracking.runs import Tracker, metric_view
 from ..tracking.uris import resolve_tracking_uri
-from ..units import unit_name
 from .reproduction import Reproduction
 from .systems import System
 

@@ -3,7 +3,7 @@
 The catalogue (:data:`SYSTEMS`), one :class:`System` per compared model in the metric schema
 of ``evaluate``, and the summary table.
 
-Every system's metrics use the keys of :func:`~workbench.experiment.run_fields.score_metrics`
+Every system's metrics use the keys of :func:`~workbench.experiment.runs.run_fields.score_metrics`
 (``test_mae/<target>``, ``test_mae_avg``, ...), so MLflow's compare view lines the systems up
 with each other and with any ``evaluate`` run of the same data (:mod:`.runs` logs them).
 """
@@ -19,10 +19,10 @@ import pandas as pd
 
 from ...datasets import Dataset
 from ..config import ExperimentConfig
-from ..results import Result
-from ..run_fields import result_metrics, run_params, score_metrics
-from ..scores import Scores
-from ..units import squared, unit_suffix
+from ..runs.run_fields import result_metrics, run_params, score_metrics
+from ..scoring.results import Result
+from ..scoring.scores import Scores
+from ..scoring.units import squared, unit_suffix
 from .compute import TABULA_RASA
 
 if TYPE_CHECKING:

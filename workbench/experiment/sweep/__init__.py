@@ -4,9 +4,11 @@
   outer folds' refits and the final evaluation (:func:`~.search.run_sweep`);
 * :mod:`~workbench.experiment.sweep.scheduler`: samplers, pruners and the trial scheduler
   that leaves every study with exactly its budget of counted trials;
-* :mod:`~workbench.experiment.sweep.storage`: the Optuna storage adapter (journal file or
-  database, checked, repaired), the only module touching Optuna's private names;
-* :mod:`~workbench.experiment.sweep.workers`: the processes of ``--workers N``.
+* :mod:`~workbench.experiment.sweep.workers`: the processes of ``--workers N``;
+* :mod:`~workbench.experiment.sweep.report`: the studies' figures and tables.
 
-Importing this package loads none of them (nor Optuna).
+Importing this package loads none of them (nor Optuna). The studies' storage (journal file or
+database) is :mod:`workbench.experiment.storage`.
+
+May import: process, config, splits, scoring, figures, families, tracking, storage, runs.
 """

@@ -1,7 +1,7 @@
 """The trial scheduler of ``workbench sweep``.
 
 Samplers and pruners, and running studies in shared storage until each holds exactly its
-budget of counted trials (:mod:`~workbench.experiment.sweep.storage` opens the storages,
+budget of counted trials (:mod:`~workbench.experiment.storage` opens the storages,
 :mod:`~workbench.experiment.sweep.workers` starts the processes,
 :mod:`~workbench.experiment.sweep.search` holds the objectives).
 
@@ -45,18 +45,21 @@ from optuna.exceptions import ExperimentalWarning, UpdateFinishedTrialError
 from optuna.trial import FrozenTrial, TrialState
 
 from ...parallel import pid_alive
-from ..errors import StorageError
-from ..lifecycle import every
-from ..signals import interrupts_deferred
-from .storage import (
+from ..process.errors import StorageError
+from ..process.signals import interrupts_deferred
+from ..storage import (
     beat,
+    fail_stale_trials,
     heartbeat_enabled,
     heartbeat_interval,
     retry,
     set_trial_attr,
 )
+from ..tracking.lifecycle import every
 
 if TYPE_CHECKING:
+    from optuna.storages import BaseStorage
+
     from ..config import ExperimentConfig
 
 log = logging.getLogger("workbench")
@@ -150,7 +153,7 @@ def sampler(cfg: ExperimentConfig) -> TrialSeededSampler:
 OBJECTIVE = "inner-CV MAE (targets' units)"
 
 
-def open_study(name: str, storage: optuna.storages.BaseStorage, *,
+def open_study(name: str, storage: BaseStorage, *,
                attrs: Mapping[str, Any] | None = None, **kwargs: Any) -> optuna.Study:
     """Open the sweep's study ``name`` in ``storage`` (created if new; minimised).
 
@@ -213,10 +216,7 @@ def fail_stale(study: optuna.Study, stale_after_s: float) -> None:
     At once when it was a process on this host; after ``stale_after_s`` without a heartbeat
     otherwise (RDB: by Optuna's heartbeat; journal: by the ``heartbeat`` user attribute).
     """
-    if heartbeat_enabled(study):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", ExperimentalWarning)
-            optuna.storages.fail_stale_trials(study)
+    fail_stale_trials(study)
     host, now = socket.gethostname(), time.time()
     for t in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
         worker = t.user_attrs.get("worker", "")

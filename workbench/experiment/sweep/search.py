@@ -13,7 +13,7 @@ together for a family whose one model predicts them all), on the training rows o
 
 The family supplies the objective, the refit and the final model
 (:class:`~workbench.experiment.families.base.ModelFamily`); the studies' storage and trial
-scheduling are :mod:`~workbench.experiment.sweep.storage` and
+scheduling are :mod:`~workbench.experiment.storage` and
 :mod:`~workbench.experiment.sweep.scheduler`, its processes
 :mod:`~workbench.experiment.sweep.workers`.
 """
@@ -34,12 +34,12 @@ from sklearn.model_selection import RepeatedKFold
 
 from ...parallel import Task, map_tasks
 from ..config import ExperimentConfig, load_dataset
-from ..errors import SweepTimedOut, redact
-from ..evaluate import fit_and_score
-from ..folds import describe_folds, outer_order_splits, sweep_inner_cv
-from ..results import OuterFold, Result, SweepSummary
+from ..process.errors import SweepTimedOut, redact
+from ..runs.evaluate import fit_and_score
+from ..scoring.results import OuterFold, Result, SweepSummary
+from ..splits.folds import describe_folds, outer_order_splits, sweep_inner_cv
+from ..storage import open_storage
 from .scheduler import is_counted, open_study, pruner, run_studies, sampler, studies_short
-from .storage import open_storage
 from .workers import search_in_workers
 
 if TYPE_CHECKING:

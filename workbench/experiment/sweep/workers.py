@@ -13,10 +13,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Mapping
 
 from ...parallel import Task, map_tasks
-from ..signals import Interrupted, handle_signals
-from ..startup import setup_logging
+from ..process.signals import Interrupted, handle_signals
+from ..process.startup import setup_logging
+from ..storage import open_storage
 from .scheduler import open_study
-from .storage import open_storage
 
 if TYPE_CHECKING:
     from ...datasets import Dataset

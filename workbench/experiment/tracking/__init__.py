@@ -19,6 +19,16 @@ first connection of a process uses SQLite's connect timeout (5 s, or ``?timeout=
 URI, e.g. ``sqlite:////abs/mlflow.db?timeout=30``). Store problems (locked or corrupt
 database, unreachable server, out-of-date schema) raise :class:`TrackingError` naming the
 store; the store itself is never deleted or rewritten.
+
+One module per concern: :mod:`.uris` (where the store is, checked before any work),
+:mod:`.translate` (store errors as one line), :mod:`.runs` (:class:`~.runs.Tracker`),
+:mod:`.models` (logged, registered, loaded models), :mod:`.artifacts` (files, figures, input
+datasets), :mod:`.records` (hashes, commits, MLflow's value limits), :mod:`.lifecycle` (runs
+never left RUNNING: heartbeats, the reaper, the store's first use), :mod:`.serving` (the
+logged pyfunc model), :mod:`.predict` (``workbench predict``) and :mod:`.compare`
+(``workbench compare``: two runs' paired errors).
+
+May import: process, scoring. The only home that imports MLflow (a test checks).
 """
 
 from __future__ import annotations
@@ -38,8 +48,3 @@ HTTP_RETRIES = {"MLFLOW_HTTP_REQUEST_MAX_RETRIES": "5",
                 "MLFLOW_HTTP_REQUEST_TIMEOUT": "60"}
 for _name, _value in HTTP_RETRIES.items():
     os.environ.setdefault(_name, _value)
-
-# The package's rooms: uris (where the store is, checked before any work), translate (store
-# errors as one line), runs (Tracker), models (logged, registered, loaded models), artifacts
-# (files, figures, input datasets), records (hashes, commits, MLflow's value limits). Import
-# from them.

@@ -22,9 +22,9 @@ from mlflow.exceptions import MlflowException
 
 import workbench
 
-from ..errors import TrackingError
-from ..serving import WorkbenchModel, model_signature
+from ..process.errors import TrackingError
 from .records import tag_value
+from .serving import WorkbenchModel, model_signature
 
 if TYPE_CHECKING:
     from mlflow import MlflowClient

@@ -18,15 +18,16 @@ from mlflow import MlflowClient
 from mlflow.entities import Metric, Param, RunTag
 from mlflow.exceptions import MlflowException
 
-from ..errors import SweepTimedOut, TrackingError, redact
-from ..signals import ignoring_signals, interrupts_deferred
+from ..process.errors import SweepTimedOut, TrackingError, redact
+from ..process.signals import ignoring_signals, interrupts_deferred
 from .artifacts import ArtifactRecords
 from .models import ModelRecords
 from .records import now_ms, param_value, tag_value
 from .translate import duplicate_row, translate
-from .uris import describe_store, is_database, prepare_store_location, sqlite_path
+from .uris import describe_store, is_database, prepare_store_location, sqlite_path, ui_url
 
-__all__ = ["RUNS_VIEW", "SHARED_VIEW_PREFIX", "Tracker", "ensure_store", "metric_view"]
+__all__ = ["RUNS_VIEW", "SHARED_VIEW_PREFIX", "Tracker", "ensure_store", "experiment_views",
+           "metric_view"]
 
 _logger = logging.getLogger("workbench.experiment.tracking")
 
@@ -224,7 +225,7 @@ class Tracker(ModelRecords, ArtifactRecords):
         """Run a block inside a run: ``with tracker.run("fold-0", parent_run_id=pid) as run_id:``.
 
         The run ends ``FINISHED``, or ``FAILED`` (``KILLED`` on ``KeyboardInterrupt`` or a
-        sweep's timeout, :class:`~workbench.experiment.errors.SweepTimedOut`) and the error
+        sweep's timeout, :class:`~workbench.experiment.process.errors.SweepTimedOut`) and the error
         is re-raised. The arguments are :meth:`start_run`'s.
 
         Yields
@@ -395,3 +396,33 @@ def metric_view(targets: list[str], metric: str = "test_mae",
     columns = [f"metrics.`{metric}/{t}`" for t in targets] + [f"metrics.`{metric}_avg`"]
     return {"selectedColumns": columns, "searchFilter": search_filter,
             "orderByKey": f"metrics.`{metric}_avg`", "orderByAsc": True}
+
+
+def experiment_views(uri: str, port: int) -> list[tuple[str, str]]:
+    """List the UI's address of each experiment in the store with the workbench's runs view.
+
+    That view shows its runs' test MAE per target side by side. None are listed if the store
+    cannot be read now (the UI reports that itself).
+
+    Parameters
+    ----------
+    uri : str
+        The tracking URI.
+    port : int
+        The port the MLflow UI listens on (127.0.0.1).
+
+    Returns
+    -------
+    list of (str, str)
+        Each experiment's name and the address of its runs view.
+    """
+    path = sqlite_path(uri)
+    if uri.startswith("sqlite:") and (path is None or not path.is_file()):
+        return []  # nothing stored yet; reading would create the database
+    try:
+        experiments = MlflowClient(uri).search_experiments()
+    except Exception as exc:  # a locked or unreachable store: the UI shows the problem
+        _logger.debug("could not list the experiments of %s: %s", redact(uri), exc)
+        return []
+    return [(e.name, ui_url(port, e.experiment_id, RUNS_VIEW)) for e in experiments
+            if SHARED_VIEW_PREFIX + RUNS_VIEW in e.tags]

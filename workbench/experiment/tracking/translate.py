@@ -8,7 +8,7 @@ from __future__ import annotations
 import re
 from urllib.parse import urlsplit
 
-from ..errors import TrackingError, disk_full, redact
+from ..process.errors import TrackingError, disk_full, redact
 from .uris import describe_store, is_database
 
 __all__ = ["duplicate_row", "translate"]

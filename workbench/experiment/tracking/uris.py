@@ -14,7 +14,7 @@ import tempfile
 from pathlib import Path
 from urllib.parse import urlsplit
 
-from ..errors import TrackingError, driver_hint, redact
+from ..process.errors import TrackingError, driver_hint, redact
 
 __all__ = ["DEFAULT_STORE", "check_store_uri", "default_artifact_root", "default_tracking_uri",
            "describe_store", "resolve_tracking_uri", "sqlite_path", "ui_url"]
