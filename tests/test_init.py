@@ -214,7 +214,7 @@ def test_a_column_that_repeats_names_is_proposed_as_the_group_column(data, tmp_p
     """Without --group-column, a text column whose values repeat (the device) is proposed,
     not forced: the config is written without it and the note says how to keep groups whole;
     the split column (two values) is not proposed, nor a column of unique names."""
-    from workbench.experiment.runs.init import group_columns
+    from workbench.experiment.splits.columns import group_columns
 
     assert group_columns(data, ["split"]) == {"device": 3}
     rc, out, err = run("init", data, *TARGET_ARGS, "--split-column", "split", "--out", "n.toml")

@@ -417,3 +417,31 @@ def test_optuna_storages_are_used_only_under_storage():
 
     assert [u for p in _outside("storage") for u in uses(p)] == []
     assert [u for p in (EXPERIMENT / "storage").rglob("*.py") for u in uses(p)]
+
+
+def test_no_module_re_exports_another_s_names():
+    """A module's ``__all__`` names what it defines, not what it imports from the project
+    (no re-export kept for an old import path); only the packages' ``__init__`` and the
+    promised ``workbench.experiment.api`` gather names from elsewhere."""
+    problems = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        if path.name == "__init__.py" or path == PACKAGE / "experiment" / "api.py":
+            continue
+        tree = ast.parse(path.read_text())
+        defined, imported, names = set(), set(), []
+        for node in tree.body:
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+                defined.add(node.name)
+            elif isinstance(node, (ast.Assign, ast.AnnAssign)):
+                targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+                for target in targets:
+                    if isinstance(target, ast.Name):
+                        defined.add(target.id)
+                        if target.id == "__all__":
+                            names = [e.value for e in node.value.elts]
+            elif isinstance(node, ast.ImportFrom) and (
+                    node.level > 0 or (node.module or "").startswith("workbench")):
+                imported.update(a.asname or a.name for a in node.names)
+        problems += [f"{path.relative_to(PACKAGE.parent)}: {name}" for name in names
+                     if name in imported and name not in defined]
+    assert not problems, "re-exported names:\n" + "\n".join(problems)

@@ -19,8 +19,9 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from workbench._text import clip
 from workbench.experiment.cli import main
-from workbench.experiment.process.errors import clip, listing, redact, redact_config
+from workbench.experiment.process.errors import listing, redact, redact_config
 from workbench.simulate import simulate
 
 SECRET = "s3cret"

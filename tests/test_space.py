@@ -10,7 +10,7 @@ from optuna.trial import FixedTrial
 
 from workbench.bases import BASES
 from workbench.experiment.config.space import SearchSpace, SpaceError
-from workbench.experiment.families.eigenvalue import make_booster
+from workbench.experiment.families.stage import make_booster
 from workbench.experiment.runs.prepare import load_config
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"

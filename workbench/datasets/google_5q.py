@@ -21,7 +21,7 @@ import pandas as pd
 from .base import Dataset, Hamiltonian
 from .wheel import DataUnavailableError, WheelData
 
-__all__ = ["DataUnavailableError", "load_google_5q", "google_5q_csv_path", "default_cache_dir"]
+__all__ = ["load_google_5q", "google_5q_csv_path", "default_cache_dir"]
 
 ENV_VAR = "WORKBENCH_DATA_DIR"
 CSV_NAME = "google_5q_random.csv"

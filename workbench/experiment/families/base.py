@@ -16,9 +16,10 @@ import pandas as pd
 from pydantic import BaseModel, ValidationError
 from sklearn.base import clone
 
+from ..._text import clip
 from ...design import DesignProblem, ensemble_blocks, robust_sd
 from ..config.space import SearchSpace, SpaceError
-from ..process.errors import clip, listing
+from ..process.errors import listing
 from ..scoring.scores import mae
 from .artifacts import ResultMethods
 from .fitting import quiet_fit

@@ -40,10 +40,8 @@ from .choices import candidate_choices
 from .fitting import quiet_fit
 from .stage import (
     booster_cv,
-    make_booster,
     per_target_boost,
     stage_scores,
-    target_inputs,
 )
 
 if TYPE_CHECKING:
@@ -52,8 +50,7 @@ if TYPE_CHECKING:
     from ...datasets import Dataset
     from ..config import ExperimentConfig
 
-__all__ = ["EigenvalueFamily", "booster_cv", "curve_sizes", "make_booster", "per_target_boost",
-           "target_inputs"]
+__all__ = ["EigenvalueFamily", "curve_sizes"]
 
 
 #: Sizes of a run's augmented learning curves: a quarter, half and all of a fold's training

@@ -1,7 +1,7 @@
 """Errors the ``workbench`` command reports as one ``workbench: error: ...`` line, exit code 2.
 
-Also what keeps such lines short and free of secrets (:func:`clip`, the core's
-:func:`workbench._text.clip` shared with the data readers; :func:`shorten`, :func:`listing`,
+Also what keeps such lines short and free of secrets (the core's
+:func:`workbench._text.clip`, shared with the data readers; :func:`shorten`, :func:`listing`,
 :func:`redact`). Kept in a module of their own (no heavy imports), so the command can catch
 them without loading MLflow, Optuna or the estimators.
 """
@@ -17,7 +17,7 @@ from typing import Any
 
 from ..._text import clip
 
-__all__ = ["ConfigError", "StorageError", "SweepTimedOut", "TrackingError", "UsageError", "clip",
+__all__ = ["ConfigError", "StorageError", "SweepTimedOut", "TrackingError", "UsageError",
            "disk_full", "driver_hint", "listing", "redact", "redact_config", "redact_urls",
            "shorten", "unknown_keys"]
 

@@ -27,8 +27,8 @@ from ..process.outputs import check_file, write_file
 from ..splits.columns import OrderColumn, find_order_column, group_columns, numeric_columns
 from .prepare import parse_config
 
-__all__ = ["DEFAULT_TEST_FRACTION", "TEMPLATE", "InitResult", "csv_entry", "find_order_column",
-           "group_columns", "init_config", "numeric_columns", "render_config", "template_text"]
+__all__ = ["DEFAULT_TEST_FRACTION", "TEMPLATE", "InitResult", "csv_entry", "init_config",
+           "render_config", "template_text"]
 
 #: The template every generated config copies below its ``[data]`` section.
 TEMPLATE = "generic.toml"

@@ -21,6 +21,7 @@ from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
+from ..._text import clip
 from ...datasets import Dataset
 from ..config import (
     DataConfig,
@@ -35,7 +36,7 @@ from ..config.overrides import apply_overrides, format_overrides
 from ..config.schema import MAX_MESSAGE
 from ..config.space import SearchSpace, SpaceError
 from ..families import FAMILIES, ModelFamily, discover_families
-from ..process.errors import ConfigError, clip, shorten
+from ..process.errors import ConfigError, shorten
 from ..splits.folds import check_fold_settings
 
 __all__ = ["PreparedRun", "load_config", "parse_config", "prepare"]

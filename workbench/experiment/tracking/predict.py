@@ -29,8 +29,9 @@ import mlflow.pyfunc
 import pandas as pd
 from mlflow.exceptions import MlflowException
 
+from ..._text import clip
 from ...datasets.csv import _read
-from ..process.errors import UsageError, clip
+from ..process.errors import UsageError
 from ..process.outputs import check_file, write_file
 from .runs import Tracker
 from .serving import InputError, check_inputs

@@ -14,7 +14,7 @@ from typing import Any
 
 import pandas as pd
 
-from ..process.errors import clip
+from ..._text import clip
 
 __all__ = ["MAX_PARAM_LENGTH", "dataset_hash", "git_commit", "now_ms", "param_value",
            "tag_value"]
