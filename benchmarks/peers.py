@@ -59,7 +59,7 @@ def simulated(name: str, seed: int, directory: Path):
     spec = DATASETS[name]
     mismatch = Mismatch.none() if spec.get("mismatch") == "none" else Mismatch.default()
     mismatch = dataclasses.replace(mismatch, noise_sd=0.3) if name == "none" else mismatch
-    kw = dict(seed=seed, topology=spec["topology"], shape=spec["shape"])
+    kw = dict(device_seed=seed, topology=spec["topology"], shape=spec["shape"])
     sim = simulate(spec["sites"], spec["experiments"], mismatch=mismatch, **kw)
     clean = simulate(spec["sites"], spec["experiments"], **kw,
                      mismatch=dataclasses.replace(mismatch, noise_sd=0.0,

@@ -44,7 +44,7 @@ def _eigenvalue(folder: Path) -> str:
 
 def _hamiltonian(folder: Path) -> str:
     """A simulated 3-site chain, 60 experiments; a short selection."""
-    write_simulation(simulate(3, 60, seed=1), folder / "device.csv")
+    write_simulation(simulate(3, 60, device_seed=1), folder / "device.csv")
     return ('[data]\ncsv = "device.csv"\n'
             'prior = ["model_E1", "model_E2", "model_E3"]\n'
             'targets = ["measured_E1", "measured_E2", "measured_E3"]\n'
