@@ -142,7 +142,7 @@ def run(name: str, seed: int, args, tmp: Path) -> dict:
     X_train, X_test, y_train, y_test = ds.split()
     objectives = ("regression",) if args.squared_peer else PEER_OBJECTIVES
     fitted = peer_predict(X_train, y_train, X_test, ds.prior_names, ds.feature_names,
-                          trials=args.trials, seed=seed, objectives=objectives, n_jobs=2)
+                          trials=args.trials, random_state=seed, objectives=objectives, n_jobs=2)
     peer, peer_s = fitted.predictions, fitted.seconds
     start = time.perf_counter()
     ev = evaluate(cfg, return_model=True)
