@@ -158,7 +158,7 @@ def log_reproduction(rep: Reproduction, systems: list[System], gate_systems: lis
                       "and the data figures, `systems.csv` and `results.json`. Errors in "
                       f"{unit_name(ds.unit)}."}
     parent = tracker.start_run("paper reproduction", tags=tags, start_time=started,
-                               params={"random_state": rep.seed, "quick": rep.quick,
+                               params={"random_state": rep.random_state, "quick": rep.quick,
                                        "systems": ", ".join(s.name for s in systems)})
     try:
         ids = log_systems(tracker, parent, systems, ds, paper_cfg)
