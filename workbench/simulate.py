@@ -525,8 +525,10 @@ def write_simulation(sim: Simulation, out: str | Path) -> tuple[Path, Path]:
 
     Returns
     -------
-    csv, truth : Path
-        The files written.
+    csv : Path
+        The CSV written.
+    truth : Path
+        The truth sidecar written (``<out without .csv>.truth.json``).
     """
     out = Path(out)
     stem = out.with_suffix("") if out.suffix.lower() == ".csv" else out
