@@ -76,6 +76,17 @@ FAMILIES = {"eigenvalue": _eigenvalue, "hamiltonian": _hamiltonian,
             "parametric": _parametric}
 
 
+def test_every_family_of_the_workbench_is_here():
+    """A new family of the workbench's own gets its ``--out`` check (plug-ins not counted)."""
+    from workbench.experiment.families import FAMILIES as REGISTRY
+    from workbench.experiment.families import discover_families
+
+    discover_families()
+    own = {name for name, family in REGISTRY.items()
+           if type(family).__module__.startswith("workbench.experiment.families.")}
+    assert own == set(FAMILIES)
+
+
 def _config(folder: Path, family: str, intervals: bool) -> Path:
     path = folder / f"{family}.toml"
     path.write_text(f'name = "{family}"\nrandom_state = 0\nn_jobs = 1\n'
