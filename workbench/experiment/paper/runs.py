@@ -28,8 +28,9 @@ from ..runs.run_fields import (
     run_tags,
 )
 from ..scoring.units import unit_name
-from ..tracking.runs import Tracker, metric_view
+from ..tracking.runs import Tracker
 from ..tracking.uris import resolve_tracking_uri
+from ..tracking.views import metric_view
 from .reproduction import Reproduction
 from .systems import System
 
