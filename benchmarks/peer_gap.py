@@ -118,7 +118,7 @@ def run_set(name: str, args, tmp: Path) -> dict:
         peer = json.loads(cache.read_text())
     else:
         fitted = peer_predict(X_tr, Y_tr, X_va, ds.prior_names, ds.feature_names,
-                              trials=args.trials, seed=cfg.random_state or 0, n_jobs=1)
+                              trials=args.trials, random_state=cfg.random_state or 0, n_jobs=1)
         peer = {"mae": float(np.mean([_mae(Y_va[t], fitted.predictions[:, j])
                                       for j, t in enumerate(targets)])),
                 "params": fitted.params, "cpu_s": time.process_time() - t0}

@@ -90,7 +90,7 @@ def say(text: str) -> None:
                                         text)
 
 
-def seeded(cfg: ExperimentConfig, seed: int) -> ExperimentConfig:
+def seeded(cfg: ExperimentConfig, random_state: int) -> ExperimentConfig:
     """Seed a config and turn off its intervals, as every evaluation of the reproduction.
 
     The reproduction reports the paper's errors, and CV+ would refit every model 5 more times
@@ -101,7 +101,7 @@ def seeded(cfg: ExperimentConfig, seed: int) -> ExperimentConfig:
     ----------
     cfg : ExperimentConfig
         The config as loaded.
-    seed : int
+    random_state : int
         Its ``random_state``.
 
     Returns
@@ -109,10 +109,10 @@ def seeded(cfg: ExperimentConfig, seed: int) -> ExperimentConfig:
     ExperimentConfig
         The copy the reproduction evaluates.
     """
-    return without_intervals(replace(cfg, random_state=seed))
+    return without_intervals(replace(cfg, random_state=random_state))
 
 
-def hamiltonian_config(cfg: ExperimentConfig, seed: int, quick: bool) -> ExperimentConfig:
+def hamiltonian_config(cfg: ExperimentConfig, random_state: int, quick: bool) -> ExperimentConfig:
     """Set up ``experiments/hamiltonian.toml`` as the reproduction evaluates it.
 
     Its nested CV over all rows (its longest part: it redoes the selection in each outer
@@ -123,7 +123,7 @@ def hamiltonian_config(cfg: ExperimentConfig, seed: int, quick: bool) -> Experim
     ----------
     cfg : ExperimentConfig
         The config as loaded (family ``hamiltonian``).
-    seed : int
+    random_state : int
         Its ``random_state``.
     quick : bool
         The smaller pool, fewer steps and one CV repeat.
@@ -141,10 +141,10 @@ def hamiltonian_config(cfg: ExperimentConfig, seed: int, quick: bool) -> Experim
     assert cfg.family_settings is not None  # family = "hamiltonian" has settings
     return seeded(replace(cfg, evaluation=cfg.evaluation.model_copy(update=evaluation),
                           family_settings=cfg.family_settings.model_copy(update=hamiltonian)),
-                  seed)
+                  random_state)
 
 
-def learning_curves_plan(paper_cfg: ExperimentConfig, ds: Dataset, seed: int,
+def learning_curves_plan(paper_cfg: ExperimentConfig, ds: Dataset, random_state: int,
                          quick: bool) -> Plan:
     """Plan the paper settings' augmented learning curves (:mod:`workbench.parallel`).
 
@@ -158,7 +158,7 @@ def learning_curves_plan(paper_cfg: ExperimentConfig, ds: Dataset, seed: int,
         each target's candidate.
     ds : Dataset
         The Google 5-qubit data.
-    seed : int
+    random_state : int
         Seeds the folds.
     quick : bool
         Two sizes (the smallest and the largest) instead of every paper size.
@@ -180,7 +180,7 @@ def learning_curves_plan(paper_cfg: ExperimentConfig, ds: Dataset, seed: int,
     candidates = [model.target_estimators[t].estimator for t in ds.target_names]
     curves = yield from gather([
         learning_curve_plan(est, X_train, y_train[target].to_numpy(), train_sizes=sizes,
-                            cv=CURVE_FOLDS, random_state=seed)
+                            cv=CURVE_FOLDS, random_state=random_state)
         for target, est in zip(ds.target_names, candidates)])
     return sizes, curves
 
@@ -218,7 +218,7 @@ def draw_learning_curves(sizes: list[int], curves: list[Any], ds: Dataset, save:
     return {"train_sizes": sizes, "folds": CURVE_FOLDS, "curves": out}
 
 
-def correction_shap_plan(model: Any, ds: Dataset, seed: int, quick: bool) -> Plan:
+def correction_shap_plan(model: Any, ds: Dataset, random_state: int, quick: bool) -> Plan:
     """Plan the SHAP values of what the paper settings learned (:mod:`workbench.parallel`).
 
     Per target, the correction's (model − prior) and the whole prediction's on the training
@@ -232,7 +232,7 @@ def correction_shap_plan(model: Any, ds: Dataset, seed: int, quick: bool) -> Pla
         The paper settings' fitted model (as ``evaluate`` returns it).
     ds : Dataset
         The data it was fitted on.
-    seed : int
+    random_state : int
         Seeds the SHAP background.
     quick : bool
         Explain 30 training rows instead of all.
@@ -245,14 +245,14 @@ def correction_shap_plan(model: Any, ds: Dataset, seed: int, quick: bool) -> Pla
     say("SHAP of the paper settings' correction (model − prior) and whole prediction")
     X_train = ds.split()[0]
     rows = X_train.iloc[:30] if quick else X_train
-    tasks = [Task(target_shap_values, est, rows, random_state=seed)
+    tasks = [Task(target_shap_values, est, rows, random_state=random_state)
              for est in family_model(model).estimators_]
     for task in tasks:
         task.priority = 10 ** 6
     return (yield tasks)
 
 
-def draw_correction_shap(done: list[Any], ds: Dataset, seed: int, save: Save) -> None:
+def draw_correction_shap(done: list[Any], ds: Dataset, random_state: int, save: Save) -> None:
     """Draw, per target, the SHAP summaries of :func:`correction_shap_plan`.
 
     The correction (model − prior) beside the whole prediction (figures
@@ -264,7 +264,7 @@ def draw_correction_shap(done: list[Any], ds: Dataset, seed: int, save: Save) ->
         The SHAP values per target.
     ds : Dataset
         The data.
-    seed : int
+    random_state : int
         Seeds the beeswarms.
     save : Save
         Files the figures.
@@ -272,12 +272,12 @@ def draw_correction_shap(done: list[Any], ds: Dataset, seed: int, save: Save) ->
     for j, (target, shap) in enumerate(zip(ds.target_names, done)):
         name = f"{SHORT[j]} ({target})"
         save("figR2_shap_correction", correction_shap_figure(
-            shap.correction, target=name, unit=ds.unit, note=shap.note, random_state=seed,
+            shap.correction, target=name, unit=ds.unit, note=shap.note, random_state=random_state,
             setting="paper settings"), f"figR2_shap_correction_{SHORT[j]}")
         assert shap.prediction is not None  # computed: prediction=True
         save("figR3_shap_prediction", shap_figure(
             shap.prediction.values, shap.prediction.expected, shap.prediction.rows,
-            target=name, unit=ds.unit, random_state=seed, setting="paper settings",
+            target=name, unit=ds.unit, random_state=random_state, setting="paper settings",
             explained="prediction"), f"figR3_shap_prediction_{SHORT[j]}")
 
 

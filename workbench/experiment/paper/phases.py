@@ -168,7 +168,7 @@ def hamiltonian_phase(cfg: ExperimentConfig, ds: Dataset, out: Path) -> Phase:
     return phase
 
 
-def _tabula_rasa(j: int, seed: int) -> Pipeline:
+def _tabula_rasa(j: int, random_state: int) -> Pipeline:
     """Build target ``j``'s tabula rasa model: normal quantiles of the voltages, an MLP.
 
     The voltages mapped to normal quantiles, then the paper's MLP.
@@ -180,12 +180,12 @@ def _tabula_rasa(j: int, seed: int) -> Pipeline:
     """
     hidden, alpha, max_iter = TABULA_RASA[j]
     return make_pipeline(
-        NormalQuantileTransformer(random_state=seed),
+        NormalQuantileTransformer(random_state=random_state),
         MLPRegressor(hidden_layer_sizes=hidden, activation="relu", solver="lbfgs",
-                     alpha=alpha, max_iter=max_iter, random_state=seed))
+                     alpha=alpha, max_iter=max_iter, random_state=random_state))
 
 
-def _tabula_rasa_target(j: int, seed: int, V_train: pd.DataFrame, y_train: pd.Series,
+def _tabula_rasa_target(j: int, random_state: int, V_train: pd.DataFrame, y_train: pd.Series,
                         V_test: pd.DataFrame, y_test: pd.Series,
                         shap_rows: pd.DataFrame | None, background: int
                         ) -> tuple[np.ndarray | None, float | None, np.ndarray]:
@@ -196,27 +196,27 @@ def _tabula_rasa_target(j: int, seed: int, V_train: pd.DataFrame, y_train: pd.Se
     """
     with warnings.catch_warnings():  # the paper's max_iter, kept as published
         warnings.simplefilter("ignore", ConvergenceWarning)
-        mlp = _tabula_rasa(j, seed).fit(V_train.to_numpy(), y_train.to_numpy())
+        mlp = _tabula_rasa(j, random_state).fit(V_train.to_numpy(), y_train.to_numpy())
     err = y_test.to_numpy() - mlp.predict(V_test.to_numpy())
     values = expected = None
     if shap_rows is not None:
         values, expected = shap_values(lambda a: mlp.predict(a), shap_rows,
-                                       background_size=background, random_state=seed)
+                                       background_size=background, random_state=random_state)
     return values, expected, err
 
 
-def tabula_rasa_system(ds: Dataset, seed: int, quick: bool, save: Save,
+def tabula_rasa_system(ds: Dataset, random_state: int, quick: bool, save: Save,
                        same_as: SameAs) -> dict[str, Any]:
     """Fit the tabula rasa MLPs over :data:`TABULA_RASA_SEEDS` seeds and draw their SHAP.
 
-    The seeds are ``seed``, ``seed + 1``, ...; the SHAP summaries (Fig. S8; Fig. 5 is its Y1
-    panel) are the first seed's MLPs'.
+    The MLPs' seeds are ``random_state``, ``random_state + 1``, ...; the SHAP summaries
+    (Fig. S8; Fig. 5 is its Y1 panel) are the first seed's MLPs'.
 
     Parameters
     ----------
     ds : Dataset
         The Google 5-qubit data (the MLPs see its voltages only).
-    seed : int
+    random_state : int
         The first seed.
     quick : bool
         3 seeds, 30 SHAP rows and a background of 10.
@@ -230,7 +230,7 @@ def tabula_rasa_system(ds: Dataset, seed: int, quick: bool, save: Save,
         each seed's errors and average, the average's spread over the seeds.
     """
     n_seeds = 3 if quick else TABULA_RASA_SEEDS
-    seeds = list(range(seed, seed + n_seeds))
+    seeds = list(range(random_state, random_state + n_seeds))
     say(f"tabula rasa MLPs on the 9 voltages ({n_seeds} seeds), SHAP summaries")
     X_train, X_test, y_train, y_test = ds.split()
     targets = ds.target_names
@@ -239,7 +239,7 @@ def tabula_rasa_system(ds: Dataset, seed: int, quick: bool, save: Save,
     background = 10 if quick else 50
     # one task per (target, seed) on the workers (fit, test errors; SHAP for the first seed)
     tasks = [Task(_tabula_rasa_target, j, s, V_train, y_train[target], V_test, y_test[target],
-                  shap_rows if s == seed else None, background)
+                  shap_rows if s == random_state else None, background)
              for s in seeds for j, target in enumerate(targets)]
     done = map_tasks(tasks, -1)
     # test residuals, seeds x targets x rows
@@ -248,14 +248,14 @@ def tabula_rasa_system(ds: Dataset, seed: int, quick: bool, save: Save,
     per_seed_mse = (errors ** 2).mean(axis=2)
     # per test row and target, the seeds' mean absolute and root mean squared error: their
     # bootstrap over rows is that of the seed-averaged MAE and MSE
-    mae_ci = bootstrap_error_interval(np.abs(errors).mean(axis=0).T, random_state=seed)
+    mae_ci = bootstrap_error_interval(np.abs(errors).mean(axis=0).T, random_state=random_state)
     mse_ci = bootstrap_error_interval(np.sqrt((errors ** 2).mean(axis=0)).T, squared=True,
-                                      random_state=seed)
+                                      random_state=random_state)
     for j, target in enumerate(targets):
         values, expected, _ = done[j]  # the first seed's
         path = save("figS8_shap", shap_figure(
             values, expected, shap_rows, target=f"{SHORT[j]} ({target})", unit=ds.unit,
-            random_state=seed, setting="MLP on the 9 voltages"), f"figS8_shap_{SHORT[j]}")
+            random_state=random_state, setting="MLP on the 9 voltages"), f"figS8_shap_{SHORT[j]}")
         if SHORT[j] == "Y1":
             same_as("fig5_shap_Y1", path)
     avg = per_seed.mean(axis=1)
@@ -270,14 +270,14 @@ def tabula_rasa_system(ds: Dataset, seed: int, quick: bool, save: Save,
             "input_transform": "quantile_normal"}
 
 
-def tabula_rasa_phase(ds: Dataset, seed: int, quick: bool, out: Path) -> Phase:
+def tabula_rasa_phase(ds: Dataset, random_state: int, quick: bool, out: Path) -> Phase:
     """Fit the tabula rasa MLPs and draw their SHAP summaries (:func:`tabula_rasa_system`).
 
     Parameters
     ----------
     ds : Dataset
         The Google data.
-    seed : int
+    random_state : int
         The first seed.
     quick : bool
         Fewer seeds and SHAP rows.
@@ -292,7 +292,7 @@ def tabula_rasa_phase(ds: Dataset, seed: int, quick: bool, out: Path) -> Phase:
     phase = Phase(Stopwatch())
     with phase.watch:
         save, same_as = figure_saver(out / "figures", phase.files)
-        phase.numbers = tabula_rasa_system(ds, seed, quick, save, same_as)
+        phase.numbers = tabula_rasa_system(ds, random_state, quick, save, same_as)
     return phase
 
 

@@ -139,7 +139,7 @@ class _Job:
 
     out: Path
     configs: Path
-    seed: int
+    random_state: int
     quick: bool
     clock: float
     files: dict[str, list[Path]] = field(default_factory=dict)
@@ -159,7 +159,7 @@ class _Job:
     def evaluate(self, key: str, cfg: ExperimentConfig) -> Any:
         """Evaluate the system ``key`` with ``cfg`` (as loaded), seeded, without intervals."""
         say(f"evaluating the {key} settings ({Path(cfg.path or cfg.name).name})")
-        self.cfgs[key] = seeded(cfg, self.seed)
+        self.cfgs[key] = seeded(cfg, self.random_state)
         run = evaluate(self.cfgs[key], return_model=True, dataset=self.dataset(self.cfgs[key]))
         self.settings[key] = run.result
         self.keep_predictions(key, self.cfgs[key], run)
@@ -201,8 +201,8 @@ def _paper(job: _Job, all_systems: bool) -> tuple[Dataset, dict[str, Any], dict[
         run = job.evaluate("paper", paper_cfg)
         ds: Dataset = run.dataset
         shap, (sizes, fitted) = run_plans(
-            [correction_shap_plan(run.model, ds, job.seed, job.quick),
-             learning_curves_plan(paper_cfg, ds, job.seed, job.quick)], -1)
+            [correction_shap_plan(run.model, ds, job.random_state, job.quick),
+             learning_curves_plan(paper_cfg, ds, job.random_state, job.quick)], -1)
         phases = _start_phases(job, ds, all_systems)
         paper = run.result
         for metric, fig_id, fig in (("MAE", "fig2_mae_bars", "Fig. 2"),
@@ -211,7 +211,7 @@ def _paper(job: _Job, all_systems: bool) -> tuple[Dataset, dict[str, Any], dict[
                                         labels=(ds.prior_label, "base boosting"),
                                         title=f"Test {metric} per eigenenergy ({fig})",
                                         setting="paper settings"))
-        draw_correction_shap(shap, ds, job.seed, job.save)
+        draw_correction_shap(shap, ds, job.random_state, job.save)
         curves = draw_learning_curves(sizes, fitted, ds, job.save, job.same_as)
     return ds, curves, phases
 
@@ -225,15 +225,16 @@ def _start_phases(job: _Job, ds: Dataset, all_systems: bool) -> dict[str, Starte
     settings' figures and runs the search (every core busy); without workers each runs when
     its result is taken.
     """
-    improved = seeded(load_config(job.configs / "paper_improved.toml"), job.seed)
-    ham = hamiltonian_config(load_config(job.configs / "hamiltonian.toml"), job.seed, job.quick)
+    improved = seeded(load_config(job.configs / "paper_improved.toml"), job.random_state)
+    ham = hamiltonian_config(load_config(job.configs / "hamiltonian.toml"), job.random_state,
+                             job.quick)
     job.cfgs.update(improved=improved, hamiltonian=ham)
     calls: dict[str, tuple[Any, ...]] = {
         "hamiltonian": (hamiltonian_phase, ham, job.dataset(ham), job.out),
-        "tabula_rasa": (tabula_rasa_phase, ds, job.seed, job.quick, job.out),
+        "tabula_rasa": (tabula_rasa_phase, ds, job.random_state, job.quick, job.out),
         "improved": (evaluate_phase, improved, job.dataset(improved))}
     if all_systems:  # the longest: first
-        calls = {"gates": (gates_benchmark, job.configs, job.seed, job.quick, say), **calls}
+        calls = {"gates": (gates_benchmark, job.configs, job.random_state, job.quick, say), **calls}
     say("started on the workers while the paper settings' figures are drawn: "
         + ", ".join(calls))
     return {key: start_on_worker(Task(timed, job.clock, *call))
@@ -257,11 +258,13 @@ def _search(job: _Job, storage: str | None) -> Sweep:
     say("nested-CV search for the workbench's own best configuration "
         "(experiments/paper_search.toml)")
     cfg = load_config(job.configs / "paper_search.toml")
-    cv = {"sweep_seed": job.seed, **({"outer_folds": 2, "inner_folds": 3} if job.quick else {})}
-    cfg = without_intervals(replace(cfg, random_state=job.seed,
+    cv = {"sweep_seed": job.random_state,
+          **({"outer_folds": 2, "inner_folds": 3} if job.quick else {})}
+    cfg = without_intervals(replace(cfg, random_state=job.random_state,
                                     cv=cfg.cv.model_copy(update=cv)))
     # another seed, or --quick (other folds and budgets), must not resume these studies
-    cfg = cfg.with_study(study_name=f"{cfg.name}-seed{job.seed}{'-quick' if job.quick else ''}",
+    quick = "-quick" if job.quick else ""
+    cfg = cfg.with_study(study_name=f"{cfg.name}-seed{job.random_state}{quick}",
                          trials=2 if job.quick else None, storage=storage)
     with job.watches["search"], warnings.catch_warnings():
         # a candidate basis's convergence notes: not the user's
@@ -313,8 +316,9 @@ def _write(path: Path, obj: Any) -> None:
 
 
 def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
-              storage: str | None = None, quick: bool = False, track: bool = True, seed: int = 0,
-              experiments: str | Path | None = None, all_systems: bool = False) -> Reproduction:
+              storage: str | None = None, quick: bool = False, track: bool = True,
+              random_state: int = 0, experiments: str | Path | None = None,
+              all_systems: bool = False) -> Reproduction:
     """Compute the paper's results and figures, write them and log them.
 
     Each system is computed in one stretch (its MLflow run's duration); with ``track`` each
@@ -332,8 +336,8 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
         Reduced curves, SHAP rows, seeds and search: a check that everything runs.
     track : bool, default=True
         Log to MLflow.
-    seed : int, default=0
-        The seed of every system.
+    random_state : int, default=0
+        Every system's ``random_state`` (``reproduce --random-state``). Formerly ``seed``.
     experiments : str or Path, optional
         The configs' folder (see :func:`experiments_dir`).
     all_systems : bool, default=False
@@ -345,7 +349,7 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
         What was computed (also written as ``results.json``).
     """
     start, started = start_clock(), time.time()
-    job = _Job(Path(out), experiments_dir(experiments), seed, quick, start)
+    job = _Job(Path(out), experiments_dir(experiments), random_state, quick, start)
     ds, curves, phases = _paper(job, all_systems)
     search = _search(job, storage) if all_systems else None
     ham = _keep(job, "hamiltonian", phases["hamiltonian"].result())
@@ -372,7 +376,7 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
                      summary_table(gates.generic.targets, gate_runs).to_csv(index=False))
     job.files = _ordered(job.files)
     rep = Reproduction(
-        targets=ds.target_names, seed=seed, quick=quick, all_systems=all_systems,
+        targets=ds.target_names, random_state=random_state, quick=quick, all_systems=all_systems,
         settings=_ordered(job.settings),
         tabula_rasa=tabula, correlation=correlation, learning_curves=curves,
         figures={k: [str(p.relative_to(job.out)) for p in v] for k, v in job.files.items()},
