@@ -150,9 +150,10 @@ class HalvingChoiceCV(CachedParamNames, RegressorMixin, _BaseComposition):
                 errors[name].append(error(y[held] - np.ravel(model.predict(X[held]))))
             # stable: among equal errors the first listed (the simplest) stays
             alive = sorted(alive, key=lambda n: float(np.mean(errors[n])))
-            if len(alive) == 1 or i == self.cv - 1:
+            if i < self.cv - 1:
+                alive = alive[:max(1, math.ceil(len(alive) / self.factor))]
+            if len(alive) == 1:
                 break
-            alive = alive[:max(1, math.ceil(len(alive) / self.factor))]
         self.cv_scores_ = {n: float(np.mean(e)) for n, e in errors.items()}
         self.folds_run_ = {n: len(e) for n, e in errors.items()}
         self.chosen_ = alive[0]

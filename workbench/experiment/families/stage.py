@@ -105,8 +105,9 @@ def candidate_settings(settings: dict[str, Any],
     random (``seed``; the same draws for every target, loss, link and transform), named
     ``basis#i``; with ``tune = "halving"`` they are one candidate, ``basis#halving``, whose
     settings hold them under ``"halving"`` (:func:`make_booster` races them inside each
-    fit, :class:`~workbench.halving.HalvingChoiceCV`). A name joins what varies: the basis (or draw), the loss, the line-search
-    loss (after ``line:``), the link and the transform, e.g. ``"ridge"``, ``"huber"``,
+    fit, :class:`~workbench.halving.HalvingChoiceCV`). A name joins what varies: the basis
+    (or draw), the loss, the line-search loss (after ``line:``), the link and the
+    transform, e.g. ``"ridge"``, ``"huber"``,
     ``"lightgbm#07/huber"``, ``"ridge/line:squared_error"``, ``"ridge/log"``,
     ``"lightgbm#03/identity/derived"``.
 
