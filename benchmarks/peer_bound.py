@@ -150,11 +150,6 @@ def oracles(est, X_train, y, X_test, y_test, groups=None) -> dict:
     means = [float(np.mean(np.abs(y_test - np.mean([predictions[n] for n in ranked[:k]],
                                                     axis=0))))
              for k in range(1, min(TOP, len(ranked)) + 1)]
-    # robustness choosers of one candidate from its fold scores: the best mean fold, the
-    # best worst fold (neither with the prior rule nor the mean of k)
-    ranked_by = {key: max(mae, key=lambda n: how(est.candidate_scores_[n]))
-                 for key, how in (("mean_fold", np.mean), ("worst_fold", np.min))}
-    honest.update({key: mae[n] for key, n in ranked_by.items()})
     return dict(cv=float(np.mean(np.abs(y_test - est.predict(X_test)))), **honest,
                 chosen=est.selected_candidate_ or "prior", best_single=mae[ranked[0]],
                 best_single_name=ranked[0], best_mean=min(means),
