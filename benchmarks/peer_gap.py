@@ -28,6 +28,8 @@ not reach every set is compared with the first complete one on the sets it ran o
 
     python benchmarks/peer_gap.py --oracle --variants base early --cache C --json A.json
     python benchmarks/peer_gap.py --variants peer_params --cache C --json B.json   # etc.
+    python benchmarks/peer_gap.py --variants base halving --cache C --json D.json
+    python benchmarks/peer_gap.py --variants halving_48 --cache C --json E.json
     python benchmarks/peer_gap.py --merge A.json B.json ... --json benchmarks/results/peer_gap.json
 
 Printed per set and variant: validation MAE (average over targets) and its ratio to the
