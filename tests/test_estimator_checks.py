@@ -14,6 +14,7 @@ from workbench import (
     ARDGaussianProcess,
     BaseBoostCV,
     BaseBoostRegressor,
+    HalvingChoiceCV,
     ParametricBoostRegressor,
     ParametricModel,
     ParametricRegressor,
@@ -56,6 +57,8 @@ def _expected_failed(estimator):
                    random_state=0),
      BaseBoostRegressor(n_stages=2, basis=StageChoiceCV(
          [("ridge", Ridge()), ("tree", DecisionTreeRegressor(max_depth=2))])),
+     HalvingChoiceCV([(f"tree{d}", DecisionTreeRegressor(max_depth=d)) for d in (1, 2, 3)],
+                     random_state=0),
      ParametricRegressor(model=LINE), ParametricBoostRegressor(model=LINE, candidates=None, cv=3)],
     expected_failed_checks=_expected_failed,
 )
