@@ -132,6 +132,58 @@ def test_the_chain_model_file_is_the_control_program(google_5q):
     assert set(cfg.family_settings.candidates) == set(model.names)
 
 
+
+SMALL = {"n_jobs": 1, "max_steps": 1, "selection_cv": 3, "boost_stage": False}
+
+
+def _small(path, table):
+    from workbench.experiment.runs.prepare import load_config
+
+    return load_config(path, {k if k == "n_jobs" else f"model.{table}.{k}": v
+                              for k, v in SMALL.items()})
+
+
+def test_the_hamiltonian_family_is_the_parametric_family_on_the_device_model_file(google_5q):
+    """One engine: experiments/models/hamiltonian_device.py (HamiltonianModel's file functions,
+    its Hellmann-Feynman jacobian) through family = "parametric" (parametric_device.toml) fits
+    what family = "hamiltonian" (hamiltonian.toml) fits: the same library, the same covariates
+    chosen, the same corrected parameters and predictions within the fits' convergence."""
+    from pathlib import Path
+
+    from workbench.param_boost import default_library
+    from workbench.param_select import candidate_pool
+
+    root = Path(__file__).resolve().parents[1] / "experiments"
+    ham_cfg = _small(root / "hamiltonian.toml", "hamiltonian")
+    par_cfg = _small(root / "parametric_device.toml", "parametric")
+    ham = google_5q.hamiltonian
+    on, co = list(ham.onsite.columns), list(ham.couplings.columns)
+    # the config's tables are the Hamiltonian family's library ("default" start, "physical" pool)
+    settings = par_cfg.family_settings
+    assert settings.start == default_library(on, co)
+    assert settings.candidates == candidate_pool(on, co, ham.qubit_features,
+                                                 ham.coupler_features, base=None)
+    rows = google_5q.train_index[:48]  # a small slice of the training rows
+    X = ham_cfg.family.inputs(ham_cfg, google_5q).loc[rows]
+    assert X.equals(par_cfg.family.inputs(par_cfg, google_5q).loc[rows])
+    Y = google_5q.targets.loc[rows].to_numpy()
+    hamiltonian = ham_cfg.family.build(ham_cfg, google_5q).physics.fit(X, Y)
+    parametric = par_cfg.family.build(par_cfg, google_5q).physics.fit(X, Y)
+    assert parametric.choice_ == "drift"
+    steps = ["parameter", "covariate"]
+    assert hamiltonian.selection_.path[steps].equals(parametric.selection_.path[steps])
+    assert len(parametric.selection_.path) == 2  # a covariate added
+    np.testing.assert_allclose(parametric.selection_.path["cv_mae"],
+                               hamiltonian.selection_.path["cv_mae"], rtol=0, atol=1e-4)
+    h_theta = hamiltonian.corrected_parameters(X).to_numpy()
+    p_theta = parametric.corrected_parameters(X).to_numpy()
+    control = google_5q.X_physics.loc[rows, on + co].to_numpy()
+    # the drift moves the parameters by MHz; the two fits agree to a hundredth of that
+    assert np.abs(h_theta - control).max() > 1.0
+    assert np.abs(h_theta - p_theta).max() < 0.01
+    assert np.abs(hamiltonian.predict(X) - parametric.predict(X)).max() < 0.01
+
+
 def _decay_config(tmp_path, extra=""):
     config = tmp_path / "c.toml"
     config.write_text('random_state = 0\n[data]\ncsv = "decay.csv"\ntargets = ["y"]\n'
