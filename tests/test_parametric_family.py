@@ -293,3 +293,51 @@ def test_a_tracked_run_logs_registers_and_serves(decay_csv, tmp_path):
     pred = pd.read_csv(tmp_path / "p.csv")["y"].to_numpy()
     np.testing.assert_allclose(pred, [2.5 * np.exp(-1 / 1.65) + 0.1,
                                       2.5 * np.exp(-2 / 1.41) + 0.1], atol=0.05)
+
+
+def test_a_missing_term_is_not_forced_into_a_drift(tmp_path):
+    """Simulated (no offline public set shows it): the decay law misses a term, a second
+    channel that switches on at t = 1.5 (a step no drift of amplitude, lifetime or offset in
+    the conditions temp and humidity makes). The family's table says the error is not a
+    drift, it falls back to the calibrated model and boosts from its prediction: the same
+    model and numbers as the family without drift candidates (boosting from the calibrated
+    prediction), and far better than the prior."""
+    rng = np.random.default_rng(3)
+    n = 160
+    t, temp, humidity = rng.uniform(0, 3, n), rng.normal(size=n), rng.normal(size=n)
+    y = 2.5 * np.exp(-t / 1.5) + 0.1 + 0.3 * (t > 1.5) + rng.normal(0, 0.01, n)
+    pd.DataFrame({"t": t, "temp": temp, "humidity": humidity, "y": y}).to_csv(
+        tmp_path / "decay.csv", index=False)
+    (tmp_path / "models").mkdir()
+    (tmp_path / "models" / "decay.py").write_text(DECAY)
+    conditions = '["temp", "humidity", "temp^2", "humidity^2"]'
+    config = tmp_path / "c.toml"
+    config.write_text(
+        'random_state = 0\n[data]\ncsv = "decay.csv"\ntargets = ["y"]\n'
+        'features = ["t", "temp", "humidity"]\ntest_fraction = 0.3\n'
+        '[model]\nfamily = "parametric"\nbasis = "lightgbm"\nbasis_inputs = "prior+features"\n'
+        'line_search_penalty = 0.0\n'
+        '[model.basis_params]\nn_estimators = 60\nnum_leaves = 4\n'
+        'min_child_samples = 5\nverbose = -1\n'
+        '[model.parametric]\nmodel = "models/decay.py"\nloss = "squared_error"\n'
+        'max_steps = 2\nprior_cv = 3\nselection_cv = 3\n'
+        f'[model.parametric.candidates]\namplitude = {conditions}\ntau = {conditions}\n'
+        f'offset = {conditions}\n[selection]\ncv = 3\nshuffle = true\n')
+    runs = {}
+    no_drift = ["--set", 'model.parametric.candidates="none"']
+    for name, extra in (("family", []), ("no drift", no_drift)):
+        out = tmp_path / f"{name}.json"
+        assert main(["evaluate", str(config), "--no-track", "--json", str(out), "--jobs", "1",
+                     *extra]) == 0
+        runs[name] = json.loads(out.read_text())
+    result, info = runs["family"], runs["family"]["parametric"]
+    assert info["choice"] == "calibrated" and "not a drift" in info["note"]
+    cv = {row["candidate"]: row["cv_mae"] for row in info["choices"]}
+    assert set(cv) == {"prior", "calibrated", "drift"}  # the drift was tried, and lost
+    assert cv["calibrated"] - cv["drift"] <= 1e-3
+    selected = result["model"]["selected"][0]
+    assert selected.startswith("parametric:calibrated (error not a drift)+")  # stage kept
+    # the fall-back is boosting from the calibrated prediction, number for number
+    assert runs["no drift"]["model"]["test_mae"] == result["model"]["test_mae"]
+    assert runs["no drift"]["model"]["selected"] == result["model"]["selected"]
+    assert result["model"]["test_mae"][0] < 0.5 * result["prior"]["test_mae"][0]
