@@ -476,8 +476,9 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
     min_improvement : float, default=1e-3
         The CV MAE (targets' units) a covariate, or a more complex candidate, must gain.
     alpha, alpha_l1, loss, huber_delta, max_iter, tol, out_of_bounds, calibrate, solver
-        :class:`ParametricRegressor`'s (``calibrate=False``: every fit starts its offsets
-        at 0, the calibrated candidate's too).
+        :class:`ParametricRegressor`'s (``calibrate=False``: the calibrated candidate's and
+        the drift's fits start their offsets at 0; a ``boost`` template with ``init=None``
+        still starts from its own calibration).
     random_state : int, default=None
         Seeds the splits (None: 0).
     n_jobs : int, default=None
