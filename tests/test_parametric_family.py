@@ -341,3 +341,21 @@ def test_a_missing_term_is_not_forced_into_a_drift(tmp_path):
     assert runs["no drift"]["model"]["test_mae"] == result["model"]["test_mae"]
     assert runs["no drift"]["model"]["selected"] == result["model"]["selected"]
     assert result["model"]["test_mae"][0] < 0.5 * result["prior"]["test_mae"][0]
+
+
+def test_the_learning_curve_fits_keep_the_targets_names():
+    """A multi-target model with per-target stage settings (keyed by the targets' names)
+    needs them in every learning-curve fit; an array lost them (every fit of
+    parametric_device.toml's curve failed: "unknown targets ['eeig1', ...]")."""
+    from sklearn.base import BaseEstimator, RegressorMixin
+
+    from workbench.experiment.families.parametric_artifacts import AllTargets
+
+    class Names(RegressorMixin, BaseEstimator):
+        def fit(self, X, y):
+            self.names_, self.rows_ = list(y.columns), len(y)
+            return self
+
+    Y = pd.DataFrame({"eeig1": [1.0, 2.0, 3.0], "eeig2": [4.0, 5.0, 6.0]})
+    fitted = AllTargets(Names(), Y).fit(pd.DataFrame({"x": [0.0, 1.0]}), [0.0, 2.0])
+    assert fitted.estimator_.names_ == ["eeig1", "eeig2"] and fitted.estimator_.rows_ == 2
