@@ -164,6 +164,7 @@ def test_a_new_store_starts_as_a_copy_of_the_kept_template(tmp_path, monkeypatch
     def no_migration(engine):
         raise AssertionError("MLflow migrated a store copied from the template")
 
+    migrate = db_utils._initialize_tables
     monkeypatch.setattr(db_utils, "_initialize_tables", no_migration)
     (tmp_path / "b").mkdir()
     monkeypatch.chdir(tmp_path / "b")
@@ -181,6 +182,14 @@ def test_a_new_store_starts_as_a_copy_of_the_kept_template(tmp_path, monkeypatch
     before = (tmp_path / "b" / "mlflow.db").read_bytes()
     lifecycle.prepare_store(Tracker(f"sqlite:///{tmp_path / 'b' / 'mlflow.db'}", "second"))
     assert (tmp_path / "b" / "mlflow.db").read_bytes() == before
+    # a damaged template is dropped: MLflow creates the store, which is kept instead
+    monkeypatch.setattr(db_utils, "_initialize_tables", migrate)
+    template.write_bytes(template.read_bytes()[:8192])
+    tracker = Tracker(f"sqlite:///{tmp_path / 'c' / 'mlflow.db'}", "third")
+    lifecycle.prepare_store(tracker)
+    tracker.end_run(tracker.start_run("r"), "FINISHED")
+    with contextlib.closing(sqlite3.connect(template)) as db:
+        assert db.execute("PRAGMA quick_check").fetchall() == [("ok",)]
 
 
 @pytest.mark.parametrize("storage, problem", [

@@ -135,8 +135,9 @@ def store_template() -> Path:
 def _copy_template(path: Path) -> bool:
     """Create the new store ``path`` as a copy of :func:`store_template`; whether it did.
 
-    The copy appears whole or not at all (a hard link of a finished copy, never over an
-    existing file); without a template, or where the copy fails, MLflow creates the store.
+    The copy appears whole or not at all (a hard link of a finished and checked copy, never
+    over an existing file); without a template, or where the copy fails, MLflow creates the
+    store (a damaged template is deleted: the store MLflow creates is kept instead).
     """
     template = store_template()
     if not template.is_file():
@@ -148,14 +149,31 @@ def _copy_template(path: Path) -> bool:
             shutil.copyfileobj(src, dst)
             dst.flush()
             os.fsync(dst.fileno())
+        _check_copy(tmp)
         os.link(tmp, path)
         return True
+    except sqlite3.Error as exc:  # a damaged template: MLflow creates this one, kept next
+        _logger.debug("store template %s dropped: %s", template, exc)
+        with contextlib.suppress(OSError):
+            os.unlink(template)
+        return False
     except OSError as exc:  # no hard links here, a full disk, or a store made meanwhile
         _logger.debug("new store %s not copied from %s: %s", path, template, exc)
         return path.exists()
     finally:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
+
+
+def _check_copy(path: Path) -> None:
+    """Raise :class:`sqlite3.Error` unless ``path`` is a whole database with a schema version."""
+    db = sqlite3.connect(path)
+    try:
+        if (db.execute("PRAGMA quick_check").fetchall() != [("ok",)]
+                or len(db.execute("SELECT version_num FROM alembic_version").fetchall()) != 1):
+            raise sqlite3.DatabaseError(f"{path} is not an empty MLflow store")
+    finally:
+        db.close()
 
 
 def _keep_template(path: Path) -> None:
