@@ -107,8 +107,7 @@ def prepare_store(tracker: Tracker) -> str:
     path = sqlite_path(tracker.tracking_uri)
     # a Ctrl-C waits for a new store's migration (a half-migrated database would not open)
     with interrupts_deferred(), _first_use_lock(tracker.tracking_uri):
-        made = path is not None and not path.exists() and not _copy_template(path)
-        if made:
+        if path is not None and not path.exists() and not _copy_template(path):
             _ = tracker.client  # MLflow creates the store and migrates it
             _keep_template(path)
         return tracker.experiment_id
