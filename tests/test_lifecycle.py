@@ -23,6 +23,7 @@ from workbench.experiment.storage import open_storage
 from workbench.experiment.sweep.scheduler import fail_stale, is_counted, run_study, sampler
 from workbench.experiment.tracking import lifecycle
 from workbench.experiment.tracking.runs import Tracker
+from workbench.experiment.tracking.uris import store_template
 
 from services import command_env, free_port, tiny_sweep, workbench_cmd
 
@@ -153,7 +154,7 @@ def test_a_new_store_starts_as_a_copy_of_the_kept_template(tmp_path, monkeypatch
     import mlflow.store.db.utils as db_utils
 
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
-    template = lifecycle.store_template()
+    template = store_template()
     assert not template.exists()
     monkeypatch.chdir(tmp_path)
     lifecycle.prepare_store(Tracker(f"sqlite:///{tmp_path / 'a' / 'mlflow.db'}", "first"))

@@ -24,7 +24,15 @@ from .artifacts import ArtifactRecords
 from .models import ModelRecords
 from .records import now_ms, param_value, tag_value
 from .translate import duplicate_row, translate
-from .uris import describe_store, is_database, prepare_store_location, sqlite_path, ui_url
+from .uris import (
+    copy_store_template,
+    describe_store,
+    is_database,
+    keep_store_template,
+    prepare_store_location,
+    sqlite_path,
+    ui_url,
+)
 
 __all__ = ["RUNS_VIEW", "SHARED_VIEW_PREFIX", "Tracker", "ensure_store", "experiment_views",
            "metric_view"]
@@ -110,6 +118,10 @@ class Tracker(ModelRecords, ArtifactRecords):
     def client(self) -> MlflowClient:
         """The :class:`mlflow.MlflowClient`, created (with its store) on first use.
 
+        A new SQLite store starts as a copy of :func:`~.uris.store_template` (MLflow's
+        migrations run once per machine and MLflow version; the first store they make is
+        kept as the template).
+
         Raises
         ------
         TrackingError
@@ -117,8 +129,12 @@ class Tracker(ModelRecords, ArtifactRecords):
         """
         if self._client is None:
             prepare_store_location(self.tracking_uri)
+            path = sqlite_path(self.tracking_uri)
+            new = path is not None and not path.exists() and not copy_store_template(path)
             with self._errors():
                 self._client = MlflowClient(self.tracking_uri)
+            if new and path is not None:  # MLflow created and migrated it: keep an empty copy
+                keep_store_template(path)
         return self._client
 
     @property
