@@ -3,6 +3,7 @@ errors of one line, heartbeats while a trial runs, distinct sampler streams per 
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import socket
@@ -22,6 +23,7 @@ from workbench.experiment.storage import open_storage
 from workbench.experiment.sweep.scheduler import fail_stale, is_counted, run_study, sampler
 from workbench.experiment.tracking import lifecycle
 from workbench.experiment.tracking.runs import Tracker
+from workbench.experiment.tracking.store_template import store_template
 
 from services import command_env, free_port, tiny_sweep, workbench_cmd
 
@@ -131,13 +133,64 @@ def test_reaper_uses_heartbeats_for_other_hosts(tmp_path, new_store):
 
 
 def test_two_concurrent_evaluates_on_a_new_sqlite_store(tiny, tmp_path):
+    """A machine's first store (no template in the cache: MLflow migrates it) made by two
+    commands at once: both finish, and one of them keeps the template."""
     uri = f"sqlite:///{tmp_path / 'new' / 'mlflow.db'}"
     cmd = workbench_cmd("evaluate", tiny, "--tracking-uri", uri)
-    procs = [subprocess.Popen(cmd, cwd=tmp_path, env=command_env(), stdout=subprocess.PIPE,
+    env = command_env(XDG_CACHE_HOME=str(tmp_path / "cache"))
+    procs = [subprocess.Popen(cmd, cwd=tmp_path, env=env, stdout=subprocess.PIPE,
                               stderr=subprocess.PIPE, text=True) for _ in range(2)]
     outs = [p.communicate(timeout=240) for p in procs]
     assert [p.returncode for p in procs] == [0, 0], [o[1][-2000:] for o in outs]
     assert [r.info.status for r in _runs(uri)] == ["FINISHED", "FINISHED"]
+    assert len(list((tmp_path / "cache" / "workbench" / "mlflow-stores").glob("*.db"))) == 1
+
+
+def test_a_new_store_starts_as_a_copy_of_the_kept_template(tmp_path, monkeypatch):
+    """The first new store is migrated by MLflow and kept empty in the cache; the next new
+    store is its copy (no migration), gets its own Default experiment, and works."""
+    import sqlite3
+
+    import mlflow.store.db.utils as db_utils
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    template = store_template()
+    assert not template.exists()
+    monkeypatch.chdir(tmp_path)
+    lifecycle.prepare_store(Tracker(f"sqlite:///{tmp_path / 'a' / 'mlflow.db'}", "first"))
+    with contextlib.closing(sqlite3.connect(template)) as db:
+        assert db.execute("SELECT count(*) FROM experiments").fetchone() == (0,)
+        assert db.execute("SELECT count(*) FROM alembic_version").fetchone() == (1,)
+
+    def no_migration(engine):
+        raise AssertionError("MLflow migrated a store copied from the template")
+
+    migrate = db_utils._initialize_tables
+    monkeypatch.setattr(db_utils, "_initialize_tables", no_migration)
+    (tmp_path / "b").mkdir()
+    monkeypatch.chdir(tmp_path / "b")
+    tracker = Tracker(f"sqlite:///{tmp_path / 'b' / 'mlflow.db'}", "second")
+    lifecycle.prepare_store(tracker)
+    run = tracker.start_run("r")
+    tracker.log_metrics(run, {"mae": 1.0})
+    tracker.end_run(run, "FINISHED")
+    experiments = {e.name: e.artifact_location for e in tracker.client.search_experiments()}
+    assert sorted(experiments) == ["Default", "second"]
+    assert str(tmp_path / "b") in experiments["Default"]  # its own, not the template's
+    with contextlib.closing(sqlite3.connect(template)) as db:  # the template stays empty
+        assert db.execute("SELECT count(*) FROM runs").fetchone() == (0,)
+    # an existing store is never replaced by the template
+    before = (tmp_path / "b" / "mlflow.db").read_bytes()
+    lifecycle.prepare_store(Tracker(f"sqlite:///{tmp_path / 'b' / 'mlflow.db'}", "second"))
+    assert (tmp_path / "b" / "mlflow.db").read_bytes() == before
+    # a damaged template is dropped: MLflow creates the store, which is kept instead
+    monkeypatch.setattr(db_utils, "_initialize_tables", migrate)
+    template.write_bytes(template.read_bytes()[:8192])
+    tracker = Tracker(f"sqlite:///{tmp_path / 'c' / 'mlflow.db'}", "third")
+    lifecycle.prepare_store(tracker)
+    tracker.end_run(tracker.start_run("r"), "FINISHED")
+    with contextlib.closing(sqlite3.connect(template)) as db:
+        assert db.execute("PRAGMA quick_check").fetchall() == [("ok",)]
 
 
 @pytest.mark.parametrize("storage, problem", [

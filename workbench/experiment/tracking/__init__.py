@@ -21,6 +21,7 @@ database, unreachable server, out-of-date schema) raise :class:`TrackingError` n
 store; the store itself is never deleted or rewritten.
 
 One module per concern: :mod:`.uris` (where the store is, checked before any work),
+:mod:`.store_template` (a new SQLite store copied from an empty one, not migrated again),
 :mod:`.translate` (store errors as one line), :mod:`.runs` (:class:`~.runs.Tracker`),
 :mod:`.views` (what MLflow's UI opens: its addresses, the shared runs view),
 :mod:`.models` (logged, registered, loaded models), :mod:`.artifacts` (files, figures, input

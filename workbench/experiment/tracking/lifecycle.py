@@ -12,7 +12,8 @@
   and is gone, else once its heartbeat is older than :data:`RUN_GRACE_S`.
 * :func:`prepare_store`: a new SQLite store is created and migrated by one process at a time
   (a file lock beside the database), so concurrent first commands do not race in alembic;
-  an unusable store is one line before anything is written.
+  an unusable store is one line before anything is written (a new store starts as a copy
+  of an empty one: :func:`~.store_template.store_template`).
 * :class:`TrialRecorder`: a sweep's trials become child runs as they finish.
 """
 

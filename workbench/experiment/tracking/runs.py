@@ -23,6 +23,7 @@ from ..process.signals import ignoring_signals, interrupts_deferred
 from .artifacts import ArtifactRecords
 from .models import ModelRecords
 from .records import now_ms, param_value, tag_value
+from .store_template import copy_store_template, keep_store_template
 from .translate import duplicate_row, translate
 from .uris import describe_store, is_database, prepare_store_location, sqlite_path
 from .views import RUNS_VIEW, SHARED_VIEW_PREFIX
@@ -105,6 +106,10 @@ class Tracker(ModelRecords, ArtifactRecords):
     def client(self) -> MlflowClient:
         """The :class:`mlflow.MlflowClient`, created (with its store) on first use.
 
+        A new SQLite store starts as a copy of :func:`~.store_template.store_template` (MLflow's
+        migrations run once per machine and MLflow version; the first store they make is
+        kept as the template).
+
         Raises
         ------
         TrackingError
@@ -112,8 +117,12 @@ class Tracker(ModelRecords, ArtifactRecords):
         """
         if self._client is None:
             prepare_store_location(self.tracking_uri)
+            path = sqlite_path(self.tracking_uri)
+            new = path is not None and not path.exists() and not copy_store_template(path)
             with self._errors():
                 self._client = MlflowClient(self.tracking_uri)
+            if new and path is not None:  # MLflow created and migrated it: keep an empty copy
+                keep_store_template(path)
         return self._client
 
     @property

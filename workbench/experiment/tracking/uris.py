@@ -4,6 +4,7 @@ The default SQLite store is in the project, and a relative path is resolved wher
 typed it. The checks: a scheme MLflow has a store for, an installed database driver, a
 writable SQLite location, a server that answers. Light: MLflow and SQLAlchemy are imported
 only by the checks that need them.
+(A new store's first contents: :mod:`.store_template`.)
 """
 
 from __future__ import annotations
