@@ -72,10 +72,10 @@ def _empty_store(tmp_path_factory):
 def new_store(_empty_store):
     """``new_store(path)``: an empty MLflow store at ``path`` (parents made), a copy of one
     made once; returns its ``sqlite:///`` URI. For tests whose store is incidental, also
-    those handing it to a ``workbench`` process or a server (each process given a new store
-    runs the migrations: about 2 CPU-s more at load ~15 on 2 cores, 7.0 against 5.2 CPU-s to
-    open it, three alternating runs): those of a store's first use (test_lifecycle.py's
-    concurrent evaluates, test_store_failures.py, test_tracking.py) let MLflow create theirs."""
+    those handing it to a ``workbench`` process or a server. (A new store the product makes
+    is itself a copy of the cached template, tracking/store_template.py; the tests of a
+    store's first use, test_lifecycle.py's concurrent evaluates on an empty cache,
+    test_store_failures.py and test_tracking.py, let the product create theirs.)"""
     import shutil
 
     def make(path):
