@@ -25,9 +25,9 @@ from sklearn.pipeline import Pipeline, make_pipeline
 
 from ...bases import NormalQuantileTransformer
 from ...datasets import Dataset
-from ...parallel import Task, map_tasks
+from ...parallel import Plan, Task
 from ..config import ExperimentConfig
-from ..figures import error_bars, model_comparison_bars, shap_figure
+from ..figures import error_bars, model_comparison_bars, save_figure, shap_figure
 from ..runs.evaluate import evaluate
 from ..runs.intervals import family_model
 from ..scoring.bootstrap import bootstrap_error_interval
@@ -39,7 +39,6 @@ from .compute import (
     SHORT,
     TABULA_RASA,
     TABULA_RASA_SEEDS,
-    SameAs,
     Save,
     figure_saver,
     say,
@@ -48,7 +47,7 @@ from .compute import (
 from .systems import Stopwatch
 
 __all__ = ["Phase", "draw_tabula_rasa", "evaluate_phase", "hamiltonian_phase",
-           "tabula_rasa_phase", "tabula_rasa_system", "timed"]
+           "tabula_rasa_plan", "timed"]
 
 #: The parameter-space model's setting, as its figures name it.
 HAMILTONIAN_SETTING = "experiments/hamiltonian.toml"
@@ -200,17 +199,25 @@ def _tabula_rasa_target(j: int, seed: int, V_train: pd.DataFrame, y_train: pd.Se
     err = y_test.to_numpy() - mlp.predict(V_test.to_numpy())
     values = expected = None
     if shap_rows is not None:
-        values, expected = shap_values(lambda a: mlp.predict(a), shap_rows,
+        # the quantile transform maps each column on its own, value by value: SHAP's
+        # synthetic rows built from the transformed rows are the transforms of those built
+        # from the rows, so the MLP sees the same inputs, and the transform (most of the
+        # cost of 2^9 coalitions x the background per row) runs once per row instead
+        transform, net = mlp[0], mlp[-1]
+        rows = pd.DataFrame(transform.transform(shap_rows.to_numpy(dtype=float)),
+                            columns=shap_rows.columns, index=shap_rows.index)
+        values, expected = shap_values(lambda a: net.predict(a), rows,
                                        background_size=background, random_state=seed)
     return values, expected, err
 
 
-def tabula_rasa_system(ds: Dataset, seed: int, quick: bool, save: Save,
-                       same_as: SameAs) -> dict[str, Any]:
-    """Fit the tabula rasa MLPs over :data:`TABULA_RASA_SEEDS` seeds and draw their SHAP.
+def tabula_rasa_plan(ds: Dataset, seed: int, quick: bool, out: Path) -> Plan:
+    """Plan the tabula rasa MLPs over :data:`TABULA_RASA_SEEDS` seeds and their SHAP figures.
 
-    The seeds are ``seed``, ``seed + 1``, ...; the SHAP summaries (Fig. S8; Fig. 5 is its Y1
-    panel) are the first seed's MLPs'.
+    One task per (seed, target) (fit, test errors; SHAP values for the first seed), then one
+    task per target drawing its SHAP summary (Fig. S8; Fig. 5 is its Y1 panel), so that they
+    share the workers with the reproduction's other plans (:mod:`workbench.parallel`). The
+    seeds are ``seed``, ``seed + 1``, ...; the summaries are the first seed's MLPs'.
 
     Parameters
     ----------
@@ -220,30 +227,61 @@ def tabula_rasa_system(ds: Dataset, seed: int, quick: bool, save: Save,
         The first seed.
     quick : bool
         3 seeds, 30 SHAP rows and a background of 10.
-    save, same_as
-        File the figures.
+    out : Path
+        The report folder (figures under ``figures/``).
 
     Returns
     -------
-    dict
-        Per target the mean test MAE and MSE over the seeds with their bootstrap intervals,
-        each seed's errors and average, the average's spread over the seeds.
+    Plan
+        Returns a :class:`Phase`: in ``numbers``, per target the mean test MAE and MSE over
+        the seeds with their bootstrap intervals, each seed's errors and average, the
+        average's spread over the seeds; its figures and time.
     """
-    n_seeds = 3 if quick else TABULA_RASA_SEEDS
-    seeds = list(range(seed, seed + n_seeds))
-    say(f"tabula rasa MLPs on the 9 voltages ({n_seeds} seeds), SHAP summaries")
-    X_train, X_test, y_train, y_test = ds.split()
-    targets = ds.target_names
-    V_train, V_test = X_train[ds.feature_names], X_test[ds.feature_names]
-    shap_rows = V_train.iloc[:30] if quick else V_train
-    background = 10 if quick else 50
-    # one task per (target, seed) on the workers (fit, test errors; SHAP for the first seed)
-    tasks = [Task(_tabula_rasa_target, j, s, V_train, y_train[target], V_test, y_test[target],
-                  shap_rows if s == seed else None, background)
-             for s in seeds for j, target in enumerate(targets)]
-    done = map_tasks(tasks, -1)
+    phase = Phase(Stopwatch())
+    with phase.watch:
+        n_seeds = 3 if quick else TABULA_RASA_SEEDS
+        seeds = list(range(seed, seed + n_seeds))
+        say(f"tabula rasa MLPs on the 9 voltages ({n_seeds} seeds), SHAP summaries")
+        X_train, X_test, y_train, y_test = ds.split()
+        targets = ds.target_names
+        V_train, V_test = X_train[ds.feature_names], X_test[ds.feature_names]
+        shap_rows = V_train.iloc[:30] if quick else V_train
+        background = 10 if quick else 50
+        # one task per (target, seed) (fit, test errors; SHAP for the first seed), the SHAP
+        # tasks (the longest) first
+        tasks = [Task(_tabula_rasa_target, j, s, V_train, y_train[target], V_test,
+                      y_test[target], shap_rows if s == seed else None, background)
+                 for s in seeds for j, target in enumerate(targets)]
+        for task in tasks[:len(targets)]:
+            task.priority = 10 ** 6
+        done = yield tasks
+        figures = [Task(_tabula_rasa_figure, out / "figures", j, done[j][0], done[j][1],
+                        shap_rows, target, ds.unit, seed)
+                   for j, target in enumerate(targets)]
+        for j, path in enumerate((yield figures)):
+            phase.files.setdefault("figS8_shap", []).append(path)
+            if SHORT[j] == "Y1":
+                phase.files.setdefault("fig5_shap_Y1", []).append(path)
+        phase.numbers = _tabula_rasa_numbers(done, seeds, len(targets), seed)
+    return phase
+
+
+def _tabula_rasa_figure(figdir: Path, j: int, values: np.ndarray, expected: float,
+                        shap_rows: pd.DataFrame, target: str, unit: str | None,
+                        seed: int) -> Path:
+    """Draw and write target ``j``'s SHAP summary of its first-seed MLP (Fig. S8)."""
+    return save_figure(shap_figure(values, expected, shap_rows, target=f"{SHORT[j]} ({target})",
+                                   unit=unit, random_state=seed,
+                                   setting="MLP on the 9 voltages"),
+                       figdir / f"figS8_shap_{SHORT[j]}.png")
+
+
+def _tabula_rasa_numbers(done: list[Any], seeds: list[int], n_targets: int,
+                         seed: int) -> dict[str, Any]:
+    """The tabula rasa MLPs' numbers from their (seed, target) tasks' results."""
+    n_seeds = len(seeds)
     # test residuals, seeds x targets x rows
-    errors = np.array([d[2] for d in done]).reshape(n_seeds, len(targets), -1)
+    errors = np.array([d[2] for d in done]).reshape(n_seeds, n_targets, -1)
     per_seed = np.abs(errors).mean(axis=2)  # seeds x targets
     per_seed_mse = (errors ** 2).mean(axis=2)
     # per test row and target, the seeds' mean absolute and root mean squared error: their
@@ -251,13 +289,6 @@ def tabula_rasa_system(ds: Dataset, seed: int, quick: bool, save: Save,
     mae_ci = bootstrap_error_interval(np.abs(errors).mean(axis=0).T, random_state=seed)
     mse_ci = bootstrap_error_interval(np.sqrt((errors ** 2).mean(axis=0)).T, squared=True,
                                       random_state=seed)
-    for j, target in enumerate(targets):
-        values, expected, _ = done[j]  # the first seed's
-        path = save("figS8_shap", shap_figure(
-            values, expected, shap_rows, target=f"{SHORT[j]} ({target})", unit=ds.unit,
-            random_state=seed, setting="MLP on the 9 voltages"), f"figS8_shap_{SHORT[j]}")
-        if SHORT[j] == "Y1":
-            same_as("fig5_shap_Y1", path)
     avg = per_seed.mean(axis=1)
     return {"test_mae": per_seed.mean(axis=0).tolist(),
             "test_mse": per_seed_mse.mean(axis=0).tolist(),
@@ -268,32 +299,6 @@ def tabula_rasa_system(ds: Dataset, seed: int, quick: bool, save: Save,
             "test_mae_ci": [*mae_ci.per_target, mae_ci.average],
             "test_mse_ci": [*mse_ci.per_target, mse_ci.average],
             "input_transform": "quantile_normal"}
-
-
-def tabula_rasa_phase(ds: Dataset, seed: int, quick: bool, out: Path) -> Phase:
-    """Fit the tabula rasa MLPs and draw their SHAP summaries (:func:`tabula_rasa_system`).
-
-    Parameters
-    ----------
-    ds : Dataset
-        The Google data.
-    seed : int
-        The first seed.
-    quick : bool
-        Fewer seeds and SHAP rows.
-    out : Path
-        The report folder.
-
-    Returns
-    -------
-    Phase
-        The MLPs' numbers (``numbers``), their figures and time.
-    """
-    phase = Phase(Stopwatch())
-    with phase.watch:
-        save, same_as = figure_saver(out / "figures", phase.files)
-        phase.numbers = tabula_rasa_system(ds, seed, quick, save, same_as)
-    return phase
 
 
 def draw_tabula_rasa(save: Save, ds: Dataset, paper: Result, tabula: dict[str, Any]) -> None:

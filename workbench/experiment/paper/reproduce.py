@@ -54,8 +54,6 @@ from .compute import (
     SameAs,
     Save,
     correction_shap_plan,
-    draw_correction_shap,
-    draw_learning_curves,
     figure_saver,
     hamiltonian_config,
     learning_curves_plan,
@@ -69,7 +67,7 @@ from .phases import (
     draw_tabula_rasa,
     evaluate_phase,
     hamiltonian_phase,
-    tabula_rasa_phase,
+    tabula_rasa_plan,
     timed,
 )
 from .report import report
@@ -188,22 +186,23 @@ class _Job:
         return self.datasets[key]
 
 
-def _paper(job: _Job, all_systems: bool) -> tuple[Dataset, dict[str, Any], dict[str, Started]]:
-    """Run the paper settings with their figures, SHAP and learning curves.
+def _paper(job: _Job, all_systems: bool) -> tuple[Dataset, dict[str, Any], dict[str, Started],
+                                                 Phase]:
+    """Run the paper settings with their figures, SHAP and learning curves, and the rest.
 
-    Its model, then its SHAP values and curves (one run of the workers, the long SHAP tasks
-    first); then the other phases start on the workers (:func:`_start_phases`) while this
-    process draws its figures. Returns the Google data, the learning curves and the
-    started phases.
+    The serial phases start first on the workers (:func:`_start_phases`: the longest first,
+    so that none is left running alone at the end); then the paper settings' model (its
+    folds and refits on the workers as they come free), and one run of the workers for its
+    SHAP values, its learning curves and the tabula rasa MLPs, each with its figures (the
+    long SHAP tasks first). Returns the Google data, the learning curves, the started
+    phases and the tabula rasa MLPs' phase.
     """
+    paper_cfg = load_config(job.configs / "paper_main_body.toml")
+    ds = job.dataset(seeded(paper_cfg, job.seed))
+    phases = _start_phases(job, ds, all_systems)
+    figdir = job.out / "figures"
     with job.watches["paper"]:
-        paper_cfg = load_config(job.configs / "paper_main_body.toml")
         run = job.evaluate("paper", paper_cfg)
-        ds: Dataset = run.dataset
-        shap, (sizes, fitted) = run_plans(
-            [correction_shap_plan(run.model, ds, job.seed, job.quick),
-             learning_curves_plan(paper_cfg, ds, job.seed, job.quick)], -1)
-        phases = _start_phases(job, ds, all_systems)
         paper = run.result
         for metric, fig_id, fig in (("MAE", "fig2_mae_bars", "Fig. 2"),
                                     ("MSE", "figS4_mse_bars", "Fig. S4")):
@@ -211,31 +210,34 @@ def _paper(job: _Job, all_systems: bool) -> tuple[Dataset, dict[str, Any], dict[
                                         labels=(ds.prior_label, "base boosting"),
                                         title=f"Test {metric} per eigenenergy ({fig})",
                                         setting="paper settings"))
-        draw_correction_shap(shap, ds, job.seed, job.save)
-        curves = draw_learning_curves(sizes, fitted, ds, job.save, job.same_as)
-    return ds, curves, phases
+        shap, (curves, curve_files), tabula = run_plans(
+            [correction_shap_plan(run.model, ds, job.seed, job.quick, figdir),
+             learning_curves_plan(paper_cfg, ds, job.seed, job.quick, figdir),
+             tabula_rasa_plan(ds, job.seed, job.quick, job.out)], -1)
+        for files in (shap, curve_files):
+            for fig_id, paths in files.items():
+                job.files.setdefault(fig_id, []).extend(paths)
+    return ds, curves, phases, tabula
 
 
 def _start_phases(job: _Job, ds: Dataset, all_systems: bool) -> dict[str, Started]:
-    """Start the phases independent of the paper settings on the workers (:mod:`.phases`).
+    """Start the serial phases independent of the paper settings on the workers.
 
-    The improved settings, the parameter-space model, the tabula rasa MLPs and, with
-    ``all_systems``, the IBM benchmark; each runs serially in a worker process (the workers
-    take them in this order as they come free), while this process draws the paper
-    settings' figures and runs the search (every core busy); without workers each runs when
-    its result is taken.
+    The parameter-space model and the improved settings (:mod:`.phases`) and, with
+    ``all_systems``, the IBM benchmark; each runs serially in a worker process, the longest
+    first (the workers take them in this order as they come free), while this process runs
+    the paper settings' plans on the workers beside them and the search (every core busy);
+    without workers each runs when its result is taken.
     """
     improved = seeded(load_config(job.configs / "paper_improved.toml"), job.seed)
     ham = hamiltonian_config(load_config(job.configs / "hamiltonian.toml"), job.seed, job.quick)
     job.cfgs.update(improved=improved, hamiltonian=ham)
     calls: dict[str, tuple[Any, ...]] = {
         "hamiltonian": (hamiltonian_phase, ham, job.dataset(ham), job.out),
-        "tabula_rasa": (tabula_rasa_phase, ds, job.seed, job.quick, job.out),
         "improved": (evaluate_phase, improved, job.dataset(improved))}
     if all_systems:  # the longest: first
         calls = {"gates": (gates_benchmark, job.configs, job.seed, job.quick, say), **calls}
-    say("started on the workers while the paper settings' figures are drawn: "
-        + ", ".join(calls))
+    say("started on the workers beside the paper settings: " + ", ".join(calls))
     return {key: start_on_worker(Task(timed, job.clock, *call))
             for key, call in calls.items()}
 
@@ -346,12 +348,12 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
     """
     start, started = start_clock(), time.time()
     job = _Job(Path(out), experiments_dir(experiments), seed, quick, start)
-    ds, curves, phases = _paper(job, all_systems)
+    ds, curves, phases, tabula_phase = _paper(job, all_systems)
+    tabula = _keep(job, "tabula_rasa", tabula_phase).numbers
     search = _search(job, storage) if all_systems else None
     ham = _keep(job, "hamiltonian", phases["hamiltonian"].result())
     tables = {name: str(path.relative_to(job.out)) for name, path in ham.tables.items()}
     table_files = list(ham.tables.values())
-    tabula = _keep(job, "tabula_rasa", phases["tabula_rasa"].result()).numbers
     draw_tabula_rasa(job.save, ds, job.settings["paper"], tabula)
     _keep(job, "improved", phases["improved"].result())
     gates = phases["gates"].result() if all_systems else None
