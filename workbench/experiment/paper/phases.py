@@ -1,13 +1,14 @@
-"""The reproduction's independent phases, each a picklable call.
+"""The reproduction's phases beside the paper settings.
 
-``reproduce`` starts them on the worker processes (:func:`workbench.parallel.start`) while
-it runs the paper settings' phase itself, so both cores stay busy: the improved settings,
-the parameter-space model (with its figures and tables) and the tabula rasa MLPs (with their
-SHAP figures), and with ``--all`` the IBM benchmark. Each runs serially in its worker (one
-BLAS/OpenMP thread) and returns what the reproduction keeps of it, with its
-:class:`~.systems.Stopwatch`; every random component is seeded, so the numbers are those of
-running it in the main process. Without worker processes, they run there, in turn.
-"""
+``reproduce`` starts the serial ones on the worker processes first
+(:func:`workbench.parallel.start`, the longest first): the parameter-space model (with its
+figures and tables), the improved settings and with ``--all`` the IBM benchmark. Each runs
+serially in its worker (one BLAS/OpenMP thread) and returns what the reproduction keeps of
+it, with its :class:`~.systems.Stopwatch`. The tabula rasa MLPs are a plan
+(:func:`tabula_rasa_plan`): their fits, SHAP values and figures share the other workers with
+the paper settings' curves and SHAP. Every random component is seeded, so the numbers are
+those of running it in the main process. Without worker processes, everything runs there,
+in turn."""
 
 from __future__ import annotations
 
@@ -39,7 +40,6 @@ from .compute import (
     SHORT,
     TABULA_RASA,
     TABULA_RASA_SEEDS,
-    Save,
     figure_saver,
     say,
     set_clock,
@@ -49,6 +49,9 @@ from .systems import Stopwatch
 __all__ = ["Phase", "draw_tabula_rasa", "evaluate_phase", "hamiltonian_phase",
            "tabula_rasa_plan", "timed"]
 
+#: The tabula rasa MLPs against the paper settings: metric -> (figure id, the paper's figure).
+TABULA_RASA_FIGURES = {"mae": ("figS6_tabula_rasa_mae", "S6"),
+                       "mse": ("figS7_tabula_rasa_mse", "S7")}
 #: The parameter-space model's setting, as its figures name it.
 HAMILTONIAN_SETTING = "experiments/hamiltonian.toml"
 
@@ -211,13 +214,14 @@ def _tabula_rasa_target(j: int, seed: int, V_train: pd.DataFrame, y_train: pd.Se
     return values, expected, err
 
 
-def tabula_rasa_plan(ds: Dataset, seed: int, quick: bool, out: Path) -> Plan:
+def tabula_rasa_plan(ds: Dataset, seed: int, quick: bool, out: Path, paper: Result) -> Plan:
     """Plan the tabula rasa MLPs over :data:`TABULA_RASA_SEEDS` seeds and their SHAP figures.
 
     One task per (seed, target) (fit, test errors; SHAP values for the first seed), then one
-    task per target drawing its SHAP summary (Fig. S8; Fig. 5 is its Y1 panel), so that they
-    share the workers with the reproduction's other plans (:mod:`workbench.parallel`). The
-    seeds are ``seed``, ``seed + 1``, ...; the summaries are the first seed's MLPs'.
+    task per target drawing its SHAP summary (Fig. S8; Fig. 5 is its Y1 panel) and one per
+    metric drawing them against the paper settings (Fig. S6, S7), so that they share the
+    workers with the reproduction's other plans (:mod:`workbench.parallel`). The seeds are
+    ``seed``, ``seed + 1``, ...; the summaries are the first seed's MLPs'.
 
     Parameters
     ----------
@@ -229,6 +233,8 @@ def tabula_rasa_plan(ds: Dataset, seed: int, quick: bool, out: Path) -> Plan:
         3 seeds, 30 SHAP rows and a background of 10.
     out : Path
         The report folder (figures under ``figures/``).
+    paper : Result
+        The paper settings' result (Fig. S6, S7).
 
     Returns
     -------
@@ -255,14 +261,19 @@ def tabula_rasa_plan(ds: Dataset, seed: int, quick: bool, out: Path) -> Plan:
         for task in tasks[:len(targets)]:
             task.priority = 10 ** 6
         done = yield tasks
+        phase.numbers = _tabula_rasa_numbers(done, seeds, len(targets), seed)
         figures = [Task(_tabula_rasa_figure, out / "figures", j, done[j][0], done[j][1],
                         shap_rows, target, ds.unit, seed)
                    for j, target in enumerate(targets)]
-        for j, path in enumerate((yield figures)):
+        figures += [Task(draw_tabula_rasa, out / "figures", metric, ds.unit, paper,
+                         phase.numbers) for metric in ("mae", "mse")]
+        paths = yield figures
+        for j, path in enumerate(paths[:len(targets)]):
             phase.files.setdefault("figS8_shap", []).append(path)
             if SHORT[j] == "Y1":
                 phase.files.setdefault("fig5_shap_Y1", []).append(path)
-        phase.numbers = _tabula_rasa_numbers(done, seeds, len(targets), seed)
+        for metric, path in zip(("mae", "mse"), paths[len(targets):]):
+            phase.files[TABULA_RASA_FIGURES[metric][0]] = [path]
     return phase
 
 
@@ -301,31 +312,38 @@ def _tabula_rasa_numbers(done: list[Any], seeds: list[int], n_targets: int,
             "input_transform": "quantile_normal"}
 
 
-def draw_tabula_rasa(save: Save, ds: Dataset, paper: Result, tabula: dict[str, Any]) -> None:
-    """Draw the tabula rasa MLPs against the paper settings (Fig. S6, S7).
+def draw_tabula_rasa(figdir: Path, metric: str, unit: str | None, paper: Result,
+                     tabula: dict[str, Any]) -> Path:
+    """Draw the tabula rasa MLPs against the paper settings (Fig. S6 or S7).
 
     Parameters
     ----------
-    save : Save
-        Files the figures.
-    ds : Dataset
-        The Google data.
+    figdir : Path
+        Where the figure goes.
+    metric : {"mae", "mse"}
+        The error: Fig. S6 (MAE) or S7 (MSE).
+    unit : str, optional
+        The data's unit.
     paper : Result
         The paper settings' result.
     tabula : dict
-        The MLPs' numbers (:func:`tabula_rasa_system`).
+        The MLPs' numbers (:func:`tabula_rasa_plan`).
+
+    Returns
+    -------
+    Path
+        The file written.
     """
-    for metric, fig_id, unit in (("mae", "figS6_tabula_rasa_mae", ds.unit),
-                                 ("mse", "figS7_tabula_rasa_mse", squared(ds.unit))):
-        name = f"tabula rasa MLP (voltages only, mean of {len(tabula['seeds'])} seeds)"
-        values = {name: tabula[f"test_{metric}"],
-                  "control program": getattr(paper.prior, f"test_{metric}"),
-                  "base boosting (paper settings)": getattr(paper.model, f"test_{metric}")}
-        intervals = {name: tabula[f"test_{metric}_ci"],
-                     "control program": paper.prior.ci(f"test_{metric}"),
-                     "base boosting (paper settings)": paper.model.ci(f"test_{metric}")}
-        save(fig_id, model_comparison_bars(
-            SHORT, values, metric=metric.upper(), unit=unit, log=True,
-            intervals={k: v for k, v in intervals.items() if v is not None},
-            title=f"Tabula rasa vs base boosting, test {metric.upper()} (Fig. "
-                  f"{'S6' if metric == 'mae' else 'S7'})"))
+    fig_id, fig = TABULA_RASA_FIGURES[metric]
+    name = f"tabula rasa MLP (voltages only, mean of {len(tabula['seeds'])} seeds)"
+    values = {name: tabula[f"test_{metric}"],
+              "control program": getattr(paper.prior, f"test_{metric}"),
+              "base boosting (paper settings)": getattr(paper.model, f"test_{metric}")}
+    intervals = {name: tabula[f"test_{metric}_ci"],
+                 "control program": paper.prior.ci(f"test_{metric}"),
+                 "base boosting (paper settings)": paper.model.ci(f"test_{metric}")}
+    return save_figure(model_comparison_bars(
+        SHORT, values, metric=metric.upper(), unit=unit if metric == "mae" else squared(unit),
+        log=True, intervals={k: v for k, v in intervals.items() if v is not None},
+        title=f"Tabula rasa vs base boosting, test {metric.upper()} (Fig. {fig})"),
+        figdir / f"{fig_id}.png")

@@ -27,7 +27,7 @@ from sklearn.exceptions import ConvergenceWarning
 
 from ..._io import atomic_write
 from ...datasets import Dataset
-from ...parallel import Started, Task, run_plans
+from ...parallel import Plan, Started, Task, run_plans
 from ...parallel import start as start_on_worker
 from ..config import (
     ExperimentConfig,
@@ -41,6 +41,7 @@ from ..figures import (
     error_bars,
     model_comparison_bars,
     prior_target_boxplots,
+    save_figure,
     voltage_boxplots,
 )
 from ..process.errors import UsageError
@@ -64,7 +65,6 @@ from .compute import (
 from .gates import gate_systems, gates_benchmark, gates_figure
 from .phases import (
     Phase,
-    draw_tabula_rasa,
     evaluate_phase,
     hamiltonian_phase,
     tabula_rasa_plan,
@@ -210,11 +210,12 @@ def _paper(job: _Job, all_systems: bool) -> tuple[Dataset, dict[str, Any], dict[
                                         labels=(ds.prior_label, "base boosting"),
                                         title=f"Test {metric} per eigenenergy ({fig})",
                                         setting="paper settings"))
-        shap, (curves, curve_files), tabula = run_plans(
+        shap, (curves, curve_files), tabula, data_files = run_plans(
             [correction_shap_plan(run.model, ds, job.seed, job.quick, figdir),
              learning_curves_plan(paper_cfg, ds, job.seed, job.quick, figdir),
-             tabula_rasa_plan(ds, job.seed, job.quick, job.out)], -1)
-        for files in (shap, curve_files):
+             tabula_rasa_plan(ds, job.seed, job.quick, job.out, paper),
+             _data_figures_plan(ds, figdir)], -1)
+        for files in (shap, curve_files, data_files):
             for fig_id, paths in files.items():
                 job.files.setdefault(fig_id, []).extend(paths)
     return ds, curves, phases, tabula
@@ -274,22 +275,42 @@ def _search(job: _Job, storage: str | None) -> Sweep:
     return search
 
 
-def _data_figures(job: _Job, ds: Dataset) -> dict[str, Any]:
-    """Draw the data figures (Fig. 3, S2, S3); returns the training rows' correlation."""
-    say("data figures")
-    y_train = ds.split()[2]
+def _data_frame(ds: Dataset) -> pd.DataFrame:
+    """The training rows' control program (X1-X5) and measurements (Y1-Y5)."""
     train = ds.X.loc[ds.train_index]
     frame = train[ds.prior_names].set_axis([f"X{j}" for j in range(1, 6)], axis=1)
-    frame = frame.join(y_train.set_axis(SHORT, axis=1))
-    job.save("fig3_correlation", correlation_heatmap(
-        frame, title="Correlation of training examples (Fig. 3)"))
-    job.save("figS2_voltage_boxplots", voltage_boxplots(
-        ds.features.loc[ds.train_index], title="Bias voltages, training rows (Fig. S2)"))
-    job.save("figS3_prior_target_boxplots", prior_target_boxplots(
-        train[ds.prior_names].set_axis(SHORT, axis=1), y_train.set_axis(SHORT, axis=1),
-        unit=ds.unit, labels=(f"{ds.prior_label} (X)", "measured (Y)"),
-        title="Control program (X) and measured (Y) eigenenergies (Fig. S3)"))
-    return frame.corr().round(6).to_dict()
+    return frame.join(ds.split()[2].set_axis(SHORT, axis=1))
+
+
+def _correlation(ds: Dataset) -> dict[str, Any]:
+    """The training rows' correlation of control program and measurements (Fig. 3's)."""
+    return _data_frame(ds).corr().round(6).to_dict()
+
+
+def _data_figures_plan(ds: Dataset, figdir: Path) -> Plan:
+    """Plan the data figures (Fig. 3, S2, S3), one task each; returns them by figure id."""
+    say("data figures")
+    ids = ("fig3_correlation", "figS2_voltage_boxplots", "figS3_prior_target_boxplots")
+    paths = yield [Task(_data_figure, ds, fig_id, figdir) for fig_id in ids]
+    return {fig_id: [path] for fig_id, path in zip(ids, paths)}
+
+
+def _data_figure(ds: Dataset, fig_id: str, figdir: Path) -> Path:
+    """Draw and write one of the data figures."""
+    train = ds.X.loc[ds.train_index]
+    if fig_id == "fig3_correlation":
+        fig = correlation_heatmap(_data_frame(ds),
+                                  title="Correlation of training examples (Fig. 3)")
+    elif fig_id == "figS2_voltage_boxplots":
+        fig = voltage_boxplots(ds.features.loc[ds.train_index],
+                               title="Bias voltages, training rows (Fig. S2)")
+    else:
+        y_train = ds.split()[2]
+        fig = prior_target_boxplots(
+            train[ds.prior_names].set_axis(SHORT, axis=1), y_train.set_axis(SHORT, axis=1),
+            unit=ds.unit, labels=(f"{ds.prior_label} (X)", "measured (Y)"),
+            title="Control program (X) and measured (Y) eigenenergies (Fig. S3)")
+    return save_figure(fig, figdir / f"{fig_id}.png")
 
 
 def _compare(job: _Job, systems: list[System], ds: Dataset) -> None:
@@ -354,12 +375,11 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
     ham = _keep(job, "hamiltonian", phases["hamiltonian"].result())
     tables = {name: str(path.relative_to(job.out)) for name, path in ham.tables.items()}
     table_files = list(ham.tables.values())
-    draw_tabula_rasa(job.save, ds, job.settings["paper"], tabula)
     _keep(job, "improved", phases["improved"].result())
     gates = phases["gates"].result() if all_systems else None
     if gates is not None:
         job.save("figG1_gates_mae", gates_figure(gates))
-    correlation = _data_figures(job, ds)
+    correlation = _correlation(ds)
     systems = paper_systems(job.settings, job.cfgs, tabula, search, job.watches, job.files,
                             {"hamiltonian": table_files}, ds)
     for system in systems:
