@@ -61,7 +61,7 @@ def _chain(n: int) -> tuple[np.ndarray, np.ndarray]:
 
     from workbench.simulate import simulate
 
-    sim = simulate(5, 2 * n, seed=0).data
+    sim = simulate(5, 2 * n, device_seed=0).data
     prior = sim[[f"model_E{i}" for i in range(1, 6)]].to_numpy()
     y = sim[[f"measured_E{i}" for i in range(1, 6)]].to_numpy()
     X = sim[[c for c in sim.columns if c.startswith("v_")]].to_numpy()

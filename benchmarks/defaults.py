@@ -161,7 +161,7 @@ def main() -> None:
             from workbench.simulate import Mismatch, simulate, write_simulation
 
             csv = tmp / "chain_2353.csv"
-            write_simulation(simulate(5, 2353, seed=0, mismatch=Mismatch.default()), csv)
+            write_simulation(simulate(5, 2353, device_seed=0, mismatch=Mismatch.default()), csv)
             cfg = tmp / "single_target.toml"
             cfg.write_text(SINGLE_TARGET.format(csv=csv))
             assert tomllib.loads(cfg.read_text())["data"]["csv"] == str(csv)

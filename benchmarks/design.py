@@ -57,7 +57,7 @@ def simulated_config(name: str, seed: int, base: Path, tmp: Path, pool: int = PO
     from workbench.simulate import simulate, write_simulation
 
     spec = SIMULATED[name]
-    sim = simulate(spec["n_sites"], pool + TEST, seed=seed, topology=spec["topology"],
+    sim = simulate(spec["n_sites"], pool + TEST, device_seed=seed, topology=spec["topology"],
                    shape=spec["shape"])
     sim.data["split"] = ["train"] * pool + ["test"] * TEST
     csv = tmp / f"{name}_{seed}.csv"

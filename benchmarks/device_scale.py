@@ -42,7 +42,7 @@ from workbench.simulate import simulate  # noqa: E402
 
 
 def device(topology, shape, n_sites, m, seed=0):
-    sim = simulate(n_sites, m, seed=seed, topology=topology, shape=shape)
+    sim = simulate(n_sites, m, device_seed=seed, topology=topology, shape=shape)
     d, g = sim.data, sim.truth["graph"]
     N, E = g["n_sites"], len(g["edges"])
     cols = dict(onsite=[f"model_f{k}" for k in range(1, N + 1)],

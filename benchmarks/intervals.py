@@ -97,7 +97,7 @@ def simulated(args) -> None:
     with tempfile.TemporaryDirectory(prefix="workbench-intervals-") as tmp:
         for seed in args.seeds:
             csv = Path(tmp) / f"device_{seed}.csv"
-            write_simulation(simulate(5, args.experiments, seed=seed,
+            write_simulation(simulate(5, args.experiments, device_seed=seed,
                                       mismatch=Mismatch.default()), csv)
             for family, base in configs.items():
                 data = tomllib.loads(base.read_text())["data"]

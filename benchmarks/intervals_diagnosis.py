@@ -41,7 +41,7 @@ def main() -> None:
     base = ROOT / "experiments" / "any_device.toml"
     with tempfile.TemporaryDirectory(prefix="workbench-diagnosis-") as tmp:
         csv = Path(tmp) / "device.csv"
-        write_simulation(simulate(5, args.experiments, seed=args.seed,
+        write_simulation(simulate(5, args.experiments, device_seed=args.seed,
                                   mismatch=Mismatch.default()), csv)
         data = tomllib.loads(base.read_text())["data"]
         data.update(csv=str(csv), split_seed=args.seed)

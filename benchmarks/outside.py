@@ -127,7 +127,7 @@ def _measure(spec, args, overrides: dict, tmp: Path) -> dict:
     seed = cfg.random_state or 0
     peer, peer_wall, peer_cpu = _timed(lambda: peer_predict(
         X_train, y_train, X_test, ds.prior_names, ds.feature_names, trials=args.trials,
-        seed=seed, n_jobs=2))
+        random_state=seed, n_jobs=2))
     ev, wb_wall, wb_cpu = _timed(lambda: evaluate(cfg, return_model=True))
     y = y_test.to_numpy(dtype=float)
     errors = {"prior": y - X_test[ds.prior_names].to_numpy(dtype=float),

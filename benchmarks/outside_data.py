@@ -233,7 +233,7 @@ def sim_devices() -> OutsideSet:
 
     frames = []
     for seed in range(10):
-        sim = simulate(5, 80, seed=seed)
+        sim = simulate(5, 80, device_seed=seed)
         frame = sim.data.copy()
         frame["device"] = f"chain{seed}"
         frame["split"] = "test" if seed >= 7 else "train"
@@ -252,7 +252,7 @@ def sim_bias() -> OutsideSet:
     """One simulated 3x3 grid; the settings with the largest mean coupler bias held out."""
     from workbench.simulate import simulate
 
-    sim = simulate(None, 600, seed=0, topology="grid", shape=(3, 3))
+    sim = simulate(None, 600, device_seed=0, topology="grid", shape=(3, 3))
     frame = sim.data.copy()
     edges = sim.truth["graph"]["edges"]
     _, _, bias = _sim_columns(sim, 9, len(edges))

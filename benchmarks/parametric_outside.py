@@ -128,7 +128,7 @@ def peer(frame: pd.DataFrame, test: np.ndarray, trials: int,
     data = frame[features].copy()
     data["calibrated"] = cal.predict(X)
     fit = peer_predict(data[~test], frame.loc[~test, [target]], data[test], ["calibrated"],
-                       features, trials=trials, seed=0)
+                       features, trials=trials, random_state=0)
     params = cal.corrected_parameters(X.iloc[:1]).iloc[0].to_dict()
     return fit.predictions[:, 0], {"calibrated_parameters": params,
                                    "calibrated_test_mae": float(np.mean(np.abs(

@@ -9,6 +9,9 @@ Used by ``benchmarks/peer_gap.py`` (``VARIANTS``' extra candidate kinds):
 * ``"peer_params"``: the peer's chosen settings (tuned by its search on all the rows the
   config is fitted on) as one fixed LightGBM candidate: cheap (six fits), but its CV score is
   optimistic (the search saw every fold's rows), which tilts CV towards it;
+* ``"halving"``: per link, the drawn LightGBM candidates' settings raced by successive
+  halving inside every fit (:class:`workbench.halving.HalvingChoiceCV`), one candidate
+  beside them (``[model] tune = "halving"`` makes it instead of them);
 * ``"early"``: a LightGBM stage stopped early on a tenth of the rows it is fitted on
   (:class:`EarlyLGBM`: 2000 rounds at most, learning rate 0.05, l1 objective).
 """
@@ -104,6 +107,20 @@ def _basis(kind: str, seed: int, peer_params: dict | None) -> Any:
     return BASES[kind](seed)
 
 
+def _add_halving(est: Any) -> None:
+    """Beside the drawn LightGBM candidates of one target's ``BasisChoiceCV``, one per link
+    whose basis races their settings by successive halving inside every fit."""
+    from workbench.halving import HalvingChoiceCV
+
+    drawn = [(n, c) for n, c in est.candidates if n.startswith("lightgbm#")]
+    added = []
+    for link in dict.fromkeys(c.get_params()["link"] for _, c in drawn):
+        mine = [c for _, c in drawn if c.get_params()["link"] == link]
+        basis = HalvingChoiceCV([(f"d{i:02d}", clone(c.basis)) for i, c in enumerate(mine)])
+        added.append((f"lightgbm#halving/{link}", clone(mine[0]).set_params(basis=basis)))
+    est.set_params(candidates=list(est.candidates) + added)
+
+
 def add_candidates(model: Any, kinds: tuple[str, ...], cfg: Any, ds: Any,
                    peer_params: list[dict] | None = None) -> None:
     """Append ``kinds`` (:data:`BASES`, or ``"peer_params"``: ``peer_params[j]`` for target
@@ -112,9 +129,13 @@ def add_candidates(model: Any, kinds: tuple[str, ...], cfg: Any, ds: Any,
     bounds) with the basis replaced."""
     seed = cfg.random_state or 0
     for j, est in enumerate(model.target_estimators.values()):
+        if "halving" in kinds:
+            _add_halving(est)
+            if kinds == ("halving",):
+                continue
         template = next(c for n, c in est.candidates if n.startswith("lightgbm")
                         and c.get_params()["link"] == "identity")
         added = [(kind, clone(template).set_params(
                     basis=_basis(kind, seed, peer_params[j] if peer_params else None)))
-                 for kind in kinds]
+                 for kind in kinds if kind != "halving"]
         est.set_params(candidates=list(est.candidates) + added)

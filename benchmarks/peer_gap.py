@@ -28,6 +28,8 @@ not reach every set is compared with the first complete one on the sets it ran o
 
     python benchmarks/peer_gap.py --oracle --variants base early --cache C --json A.json
     python benchmarks/peer_gap.py --variants peer_params --cache C --json B.json   # etc.
+    python benchmarks/peer_gap.py --variants base halving --cache C --json D.json
+    python benchmarks/peer_gap.py --variants halving_48 --cache C --json E.json
     python benchmarks/peer_gap.py --merge A.json B.json ... --json benchmarks/results/peer_gap.json
 
 Printed per set and variant: validation MAE (average over targets) and its ratio to the
@@ -69,6 +71,11 @@ VARIANTS: dict[str, tuple[dict[str, Any], tuple[str, ...]]] = {
     "early": ({}, ("early",)),
     "tuned10": ({}, ("tuned10",)),
     "peer_params": ({}, ("peer_params",)),
+    # per basis and link, the 24 draws raced by successive halving inside every fit
+    # (workbench.halving.HalvingChoiceCV): instead of the draws, or beside them
+    "halving": ({"model.tune": "halving"}, ()),
+    "halving_added": ({}, ("halving",)),
+    "halving_48": ({"model.tune": "halving", "model.draws": 48}, ()),
 }
 
 
@@ -118,7 +125,7 @@ def run_set(name: str, args, tmp: Path) -> dict:
         peer = json.loads(cache.read_text())
     else:
         fitted = peer_predict(X_tr, Y_tr, X_va, ds.prior_names, ds.feature_names,
-                              trials=args.trials, seed=cfg.random_state or 0, n_jobs=1)
+                              trials=args.trials, random_state=cfg.random_state or 0, n_jobs=1)
         peer = {"mae": float(np.mean([_mae(Y_va[t], fitted.predictions[:, j])
                                       for j, t in enumerate(targets)])),
                 "params": fitted.params, "cpu_s": time.process_time() - t0}

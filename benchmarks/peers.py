@@ -59,7 +59,7 @@ def simulated(name: str, seed: int, directory: Path):
     spec = DATASETS[name]
     mismatch = Mismatch.none() if spec.get("mismatch") == "none" else Mismatch.default()
     mismatch = dataclasses.replace(mismatch, noise_sd=0.3) if name == "none" else mismatch
-    kw = dict(seed=seed, topology=spec["topology"], shape=spec["shape"])
+    kw = dict(device_seed=seed, topology=spec["topology"], shape=spec["shape"])
     sim = simulate(spec["sites"], spec["experiments"], mismatch=mismatch, **kw)
     clean = simulate(spec["sites"], spec["experiments"], **kw,
                      mismatch=dataclasses.replace(mismatch, noise_sd=0.0,
@@ -142,7 +142,7 @@ def run(name: str, seed: int, args, tmp: Path) -> dict:
     X_train, X_test, y_train, y_test = ds.split()
     objectives = ("regression",) if args.squared_peer else PEER_OBJECTIVES
     fitted = peer_predict(X_train, y_train, X_test, ds.prior_names, ds.feature_names,
-                          trials=args.trials, seed=seed, objectives=objectives, n_jobs=2)
+                          trials=args.trials, random_state=seed, objectives=objectives, n_jobs=2)
     peer, peer_s = fitted.predictions, fitted.seconds
     start = time.perf_counter()
     ev = evaluate(cfg, return_model=True)

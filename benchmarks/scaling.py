@@ -92,7 +92,7 @@ def _child(case: str, n_rows: int, n_sites: int) -> None:
 
     with tempfile.TemporaryDirectory() as tmp:
         csv = Path(tmp) / "device.csv"
-        write_simulation(simulate(n_sites, n_rows, seed=0), csv)
+        write_simulation(simulate(n_sites, n_rows, device_seed=0), csv)
         cfg_path = Path(tmp) / "scaling.toml"
         cfg_path.write_text(_config(case, csv, n_sites))
         cfg = load_config(cfg_path)

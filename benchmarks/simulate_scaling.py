@@ -22,10 +22,10 @@ def measure(n_sites: int, n_experiments: int) -> tuple[float, float, float]:
     times = []
     for _ in range(REPEATS):
         start = time.perf_counter()
-        simulate(n_sites, n_experiments, seed=0)
+        simulate(n_sites, n_experiments, device_seed=0)
         times.append(time.perf_counter() - start)
     tracemalloc.start()
-    sim = simulate(n_sites, n_experiments, seed=0)
+    sim = simulate(n_sites, n_experiments, device_seed=0)
     _, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
     output = sim.data.memory_usage(index=True, deep=True).sum()
@@ -33,7 +33,7 @@ def measure(n_sites: int, n_experiments: int) -> tuple[float, float, float]:
 
 
 def main() -> None:
-    simulate(5, 10, seed=0)  # warm up imports and BLAS
+    simulate(5, 10, device_seed=0)  # warm up imports and BLAS
     print(f"{'sites':>5} {'experiments':>11} {'median s':>9} {'peak MiB':>9} "
           f"{'output MiB':>10} {'peak/output':>11}")
     for n_sites, n_experiments in CASES:

@@ -190,7 +190,7 @@ def tiny_sweep(directory: Path, trials: int = 6, stale_after_s: float = 600) -> 
     from workbench.simulate import Mismatch, simulate
 
     directory.mkdir(parents=True, exist_ok=True)
-    simulate(2, 120, seed=0, mismatch=Mismatch.default()).data.to_csv(directory / "sim.csv",
+    simulate(2, 120, device_seed=0, mismatch=Mismatch.default()).data.to_csv(directory / "sim.csv",
                                                                       index=False)
     path = directory / "tiny.toml"
     path.write_text(TINY.format(trials=trials, stale_after_s=stale_after_s))

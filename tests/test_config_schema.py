@@ -303,6 +303,7 @@ def test_a_renamed_key_fails_naming_its_new_name(tmp_path, capsys, section, old,
 @pytest.mark.parametrize("argv, new", [
     (["evaluate", "any.toml", "--seeds", "0-2"], "--seeds is now --random-states"),
     (["reproduce", "--seed", "1"], "--seed is now --random-state"),
+    (["simulate", "--seed", "1", "--out", "x.csv"], "--seed is now --device-seed"),
 ])
 def test_a_renamed_option_fails_naming_its_new_name(capsys, argv, new):
     with pytest.raises(SystemExit) as exc:
@@ -317,3 +318,10 @@ def test_reproduce_takes_the_random_state():
 
     args = build_parser().parse_args(["reproduce", "--random-state", "3"])
     assert args.random_state == 3 and not hasattr(args, "seed")
+
+
+def test_simulate_takes_the_device_seed():
+    from workbench.experiment.cli.parser import build_parser
+
+    args = build_parser().parse_args(["simulate", "--device-seed", "3", "--out", "x.csv"])
+    assert args.device_seed == 3 and not hasattr(args, "seed")

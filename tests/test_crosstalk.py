@@ -79,7 +79,7 @@ def test_crosstalk_candidates_follow_the_graph():
 @pytest.fixture(scope="module")
 def crosstalk_chain():
     mm = Mismatch(crosstalk=Mismatch.default().crosstalk, noise_sd=0.05)
-    return simulate(N, 160, seed=2, mismatch=mm).data
+    return simulate(N, 160, device_seed=2, mismatch=mm).data
 
 
 def test_crosstalk_products_capture_simulated_flux_crosstalk(crosstalk_chain):
@@ -121,7 +121,7 @@ def test_config_key_offers_crosstalk(tmp_path):
     from workbench.experiment.runs.prepare import parse_config
     from workbench.simulate import write_simulation
 
-    write_simulation(simulate(N, 40, seed=1), tmp_path / "d.csv")
+    write_simulation(simulate(N, 40, device_seed=1), tmp_path / "d.csv")
     data = {"csv": "d.csv", "prior": PRIOR, "targets": TARGETS, "features": QV + CV,
             "test_fraction": 0.3,
             "hamiltonian": {"onsite": ONSITE, "couplings": COUPLINGS, "qubit_features": QV,

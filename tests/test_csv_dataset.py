@@ -60,7 +60,7 @@ def test_numbers_read_at_once_equal_the_text_reading(tmp_path, monkeypatch):
     from workbench.datasets import csv as csv_module
 
     path = tmp_path / "sim.csv"
-    write_simulation(simulate(3, 200, seed=1), path)
+    write_simulation(simulate(3, 200, device_seed=1), path)
     args = dict(prior=["model_E1", "model_E2", "model_E3"],
                 targets=["measured_E1", "measured_E2", "measured_E3"],
                 features=["v_q1", "v_q2", "v_q3", "v_c1", "v_c2"], test_fraction=0.3)
@@ -163,7 +163,7 @@ cv = {cv}
 
 
 def test_simulated_csv_evaluates_through_a_config(tmp_path, capsys):
-    assert main(["simulate", "--sites", "3", "--experiments", "200", "--seed", "1",
+    assert main(["simulate", "--sites", "3", "--experiments", "200", "--device-seed", "1",
                  "--out", str(tmp_path / "dev.csv")]) == 0
     assert (tmp_path / "dev.truth.json").is_file()
     cfg = _config(tmp_path, "dev.csv", "test_fraction = 0.3")
@@ -183,7 +183,7 @@ def test_simulated_csv_evaluates_through_a_config(tmp_path, capsys):
     ('split_column = "nope"', 5, r"missing column\(s\) \['nope'\]"),
 ])
 def test_bad_data_from_the_command_line_is_one_line(tmp_path, capsys, extra, cv, match):
-    write_simulation(simulate(3, 20, seed=0), tmp_path / "small.csv")
+    write_simulation(simulate(3, 20, device_seed=0), tmp_path / "small.csv")
     cfg = _config(tmp_path, "small.csv", extra, cv=cv)
     out = tmp_path / "out.json"
     assert main(["evaluate", str(cfg), "--json", str(out)]) == 2

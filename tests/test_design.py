@@ -144,7 +144,7 @@ def test_robust_sd_ignores_a_few_wild_residuals():
 
 # ---------------------------------------------------------------------- the parameter-space model
 def _regressor():
-    d = simulate(4, 60, seed=1).data
+    d = simulate(4, 60, device_seed=1).data
     on, co = [f"model_f{k}" for k in range(1, 5)], [f"model_g{k}" for k in range(1, 4)]
     model = HamiltonianParameterRegressor(onsite=on, couplings=co, features=["v_q1", "v_c2"],
                                           alpha=0.5)
@@ -213,7 +213,7 @@ def _names(prefix, n):
 
 def _project(tmp_path: Path, family: str = "hamiltonian", rows: int = 40, n: int = 4) -> Path:
     """A CSV of ``rows`` simulated experiments and a lean config on it."""
-    write_simulation(simulate(n, rows, seed=3), tmp_path / "data.csv")
+    write_simulation(simulate(n, rows, device_seed=3), tmp_path / "data.csv")
     text = LEAN.format(prior=_names("model_E", n), targets=_names("measured_E", n),
                        features=_names("v_q", n) + _names("v_c", n - 1),
                        onsite=_names("model_f", n), couplings=_names("model_g", n - 1),
@@ -228,8 +228,8 @@ def _project(tmp_path: Path, family: str = "hamiltonian", rows: int = 40, n: int
 def _pool(tmp_path: Path, n: int = 4, rows: int = 80) -> Path:
     """Candidate settings of the same device (seed 3): random biases with the control
     model's parameters and prediction, no measurement."""
-    settings = simulate(n, rows, seed=103).data[bias_columns(n, n - 1)]
-    pool = measure(settings, seed=3).data
+    settings = simulate(n, rows, device_seed=103).data[bias_columns(n, n - 1)]
+    pool = measure(settings, device_seed=3).data
     pool = pool.drop(columns=[c for c in pool.columns if c.startswith("measured_")])
     path = tmp_path / "pool.csv"
     pool.to_csv(path, index=False)
@@ -300,7 +300,7 @@ def test_closed_loop_design_then_simulate_the_chosen_settings(tmp_path, capsys):
     next_csv, measured = tmp_path / "next.csv", tmp_path / "measured.csv"
     assert main(["design", str(config), "--candidates", str(pool), "--n", "5", "--out",
                  str(next_csv)]) == 0
-    assert main(["simulate", "--sites", "4", "--seed", "3", "--settings", str(next_csv),
+    assert main(["simulate", "--sites", "4", "--device-seed", "3", "--settings", str(next_csv),
                  "--out", str(measured)]) == 0
     assert "measured 5 settings" in capsys.readouterr().out
     chosen, new = pd.read_csv(next_csv), pd.read_csv(measured)

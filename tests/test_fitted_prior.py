@@ -28,7 +28,7 @@ def crosstalk():
     """A coupler-induced frequency shift (which the Hamiltonian model corrects) plus an effect
     of a variable outside the Hamiltonian ("temperature", on the third eigenvalue only) that
     only the eigenvalue-space stage can learn."""
-    data = simulate(N, 260, seed=3, mismatch=Mismatch(coupler_frequency_shift=1.0,
+    data = simulate(N, 260, device_seed=3, mismatch=Mismatch(coupler_frequency_shift=1.0,
                                                       noise_sd=0.05)).data
     data["temperature"] = np.random.default_rng(0).normal(size=len(data))
     data["measured_E3"] += 1.5 * data["temperature"]

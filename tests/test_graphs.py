@@ -118,7 +118,7 @@ def _names(sim):
 
 
 def test_csv_dataset_on_a_grid(tmp_path):
-    sim = simulate(None, 30, seed=1, topology="grid", shape=(2, 3))
+    sim = simulate(None, 30, device_seed=1, topology="grid", shape=(2, 3))
     path, c = _csv(tmp_path, sim), _names(sim)
     common = dict(prior=c["prior"], targets=c["targets"], features=c["qubit"] + c["coupler"],
                   test_fraction=0.3, onsite=c["onsite"], couplings=c["couplings"],
@@ -139,10 +139,10 @@ def test_csv_dataset_on_a_grid(tmp_path):
 
 
 def test_simulator_topologies_and_truth(tmp_path):
-    ring = simulate(6, 20, seed=2, topology="ring")
+    ring = simulate(6, 20, device_seed=2, topology="ring")
     assert ring.truth["graph"]["edges"][-1] == [5, 0]
     assert ring.truth["mechanisms"]["next_nearest_coupling"]["pairs"][0] == [0, 2]
-    grid = simulate(None, 20, seed=2, topology="grid", shape=(3, 3))
+    grid = simulate(None, 20, device_seed=2, topology="grid", shape=(3, 3))
     pairs = grid.truth["mechanisms"]["next_nearest_coupling"]["pairs"]
     assert pairs == [list(p) for p in CouplingGraph.grid(3, 3).parasitic_edges("diagonal")]
     assert "v_c12" in grid.data.columns and "model_g12" in grid.data.columns
@@ -162,7 +162,7 @@ def test_simulator_topologies_and_truth(tmp_path):
 def parasitic_grid():
     """A 3x3 grid whose only departure from the control model is diagonal couplings."""
     mm = Mismatch(next_nearest_coupling=0.05, noise_sd=0.05)
-    sim = simulate(None, 300, seed=3, topology="grid", shape=(3, 3), mismatch=mm)
+    sim = simulate(None, 300, device_seed=3, topology="grid", shape=(3, 3), mismatch=mm)
     return sim
 
 
@@ -218,7 +218,7 @@ def test_linearised_selection_on_a_small_grid_keeps_the_parasitic_couplings(para
 
 
 def test_linearised_selection_on_the_chain_matches_refit_closely():
-    sim = simulate(4, 90, seed=5, mismatch=Mismatch.only("crosstalk", "noise"))
+    sim = simulate(4, 90, device_seed=5, mismatch=Mismatch.only("crosstalk", "noise"))
     c, d = _names(sim), sim.data
     common = dict(onsite=c["onsite"], couplings=c["couplings"], loss="huber", huber_delta=0.5)
     pool = candidate_pool(c["onsite"], c["couplings"], c["qubit"], c["coupler"], base=None)
@@ -233,7 +233,7 @@ def test_linearised_selection_on_the_chain_matches_refit_closely():
 
 
 def test_regressor_on_a_ring_and_bad_parasitic():
-    sim = simulate(5, 160, seed=4, topology="ring",
+    sim = simulate(5, 160, device_seed=4, topology="ring",
                    mismatch=Mismatch.only("coupler_frequency_shift"))
     c, d = _names(sim), sim.data
     edges = sim.truth["graph"]["edges"]
@@ -262,7 +262,7 @@ def test_config_keys_for_graphs_and_parasitic_couplings(tmp_path):
     from workbench.experiment.config import ConfigError, load_dataset
     from workbench.experiment.families.hamiltonian import make_hamiltonian
     from workbench.experiment.runs.prepare import parse_config
-    sim = simulate(None, 60, seed=6, topology="grid", shape=(2, 3))
+    sim = simulate(None, 60, device_seed=6, topology="grid", shape=(2, 3))
     write_simulation(sim, tmp_path / "grid.csv")
     c = _names(sim)
     data = {"csv": "grid.csv", "prior": c["prior"], "targets": c["targets"],

@@ -93,7 +93,7 @@ PRIOR = [f"model_E{i}" for i in range(1, N_SIM + 1)]
 
 @pytest.fixture(scope="module")
 def coupler_shift():
-    sim = simulate(N_SIM, 300, seed=0, mismatch=Mismatch.only("coupler_frequency_shift"))
+    sim = simulate(N_SIM, 300, device_seed=0, mismatch=Mismatch.only("coupler_frequency_shift"))
     return sim.data.iloc[:200], sim.data.iloc[200:], sim.truth
 
 
@@ -198,7 +198,7 @@ def test_regressor_newton_solver_reaches_the_irls_optimum(coupler_shift):
     """The Newton weighting (Huber's curvature) minimises the same objective as IRLS; with
     squared error the two are the same algorithm, with absolute error Newton keeps IRLS."""
     train, test, _ = coupler_shift
-    d = simulate(N_SIM, 200, seed=1, mismatch=Mismatch.only("crosstalk", "noise")).data
+    d = simulate(N_SIM, 200, device_seed=1, mismatch=Mismatch.only("crosstalk", "noise")).data
     base = dict(onsite=ONSITE, couplings=COUPLINGS, features=["v_q1", "v_c2"], tol=1e-12,
                 max_iter=200)
     for frame in (train, d):

@@ -39,7 +39,7 @@ FAST = {"candidates": "local", "max_steps": 3, "selection_cv": 3}
 def device(tmp_path_factory):
     folder = tmp_path_factory.mktemp("device")
     mismatch = Mismatch(coupler_frequency_shift=1.0, crosstalk=0.01, noise_sd=0.1)
-    write_simulation(simulate(N, 150, seed=1, mismatch=mismatch), folder / "device.csv")
+    write_simulation(simulate(N, 150, device_seed=1, mismatch=mismatch), folder / "device.csv")
     return folder
 
 

@@ -53,7 +53,7 @@ couplings = ["model_g1"]
 
 
 def device_frame(rows: int = 60) -> pd.DataFrame:
-    return simulate(2, rows, seed=0).data
+    return simulate(2, rows, device_seed=0).data
 
 
 def write_config(tmp_path: Path, csv: str = "sim.csv", *, top: str = "", data: str = "",

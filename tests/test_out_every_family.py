@@ -44,7 +44,7 @@ def _eigenvalue(folder: Path) -> str:
 
 def _hamiltonian(folder: Path) -> str:
     """A simulated 3-site chain, 60 experiments; a short selection."""
-    write_simulation(simulate(3, 60, seed=1), folder / "device.csv")
+    write_simulation(simulate(3, 60, device_seed=1), folder / "device.csv")
     return ('[data]\ncsv = "device.csv"\n'
             'prior = ["model_E1", "model_E2", "model_E3"]\n'
             'targets = ["measured_E1", "measured_E2", "measured_E3"]\n'
@@ -74,6 +74,17 @@ def _parametric(folder: Path) -> str:
 
 FAMILIES = {"eigenvalue": _eigenvalue, "hamiltonian": _hamiltonian,
             "parametric": _parametric}
+
+
+def test_every_family_of_the_workbench_is_here():
+    """A new family of the workbench's own gets its ``--out`` check (plug-ins not counted)."""
+    from workbench.experiment.families import FAMILIES as REGISTRY
+    from workbench.experiment.families import discover_families
+
+    discover_families()
+    own = {name for name, family in REGISTRY.items()
+           if type(family).__module__.startswith("workbench.experiment.families.")}
+    assert own == set(FAMILIES)
 
 
 def _config(folder: Path, family: str, intervals: bool) -> Path:

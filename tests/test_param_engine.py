@@ -19,7 +19,8 @@ TARGETS = [f"measured_E{k}" for k in range(1, 5)]
 @pytest.fixture(scope="module")
 def device():
     """A 4-site chain whose parameters drift with the bias voltages."""
-    sim = simulate(4, 120, seed=5, mismatch=Mismatch(drift=0.3, crosstalk=0.05, noise_sd=0.2))
+    sim = simulate(4, 120, device_seed=5,
+                   mismatch=Mismatch(drift=0.3, crosstalk=0.05, noise_sd=0.2))
     return sim.data
 
 

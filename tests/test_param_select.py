@@ -20,7 +20,7 @@ CV = [f"v_c{i}" for i in range(1, N)]
 
 @pytest.fixture(scope="module")
 def crosstalk():
-    data = simulate(N, 300, seed=0, mismatch=Mismatch.only("crosstalk")).data
+    data = simulate(N, 300, device_seed=0, mismatch=Mismatch.only("crosstalk")).data
     return data.iloc[:150], data.iloc[150:]
 
 
@@ -212,7 +212,7 @@ def test_linearised_selection_recovers_the_injected_covariates():
     """On a small simulated grid whose mismatch is a coupler nonlinearity (true g_e gains
     kappa_e * ((V_c,e - 0.16) / 0.06)^2), the linearised selection adds each coupling's own
     coupler voltage, and the same seed gives the same selection with or without threads."""
-    sim = simulate(None, 240, seed=2, topology="grid", shape=(2, 3),
+    sim = simulate(None, 240, device_seed=2, topology="grid", shape=(2, 3),
                    mismatch=Mismatch(coupler_nonlinearity=1.5, noise_sd=0.1))
     d, g = sim.data, sim.truth["graph"]
     n, e = g["n_sites"], len(g["edges"])

@@ -132,6 +132,64 @@ def test_the_chain_model_file_is_the_control_program(google_5q):
     assert set(cfg.family_settings.candidates) == set(model.names)
 
 
+
+SMALL = {"n_jobs": 1, "max_steps": 1, "selection_cv": 3, "boost_stage": False}
+
+
+def _small(path, table):
+    from workbench.experiment.runs.prepare import load_config
+
+    return load_config(path, {k if k == "n_jobs" else f"model.{table}.{k}": v
+                              for k, v in SMALL.items()})
+
+
+def test_the_hamiltonian_family_is_the_parametric_family_on_the_device_model_file(google_5q):
+    """One engine: experiments/models/hamiltonian_device.py (HamiltonianModel's file functions,
+    its Hellmann-Feynman jacobian) through family = "parametric" (parametric_device.toml, with
+    the Hamiltonian family's Gauss-Newton settings) fits what family = "hamiltonian"
+    (hamiltonian.toml) fits: the same library, the same covariates chosen on the same CV
+    scores, the same corrected parameters and predictions (to rounding: the file's predict
+    and jacobian diagonalise separately, the family's model object once)."""
+    from pathlib import Path
+
+    from workbench.param_boost import default_library
+    from workbench.param_select import candidate_pool
+
+    root = Path(__file__).resolve().parents[1] / "experiments"
+    ham_cfg = _small(root / "hamiltonian.toml", "hamiltonian")
+    par_cfg = _small(root / "parametric_device.toml", "parametric")
+    ham = google_5q.hamiltonian
+    on, co = list(ham.onsite.columns), list(ham.couplings.columns)
+    # the config's tables are the Hamiltonian family's library ("default" start, "physical" pool)
+    settings = par_cfg.family_settings
+    assert settings.start == default_library(on, co)
+    assert settings.candidates == candidate_pool(on, co, ham.qubit_features,
+                                                 ham.coupler_features, base=None)
+    rows = google_5q.train_index[:48]  # a small slice of the training rows
+    X = ham_cfg.family.inputs(ham_cfg, google_5q).loc[rows]
+    assert X.equals(par_cfg.family.inputs(par_cfg, google_5q).loc[rows])
+    Y = google_5q.targets.loc[rows].to_numpy()
+    hamiltonian = ham_cfg.family.build(ham_cfg, google_5q).physics.fit(X, Y)
+    parametric = par_cfg.family.build(par_cfg, google_5q).physics.fit(X, Y)
+    assert parametric.choice_ == "drift"
+    steps = ["parameter", "covariate"]
+    assert hamiltonian.selection_.path[steps].equals(parametric.selection_.path[steps])
+    assert len(parametric.selection_.path) == 2  # a covariate added
+    np.testing.assert_allclose(parametric.selection_.path["cv_mae"],
+                               hamiltonian.selection_.path["cv_mae"], rtol=0, atol=1e-9)
+    h_theta = hamiltonian.corrected_parameters(X).to_numpy()
+    p_theta = parametric.corrected_parameters(X).to_numpy()
+    control = google_5q.X_physics.loc[rows, on + co].to_numpy()
+    # the drift moves the parameters by MHz; the two fits agree to rounding
+    assert np.abs(h_theta - control).max() > 1.0
+    assert np.abs(h_theta - p_theta).max() < 1e-8
+    assert np.abs(hamiltonian.predict(X) - parametric.predict(X)).max() < 1e-8
+    h_coef = hamiltonian.estimator_.coef_["coef"]
+    np.testing.assert_allclose(parametric.estimator_.coef_["coef"].to_numpy(),
+                               h_coef.to_numpy(), rtol=0, atol=1e-8)
+    assert list(parametric.estimator_.coef_.index) == list(h_coef.index)
+
+
 def _decay_config(tmp_path, extra=""):
     config = tmp_path / "c.toml"
     config.write_text('random_state = 0\n[data]\ncsv = "decay.csv"\ntargets = ["y"]\n'
@@ -235,3 +293,69 @@ def test_a_tracked_run_logs_registers_and_serves(decay_csv, tmp_path):
     pred = pd.read_csv(tmp_path / "p.csv")["y"].to_numpy()
     np.testing.assert_allclose(pred, [2.5 * np.exp(-1 / 1.65) + 0.1,
                                       2.5 * np.exp(-2 / 1.41) + 0.1], atol=0.05)
+
+
+def test_a_missing_term_is_not_forced_into_a_drift(tmp_path):
+    """Simulated (no offline public set shows it): the decay law misses a term, a second
+    channel that switches on at t = 1.5 (a step no drift of amplitude, lifetime or offset in
+    the conditions temp and humidity makes). The family's table says the error is not a
+    drift, it falls back to the calibrated model and boosts from its prediction: the same
+    model and numbers as the family without drift candidates (boosting from the calibrated
+    prediction), and far better than the prior."""
+    rng = np.random.default_rng(3)
+    n = 160
+    t, temp, humidity = rng.uniform(0, 3, n), rng.normal(size=n), rng.normal(size=n)
+    y = 2.5 * np.exp(-t / 1.5) + 0.1 + 0.3 * (t > 1.5) + rng.normal(0, 0.01, n)
+    pd.DataFrame({"t": t, "temp": temp, "humidity": humidity, "y": y}).to_csv(
+        tmp_path / "decay.csv", index=False)
+    (tmp_path / "models").mkdir()
+    (tmp_path / "models" / "decay.py").write_text(DECAY)
+    conditions = '["temp", "humidity", "temp^2", "humidity^2"]'
+    config = tmp_path / "c.toml"
+    config.write_text(
+        'random_state = 0\n[data]\ncsv = "decay.csv"\ntargets = ["y"]\n'
+        'features = ["t", "temp", "humidity"]\ntest_fraction = 0.3\n'
+        '[model]\nfamily = "parametric"\nbasis = "lightgbm"\nbasis_inputs = "prior+features"\n'
+        'line_search_penalty = 0.0\n'
+        '[model.basis_params]\nn_estimators = 60\nnum_leaves = 4\n'
+        'min_child_samples = 5\nverbose = -1\n'
+        '[model.parametric]\nmodel = "models/decay.py"\nloss = "squared_error"\n'
+        'max_steps = 2\nprior_cv = 3\nselection_cv = 3\n'
+        f'[model.parametric.candidates]\namplitude = {conditions}\ntau = {conditions}\n'
+        f'offset = {conditions}\n[selection]\ncv = 3\nshuffle = true\n')
+    runs = {}
+    no_drift = ["--set", 'model.parametric.candidates="none"']
+    for name, extra in (("family", []), ("no drift", no_drift)):
+        out = tmp_path / f"{name}.json"
+        assert main(["evaluate", str(config), "--no-track", "--json", str(out), "--jobs", "1",
+                     *extra]) == 0
+        runs[name] = json.loads(out.read_text())
+    result, info = runs["family"], runs["family"]["parametric"]
+    assert info["choice"] == "calibrated" and "not a drift" in info["note"]
+    cv = {row["candidate"]: row["cv_mae"] for row in info["choices"]}
+    assert set(cv) == {"prior", "calibrated", "drift"}  # the drift was tried, and lost
+    assert cv["calibrated"] - cv["drift"] <= 1e-3
+    selected = result["model"]["selected"][0]
+    assert selected.startswith("parametric:calibrated (error not a drift)+")  # stage kept
+    # the fall-back is boosting from the calibrated prediction, number for number
+    assert runs["no drift"]["model"]["test_mae"] == result["model"]["test_mae"]
+    assert runs["no drift"]["model"]["selected"] == result["model"]["selected"]
+    assert result["model"]["test_mae"][0] < 0.5 * result["prior"]["test_mae"][0]
+
+
+def test_the_learning_curve_fits_keep_the_targets_names():
+    """A multi-target model with per-target stage settings (keyed by the targets' names)
+    needs them in every learning-curve fit; an array lost them (every fit of
+    parametric_device.toml's curve failed: "unknown targets ['eeig1', ...]")."""
+    from sklearn.base import BaseEstimator, RegressorMixin
+
+    from workbench.experiment.families.parametric_artifacts import AllTargets
+
+    class Names(RegressorMixin, BaseEstimator):
+        def fit(self, X, y):
+            self.names_, self.rows_ = list(y.columns), len(y)
+            return self
+
+    Y = pd.DataFrame({"eeig1": [1.0, 2.0, 3.0], "eeig2": [4.0, 5.0, 6.0]})
+    fitted = AllTargets(Names(), Y).fit(pd.DataFrame({"x": [0.0, 1.0]}), [0.0, 2.0])
+    assert fitted.estimator_.names_ == ["eeig1", "eeig2"] and fitted.estimator_.rows_ == 2

@@ -87,3 +87,26 @@ def test_added_candidates_share_the_prior_inputs_and_link_of_the_config_s() -> N
     y = X["p"] + np.sin(3 * X["x"])
     est.fit(X, y.to_numpy())
     assert np.all(np.isfinite(est.candidate_scores_["early"]))
+
+
+def test_the_halving_candidate_races_the_draws_of_its_own_link() -> None:
+    from workbench import BaseBoostRegressor, HalvingChoiceCV
+    from workbench.multitarget import MultiTargetBaseBoost
+    from workbench.selection import BasisChoiceCV
+
+    cands = _module("peer_candidates")
+
+    def drawn(i: int, link: str) -> tuple[str, BaseBoostRegressor]:
+        basis = cands.LGBMRegressor(n_estimators=5 + i, verbose=-1)
+        return (f"lightgbm#{i:02d}/{link}",
+                BaseBoostRegressor(prior="p", basis=basis, basis_features=["p"], link=link))
+
+    est = BasisChoiceCV([drawn(i, link) for i in range(3) for link in ("identity", "log")],
+                        cv=3)
+    cands.add_candidates(MultiTargetBaseBoost(target_estimators={"y": est}), ("halving",),
+                         SimpleNamespace(random_state=0), None)
+    added = dict(est.candidates[6:])
+    assert list(added) == ["lightgbm#halving/identity", "lightgbm#halving/log"]
+    for link, c in zip(("identity", "log"), added.values()):
+        assert c.link == link and isinstance(c.basis, HalvingChoiceCV)
+        assert [b.n_estimators for _, b in c.basis.estimators] == [5, 6, 7]

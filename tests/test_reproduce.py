@@ -117,6 +117,7 @@ def test_report_and_numbers(quick_run):
     assert all(m < p for m, p in zip(paper["model"]["test_mae"], paper["prior"]["test_mae"]))
     text = (out / "README.md").read_text()
     assert f"**{paper['model']['test_mae_avg']:.3f}**" in text
+    assert res["random_state"] == 0 and "(random_state 0)" in text  # one name per seed
     manifest = json.loads((out / "manifest.json").read_text())
     for fig_id, files in manifest.items():  # shown in the report, or named there (a panel)
         for f in [files] if isinstance(files, str) else files:

@@ -52,7 +52,7 @@ pytestmark = pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceW
 @pytest.fixture(scope="module")
 def config(tmp_path_factory):
     root = tmp_path_factory.mktemp("seeds")
-    simulate(2, 120, seed=0, mismatch=Mismatch.default()).data.to_csv(root / "sim.csv",
+    simulate(2, 120, device_seed=0, mismatch=Mismatch.default()).data.to_csv(root / "sim.csv",
                                                                       index=False)
     (root / "c.toml").write_text(CONFIG)
     return root / "c.toml"

@@ -23,17 +23,17 @@ def prior_mae(sim: Simulation) -> float:
 
 
 def test_same_seed_is_identical_and_other_seed_differs():
-    a, b = simulate(5, 50, seed=3), simulate(5, 50, seed=3)
+    a, b = simulate(5, 50, device_seed=3), simulate(5, 50, device_seed=3)
     pd.testing.assert_frame_equal(a.data, b.data, check_exact=True)
     assert a.truth == b.truth
-    c = simulate(5, 50, seed=4)
+    c = simulate(5, 50, device_seed=4)
     assert not np.allclose(a.data.to_numpy(), c.data.to_numpy())
     assert a.truth["device"] != c.truth["device"]
 
 
 @pytest.mark.parametrize("n", [2, 5, 7])
 def test_columns_and_shape(n):
-    sim = simulate(n, 11, seed=1)
+    sim = simulate(n, 11, device_seed=1)
     expected = ([f"v_q{k}" for k in range(1, n + 1)] + [f"v_c{k}" for k in range(1, n)]
                 + [f"model_f{k}" for k in range(1, n + 1)] + [f"model_g{k}" for k in range(1, n)]
                 + [f"model_E{k}" for k in range(1, n + 1)]
@@ -42,7 +42,7 @@ def test_columns_and_shape(n):
     assert sim.data.shape == (11, len(expected))
     assert np.isfinite(sim.data.to_numpy()).all()
     assert sim.truth["n_sites"] == n and sim.truth["n_experiments"] == 11
-    assert sim.truth["sign"] == -1
+    assert sim.truth["sign"] == -1 and sim.truth["device_seed"] == 1
 
 
 def test_invalid_arguments():
@@ -63,17 +63,17 @@ def test_mismatch_constructors():
     assert sub.crosstalk == Mismatch.default().crosstalk
     assert sub.noise_sd == Mismatch.default().noise_sd
     assert sub.drift == sub.misidentified_rate == 0
-    assert simulate(5, 5, seed=0).truth["mismatch"] == Mismatch.default().to_dict()
+    assert simulate(5, 5, device_seed=0).truth["mismatch"] == Mismatch.default().to_dict()
 
 
 def test_no_mismatch_means_the_prior_is_exact():
-    sim = simulate(5, 200, seed=2, mismatch=Mismatch.none())
+    sim = simulate(5, 200, device_seed=2, mismatch=Mismatch.none())
     assert prior_mae(sim) < 1e-9
 
 
 @pytest.mark.parametrize("name", list(MECHANISMS))
 def test_each_mechanism_alone_makes_the_prior_wrong(name):
-    sim = simulate(5, 500, seed=5, mismatch=Mismatch.only(name))
+    sim = simulate(5, 500, device_seed=5, mismatch=Mismatch.only(name))
     assert prior_mae(sim) > 1e-3
 
 
@@ -83,13 +83,13 @@ def test_each_mechanism_alone_makes_the_prior_wrong(name):
 def test_prior_error_grows_with_strength(field):
     one = Mismatch(**{field: getattr(Mismatch.default(), field)})
     three = Mismatch(**{field: 3 * getattr(Mismatch.default(), field)})
-    mae1 = prior_mae(simulate(5, 500, seed=6, mismatch=one))
-    mae3 = prior_mae(simulate(5, 500, seed=6, mismatch=three))
+    mae1 = prior_mae(simulate(5, 500, device_seed=6, mismatch=one))
+    mae3 = prior_mae(simulate(5, 500, device_seed=6, mismatch=three))
     assert mae3 > 1.5 * mae1 > 0
 
 
 def test_default_prior_error_is_realistic_and_values_in_range():
-    sim = simulate(5, 1000, seed=0)
+    sim = simulate(5, 1000, device_seed=0)
     assert 0.3 < prior_mae(sim) < 5
     d = sim.data
     for prefix in ("model_E", "measured_E"):
@@ -103,7 +103,7 @@ def test_default_prior_error_is_realistic_and_values_in_range():
 
 
 def test_truth_records_misidentified_peaks():
-    sim = simulate(5, 400, seed=7, mismatch=Mismatch(misidentified_rate=0.1))
+    sim = simulate(5, 400, device_seed=7, mismatch=Mismatch(misidentified_rate=0.1))
     peaks = sim.truth["mechanisms"]["misidentified_peaks"]
     rows = np.array(peaks["rows"])
     assert 10 < len(rows) < 80 and len(peaks["level"]) == len(rows)
@@ -114,7 +114,7 @@ def test_truth_records_misidentified_peaks():
 
 
 def test_write_simulation_round_trips(tmp_path):
-    sim = simulate(5, 30, seed=8)
+    sim = simulate(5, 30, device_seed=8)
     csv, truth = write_simulation(sim, tmp_path / "dev.csv")
     assert csv == tmp_path / "dev.csv" and truth == tmp_path / "dev.truth.json"
     back = pd.read_csv(csv)
@@ -128,14 +128,14 @@ def test_write_simulation_round_trips(tmp_path):
 
 def test_large_simulations_have_the_schema():
     """Their time and memory are measured by benchmarks/simulate_scaling.py, not here."""
-    big = simulate(5, 100_000, seed=0)
-    wide = simulate(50, 1_000, seed=0)
+    big = simulate(5, 100_000, device_seed=0)
+    wide = simulate(50, 1_000, device_seed=0)
     assert big.data.shape == (100_000, 28) and wide.data.shape == (1_000, 298)
     assert (np.diff(_cols(wide.data, "measured_E", 50), axis=1) >= 0).all()
 
 
 def test_base_boosting_beats_the_prior_on_simulated_data():
-    d = simulate(5, 300, seed=0).data
+    d = simulate(5, 300, device_seed=0).data
     features = [c for c in d.columns if c.startswith("v_")] + [f"model_E{j}" for j in range(1, 6)]
     X = d[features]
     train, test = slice(0, 200), slice(200, 300)
@@ -160,8 +160,8 @@ NO_READOUT = dataclasses.replace(Mismatch.default(), noise_sd=0.0, misidentified
 
 
 def test_measure_without_mismatch_reproduces_simulate_exactly():
-    sim = simulate(5, 40, seed=3, mismatch=Mismatch.none())
-    got = measure(sim.data, seed=3, mismatch=Mismatch.none())
+    sim = simulate(5, 40, device_seed=3, mismatch=Mismatch.none())
+    got = measure(sim.data, device_seed=3, mismatch=Mismatch.none())
     pd.testing.assert_frame_equal(got.data, sim.data, check_exact=True)
     assert got.truth == sim.truth
 
@@ -169,9 +169,9 @@ def test_measure_without_mismatch_reproduces_simulate_exactly():
 @pytest.mark.parametrize("kw", [dict(n_sites=5), dict(n_sites=4, topology="ring"),
                                 dict(topology="grid", shape=(3, 3))])
 def test_measure_has_the_same_true_physics_as_simulate(kw):
-    sim = simulate(kw.get("n_sites"), 40, seed=4, mismatch=NO_READOUT,
+    sim = simulate(kw.get("n_sites"), 40, device_seed=4, mismatch=NO_READOUT,
                    **{k: v for k, v in kw.items() if k != "n_sites"})
-    got = measure(sim.data[[c for c in sim.data.columns if c.startswith("v_")]], seed=4,
+    got = measure(sim.data[[c for c in sim.data.columns if c.startswith("v_")]], device_seed=4,
                   mismatch=NO_READOUT, **kw)
     assert list(got.data.columns) == list(sim.data.columns)
     np.testing.assert_allclose(got.data.to_numpy(), sim.data.to_numpy(), rtol=0, atol=1e-9)
@@ -179,36 +179,37 @@ def test_measure_has_the_same_true_physics_as_simulate(kw):
     assert got.truth["device"] == sim.truth["device"]
     assert got.truth["mechanisms"] == sim.truth["mechanisms"]
     # default mismatch: the same device as simulate(seed)'s
-    assert measure(sim.data, seed=4, **kw).truth["device"] == \
-        simulate(kw.get("n_sites"), 3, seed=4,
+    assert measure(sim.data, device_seed=4, **kw).truth["device"] == \
+        simulate(kw.get("n_sites"), 3, device_seed=4,
                  **{k: v for k, v in kw.items() if k != "n_sites"}).truth["device"]
 
 
 def test_measure_keeps_row_order_and_index_and_ignores_other_columns():
-    sim = simulate(3, 12, seed=1, mismatch=NO_READOUT)
+    sim = simulate(3, 12, device_seed=1, mismatch=NO_READOUT)
     settings = sim.data.iloc[::-1].set_axis([f"r{i}" for i in range(12)]).assign(note="x")
-    got = measure(settings, seed=1, mismatch=NO_READOUT)
+    got = measure(settings, device_seed=1, mismatch=NO_READOUT)
     assert list(got.data.index) == list(settings.index)
     np.testing.assert_allclose(got.data.to_numpy(), sim.data.iloc[::-1].to_numpy(), atol=1e-9)
     assert got.truth["n_experiments"] == 12
 
 
 def test_measure_noise_is_repeatable_per_settings_and_independent_across_them():
-    settings = simulate(4, 20, seed=2).data
+    settings = simulate(4, 20, device_seed=2).data
     noisy = Mismatch.only("noise")
-    a, b = measure(settings, seed=2, mismatch=noisy), measure(settings, seed=2, mismatch=noisy)
+    a, b = (measure(settings, device_seed=2, mismatch=noisy),
+            measure(settings, device_seed=2, mismatch=noisy))
     pd.testing.assert_frame_equal(a.data, b.data, check_exact=True)
     residual = _cols(a.data, "measured_E", 4) - _cols(a.data, "model_E", 4)
     assert 0.1 < residual.std() < 0.6
     other = settings.copy()
     other.loc[19, "v_q1"] += 1e-4  # one row changed: every row's noise is new
-    c = measure(other, seed=2, mismatch=noisy)
+    c = measure(other, device_seed=2, mismatch=noisy)
     residual_c = _cols(c.data, "measured_E", 4) - _cols(c.data, "model_E", 4)
     assert not np.isclose(residual[:19], residual_c[:19]).any()
-    assert not np.allclose(measure(settings, seed=3, mismatch=noisy).data, a.data)
-    d = measure(settings, seed=2, mismatch=noisy, noise_seed=7)
-    e = measure(other, seed=2, mismatch=noisy, noise_seed=7)
-    pd.testing.assert_frame_equal(d.data, measure(settings, seed=2, mismatch=noisy,
+    assert not np.allclose(measure(settings, device_seed=3, mismatch=noisy).data, a.data)
+    d = measure(settings, device_seed=2, mismatch=noisy, noise_seed=7)
+    e = measure(other, device_seed=2, mismatch=noisy, noise_seed=7)
+    pd.testing.assert_frame_equal(d.data, measure(settings, device_seed=2, mismatch=noisy,
                                                   noise_seed=7).data, check_exact=True)
     residual_e = _cols(e.data, "measured_E", 4) - _cols(e.data, "model_E", 4)
     np.testing.assert_allclose(residual_e[:19], (_cols(d.data, "measured_E", 4)
@@ -218,7 +219,7 @@ def test_measure_noise_is_repeatable_per_settings_and_independent_across_them():
 def test_measure_records_its_misidentified_rows_and_allows_any_voltage():
     settings = pd.DataFrame({"v_q1": np.linspace(-0.05, 0.05, 200), "v_q2": 0.03,
                              "v_q3": -0.02, "v_c1": 0.3, "v_c2": np.linspace(0.0, 0.3, 200)})
-    got = measure(settings, seed=0, mismatch=Mismatch(misidentified_rate=0.2))
+    got = measure(settings, device_seed=0, mismatch=Mismatch(misidentified_rate=0.2))
     assert np.isfinite(got.data.to_numpy()).all()
     peaks = got.truth["mechanisms"]["misidentified_peaks"]
     rows = np.array(peaks["rows"])
@@ -236,7 +237,7 @@ def test_measure_records_its_misidentified_rows_and_allows_any_voltage():
     (lambda d: d.assign(v_q3="a"), "v_q3 are not numeric"),
 ])
 def test_measure_rejects_bad_settings(change, match):
-    settings = simulate(5, 4, seed=0).data
+    settings = simulate(5, 4, device_seed=0).data
     with pytest.raises(ValueError, match=re.escape(match)):
         measure(change(settings), n_sites=5)
     with pytest.raises(ValueError, match=re.escape("v_q1, v_q2, ... (a chain of >= 2 sites); "
@@ -288,7 +289,7 @@ def test_the_simulated_device_config_runs_as_documented(tmp_path, capsys):
 
     (tmp_path / "experiments").mkdir()
     shutil.copy(EXPERIMENTS / "simulated_device.toml", tmp_path / "experiments")
-    assert main(["simulate", "--sites", "5", "--experiments", "300", "--seed", "0", "--out",
+    assert main(["simulate", "--sites", "5", "--experiments", "300", "--device-seed", "0", "--out",
                  str(tmp_path / "data" / "simulated_device.csv")]) == 0
     out = tmp_path / "out.json"
     assert main(["evaluate", str(tmp_path / "experiments" / "simulated_device.toml"),
@@ -300,7 +301,7 @@ def test_the_simulated_device_config_runs_as_documented(tmp_path, capsys):
 
 def test_pinned_values_of_the_current_simulator():
     """Numbers the simulator gave before measure() shared its physics: any refactor keeps them."""
-    d = simulate(5, 7, seed=3).data
+    d = simulate(5, 7, device_seed=3).data
     sums = {"v_q1": 0.024524932, "v_c3": 0.977632862, "model_f2": 41973.356418756,
             "model_g4": -139.241730479, "model_E1": -42321.006186408,
             "measured_E1": -42306.020342683, "measured_E5": -41580.644049286}
@@ -315,7 +316,7 @@ def test_pinned_values_of_the_current_simulator():
         -6013.65035290917, -5988.4896674782685, -5977.904098411203, -5939.582987716369,
         -6039.9514544890635, -6012.357920373651, -5989.840723935878, -5978.172193460187,
         -5940.731543592296], rtol=1e-12, atol=0)
-    grid = simulate(None, 4, seed=1, topology="grid", shape=(3, 3))
+    grid = simulate(None, 4, device_seed=1, topology="grid", shape=(3, 3))
     np.testing.assert_allclose(grid.data.filter(like="measured_E").sum().to_numpy(), [
         -24330.456883837367, -24197.494771832604, -24126.808707688782, -24042.054374198637,
         -23984.205174797487, -23907.590898299906, -23792.9279891536, -23690.842536547014,
@@ -328,7 +329,7 @@ def test_pinned_values_of_the_current_simulator():
         0.01637961542011547, 0.020245066136928707, 0.02075396150170699, 0.03110916238715378,
         0.028531166585141734, 0.043718831017606125, 0.043624540105999275,
         0.03889638331405291], rtol=1e-12, atol=0)
-    bad = simulate(4, 12, seed=11, mismatch=Mismatch(misidentified_rate=0.3, noise_sd=0.3,
+    bad = simulate(4, 12, device_seed=11, mismatch=Mismatch(misidentified_rate=0.3, noise_sd=0.3,
                                                       drift=0.6))
     peaks = bad.truth["mechanisms"]["misidentified_peaks"]
     assert peaks["rows"] == [1, 6, 9, 10, 11] and peaks["level"] == [4, 1, 1, 3, 4]
@@ -344,7 +345,7 @@ def test_simulate_command_measures_settings(tmp_path, capsys):
     from workbench.experiment.cli import main
 
     first, again = tmp_path / "first.csv", tmp_path / "again.csv"
-    common = ["--seed", "5", "--mismatch", "drift", "crosstalk"]
+    common = ["--device-seed", "5", "--mismatch", "drift", "crosstalk"]
     assert main(["simulate", "--sites", "4", "--experiments", "30", *common,
                  "--out", str(first)]) == 0
     capsys.readouterr()
@@ -362,8 +363,8 @@ def test_simulate_command_measures_settings(tmp_path, capsys):
     assert truth_b["device"] == truth_a["device"] and truth_b["n_experiments"] == 30
     noisy = tmp_path / "noisy.csv"
     for _ in range(2):
-        assert main(["simulate", "--settings", str(first), "--seed", "5", "--noise-seed", "9",
-                     "--out", str(noisy)]) == 0
+        assert main(["simulate", "--settings", str(first), "--device-seed", "5",
+                     "--noise-seed", "9", "--out", str(noisy)]) == 0
         assert np.isfinite(pd.read_csv(noisy).to_numpy()).all()
 
 

@@ -78,7 +78,7 @@ storage = "optuna.journal"
 @pytest.fixture(scope="module")
 def sim_csv(tmp_path_factory):
     path = tmp_path_factory.mktemp("sim") / "sim.csv"
-    simulate(N, 120, seed=0, mismatch=Mismatch.only("coupler_frequency_shift")).data.to_csv(
+    simulate(N, 120, device_seed=0, mismatch=Mismatch.only("coupler_frequency_shift")).data.to_csv(
         path, index=False)
     return path
 

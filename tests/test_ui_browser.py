@@ -21,7 +21,8 @@ import pytest
 
 from workbench.experiment.paper.runs import SYSTEM_TAG
 from workbench.experiment.runs.run_fields import NOTE_TAG
-from workbench.experiment.tracking.runs import Tracker, metric_view
+from workbench.experiment.tracking.runs import Tracker
+from workbench.experiment.tracking.views import metric_view
 
 from services import (
     command_env,

@@ -27,6 +27,7 @@ _EXPORTS = {
     "PriorDerivedInputs": "derived",
     "ARDGaussianProcess": "gp",
     "BaseBoostCV": "selection",
+    "HalvingChoiceCV": "halving",
     "StageChoiceCV": "stagewise",
     "ParametricModel": "parametric", "ModelError": "parametric", "load_model": "parametric",
     "ParametricRegressor": "parametric_boost", "ParametricBoostRegressor": "parametric_boost",

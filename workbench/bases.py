@@ -104,7 +104,7 @@ importance_type, **kwargs
 
         Returns
         -------
-        self : LeanLGBMRegressor
+        LeanLGBMRegressor
             The fitted model.
         """
         if _lgb_sklearn.train is not _train:

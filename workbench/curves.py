@@ -267,6 +267,7 @@ def augmented_learning_curve(estimator: Any, X: Any, y: ArrayLike, *, train_size
     X : array-like or DataFrame of shape (n_samples, n_features)
         DataFrames are kept as such, so column-name priors and basis features work.
     y : array-like of shape (n_samples,) (or one column)
+        The targets.
     train_sizes : sequence of int
         Absolute training sizes (row counts). Each must be at most the smallest
         fold-training set; otherwise ``ValueError`` names the size and the maximum.
@@ -289,6 +290,7 @@ def augmented_learning_curve(estimator: Any, X: Any, y: ArrayLike, *, train_size
     Returns
     -------
     LearningCurve
+        Per training size, the candidate's and the incumbent's errors over the folds.
     """
     plan = learning_curve_plan(estimator, X, y, train_sizes=train_sizes, cv=cv,
                                incumbent=incumbent, scoring=scoring, random_state=random_state)
@@ -338,9 +340,14 @@ def learning_curve_plan(estimator: Any, X: Any, y: ArrayLike, *, train_sizes: Ar
 
     Returns
     -------
-    Plan
-        The plan (a generator); run by :func:`~workbench.parallel.run_plans`, its value is the
-        :class:`LearningCurve`.
+    LearningCurve
+        The plan's value (a generator's: run by :func:`~workbench.parallel.run_plans`).
+
+    Yields
+    ------
+    list of Task
+        Each batch of tasks to run (:func:`~workbench.parallel.run_plans` runs them).
+        The batch's results are sent back, in its order.
     """
     X, y, sizes = _inputs(X, y, scoring, train_sizes)
     rng = check_random_state(random_state)
@@ -402,9 +409,14 @@ def selection_curve_plan(model: Any, X: Any, y: ArrayLike, *, train_sizes: Array
 
     Returns
     -------
-    Plan
-        The plan (a generator); run by :func:`~workbench.parallel.run_plans`, its value is the
-        :class:`LearningCurve`.
+    LearningCurve
+        The plan's value (a generator's: run by :func:`~workbench.parallel.run_plans`).
+
+    Yields
+    ------
+    list of Task
+        Each batch of tasks to run (:func:`~workbench.parallel.run_plans` runs them).
+        The batch's results are sent back, in its order.
     """
     if not hasattr(model, "cv_splits_"):
         raise ValueError(f"{type(model).__name__} is not a fitted BaseBoostCV (no cv_splits_)")

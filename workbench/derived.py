@@ -94,7 +94,8 @@ class PriorDerivedInputs(TransformerMixin, BaseEstimator):
 
         Returns
         -------
-        self : PriorDerivedInputs
+        PriorDerivedInputs
+            The fitted transformer.
         """
         self._validate_params()
         X = validate_data(self, X, dtype=float)
@@ -139,7 +140,8 @@ class PriorDerivedInputs(TransformerMixin, BaseEstimator):
 
         Returns
         -------
-        Z : ndarray of shape (n_samples, n_features + n_derived)
+        ndarray of shape (n_samples, n_features + n_derived)
+            ``X``'s columns, then the derived ones (``then`` applied).
         """
         check_is_fitted(self)
         X = validate_data(self, X, dtype=float, reset=False)

@@ -73,11 +73,14 @@ class ARDGaussianProcess(RegressorMixin, BaseEstimator):
         Parameters
         ----------
         X : array-like of shape (n_samples, n_features)
+            The inputs.
         y : array-like of shape (n_samples,)
+            The target.
 
         Returns
         -------
-        self : ARDGaussianProcess
+        ARDGaussianProcess
+            The fitted model.
         """
         self._validate_params()
         X, y = validate_data(self, X, y, y_numeric=True, dtype=float)
@@ -100,10 +103,12 @@ class ARDGaussianProcess(RegressorMixin, BaseEstimator):
         Parameters
         ----------
         X : array-like of shape (n_samples, n_features)
+            The inputs.
 
         Returns
         -------
-        y : ndarray of shape (n_samples,)
+        ndarray of shape (n_samples,)
+            The prediction.
         """
         check_is_fitted(self)
         X = validate_data(self, X, dtype=float, reset=False)

@@ -478,6 +478,7 @@ def graph_spectrum(onsite: ArrayLike, couplings: ArrayLike, graph: CouplingGraph
     Returns
     -------
     eigenvalues : ndarray of shape (n, N)
+        Each example's eigenvalues, ascending.
     jacobian : ndarray of shape (n, N, N + E)
         ``jacobian[j, k, p] = d lambda_k / d theta_p`` for example ``j``, with
         ``theta = (onsite_1..onsite_N, coupling_1..coupling_E)``. Only when ``jacobian``.

@@ -508,8 +508,14 @@ def prioritised(plan: Plan, offset: float) -> Plan:
 
     Returns
     -------
-    Plan
-        The plan, its value ``plan``'s.
+    object
+        ``plan``'s value.
+
+    Yields
+    ------
+    list of Task
+        Each batch of ``plan``'s tasks, their priorities raised by ``offset``.
+        The batch's results are sent back, in its order.
     """
     try:
         batch = next(plan)
@@ -536,8 +542,14 @@ def gather(plans: Iterable[Plan]) -> Plan:
 
     Returns
     -------
-    Plan
-        The plan, its value the plans' values in order.
+    list
+        The plans' values, in order.
+
+    Yields
+    ------
+    list of Task
+        The current batches of every plan not yet done, as one batch.
+        The batch's results are sent back, in its order.
     """
     plans = list(plans)
     out, batches = _first_batches(plans)

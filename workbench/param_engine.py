@@ -256,6 +256,7 @@ def drift(phis: list[np.ndarray], c: np.ndarray) -> np.ndarray:
     Returns
     -------
     ndarray of shape (rows, parameters)
+        Each row's correction of each parameter.
     """
     out, start = [], 0
     for phi in phis:
@@ -293,6 +294,7 @@ def objective(r: np.ndarray, c: np.ndarray, penalty: np.ndarray, *, loss: str,
     Returns
     -------
     float
+        The penalised loss.
     """
     data = PARAM_LOSSES[loss](r, huber_delta)[0].sum()
     pc = penalty * c
@@ -377,6 +379,7 @@ def gauss_newton(model: Any, data: pd.DataFrame, start: np.ndarray, Y: np.ndarra
     Returns
     -------
     GaussNewtonFit
+        The coefficients reached and how the iterations went.
     """
     Phi, sel = padded(phis)
     T = Y.shape[1]
@@ -529,6 +532,7 @@ class DriftRegressor(Coefficients, RegressorMixin, BaseEstimator):
         Returns
         -------
         ndarray of shape (coefficients, coefficients)
+            The information matrix, in :attr:`coef_`'s order.
         """
         A = self.coef_jacobian(X)
         return np.einsum("nkd,nke->de", A, A) + self.alpha * np.diag(self._penalty())

@@ -374,7 +374,7 @@ def forward_select(X: pd.DataFrame, y: ArrayLike, *, candidates: dict[str, list[
     start : dict, default=None
         The starting covariates (``None``: intercepts only).
     n_jobs : int, default=None
-        scikit-learn's convention (``None``: 1, ``-1``: every core; 1 inside a worker
+        Scikit-learn's convention (``None``: 1, ``-1``: every core; 1 inside a worker
         process): for ``"refit"``, the candidates are scored on the workbench's worker
         processes (:mod:`workbench.parallel`, the command's pool when there is one); for
         ``"linearised"``, the folds' fits and linear scores run on threads of this process

@@ -438,7 +438,9 @@ def check_model(model: ParametricModel, data: pd.DataFrame, n_targets: int | Non
     Returns
     -------
     prediction : ndarray of shape (rows, targets)
+        The model's prediction at ``theta``.
     jacobian : ndarray of shape (rows, targets, parameters)
+        Its derivatives with respect to the parameters.
 
     Raises
     ------

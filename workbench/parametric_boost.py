@@ -34,7 +34,7 @@ from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .parallel import effective_n_jobs
-from .param_engine import PARAM_LOSSES, DriftRegressor
+from .param_engine import PARAM_LOSSES, SOLVERS, DriftRegressor
 from .param_select import SelectionResult, _fit_splits, _refit_select, _sliced, _splits
 from .parametric import (
     ModelError,
@@ -178,6 +178,12 @@ class ParametricRegressor(DriftRegressor):
         training rows' box (the drift's squares and products do not extrapolate without
         bound, and the parameters' corrections stay consistent with each other; clipping
         each parameter's correction on its own would break their compensations).
+    solver : {"newton", "irls"}, default="newton"
+        The Gauss-Newton weights near the optimum (:func:`~workbench.param_engine.gauss_newton`):
+        the loss's curvature once an iteration gains less than 10 %, stopping where such a
+        step finds no decrease, or IRLS weights throughout (the Hamiltonian family's
+        default: with ``calibrate=False`` and the Hamiltonian model object this is
+        :class:`~workbench.param_boost.HamiltonianParameterRegressor`'s fit).
 
     Attributes
     ----------
@@ -204,13 +210,14 @@ class ParametricRegressor(DriftRegressor):
         "max_iter": [Interval(numbers.Integral, 0, None, closed="left")],
         "tol": [Interval(numbers.Real, 0, None, closed="left")],
         "out_of_bounds": [StrOptions({"extrapolate", "clip"})],
+        "solver": [StrOptions(set(SOLVERS))],
     }
 
     def __init__(self, *, model: str | ParametricModel | None = None,
                  covariates: dict[str, list[str]] | None = None, calibrate: bool = True,
                  alpha: float = 1.0, alpha_l1: float = 0.0, loss: str = "huber",
                  huber_delta: float = 1.0, max_iter: int = 20, tol: float = 1e-6,
-                 out_of_bounds: str = "extrapolate") -> None:
+                 out_of_bounds: str = "extrapolate", solver: str = "newton") -> None:
         self.model = model
         self.covariates = covariates
         self.calibrate = calibrate
@@ -221,6 +228,7 @@ class ParametricRegressor(DriftRegressor):
         self.max_iter = max_iter
         self.tol = tol
         self.out_of_bounds = out_of_bounds
+        self.solver = solver
 
     # ------------------------------------------------------------------ design
     def _values(self, X: pd.DataFrame, name: str) -> np.ndarray:
@@ -348,8 +356,9 @@ class ParametricRegressor(DriftRegressor):
             "parameter": model.names,
             "start": [v if isinstance(v, str) else float(v) for v in model.parameters.values()],
             "offset": c[[s.start for s in self._slices]]})
-        # Newton weights once close to the optimum, stopping where a step finds no decrease
-        self._fit_drift(model, X, start, Y, phis, c, penalty, solver="newton",
+        # "newton": Newton weights once close to the optimum, stopping where a step finds no
+        # decrease; "irls": IRLS weights throughout
+        self._fit_drift(model, X, start, Y, phis, c, penalty, solver=self.solver,
                         irls_fallback=False)
         return self
 
@@ -466,8 +475,10 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         The most covariates the selection adds.
     min_improvement : float, default=1e-3
         The CV MAE (targets' units) a covariate, or a more complex candidate, must gain.
-    alpha, alpha_l1, loss, huber_delta, max_iter, tol, out_of_bounds
-        :class:`ParametricRegressor`'s.
+    alpha, alpha_l1, loss, huber_delta, max_iter, tol, out_of_bounds, calibrate, solver
+        :class:`ParametricRegressor`'s (``calibrate=False``: the calibrated candidate's and
+        the drift's fits start their offsets at 0; a ``boost`` template with ``init=None``
+        still starts from its own calibration).
     random_state : int, default=None
         Seeds the splits (None: 0).
     n_jobs : int, default=None
@@ -507,7 +518,7 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         "max_steps": [Interval(numbers.Integral, 0, None, closed="left")],
         "min_improvement": [Interval(numbers.Real, 0, None, closed="left")],
         **{k: v for k, v in ParametricRegressor._parameter_constraints.items()
-           if k not in ("model", "covariates", "calibrate")},
+           if k not in ("model", "covariates")},
         "random_state": [None, numbers.Integral],
         "n_jobs": [None, numbers.Integral],
         "verbose": ["boolean"],
@@ -521,9 +532,9 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
                  products: bool = True, cv: int = 5, n_repeats: int = 1, max_steps: int = 20,
                  min_improvement: float = 1e-3, alpha: float = 1.0, alpha_l1: float = 0.0,
                  loss: str = "huber", huber_delta: float = 1.0, max_iter: int = 20,
-                 tol: float = 1e-6, out_of_bounds: str = "extrapolate",
-                 random_state: int | None = None, n_jobs: int | None = None,
-                 verbose: bool = False, boost: Any = None) -> None:
+                 tol: float = 1e-6, out_of_bounds: str = "extrapolate", calibrate: bool = True,
+                 solver: str = "newton", random_state: int | None = None,
+                 n_jobs: int | None = None, verbose: bool = False, boost: Any = None) -> None:
         self.model = model
         self.start = start
         self.candidates = candidates
@@ -541,6 +552,8 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         self.max_iter = max_iter
         self.tol = tol
         self.out_of_bounds = out_of_bounds
+        self.calibrate = calibrate
+        self.solver = solver
         self.random_state = random_state
         self.n_jobs = n_jobs
         self.verbose = verbose
@@ -582,8 +595,8 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         Y = _targets(y)
         common: dict[str, Any] = dict(model=self.model, alpha=self.alpha, alpha_l1=self.alpha_l1,
                       loss=self.loss, huber_delta=self.huber_delta, max_iter=self.max_iter,
-                      tol=self.tol, out_of_bounds=self.out_of_bounds)
-        base = ParametricRegressor(**common)
+                      tol=self.tol, out_of_bounds=self.out_of_bounds, solver=self.solver)
+        base = ParametricRegressor(**common, calibrate=self.calibrate)
         prior = ParametricRegressor(**{**common, "max_iter": 0}, calibrate=False)
         prior_fit = clone(prior).fit(X, Y)  # also checks the model (one line per bad case)
         scores = {"prior": float(np.mean(np.abs(prior_fit.predict(X) - Y)))}

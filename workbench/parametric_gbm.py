@@ -188,7 +188,9 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
         return init.fit(X, Y)
 
     def _inputs(self, X: pd.DataFrame) -> np.ndarray:
-        return X[self.features_].to_numpy(dtype=float)
+        """The regressors' inputs: the features, by name (a frame's columns read as str)."""
+        columns = {str(c): c for c in X.columns}
+        return X[[columns[c] for c in self.features_]].to_numpy(dtype=float)
 
     def fit(self, X: Any, y: Any) -> Self:
         """Start from ``init``, then boost the parameters ``n_estimators`` rounds.
@@ -228,7 +230,8 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
         self.features_ = (list(self.features) if self.features is not None else
                           [str(c) for c in X.columns if str(c) not in used
                            and pd.api.types.is_numeric_dtype(X[c])])
-        missing = [c for c in self.features_ if c not in X.columns]
+        names = {str(c) for c in X.columns}  # a frame's columns by name, as str
+        missing = [c for c in self.features_ if c not in names]
         if missing or not self.features_:
             raise ValueError(f"features {missing or '[]'} are not columns of X; columns are "
                              f"{[str(c) for c in X.columns]}")

@@ -806,6 +806,7 @@ class LabelGroupKFold(BaseCrossValidator):
     groups : pandas Series
         The group of each row label.
     n_splits : int, default=5
+        The folds.
     shuffle, random_state :
         As in ``GroupKFold`` (shuffled groups before they are dealt into folds).
     """

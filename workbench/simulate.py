@@ -8,8 +8,9 @@ model's own builder). The prior is ``eigvalsh(sign * H_model)`` (sign = -1). The
 *true device* departs from the model in named, switchable ways (:class:`Mismatch`); its
 eigenvalues, plus noise and occasional misidentified peaks, are the measured targets.
 
-The seed fixes the device (control-model constants and every hidden mismatch draw: drift,
-crosstalk, kappa, Delta_c, eta). :func:`simulate` measures random bias settings on it;
+The device seed (``device_seed``, ``workbench simulate --device-seed``) fixes the device
+(control-model constants and every hidden mismatch draw: drift, crosstalk, kappa, Delta_c,
+eta). :func:`simulate` measures random bias settings on it;
 :func:`measure` measures settings the caller chooses (e.g. an active-learning loop) on the
 same device, through the same physics.
 """
@@ -201,7 +202,7 @@ class _Device:
 
     graph: CouplingGraph
     pairs: list
-    seed: int | None
+    device_seed: int | None
     ctrl: dict
     z: dict
     xt: np.ndarray
@@ -213,8 +214,9 @@ class _Device:
 def _build_device(n_sites: int | None, topology: str, shape: Any,
                   edges: Iterable[Sequence[int]] | None,
                   parasitic: str | Iterable[Sequence[int]] | None,
-                  seed: int | None) -> tuple[_Device, np.random.Generator]:
-    """The device of ``seed``, and the generator after its draws (simulate() draws on)."""
+                  device_seed: int | None) -> tuple[_Device, np.random.Generator]:
+    """The device of ``device_seed``, and the generator after its draws (simulate() draws
+    on)."""
     if n_sites is not None and (int(n_sites) != n_sites or n_sites < 2):
         raise ValueError(f"n_sites must be an integer >= 2, got {n_sites!r}")
     graph = make_graph(None if n_sites is None else int(n_sites), topology, shape, edges)
@@ -224,7 +226,7 @@ def _build_device(n_sites: int | None, topology: str, shape: Any,
     else:
         pairs = list(graph.with_edges(parasitic).edges[graph.n_edges:])
     n, E = graph.n_sites, graph.n_edges
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(device_seed)
     ctrl = _device(rng, n, E)
     # unit-size draws of every mechanism, scaled by the mismatch strengths in _experiments
     z = {k: rng.standard_normal(v.shape) for k, v in ctrl.items()}
@@ -232,8 +234,8 @@ def _build_device(n_sites: int | None, topology: str, shape: Any,
     kappa = rng.uniform(0.5, 1.5, E) * rng.choice([-1.0, 1.0], E)
     delta_c = rng.uniform(800, 1200, E)
     eta = rng.uniform(0.5, 1.5, len(pairs))
-    device = _Device(graph, pairs, None if seed is None else int(seed), ctrl, z, xt, kappa,
-                     delta_c, eta)
+    device = _Device(graph, pairs, None if device_seed is None else int(device_seed), ctrl, z,
+                     xt, kappa, delta_c, eta)
     return device, rng
 
 
@@ -347,7 +349,7 @@ def _experiments(dev: _Device, mm: Mismatch, vq: np.ndarray, vc: np.ndarray, dra
 
     edge_ab = list(zip(ea.tolist(), eb.tolist()))
     truth = {
-        "n_sites": n, "n_experiments": m, "seed": dev.seed,
+        "n_sites": n, "n_experiments": m, "device_seed": dev.device_seed,
         "graph": graph.to_dict(),
         "sign": SIGN, "units": "MHz, V", "mismatch": mm.to_dict(),
         "voltage_ranges": {"qubit": list(Q_RANGE), "coupler": list(C_RANGE)},
@@ -378,16 +380,17 @@ def bias_columns(n_sites: int, n_edges: int) -> list[str]:
             + [f"v_c{k}" for k in range(1, n_edges + 1)])
 
 
-def simulate(n_sites: int | None = 5, n_experiments: int = 136, *, seed: int | None = 0,
-             mismatch: Mismatch | None = None, topology: str = "chain", shape: Any = None,
+def simulate(n_sites: int | None = 5, n_experiments: int = 136, *,
+             device_seed: int | None = 0, mismatch: Mismatch | None = None,
+             topology: str = "chain", shape: Any = None,
              edges: Iterable[Sequence[int]] | None = None,
              parasitic: str | Iterable[Sequence[int]] | None = None) -> Simulation:
     """Simulate ``n_experiments`` random bias settings of a device of ``n_sites`` sites.
 
     All random draws are made in a fixed order whatever the mismatch (the device first, then
     the voltages, uniform in Q_RANGE and C_RANGE, then noise and misidentified peaks), so the
-    same seed gives the same device and voltages and only the switched-on mechanisms change
-    the targets. :func:`measure` measures chosen settings on the same device.
+    same ``device_seed`` gives the same device and voltages and only the switched-on
+    mechanisms change the targets. :func:`measure` measures chosen settings on the same device.
 
     Parameters
     ----------
@@ -395,8 +398,9 @@ def simulate(n_sites: int | None = 5, n_experiments: int = 136, *, seed: int | N
         The sites (a grid: ``None`` or rows * cols).
     n_experiments : int, default=136
         The bias settings drawn.
-    seed : int or None, default=0
-        Seeds every draw (``None``: fresh ones).
+    device_seed : int or None, default=0
+        Seeds every draw: the device, then its voltages and noise (``None``: fresh ones).
+        Formerly ``seed``.
     mismatch : Mismatch, default=None
         How the true device departs from the control model (``None``: it does not).
     topology : {"chain", "ring", "grid"}, default="chain"
@@ -417,7 +421,7 @@ def simulate(n_sites: int | None = 5, n_experiments: int = 136, *, seed: int | N
     """
     if int(n_experiments) != n_experiments or n_experiments < 1:
         raise ValueError(f"n_experiments must be an integer >= 1, got {n_experiments!r}")
-    dev, rng = _build_device(n_sites, topology, shape, edges, parasitic, seed)
+    dev, rng = _build_device(n_sites, topology, shape, edges, parasitic, device_seed)
     n, m, E = dev.graph.n_sites, int(n_experiments), dev.graph.n_edges
     vq = rng.uniform(*Q_RANGE, (m, n))
     vc = rng.uniform(*C_RANGE, (m, E))
@@ -425,14 +429,15 @@ def simulate(n_sites: int | None = 5, n_experiments: int = 136, *, seed: int | N
                         _readout_draws(rng, m, n))
 
 
-def measure(settings: pd.DataFrame, *, seed: int | None = 0, mismatch: Mismatch | None = None,
-            topology: str = "chain", n_sites: int | None = None, shape: Any = None,
+def measure(settings: pd.DataFrame, *, device_seed: int | None = 0,
+            mismatch: Mismatch | None = None, topology: str = "chain",
+            n_sites: int | None = None, shape: Any = None,
             edges: Iterable[Sequence[int]] | None = None,
             parasitic: str | Iterable[Sequence[int]] | None = None,
             noise_seed: int | None = None) -> Simulation:
     """Measure the bias ``settings`` (rows of ``v_q1..v_qN``, ``v_c1..v_cE``; other columns
-    are ignored) on the device :func:`simulate` makes with the same ``seed``, ``topology``,
-    ``n_sites``, ``shape``, ``edges``, ``parasitic`` and ``mismatch``.
+    are ignored) on the device :func:`simulate` makes with the same ``device_seed``,
+    ``topology``, ``n_sites``, ``shape``, ``edges``, ``parasitic`` and ``mismatch``.
 
     Voltages outside Q_RANGE and C_RANGE are allowed. The rows come back in the order and
     with the index of ``settings``, in simulate()'s columns; ``truth`` is simulate()'s for
@@ -443,8 +448,8 @@ def measure(settings: pd.DataFrame, *, seed: int | None = 0, mismatch: Mismatch 
     ----------
     settings : DataFrame
         The biases to measure.
-    seed : int or None, default=0
-        The device's seed (``None``: a fresh device and fresh noise).
+    device_seed : int or None, default=0
+        The device's seed (``None``: a fresh device and fresh noise). Formerly ``seed``.
     mismatch : Mismatch, default=None
         As in :func:`simulate`.
     topology, shape, edges, parasitic
@@ -452,9 +457,9 @@ def measure(settings: pd.DataFrame, *, seed: int | None = 0, mismatch: Mismatch 
     n_sites : int, default=None
         The sites (``None`` with a chain or ring: the number of ``v_q`` columns).
     noise_seed : int, default=None
-        Seeds the noise and the misidentified peaks; ``None``: a seed derived from ``seed``
-        and the settings' values (the same settings measure the same, different settings get
-        independent noise).
+        Seeds the noise and the misidentified peaks; ``None``: a seed derived from
+        ``device_seed`` and the settings' values (the same settings measure the same,
+        different settings get independent noise).
 
     Returns
     -------
@@ -477,7 +482,7 @@ def measure(settings: pd.DataFrame, *, seed: int | None = 0, mismatch: Mismatch 
         if n_sites < 2:
             raise ValueError(f"settings need the qubit bias columns v_q1, v_q2, ... (a "
                              f"{topology} of >= 2 sites); found {n_sites}")
-    dev, _ = _build_device(n_sites, topology, shape, edges, parasitic, seed)
+    dev, _ = _build_device(n_sites, topology, shape, edges, parasitic, device_seed)
     n, E = dev.graph.n_sites, dev.graph.n_edges
     columns = bias_columns(n, E)
     missing = [c for c in columns if c not in settings.columns]
@@ -499,9 +504,10 @@ def measure(settings: pd.DataFrame, *, seed: int | None = 0, mismatch: Mismatch 
     if bad:
         raise ValueError(f"settings column(s) {', '.join(bad[:8])} hold NaN or infinite values")
     source: int | np.random.SeedSequence | None = noise_seed
-    if noise_seed is None and seed is not None:
+    if noise_seed is None and device_seed is not None:
         digest = hashlib.sha256(values.tobytes()).digest()
-        source = np.random.SeedSequence([int(seed), int.from_bytes(digest[:16], "little")])
+        source = np.random.SeedSequence([int(device_seed),
+                                         int.from_bytes(digest[:16], "little")])
     draws = _readout_draws(np.random.default_rng(source), len(values), n)
     return _experiments(dev, Mismatch.default() if mismatch is None else mismatch,
                         values[:, :n], values[:, n:], draws, index=settings.index)
@@ -519,8 +525,10 @@ def write_simulation(sim: Simulation, out: str | Path) -> tuple[Path, Path]:
 
     Returns
     -------
-    csv, truth : Path
-        The files written.
+    csv : Path
+        The CSV written.
+    truth : Path
+        The truth sidecar written (``<out without .csv>.truth.json``).
     """
     out = Path(out)
     stem = out.with_suffix("") if out.suffix.lower() == ".csv" else out

@@ -108,11 +108,14 @@ class StageChoiceCV(CachedParamNames, RegressorMixin, _BaseComposition):
         Parameters
         ----------
         X : array-like of shape (n_samples, n_features)
+            The inputs.
         y : array-like of shape (n_samples,)
+            The target.
 
         Returns
         -------
-        self : StageChoiceCV
+        StageChoiceCV
+            The fitted model.
         """
         self._validate_params()
         if not self.estimators:
@@ -137,10 +140,12 @@ class StageChoiceCV(CachedParamNames, RegressorMixin, _BaseComposition):
         Parameters
         ----------
         X : array-like of shape (n_samples, n_features)
+            The inputs.
 
         Returns
         -------
-        y : ndarray of shape (n_samples,)
+        ndarray of shape (n_samples,)
+            The prediction.
         """
         check_is_fitted(self)
         X = validate_data(self, X, dtype=float, reset=False)

@@ -16,7 +16,7 @@ from sklearn.preprocessing import StandardScaler
 from workbench import BaseBoostCV, BaseBoostRegressor, MultiTargetBaseBoost, make_basis
 from workbench.simulate import simulate
 
-sim = simulate(n_sites=5, n_experiments=300, seed=0)
+sim = simulate(n_sites=5, n_experiments=300, device_seed=0)
 data = sim.data
 priors = [f"model_E{i}" for i in range(1, 6)]
 targets = [f"measured_E{i}" for i in range(1, 6)]

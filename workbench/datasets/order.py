@@ -106,8 +106,10 @@ def latest_rows(order: pd.Series, fraction: float) -> tuple[np.ndarray, np.ndarr
 
     Returns
     -------
-    train, test : ndarray
-        Row labels, in the index's order.
+    train : ndarray
+        The training rows' labels, in the index's order.
+    test : ndarray
+        The test rows' labels, in the index's order.
     """
     n_test = int(round(len(order) * float(fraction)))
     if n_test == 0:

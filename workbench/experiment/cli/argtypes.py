@@ -99,7 +99,7 @@ def seconds(value: str) -> float:
 
 
 def seed(value: str) -> int:
-    """``--split-seed``, ``reproduce --random-state``: an integer >= 0.
+    """``--split-seed``, ``reproduce --random-state``, ``simulate --device-seed``: an integer >= 0.
 
     Parameters
     ----------

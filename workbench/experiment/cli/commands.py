@@ -115,7 +115,7 @@ def reproduce(args: argparse.Namespace) -> int:
     check_stores(tracker, storage, args.repair, repair_hint(args))
     with worker_pool(-1, eager=True):  # forked before any thread of this process
         res = run(args.out, tracking_uri=args.tracking_uri, storage=args.storage,
-                  quick=args.quick, track=not args.no_track, seed=args.random_state,
+                  quick=args.quick, track=not args.no_track, random_state=args.random_state,
                   experiments=configs, all_systems=args.all)
     s = res.settings
     search = (f"; nested-CV search {s['search'].model.avg('test_mae'):.3f}" if "search" in s

@@ -256,7 +256,8 @@ def _add_simulate(sub: Subparsers) -> None:
     """``workbench simulate``: a simulated device's CSV."""
     sim = sub.add_parser("simulate", help="simulate a device of coupled qubits and write a CSV "
                          "(plus a .truth.json sidecar with the graph and injected mismatches); "
-                         "with --settings, measure given bias settings on the seed's device")
+                         "with --settings, measure given bias settings on the device of "
+                         "--device-seed")
     sim.add_argument("--sites", type=int, default=None,
                      help="qubits in the chain or ring (>= 2; default 5, with --settings the "
                      "number of v_q columns; grid: rows x cols)")
@@ -269,14 +270,16 @@ def _add_simulate(sub: Subparsers) -> None:
                      help="random bias settings to simulate (default 136; not with --settings)")
     sim.add_argument("--settings", metavar="SETTINGS.csv", default=None,
                      help="measure these rows instead (columns v_q1..v_qN, v_c1..v_cE, others "
-                     "ignored) on the device --seed and the options above make; voltages "
-                     "outside the simulated ranges are allowed")
+                     "ignored) on the device --device-seed and the options above make; "
+                     "voltages outside the simulated ranges are allowed")
     sim.add_argument("--noise-seed", type=int, default=None,
                      help="with --settings: seed of the noise and misidentified peaks (default: "
-                     "derived from --seed and the settings, so the same settings measure the "
-                     "same)")
-    sim.add_argument("--seed", type=int, default=0, help="the device (and, without --settings, "
-                     "the settings and noise)")
+                     "derived from --device-seed and the settings, so the same settings measure "
+                     "the same)")
+    sim.add_argument("--device-seed", type=argtypes.seed, default=0, metavar="N",
+                     help="the device (and, without --settings, the settings and noise; "
+                     "default: 0)")
+    sim.add_argument("--seed", action=argtypes.Renamed, new="--device-seed")
     sim.add_argument("--mismatch", nargs="+", metavar="NAME", default=None,
                      help="mechanisms to switch on (default: all at realistic sizes; 'none': "
                      "the control model is exact)")

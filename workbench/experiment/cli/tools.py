@@ -135,7 +135,7 @@ def _shape(text: str | None) -> tuple[int, int] | None:
 def _simulation(args: argparse.Namespace) -> Any:
     """Run the simulation ``simulate``'s arguments ask for.
 
-    Random settings, or ``--settings`` measured on the seed's device.
+    Random settings, or ``--settings`` measured on the device of ``--device-seed``.
     """
     from ...simulate import measure
     from ...simulate import simulate as run
@@ -144,16 +144,16 @@ def _simulation(args: argparse.Namespace) -> Any:
     if args.settings is None:
         sites = args.sites if args.sites is not None or args.topology == "grid" else 5
         return run(sites, 136 if args.experiments is None else args.experiments,
-                   seed=args.seed, mismatch=mismatch, topology=args.topology,
+                   device_seed=args.device_seed, mismatch=mismatch, topology=args.topology,
                    shape=shape, parasitic=args.parasitic)
     from ...datasets import read_numeric_columns
 
     # the CSV checks of every data file (empty, not a CSV, wrong delimiter, ragged rows),
     # then the bias columns as numbers; measure() says which are missing
     settings = read_numeric_columns(args.settings, r"v_[qc][1-9][0-9]*")
-    return measure(settings, seed=args.seed, mismatch=mismatch, topology=args.topology,
-                   n_sites=args.sites, shape=shape, parasitic=args.parasitic,
-                   noise_seed=args.noise_seed)
+    return measure(settings, device_seed=args.device_seed, mismatch=mismatch,
+                   topology=args.topology, n_sites=args.sites, shape=shape,
+                   parasitic=args.parasitic, noise_seed=args.noise_seed)
 
 
 def simulate(args: argparse.Namespace) -> int:
@@ -180,7 +180,7 @@ def simulate(args: argparse.Namespace) -> int:
     if args.settings is not None and args.experiments is not None:
         raise UsageError("--settings measures the rows of its CSV; drop --experiments")
     if args.noise_seed is not None and args.settings is None:
-        raise UsageError("--noise-seed needs --settings (simulate's noise follows --seed)")
+        raise UsageError("--noise-seed needs --settings (simulate's noise follows --device-seed)")
     try:
         sim = _simulation(args)
         csv_path, truth_path = write_simulation(sim, args.out)

@@ -27,8 +27,8 @@ def _commands(args: argparse.Namespace) -> list[list[str]]:
     The stores are checked first, as every command checks them (a server would print a
     traceback, or sit on a store it cannot read).
     """
-    from ..tracking.runs import experiment_views
-    from ..tracking.uris import check_store_uri, resolve_tracking_uri, ui_url
+    from ..tracking.uris import check_store_uri, resolve_tracking_uri
+    from ..tracking.views import experiment_views, ui_url
 
     uri = resolve_tracking_uri(args.tracking_uri, None, Path.cwd())
     check_store_uri(uri)

@@ -74,6 +74,11 @@ class BoostSettings(Section):
         The transform's parameters.
     draws : int, default=None
         How many settings are drawn for a basis whose ``basis_params`` hold ranges.
+    tune : {"draws", "halving"}, default=None
+        What those drawn settings become: ``"draws"``, each a candidate of CV; ``"halving"``,
+        one candidate per basis (and link, loss, transform) that chooses among them by
+        successive halving on 3 folds of the rows each of its fits sees
+        (:class:`~workbench.halving.HalvingChoiceCV`): fewer, tuned candidates.
     """
 
     basis: str | list[str] | None = None
@@ -95,6 +100,8 @@ class BoostSettings(Section):
     input_transform_params: dict[str, Any] | None = None
     # how many settings are drawn for a basis whose basis_params hold ranges
     draws: int | None = Field(default=None, ge=1, le=10_000)
+    # "halving": the draws race inside each fit, and the winner is one candidate
+    tune: Literal["draws", "halving"] | None = None
 
 
 #: ``[model]`` defaults (the paper's settings).
@@ -102,7 +109,7 @@ MODEL_DEFAULTS: dict[str, Any] = dict(
     basis="paper_stacking", basis_params={}, n_stages=1, loss="squared_error", draws=20,
     line_search_loss="absolute_error", line_search_penalty=0.1, alpha=0.9, link="identity",
     out_of_bounds="extrapolate", basis_inputs="prior", input_transform="quantile_normal",
-    input_transform_params={},
+    input_transform_params={}, tune="draws",
 )
 
 
@@ -121,7 +128,7 @@ class ModelConfig(BoostSettings):
         Per target, the boosting settings that override these (``[model.targets.<target>]``).
     basis, basis_params, n_stages, loss, line_search_loss, line_search_penalty, alpha, link
         As in :class:`BoostSettings`, for every target.
-    out_of_bounds, basis_inputs, input_transform, input_transform_params, draws
+    out_of_bounds, basis_inputs, input_transform, input_transform_params, draws, tune
         As in :class:`BoostSettings`, for every target.
     """
 

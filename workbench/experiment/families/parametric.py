@@ -100,7 +100,10 @@ class ParametricSettings(Section):
     its corrections the drift's at the nearest training point (the default
     ``"extrapolate"`` lets the drift's squares and products grow beyond them).
     ``boost``: the table :class:`ParameterBoostSettings`, parameter-space boosting as a
-    fourth candidate (absent: none).
+    fourth candidate (absent: none). ``calibrate = false`` starts every fit's offsets at 0
+    instead of a robust least-squares calibration, and ``solver = "irls"`` keeps IRLS
+    weights where the default ``"newton"`` takes Newton steps near the optimum: together they
+    are the Hamiltonian family's Gauss-Newton fit (``experiments/parametric_device.toml``).
     """
 
     model: str
@@ -110,6 +113,8 @@ class ParametricSettings(Section):
     alpha_l1: float = Field(default=0.0, ge=0)
     max_iter: int = Field(default=20, ge=0, le=100_000)
     out_of_bounds: Literal["extrapolate", "clip"] = "extrapolate"
+    calibrate: bool = True
+    solver: Literal["newton", "irls"] = "newton"
     start: dict[str, list[str]] = Field(default_factory=dict)
     candidates: Literal["auto", "none"] | dict[str, list[str]] = "auto"
     squares: bool = True
@@ -150,7 +155,8 @@ def make_parametric(cfg: ExperimentConfig, ds: Dataset) -> ParametricBoostRegres
         n_repeats=s.selection_repeats, max_steps=s.max_steps,
         min_improvement=float(s.min_improvement), alpha=float(s.alpha),
         alpha_l1=float(s.alpha_l1), loss=s.loss, huber_delta=float(s.huber_delta),
-        max_iter=s.max_iter, out_of_bounds=s.out_of_bounds, random_state=cfg.random_state,
+        max_iter=s.max_iter, out_of_bounds=s.out_of_bounds, calibrate=s.calibrate,
+        solver=s.solver, random_state=cfg.random_state,
         n_jobs=cfg.n_jobs, boost=_booster(s.boost, ds.feature_names))
 
 

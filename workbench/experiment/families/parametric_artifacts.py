@@ -73,8 +73,9 @@ class AllTargets(RegressorMixin, BaseEstimator):
     ----------
     estimator : estimator
         The multi-target model (cloned when fitted).
-    Y : ndarray of shape (rows, targets)
-        The targets of every row.
+    Y : DataFrame or ndarray of shape (rows, targets)
+        The targets of every row (a frame keeps the targets' names, which a model with
+        per-target settings needs).
     """
 
     def __init__(self, estimator: Any = None, Y: Any = None) -> None:
@@ -84,7 +85,8 @@ class AllTargets(RegressorMixin, BaseEstimator):
     def fit(self, X: pd.DataFrame, y: Any) -> AllTargets:
         """Fit the estimator on ``X`` and the rows of ``Y`` that ``y`` names."""
         rows = np.asarray(y).astype(int)
-        self.estimator_ = clone(self.estimator).fit(X, np.asarray(self.Y)[rows])
+        Y = self.Y.iloc[rows] if isinstance(self.Y, pd.DataFrame) else np.asarray(self.Y)[rows]
+        self.estimator_ = clone(self.estimator).fit(X, Y)
         return self
 
     def predict(self, X: pd.DataFrame) -> np.ndarray:
@@ -142,7 +144,8 @@ def run_artifacts(cfg: ExperimentConfig, ds: Dataset, X: pd.DataFrame, model: An
     """
     log = logging.getLogger("workbench")
     X_train = X.loc[ds.train_index]
-    Y_train = ds.targets.loc[ds.train_index].to_numpy(dtype=float)
+    Y_frame = ds.targets.loc[ds.train_index].astype(float)  # the targets' names: the stage's
+    Y_train = Y_frame.to_numpy()                                # per-target settings need them
     targets = ds.target_names
     prior = StartModel(model.physics_.model, len(targets)).fit(X_train)
     cv = curve_cv(cfg, ds)
@@ -151,7 +154,7 @@ def run_artifacts(cfg: ExperimentConfig, ds: Dataset, X: pd.DataFrame, model: An
     log.info("[%s] figures: a learning curve at sizes %s and SHAP summaries of %d targets",
              cfg.name, sizes, len(targets))
     positions = np.arange(len(X_train), dtype=float)
-    curve = augmented_learning_curve(AllTargets(fixed, Y_train), X_train, positions,
+    curve = augmented_learning_curve(AllTargets(fixed, Y_frame), X_train, positions,
                                      train_sizes=sizes, cv=cv, incumbent=prior,
                                      scoring=mean_mae_scorer(Y_train),
                                      random_state=cfg.random_state, n_jobs=cfg.jobs)

@@ -16,6 +16,7 @@ import numpy as np
 
 from ...bases import make_basis, make_transform, quadratic_basis_warning
 from ...boosting import BaseBoostRegressor
+from ...halving import HalvingChoiceCV
 from ...multitarget import MultiTargetBaseBoost
 from ...selection import BaseBoostCV, BasisChoiceCV
 from ..config.space import draw_params, has_ranges
@@ -57,8 +58,13 @@ def make_booster(settings: dict[str, Any], prior: Any, inputs: list[str] | None,
     transform = make_transform(settings["input_transform"], **settings["input_transform_params"])
     if transform is not None and "n_priors" in transform.get_params():
         transform.set_params(n_priors=n_priors)
+    if settings.get("halving"):  # the drawn settings, raced inside each fit
+        basis = HalvingChoiceCV([(f"d{i:02d}", make_basis(settings["basis"], **p))
+                                 for i, p in enumerate(settings["halving"])])
+    else:
+        basis = make_basis(settings["basis"], **settings["basis_params"])
     return BaseBoostRegressor(
-        prior=prior, basis=make_basis(settings["basis"], **settings["basis_params"]),
+        prior=prior, basis=basis,
         n_stages=settings["n_stages"], loss=settings["loss"],
         line_search_loss=settings["line_search_loss"],
         line_search_penalty=settings["line_search_penalty"], alpha=settings["alpha"],
@@ -97,8 +103,11 @@ def candidate_settings(settings: dict[str, Any],
     One per basis, drawn setting, loss, line-search loss, link and input transform (bases
     outer). A basis whose ``basis_params`` hold ranges gives ``draws`` settings drawn at
     random (``seed``; the same draws for every target, loss, link and transform), named
-    ``basis#i``. A name joins what varies: the basis (or draw), the loss, the line-search
-    loss (after ``line:``), the link and the transform, e.g. ``"ridge"``, ``"huber"``,
+    ``basis#i``; with ``tune = "halving"`` they are one candidate, ``basis#halving``, whose
+    settings hold them under ``"halving"`` (:func:`make_booster` races them inside each
+    fit, :class:`~workbench.halving.HalvingChoiceCV`). A name joins what varies: the basis
+    (or draw), the loss, the line-search loss (after ``line:``), the link and the
+    transform, e.g. ``"ridge"``, ``"huber"``,
     ``"lightgbm#07/huber"``, ``"ridge/line:squared_error"``, ``"ridge/log"``,
     ``"lightgbm#03/identity/derived"``.
 
@@ -128,6 +137,10 @@ def candidate_settings(settings: dict[str, Any],
         drawn = ([(f"{basis}#{i:02d}", p) for i, p in
                   enumerate(draw_params(params, settings["draws"], seed))]
                  if has_ranges(params) else [(basis, params)])
+        halving = None
+        if has_ranges(params) and settings.get("tune") == "halving":
+            halving = [p for _, p in drawn]
+            drawn = [(f"{basis}#halving", {})]
         for label, values in drawn:
             for loss, line in pairs:
                 for link in (links if many_links else [links]):
@@ -140,7 +153,8 @@ def candidate_settings(settings: dict[str, Any],
                         out.append(("/".join(parts), {
                             **settings, "basis": basis, "basis_params": values, "loss": loss,
                             "line_search_loss": line, "link": link,
-                            "input_transform": transform}))
+                            "input_transform": transform,
+                            **({"halving": halving} if halving else {})}))
     return out
 
 

@@ -89,7 +89,7 @@ def say(text: str) -> None:
                                         text)
 
 
-def seeded(cfg: ExperimentConfig, seed: int) -> ExperimentConfig:
+def seeded(cfg: ExperimentConfig, random_state: int) -> ExperimentConfig:
     """Seed a config and turn off its intervals, as every evaluation of the reproduction.
 
     The reproduction reports the paper's errors, and CV+ would refit every model 5 more times
@@ -100,7 +100,7 @@ def seeded(cfg: ExperimentConfig, seed: int) -> ExperimentConfig:
     ----------
     cfg : ExperimentConfig
         The config as loaded.
-    seed : int
+    random_state : int
         Its ``random_state``.
 
     Returns
@@ -108,10 +108,10 @@ def seeded(cfg: ExperimentConfig, seed: int) -> ExperimentConfig:
     ExperimentConfig
         The copy the reproduction evaluates.
     """
-    return without_intervals(replace(cfg, random_state=seed))
+    return without_intervals(replace(cfg, random_state=random_state))
 
 
-def hamiltonian_config(cfg: ExperimentConfig, seed: int, quick: bool) -> ExperimentConfig:
+def hamiltonian_config(cfg: ExperimentConfig, random_state: int, quick: bool) -> ExperimentConfig:
     """Set up ``experiments/hamiltonian.toml`` as the reproduction evaluates it.
 
     Its nested CV over all rows (its longest part: it redoes the selection in each outer
@@ -122,7 +122,7 @@ def hamiltonian_config(cfg: ExperimentConfig, seed: int, quick: bool) -> Experim
     ----------
     cfg : ExperimentConfig
         The config as loaded (family ``hamiltonian``).
-    seed : int
+    random_state : int
         Its ``random_state``.
     quick : bool
         The smaller pool, fewer steps and one CV repeat.
@@ -140,10 +140,10 @@ def hamiltonian_config(cfg: ExperimentConfig, seed: int, quick: bool) -> Experim
     assert cfg.family_settings is not None  # family = "hamiltonian" has settings
     return seeded(replace(cfg, evaluation=cfg.evaluation.model_copy(update=evaluation),
                           family_settings=cfg.family_settings.model_copy(update=hamiltonian)),
-                  seed)
+                  random_state)
 
 
-def learning_curves_plan(paper_cfg: ExperimentConfig, ds: Dataset, seed: int,
+def learning_curves_plan(paper_cfg: ExperimentConfig, ds: Dataset, random_state: int,
                          quick: bool, figdir: Path) -> Plan:
     """Plan the paper settings' augmented learning curves and their figures.
 
@@ -158,7 +158,7 @@ def learning_curves_plan(paper_cfg: ExperimentConfig, ds: Dataset, seed: int,
         each target's candidate.
     ds : Dataset
         The Google 5-qubit data.
-    seed : int
+    random_state : int
         Seeds the folds.
     quick : bool
         Two sizes (the smallest and the largest) instead of every paper size.
@@ -183,7 +183,7 @@ def learning_curves_plan(paper_cfg: ExperimentConfig, ds: Dataset, seed: int,
     candidates = [model.target_estimators[t].estimator for t in ds.target_names]
     curves = yield from gather([
         learning_curve_plan(est, X_train, y_train[target].to_numpy(), train_sizes=sizes,
-                            cv=CURVE_FOLDS, random_state=seed)
+                            cv=CURVE_FOLDS, random_state=random_state)
         for target, est in zip(ds.target_names, candidates)])
     paths = yield [Task(_curve_figure, figdir, j, target, curve, ds.unit)
                    for j, (target, curve) in enumerate(zip(ds.target_names, curves))]
@@ -199,7 +199,7 @@ def _curve_figure(figdir: Path, j: int, target: str, curve: Any, unit: str | Non
     return save_figure(fig, figdir / f"figS5_learning_curve_{SHORT[j]}.png")
 
 
-def correction_shap_plan(model: Any, ds: Dataset, seed: int, quick: bool,
+def correction_shap_plan(model: Any, ds: Dataset, random_state: int, quick: bool,
                          figdir: Path) -> Plan:
     """Plan the SHAP values of what the paper settings learned, and their figures.
 
@@ -214,7 +214,7 @@ def correction_shap_plan(model: Any, ds: Dataset, seed: int, quick: bool,
         The paper settings' fitted model (as ``evaluate`` returns it).
     ds : Dataset
         The data it was fitted on.
-    seed : int
+    random_state : int
         Seeds the SHAP background and the beeswarms.
     quick : bool
         Explain 30 training rows instead of all.
@@ -229,12 +229,12 @@ def correction_shap_plan(model: Any, ds: Dataset, seed: int, quick: bool,
     say("SHAP of the paper settings' correction (model − prior) and whole prediction")
     X_train = ds.split()[0]
     rows = X_train.iloc[:30] if quick else X_train
-    tasks = [Task(target_shap_values, est, rows, random_state=seed)
+    tasks = [Task(target_shap_values, est, rows, random_state=random_state)
              for est in family_model(model).estimators_]
     for task in tasks:
         task.priority = 10 ** 6
     done = yield tasks
-    figures = [Task(_shap_figure, figdir, fig_id, j, target, shap, ds.unit, seed)
+    figures = [Task(_shap_figure, figdir, fig_id, j, target, shap, ds.unit, random_state)
                for fig_id in ("figR2_shap_correction", "figR3_shap_prediction")
                for j, (target, shap) in enumerate(zip(ds.target_names, done))]
     paths = yield figures
@@ -243,17 +243,17 @@ def correction_shap_plan(model: Any, ds: Dataset, seed: int, quick: bool,
 
 
 def _shap_figure(figdir: Path, fig_id: str, j: int, target: str, shap: Any,
-                 unit: str | None, seed: int) -> Path:
+                 unit: str | None, random_state: int) -> Path:
     """Draw and write target ``j``'s SHAP summary: of the correction (Fig. R2) or of the
     whole prediction (Fig. R3)."""
     name = f"{SHORT[j]} ({target})"
     if fig_id == "figR2_shap_correction":
         fig = correction_shap_figure(shap.correction, target=name, unit=unit, note=shap.note,
-                                     random_state=seed, setting="paper settings")
+                                     random_state=random_state, setting="paper settings")
     else:
         assert shap.prediction is not None  # computed: prediction=True
         fig = shap_figure(shap.prediction.values, shap.prediction.expected,
-                          shap.prediction.rows, target=name, unit=unit, random_state=seed,
+                          shap.prediction.rows, target=name, unit=unit, random_state=random_state,
                           setting="paper settings", explained="prediction")
     return save_figure(fig, figdir / f"{fig_id}_{SHORT[j]}.png")
 

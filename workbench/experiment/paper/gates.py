@@ -99,14 +99,15 @@ class Gates:
                 "generic_minus_peer_test_mae_avg_ci": self.generic_minus_peer}
 
 
-def gates_benchmark(configs: Path, seed: int, quick: bool, say: Callable[[str], None]) -> Gates:
+def gates_benchmark(configs: Path, random_state: int, quick: bool,
+                    say: Callable[[str], None]) -> Gates:
     """Fit the generic config and the peer on the training rows, score both once.
 
     Parameters
     ----------
     configs : Path
         The folder holding ``generic.toml``.
-    seed : int
+    random_state : int
         Seeds the config, the peer's search and the bootstrap.
     quick : bool
         3 draws of the generic config's candidates and 2 trials of the peer's search.
@@ -121,7 +122,7 @@ def gates_benchmark(configs: Path, seed: int, quick: bool, say: Callable[[str], 
     watches = {key: Stopwatch() for key in GATE_SYSTEMS}
     cfg = load_config(configs / "generic.toml")
     model = cfg.model if not quick else cfg.model.model_copy(update={"draws": 3})
-    cfg = replace(cfg, random_state=seed, model=model,
+    cfg = replace(cfg, random_state=random_state, model=model,
                   intervals=cfg.intervals.model_copy(update={"enabled": False}))
     say("IBM two-qubit gates: the generic config (experiments/generic.toml)")
     with watches["gates_generic"]:
@@ -133,7 +134,7 @@ def gates_benchmark(configs: Path, seed: int, quick: bool, say: Callable[[str], 
         "CV, objective searched)")
     with watches["gates_peer"]:
         peer = peer_predict(X_train, y_train, X_test, ds.prior_names, ds.feature_names,
-                            trials=trials, seed=seed, n_jobs=2)
+                            trials=trials, random_state=random_state, n_jobs=2)
     y = y_test.to_numpy(dtype=float)
     prior_pred = X_test[ds.prior_names].to_numpy(dtype=float)
     prior = Scores(test_mae=mae(y, prior_pred), test_mse=mse(y, prior_pred), cv_mae=[],
@@ -141,14 +142,14 @@ def gates_benchmark(configs: Path, seed: int, quick: bool, say: Callable[[str], 
     scores = ModelScores(test_mae=mae(y, peer.predictions), test_mse=mse(y, peer.predictions),
                          cv_mae=[], cv_mse=[], selected=["boosted"] * y.shape[1])
     boot = bootstrap_test_scores(prior, scores, y, prior_pred, peer.predictions,
-                                 random_state=seed)
+                                 random_state=random_state)
     peer_result = Result(name="peer", config=None, family="lightgbm peer",
                          targets=ds.target_names, n_train=len(X_train), n_test=len(X_test),
                          prior=prior, model=scores, bootstrap=boot, wall_s=peer.seconds,
                          unit=ds.unit)
     generic_pred = np.asarray(run.model.predict(X_test), dtype=float).reshape(y.shape)
     diff = bootstrap_error_interval(y - generic_pred, baseline=y - peer.predictions,
-                                    random_state=seed).average
+                                    random_state=random_state).average
     watches["gates_prior"].started = watches["gates_prior"].ended = \
         watches["gates_generic"].ended
     chosen = [f"{getattr(e, 'selected_candidate_', None) or e.selected_}"

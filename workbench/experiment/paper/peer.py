@@ -76,7 +76,7 @@ def _suggest(trial: optuna.Trial, objectives: tuple[str, ...]) -> dict[str, Any]
 
 def peer_predict(X_train: pd.DataFrame, y_train: pd.DataFrame, X_test: pd.DataFrame,
                  priors: list[str], features: list[str], *, trials: int = PEER_TRIALS,
-                 seed: int = 0, objectives: tuple[str, ...] = PEER_OBJECTIVES,
+                 random_state: int = 0, objectives: tuple[str, ...] = PEER_OBJECTIVES,
                  n_jobs: int = 1) -> Peer:
     """Tune and fit the peer (see the module docstring) per target, and predict the test rows.
 
@@ -92,8 +92,8 @@ def peer_predict(X_train: pd.DataFrame, y_train: pd.DataFrame, X_test: pd.DataFr
         The other input columns.
     trials : int, default=PEER_TRIALS
         Optuna trials per target.
-    seed : int, default=0
-        Seeds the folds, the sampler and LightGBM.
+    random_state : int, default=0
+        Seeds the folds, the sampler and LightGBM. Formerly ``seed``.
     objectives : tuple of str, default=PEER_OBJECTIVES
         The LightGBM objectives the search chooses among.
     n_jobs : int, default=1
@@ -107,11 +107,11 @@ def peer_predict(X_train: pd.DataFrame, y_train: pd.DataFrame, X_test: pd.DataFr
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     start = time.perf_counter()
     cols = list(dict.fromkeys(list(priors) + list(features)))
-    folds = list(KFold(5, shuffle=True, random_state=seed).split(X_train))
+    folds = list(KFold(5, shuffle=True, random_state=random_state).split(X_train))
     out, chosen = [], []
 
     def make(params: dict[str, Any]) -> LGBMRegressor:
-        return LGBMRegressor(n_jobs=1, verbose=-1, random_state=seed, subsample_freq=1,
+        return LGBMRegressor(n_jobs=1, verbose=-1, random_state=random_state, subsample_freq=1,
                              **params)
 
     with ThreadPoolExecutor(max(1, n_jobs)) as pool:
@@ -132,7 +132,7 @@ def peer_predict(X_train: pd.DataFrame, y_train: pd.DataFrame, X_test: pd.DataFr
                 params = _suggest(trial, objectives)
                 return float(np.mean(list(pool.map(lambda r: fold_error(params, r), folds))))
 
-            study = optuna.create_study(sampler=optuna.samplers.TPESampler(seed=seed))
+            study = optuna.create_study(sampler=optuna.samplers.TPESampler(seed=random_state))
             study.optimize(objective, n_trials=trials)
             model = make(study.best_params).fit(X, y, init_score=base)
             out.append(X_test[priors[j]].to_numpy(dtype=float)

@@ -170,7 +170,7 @@ def hamiltonian_phase(cfg: ExperimentConfig, ds: Dataset, out: Path) -> Phase:
     return phase
 
 
-def _tabula_rasa(j: int, seed: int) -> Pipeline:
+def _tabula_rasa(j: int, random_state: int) -> Pipeline:
     """Build target ``j``'s tabula rasa model: normal quantiles of the voltages, an MLP.
 
     The voltages mapped to normal quantiles, then the paper's MLP.
@@ -182,12 +182,12 @@ def _tabula_rasa(j: int, seed: int) -> Pipeline:
     """
     hidden, alpha, max_iter = TABULA_RASA[j]
     return make_pipeline(
-        NormalQuantileTransformer(random_state=seed),
+        NormalQuantileTransformer(random_state=random_state),
         MLPRegressor(hidden_layer_sizes=hidden, activation="relu", solver="lbfgs",
-                     alpha=alpha, max_iter=max_iter, random_state=seed))
+                     alpha=alpha, max_iter=max_iter, random_state=random_state))
 
 
-def _tabula_rasa_target(j: int, seed: int, V_train: pd.DataFrame, y_train: pd.Series,
+def _tabula_rasa_target(j: int, random_state: int, V_train: pd.DataFrame, y_train: pd.Series,
                         V_test: pd.DataFrame, y_test: pd.Series,
                         shap_rows: pd.DataFrame | None, background: int
                         ) -> tuple[np.ndarray | None, float | None, np.ndarray]:
@@ -198,7 +198,7 @@ def _tabula_rasa_target(j: int, seed: int, V_train: pd.DataFrame, y_train: pd.Se
     """
     with warnings.catch_warnings():  # the paper's max_iter, kept as published
         warnings.simplefilter("ignore", ConvergenceWarning)
-        mlp = _tabula_rasa(j, seed).fit(V_train.to_numpy(), y_train.to_numpy())
+        mlp = _tabula_rasa(j, random_state).fit(V_train.to_numpy(), y_train.to_numpy())
     err = y_test.to_numpy() - mlp.predict(V_test.to_numpy())
     values = expected = None
     if shap_rows is not None:
@@ -210,24 +210,24 @@ def _tabula_rasa_target(j: int, seed: int, V_train: pd.DataFrame, y_train: pd.Se
         rows = pd.DataFrame(transform.transform(shap_rows.to_numpy(dtype=float)),
                             columns=shap_rows.columns, index=shap_rows.index)
         values, expected = shap_values(lambda a: net.predict(a), rows,
-                                       background_size=background, random_state=seed)
+                                       background_size=background, random_state=random_state)
     return values, expected, err
 
 
-def tabula_rasa_plan(ds: Dataset, seed: int, quick: bool, out: Path, paper: Result) -> Plan:
+def tabula_rasa_plan(ds: Dataset, random_state: int, quick: bool, out: Path, paper: Result) -> Plan:
     """Plan the tabula rasa MLPs over :data:`TABULA_RASA_SEEDS` seeds and their SHAP figures.
 
     One task per (seed, target) (fit, test errors; SHAP values for the first seed), then one
     task per target drawing its SHAP summary (Fig. S8; Fig. 5 is its Y1 panel) and one per
     metric drawing them against the paper settings (Fig. S6, S7), so that they share the
     workers with the reproduction's other plans (:mod:`workbench.parallel`). The seeds are
-    ``seed``, ``seed + 1``, ...; the summaries are the first seed's MLPs'.
+    ``random_state``, ``random_state + 1``, ...; the summaries are the first seed's MLPs'.
 
     Parameters
     ----------
     ds : Dataset
         The Google 5-qubit data (the MLPs see its voltages only).
-    seed : int
+    random_state : int
         The first seed.
     quick : bool
         3 seeds, 30 SHAP rows and a background of 10.
@@ -246,7 +246,7 @@ def tabula_rasa_plan(ds: Dataset, seed: int, quick: bool, out: Path, paper: Resu
     phase = Phase(Stopwatch())
     with phase.watch:
         n_seeds = 3 if quick else TABULA_RASA_SEEDS
-        seeds = list(range(seed, seed + n_seeds))
+        seeds = list(range(random_state, random_state + n_seeds))
         say(f"tabula rasa MLPs on the 9 voltages ({n_seeds} seeds), SHAP summaries")
         X_train, X_test, y_train, y_test = ds.split()
         targets = ds.target_names
@@ -256,14 +256,14 @@ def tabula_rasa_plan(ds: Dataset, seed: int, quick: bool, out: Path, paper: Resu
         # one task per (target, seed) (fit, test errors; SHAP for the first seed), the SHAP
         # tasks (the longest) first
         tasks = [Task(_tabula_rasa_target, j, s, V_train, y_train[target], V_test,
-                      y_test[target], shap_rows if s == seed else None, background)
+                      y_test[target], shap_rows if s == random_state else None, background)
                  for s in seeds for j, target in enumerate(targets)]
         for task in tasks[:len(targets)]:
             task.priority = 10 ** 6
         done = yield tasks
-        phase.numbers = _tabula_rasa_numbers(done, seeds, len(targets), seed)
+        phase.numbers = _tabula_rasa_numbers(done, seeds, len(targets), random_state)
         figures = [Task(_tabula_rasa_figure, out / "figures", j, done[j][0], done[j][1],
-                        shap_rows, target, ds.unit, seed)
+                        shap_rows, target, ds.unit, random_state)
                    for j, target in enumerate(targets)]
         figures += [Task(draw_tabula_rasa, out / "figures", metric, ds.unit, paper,
                          phase.numbers) for metric in ("mae", "mse")]
@@ -279,16 +279,16 @@ def tabula_rasa_plan(ds: Dataset, seed: int, quick: bool, out: Path, paper: Resu
 
 def _tabula_rasa_figure(figdir: Path, j: int, values: np.ndarray, expected: float,
                         shap_rows: pd.DataFrame, target: str, unit: str | None,
-                        seed: int) -> Path:
+                        random_state: int) -> Path:
     """Draw and write target ``j``'s SHAP summary of its first-seed MLP (Fig. S8)."""
     return save_figure(shap_figure(values, expected, shap_rows, target=f"{SHORT[j]} ({target})",
-                                   unit=unit, random_state=seed,
+                                   unit=unit, random_state=random_state,
                                    setting="MLP on the 9 voltages"),
                        figdir / f"figS8_shap_{SHORT[j]}.png")
 
 
 def _tabula_rasa_numbers(done: list[Any], seeds: list[int], n_targets: int,
-                         seed: int) -> dict[str, Any]:
+                         random_state: int) -> dict[str, Any]:
     """The tabula rasa MLPs' numbers from their (seed, target) tasks' results."""
     n_seeds = len(seeds)
     # test residuals, seeds x targets x rows
@@ -297,9 +297,9 @@ def _tabula_rasa_numbers(done: list[Any], seeds: list[int], n_targets: int,
     per_seed_mse = (errors ** 2).mean(axis=2)
     # per test row and target, the seeds' mean absolute and root mean squared error: their
     # bootstrap over rows is that of the seed-averaged MAE and MSE
-    mae_ci = bootstrap_error_interval(np.abs(errors).mean(axis=0).T, random_state=seed)
+    mae_ci = bootstrap_error_interval(np.abs(errors).mean(axis=0).T, random_state=random_state)
     mse_ci = bootstrap_error_interval(np.sqrt((errors ** 2).mean(axis=0)).T, squared=True,
-                                      random_state=seed)
+                                      random_state=random_state)
     avg = per_seed.mean(axis=1)
     return {"test_mae": per_seed.mean(axis=0).tolist(),
             "test_mse": per_seed_mse.mean(axis=0).tolist(),

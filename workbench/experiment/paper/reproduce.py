@@ -137,7 +137,7 @@ class _Job:
 
     out: Path
     configs: Path
-    seed: int
+    random_state: int
     quick: bool
     clock: float
     files: dict[str, list[Path]] = field(default_factory=dict)
@@ -157,7 +157,7 @@ class _Job:
     def evaluate(self, key: str, cfg: ExperimentConfig) -> Any:
         """Evaluate the system ``key`` with ``cfg`` (as loaded), seeded, without intervals."""
         say(f"evaluating the {key} settings ({Path(cfg.path or cfg.name).name})")
-        self.cfgs[key] = seeded(cfg, self.seed)
+        self.cfgs[key] = seeded(cfg, self.random_state)
         run = evaluate(self.cfgs[key], return_model=True, dataset=self.dataset(self.cfgs[key]))
         self.settings[key] = run.result
         self.keep_predictions(key, self.cfgs[key], run)
@@ -198,7 +198,7 @@ def _paper(job: _Job, all_systems: bool) -> tuple[Dataset, dict[str, Any], dict[
     phases and the tabula rasa MLPs' phase.
     """
     paper_cfg = load_config(job.configs / "paper_main_body.toml")
-    ds = job.dataset(seeded(paper_cfg, job.seed))
+    ds = job.dataset(seeded(paper_cfg, job.random_state))
     phases = _start_phases(job, ds, all_systems)
     figdir = job.out / "figures"
     with job.watches["paper"]:
@@ -211,9 +211,9 @@ def _paper(job: _Job, all_systems: bool) -> tuple[Dataset, dict[str, Any], dict[
                                         title=f"Test {metric} per eigenenergy ({fig})",
                                         setting="paper settings"))
         shap, (curves, curve_files), tabula, data_files = run_plans(
-            [correction_shap_plan(run.model, ds, job.seed, job.quick, figdir),
-             learning_curves_plan(paper_cfg, ds, job.seed, job.quick, figdir),
-             tabula_rasa_plan(ds, job.seed, job.quick, job.out, paper),
+            [correction_shap_plan(run.model, ds, job.random_state, job.quick, figdir),
+             learning_curves_plan(paper_cfg, ds, job.random_state, job.quick, figdir),
+             tabula_rasa_plan(ds, job.random_state, job.quick, job.out, paper),
              _data_figures_plan(ds, figdir)], -1)
         for files in (shap, curve_files, data_files):
             for fig_id, paths in files.items():
@@ -230,14 +230,16 @@ def _start_phases(job: _Job, ds: Dataset, all_systems: bool) -> dict[str, Starte
     the paper settings' plans on the workers beside them and the search (every core busy);
     without workers each runs when its result is taken.
     """
-    improved = seeded(load_config(job.configs / "paper_improved.toml"), job.seed)
-    ham = hamiltonian_config(load_config(job.configs / "hamiltonian.toml"), job.seed, job.quick)
+    improved = seeded(load_config(job.configs / "paper_improved.toml"), job.random_state)
+    ham = hamiltonian_config(load_config(job.configs / "hamiltonian.toml"), job.random_state,
+                             job.quick)
     job.cfgs.update(improved=improved, hamiltonian=ham)
     calls: dict[str, tuple[Any, ...]] = {
         "hamiltonian": (hamiltonian_phase, ham, job.dataset(ham), job.out),
         "improved": (evaluate_phase, improved, job.dataset(improved))}
     if all_systems:  # the longest: first
-        calls = {"gates": (gates_benchmark, job.configs, job.seed, job.quick, say), **calls}
+        calls = {"gates": (gates_benchmark, job.configs, job.random_state, job.quick, say),
+                 **calls}
     say("started on the workers beside the paper settings: " + ", ".join(calls))
     return {key: start_on_worker(Task(timed, job.clock, *call))
             for key, call in calls.items()}
@@ -260,11 +262,13 @@ def _search(job: _Job, storage: str | None) -> Sweep:
     say("nested-CV search for the workbench's own best configuration "
         "(experiments/paper_search.toml)")
     cfg = load_config(job.configs / "paper_search.toml")
-    cv = {"sweep_seed": job.seed, **({"outer_folds": 2, "inner_folds": 3} if job.quick else {})}
-    cfg = without_intervals(replace(cfg, random_state=job.seed,
+    cv = {"sweep_seed": job.random_state,
+          **({"outer_folds": 2, "inner_folds": 3} if job.quick else {})}
+    cfg = without_intervals(replace(cfg, random_state=job.random_state,
                                     cv=cfg.cv.model_copy(update=cv)))
     # another seed, or --quick (other folds and budgets), must not resume these studies
-    cfg = cfg.with_study(study_name=f"{cfg.name}-seed{job.seed}{'-quick' if job.quick else ''}",
+    quick = "-quick" if job.quick else ""
+    cfg = cfg.with_study(study_name=f"{cfg.name}-seed{job.random_state}{quick}",
                          trials=2 if job.quick else None, storage=storage)
     with job.watches["search"], warnings.catch_warnings():
         # a candidate basis's convergence notes: not the user's
@@ -336,8 +340,9 @@ def _write(path: Path, obj: Any) -> None:
 
 
 def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
-              storage: str | None = None, quick: bool = False, track: bool = True, seed: int = 0,
-              experiments: str | Path | None = None, all_systems: bool = False) -> Reproduction:
+              storage: str | None = None, quick: bool = False, track: bool = True,
+              random_state: int = 0, experiments: str | Path | None = None,
+              all_systems: bool = False) -> Reproduction:
     """Compute the paper's results and figures, write them and log them.
 
     Each system is computed in one stretch (its MLflow run's duration); with ``track`` each
@@ -355,8 +360,8 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
         Reduced curves, SHAP rows, seeds and search: a check that everything runs.
     track : bool, default=True
         Log to MLflow.
-    seed : int, default=0
-        The seed of every system.
+    random_state : int, default=0
+        Every system's ``random_state`` (``reproduce --random-state``). Formerly ``seed``.
     experiments : str or Path, optional
         The configs' folder (see :func:`experiments_dir`).
     all_systems : bool, default=False
@@ -368,7 +373,7 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
         What was computed (also written as ``results.json``).
     """
     start, started = start_clock(), time.time()
-    job = _Job(Path(out), experiments_dir(experiments), seed, quick, start)
+    job = _Job(Path(out), experiments_dir(experiments), random_state, quick, start)
     ds, curves, phases, tabula_phase = _paper(job, all_systems)
     tabula = _keep(job, "tabula_rasa", tabula_phase).numbers
     search = _search(job, storage) if all_systems else None
@@ -394,7 +399,8 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
                      summary_table(gates.generic.targets, gate_runs).to_csv(index=False))
     job.files = _ordered(job.files)
     rep = Reproduction(
-        targets=ds.target_names, seed=seed, quick=quick, all_systems=all_systems,
+        targets=ds.target_names, random_state=random_state, quick=quick,
+        all_systems=all_systems,
         settings=_ordered(job.settings),
         tabula_rasa=tabula, correlation=correlation, learning_curves=curves,
         figures={k: [str(p.relative_to(job.out)) for p in v] for k, v in job.files.items()},

@@ -34,8 +34,8 @@ class Reproduction:
     ----------
     targets : list of str
         The Google benchmark's targets.
-    seed : int
-        The seed of every system.
+    random_state : int
+        Every system's ``random_state``.
     quick : bool
         Whether ``--quick`` reduced the work.
     settings : dict of str to Result
@@ -64,7 +64,7 @@ class Reproduction:
     """
 
     targets: list[str]
-    seed: int
+    random_state: int
     quick: bool
     settings: dict[str, Result]
     tabula_rasa: dict[str, Any]
@@ -87,7 +87,8 @@ class Reproduction:
             Every field, the reference results and the tabula rasa MLPs' averages; the IBM
             benchmark's under ``ibm_gates``.
         """
-        out = {"targets": self.targets, "short": SHORT, "unit": self.unit, "seed": self.seed,
+        out = {"targets": self.targets, "short": SHORT, "unit": self.unit,
+               "random_state": self.random_state,
                "quick": self.quick, "all": self.all_systems,
                "settings": {k: r.to_json() for k, r in self.settings.items()},
                "reference": REFERENCE,

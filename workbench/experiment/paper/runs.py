@@ -28,8 +28,9 @@ from ..runs.run_fields import (
     run_tags,
 )
 from ..scoring.units import unit_name
-from ..tracking.runs import Tracker, metric_view
+from ..tracking.runs import Tracker
 from ..tracking.uris import resolve_tracking_uri
+from ..tracking.views import metric_view
 from .reproduction import Reproduction
 from .systems import System
 
@@ -158,7 +159,7 @@ def log_reproduction(rep: Reproduction, systems: list[System], gate_systems: lis
                       "and the data figures, `systems.csv` and `results.json`. Errors in "
                       f"{unit_name(ds.unit)}."}
     parent = tracker.start_run("paper reproduction", tags=tags, start_time=started,
-                               params={"random_state": rep.seed, "quick": rep.quick,
+                               params={"random_state": rep.random_state, "quick": rep.quick,
                                        "systems": ", ".join(s.name for s in systems)})
     try:
         ids = log_systems(tracker, parent, systems, ds, paper_cfg)

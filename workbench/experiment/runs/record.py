@@ -34,8 +34,9 @@ from ..process.errors import redact
 from ..scoring.results import Result
 from ..scoring.units import unit_name
 from ..tracking.models import CHAMPION
-from ..tracking.runs import Tracker, metric_view
+from ..tracking.runs import Tracker
 from ..tracking.uris import resolve_tracking_uri
+from ..tracking.views import metric_view
 from .evaluate import Evaluation
 from .run_fields import (
     NOTE_TAG,

@@ -22,6 +22,7 @@ store; the store itself is never deleted or rewritten.
 
 One module per concern: :mod:`.uris` (where the store is, checked before any work),
 :mod:`.translate` (store errors as one line), :mod:`.runs` (:class:`~.runs.Tracker`),
+:mod:`.views` (what MLflow's UI opens: its addresses, the shared runs view),
 :mod:`.models` (logged, registered, loaded models), :mod:`.artifacts` (files, figures, input
 datasets), :mod:`.records` (hashes, commits, MLflow's value limits), :mod:`.lifecycle` (runs
 never left RUNNING: heartbeats, the reaper, the store's first use), :mod:`.serving` (the

@@ -155,6 +155,7 @@ def compare_runs(client: MlflowClient | str, ref_a: str, ref_b: str, *,
     Returns
     -------
     Comparison
+        Per shared target the two runs' test MAE and their paired difference's interval.
 
     Raises
     ------
@@ -200,6 +201,7 @@ def format_comparison(c: Comparison, unit: str | None = None) -> str:
     Returns
     -------
     str
+        The table's lines.
     """
     unit_text = f", {unit}" if unit else ""
     width = max(len("average"), *(len(t) for t in c.targets))

@@ -24,10 +24,10 @@ from .artifacts import ArtifactRecords
 from .models import ModelRecords
 from .records import now_ms, param_value, tag_value
 from .translate import duplicate_row, translate
-from .uris import describe_store, is_database, prepare_store_location, sqlite_path, ui_url
+from .uris import describe_store, is_database, prepare_store_location, sqlite_path
+from .views import RUNS_VIEW, SHARED_VIEW_PREFIX
 
-__all__ = ["RUNS_VIEW", "SHARED_VIEW_PREFIX", "Tracker", "ensure_store", "experiment_views",
-           "metric_view"]
+__all__ = ["Tracker", "ensure_store"]
 
 _logger = logging.getLogger("workbench.experiment.tracking")
 
@@ -41,11 +41,6 @@ EXPERIMENT_KIND_TAG = "mlflow.experimentKind"
 EXPERIMENT_KIND = "custom_model_development"
 #: Significant digits of a logged metric (a test MAE over 41 rows: far below its noise).
 METRIC_DIGITS = 7
-#: MLflow 3's UI loads a runs view (columns, filter, order) from the experiment tag
-#: ``<prefix><key>`` when its URL has ``?viewStateShareKey=<key>`` (a "shared view").
-SHARED_VIEW_PREFIX = "mlflow.sharedViewState."
-#: The shared view every workbench experiment gets (:meth:`Tracker.share_view`).
-RUNS_VIEW = "workbench"
 
 
 class Tracker(ModelRecords, ArtifactRecords):
@@ -322,7 +317,7 @@ class Tracker(ModelRecords, ArtifactRecords):
         """Store a runs view of the experiment for MLflow's UI.
 
         An experiment tag, read when the runs page's URL has ``?viewStateShareKey=<key>`` (see
-        :func:`~.uris.ui_url`). Replaces the view of the same key.
+        :func:`~.views.ui_url`). Replaces the view of the same key.
 
         Parameters
         ----------
@@ -373,56 +368,3 @@ def ensure_store(tracking_uri: str, experiment_name: str,
         The experiment id.
     """
     return Tracker(tracking_uri, experiment_name, artifact_root).experiment_id
-
-
-def metric_view(targets: list[str], metric: str = "test_mae",
-                search_filter: str = "") -> dict[str, Any]:
-    """Build the runs view :meth:`Tracker.share_view` stores by default.
-
-    Parameters
-    ----------
-    targets : list of str
-        The targets.
-    metric : str, default="test_mae"
-        The metric shown: columns ``<metric>/<target>`` per target and ``<metric>_avg``.
-    search_filter : str, default=""
-        MLflow's run search syntax; empty: every run.
-
-    Returns
-    -------
-    dict
-        The view, runs ordered by the average (best first).
-    """
-    columns = [f"metrics.`{metric}/{t}`" for t in targets] + [f"metrics.`{metric}_avg`"]
-    return {"selectedColumns": columns, "searchFilter": search_filter,
-            "orderByKey": f"metrics.`{metric}_avg`", "orderByAsc": True}
-
-
-def experiment_views(uri: str, port: int) -> list[tuple[str, str]]:
-    """List the UI's address of each experiment in the store with the workbench's runs view.
-
-    That view shows its runs' test MAE per target side by side. None are listed if the store
-    cannot be read now (the UI reports that itself).
-
-    Parameters
-    ----------
-    uri : str
-        The tracking URI.
-    port : int
-        The port the MLflow UI listens on (127.0.0.1).
-
-    Returns
-    -------
-    list of (str, str)
-        Each experiment's name and the address of its runs view.
-    """
-    path = sqlite_path(uri)
-    if uri.startswith("sqlite:") and (path is None or not path.is_file()):
-        return []  # nothing stored yet; reading would create the database
-    try:
-        experiments = MlflowClient(uri).search_experiments()
-    except Exception as exc:  # a locked or unreachable store: the UI shows the problem
-        _logger.debug("could not list the experiments of %s: %s", redact(uri), exc)
-        return []
-    return [(e.name, ui_url(port, e.experiment_id, RUNS_VIEW)) for e in experiments
-            if SHARED_VIEW_PREFIX + RUNS_VIEW in e.tags]

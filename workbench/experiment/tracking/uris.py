@@ -17,7 +17,7 @@ from urllib.parse import urlsplit
 from ..process.errors import TrackingError, driver_hint, redact
 
 __all__ = ["DEFAULT_STORE", "check_store_uri", "default_artifact_root", "default_tracking_uri",
-           "describe_store", "resolve_tracking_uri", "sqlite_path", "ui_url"]
+           "describe_store", "resolve_tracking_uri", "sqlite_path"]
 
 DEFAULT_STORE = "mlruns"
 _SQLITE_HEADER = b"SQLite format 3\x00"
@@ -311,37 +311,3 @@ def _check_server(uri: str, timeout: float = 5.0) -> None:
     except OSError as exc:
         raise TrackingError(f"cannot reach the MLflow tracking server {redact(uri)}: {exc}") \
             from exc
-
-
-def ui_url(port: int, experiment_id: str | None = None, view: str | None = None,
-           host: str = "127.0.0.1") -> str:
-    """Build the address of MLflow's UI in its model-training view.
-
-    MLflow's UI opens its GenAI view unless the URL says ``workflowType=machine_learning`` (or
-    the user's browser remembers the toggle); the experiment's ``mlflow.experimentKind`` tag
-    does not decide it.
-
-    Parameters
-    ----------
-    port : int
-        The UI server's port.
-    experiment_id : str, default=None
-        An experiment: its runs page (``None``: the experiments list).
-    view : str, default=None
-        A runs view stored under that key (:meth:`~.runs.Tracker.share_view`).
-    host : str, default="127.0.0.1"
-        The UI server's host.
-
-    Returns
-    -------
-    str
-        The URL.
-    """
-    from urllib.parse import urlencode
-
-    query = {"workflowType": "machine_learning"}
-    if experiment_id is None:
-        return f"http://{host}:{port}/#/experiments?{urlencode(query)}"
-    if view:
-        query = {"viewStateShareKey": view, **query}
-    return f"http://{host}:{port}/#/experiments/{experiment_id}/runs?{urlencode(query)}"
