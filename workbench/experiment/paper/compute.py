@@ -1,10 +1,10 @@
 """The reproduction's own fits of the paper settings, and its settings.
 
 The paper settings' learning curves and the SHAP summaries of their correction (each a plan
-of tasks for the workers, :mod:`workbench.parallel`, and a function drawing its figures
-through ``save(fig_id, figure, name)``, which writes the file and files it under the paper's
-figure id), the parameter-space model's settings, and the progress lines. The tabula rasa
-MLPs are in :mod:`.phases`.
+of tasks for the workers, :mod:`workbench.parallel`, its figures drawn and written by tasks
+too), the figure filer ``save(fig_id, figure, name)`` of what the main process draws (it
+writes the file and files it under the paper's figure id), the parameter-space model's
+settings, and the progress lines. The tabula rasa MLPs are in :mod:`.phases`.
 """
 
 from __future__ import annotations
@@ -28,9 +28,8 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
 __all__ = ["CURVE_FOLDS", "PAPER_SIZES", "SHORT", "TABULA_RASA", "TABULA_RASA_SEEDS",
-           "SameAs", "Save", "correction_shap_plan", "draw_correction_shap",
-           "draw_learning_curves", "figure_saver", "hamiltonian_config", "learning_curves_plan",
-           "say", "seeded", "set_clock", "start_clock"]
+           "SameAs", "Save", "correction_shap_plan", "figure_saver", "hamiltonian_config",
+           "learning_curves_plan", "say", "seeded", "set_clock", "start_clock"]
 
 #: The paper's short names of the five eigenenergies.
 SHORT = ["Y1", "Y2", "Y3", "Y4", "Y5"]
@@ -145,11 +144,12 @@ def hamiltonian_config(cfg: ExperimentConfig, random_state: int, quick: bool) ->
 
 
 def learning_curves_plan(paper_cfg: ExperimentConfig, ds: Dataset, random_state: int,
-                         quick: bool) -> Plan:
-    """Plan the paper settings' augmented learning curves (:mod:`workbench.parallel`).
+                         quick: bool, figdir: Path) -> Plan:
+    """Plan the paper settings' augmented learning curves and their figures.
 
-    The five targets' (size, fold) fits as one plan; it returns the sizes and the curves,
-    for :func:`draw_learning_curves`.
+    The five targets' (size, fold) fits, then one task per target drawing its panel of
+    Fig. S5 (Fig. 4 is its Y3 panel), as one plan for the workers (:mod:`workbench.parallel`).
+    The fits need the paper settings' config only, not their fitted model.
 
     Parameters
     ----------
@@ -162,11 +162,14 @@ def learning_curves_plan(paper_cfg: ExperimentConfig, ds: Dataset, random_state:
         Seeds the folds.
     quick : bool
         Two sizes (the smallest and the largest) instead of every paper size.
+    figdir : Path
+        Where the figures go.
 
     Returns
     -------
     Plan
-        Returns ``(sizes, curves)``: the training sizes and a curve per target.
+        Returns ``(curves, files)``: ``train_sizes``, ``folds`` and the ``curves`` (short
+        target name -> the curve's JSON), and the figures written by figure id.
     """
     X_train, _, y_train, _ = ds.split()
     largest = len(X_train) - -(-len(X_train) // CURVE_FOLDS)
@@ -182,49 +185,28 @@ def learning_curves_plan(paper_cfg: ExperimentConfig, ds: Dataset, random_state:
         learning_curve_plan(est, X_train, y_train[target].to_numpy(), train_sizes=sizes,
                             cv=CURVE_FOLDS, random_state=random_state)
         for target, est in zip(ds.target_names, candidates)])
-    return sizes, curves
+    paths = yield [Task(_curve_figure, figdir, j, target, curve, ds.unit)
+                   for j, (target, curve) in enumerate(zip(ds.target_names, curves))]
+    files = {"figS5_learning_curves": paths, "fig4_learning_curve_Y3": [paths[SHORT.index("Y3")]]}
+    return ({"train_sizes": sizes, "folds": CURVE_FOLDS,
+             "curves": {SHORT[j]: curve.to_dict() for j, curve in enumerate(curves)}}, files)
 
 
-def draw_learning_curves(sizes: list[int], curves: list[Any], ds: Dataset, save: Save,
-                         same_as: SameAs) -> dict[str, Any]:
-    """Draw the learning curves of :func:`learning_curves_plan`: Fig. S5, one panel per target.
-
-    Fig. 4 is its Y3 panel.
-
-    Parameters
-    ----------
-    sizes : list of int
-        The training sizes.
-    curves : list of LearningCurve
-        A curve per target.
-    ds : Dataset
-        The Google 5-qubit data.
-    save, same_as
-        File the figures (see :data:`Save`, :data:`SameAs`).
-
-    Returns
-    -------
-    dict
-        ``train_sizes``, ``folds`` and the ``curves`` (short target name -> the curve's JSON).
-    """
-    out = {}
-    for j, (target, curve) in enumerate(zip(ds.target_names, curves)):
-        out[SHORT[j]] = curve.to_dict()
-        fig = learning_curve_figure(curve, target=f"{SHORT[j]} ({target})", unit=ds.unit,
-                                    setting="paper settings")
-        path = save("figS5_learning_curves", fig, f"figS5_learning_curve_{SHORT[j]}")
-        if SHORT[j] == "Y3":
-            same_as("fig4_learning_curve_Y3", path)
-    return {"train_sizes": sizes, "folds": CURVE_FOLDS, "curves": out}
+def _curve_figure(figdir: Path, j: int, target: str, curve: Any, unit: str | None) -> Path:
+    """Draw and write target ``j``'s learning curve (a panel of Fig. S5)."""
+    fig = learning_curve_figure(curve, target=f"{SHORT[j]} ({target})", unit=unit,
+                                setting="paper settings")
+    return save_figure(fig, figdir / f"figS5_learning_curve_{SHORT[j]}.png")
 
 
-def correction_shap_plan(model: Any, ds: Dataset, random_state: int, quick: bool) -> Plan:
-    """Plan the SHAP values of what the paper settings learned (:mod:`workbench.parallel`).
+def correction_shap_plan(model: Any, ds: Dataset, random_state: int, quick: bool,
+                         figdir: Path) -> Plan:
+    """Plan the SHAP values of what the paper settings learned, and their figures.
 
     Per target, the correction's (model − prior) and the whole prediction's on the training
-    rows, one task each (the longest tasks of the paper settings: they go first). Returns
-    their :func:`~workbench.experiment.scoring.explain.target_shap_values`, for
-    :func:`draw_correction_shap`.
+    rows, one task each (the longest tasks of the paper settings: they go first), then one
+    task per figure: the correction (``figR2_shap_correction``) beside the whole prediction
+    (``figR3_shap_prediction``), for the workers (:mod:`workbench.parallel`).
 
     Parameters
     ----------
@@ -233,14 +215,16 @@ def correction_shap_plan(model: Any, ds: Dataset, random_state: int, quick: bool
     ds : Dataset
         The data it was fitted on.
     random_state : int
-        Seeds the SHAP background.
+        Seeds the SHAP background and the beeswarms.
     quick : bool
         Explain 30 training rows instead of all.
+    figdir : Path
+        Where the figures go.
 
     Returns
     -------
     Plan
-        Returns a list of SHAP values per target.
+        Returns the figures written, by figure id.
     """
     say("SHAP of the paper settings' correction (model − prior) and whole prediction")
     X_train = ds.split()[0]
@@ -249,36 +233,29 @@ def correction_shap_plan(model: Any, ds: Dataset, random_state: int, quick: bool
              for est in family_model(model).estimators_]
     for task in tasks:
         task.priority = 10 ** 6
-    return (yield tasks)
+    done = yield tasks
+    figures = [Task(_shap_figure, figdir, fig_id, j, target, shap, ds.unit, random_state)
+               for fig_id in ("figR2_shap_correction", "figR3_shap_prediction")
+               for j, (target, shap) in enumerate(zip(ds.target_names, done))]
+    paths = yield figures
+    n = len(ds.target_names)
+    return {"figR2_shap_correction": paths[:n], "figR3_shap_prediction": paths[n:]}
 
 
-def draw_correction_shap(done: list[Any], ds: Dataset, random_state: int, save: Save) -> None:
-    """Draw, per target, the SHAP summaries of :func:`correction_shap_plan`.
-
-    The correction (model − prior) beside the whole prediction (figures
-    ``figR2_shap_correction`` and ``figR3_shap_prediction``).
-
-    Parameters
-    ----------
-    done : list
-        The SHAP values per target.
-    ds : Dataset
-        The data.
-    random_state : int
-        Seeds the beeswarms.
-    save : Save
-        Files the figures.
-    """
-    for j, (target, shap) in enumerate(zip(ds.target_names, done)):
-        name = f"{SHORT[j]} ({target})"
-        save("figR2_shap_correction", correction_shap_figure(
-            shap.correction, target=name, unit=ds.unit, note=shap.note, random_state=random_state,
-            setting="paper settings"), f"figR2_shap_correction_{SHORT[j]}")
+def _shap_figure(figdir: Path, fig_id: str, j: int, target: str, shap: Any,
+                 unit: str | None, random_state: int) -> Path:
+    """Draw and write target ``j``'s SHAP summary: of the correction (Fig. R2) or of the
+    whole prediction (Fig. R3)."""
+    name = f"{SHORT[j]} ({target})"
+    if fig_id == "figR2_shap_correction":
+        fig = correction_shap_figure(shap.correction, target=name, unit=unit, note=shap.note,
+                                     random_state=random_state, setting="paper settings")
+    else:
         assert shap.prediction is not None  # computed: prediction=True
-        save("figR3_shap_prediction", shap_figure(
-            shap.prediction.values, shap.prediction.expected, shap.prediction.rows,
-            target=name, unit=ds.unit, random_state=random_state, setting="paper settings",
-            explained="prediction"), f"figR3_shap_prediction_{SHORT[j]}")
+        fig = shap_figure(shap.prediction.values, shap.prediction.expected,
+                          shap.prediction.rows, target=name, unit=unit, random_state=random_state,
+                          setting="paper settings", explained="prediction")
+    return save_figure(fig, figdir / f"{fig_id}_{SHORT[j]}.png")
 
 
 def figure_saver(figdir: Path, files: dict[str, list[Path]]) -> tuple[Save, SameAs]:

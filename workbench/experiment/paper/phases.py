@@ -1,13 +1,14 @@
-"""The reproduction's independent phases, each a picklable call.
+"""The reproduction's phases beside the paper settings.
 
-``reproduce`` starts them on the worker processes (:func:`workbench.parallel.start`) while
-it runs the paper settings' phase itself, so both cores stay busy: the improved settings,
-the parameter-space model (with its figures and tables) and the tabula rasa MLPs (with their
-SHAP figures), and with ``--all`` the IBM benchmark. Each runs serially in its worker (one
-BLAS/OpenMP thread) and returns what the reproduction keeps of it, with its
-:class:`~.systems.Stopwatch`; every random component is seeded, so the numbers are those of
-running it in the main process. Without worker processes, they run there, in turn.
-"""
+``reproduce`` starts the serial ones on the worker processes first
+(:func:`workbench.parallel.start`, the longest first): the parameter-space model (with its
+figures and tables), the improved settings and with ``--all`` the IBM benchmark. Each runs
+serially in its worker (one BLAS/OpenMP thread) and returns what the reproduction keeps of
+it, with its :class:`~.systems.Stopwatch`. The tabula rasa MLPs are a plan
+(:func:`tabula_rasa_plan`): their fits, SHAP values and figures share the other workers with
+the paper settings' curves and SHAP. Every random component is seeded, so the numbers are
+those of running it in the main process. Without worker processes, everything runs there,
+in turn."""
 
 from __future__ import annotations
 
@@ -25,9 +26,9 @@ from sklearn.pipeline import Pipeline, make_pipeline
 
 from ...bases import NormalQuantileTransformer
 from ...datasets import Dataset
-from ...parallel import Task, map_tasks
+from ...parallel import Plan, Task
 from ..config import ExperimentConfig
-from ..figures import error_bars, model_comparison_bars, shap_figure
+from ..figures import error_bars, model_comparison_bars, save_figure, shap_figure
 from ..runs.evaluate import evaluate
 from ..runs.intervals import family_model
 from ..scoring.bootstrap import bootstrap_error_interval
@@ -39,8 +40,6 @@ from .compute import (
     SHORT,
     TABULA_RASA,
     TABULA_RASA_SEEDS,
-    SameAs,
-    Save,
     figure_saver,
     say,
     set_clock,
@@ -48,8 +47,11 @@ from .compute import (
 from .systems import Stopwatch
 
 __all__ = ["Phase", "draw_tabula_rasa", "evaluate_phase", "hamiltonian_phase",
-           "tabula_rasa_phase", "tabula_rasa_system", "timed"]
+           "tabula_rasa_plan", "timed"]
 
+#: The tabula rasa MLPs against the paper settings: metric -> (figure id, the paper's figure).
+TABULA_RASA_FIGURES = {"mae": ("figS6_tabula_rasa_mae", "S6"),
+                       "mse": ("figS7_tabula_rasa_mse", "S7")}
 #: The parameter-space model's setting, as its figures name it.
 HAMILTONIAN_SETTING = "experiments/hamiltonian.toml"
 
@@ -200,17 +202,26 @@ def _tabula_rasa_target(j: int, random_state: int, V_train: pd.DataFrame, y_trai
     err = y_test.to_numpy() - mlp.predict(V_test.to_numpy())
     values = expected = None
     if shap_rows is not None:
-        values, expected = shap_values(lambda a: mlp.predict(a), shap_rows,
+        # the quantile transform maps each column on its own, value by value: SHAP's
+        # synthetic rows built from the transformed rows are the transforms of those built
+        # from the rows, so the MLP sees the same inputs, and the transform (most of the
+        # cost of 2^9 coalitions x the background per row) runs once per row instead
+        transform, net = mlp[0], mlp[-1]
+        rows = pd.DataFrame(transform.transform(shap_rows.to_numpy(dtype=float)),
+                            columns=shap_rows.columns, index=shap_rows.index)
+        values, expected = shap_values(lambda a: net.predict(a), rows,
                                        background_size=background, random_state=random_state)
     return values, expected, err
 
 
-def tabula_rasa_system(ds: Dataset, random_state: int, quick: bool, save: Save,
-                       same_as: SameAs) -> dict[str, Any]:
-    """Fit the tabula rasa MLPs over :data:`TABULA_RASA_SEEDS` seeds and draw their SHAP.
+def tabula_rasa_plan(ds: Dataset, random_state: int, quick: bool, out: Path, paper: Result) -> Plan:
+    """Plan the tabula rasa MLPs over :data:`TABULA_RASA_SEEDS` seeds and their SHAP figures.
 
-    The MLPs' seeds are ``random_state``, ``random_state + 1``, ...; the SHAP summaries
-    (Fig. S8; Fig. 5 is its Y1 panel) are the first seed's MLPs'.
+    One task per (seed, target) (fit, test errors; SHAP values for the first seed), then one
+    task per target drawing its SHAP summary (Fig. S8; Fig. 5 is its Y1 panel) and one per
+    metric drawing them against the paper settings (Fig. S6, S7), so that they share the
+    workers with the reproduction's other plans (:mod:`workbench.parallel`). The seeds are
+    ``random_state``, ``random_state + 1``, ...; the summaries are the first seed's MLPs'.
 
     Parameters
     ----------
@@ -220,30 +231,68 @@ def tabula_rasa_system(ds: Dataset, random_state: int, quick: bool, save: Save,
         The first seed.
     quick : bool
         3 seeds, 30 SHAP rows and a background of 10.
-    save, same_as
-        File the figures.
+    out : Path
+        The report folder (figures under ``figures/``).
+    paper : Result
+        The paper settings' result (Fig. S6, S7).
 
     Returns
     -------
-    dict
-        Per target the mean test MAE and MSE over the seeds with their bootstrap intervals,
-        each seed's errors and average, the average's spread over the seeds.
+    Plan
+        Returns a :class:`Phase`: in ``numbers``, per target the mean test MAE and MSE over
+        the seeds with their bootstrap intervals, each seed's errors and average, the
+        average's spread over the seeds; its figures and time.
     """
-    n_seeds = 3 if quick else TABULA_RASA_SEEDS
-    seeds = list(range(random_state, random_state + n_seeds))
-    say(f"tabula rasa MLPs on the 9 voltages ({n_seeds} seeds), SHAP summaries")
-    X_train, X_test, y_train, y_test = ds.split()
-    targets = ds.target_names
-    V_train, V_test = X_train[ds.feature_names], X_test[ds.feature_names]
-    shap_rows = V_train.iloc[:30] if quick else V_train
-    background = 10 if quick else 50
-    # one task per (target, seed) on the workers (fit, test errors; SHAP for the first seed)
-    tasks = [Task(_tabula_rasa_target, j, s, V_train, y_train[target], V_test, y_test[target],
-                  shap_rows if s == random_state else None, background)
-             for s in seeds for j, target in enumerate(targets)]
-    done = map_tasks(tasks, -1)
+    phase = Phase(Stopwatch())
+    with phase.watch:
+        n_seeds = 3 if quick else TABULA_RASA_SEEDS
+        seeds = list(range(random_state, random_state + n_seeds))
+        say(f"tabula rasa MLPs on the 9 voltages ({n_seeds} seeds), SHAP summaries")
+        X_train, X_test, y_train, y_test = ds.split()
+        targets = ds.target_names
+        V_train, V_test = X_train[ds.feature_names], X_test[ds.feature_names]
+        shap_rows = V_train.iloc[:30] if quick else V_train
+        background = 10 if quick else 50
+        # one task per (target, seed) (fit, test errors; SHAP for the first seed), the SHAP
+        # tasks (the longest) first
+        tasks = [Task(_tabula_rasa_target, j, s, V_train, y_train[target], V_test,
+                      y_test[target], shap_rows if s == random_state else None, background)
+                 for s in seeds for j, target in enumerate(targets)]
+        for task in tasks[:len(targets)]:
+            task.priority = 10 ** 6
+        done = yield tasks
+        phase.numbers = _tabula_rasa_numbers(done, seeds, len(targets), random_state)
+        figures = [Task(_tabula_rasa_figure, out / "figures", j, done[j][0], done[j][1],
+                        shap_rows, target, ds.unit, random_state)
+                   for j, target in enumerate(targets)]
+        figures += [Task(draw_tabula_rasa, out / "figures", metric, ds.unit, paper,
+                         phase.numbers) for metric in ("mae", "mse")]
+        paths = yield figures
+        for j, path in enumerate(paths[:len(targets)]):
+            phase.files.setdefault("figS8_shap", []).append(path)
+            if SHORT[j] == "Y1":
+                phase.files.setdefault("fig5_shap_Y1", []).append(path)
+        for metric, path in zip(("mae", "mse"), paths[len(targets):]):
+            phase.files[TABULA_RASA_FIGURES[metric][0]] = [path]
+    return phase
+
+
+def _tabula_rasa_figure(figdir: Path, j: int, values: np.ndarray, expected: float,
+                        shap_rows: pd.DataFrame, target: str, unit: str | None,
+                        random_state: int) -> Path:
+    """Draw and write target ``j``'s SHAP summary of its first-seed MLP (Fig. S8)."""
+    return save_figure(shap_figure(values, expected, shap_rows, target=f"{SHORT[j]} ({target})",
+                                   unit=unit, random_state=random_state,
+                                   setting="MLP on the 9 voltages"),
+                       figdir / f"figS8_shap_{SHORT[j]}.png")
+
+
+def _tabula_rasa_numbers(done: list[Any], seeds: list[int], n_targets: int,
+                         random_state: int) -> dict[str, Any]:
+    """The tabula rasa MLPs' numbers from their (seed, target) tasks' results."""
+    n_seeds = len(seeds)
     # test residuals, seeds x targets x rows
-    errors = np.array([d[2] for d in done]).reshape(n_seeds, len(targets), -1)
+    errors = np.array([d[2] for d in done]).reshape(n_seeds, n_targets, -1)
     per_seed = np.abs(errors).mean(axis=2)  # seeds x targets
     per_seed_mse = (errors ** 2).mean(axis=2)
     # per test row and target, the seeds' mean absolute and root mean squared error: their
@@ -251,13 +300,6 @@ def tabula_rasa_system(ds: Dataset, random_state: int, quick: bool, save: Save,
     mae_ci = bootstrap_error_interval(np.abs(errors).mean(axis=0).T, random_state=random_state)
     mse_ci = bootstrap_error_interval(np.sqrt((errors ** 2).mean(axis=0)).T, squared=True,
                                       random_state=random_state)
-    for j, target in enumerate(targets):
-        values, expected, _ = done[j]  # the first seed's
-        path = save("figS8_shap", shap_figure(
-            values, expected, shap_rows, target=f"{SHORT[j]} ({target})", unit=ds.unit,
-            random_state=random_state, setting="MLP on the 9 voltages"), f"figS8_shap_{SHORT[j]}")
-        if SHORT[j] == "Y1":
-            same_as("fig5_shap_Y1", path)
     avg = per_seed.mean(axis=1)
     return {"test_mae": per_seed.mean(axis=0).tolist(),
             "test_mse": per_seed_mse.mean(axis=0).tolist(),
@@ -270,57 +312,38 @@ def tabula_rasa_system(ds: Dataset, random_state: int, quick: bool, save: Save,
             "input_transform": "quantile_normal"}
 
 
-def tabula_rasa_phase(ds: Dataset, random_state: int, quick: bool, out: Path) -> Phase:
-    """Fit the tabula rasa MLPs and draw their SHAP summaries (:func:`tabula_rasa_system`).
+def draw_tabula_rasa(figdir: Path, metric: str, unit: str | None, paper: Result,
+                     tabula: dict[str, Any]) -> Path:
+    """Draw the tabula rasa MLPs against the paper settings (Fig. S6 or S7).
 
     Parameters
     ----------
-    ds : Dataset
-        The Google data.
-    random_state : int
-        The first seed.
-    quick : bool
-        Fewer seeds and SHAP rows.
-    out : Path
-        The report folder.
-
-    Returns
-    -------
-    Phase
-        The MLPs' numbers (``numbers``), their figures and time.
-    """
-    phase = Phase(Stopwatch())
-    with phase.watch:
-        save, same_as = figure_saver(out / "figures", phase.files)
-        phase.numbers = tabula_rasa_system(ds, random_state, quick, save, same_as)
-    return phase
-
-
-def draw_tabula_rasa(save: Save, ds: Dataset, paper: Result, tabula: dict[str, Any]) -> None:
-    """Draw the tabula rasa MLPs against the paper settings (Fig. S6, S7).
-
-    Parameters
-    ----------
-    save : Save
-        Files the figures.
-    ds : Dataset
-        The Google data.
+    figdir : Path
+        Where the figure goes.
+    metric : {"mae", "mse"}
+        The error: Fig. S6 (MAE) or S7 (MSE).
+    unit : str, optional
+        The data's unit.
     paper : Result
         The paper settings' result.
     tabula : dict
-        The MLPs' numbers (:func:`tabula_rasa_system`).
+        The MLPs' numbers (:func:`tabula_rasa_plan`).
+
+    Returns
+    -------
+    Path
+        The file written.
     """
-    for metric, fig_id, unit in (("mae", "figS6_tabula_rasa_mae", ds.unit),
-                                 ("mse", "figS7_tabula_rasa_mse", squared(ds.unit))):
-        name = f"tabula rasa MLP (voltages only, mean of {len(tabula['seeds'])} seeds)"
-        values = {name: tabula[f"test_{metric}"],
-                  "control program": getattr(paper.prior, f"test_{metric}"),
-                  "base boosting (paper settings)": getattr(paper.model, f"test_{metric}")}
-        intervals = {name: tabula[f"test_{metric}_ci"],
-                     "control program": paper.prior.ci(f"test_{metric}"),
-                     "base boosting (paper settings)": paper.model.ci(f"test_{metric}")}
-        save(fig_id, model_comparison_bars(
-            SHORT, values, metric=metric.upper(), unit=unit, log=True,
-            intervals={k: v for k, v in intervals.items() if v is not None},
-            title=f"Tabula rasa vs base boosting, test {metric.upper()} (Fig. "
-                  f"{'S6' if metric == 'mae' else 'S7'})"))
+    fig_id, fig = TABULA_RASA_FIGURES[metric]
+    name = f"tabula rasa MLP (voltages only, mean of {len(tabula['seeds'])} seeds)"
+    values = {name: tabula[f"test_{metric}"],
+              "control program": getattr(paper.prior, f"test_{metric}"),
+              "base boosting (paper settings)": getattr(paper.model, f"test_{metric}")}
+    intervals = {name: tabula[f"test_{metric}_ci"],
+                 "control program": paper.prior.ci(f"test_{metric}"),
+                 "base boosting (paper settings)": paper.model.ci(f"test_{metric}")}
+    return save_figure(model_comparison_bars(
+        SHORT, values, metric=metric.upper(), unit=unit if metric == "mae" else squared(unit),
+        log=True, intervals={k: v for k, v in intervals.items() if v is not None},
+        title=f"Tabula rasa vs base boosting, test {metric.upper()} (Fig. {fig})"),
+        figdir / f"{fig_id}.png")

@@ -27,7 +27,7 @@ from sklearn.exceptions import ConvergenceWarning
 
 from ..._io import atomic_write
 from ...datasets import Dataset
-from ...parallel import Started, Task, run_plans
+from ...parallel import Plan, Started, Task, run_plans
 from ...parallel import start as start_on_worker
 from ..config import (
     ExperimentConfig,
@@ -41,6 +41,7 @@ from ..figures import (
     error_bars,
     model_comparison_bars,
     prior_target_boxplots,
+    save_figure,
     voltage_boxplots,
 )
 from ..process.errors import UsageError
@@ -54,8 +55,6 @@ from .compute import (
     SameAs,
     Save,
     correction_shap_plan,
-    draw_correction_shap,
-    draw_learning_curves,
     figure_saver,
     hamiltonian_config,
     learning_curves_plan,
@@ -66,10 +65,9 @@ from .compute import (
 from .gates import gate_systems, gates_benchmark, gates_figure
 from .phases import (
     Phase,
-    draw_tabula_rasa,
     evaluate_phase,
     hamiltonian_phase,
-    tabula_rasa_phase,
+    tabula_rasa_plan,
     timed,
 )
 from .report import report
@@ -188,22 +186,23 @@ class _Job:
         return self.datasets[key]
 
 
-def _paper(job: _Job, all_systems: bool) -> tuple[Dataset, dict[str, Any], dict[str, Started]]:
-    """Run the paper settings with their figures, SHAP and learning curves.
+def _paper(job: _Job, all_systems: bool) -> tuple[Dataset, dict[str, Any], dict[str, Started],
+                                                 Phase]:
+    """Run the paper settings with their figures, SHAP and learning curves, and the rest.
 
-    Its model, then its SHAP values and curves (one run of the workers, the long SHAP tasks
-    first); then the other phases start on the workers (:func:`_start_phases`) while this
-    process draws its figures. Returns the Google data, the learning curves and the
-    started phases.
+    The serial phases start first on the workers (:func:`_start_phases`: the longest first,
+    so that none is left running alone at the end); then the paper settings' model (its
+    folds and refits on the workers as they come free), and one run of the workers for its
+    SHAP values, its learning curves and the tabula rasa MLPs, each with its figures (the
+    long SHAP tasks first). Returns the Google data, the learning curves, the started
+    phases and the tabula rasa MLPs' phase.
     """
+    paper_cfg = load_config(job.configs / "paper_main_body.toml")
+    ds = job.dataset(seeded(paper_cfg, job.random_state))
+    phases = _start_phases(job, ds, all_systems)
+    figdir = job.out / "figures"
     with job.watches["paper"]:
-        paper_cfg = load_config(job.configs / "paper_main_body.toml")
         run = job.evaluate("paper", paper_cfg)
-        ds: Dataset = run.dataset
-        shap, (sizes, fitted) = run_plans(
-            [correction_shap_plan(run.model, ds, job.random_state, job.quick),
-             learning_curves_plan(paper_cfg, ds, job.random_state, job.quick)], -1)
-        phases = _start_phases(job, ds, all_systems)
         paper = run.result
         for metric, fig_id, fig in (("MAE", "fig2_mae_bars", "Fig. 2"),
                                     ("MSE", "figS4_mse_bars", "Fig. S4")):
@@ -211,19 +210,25 @@ def _paper(job: _Job, all_systems: bool) -> tuple[Dataset, dict[str, Any], dict[
                                         labels=(ds.prior_label, "base boosting"),
                                         title=f"Test {metric} per eigenenergy ({fig})",
                                         setting="paper settings"))
-        draw_correction_shap(shap, ds, job.random_state, job.save)
-        curves = draw_learning_curves(sizes, fitted, ds, job.save, job.same_as)
-    return ds, curves, phases
+        shap, (curves, curve_files), tabula, data_files = run_plans(
+            [correction_shap_plan(run.model, ds, job.random_state, job.quick, figdir),
+             learning_curves_plan(paper_cfg, ds, job.random_state, job.quick, figdir),
+             tabula_rasa_plan(ds, job.random_state, job.quick, job.out, paper),
+             _data_figures_plan(ds, figdir)], -1)
+        for files in (shap, curve_files, data_files):
+            for fig_id, paths in files.items():
+                job.files.setdefault(fig_id, []).extend(paths)
+    return ds, curves, phases, tabula
 
 
 def _start_phases(job: _Job, ds: Dataset, all_systems: bool) -> dict[str, Started]:
-    """Start the phases independent of the paper settings on the workers (:mod:`.phases`).
+    """Start the serial phases independent of the paper settings on the workers.
 
-    The improved settings, the parameter-space model, the tabula rasa MLPs and, with
-    ``all_systems``, the IBM benchmark; each runs serially in a worker process (the workers
-    take them in this order as they come free), while this process draws the paper
-    settings' figures and runs the search (every core busy); without workers each runs when
-    its result is taken.
+    The parameter-space model and the improved settings (:mod:`.phases`) and, with
+    ``all_systems``, the IBM benchmark; each runs serially in a worker process, the longest
+    first (the workers take them in this order as they come free), while this process runs
+    the paper settings' plans on the workers beside them and the search (every core busy);
+    without workers each runs when its result is taken.
     """
     improved = seeded(load_config(job.configs / "paper_improved.toml"), job.random_state)
     ham = hamiltonian_config(load_config(job.configs / "hamiltonian.toml"), job.random_state,
@@ -231,12 +236,11 @@ def _start_phases(job: _Job, ds: Dataset, all_systems: bool) -> dict[str, Starte
     job.cfgs.update(improved=improved, hamiltonian=ham)
     calls: dict[str, tuple[Any, ...]] = {
         "hamiltonian": (hamiltonian_phase, ham, job.dataset(ham), job.out),
-        "tabula_rasa": (tabula_rasa_phase, ds, job.random_state, job.quick, job.out),
         "improved": (evaluate_phase, improved, job.dataset(improved))}
     if all_systems:  # the longest: first
-        calls = {"gates": (gates_benchmark, job.configs, job.random_state, job.quick, say), **calls}
-    say("started on the workers while the paper settings' figures are drawn: "
-        + ", ".join(calls))
+        calls = {"gates": (gates_benchmark, job.configs, job.random_state, job.quick, say),
+                 **calls}
+    say("started on the workers beside the paper settings: " + ", ".join(calls))
     return {key: start_on_worker(Task(timed, job.clock, *call))
             for key, call in calls.items()}
 
@@ -275,22 +279,42 @@ def _search(job: _Job, storage: str | None) -> Sweep:
     return search
 
 
-def _data_figures(job: _Job, ds: Dataset) -> dict[str, Any]:
-    """Draw the data figures (Fig. 3, S2, S3); returns the training rows' correlation."""
-    say("data figures")
-    y_train = ds.split()[2]
+def _data_frame(ds: Dataset) -> pd.DataFrame:
+    """The training rows' control program (X1-X5) and measurements (Y1-Y5)."""
     train = ds.X.loc[ds.train_index]
     frame = train[ds.prior_names].set_axis([f"X{j}" for j in range(1, 6)], axis=1)
-    frame = frame.join(y_train.set_axis(SHORT, axis=1))
-    job.save("fig3_correlation", correlation_heatmap(
-        frame, title="Correlation of training examples (Fig. 3)"))
-    job.save("figS2_voltage_boxplots", voltage_boxplots(
-        ds.features.loc[ds.train_index], title="Bias voltages, training rows (Fig. S2)"))
-    job.save("figS3_prior_target_boxplots", prior_target_boxplots(
-        train[ds.prior_names].set_axis(SHORT, axis=1), y_train.set_axis(SHORT, axis=1),
-        unit=ds.unit, labels=(f"{ds.prior_label} (X)", "measured (Y)"),
-        title="Control program (X) and measured (Y) eigenenergies (Fig. S3)"))
-    return frame.corr().round(6).to_dict()
+    return frame.join(ds.split()[2].set_axis(SHORT, axis=1))
+
+
+def _correlation(ds: Dataset) -> dict[str, Any]:
+    """The training rows' correlation of control program and measurements (Fig. 3's)."""
+    return _data_frame(ds).corr().round(6).to_dict()
+
+
+def _data_figures_plan(ds: Dataset, figdir: Path) -> Plan:
+    """Plan the data figures (Fig. 3, S2, S3), one task each; returns them by figure id."""
+    say("data figures")
+    ids = ("fig3_correlation", "figS2_voltage_boxplots", "figS3_prior_target_boxplots")
+    paths = yield [Task(_data_figure, ds, fig_id, figdir) for fig_id in ids]
+    return {fig_id: [path] for fig_id, path in zip(ids, paths)}
+
+
+def _data_figure(ds: Dataset, fig_id: str, figdir: Path) -> Path:
+    """Draw and write one of the data figures."""
+    train = ds.X.loc[ds.train_index]
+    if fig_id == "fig3_correlation":
+        fig = correlation_heatmap(_data_frame(ds),
+                                  title="Correlation of training examples (Fig. 3)")
+    elif fig_id == "figS2_voltage_boxplots":
+        fig = voltage_boxplots(ds.features.loc[ds.train_index],
+                               title="Bias voltages, training rows (Fig. S2)")
+    else:
+        y_train = ds.split()[2]
+        fig = prior_target_boxplots(
+            train[ds.prior_names].set_axis(SHORT, axis=1), y_train.set_axis(SHORT, axis=1),
+            unit=ds.unit, labels=(f"{ds.prior_label} (X)", "measured (Y)"),
+            title="Control program (X) and measured (Y) eigenenergies (Fig. S3)")
+    return save_figure(fig, figdir / f"{fig_id}.png")
 
 
 def _compare(job: _Job, systems: list[System], ds: Dataset) -> None:
@@ -350,18 +374,17 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
     """
     start, started = start_clock(), time.time()
     job = _Job(Path(out), experiments_dir(experiments), random_state, quick, start)
-    ds, curves, phases = _paper(job, all_systems)
+    ds, curves, phases, tabula_phase = _paper(job, all_systems)
+    tabula = _keep(job, "tabula_rasa", tabula_phase).numbers
     search = _search(job, storage) if all_systems else None
     ham = _keep(job, "hamiltonian", phases["hamiltonian"].result())
     tables = {name: str(path.relative_to(job.out)) for name, path in ham.tables.items()}
     table_files = list(ham.tables.values())
-    tabula = _keep(job, "tabula_rasa", phases["tabula_rasa"].result()).numbers
-    draw_tabula_rasa(job.save, ds, job.settings["paper"], tabula)
     _keep(job, "improved", phases["improved"].result())
     gates = phases["gates"].result() if all_systems else None
     if gates is not None:
         job.save("figG1_gates_mae", gates_figure(gates))
-    correlation = _data_figures(job, ds)
+    correlation = _correlation(ds)
     systems = paper_systems(job.settings, job.cfgs, tabula, search, job.watches, job.files,
                             {"hamiltonian": table_files}, ds)
     for system in systems:
@@ -376,7 +399,8 @@ def reproduce(out: str | Path = "reports", *, tracking_uri: str | None = None,
                      summary_table(gates.generic.targets, gate_runs).to_csv(index=False))
     job.files = _ordered(job.files)
     rep = Reproduction(
-        targets=ds.target_names, random_state=random_state, quick=quick, all_systems=all_systems,
+        targets=ds.target_names, random_state=random_state, quick=quick,
+        all_systems=all_systems,
         settings=_ordered(job.settings),
         tabula_rasa=tabula, correlation=correlation, learning_curves=curves,
         figures={k: [str(p.relative_to(job.out)) for p in v] for k, v in job.files.items()},
