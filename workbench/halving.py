@@ -124,11 +124,14 @@ class HalvingChoiceCV(CachedParamNames, RegressorMixin, _BaseComposition):
         Parameters
         ----------
         X : array-like of shape (n_samples, n_features)
+            The training rows.
         y : array-like of shape (n_samples,)
+            The target.
 
         Returns
         -------
-        self : HalvingChoiceCV
+        HalvingChoiceCV
+            The fitted chooser (``self``).
         """
         self._validate_params()
         if not self.estimators:
@@ -166,10 +169,12 @@ class HalvingChoiceCV(CachedParamNames, RegressorMixin, _BaseComposition):
         Parameters
         ----------
         X : array-like of shape (n_samples, n_features)
+            The rows to predict.
 
         Returns
         -------
-        y : ndarray of shape (n_samples,)
+        ndarray of shape (n_samples,)
+            The winner's prediction for each row.
         """
         check_is_fitted(self)
         X = validate_data(self, X, dtype=float, reset=False)
