@@ -22,10 +22,11 @@ store; the store itself is never deleted or rewritten.
 
 One module per concern: :mod:`.uris` (where the store is, checked before any work),
 :mod:`.store_template` (a new SQLite store copied from an empty one, not migrated again),
-:mod:`.translate` (store errors as one line), :mod:`.runs` (:class:`~.runs.Tracker`),
+:mod:`.translate` (store errors as one line), :mod:`.runs` (:class:`~.runs.Tracker`: runs,
+params, metrics, tags, artifacts, input datasets and models, in one class),
 :mod:`.views` (what MLflow's UI opens: its addresses, the shared runs view),
-:mod:`.models` (logged, registered, loaded models), :mod:`.artifacts` (files, figures, input
-datasets), :mod:`.records` (hashes, commits, MLflow's value limits), :mod:`.lifecycle` (runs
+:mod:`.models` (a logged model's directory and pinned requirements), :mod:`.records`
+(hashes, commits, MLflow's value limits), :mod:`.lifecycle` (runs
 never left RUNNING: heartbeats, the reaper, the store's first use), :mod:`.serving` (the
 logged pyfunc model), :mod:`.predict` (``workbench predict``) and :mod:`.compare`
 (``workbench compare``: two runs' paired errors).
