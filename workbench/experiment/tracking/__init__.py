@@ -51,3 +51,9 @@ HTTP_RETRIES = {"MLFLOW_HTTP_REQUEST_MAX_RETRIES": "5",
                 "MLFLOW_HTTP_REQUEST_TIMEOUT": "60"}
 for _name, _value in HTTP_RETRIES.items():
     os.environ.setdefault(_name, _value)
+
+#: The modules a tracked run's records import (SHAP's plots, MLflow's datasets and models,
+#: the logged model's wrapper): ``evaluate`` loads them in the background while the model
+#: fits. Named here, as MLflow's modules are nowhere else.
+RECORD_MODULES = ("shap", "mlflow.data.pandas_dataset", "mlflow.pyfunc", "mlflow.models",
+                  "workbench.experiment.tracking.serving")
