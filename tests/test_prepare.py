@@ -135,3 +135,17 @@ def test_a_loaded_config_resolves_its_family(tmp_path, google_5q_dir):
     path.write_text(f'[data]\ndata_dir = "{google_5q_dir}"\n')
     cfg = load_config(path)
     assert cfg.family is FAMILIES["eigenvalue"]
+
+
+def test_design_loads_the_dataset_once(counted, tmp_path):
+    """``workbench design`` fits the config's model and reads the candidates: one load of the
+    config's data."""
+    path, log = counted
+    ds = prepare(load_config(path)).dataset  # the candidates' columns (a load of its own)
+    assert log.read_text().split() == ["once"]
+    candidates = tmp_path / "candidates.csv"
+    ds.X.iloc[:12].to_csv(candidates, index=False)
+    assert main(["design", str(path), "--candidates", str(candidates), "--n", "2",
+                 "--out", str(tmp_path / "next.csv"), "--jobs", "1"]) == 0
+    assert len(pd.read_csv(tmp_path / "next.csv")) == 2  # the command did run
+    assert log.read_text().split() == ["once", "once"]
