@@ -108,6 +108,20 @@ def test_evaluate_loads_the_dataset_once(counted, tmp_path):
     assert log.read_text().split() == ["once"]
 
 
+def test_a_tracked_evaluate_loads_the_dataset_once(counted, tmp_path, new_store):
+    """Recording the run (its input datasets, hashes, test predictions, model) reads no data
+    again."""
+    path, log = counted
+    uri = new_store(tmp_path / "mlruns" / "mlflow.db")
+    assert main(["evaluate", str(path), "--tracking-uri", uri]) == 0
+    assert log.read_text().split() == ["once"]
+    from mlflow import MlflowClient
+
+    client = MlflowClient(uri)
+    (run,) = client.search_runs([client.get_experiment_by_name("once").experiment_id])
+    assert run.info.status == "FINISHED" and run.inputs.dataset_inputs  # it was recorded
+
+
 def test_evaluate_with_seeds_loads_the_dataset_once(counted, tmp_path):
     """One load for every seed of ``evaluate --random-states``."""
     path, log = counted
