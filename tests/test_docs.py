@@ -156,7 +156,8 @@ def _core_modules():
 
 def _public_names():
     """``{qualified name: object}`` of every function and class the API reference lists, of
-    every public name of the core's modules, and of the experiment API's names
+    every public name of the core's modules (in their ``__all__`` or not: a name without a
+    leading underscore is public, PEP 8), and of the experiment API's names
     (``workbench.experiment.api``)."""
     text = (DOCS / "reference" / "api.rst").read_text()
     out = {}
@@ -167,7 +168,17 @@ def _public_names():
             obj = getattr(module, name)
             if inspect.isclass(obj) or inspect.isfunction(obj):
                 out.setdefault(f"{obj.__module__}.{obj.__qualname__}", obj)
+    for module_name in _core_modules():
+        for name, obj in vars(importlib.import_module(module_name)).items():
+            if not name.startswith("_") and (inspect.isclass(obj) or inspect.isfunction(obj)) \
+                    and obj.__module__ == module_name:
+                out.setdefault(f"{module_name}.{obj.__qualname__}", obj)
     return out
+
+
+#: Public helpers of modules another session is editing (the parametric family's), left to
+#: it: each still fails the checks, so the test asks for its entry to go once it passes.
+PENDING = {"workbench.param_boost.product_factors", "workbench.param_engine.padded"}
 
 
 def _public_methods(names):
@@ -201,9 +212,14 @@ def test_every_public_name_documents_its_parameters_and_returns():
     methods = _public_methods(names)
     assert "workbench.boosting.BaseBoostRegressor.fit" in methods  # the walk finds methods
     assert "workbench.parallel.run_plans" in names  # and the core's modules off the reference
+    assert "workbench.bases.ridge" in names  # and their public names outside __all__
     for name, obj in sorted(names.items()):
-        problems += [f"{name}: {code} {message}" for code, message in
-                     validate(get_doc_object(obj))["errors"] if code in CHECKS]
+        found = [f"{name}: {code} {message}" for code, message in
+                 validate(get_doc_object(obj))["errors"] if code in CHECKS]
+        if name in PENDING:
+            assert found, f"{name} passes now: remove it from PENDING"
+            continue
+        problems += found
     for name in sorted(methods):
         problems += [f"{name}: {code} {message}" for code, message in
                      validate(name)["errors"] if code in CHECKS]

@@ -407,6 +407,42 @@ def test_mlflow_is_imported_only_under_tracking():
     assert inside  # the check sees MLflow's imports
 
 
+def _is_module(name: str) -> bool:
+    try:
+        return importlib.util.find_spec(name) is not None
+    except (ImportError, ValueError):  # a parent that is not a package ("mlflow.source.name")
+        return False
+
+
+def mlflow_modules_named(source: str) -> list[str]:
+    """The MLflow modules ``source`` names as text to import (``importlib.import_module``, a
+    list of modules to load): string constants that are the name of one of MLflow's
+    submodules, but a logger's (``logging.getLogger("mlflow.store.db.utils")``); a tag
+    (``"mlflow.source.name"``) names none, nor a key ``"mlflow"``."""
+    tree = ast.parse(source)
+    loggers = {id(node.args[0]) for node in ast.walk(tree) if isinstance(node, ast.Call)
+               and ast.unparse(node.func).endswith("getLogger") and node.args}
+    return [f"line {node.lineno}: {node.value!r}" for node in ast.walk(tree)
+            if isinstance(node, ast.Constant) and isinstance(node.value, str)
+            and node.value.startswith("mlflow.") and id(node) not in loggers
+            and _is_module(node.value)]
+
+
+def test_mlflow_modules_are_named_only_under_tracking():
+    """Not even by name: the modules ``evaluate`` loads in the background while the model
+    fits are listed by ``tracking/`` (``RECORD_MODULES``), not by the command line."""
+    found = {str(p.relative_to(PACKAGE)): uses for p in _outside("tracking")
+             if (uses := mlflow_modules_named(p.read_text(encoding="utf-8")))}
+    assert found == {}
+    from workbench.experiment.tracking import RECORD_MODULES
+
+    assert "mlflow.pyfunc" in RECORD_MODULES
+    # the check finds a name when there is one, and leaves loggers and tags alone
+    assert mlflow_modules_named('MODULES = ("shap", "mlflow.pyfunc")\n')
+    assert not mlflow_modules_named('import logging\nlogging.getLogger("mlflow.store")\n'
+                                    'TAG = "mlflow.source.name"\n')
+
+
 def test_optuna_storages_are_used_only_under_storage():
     """Opening, checking and failing stale trials of Optuna's storages is ``storage/``'s; a
     name of ``optuna.storages`` elsewhere appears only in annotations (``if TYPE_CHECKING:``)."""
@@ -445,3 +481,51 @@ def test_no_module_re_exports_another_s_names():
         problems += [f"{path.relative_to(PACKAGE.parent)}: {name}" for name in names
                      if name in imported and name not in defined]
     assert not problems, "re-exported names:\n" + "\n".join(problems)
+
+
+def _project_classes() -> dict[str, type]:
+    """Every class the package defines, by qualified name (``__main__`` modules left out)."""
+    import inspect
+    import pkgutil
+
+    found = {}
+    for info in pkgutil.walk_packages(workbench.__path__, "workbench."):
+        if info.name.endswith("__main__"):
+            continue
+        module = importlib.import_module(info.name)
+        for cls in vars(module).values():
+            if inspect.isclass(cls) and cls.__module__ == info.name:
+                found[f"{cls.__module__}.{cls.__qualname__}"] = cls
+    return found
+
+
+def split_classes(classes: dict[str, type]) -> list[str]:
+    """Classes assembled from parts in other modules: a class with two or more of the
+    project's classes as direct bases, or a project class (not an exception) that exactly one
+    class inherits, from another module (a half of one class kept elsewhere)."""
+    ours = {cls for cls in classes.values()}
+    found = [f"{name}: bases {[b.__name__ for b in cls.__bases__ if b in ours]}"
+             for name, cls in classes.items() if sum(b in ours for b in cls.__bases__) >= 2]
+    for name, base in classes.items():
+        if issubclass(base, BaseException):
+            continue
+        heirs = [cls for cls in classes.values() if base in cls.__bases__]
+        if len(heirs) == 1 and heirs[0].__module__ != base.__module__:
+            found.append(f"{name}: only {heirs[0].__module__}.{heirs[0].__qualname__} "
+                         "inherits it")
+    return found
+
+
+def test_no_class_is_split_over_mixins():
+    """A class is written in one place: not assembled from mixins kept in other modules (as
+    ``Tracker`` was from ``ModelRecords`` and ``ArtifactRecords``, and ``ModelFamily`` from
+    ``ResultMethods``, to keep files short). Interfaces several classes share (a model
+    family, a config section) and exceptions are not halves."""
+    classes = _project_classes()
+    assert "workbench.experiment.tracking.runs.Tracker" in classes  # it sees the package
+    assert split_classes(classes) == []
+    # the check finds a split when there is one
+    half = type("ModelRecords", (), {"__module__": "workbench.experiment.tracking.models"})
+    other = type("ArtifactRecords", (), {"__module__": "workbench.experiment.tracking.a"})
+    whole = type("Tracker", (half, other), {"__module__": "workbench.experiment.tracking.runs"})
+    assert len(split_classes({"m": half, "a": other, "t": whole})) == 3

@@ -108,6 +108,20 @@ def test_evaluate_loads_the_dataset_once(counted, tmp_path):
     assert log.read_text().split() == ["once"]
 
 
+def test_a_tracked_evaluate_loads_the_dataset_once(counted, tmp_path, new_store):
+    """Recording the run (its input datasets, hashes, test predictions, model) reads no data
+    again."""
+    path, log = counted
+    uri = new_store(tmp_path / "mlruns" / "mlflow.db")
+    assert main(["evaluate", str(path), "--tracking-uri", uri]) == 0
+    assert log.read_text().split() == ["once"]
+    from mlflow import MlflowClient
+
+    client = MlflowClient(uri)
+    (run,) = client.search_runs([client.get_experiment_by_name("once").experiment_id])
+    assert run.info.status == "FINISHED" and run.inputs.dataset_inputs  # it was recorded
+
+
 def test_evaluate_with_seeds_loads_the_dataset_once(counted, tmp_path):
     """One load for every seed of ``evaluate --random-states``."""
     path, log = counted
@@ -135,3 +149,17 @@ def test_a_loaded_config_resolves_its_family(tmp_path, google_5q_dir):
     path.write_text(f'[data]\ndata_dir = "{google_5q_dir}"\n')
     cfg = load_config(path)
     assert cfg.family is FAMILIES["eigenvalue"]
+
+
+def test_design_loads_the_dataset_once(counted, tmp_path):
+    """``workbench design`` fits the config's model and reads the candidates: one load of the
+    config's data."""
+    path, log = counted
+    ds = prepare(load_config(path)).dataset  # the candidates' columns (a load of its own)
+    assert log.read_text().split() == ["once"]
+    candidates = tmp_path / "candidates.csv"
+    ds.X.iloc[:12].to_csv(candidates, index=False)
+    assert main(["design", str(path), "--candidates", str(candidates), "--n", "2",
+                 "--out", str(tmp_path / "next.csv"), "--jobs", "1"]) == 0
+    assert len(pd.read_csv(tmp_path / "next.csv")) == 2  # the command did run
+    assert log.read_text().split() == ["once", "once"]

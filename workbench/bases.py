@@ -284,7 +284,34 @@ def paper_stacking(*, mlp_hidden: Iterable[int] = (10,), mlp_alpha: float = 10.0
                    final_max_iter: int = 4000, cv: Any = 5,
                    random_state: int | np.random.RandomState | None = None
                    ) -> StackingRegressor:
-    """The paper's basis: stacking of [tanh L-BFGS MLP, LightGBM] -> tanh L-BFGS MLP."""
+    """The paper's basis: stacking of [tanh L-BFGS MLP, LightGBM] -> tanh L-BFGS MLP.
+
+    Parameters
+    ----------
+    mlp_hidden : iterable of int, default=(10,)
+        The first MLP's hidden layer sizes.
+    mlp_alpha : float, default=10.0
+        The first MLP's L2 penalty.
+    mlp_max_iter : int, default=4000
+        The first MLP's L-BFGS iterations at most.
+    lgbm_n_estimators : int, default=500
+        The LightGBM member's boosting rounds (its other settings the paper's).
+    final_hidden : iterable of int, default=(10,)
+        The final MLP's hidden layer sizes.
+    final_alpha : float, default=10.0
+        The final MLP's L2 penalty.
+    final_max_iter : int, default=4000
+        The final MLP's L-BFGS iterations at most.
+    cv : int or cross-validation generator, default=5
+        The folds of the members' out-of-fold predictions the final MLP is fitted on.
+    random_state : int, RandomState instance or None, default=None
+        Seeds the three models.
+
+    Returns
+    -------
+    StackingRegressor
+        The unfitted basis (the inputs passed through to the final MLP too).
+    """
     first = MLPRegressor(hidden_layer_sizes=tuple(mlp_hidden), activation="tanh",
                          solver="lbfgs", alpha=mlp_alpha, max_iter=mlp_max_iter,
                          random_state=random_state)
@@ -325,6 +352,18 @@ def paper_basis(target: str | int,
 
 
 def ridge(**params: Any) -> Ridge:
+    """A ridge regression basis (scikit-learn's ``Ridge``).
+
+    Parameters
+    ----------
+    **params
+        ``Ridge``'s parameters (e.g. ``alpha``).
+
+    Returns
+    -------
+    Ridge
+        The unfitted basis.
+    """
     return Ridge(**params)
 
 
@@ -434,14 +473,40 @@ class ScalableKernelRidge(CachedParamNames, RegressorMixin, BaseEstimator):
 
 
 def kernel_ridge(**params: Any) -> ScalableKernelRidge:
-    """An RBF kernel ridge basis (:class:`ScalableKernelRidge`: exact up to
-    :data:`KERNEL_EXACT_ROWS` training rows, Nystroem features above)."""
+    """An RBF kernel ridge basis.
+
+    :class:`ScalableKernelRidge`: exact up to :data:`KERNEL_EXACT_ROWS` training rows,
+    Nystroem features above.
+
+    Parameters
+    ----------
+    **params
+        :class:`ScalableKernelRidge`'s parameters (the kernel ``"rbf"`` unless given).
+
+    Returns
+    -------
+    ScalableKernelRidge
+        The unfitted basis.
+    """
     return ScalableKernelRidge(**{"kernel": "rbf", **params})
 
 
 def quadratic_basis_warning(name: str, n_rows: int) -> str | None:
-    """A warning for a basis whose cost grows faster than linearly in rows, when it is fitted
-    on ``n_rows`` training rows (``None`` when there is nothing to say)."""
+    """Warn of a basis whose cost grows faster than linearly in rows.
+
+    Parameters
+    ----------
+    name : str
+        The basis's name.
+    n_rows : int
+        The training rows it is to be fitted on.
+
+    Returns
+    -------
+    str or None
+        The warning, naming the bases that scale linearly; ``None`` when there is nothing
+        to say.
+    """
     if name == "gaussian_process" and n_rows > GP_WARN_ROWS:
         return (f"basis gaussian_process on {n_rows:,} training rows: its fit is cubic in rows "
                 f"and its memory quadratic (it will be slow above ~{GP_WARN_ROWS:,} rows); "
@@ -451,11 +516,34 @@ def quadratic_basis_warning(name: str, n_rows: int) -> str | None:
 
 
 def lightgbm(**params: Any) -> LeanLGBMRegressor:
+    """A LightGBM basis (:class:`LeanLGBMRegressor`), one thread and quiet unless given.
+
+    Parameters
+    ----------
+    **params
+        LightGBM's parameters (e.g. ``n_estimators``, ``num_leaves``).
+
+    Returns
+    -------
+    LeanLGBMRegressor
+        The unfitted basis.
+    """
     return LeanLGBMRegressor(**{"n_jobs": 1, "verbose": -1, **params})
 
 
 def mlp(**params: Any) -> MLPRegressor:
-    """An MLP basis (tanh, L-BFGS by default); an int ``hidden_layer_sizes`` is one layer."""
+    """An MLP basis (tanh, L-BFGS by default).
+
+    Parameters
+    ----------
+    **params
+        ``MLPRegressor``'s parameters; an int ``hidden_layer_sizes`` is one layer.
+
+    Returns
+    -------
+    MLPRegressor
+        The unfitted basis.
+    """
     if "hidden_layer_sizes" in params:
         sizes = params["hidden_layer_sizes"]
         params["hidden_layer_sizes"] = (sizes,) if isinstance(sizes, int) else tuple(sizes)
@@ -464,24 +552,69 @@ def mlp(**params: Any) -> MLPRegressor:
 
 def gaussian_process(*, length_scale: float = 1.0, noise_level: float = 1.0,
                      **params: Any) -> GaussianProcessRegressor:
+    """A Gaussian process basis: a scaled RBF kernel plus white noise, targets normalised.
+
+    Parameters
+    ----------
+    length_scale : float, default=1.0
+        The RBF kernel's starting length scale (one for every input).
+    noise_level : float, default=1.0
+        The white noise's starting level.
+    **params
+        ``GaussianProcessRegressor``'s parameters.
+
+    Returns
+    -------
+    GaussianProcessRegressor
+        The unfitted basis (its fit cubic in rows: :func:`quadratic_basis_warning`).
+    """
     kernel = ConstantKernel() * RBF(length_scale=length_scale) + WhiteKernel(noise_level)
     return GaussianProcessRegressor(**{"kernel": kernel, "normalize_y": True, **params})
 
 
 def gp_ard(**params: Any) -> ARDGaussianProcess:
-    """A Gaussian process with one length scale per input, fitted by marginal likelihood, on
-    at most ``max_rows`` (default 1,000) rows (:class:`~workbench.gp.ARDGaussianProcess`):
-    smooth, with the inputs that matter found by the fit."""
+    """A Gaussian process with one length scale per input, fitted by marginal likelihood.
+
+    Smooth, with the inputs that matter found by the fit.
+
+    Parameters
+    ----------
+    **params
+        :class:`~workbench.gp.ARDGaussianProcess`'s parameters (it fits on at most
+        ``max_rows``, default 1,000, rows).
+
+    Returns
+    -------
+    ARDGaussianProcess
+        The unfitted basis.
+    """
     return ARDGaussianProcess(**params)
 
 
 def spline(*, n_knots: int = 5, degree: int = 3, knots: Any = "quantile",
            alpha: float = 1.0) -> Pipeline:
-    """An additive spline basis: each input's cubic B-splines (``SplineTransformer``, knots at
-    the inputs' quantiles) and a ridge on them. Smooth in every input and linear beyond the
-    training range (``extrapolation="linear"``), where trees stay flat: a basis for a
-    correction that must carry on past the rows it was fitted on (later dates, other
-    devices). Linear in rows."""
+    """An additive spline basis: each input's B-splines and a ridge on them.
+
+    Smooth in every input and linear beyond the training range (``extrapolation="linear"``),
+    where trees stay flat: a basis for a correction that must carry on past the rows it was
+    fitted on (later dates, other devices). Linear in rows.
+
+    Parameters
+    ----------
+    n_knots : int, default=5
+        Knots per input (``SplineTransformer``'s).
+    degree : int, default=3
+        The splines' degree.
+    knots : {"uniform", "quantile"} or array-like, default="quantile"
+        Where the knots are: at the inputs' quantiles by default.
+    alpha : float, default=1.0
+        The ridge's penalty.
+
+    Returns
+    -------
+    Pipeline
+        The unfitted basis: ``SplineTransformer`` then ``Ridge``.
+    """
     return Pipeline([("splines", SplineTransformer(n_knots=n_knots, degree=degree, knots=knots,
                                                    extrapolation="linear")),
                      ("ridge", Ridge(alpha=alpha))])
@@ -489,12 +622,32 @@ def spline(*, n_knots: int = 5, degree: int = 3, knots: Any = "quantile",
 
 def stagewise(*, candidates: Iterable[str] = ("ridge", "spline", "lightgbm"), cv: int = 3,
               **nested: Any) -> StageChoiceCV:
-    """Heterogeneous stages: a :class:`~workbench.stagewise.StageChoiceCV` over the bases
-    ``candidates`` (names of :data:`BASES`, each with its defaults), which chooses each
-    stage's basis by ``cv``-fold CV on that stage's own residuals (with ``n_stages`` > 1:
-    e.g. a ridge or spline stage for a smooth trend, then trees for what is left). A
-    candidate's parameters are set as ``<name>__<param>``, as in a Pipeline (e.g.
-    ``lightgbm__num_leaves = 15``; ranges there are drawn like any basis's)."""
+    """Heterogeneous stages: each stage's basis chosen by CV among ``candidates``.
+
+    A :class:`~workbench.stagewise.StageChoiceCV` chooses each stage's basis by ``cv``-fold
+    CV on that stage's own residuals (with ``n_stages`` > 1: e.g. a ridge or spline stage for
+    a smooth trend, then trees for what is left).
+
+    Parameters
+    ----------
+    candidates : iterable of str, default=("ridge", "spline", "lightgbm")
+        Names of :data:`BASES`, each with its defaults; not ``"stagewise"``.
+    cv : int, default=3
+        The folds of each stage's choice.
+    **nested
+        A candidate's parameters as ``<name>__<param>``, as in a Pipeline (e.g.
+        ``lightgbm__num_leaves = 15``; ranges there are drawn like any basis's).
+
+    Returns
+    -------
+    StageChoiceCV
+        The unfitted basis.
+
+    Raises
+    ------
+    ValueError
+        When ``"stagewise"`` is among the candidates.
+    """
     names = list(candidates)
     if "stagewise" in names:
         raise ValueError("stagewise: a candidate cannot be stagewise itself")
@@ -721,10 +874,25 @@ class NormalQuantileTransformer(CachedParamNames, TransformerMixin, BaseEstimato
 
 
 def derived(*, n_priors: int = 1, kinds: list[str] | None = None) -> PriorDerivedInputs:
-    """The basis inputs with physics-derived columns appended (the priors' differences,
-    ratios and logs, prior x feature products: :class:`~workbench.derived.PriorDerivedInputs`),
-    then standardised. ``n_priors`` (the leading prior columns) is set by the experiment
-    layer from the basis inputs it builds."""
+    """The basis inputs with physics-derived columns appended, then standardised.
+
+    The priors' differences, ratios and logs, prior x feature products
+    (:class:`~workbench.derived.PriorDerivedInputs`): an input transform.
+
+    Parameters
+    ----------
+    n_priors : int, default=1
+        The leading prior columns of the inputs (set by the experiment layer from the basis
+        inputs it builds).
+    kinds : list of str, default=None
+        Which derived columns, as :class:`~workbench.derived.PriorDerivedInputs` takes them
+        (``None``: all four kinds).
+
+    Returns
+    -------
+    PriorDerivedInputs
+        The unfitted transform, a ``StandardScaler`` after it.
+    """
     return PriorDerivedInputs(n_priors=n_priors, kinds=kinds, then=StandardScaler())
 
 

@@ -113,7 +113,18 @@ def conformal_rank(n: int, alpha: float) -> int:
 
 
 def min_calibration_rows(alpha: float) -> int:
-    """The fewest calibration values with a finite conformal quantile at ``alpha``."""
+    """Count the fewest calibration values with a finite conformal quantile at ``alpha``.
+
+    Parameters
+    ----------
+    alpha : float
+        The miscoverage, in (0, 1).
+
+    Returns
+    -------
+    int
+        The smallest ``n`` with ``ceil((1 - alpha) (n + 1)) <= n``.
+    """
     # ceil((1 - alpha)(n + 1)) <= n  <=>  alpha (n + 1) >= 1
     n = max(1, int(math.ceil(round(1.0 / alpha - 1.0, 9))))
     while conformal_rank(n, alpha) > n:  # floating-point guard

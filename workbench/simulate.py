@@ -160,13 +160,47 @@ class Simulation:
 
 def transmon_frequency(v: np.ndarray | float, f_max: np.ndarray | float, v0: np.ndarray | float,
                        period: np.ndarray | float) -> np.ndarray:
-    """Flux-tunable transmon: f = f_max sqrt(|cos(pi (V - V0) / period)|)."""
+    """Flux-tunable transmon: f = f_max sqrt(|cos(pi (V - V0) / period)|).
+
+    Parameters
+    ----------
+    v : ndarray or float
+        The bias voltage ``V``.
+    f_max : ndarray or float
+        The frequency at the sweet spot.
+    v0 : ndarray or float
+        The sweet spot's voltage ``V0``.
+    period : ndarray or float
+        The voltage of one flux quantum.
+
+    Returns
+    -------
+    ndarray
+        The frequency, broadcast over the arguments.
+    """
     return f_max * np.sqrt(np.abs(np.cos(np.pi * (v - v0) / period)))
 
 
 def coupler_coupling(v: np.ndarray | float, g_max: np.ndarray | float,
                      v_half: np.ndarray | float, width: np.ndarray | float) -> np.ndarray:
-    """Tunable (gmon-like) coupler: g = -g_max / (1 + exp(-(V - V_half) / width)), monotone."""
+    """Tunable (gmon-like) coupler: g = -g_max / (1 + exp(-(V - V_half) / width)), monotone.
+
+    Parameters
+    ----------
+    v : ndarray or float
+        The coupler's bias voltage ``V``.
+    g_max : ndarray or float
+        The coupling's largest magnitude.
+    v_half : ndarray or float
+        The voltage of half the largest coupling ``V_half``.
+    width : ndarray or float
+        The voltage scale of the switch.
+
+    Returns
+    -------
+    ndarray
+        The coupling, broadcast over the arguments.
+    """
     return -g_max / (1.0 + np.exp(-(v - v_half) / width))
 
 
@@ -190,8 +224,18 @@ def _device(rng: np.random.Generator, n: int, n_edges: int) -> dict[str, np.ndar
 
 
 def default_parasitic(graph: CouplingGraph) -> str:
-    """The parasitic pairs the simulator injects by default: grid diagonals, else
-    next-nearest neighbours."""
+    """Name the parasitic pairs the simulator injects by default.
+
+    Parameters
+    ----------
+    graph : CouplingGraph
+        The device's coupling graph.
+
+    Returns
+    -------
+    str
+        ``"diagonal"`` for a grid, else ``"next_nearest"``.
+    """
     return "diagonal" if graph.topology == "grid" else "next_nearest"
 
 

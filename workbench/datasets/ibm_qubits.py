@@ -156,7 +156,28 @@ def qubit_table(data_dir: str | os.PathLike[str] | None = None, *,
 
 
 def split_mask(table: pd.DataFrame, split: str, split_seed: int = 0) -> np.ndarray:
-    """The test rows of ``split`` (``"time"`` or ``"devices"``) as a boolean array."""
+    """Mark the test rows of ``split``.
+
+    Parameters
+    ----------
+    table : DataFrame
+        The qubits' table (its ``device`` and ``snapshot`` columns).
+    split : {"time", "devices"}
+        The snapshots from ``TIME_SPLIT`` on, or a share of the devices held out at
+        random.
+    split_seed : int, default=0
+        Seeds the devices held out.
+
+    Returns
+    -------
+    ndarray of bool
+        True on the test rows.
+
+    Raises
+    ------
+    ValueError
+        For an unknown split.
+    """
     devices = table["device"]
     if split == "time":
         return (pd.to_datetime(table["snapshot"]) >= pd.Timestamp(TIME_SPLIT)).to_numpy()

@@ -26,11 +26,7 @@ if TYPE_CHECKING:
     from ..runs.evaluate import Evaluation
     from ..tracking.runs import Tracker
 
-__all__ = ["RECORD_MODULES", "design", "evaluate", "mark_start", "reproduce", "sweep", "wall"]
-
-#: Modules the MLflow records of a run import (SHAP's plots, MLflow's datasets and models).
-RECORD_MODULES = ("shap", "mlflow.data.pandas_dataset", "mlflow.pyfunc", "mlflow.models",
-                  "workbench.experiment.tracking.serving")
+__all__ = ["design", "evaluate", "mark_start", "reproduce", "sweep", "wall"]
 
 _START = [0.0]
 
@@ -264,6 +260,7 @@ def evaluate(args: argparse.Namespace) -> int:
     prepared = prepare(cfg)
     tracker = check_before_work(cfg, args)
     from ...parallel import worker_pool
+    from ..tracking import RECORD_MODULES
     from ..tracking.lifecycle import command_run
 
     if cfg.evaluation.random_states:

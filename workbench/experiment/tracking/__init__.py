@@ -22,10 +22,11 @@ store; the store itself is never deleted or rewritten.
 
 One module per concern: :mod:`.uris` (where the store is, checked before any work),
 :mod:`.store_template` (a new SQLite store copied from an empty one, not migrated again),
-:mod:`.translate` (store errors as one line), :mod:`.runs` (:class:`~.runs.Tracker`),
+:mod:`.translate` (store errors as one line), :mod:`.runs` (:class:`~.runs.Tracker`: runs,
+params, metrics, tags, artifacts, input datasets and models, in one class),
 :mod:`.views` (what MLflow's UI opens: its addresses, the shared runs view),
-:mod:`.models` (logged, registered, loaded models), :mod:`.artifacts` (files, figures, input
-datasets), :mod:`.records` (hashes, commits, MLflow's value limits), :mod:`.lifecycle` (runs
+:mod:`.models` (a logged model's directory and pinned requirements), :mod:`.records`
+(hashes, commits, MLflow's value limits), :mod:`.lifecycle` (runs
 never left RUNNING: heartbeats, the reaper, the store's first use), :mod:`.serving` (the
 logged pyfunc model), :mod:`.predict` (``workbench predict``) and :mod:`.compare`
 (``workbench compare``: two runs' paired errors).
@@ -50,3 +51,9 @@ HTTP_RETRIES = {"MLFLOW_HTTP_REQUEST_MAX_RETRIES": "5",
                 "MLFLOW_HTTP_REQUEST_TIMEOUT": "60"}
 for _name, _value in HTTP_RETRIES.items():
     os.environ.setdefault(_name, _value)
+
+#: The modules a tracked run's records import (SHAP's plots, MLflow's datasets and models,
+#: the logged model's wrapper): ``evaluate`` loads them in the background while the model
+#: fits. Named here, as MLflow's modules are nowhere else.
+RECORD_MODULES = ("shap", "mlflow.data.pandas_dataset", "mlflow.pyfunc", "mlflow.models",
+                  "workbench.experiment.tracking.serving")

@@ -1,8 +1,8 @@
 """Runs in the store: :class:`Tracker`, an explicit MLflow client bound to one experiment.
 
-One tracking URI and one experiment: runs, nested runs, params, metrics, tags, artifacts,
-input datasets; its models from :class:`~.models.ModelRecords`, its artifacts from
-:class:`~.artifacts.ArtifactRecords`.
+One tracking URI and one experiment: runs, nested runs, params, metrics, tags, artifacts
+(files, texts, JSON, figures), input datasets and models (logged, registered, loaded; the
+model directory is made by :func:`~.models.save_pyfunc_model`).
 """
 
 from __future__ import annotations
@@ -11,22 +11,34 @@ import contextlib
 import json
 import logging
 import math
+import os
+import tempfile
+import warnings
 from collections.abc import Iterator, Mapping, Sequence
-from typing import Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
+import mlflow
+import numpy as np
+import pandas as pd
 from mlflow import MlflowClient
-from mlflow.entities import Metric, Param, RunTag
+from mlflow.data.pandas_dataset import from_pandas  # mlflow.data.from_pandas: no stub sees it
+from mlflow.entities import DatasetInput, InputTag, LoggedModelOutput, Metric, Param, RunTag
 from mlflow.exceptions import MlflowException
 
 from ..process.errors import SweepTimedOut, TrackingError, redact
 from ..process.signals import ignoring_signals, interrupts_deferred
-from .artifacts import ArtifactRecords
-from .models import ModelRecords
+from .models import CHAMPION, save_pyfunc_model
 from .records import now_ms, param_value, tag_value
+from .serving import WorkbenchModel, model_signature
 from .store_template import copy_store_template, keep_store_template
 from .translate import duplicate_row, translate
 from .uris import describe_store, is_database, prepare_store_location, sqlite_path
 from .views import RUNS_VIEW, SHARED_VIEW_PREFIX
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+    from mlflow.pyfunc import PyFuncModel
 
 __all__ = ["Tracker", "ensure_store"]
 
@@ -44,7 +56,7 @@ EXPERIMENT_KIND = "custom_model_development"
 METRIC_DIGITS = 7
 
 
-class Tracker(ModelRecords, ArtifactRecords):
+class Tracker:
     """Log runs of one experiment to one tracking store through an explicit client.
 
     The client is created on first use; constructing a ``Tracker`` touches nothing.
@@ -360,6 +372,273 @@ class Tracker(ModelRecords, ArtifactRecords):
             Name to value.
         """
         self._log_batch(run_id, tags=[RunTag(str(k), tag_value(v)) for k, v in tags.items()])
+
+    def log_dict(self, run_id: str, obj: Any, artifact_file: str) -> None:
+        """Log ``obj`` as JSON (``.json``) or YAML (``.yaml``/``.yml``).
+
+        Parameters
+        ----------
+        run_id : str
+            The run.
+        obj : object
+            JSON-ready data.
+        artifact_file : str
+            Its path among the run's artifacts.
+        """
+        with self._errors():
+            self.client.log_dict(run_id, obj, artifact_file)
+
+    def log_text(self, run_id: str, text: str, artifact_file: str) -> None:
+        """Log ``text`` as an artifact file.
+
+        Parameters
+        ----------
+        run_id : str
+            The run.
+        text : str
+            The file's text.
+        artifact_file : str
+            Its path among the run's artifacts.
+        """
+        with self._errors():
+            self.client.log_text(run_id, text, artifact_file)
+
+    def log_file(self, run_id: str, path: str | os.PathLike,
+                 artifact_path: str | None = None) -> None:
+        """Copy a local file (or directory) into the run's artifacts.
+
+        Parameters
+        ----------
+        run_id : str
+            The run.
+        path : path-like
+            The file or directory.
+        artifact_path : str, default=None
+            The directory among the run's artifacts (``None``: the top).
+        """
+        path = Path(path)
+        with self._errors():
+            if path.is_dir():
+                self.client.log_artifacts(run_id, str(path), artifact_path)
+            else:
+                self.client.log_artifact(run_id, str(path), artifact_path)
+
+    def log_figure(self, run_id: str, fig: Figure, artifact_file: str) -> None:
+        """Log a matplotlib figure, saved in the format of ``artifact_file``'s suffix (PNG).
+
+        Parameters
+        ----------
+        run_id : str
+            The run.
+        fig : matplotlib.figure.Figure
+            The figure.
+        artifact_file : str
+            Its path among the run's artifacts.
+        """
+        with self._errors():
+            self.client.log_figure(run_id, fig, artifact_file)
+
+    def log_dataset(self, run_id: str, frame: pd.DataFrame, *, name: str, context: str,
+                    source: str | None = None, targets: str | None = None) -> str:
+        """Record ``frame`` as an input dataset of the run.
+
+        MLflow's name, digest and schema (the runs table's "Dataset" column), tagged
+        ``mlflow.data.context``.
+
+        Parameters
+        ----------
+        run_id : str
+            The run.
+        frame : DataFrame
+            The data.
+        name : str
+            The dataset's name.
+        context : str
+            Its role, e.g. ``train`` or ``test``.
+        source : str, default=None
+            Where it came from.
+        targets : str, default=None
+            Its target column.
+
+        Returns
+        -------
+        str
+            MLflow's digest of the data.
+        """
+        with warnings.catch_warnings():  # a local path "can be interpreted in multiple ways"
+            warnings.simplefilter("ignore", UserWarning)
+            # its hint omits None, its default (None: "the code location")
+            dataset = from_pandas(frame, source=source,  # type: ignore[arg-type]
+                                  name=name, targets=targets)
+        inputs = [DatasetInput(dataset._to_mlflow_entity(),
+                               tags=[InputTag("mlflow.data.context", context)])]
+        with self._errors():
+            try:
+                self.client.log_inputs(run_id, inputs)
+            except MlflowException as exc:
+                if not duplicate_row(exc):
+                    raise
+                # Another process created the same dataset row (experiment, name, digest)
+                # between MLflow's lookup and its insert (two first runs at once): the row
+                # exists now, and the second attempt links this run to it.
+                _logger.debug("log_inputs raced another process (%s); trying again", exc)
+                self.client.log_inputs(run_id, inputs)
+        return dataset.digest
+
+    def log_model(self, run_id: str, model: Any, input_example: pd.DataFrame,
+                  name: str = "model", *, targets: list[str] | None = None,
+                  texts: Mapping[str, str] | None = None) -> str:
+        """Log a fitted model as an MLflow pyfunc model linked to ``run_id``.
+
+        The model is cloudpickled inside :class:`~.serving.WorkbenchModel` (checks the input
+        table by column name, returns one column per target and ``<target>_lower/_upper`` when
+        the model has intervals); the ``workbench`` package is stored with it (``code_paths``),
+        so it loads with ``mlflow.pyfunc.load_model`` (and serves with ``mlflow models serve``)
+        where only the pinned requirements are installed. The signature names
+        ``input_example``'s columns and the outputs; the first 5 rows are the input example (the
+        REST request's template). Requirements are pinned from the installed versions (no
+        inference subprocess).
+
+        Parameters
+        ----------
+        run_id : str
+            The run the model comes from.
+        model : fitted estimator
+            ``predict(DataFrame)`` -> DataFrame or array; optionally ``predict_interval``.
+        input_example : DataFrame
+            Rows of the model's input columns.
+        name : str, default="model"
+            The logged model's name.
+        targets : list of str, default=None
+            The target names (``None``: the columns of ``model.predict``).
+        texts : mapping, default=None
+            File name -> text written in the model directory (e.g. ``{"config.toml": ...}``,
+            credentials redacted by the caller).
+
+        Returns
+        -------
+        str
+            The model's URI, ``models:/<model_id>``.
+
+        Raises
+        ------
+        TrackingError
+            The store cannot take the model (it is then marked ``FAILED``).
+        """
+        example = pd.DataFrame(input_example)
+        if targets is None:
+            pred = model.predict(example.head(2))
+            targets = ([str(c) for c in pred.columns] if isinstance(pred, pd.DataFrame)
+                       else [f"y{j}" for j in range(np.asarray(pred).reshape(2, -1).shape[1])])
+        wrapped = WorkbenchModel(model, list(example.columns), targets)
+        signature = model_signature(wrapped.columns, wrapped.outputs)
+        experiment_id = self.experiment_id
+        with self._errors():
+            logged = self.client.create_logged_model(experiment_id, name=name,
+                                                     source_run_id=run_id)
+        try:
+            with tempfile.TemporaryDirectory(prefix="workbench-model-") as tmp:
+                meta = mlflow.models.Model(artifact_path=logged.artifact_location, run_id=run_id,
+                                           model_uuid=logged.model_id, model_id=logged.model_id)
+                local = save_pyfunc_model(Path(tmp), wrapped, meta, signature, example, texts)
+                with self._errors():
+                    self.client.log_model_artifacts(logged.model_id, str(local))
+            with self._errors():
+                self.client.log_outputs(run_id, [LoggedModelOutput(logged.model_id, step=0)])
+                self.client.finalize_logged_model(logged.model_id, "READY")
+        except BaseException:
+            with contextlib.suppress(Exception):
+                self.client.finalize_logged_model(logged.model_id, "FAILED")
+            raise
+        return f"models:/{logged.model_id}"
+
+    def register_model(self, model_uri: str, name: str, *, run_id: str | None = None,
+                       tags: Mapping[str, Any] | None = None, description: str | None = None,
+                       alias: str = CHAMPION) -> str:
+        """Register a logged model as a new version and point ``alias`` at it.
+
+        Parameters
+        ----------
+        model_uri : str
+            ``models:/<model_id>`` (from :meth:`log_model`).
+        name : str
+            The registered model (created if missing) in this store's Model Registry.
+        run_id : str, default=None
+            The run the version comes from.
+        tags : mapping, default=None
+            Tags of the version.
+        description : str, default=None
+            The version's description.
+        alias : str, default=CHAMPION
+            The alias set to the new version.
+
+        Returns
+        -------
+        str
+            The version number.
+
+        Raises
+        ------
+        TrackingError
+            The registered model cannot be created.
+        """
+        model_id = model_uri.removeprefix("models:/")
+        with self._errors():
+            try:
+                self.client.create_registered_model(
+                    name, description="Registered by workbench evaluate/sweep --register")
+            except MlflowException as exc:
+                if exc.error_code not in ("RESOURCE_ALREADY_EXISTS", "ALREADY_EXISTS"):
+                    raise TrackingError(f"cannot register model {name!r}: {exc.message}") \
+                        from None
+            # the artifact location as source: MLflow's SQL registry would resolve a
+            # models:/ source through the *global* tracking URI, not this client's store
+            source = self.client.get_logged_model(model_id).artifact_location
+            version = self.client.create_model_version(
+                name, source=source, run_id=run_id, model_id=model_id,
+                tags={"model_id": model_id,
+                      **{str(k): tag_value(v) for k, v in (tags or {}).items()}},
+                description=description)
+            self.client.set_registered_model_alias(name, alias, version.version)
+        return str(version.version)
+
+    def model_artifact_uri(self, model_uri: str) -> str:
+        """Return the artifact location of ``models:/<model_id>``.
+
+        Loadable without a tracking URI, e.g.
+        ``mlflow.pyfunc.load_model(tracker.model_artifact_uri(uri))``.
+
+        Parameters
+        ----------
+        model_uri : str
+            ``models:/<model_id>``.
+
+        Returns
+        -------
+        str
+            The artifact location.
+        """
+        model_id = model_uri.removeprefix("models:/").split("/")[0]
+        with self._errors():
+            return self.client.get_logged_model(model_id).artifact_location
+
+    def load_model(self, model_uri: str) -> PyFuncModel:
+        """Load a model of this store with ``mlflow.pyfunc.load_model`` (no global state used).
+
+        Parameters
+        ----------
+        model_uri : str
+            ``models:/<model_id>``, or any location MLflow loads from.
+
+        Returns
+        -------
+        mlflow.pyfunc.PyFuncModel
+            The loaded model.
+        """
+        if model_uri.startswith("models:/"):
+            model_uri = self.model_artifact_uri(model_uri)
+        with self._errors(store_call=False):  # files only: a Ctrl-C stops it at once
+            return mlflow.pyfunc.load_model(model_uri)
 
 
 def ensure_store(tracking_uri: str, experiment_name: str,
