@@ -357,7 +357,7 @@ def test_console_script_help():
 
 
 def test_ui_command_serves_the_local_store_on_loopback(tmp_path):
-    from workbench.experiment.cli.ui import ui_command
+    from workbench.experiment.tracking.views import ui_command
 
     uri = f"sqlite:///{tmp_path / 'mlruns' / 'mlflow.db'}"
     cmd = ui_command(uri, 5055)
@@ -376,7 +376,7 @@ def test_ui_command_serves_the_local_store_on_loopback(tmp_path):
 
 
 def test_ui_servers_run_without_mlflow_server_jobs_unless_asked(monkeypatch):
-    from workbench.experiment.cli.ui import ui_env
+    from workbench.experiment.tracking.views import ui_env
 
     monkeypatch.delenv("MLFLOW_SERVER_ENABLE_JOB_EXECUTION", raising=False)
     monkeypatch.setenv("WORKBENCH_SOME_SETTING", "kept")

@@ -8,15 +8,13 @@ from __future__ import annotations
 
 import argparse
 import logging
-import os
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 from ..process.errors import redact
 
-__all__ = ["run", "ui_command", "ui_env"]
+__all__ = ["run"]
 
 log = logging.getLogger("workbench")
 
@@ -28,7 +26,7 @@ def _commands(args: argparse.Namespace) -> list[list[str]]:
     traceback, or sit on a store it cannot read).
     """
     from ..tracking.uris import check_store_uri, resolve_tracking_uri
-    from ..tracking.views import experiment_views, ui_url
+    from ..tracking.views import experiment_views, ui_command, ui_url
 
     uri = resolve_tracking_uri(args.tracking_uri, None, Path.cwd())
     check_store_uri(uri)
@@ -68,6 +66,8 @@ def run(args: argparse.Namespace) -> int:
     """
     cmds = _commands(args)
     print("Ctrl-C stops", "them" if len(cmds) > 1 else "it", flush=True)
+    from ..tracking.views import ui_env
+
     procs = [subprocess.Popen(cmd, env=ui_env()) for cmd in cmds]
     try:
         while all(p.poll() is None for p in procs):
@@ -84,53 +84,3 @@ def run(args: argparse.Namespace) -> int:
                 p.wait(timeout=10)
             except subprocess.TimeoutExpired:
                 p.kill()
-
-
-def ui_env() -> dict[str, str]:
-    """Return the environment of the servers ``workbench ui`` starts.
-
-    This process's, with MLflow's server jobs off unless
-    ``MLFLOW_SERVER_ENABLE_JOB_EXECUTION`` is set: they serve MLflow's GenAI features, which
-    workbench does not use, and start a job runner and seven worker processes, each
-    importing MLflow, with every server.
-
-    Returns
-    -------
-    dict
-        The environment variables.
-    """
-    env = dict(os.environ)
-    env.setdefault("MLFLOW_SERVER_ENABLE_JOB_EXECUTION", "false")
-    return env
-
-
-def ui_command(tracking_uri: str, port: int, workers: int = 1) -> list[str]:
-    """Return the ``mlflow server`` command line serving ``tracking_uri`` on 127.0.0.1.
-
-    One server process is the default: it serves a user's browser and starts in about half
-    the time of MLflow's default of four on a small machine.
-
-    Parameters
-    ----------
-    tracking_uri : str
-        The store to serve.
-    port : int
-        The port.
-    workers : int, default=1
-        Server processes.
-
-    Returns
-    -------
-    list of str
-        The command line (with the artifact root beside an SQLite store).
-    """
-    cmd = [sys.executable, "-m", "mlflow", "server", "--backend-store-uri", tracking_uri,
-           "--host", "127.0.0.1", "--port", str(port), "--workers", str(workers)]
-    if tracking_uri.startswith("sqlite:///"):
-        from ..tracking.uris import sqlite_path
-
-        path = sqlite_path(tracking_uri)  # None for an in-memory database: no folder
-        if path is not None:
-            root = path.parent / "artifacts"
-            cmd += ["--default-artifact-root", root.resolve().as_uri()]
-    return cmd

@@ -24,7 +24,8 @@ One module per concern: :mod:`.uris` (where the store is, checked before any wor
 :mod:`.store_template` (a new SQLite store copied from an empty one, not migrated again),
 :mod:`.translate` (store errors as one line), :mod:`.runs` (:class:`~.runs.Tracker`: runs,
 params, metrics, tags, artifacts, input datasets and models, in one class),
-:mod:`.views` (what MLflow's UI opens: its addresses, the shared runs view),
+:mod:`.views` (what MLflow's UI opens: its server's command line, its addresses, the
+shared runs view),
 :mod:`.models` (a logged model's directory and pinned requirements), :mod:`.records`
 (hashes, commits, MLflow's value limits), :mod:`.lifecycle` (runs
 never left RUNNING: heartbeats, the reaper, the store's first use), :mod:`.serving` (the
