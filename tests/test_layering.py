@@ -4,6 +4,7 @@ the experiment layer's homes import one way, as their docstrings say; MLflow onl
 what ``tools/layout.py`` writes."""
 
 import ast
+import functools
 import importlib.util
 import subprocess
 import sys
@@ -134,10 +135,16 @@ def _runtime_imports(path: Path, modules: set[str], type_only: bool = False) -> 
 
 def import_graph(type_only: bool = False) -> dict[str, set[str]]:
     """Module -> the workbench modules it imports (``type_only``: those imported for type
-    checking only too)."""
+    checking only too). The sources are parsed once per test process (about 1 CPU-s a
+    graph; the tests ask for one seven times); each call gets its own copy."""
+    return {m: set(targets) for m, targets in _import_graph(type_only).items()}
+
+
+@functools.cache
+def _import_graph(type_only: bool) -> dict[str, frozenset[str]]:
     files = {_module_name(p): p for p in PACKAGE.rglob("*.py")}
     modules = set(files)
-    return {m: _runtime_imports(p, modules, type_only) for m, p in files.items()}
+    return {m: frozenset(_runtime_imports(p, modules, type_only)) for m, p in files.items()}
 
 
 def room_graphs(graph: dict[str, set[str]]) -> dict[str, dict[str, set[str]]]:

@@ -48,13 +48,13 @@ def chromium() -> str:
 def render(url: str, tmp: Path, *, screenshot: Path | None = None, budget_ms: int = 15000,
            timeout: float = 120) -> str:
     """The DOM Chromium renders at ``url`` after ``budget_ms`` of the page's virtual time
-    (and, with ``screenshot``, a PNG of the page)."""
+    (and, with ``screenshot``, a PNG of the page): one Chromium run does both (two runs
+    rendered the page twice, each loading MLflow's whole UI)."""
     args = [chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
             "--disable-dev-shm-usage", f"--user-data-dir={tmp / 'profile'}",
             "--window-size=1800,900", f"--virtual-time-budget={budget_ms}"]
     if screenshot is not None:
-        subprocess.run([*args, f"--screenshot={screenshot}", url], capture_output=True,
-                       timeout=timeout, check=False)
+        args.append(f"--screenshot={screenshot}")
     done = subprocess.run([*args, "--dump-dom", url], capture_output=True, text=True,
                           timeout=timeout, check=False)
     return done.stdout
