@@ -32,7 +32,9 @@ Tb`` (``experiments/models/guldberg.py``, one parameter; ``outside_data.chem("tc
 data and split, the heaviest 25% by molar mass held out), features Tb and the molar mass for
 all systems. Its goal: never worse than the prior, and level with the peer (``/ peer <=
 1.05``). ``--inner`` runs every split on its training rows only, split again the same way
-(:func:`inner`): the numbers settings are chosen by.
+(:func:`inner`): the numbers settings are chosen by. ``--out-of-bounds`` sets
+``[model.parametric] out_of_bounds`` in every variant's config (the extrapolation guard,
+``"calibrated"``: ``benchmarks/decisions/extrapolation_guard.md``).
 
 Nothing is chosen on the test rows: every choice is the family's CV or the peer's on the
 training rows; every test score printed here has been seen (all of them). Paired bootstrap

@@ -106,6 +106,14 @@ def covariate_pool(features: Sequence[str], parameters: Sequence[str], *, square
     return {p: list(names) for p in parameters}
 
 
+def _column(X: pd.DataFrame, name: str) -> np.ndarray:
+    """The column ``name`` of ``X`` as floats (a frame's columns by name, read as str)."""
+    key: Any = name
+    if name not in X.columns:
+        key = {str(c): c for c in X.columns}[name]
+    return pd.to_numeric(X[key], errors="coerce").to_numpy(dtype=float)
+
+
 def _targets(y: Any) -> np.ndarray:
     if y is None:
         raise ValueError("this regressor requires y to be passed, but the target y is None")
@@ -266,7 +274,7 @@ class ParametricRegressor(DriftRegressor):
         var = _variable(name, self._columns)
         assert var is not None
         if len(var) == 1:
-            values = pd.to_numeric(X[name], errors="coerce").to_numpy(dtype=float)
+            values = _column(X, name)
             if self.out_of_bounds == "clip" and name in self.column_range_:
                 values = np.clip(values, *self.column_range_[name])
             return values
@@ -449,10 +457,9 @@ class ParametricRegressor(DriftRegressor):
             var = _variable(v, self._columns)
             assert var is not None
             if len(var) == 1:
-                values = pd.to_numeric(X[v], errors="coerce").to_numpy(dtype=float)
+                values = _column(X, v)
             else:
-                a, b = (pd.to_numeric(X[f], errors="coerce").to_numpy(dtype=float)
-                        for f in var[1:])
+                a, b = (_column(X, f) for f in var[1:])
                 values = a - b if var[0] == "-" else ((a - self.factor_mean_[var[1]])
                                                       * (b - self.factor_mean_[var[2]]))
             out |= ~((values >= low) & (values <= high))
