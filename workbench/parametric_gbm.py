@@ -201,12 +201,12 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
             init.set_params(out_of_bounds=self.out_of_bounds)
         return init.fit(X, Y)
 
-    def _inputs(self, X: pd.DataFrame) -> np.ndarray:
+    def _inputs(self, X: pd.DataFrame, fitting: bool = False) -> np.ndarray:
         """The regressors' inputs: the features, by name (a frame's columns read as str),
-        clipped to their training range with ``out_of_bounds="clip"``."""
+        clipped to their training range with ``out_of_bounds="clip"`` (new rows)."""
         columns = {str(c): c for c in X.columns}
         Z = X[[columns[c] for c in self.features_]].to_numpy(dtype=float)
-        if self.out_of_bounds == "clip" and hasattr(self, "feature_range_"):
+        if self.out_of_bounds == "clip" and not fitting:
             Z = np.clip(Z, *self.feature_range_)
         return Z
 
@@ -258,9 +258,7 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
         if missing or not self.features_:
             raise ValueError(f"features {missing or '[]'} are not columns of X; columns are "
                              f"{[str(c) for c in X.columns]}")
-        if hasattr(self, "feature_range_"):
-            del self.feature_range_  # a refit: the new rows' range
-        Z = self._inputs(X)
+        Z = self._inputs(X, fitting=True)
         if not np.all(np.isfinite(Z)):
             raise ValueError(f"the features {self.features_} have missing or non-finite values")
         self.feature_range_ = np.stack([Z.min(axis=0), Z.max(axis=0)])
