@@ -32,7 +32,9 @@ Tb`` (``experiments/models/guldberg.py``, one parameter; ``outside_data.chem("tc
 data and split, the heaviest 25% by molar mass held out), features Tb and the molar mass for
 all systems. Its goal: never worse than the prior, and level with the peer (``/ peer <=
 1.05``). ``--inner`` runs every split on its training rows only, split again the same way
-(:func:`inner`): the numbers settings are chosen by.
+(:func:`inner`): the numbers settings are chosen by. ``--out-of-bounds`` sets
+``[model.parametric] out_of_bounds`` in every variant's config (the extrapolation guard,
+``"calibrated"``: ``benchmarks/decisions/extrapolation_guard.md``).
 
 Nothing is chosen on the test rows: every choice is the family's CV or the peer's on the
 training rows; every test score printed here has been seen (all of them). Paired bootstrap
@@ -146,6 +148,19 @@ def init_config(folder: Path, csv: Path, field: Field = NUCLEAR) -> Path:
     return out
 
 
+def guarded(init: Path, out_of_bounds: str | None) -> Path:
+    """``init``'s config with ``[model.parametric] out_of_bounds`` set (None: as written)."""
+    if out_of_bounds is None:
+        return init
+    head, sep, rest = init.read_text().partition("\n[model.parametric]\n")
+    body, nxt, tail = rest.partition("\n[")
+    body = "\n".join(x for x in body.split("\n") if not x.startswith("out_of_bounds"))
+    body = f'out_of_bounds = "{out_of_bounds}"\n' + body
+    init.write_text(head + sep + body + nxt + tail)
+    tomllib.loads(init.read_text())  # still TOML
+    return init
+
+
 def boost_config(init: Path) -> Path:
     """``init``'s config with :data:`BOOST_TABLE`, the parameter-space boosting candidate."""
     out = init.with_name("boost.toml")
@@ -213,7 +228,8 @@ def critical_table() -> pd.DataFrame:
 
 
 def run_split(frame: pd.DataFrame, split: str, trials: int, tmp: Path,
-              variants: Sequence[str] = VARIANTS, field: Field = NUCLEAR) -> dict:
+              variants: Sequence[str] = VARIANTS, field: Field = NUCLEAR,
+              out_of_bounds: str | None = None) -> dict:
     """Every system on one split: test MAEs, ratios, paired intervals, what CV chose."""
     from workbench.experiment.scoring.bootstrap import bootstrap_error_interval
 
@@ -225,7 +241,7 @@ def run_split(frame: pd.DataFrame, split: str, trials: int, tmp: Path,
     out = frame[[*field.features, field.target]].assign(split=np.where(test, "test", "train"))
     out.to_csv(csv, index=False)
     (folder / field.model.name).write_text(field.model.read_text())
-    init = init_config(folder, csv, field)
+    init = guarded(init_config(folder, csv, field), out_of_bounds)
     configs = {"parametric": init, "parametric_ridge": ridge_config(init),
                "parametric_boost": boost_config(init)}
     errors = {"prior": y - frame.loc[test, field.prior].to_numpy(float)}
@@ -242,7 +258,8 @@ def run_split(frame: pd.DataFrame, split: str, trials: int, tmp: Path,
     row = dict(split=split, train_rows=int((~test).sum()), test_rows=int(test.sum()), mae=mae,
                ci={k: bootstrap_error_interval(e).average for k, e in errors.items()},
                cpu_seconds=seconds, details=details, goal_ratio=GOALS[split],
-               variants=list(variants), model=str(field.model.relative_to(ROOT)))
+               variants=list(variants), model=str(field.model.relative_to(ROOT)),
+               out_of_bounds=out_of_bounds)
     for name in variants:
         row[f"{name}_over_peer"] = mae[name] / mae["peer"]
         row[f"{name}_minus_peer"] = bootstrap_error_interval(
@@ -291,6 +308,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--trials", type=int, default=50, help="the peer's Optuna trials")
     parser.add_argument("--variants", nargs="+", choices=VARIANTS, default=list(VARIANTS))
     parser.add_argument("--json", type=Path, help="also write the rows as JSON")
+    parser.add_argument("--out-of-bounds", choices=("extrapolate", "clip", "calibrated"),
+                        help="[model.parametric] out_of_bounds in every variant's config "
+                             "(default: as init writes it)")
     parser.add_argument("--inner", action="store_true",
                         help="the training rows only, split again the same way (to choose "
                              "settings; no test row is used)")
@@ -304,13 +324,15 @@ def main(argv: list[str] | None = None) -> None:
             frame = critical_table() if split == "critical" else table()
             if args.inner:
                 frame = inner(frame, split)
-            rows.append(run_split(frame, split, args.trials, Path(tmp), args.variants, field))
+            rows.append(run_split(frame, split, args.trials, Path(tmp), args.variants, field,
+                                  args.out_of_bounds))
             print(line(rows[-1]), flush=True)
     after = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
     if args.json:
         write_json(args.json, {"rows": rows, "model": str(MODEL.relative_to(ROOT)),
                                "peer_trials": args.trials, "goals": GOALS,
-                               "inner": args.inner}, before, after)
+                               "inner": args.inner, "out_of_bounds": args.out_of_bounds},
+                   before, after)
 
 
 if __name__ == "__main__":

@@ -192,3 +192,61 @@ def test_clip_evaluates_the_drift_at_the_nearest_training_point(tmp_path):
     assert tau.between(train_tau.min() - 1e-9, train_tau.max() + 1e-9).all()
     assert abs(free.corrected_parameters(far)["tau"].iloc[0]) > train_tau.max() + 1.0
     assert ParametricRegressor().out_of_bounds == "extrapolate"
+
+
+def _unit_box(n=120, seed=1):
+    """Decay with tau drifting in temp, temp uniform on [0, 1] (the training box)."""
+    rng = np.random.default_rng(seed)
+    X = pd.DataFrame({"t": rng.uniform(0, 3, n), "temp": rng.uniform(0, 1, n)})
+    tau = 1.2 + 0.6 * X["temp"].to_numpy() ** 2
+    y = 2.5 * np.exp(-X["t"].to_numpy() / tau) + 0.1 + rng.normal(0, 0.01, n)
+    return X, y
+
+
+def test_calibrated_guard_keeps_the_calibrated_model_beyond_the_box(tmp_path):
+    """out_of_bounds="calibrated": a drift fitted on temp in [0, 1] and evaluated at temp = 3
+    gives the calibrated model's prediction there, and the drift's inside the box."""
+    path = _write(tmp_path, DECAY)
+    X, y = _unit_box()
+    kw = dict(model=path, covariates={"tau": ["temp", "temp^2"]}, huber_delta=0.05,
+              alpha=0.01)
+    guard = ParametricRegressor(**kw, out_of_bounds="calibrated").fit(X, y)
+    free = ParametricRegressor(**kw).fit(X, y)
+    calibrated = ParametricRegressor(model=path, huber_delta=0.05, max_iter=0).fit(X, y)
+    far = X.iloc[:4].assign(temp=[3.0, -2.0, 0.5, 1.0 + 1e-9])
+    np.testing.assert_array_equal(guard.outside(far), [True, True, False, True])
+    np.testing.assert_allclose(guard.predict(far.iloc[[0, 1, 3]]),
+                               calibrated.predict(far.iloc[[0, 1, 3]]), rtol=1e-10)
+    np.testing.assert_allclose(guard.predict(far.iloc[[2]]), free.predict(far.iloc[[2]]))
+    np.testing.assert_allclose(guard.predict(X), free.predict(X))  # training rows: unchanged
+    # the drift alone runs off there; the guard does not
+    assert abs(free.predict(far.iloc[[0]]) - calibrated.predict(far.iloc[[0]]))[0] > 0.05
+    pd.testing.assert_frame_equal(guard.calibrated_parameters(far).iloc[[0]],
+                                  calibrated.corrected_parameters(far).iloc[[0]])
+    assert not guard.coef_jacobian(far)[[0, 1, 3]].any()
+
+
+def test_calibrated_guard_reuses_a_warm_start_only_on_the_same_rows(tmp_path):
+    path = _write(tmp_path, DECAY)
+    X, y = _unit_box()
+    est = ParametricRegressor(model=path, covariates={"tau": ["temp"]}, huber_delta=0.05,
+                              out_of_bounds="calibrated")
+    cold = clone(est).fit(X, y)
+    warm = clone(est).fit(X, y, coef_init=cold.coef_dict())
+    np.testing.assert_array_equal(warm.calibrated_offset_, cold.calibrated_offset_)
+    half = clone(est).fit(X.iloc[:60], y[:60], coef_init=cold.coef_dict())
+    np.testing.assert_allclose(half.calibrated_offset_,
+                               clone(est).fit(X.iloc[:60], y[:60]).calibrated_offset_)
+    assert not np.allclose(half.calibrated_offset_, cold.calibrated_offset_)
+    nocal = clone(est).set_params(calibrate=False).fit(X, y)  # still the calibration's
+    np.testing.assert_allclose(nocal.calibrated_offset_, cold.calibrated_offset_)
+
+
+def test_out_of_bounds_is_validated_and_cloned(tmp_path):
+    path = _write(tmp_path, DECAY)
+    X, y = _unit_box(n=60)
+    for cls in (ParametricRegressor, ParametricBoostRegressor):
+        est = cls(model=path, out_of_bounds="calibrated")
+        assert clone(est).get_params()["out_of_bounds"] == "calibrated"
+        with pytest.raises(ValueError, match="out_of_bounds.*'calibrated'"):
+            clone(est).set_params(out_of_bounds="hold").fit(X, y)

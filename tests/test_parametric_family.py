@@ -359,3 +359,17 @@ def test_the_learning_curve_fits_keep_the_targets_names():
     Y = pd.DataFrame({"eeig1": [1.0, 2.0, 3.0], "eeig2": [4.0, 5.0, 6.0]})
     fitted = AllTargets(Names(), Y).fit(pd.DataFrame({"x": [0.0, 1.0]}), [0.0, 2.0])
     assert fitted.estimator_.names_ == ["eeig1", "eeig2"] and fitted.estimator_.rows_ == 2
+
+
+def test_the_config_reaches_the_extrapolation_guard(decay_csv, tmp_path):
+    """[model.parametric] out_of_bounds = "calibrated" reaches the regressor; a bad value is
+    one error naming the key and the valid values."""
+    from workbench.experiment.runs.prepare import ConfigError, load_config, prepare
+
+    run = prepare(load_config(_decay_config(tmp_path, 'out_of_bounds = "calibrated"\n')))
+    model = run.family.build(run.config, run.dataset)
+    found = [v for k, v in model.get_params().items() if k.endswith("out_of_bounds")
+             and isinstance(v, str) and v == "calibrated"]
+    assert found, model.get_params()
+    with pytest.raises(ConfigError, match="out_of_bounds.*calibrated"):
+        load_config(_decay_config(tmp_path, 'out_of_bounds = "hold"\n'))

@@ -165,3 +165,35 @@ def test_the_config_table_makes_the_candidate(tmp_path, capsys):
     assert main(["evaluate", str(config), "--no-track", "--jobs", "1"]) != 0
     err = capsys.readouterr().err
     assert "unknown parameter-space regressor 'forest'" in err and "tree" in err
+
+
+def test_calibrated_guard_stops_the_boosted_steps_beyond_the_box():
+    """out_of_bounds="calibrated": beyond the features' training range the boosted model
+    gives the calibrated model's parameters (no drift, no boosted steps), inside it the
+    same as without the guard; "clip" clips the regressors' inputs."""
+    from workbench.parametric_boost import ParametricRegressor
+
+    X, y = _data(step=0.3)
+    init = ParametricRegressor(covariates={"tau": ["temp"]})
+    kw = dict(model=MODEL, features=FEATURES, init=init, n_estimators=20, huber_delta=0.05,
+              random_state=0)
+    guard = ParameterSpaceBoostRegressor(**kw, out_of_bounds="calibrated").fit(X, y)
+    free = ParameterSpaceBoostRegressor(**kw).fit(X, y)
+    calibrated = ParametricRegressor(model=MODEL, huber_delta=0.05, max_iter=0).fit(X, y)
+    far = X.iloc[:3].assign(temp=[X["temp"].max() + 3.0, 0.1, 0.0],
+                            humidity=[0.0, X["humidity"].min() - 1.0, 0.0])
+    np.testing.assert_allclose(guard.predict(far.iloc[:2]), calibrated.predict(far.iloc[:2]),
+                               rtol=1e-10)
+    assert np.abs(free.predict(far.iloc[:2]) - guard.predict(far.iloc[:2])).max() > 1e-3
+    np.testing.assert_allclose(guard.predict(X), free.predict(X))
+    np.testing.assert_allclose(guard.predict(far.iloc[2:]), free.predict(far.iloc[2:]))
+    staged = list(guard.staged_predict(far.iloc[:2]))
+    np.testing.assert_allclose(staged[0], staged[-1])  # no boosted step beyond the box
+    clip = ParameterSpaceBoostRegressor(**kw, out_of_bounds="clip").fit(X, y)
+    edge = far.assign(temp=far["temp"].clip(X["temp"].min(), X["temp"].max()),
+                      humidity=far["humidity"].clip(X["humidity"].min(), X["humidity"].max()))
+    np.testing.assert_allclose(clip.corrected_parameters(far).to_numpy(),
+                               clip.corrected_parameters(edge).to_numpy())
+    with pytest.raises(ValueError, match="out_of_bounds"):
+        clone(guard).set_params(out_of_bounds="hold").fit(X, y)
+    assert clone(guard).get_params()["out_of_bounds"] == "calibrated"

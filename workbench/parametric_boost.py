@@ -19,6 +19,7 @@ drifts whose covariates forward selection picks (:mod:`workbench.param_select`'s
 
 from __future__ import annotations
 
+import hashlib
 import numbers
 import os
 import time
@@ -35,6 +36,7 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .parallel import effective_n_jobs
 from .param_engine import PARAM_LOSSES, SOLVERS, DriftRegressor
+from .param_engine import drift as _drift
 from .param_select import SelectionResult, _fit_splits, _refit_select, _sliced, _splits
 from .parametric import (
     ModelError,
@@ -44,6 +46,9 @@ from .parametric import (
 )
 
 __all__ = ["ParametricBoostRegressor", "ParametricRegressor", "boost_candidate", "covariate_pool"]
+
+#: ``out_of_bounds``: what a new row beyond the training rows gets.
+OUT_OF_BOUNDS = ("extrapolate", "clip", "calibrated")
 
 #: scipy's robust losses for the calibration, by the regressor's ``loss``.
 _SCIPY_LOSS = {"squared_error": "linear", "absolute_error": "soft_l1", "huber": "huber"}
@@ -101,6 +106,14 @@ def covariate_pool(features: Sequence[str], parameters: Sequence[str], *, square
     return {p: list(names) for p in parameters}
 
 
+def _column(X: pd.DataFrame, name: str) -> np.ndarray:
+    """The column ``name`` of ``X`` as floats (a frame's columns by name, read as str)."""
+    key: Any = name
+    if name not in X.columns:
+        key = {str(c): c for c in X.columns}[name]
+    return pd.to_numeric(X[key], errors="coerce").to_numpy(dtype=float)
+
+
 def _targets(y: Any) -> np.ndarray:
     if y is None:
         raise ValueError("this regressor requires y to be passed, but the target y is None")
@@ -138,6 +151,23 @@ def _trial(model: ParametricModel, theta: np.ndarray, X: pd.DataFrame,
         return None
 
 
+def _fingerprint(X: pd.DataFrame, Y: np.ndarray) -> str:
+    """A digest of the rows a fit sees (a warm start's calibration is reused only on the
+    same rows)."""
+    digest = hashlib.blake2b(pd.util.hash_pandas_object(X, index=False).to_numpy().tobytes(),
+                             digest_size=16)
+    digest.update(np.ascontiguousarray(Y, dtype=float).tobytes())
+    return digest.hexdigest()
+
+
+class _WarmStart(dict):
+    """:meth:`ParametricRegressor.coef_dict`: the coefficients, and the fit's calibration
+    with the digest of its rows (``out_of_bounds="calibrated"`` reuses it on the same rows
+    instead of calibrating again)."""
+
+    calibration: tuple[str, np.ndarray] | None = None
+
+
 class ParametricRegressor(DriftRegressor):
     """A user's physics model with parameters calibrated and drifting linearly in covariates.
 
@@ -172,12 +202,16 @@ class ParametricRegressor(DriftRegressor):
         ``calibrate``).
     tol : float, default=1e-6
         Relative decrease of the objective below which iteration stops.
-    out_of_bounds : {"extrapolate", "clip"}, default="extrapolate"
-        ``"clip"``: the columns the covariates are made of are clipped to their training
-        range, so a new row's corrections are the drift's at the nearest point of the
-        training rows' box (the drift's squares and products do not extrapolate without
-        bound, and the parameters' corrections stay consistent with each other; clipping
-        each parameter's correction on its own would break their compensations).
+    out_of_bounds : {"extrapolate", "clip", "calibrated"}, default="extrapolate"
+        What a new row outside the box the training rows span (any covariate's column,
+        product or difference beyond its training range) gets. ``"extrapolate"``: the
+        drift's corrections there. ``"clip"``: the columns the covariates are made of are
+        clipped to their training range, so its corrections are the drift's at the nearest
+        point of the training rows' box. ``"calibrated"``: the calibrated model's
+        parameters (no drift): the drift's corrections compensate each other through the
+        model's own variables (a nucleus' mass number), which keep changing beyond the box
+        where clipped or clamped corrections no longer do; the calibrated parameters are the
+        one set fitted to all training rows at once. Rows inside the box are unchanged.
     solver : {"newton", "irls"}, default="newton"
         The Gauss-Newton weights near the optimum (:func:`~workbench.param_engine.gauss_newton`):
         the loss's curvature once an iteration gains less than 10 %, stopping where such a
@@ -197,6 +231,11 @@ class ParametricRegressor(DriftRegressor):
     n_targets_ : int
     column_range_ : dict of str -> (float, float)
         The training range of every column the covariates are made of.
+    variable_range_ : dict of str -> (float, float)
+        The training range of every covariate's column, product or difference (the box).
+    calibrated_offset_ : ndarray of shape (n_parameters,)
+        With ``out_of_bounds="calibrated"``: the calibration's offsets on the training rows
+        (computed even with ``calibrate=False``), the parameters a row outside the box gets.
     """
 
     _parameter_constraints: dict = {
@@ -209,7 +248,7 @@ class ParametricRegressor(DriftRegressor):
         "huber_delta": [Interval(numbers.Real, 0, None, closed="neither")],
         "max_iter": [Interval(numbers.Integral, 0, None, closed="left")],
         "tol": [Interval(numbers.Real, 0, None, closed="left")],
-        "out_of_bounds": [StrOptions({"extrapolate", "clip"})],
+        "out_of_bounds": [StrOptions(set(OUT_OF_BOUNDS))],
         "solver": [StrOptions(set(SOLVERS))],
     }
 
@@ -235,7 +274,7 @@ class ParametricRegressor(DriftRegressor):
         var = _variable(name, self._columns)
         assert var is not None
         if len(var) == 1:
-            values = pd.to_numeric(X[name], errors="coerce").to_numpy(dtype=float)
+            values = _column(X, name)
             if self.out_of_bounds == "clip" and name in self.column_range_:
                 values = np.clip(values, *self.column_range_[name])
             return values
@@ -262,6 +301,7 @@ class ParametricRegressor(DriftRegressor):
                         for f in var[1:]:
                             self.factor_mean_[f] = float(self._values(X, f).mean())
             self.var_mean_, self.col_mean_, self.col_scale_ = {}, {}, {}
+            self.variable_range_: dict[str, tuple[float, float]] = {}
         cache: dict[str, np.ndarray] = {}
         phis = []
         for p in self.parameter_names_:
@@ -271,6 +311,8 @@ class ParametricRegressor(DriftRegressor):
                     cache[v] = self._values(X, v)
                     if fitting:
                         self.var_mean_[v] = float(cache[v].mean())
+                        self.variable_range_[v] = (float(np.min(cache[v])),
+                                                   float(np.max(cache[v])))
                 cols.append((cache[v] - self.var_mean_[v]) ** k)
             raw = np.column_stack(cols) if cols else np.empty((n, 0))
             if not np.all(np.isfinite(raw)):
@@ -337,7 +379,9 @@ class ParametricRegressor(DriftRegressor):
             The measured targets.
         coef_init : dict, default=None
             Starting coefficients keyed by (parameter, covariate) (another fit's
-            :meth:`coef_dict`); then the calibration is skipped (a warm start).
+            :meth:`coef_dict`); then the calibration is skipped (a warm start). With
+            ``out_of_bounds="calibrated"`` a :meth:`coef_dict` of a fit on the same rows
+            also hands over its calibration; on other rows it is computed again.
 
         Returns
         -------
@@ -352,6 +396,8 @@ class ParametricRegressor(DriftRegressor):
         c = self._coef_start(coef_init, self._index)
         if coef_init is None and self.calibrate:
             c[[s.start for s in self._slices]] = self._calibrate(model, X, start, Y)
+        if self.out_of_bounds == "calibrated":
+            self.calibrated_offset_ = self._held(model, X, start, Y, c, coef_init)
         self.calibration_ = pd.DataFrame({
             "parameter": model.names,
             "start": [v if isinstance(v, str) else float(v) for v in model.parameters.values()],
@@ -362,7 +408,112 @@ class ParametricRegressor(DriftRegressor):
                         irls_fallback=False)
         return self
 
+    def _held(self, model: ParametricModel, X: pd.DataFrame, start: np.ndarray, Y: np.ndarray,
+              c: np.ndarray, coef_init: Any) -> np.ndarray:
+        """The calibrated offsets a row outside the box gets: this fit's calibration, a warm
+        start's from the same rows, or a calibration computed for it."""
+        self._rows_digest = _fingerprint(X, Y)
+        if coef_init is None and self.calibrate:
+            return c[[s.start for s in self._slices]].copy()
+        handed = getattr(coef_init, "calibration", None)
+        if handed is not None and handed[0] == self._rows_digest:
+            return np.asarray(handed[1], dtype=float).copy()
+        return self._calibrate(model, X, start, Y)
+
+    def coef_dict(self) -> dict[tuple[str, str], float]:
+        """``{(parameter, covariate): coefficient}`` (a cheap ``coef_init``); with
+        ``out_of_bounds="calibrated"`` it also carries the calibration for a fit on the
+        same rows.
+
+        Returns
+        -------
+        dict
+            ``(parameter, covariate)`` -> coefficient.
+        """
+        out = _WarmStart(super().coef_dict())
+        if hasattr(self, "calibrated_offset_") and hasattr(self, "_rows_digest"):
+            out.calibration = (self._rows_digest, self.calibrated_offset_)
+        return out
+
+    def outside(self, X: pd.DataFrame) -> np.ndarray:
+        """Tell which rows lie outside the box the training rows span.
+
+        Outside: any covariate's column, product or difference beyond its training range
+        (:attr:`variable_range_`); a model without covariates has no box.
+
+        Parameters
+        ----------
+        X : pandas.DataFrame of shape (n_samples, n_features)
+            The model's and the covariates' columns, by name.
+
+        Returns
+        -------
+        ndarray of bool, shape (n_samples,)
+        """
+        check_is_fitted(self)
+        X = _as_frame(self, X, reset=False)
+        out = np.zeros(len(X), dtype=bool)
+        for v, (low, high) in self.variable_range_.items():
+            var = _variable(v, self._columns)
+            assert var is not None
+            if len(var) == 1:
+                values = _column(X, v)
+            else:
+                a, b = (_column(X, f) for f in var[1:])
+                values = a - b if var[0] == "-" else ((a - self.factor_mean_[var[1]])
+                                                      * (b - self.factor_mean_[var[2]]))
+            out |= ~((values >= low) & (values <= high))
+        return out
+
+    def calibrated_parameters(self, X: pd.DataFrame) -> pd.DataFrame:
+        """The calibrated model's parameters per row, ``start(X) + calibrated_offset_``
+        (``out_of_bounds="calibrated"`` only).
+
+        Parameters
+        ----------
+        X : pandas.DataFrame of shape (n_samples, n_features)
+            The model's and the covariates' columns, by name.
+
+        Returns
+        -------
+        pandas.DataFrame
+            One column per parameter, indexed as ``X``.
+        """
+        check_is_fitted(self, "calibrated_offset_")
+        X = _as_frame(self, X, reset=False)
+        return pd.DataFrame(resolve_model(self.model).start(X) + self.calibrated_offset_,
+                            columns=self.parameter_names_, index=X.index)
+
     # ------------------------------------------------------------------ results
+    def _corrected(self, X: Any) -> np.ndarray:
+        """``start + drift`` per row; with ``out_of_bounds="calibrated"`` the calibrated
+        parameters on the rows outside the box."""
+        data, start, phis = self._rows(X)
+        theta = start + _drift(phis, self._coef)
+        if self.out_of_bounds == "calibrated":
+            out = self.outside(data)
+            theta[out] = start[out] + self.calibrated_offset_
+        return theta
+
+    def coef_jacobian(self, X: pd.DataFrame) -> np.ndarray:
+        """``d predict(X)[j, k] / d coef[d]`` at the fitted coefficients (zero on the rows
+        the guard gives the calibrated parameters).
+
+        Parameters
+        ----------
+        X : DataFrame
+            The rows.
+
+        Returns
+        -------
+        ndarray of shape (rows, targets, coefficients)
+            In :attr:`coef_`'s order.
+        """
+        out = super().coef_jacobian(X)
+        if self.out_of_bounds == "calibrated":
+            out[self.outside(_as_frame(self, X, reset=False))] = 0.0
+        return out
+
     def _physics(self) -> ParametricModel:
         return resolve_model(self.model)
 
@@ -487,7 +638,8 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         Print a line per selection step.
     boost : ParameterSpaceBoostRegressor, default=None
         The ``"boost"`` candidate's template (None: no such candidate); its ``model``,
-        ``loss``, ``huber_delta`` and ``random_state`` are set from these.
+        ``loss``, ``huber_delta``, ``out_of_bounds`` and ``random_state`` are set from
+        these.
 
     Attributes
     ----------
@@ -624,7 +776,8 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         if self.boost is not None:
             booster, scores["boost"] = boost_candidate(clone(self.boost).set_params(
                 model=self.model, loss=self.loss, huber_delta=self.huber_delta,
-                random_state=rs), folds, drift and clone(base).set_params(covariates=drift))[:2]
+                out_of_bounds=self.out_of_bounds, random_state=rs), folds,
+                drift and clone(base).set_params(covariates=drift))[:2]
         self.choice_ = "prior"
         for name in CANDIDATES[1:]:
             if name in scores and scores[self.choice_] - scores[name] > self.min_improvement:

@@ -38,7 +38,7 @@ from sklearn.utils.validation import check_is_fitted, has_fit_parameter
 from .bases import basis_names, make_basis
 from .param_engine import PARAM_LOSSES
 from .parametric import ParametricModel, check_model, resolve_model
-from .parametric_boost import ParametricRegressor, _as_frame, _targets, _trial
+from .parametric_boost import OUT_OF_BOUNDS, ParametricRegressor, _as_frame, _targets, _trial
 
 __all__ = ["ParameterSpaceBoostRegressor", "make_regressor"]
 
@@ -120,6 +120,14 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
     loss : {"squared_error", "absolute_error", "huber"}, default="huber"
     huber_delta : float, default=1.0
         Huber's threshold (targets' units).
+    out_of_bounds : {"extrapolate", "clip", "calibrated"}, default="extrapolate"
+        What a new row with a feature beyond its training range gets: the regressors'
+        predictions there (``"extrapolate"``: trees predict their edge leaves' values, so the
+        parameters' steps are those at the edge, applied where the model's own variables
+        have moved on); the features clipped to their training range (``"clip"``); or the
+        calibrated model's parameters, no drift and no boosted steps (``"calibrated"``:
+        ``init_``'s calibration). ``"clip"`` and ``"calibrated"`` are also set on the start
+        (a :class:`~workbench.parametric_boost.ParametricRegressor`).
     random_state : int, default=None
         Seeds the subsamples and the regressors.
 
@@ -140,6 +148,8 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
     n_iter_ : int
         Rounds fitted.
     n_targets_ : int
+    feature_range_ : ndarray of shape (2, n_features)
+        The training rows' minimum and maximum of each of :attr:`features_`.
     """
 
     _parameter_constraints: dict = {
@@ -155,6 +165,7 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
         "subsample": [Interval(numbers.Real, 0, 1, closed="right")],
         "loss": [StrOptions(set(PARAM_LOSSES))],
         "huber_delta": [Interval(numbers.Real, 0, None, closed="neither")],
+        "out_of_bounds": [StrOptions(set(OUT_OF_BOUNDS))],
         "random_state": [None, numbers.Integral],
     }
 
@@ -163,7 +174,7 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
                  features: list[str] | None = None, n_estimators: int = 100,
                  learning_rate: float = 0.1, step: str = "newton", update: str = "joint",
                  subsample: float = 1.0, loss: str = "huber", huber_delta: float = 1.0,
-                 random_state: int | None = None) -> None:
+                 out_of_bounds: str = "extrapolate", random_state: int | None = None) -> None:
         self.model = model
         self.estimator = estimator
         self.init = init
@@ -176,6 +187,7 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
         self.subsample = subsample
         self.loss = loss
         self.huber_delta = huber_delta
+        self.out_of_bounds = out_of_bounds
         self.random_state = random_state
 
     # ------------------------------------------------------------------ fitting
@@ -185,12 +197,23 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
                              "alone, pass a ParametricRegressor with covariates")
         init = (ParametricRegressor(max_iter=0) if self.init is None else clone(self.init))
         init.set_params(model=self.model, loss=self.loss, huber_delta=self.huber_delta)
+        if self.out_of_bounds != "extrapolate" and "out_of_bounds" in init.get_params():
+            init.set_params(out_of_bounds=self.out_of_bounds)
         return init.fit(X, Y)
 
-    def _inputs(self, X: pd.DataFrame) -> np.ndarray:
-        """The regressors' inputs: the features, by name (a frame's columns read as str)."""
+    def _inputs(self, X: pd.DataFrame, fitting: bool = False) -> np.ndarray:
+        """The regressors' inputs: the features, by name (a frame's columns read as str),
+        clipped to their training range with ``out_of_bounds="clip"`` (new rows)."""
         columns = {str(c): c for c in X.columns}
-        return X[[columns[c] for c in self.features_]].to_numpy(dtype=float)
+        Z = X[[columns[c] for c in self.features_]].to_numpy(dtype=float)
+        if self.out_of_bounds == "clip" and not fitting:
+            Z = np.clip(Z, *self.feature_range_)
+        return Z
+
+    def _outside(self, Z: np.ndarray) -> np.ndarray:
+        """The rows with a feature beyond its training range."""
+        low, high = self.feature_range_
+        return ~np.all((Z >= low) & (Z <= high), axis=1)
 
     def fit(self, X: Any, y: Any) -> Self:
         """Start from ``init``, then boost the parameters ``n_estimators`` rounds.
@@ -235,10 +258,15 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
         if missing or not self.features_:
             raise ValueError(f"features {missing or '[]'} are not columns of X; columns are "
                              f"{[str(c) for c in X.columns]}")
-        Z = self._inputs(X)
+        Z = self._inputs(X, fitting=True)
         if not np.all(np.isfinite(Z)):
             raise ValueError(f"the features {self.features_} have missing or non-finite values")
+        self.feature_range_ = np.stack([Z.min(axis=0), Z.max(axis=0)])
         self.init_ = self._start(X, Y)
+        if self.out_of_bounds == "calibrated" and not hasattr(self.init_, "calibrated_parameters"):
+            raise ValueError("out_of_bounds='calibrated' needs an init with "
+                             "calibrated_parameters (a ParametricRegressor), got "
+                             f"{type(self.init_).__name__}")
         self.calibration_ = self.init_.calibration_
         theta = self.init_.corrected_parameters(X).to_numpy(dtype=float)
         base = DecisionTreeRegressor(max_depth=3) if self.estimator is None else self.estimator
@@ -329,13 +357,19 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
     # ------------------------------------------------------------------ results
     def _staged_theta(self, X: pd.DataFrame) -> Iterator[np.ndarray]:
         check_is_fitted(self)
-        theta = self.init_.corrected_parameters(X).to_numpy(dtype=float)
+        theta = self.init_.corrected_parameters(X).to_numpy(dtype=float, copy=True)
         Z = self._inputs(X)
+        held = np.zeros(len(X), dtype=bool)
+        if self.out_of_bounds == "calibrated":  # beyond the box: the calibrated model
+            held = self._outside(Z)
+            if held.any():
+                theta[held] = self.init_.calibrated_parameters(X).to_numpy(dtype=float)[held]
         yield theta
         for fits, step in zip(self.estimators_, self.steps_):
             D = np.zeros_like(theta)
             for name, reg in fits.items():
                 D[:, self.parameter_names_.index(name)] = reg.predict(Z)
+            D[held] = 0.0
             theta = theta + step * D
             yield theta
 

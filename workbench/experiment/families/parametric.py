@@ -96,9 +96,11 @@ class ParametricSettings(Section):
     ``alpha_l1``, ``max_iter``: the Gauss-Newton fit's (and the calibration's loss);
     ``selection_cv``, ``selection_repeats``, ``max_steps``, ``min_improvement``: the CV
     that chooses among prior, calibrated model and drift, and the selection's.
-    ``out_of_bounds = "clip"``: a new row's covariates are clipped to their training range,
-    its corrections the drift's at the nearest training point (the default
-    ``"extrapolate"`` lets the drift's squares and products grow beyond them).
+    ``out_of_bounds``: what a new row outside the box the training rows span gets:
+    ``"calibrated"``, the calibrated model's parameters (no drift, no parameter-space
+    boosting there); ``"clip"``, its covariates clipped to their training range (the drift's
+    corrections at the nearest training point); the default ``"extrapolate"``, the drift's
+    squares and products grown beyond them.
     ``boost``: the table :class:`ParameterBoostSettings`, parameter-space boosting as a
     fourth candidate (absent: none). ``calibrate = false`` starts every fit's offsets at 0
     instead of a robust least-squares calibration, and ``solver = "irls"`` keeps IRLS
@@ -112,7 +114,7 @@ class ParametricSettings(Section):
     alpha: float = Field(default=1.0, ge=0)
     alpha_l1: float = Field(default=0.0, ge=0)
     max_iter: int = Field(default=20, ge=0, le=100_000)
-    out_of_bounds: Literal["extrapolate", "clip"] = "extrapolate"
+    out_of_bounds: Literal["extrapolate", "clip", "calibrated"] = "extrapolate"
     calibrate: bool = True
     solver: Literal["newton", "irls"] = "newton"
     start: dict[str, list[str]] = Field(default_factory=dict)
