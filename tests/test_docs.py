@@ -176,11 +176,6 @@ def _public_names():
     return out
 
 
-#: Public helpers of modules another session is editing (the parametric family's), left to
-#: it: each still fails the checks, so the test asks for its entry to go once it passes.
-PENDING = {"workbench.param_boost.product_factors", "workbench.param_engine.padded"}
-
-
 def _public_methods(names):
     """The qualified names of the public methods and properties of the classes among
     ``names``, each under the project's class that defines it (not scikit-learn's, pydantic's
@@ -216,9 +211,6 @@ def test_every_public_name_documents_its_parameters_and_returns():
     for name, obj in sorted(names.items()):
         found = [f"{name}: {code} {message}" for code, message in
                  validate(get_doc_object(obj))["errors"] if code in CHECKS]
-        if name in PENDING:
-            assert found, f"{name} passes now: remove it from PENDING"
-            continue
         problems += found
     for name in sorted(methods):
         problems += [f"{name}: {code} {message}" for code, message in

@@ -187,8 +187,22 @@ def default_library(onsite: Iterable[str], couplings: Iterable[str],
 
 
 def product_factors(name: str, variables: Container[str]) -> tuple[str, str] | None:
-    """``"a*b"`` -> ``(a, b)`` when ``a`` and ``b`` are both variables (a product
-    covariate), else None. A name that is itself a variable is not a product."""
+    """Split a product covariate's name into its two variables.
+
+    A name that is itself a variable is not a product.
+
+    Parameters
+    ----------
+    name : str
+        The covariate's name, e.g. ``"a*b"``.
+    variables : container of str
+        The variables' names.
+
+    Returns
+    -------
+    tuple of (str, str) or None
+        ``(a, b)`` when ``name`` is ``"a*b"`` and both are variables, else None.
+    """
     if name in variables:
         return None
     for k, char in enumerate(name):

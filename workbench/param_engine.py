@@ -266,8 +266,21 @@ def drift(phis: list[np.ndarray], c: np.ndarray) -> np.ndarray:
 
 
 def padded(phis: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """``phis`` as one ``(rows, P, K)`` array (zero-padded) and the flat positions of the
-    coefficients in it (:func:`_normal_equations`' ``Phi`` and ``sel``)."""
+    """Stack the parameters' covariate matrices into one zero-padded array.
+
+    Parameters
+    ----------
+    phis : list of ndarray
+        One ``(rows, K_p)`` covariate matrix per parameter.
+
+    Returns
+    -------
+    Phi : ndarray of shape (rows, P, K)
+        The matrices, each padded with zeros to the widest ``K``.
+    sel : ndarray of int
+        The flat positions of the coefficients in ``Phi``'s last two axes
+        (:func:`_normal_equations`' ``Phi`` and ``sel``).
+    """
     n, K = len(phis[0]), max(phi.shape[1] for phi in phis)
     Phi = np.zeros((n, len(phis), K))
     sel: list[int] = []
