@@ -449,6 +449,7 @@ class ParametricRegressor(DriftRegressor):
         Returns
         -------
         ndarray of bool, shape (n_samples,)
+            True where the row lies outside the training rows' box.
         """
         check_is_fitted(self)
         X = _as_frame(self, X, reset=False)
