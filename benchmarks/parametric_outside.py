@@ -32,7 +32,11 @@ Tb`` (``experiments/models/guldberg.py``, one parameter; ``outside_data.chem("tc
 data and split, the heaviest 25% by molar mass held out), features Tb and the molar mass for
 all systems. Its goal: never worse than the prior, and level with the peer (``/ peer <=
 1.05``). ``--inner`` runs every split on its training rows only, split again the same way
-(:func:`inner`): the numbers settings are chosen by.
+(:func:`inner`): the numbers settings are chosen by. ``--order COLUMN`` (e.g. ``Z``) has
+``init`` write ``[data] order_column = COLUMN``, as a user who knows the test rows lie beyond
+the training rows in that column would: every CV of the family (its choice, its selection,
+its out-of-fold priors, the stage on top) then chains forward by it, validating on the
+largest values of the training rows.
 
 Nothing is chosen on the test rows: every choice is the family's CV or the peer's on the
 training rows; every test score printed here has been seen (all of them). Paired bootstrap
@@ -136,12 +140,15 @@ def peer(frame: pd.DataFrame, test: np.ndarray, trials: int,
                                    "peer_params": fit.params}
 
 
-def init_config(folder: Path, csv: Path, field: Field = NUCLEAR) -> Path:
-    """``workbench init`` of the CSV with the model file (the new user's first config)."""
+def init_config(folder: Path, csv: Path, field: Field = NUCLEAR,
+                order: str | None = None) -> Path:
+    """``workbench init`` of the CSV with the model file (the new user's first config);
+    ``order``: its ``--order-column`` (the CV folds chain forward by it)."""
     out = folder / "init.toml"
     subprocess.run([sys.executable, "-m", "workbench.experiment.cli", "init", str(csv),
                     "--model", field.model.name, "--target", field.target, "--features",
-                    *field.features, "--split-column", "split", "--out", str(out), "--force"],
+                    *field.features, "--split-column", "split", "--out", str(out), "--force",
+                    *(["--order-column", order] if order else [])],
                    check=True, cwd=folder, capture_output=True, text=True)
     return out
 
@@ -213,7 +220,8 @@ def critical_table() -> pd.DataFrame:
 
 
 def run_split(frame: pd.DataFrame, split: str, trials: int, tmp: Path,
-              variants: Sequence[str] = VARIANTS, field: Field = NUCLEAR) -> dict:
+              variants: Sequence[str] = VARIANTS, field: Field = NUCLEAR,
+              order: str | None = None) -> dict:
     """Every system on one split: test MAEs, ratios, paired intervals, what CV chose."""
     from workbench.experiment.scoring.bootstrap import bootstrap_error_interval
 
@@ -225,7 +233,7 @@ def run_split(frame: pd.DataFrame, split: str, trials: int, tmp: Path,
     out = frame[[*field.features, field.target]].assign(split=np.where(test, "test", "train"))
     out.to_csv(csv, index=False)
     (folder / field.model.name).write_text(field.model.read_text())
-    init = init_config(folder, csv, field)
+    init = init_config(folder, csv, field, order)
     configs = {"parametric": init, "parametric_ridge": ridge_config(init),
                "parametric_boost": boost_config(init)}
     errors = {"prior": y - frame.loc[test, field.prior].to_numpy(float)}
@@ -242,7 +250,8 @@ def run_split(frame: pd.DataFrame, split: str, trials: int, tmp: Path,
     row = dict(split=split, train_rows=int((~test).sum()), test_rows=int(test.sum()), mae=mae,
                ci={k: bootstrap_error_interval(e).average for k, e in errors.items()},
                cpu_seconds=seconds, details=details, goal_ratio=GOALS[split],
-               variants=list(variants), model=str(field.model.relative_to(ROOT)))
+               variants=list(variants), model=str(field.model.relative_to(ROOT)),
+               order_column=order)
     for name in variants:
         row[f"{name}_over_peer"] = mae[name] / mae["peer"]
         row[f"{name}_minus_peer"] = bootstrap_error_interval(
@@ -294,6 +303,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--inner", action="store_true",
                         help="the training rows only, split again the same way (to choose "
                              "settings; no test row is used)")
+    parser.add_argument("--order", metavar="COLUMN", default=None,
+                        help="init's --order-column (e.g. Z): the family's CV folds chain "
+                             "forward by it")
     args = parser.parse_args(argv)
     before = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
     rows = []
@@ -304,13 +316,14 @@ def main(argv: list[str] | None = None) -> None:
             frame = critical_table() if split == "critical" else table()
             if args.inner:
                 frame = inner(frame, split)
-            rows.append(run_split(frame, split, args.trials, Path(tmp), args.variants, field))
+            rows.append(run_split(frame, split, args.trials, Path(tmp), args.variants, field,
+                                  args.order))
             print(line(rows[-1]), flush=True)
     after = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
     if args.json:
         write_json(args.json, {"rows": rows, "model": str(MODEL.relative_to(ROOT)),
                                "peer_trials": args.trials, "goals": GOALS,
-                               "inner": args.inner}, before, after)
+                               "inner": args.inner, "order_column": args.order}, before, after)
 
 
 if __name__ == "__main__":
