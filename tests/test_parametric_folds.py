@@ -157,3 +157,26 @@ def test_a_splitter_s_folds_are_the_repeated_k_fold_s_first_repeat():
     np.testing.assert_array_equal(by_int.predict(X), by_splitter.predict(X))
     with pytest.raises(ValueError, match="n_repeats = 2"):
         ParametricBoostRegressor(cv=KFold(4), n_repeats=2, **common).fit(X, y)
+
+
+def test_the_outside_benchmark_s_order_flag_writes_the_order_column(tmp_path):
+    """benchmarks/parametric_outside.py --order Z: init's --order-column, a number that is no
+    time (the direction the test nuclei lie in) is an order column, Z still a feature."""
+    import importlib
+    import sys
+    import tomllib
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    if str(root / "benchmarks") not in sys.path:
+        sys.path.insert(0, str(root / "benchmarks"))
+    bench = importlib.import_module("parametric_outside")
+    csv = tmp_path / "nuclides.csv"
+    pd.DataFrame({"Z": np.arange(8, 28), "N": [8, 9, 10, 12] * 5,
+                  "mass_excess_MeV": np.arange(20.0),
+                  "split": ["train"] * 15 + ["test"] * 5}).to_csv(csv, index=False)
+    (tmp_path / bench.MODEL.name).write_text(bench.MODEL.read_text())
+    data = tomllib.loads(bench.init_config(tmp_path, csv, order="Z").read_text())["data"]
+    assert data["order_column"] == "Z" and data["features"] == ["Z", "N"]
+    assert "order_column" not in tomllib.loads(bench.init_config(tmp_path, csv)
+                                               .read_text())["data"]
