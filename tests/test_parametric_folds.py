@@ -180,3 +180,15 @@ def test_the_outside_benchmark_s_order_flag_writes_the_order_column(tmp_path):
     assert data["order_column"] == "Z" and data["features"] == ["Z", "N"]
     assert "order_column" not in tomllib.loads(bench.init_config(tmp_path, csv)
                                                .read_text())["data"]
+
+
+def test_the_folds_line_names_only_the_cvs_a_run_uses(tmp_path):
+    """Without a stage, the stage's folds are not named; the priors' only where the
+    out-of-fold intervals need them."""
+    config = _write(tmp_path, extra="boost_stage = false\nselection_repeats = 2\n")
+    run = prepare(load_config(config))
+    assert run.family.folds_used(run.config, run.dataset) == (  # oof intervals: the priors
+        "parametric choice 3 shuffled x 2 repeats; out-of-fold priors 3 shuffled")
+    config.write_text(config.read_text() + "[intervals]\nenabled = false\n")
+    run = prepare(load_config(config))
+    assert run.family.folds_used(run.config, run.dataset) == "3 shuffled x 2 repeats"

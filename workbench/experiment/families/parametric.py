@@ -295,15 +295,20 @@ class ParametricFamily(ModelFamily):
         """Say which folds made the choices: the stage's, the physics model's and its priors'.
 
         E.g. ``"stage 5 contiguous; parametric choice 5 shuffled; out-of-fold priors 5
-        shuffled"``, or ``"5 forward-chaining by `date`"`` for all three alike.
+        shuffled"``, or ``"5 forward-chaining by `date`"`` for all three alike; without a
+        stage (``boost_stage = false``) the choice's, and the priors' where out-of-fold
+        intervals need them.
         """
         s = cast(ParametricSettings, cfg.family_settings)
         cv = choice_cv(cfg, ds)
         choice = (describe_folds(cv) if not isinstance(cv, int) else
                   f"{cv} shuffled" + (f" x {s.selection_repeats} repeats"
                                       if s.selection_repeats > 1 else ""))
-        parts = {"stage": super().folds_used(cfg, ds), "parametric choice": choice,
-                 "out-of-fold priors": describe_folds(family_cv(cfg, ds, s.prior_cv))}
+        parts = {"parametric choice": choice}
+        if s.boost_stage:
+            parts = {"stage": super().folds_used(cfg, ds), **parts}
+        if s.boost_stage or (cfg.intervals.enabled and cfg.intervals.method == "oof"):
+            parts["out-of-fold priors"] = describe_folds(family_cv(cfg, ds, s.prior_cv))
         if len(set(parts.values())) == 1:
             return choice
         return "; ".join(f"{k} {v}" for k, v in parts.items())
