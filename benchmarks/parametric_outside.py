@@ -34,7 +34,11 @@ all systems. Its goal: never worse than the prior, and level with the peer (``/ 
 1.05``). ``--inner`` runs every split on its training rows only, split again the same way
 (:func:`inner`): the numbers settings are chosen by. ``--out-of-bounds`` sets
 ``[model.parametric] out_of_bounds`` in every variant's config (the extrapolation guard,
-``"calibrated"``: ``benchmarks/decisions/extrapolation_guard.md``).
+``"calibrated"``: ``benchmarks/decisions/extrapolation_guard.md``). ``--order COLUMN`` (e.g.
+``Z``) has ``init`` write ``[data] order_column = COLUMN``, as a user who knows the test rows
+lie beyond the training rows in that column would: every CV of the family (its choice, its
+selection, its out-of-fold priors, the stage on top) then chains forward by it, validating
+on the largest values of the training rows.
 
 Nothing is chosen on the test rows: every choice is the family's CV or the peer's on the
 training rows; every test score printed here has been seen (all of them). Paired bootstrap
@@ -138,12 +142,15 @@ def peer(frame: pd.DataFrame, test: np.ndarray, trials: int,
                                    "peer_params": fit.params}
 
 
-def init_config(folder: Path, csv: Path, field: Field = NUCLEAR) -> Path:
-    """``workbench init`` of the CSV with the model file (the new user's first config)."""
+def init_config(folder: Path, csv: Path, field: Field = NUCLEAR,
+                order: str | None = None) -> Path:
+    """``workbench init`` of the CSV with the model file (the new user's first config);
+    ``order``: its ``--order-column`` (the CV folds chain forward by it)."""
     out = folder / "init.toml"
     subprocess.run([sys.executable, "-m", "workbench.experiment.cli", "init", str(csv),
                     "--model", field.model.name, "--target", field.target, "--features",
-                    *field.features, "--split-column", "split", "--out", str(out), "--force"],
+                    *field.features, "--split-column", "split", "--out", str(out), "--force",
+                    *(["--order-column", order] if order else [])],
                    check=True, cwd=folder, capture_output=True, text=True)
     return out
 
@@ -229,7 +236,7 @@ def critical_table() -> pd.DataFrame:
 
 def run_split(frame: pd.DataFrame, split: str, trials: int, tmp: Path,
               variants: Sequence[str] = VARIANTS, field: Field = NUCLEAR,
-              out_of_bounds: str | None = None) -> dict:
+              out_of_bounds: str | None = None, order: str | None = None) -> dict:
     """Every system on one split: test MAEs, ratios, paired intervals, what CV chose."""
     from workbench.experiment.scoring.bootstrap import bootstrap_error_interval
 
@@ -241,7 +248,7 @@ def run_split(frame: pd.DataFrame, split: str, trials: int, tmp: Path,
     out = frame[[*field.features, field.target]].assign(split=np.where(test, "test", "train"))
     out.to_csv(csv, index=False)
     (folder / field.model.name).write_text(field.model.read_text())
-    init = guarded(init_config(folder, csv, field), out_of_bounds)
+    init = guarded(init_config(folder, csv, field, order), out_of_bounds)
     configs = {"parametric": init, "parametric_ridge": ridge_config(init),
                "parametric_boost": boost_config(init)}
     errors = {"prior": y - frame.loc[test, field.prior].to_numpy(float)}
@@ -259,7 +266,7 @@ def run_split(frame: pd.DataFrame, split: str, trials: int, tmp: Path,
                ci={k: bootstrap_error_interval(e).average for k, e in errors.items()},
                cpu_seconds=seconds, details=details, goal_ratio=GOALS[split],
                variants=list(variants), model=str(field.model.relative_to(ROOT)),
-               out_of_bounds=out_of_bounds)
+               out_of_bounds=out_of_bounds, order_column=order)
     for name in variants:
         row[f"{name}_over_peer"] = mae[name] / mae["peer"]
         row[f"{name}_minus_peer"] = bootstrap_error_interval(
@@ -314,6 +321,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--inner", action="store_true",
                         help="the training rows only, split again the same way (to choose "
                              "settings; no test row is used)")
+    parser.add_argument("--order", metavar="COLUMN", default=None,
+                        help="init's --order-column (e.g. Z): the family's CV folds chain "
+                             "forward by it")
     args = parser.parse_args(argv)
     before = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
     rows = []
@@ -325,14 +335,14 @@ def main(argv: list[str] | None = None) -> None:
             if args.inner:
                 frame = inner(frame, split)
             rows.append(run_split(frame, split, args.trials, Path(tmp), args.variants, field,
-                                  args.out_of_bounds))
+                                  args.out_of_bounds, args.order))
             print(line(rows[-1]), flush=True)
     after = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
     if args.json:
         write_json(args.json, {"rows": rows, "model": str(MODEL.relative_to(ROOT)),
                                "peer_trials": args.trials, "goals": GOALS,
-                               "inner": args.inner, "out_of_bounds": args.out_of_bounds},
-                   before, after)
+                               "inner": args.inner, "out_of_bounds": args.out_of_bounds,
+                               "order_column": args.order}, before, after)
 
 
 if __name__ == "__main__":

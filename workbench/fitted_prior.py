@@ -67,7 +67,9 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
     cv : int or CV splitter, default=5
         Folds of the out-of-fold prior on the training rows. Each fold refits the physics
         model with its choices fixed, warm-started from the fit on all rows where the model
-        takes ``coef_init``.
+        takes ``coef_init``. Rows no fold holds out (forward-chaining folds' earliest block)
+        take the model refitted on those rows themselves, so no later row reaches their
+        prior (their ``prior_folds_`` is -1).
     boost_stage : bool, default=True
         ``False`` fits the physics model alone (``predict`` is its prediction).
     cv_predictions : bool, default=True
@@ -99,7 +101,7 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         The out-of-fold prior on the training rows (not set when nothing needs it: no
         stage, no fallback, ``cv_predictions=False``).
     prior_folds_ : ndarray of shape (n_samples,)
-        The fold of each row in ``oof_prior_``.
+        The fold of each row in ``oof_prior_`` (-1: held out by none, fitted on itself).
     target_names_ : list of str
         The targets, in the order of the prediction's columns.
     """
@@ -168,13 +170,18 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
             return self
         model, fit_params = _refittable(self.physics_)
         splits = list(check_cv(self.cv).split(X))
+        held = np.zeros(len(X), dtype=bool)
+        for _, val in splits:
+            held[val] = True
+        never = np.flatnonzero(~held)  # e.g. the earliest rows of forward-chaining folds
+        tasks = [*splits, *([(never, never)] if len(never) else [])]
         preds = map_tasks([Task(_fold_prediction, model, fit_params, X, Y_arr, train, val)
-                           for train, val in splits], self.n_jobs)
+                           for train, val in tasks], self.n_jobs)
         oof = np.empty_like(Y_arr)
         folds = np.full(len(X), -1, dtype=int)
-        for k, ((_, val), pred) in enumerate(zip(splits, preds, strict=True)):
+        for k, ((_, val), pred) in enumerate(zip(tasks, preds, strict=True)):
             oof[val] = pred
-            folds[val] = k
+            folds[val] = k if k < len(splits) else -1
         self.prior_folds_ = folds
         if self.fallback is not None:
             control = X[list(self.fallback)].to_numpy(dtype=float)

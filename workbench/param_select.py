@@ -199,6 +199,20 @@ def _splits(n: int, cv: int, n_repeats: int,
                               random_state=random_state).split(np.arange(n)))
 
 
+def _cv_splits(X: pd.DataFrame, cv: Any, n_repeats: int,
+               random_state: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The folds of ``X``: an int ``cv`` as :func:`_splits` (repeated shuffled K-fold), or a
+    CV splitter's own (e.g. the forward-chaining
+    :class:`~workbench.selection.LabelTimeSeriesSplit`, which looks the rows up by ``X``'s
+    index); a splitter makes its folds once, so ``n_repeats`` must be 1."""
+    if isinstance(cv, numbers.Integral):
+        return _splits(len(X), int(cv), n_repeats, random_state)
+    if n_repeats != 1:
+        raise ValueError(f"n_repeats = {n_repeats} repeats shuffled K-fold; the splitter "
+                         f"{type(cv).__name__} makes its folds once: set n_repeats = 1")
+    return [(np.asarray(f), np.asarray(v)) for f, v in cv.split(X)]
+
+
 def _sliced(X: pd.DataFrame, y: np.ndarray,
             splits: list[tuple[np.ndarray, np.ndarray]]) -> list[tuple]:
     """``(X_fit, y_fit, X_val, y_val)`` of each split, sliced once."""

@@ -37,7 +37,7 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 from .parallel import effective_n_jobs
 from .param_engine import PARAM_LOSSES, SOLVERS, DriftRegressor
 from .param_engine import drift as _drift
-from .param_select import SelectionResult, _fit_splits, _refit_select, _sliced, _splits
+from .param_select import SelectionResult, _cv_splits, _fit_splits, _refit_select, _sliced
 from .parametric import (
     ModelError,
     ParametricModel,
@@ -595,7 +595,7 @@ CANDIDATES = ("prior", "calibrated", "drift", "boost")
 class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
     """A user's model calibrated, with parameter drifts chosen by CV, or neither.
 
-    ``fit`` scores on the same repeated K-fold splits of the rows it is given: the prior
+    ``fit`` scores on the same CV folds of the rows it is given (``cv``): the prior
     (the model at its start values; no fit, so its training MAE), the calibrated model
     (:class:`ParametricRegressor` without covariates) and the linear drift whose covariates
     forward selection chooses from ``start`` over ``candidates``
@@ -621,8 +621,14 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         that is no parameter's column).
     squares, products : bool, default=True
         Whether the ``"auto"`` pool has the features' squares and pairwise products.
-    cv, n_repeats : int, default=5, 1
-        The repeated K-fold splits.
+    cv : int or CV splitter, default=5
+        The folds of every choice (the covariates, the candidate, the boosting's rounds):
+        an int, ``RepeatedKFold(cv, n_repeats)`` seeded by ``random_state``; a splitter,
+        its folds of ``X`` (e.g. the forward-chaining
+        :class:`~workbench.selection.LabelTimeSeriesSplit`, which looks the rows up by
+        ``X``'s index).
+    n_repeats : int, default=1
+        The repeats of an int ``cv`` (a splitter's folds are made once: it must be 1).
     max_steps : int, default=20
         The most covariates the selection adds.
     min_improvement : float, default=1e-3
@@ -653,6 +659,8 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
     note_ : str
     selection_ : SelectionResult or None
         The forward selection (its path).
+    cv_splits_ : list of (fit, validation) index arrays
+        The folds every choice was scored on (positions into ``X``).
     cv_mae_ : float
         The winner's CV MAE.
     n_iter_ : int
@@ -666,7 +674,8 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         "features": [None, list, tuple],
         "squares": ["boolean"],
         "products": ["boolean"],
-        "cv": [Interval(numbers.Integral, 2, None, closed="left")],
+        "cv": [Interval(numbers.Integral, 2, None, closed="left"),
+               HasMethods(["split", "get_n_splits"])],
         "n_repeats": [Interval(numbers.Integral, 1, None, closed="left")],
         "max_steps": [Interval(numbers.Integral, 0, None, closed="left")],
         "min_improvement": [Interval(numbers.Real, 0, None, closed="left")],
@@ -682,7 +691,7 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
                  start: dict[str, list[str]] | None = None,
                  candidates: str | dict[str, list[str]] | None = "auto",
                  features: Sequence[str] | None = None, squares: bool = True,
-                 products: bool = True, cv: int = 5, n_repeats: int = 1, max_steps: int = 20,
+                 products: bool = True, cv: Any = 5, n_repeats: int = 1, max_steps: int = 20,
                  min_improvement: float = 1e-3, alpha: float = 1.0, alpha_l1: float = 0.0,
                  loss: str = "huber", huber_delta: float = 1.0, max_iter: int = 20,
                  tol: float = 1e-6, out_of_bounds: str = "extrapolate", calibrate: bool = True,
@@ -754,7 +763,8 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         prior_fit = clone(prior).fit(X, Y)  # also checks the model (one line per bad case)
         scores = {"prior": float(np.mean(np.abs(prior_fit.predict(X) - Y)))}
         rs = 0 if self.random_state is None else int(self.random_state)
-        folds = _sliced(X, Y, _splits(len(X), self.cv, self.n_repeats, rs))
+        self.cv_splits_ = _cv_splits(X, self.cv, self.n_repeats, rs)
+        folds = _sliced(X, Y, self.cv_splits_)
         scores["calibrated"] = float(_fit_splits(base, {}, folds, [None] * len(folds))[0])
         pool = self._pool(model, X)
         unknown = [p for p in list(pool) + list(self.start or {}) if p not in model.parameters]

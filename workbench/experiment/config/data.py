@@ -120,7 +120,8 @@ class DataConfig(Section):
         together (``[selection] groups``).
     order_column : str, default=None
         A column holding each row's place in time: dates or datetimes (``2024-03-01``,
-        ``2024-03-01T09:30:00Z``) or numbers (run numbers, epochs). Every CV fold then
+        ``2024-03-01T09:30:00Z``) or numbers (run numbers, epochs; or any number the rows
+        are ordered by, e.g. the direction the test rows extrapolate in). Every CV fold then
         chains forward (scikit-learn's ``TimeSeriesSplit``): it trains on the rows before
         the ones it holds out, and rows of one value stay on one side. Not a feature unless
         named in ``features`` too; not with ``group_column``.

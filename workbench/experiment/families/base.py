@@ -20,6 +20,7 @@ from ...design import DesignProblem, ensemble_blocks, robust_sd
 from ..config.space import SearchSpace, SpaceError
 from ..process.errors import listing
 from ..scoring.scores import ModelScores, Scores, mae, mse
+from ..splits.folds import describe_folds, selection_cv
 from .artifacts import Artifacts
 from .fitting import quiet_fit
 
@@ -227,6 +228,26 @@ class ModelFamily:
         if settings is not None:
             settings = cfg.search.sample_family(trial, settings)
         return dataclasses.replace(cfg, chosen=chosen, family_settings=settings)
+
+    def folds_used(self, cfg: ExperimentConfig, ds: Dataset) -> str:
+        """Say which CV folds made the model's choices (``evaluate``'s ``folds:`` line).
+
+        Default: BaseBoostCV's, ``[selection]``'s (:func:`~..splits.folds.selection_cv`); a
+        family with CVs of its own says theirs too.
+
+        Parameters
+        ----------
+        cfg : ExperimentConfig
+            The config.
+        ds : Dataset
+            The dataset (its order and groups).
+
+        Returns
+        -------
+        str
+            E.g. ``"5 forward-chaining by `date`"`` (:func:`~..splits.folds.describe_folds`).
+        """
+        return describe_folds(selection_cv(cfg, ds))
 
     def fixed_choices(self, model: Any) -> Any:
         """Return an unfitted copy of a fitted model that keeps the choices it made.

@@ -39,6 +39,7 @@ from ..config.schema import Section
 from ..config.toml_text import toml_string
 from ..process.errors import ConfigError
 from ..scoring.scores import ModelScores, Scores, mae, mse
+from ..splits.folds import describe_folds, family_cv
 from .artifacts import Artifacts
 from .base import ModelFamily
 from .hamiltonian_figures import parameter_corrections, selection_path_figure
@@ -95,7 +96,12 @@ class ParametricSettings(Section):
     parameter) or ``"none"`` (no drift candidate). ``loss``, ``huber_delta``, ``alpha``,
     ``alpha_l1``, ``max_iter``: the Gauss-Newton fit's (and the calibration's loss);
     ``selection_cv``, ``selection_repeats``, ``max_steps``, ``min_improvement``: the CV
-    that chooses among prior, calibrated model and drift, and the selection's.
+    that chooses among prior, calibrated model and drift, and the selection's; ``prior_cv``
+    the folds of the out-of-fold priors the stage on top trains on. Both follow the data
+    as BaseBoostCV's folds do (:func:`~..splits.folds.family_cv`): forward-chaining by
+    ``[data] order_column``, whole groups with ``[selection] groups``, else shuffled
+    K-fold; ``selection_repeats`` repeats shuffled K-fold only (above 1 with an order or
+    groups: a ConfigError).
     ``out_of_bounds``: what a new row outside the box the training rows span gets:
     ``"calibrated"``, the calibrated model's parameters (no drift, no parameter-space
     boosting there); ``"clip"``, its covariates clipped to their training range (the drift's
@@ -153,13 +159,37 @@ def make_parametric(cfg: ExperimentConfig, ds: Dataset) -> ParametricBoostRegres
     candidates: Any = (None if s.candidates == "none" else s.candidates)
     return ParametricBoostRegressor(
         model=model, start=s.start or None, candidates=candidates, features=ds.feature_names,
-        squares=s.squares, products=s.products, cv=s.selection_cv,
+        squares=s.squares, products=s.products, cv=choice_cv(cfg, ds),
         n_repeats=s.selection_repeats, max_steps=s.max_steps,
         min_improvement=float(s.min_improvement), alpha=float(s.alpha),
         alpha_l1=float(s.alpha_l1), loss=s.loss, huber_delta=float(s.huber_delta),
         max_iter=s.max_iter, out_of_bounds=s.out_of_bounds, calibrate=s.calibrate,
         solver=s.solver, random_state=cfg.random_state,
         n_jobs=cfg.n_jobs, boost=_booster(s.boost, ds.feature_names))
+
+
+def choice_cv(cfg: ExperimentConfig, ds: Dataset) -> Any:
+    """Return the physics model's ``cv``: the folds of its selection and choice.
+
+    :func:`~..splits.folds.family_cv`'s folds where they follow the data (its order or
+    groups); else ``selection_cv`` as an int, the estimator's own repeated shuffled K-fold
+    (``selection_repeats``; one repeat is the shuffled ``KFold`` ``family_cv`` makes).
+
+    Raises
+    ------
+    ConfigError
+        For ``selection_repeats`` above 1 where the folds follow the data (made once).
+    """
+    s = cast(ParametricSettings, cfg.family_settings)
+    folds = family_cv(cfg, ds, s.selection_cv)
+    if isinstance(folds, KFold):
+        return s.selection_cv
+    if s.selection_repeats > 1:
+        raise ConfigError(f"[model.parametric] selection_repeats = {s.selection_repeats} "
+                          f"repeats shuffled folds, but the folds follow the data "
+                          f"({describe_folds(folds)}) and are made once: set "
+                          f"selection_repeats = 1")
+    return folds
 
 
 def _booster(b: ParameterBoostSettings | None,
@@ -258,11 +288,32 @@ class ParametricFamily(ModelFamily):
         priors = [f"{PRIOR_PREFIX}{t}" for t in ds.target_names]
         boost = per_target_boost(cfg, ds, priors, boost_from_prior=False)
         return FittedPriorBoost(make_parametric(cfg, ds), boost, prior_prefix=PRIOR_PREFIX,
-                                cv=KFold(s.prior_cv, shuffle=True,
-                                         random_state=cfg.random_state or 0),
+                                cv=family_cv(cfg, ds, s.prior_cv),
                                 boost_stage=s.boost_stage,
                                 cv_predictions=cfg.intervals.enabled
                                 and cfg.intervals.method == "oof", n_jobs=cfg.jobs)
+
+    def folds_used(self, cfg: ExperimentConfig, ds: Dataset) -> str:
+        """Say which folds made the choices: the stage's, the physics model's and its priors'.
+
+        E.g. ``"stage 5 contiguous; parametric choice 5 shuffled; out-of-fold priors 5
+        shuffled"``, or ``"5 forward-chaining by `date`"`` for all three alike; without a
+        stage (``boost_stage = false``) the choice's, and the priors' where out-of-fold
+        intervals need them.
+        """
+        s = cast(ParametricSettings, cfg.family_settings)
+        cv = choice_cv(cfg, ds)
+        choice = (describe_folds(cv) if not isinstance(cv, int) else
+                  f"{cv} shuffled" + (f" x {s.selection_repeats} repeats"
+                                      if s.selection_repeats > 1 else ""))
+        parts = {"parametric choice": choice}
+        if s.boost_stage:
+            parts = {"stage": super().folds_used(cfg, ds), **parts}
+        if s.boost_stage or (cfg.intervals.enabled and cfg.intervals.method == "oof"):
+            parts["out-of-fold priors"] = describe_folds(family_cv(cfg, ds, s.prior_cv))
+        if len(set(parts.values())) == 1:
+            return choice
+        return "; ".join(f"{k} {v}" for k, v in parts.items())
 
     def fixed_choices(self, model: Any) -> Any:
         """Keep the physics model's choice (and selected covariates)."""

@@ -24,7 +24,6 @@ from ..scoring.bootstrap import bootstrap_test_scores
 from ..scoring.results import Result
 from ..scoring.scores import CVEstimate, mae, mse
 from ..scoring.units import unit_name
-from ..splits.folds import describe_folds, selection_cv
 from .intervals import family_model, interval_scores, interval_settings, with_intervals
 
 if TYPE_CHECKING:
@@ -221,7 +220,7 @@ def fit_and_score(cfg: ExperimentConfig, ds: Dataset, model: Any) -> tuple[Resul
                     family=family.name, targets=list(ds.target_names), n_train=len(y_train),
                     n_test=len(y_test), prior=prior, model=scores, details=details,
                     intervals=interval_settings(cfg), bootstrap=bootstrap, unit=ds.unit,
-                    folds=describe_folds(selection_cv(cfg, ds)))
+                    folds=family.folds_used(cfg, ds))
     return result, model
 
 

@@ -5,10 +5,11 @@ dataset with an order (``[data] order_column``: dates, times, run numbers) gets
 forward-chaining folds (:class:`~workbench.selection.LabelTimeSeriesSplit`, scikit-learn's
 ``TimeSeriesSplit`` over the rows sorted by it) in BaseBoostCV and BasisChoiceCV
 (``[selection]``), the learning curves, the out-of-fold intervals and a sweep's inner and
-outer folds (``[cv]``); a dataset with groups (``[selection] groups``) keeps each whole in
-the selection's folds; else plain K-fold. :func:`check_fold_settings` refuses, in one line,
-the settings whose folds cannot follow an order; :func:`describe_folds` says which folds a
-run used.
+outer folds (``[cv]``), and a family's own choices (:func:`family_cv`: the parametric
+family's covariate selection, its choice among its candidates and its out-of-fold priors); a
+dataset with groups (``[selection] groups``) keeps each whole in those folds; else plain
+K-fold. :func:`check_fold_settings` refuses, in one line, the settings whose folds cannot
+follow an order; :func:`describe_folds` says which folds a run used.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ if TYPE_CHECKING:
     from ...datasets import Dataset
     from ..config import DataConfig, ExperimentConfig
 
-__all__ = ["check_fold_settings", "curve_cv", "describe_folds",
+__all__ = ["check_fold_settings", "curve_cv", "describe_folds", "family_cv",
            "largest_curve_size", "make_folds", "outer_order_splits", "selection_cv",
            "sweep_inner_cv"]
 
@@ -107,6 +108,32 @@ def selection_cv(cfg: ExperimentConfig, ds: Dataset | None = None) -> Any:
     s = cfg.selection
     return make_folds(ds, s.cv, shuffle=s.shuffle, random_state=cfg.random_state,
                       groups=s.groups)
+
+
+def family_cv(cfg: ExperimentConfig, ds: Dataset | None, n_splits: int) -> Any:
+    """Make the folds of a family's own CV (e.g. ``[model.parametric] selection_cv``).
+
+    BaseBoostCV's semantics: forward-chaining by the dataset's order when it has one; whole
+    groups when it has groups and ``[selection] groups`` is true (the groups shuffled,
+    seeded by ``random_state``); else ``KFold(n_splits, shuffle=True)`` seeded by
+    ``random_state`` (0 when unset), a family's folds before they followed the data.
+
+    Parameters
+    ----------
+    cfg : ExperimentConfig
+        The config (``random_state``, ``[selection] groups``).
+    ds : Dataset or None
+        The dataset (its order and groups).
+    n_splits : int
+        The folds.
+
+    Returns
+    -------
+    cross-validator
+        ``LabelTimeSeriesSplit``, ``LabelGroupKFold`` or shuffled ``KFold``.
+    """
+    return make_folds(ds, n_splits, shuffle=True, random_state=cfg.random_state or 0,
+                      groups=cfg.selection.groups)
 
 
 def sweep_inner_cv(cfg: ExperimentConfig, ds: Dataset | None = None) -> Any:
