@@ -250,3 +250,39 @@ def test_out_of_bounds_is_validated_and_cloned(tmp_path):
         assert clone(est).get_params()["out_of_bounds"] == "calibrated"
         with pytest.raises(ValueError, match="out_of_bounds.*'calibrated'"):
             clone(est).set_params(out_of_bounds="hold").fit(X, y)
+
+
+# A law with a domain: y = sqrt(k) x + B is NaN for k < 0.
+ROOT = """
+import numpy as np
+
+PARAMETERS = {"k": 1.0, "B": 0.0}
+
+
+def predict(params, data):
+    return np.sqrt(params["k"]) * data["x"].to_numpy() + params["B"]
+"""
+
+
+def test_rows_the_drift_takes_outside_the_domain_get_the_calibrated_model(tmp_path):
+    """A drift of k in temp, fitted on temp in [0, 1], takes k below zero at temp = -3: that
+    row gets the calibrated model's prediction (not NaN, not an error); the others the
+    drift's. A row not finite even at the start values is one line."""
+    path = _write(tmp_path, ROOT)
+    rng = np.random.default_rng(0)
+    X = pd.DataFrame({"x": rng.uniform(1, 2, 120), "temp": rng.uniform(0, 1, 120)})
+    y = np.sqrt(0.8 + 6.0 * X["temp"].to_numpy()) * X["x"].to_numpy() + 0.1
+    drift = ParametricRegressor(model=path, covariates={"k": ["temp"]}, alpha=0.0,
+                                huber_delta=0.05).fit(X, y)
+    calibrated = ParametricRegressor(model=path, huber_delta=0.05, max_iter=0).fit(X, y)
+    new = X.iloc[:3].assign(temp=[-3.0, 0.5, 0.9])
+    assert drift.corrected_parameters(new)["k"].iloc[0] < 0  # the drift leaves the domain
+    np.testing.assert_array_equal(drift.outside_domain(new), [True, False, False])
+    pred = drift.predict(new)
+    assert np.isfinite(pred).all()
+    np.testing.assert_allclose(pred[0], calibrated.predict(new.iloc[[0]])[0], rtol=1e-10)
+    np.testing.assert_allclose(pred[1:], drift.predict(new.iloc[1:]))
+    assert not drift.outside_domain(X).any()
+    with pytest.raises(ModelError, match=r"NaN or infinite values on 1 of 2 rows even at its "
+                                         r"start values \(first rows: \[0\]\)"):
+        drift.predict(new.iloc[:2].assign(x=[np.nan, 1.0]))

@@ -373,3 +373,35 @@ def test_the_config_reaches_the_extrapolation_guard(decay_csv, tmp_path):
     assert found, model.get_params()
     with pytest.raises(ConfigError, match="out_of_bounds.*calibrated"):
         load_config(_decay_config(tmp_path, 'out_of_bounds = "hold"\n'))
+
+
+def test_test_rows_outside_the_models_domain_are_said_not_a_crash(tmp_path, capsys):
+    """A drift that takes a test row's parameter outside the model's domain (sqrt of a
+    negative k) used to end evaluate with a traceback; the row gets the calibrated model's
+    prediction and the table says how many rows did."""
+    rng = np.random.default_rng(0)
+    temp = np.concatenate([rng.uniform(0, 1, 60), [-3.0, -2.5, 0.5, 0.7]])
+    x = rng.uniform(1, 2, temp.size)
+    y = np.sqrt(np.clip(0.8 + 6.0 * temp, 0.1, None)) * x + 0.1
+    split = ["train"] * 60 + ["test"] * 4
+    pd.DataFrame({"x": x, "temp": temp, "y": y, "split": split}).to_csv(
+        tmp_path / "root.csv", index=False)
+    (tmp_path / "root.py").write_text(
+        "import numpy as np\nPARAMETERS = {'k': 1.0, 'B': 0.0}\n\n\n"
+        "def predict(params, data):\n"
+        "    return np.sqrt(params['k']) * data['x'].to_numpy() + params['B']\n")
+    config = tmp_path / "root.toml"
+    config.write_text('random_state = 0\n[data]\ncsv = "root.csv"\ntargets = ["y"]\n'
+                      'features = ["x", "temp"]\nsplit_column = "split"\n[model]\n'
+                      'family = "parametric"\n[model.parametric]\nmodel = "root.py"\n'
+                      'loss = "squared_error"\nalpha = 0.0\nmax_steps = 1\nsquares = false\n'
+                      'products = false\nboost_stage = false\nselection_cv = 3\n'
+                      'start = { k = ["temp"] }\ncandidates = "none"\n')
+    out = tmp_path / "result.json"
+    assert main(["evaluate", str(config), "--no-track", "--json", str(out), "--jobs", "1",
+                 "--no-intervals"]) == 0
+    result = json.loads(out.read_text())
+    assert result["parametric"]["outside_domain_test_rows"] == 2
+    assert np.isfinite(result["model"]["test_mae"][0])
+    assert "2 of 4 test rows: the corrected parameters leave the model's domain" in \
+        capsys.readouterr().out

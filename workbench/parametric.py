@@ -170,6 +170,51 @@ class ParametricModel:
     def _params(self, theta: np.ndarray) -> dict[str, np.ndarray]:
         return {name: theta[:, j] for j, name in enumerate(self.parameters)}
 
+    def predict_rows(self, theta: np.ndarray, data: pd.DataFrame,
+                     n_targets: int | None = None) -> np.ndarray:
+        """The model at ``theta`` on every row, NaN or infinite where it returns them.
+
+        :meth:`predict` without its check of the values: a fit's corrected parameters may
+        leave the model's domain on some rows only (a negative lifetime under a square
+        root), and the caller decides what those rows get. NumPy's floating-point warnings
+        are silenced here.
+
+        Parameters
+        ----------
+        theta : ndarray of shape (rows, parameters)
+            The parameters.
+        data : pandas.DataFrame
+            The rows.
+        n_targets : int, default=None
+            The targets expected (``None``: any).
+
+        Returns
+        -------
+        ndarray of shape (rows, targets)
+            The prediction, possibly not finite on some rows.
+
+        Raises
+        ------
+        ModelError
+            One line: the model raises or returns the wrong shape.
+        """
+        n = len(data)
+        try:
+            with np.errstate(all="ignore"):
+                out = self.predict_fn(self._params(theta), data)
+                values = np.asarray(out, dtype=float)
+        except Exception as exc:
+            raise ModelError(f"model {self.source}: predict raised {_first_line(exc)}") from None
+        if values.ndim == 1:
+            values = values[:, None]
+        if values.ndim != 2 or values.shape[0] != n or (
+                n_targets is not None and values.shape[1] != n_targets):
+            want = "(rows,) or (rows, targets)" if n_targets is None else \
+                f"({n},)" if n_targets == 1 else f"({n}, {n_targets})"
+            raise ModelError(f"model {self.source}: predict returned shape "
+                             f"{np.shape(out)}, expected {want} for {n} rows")
+        return values
+
     def predict(self, theta: np.ndarray, data: pd.DataFrame,
                 n_targets: int | None = None) -> np.ndarray:
         """The model's prediction at parameters ``theta`` (rows, parameters), shape
@@ -191,19 +236,7 @@ class ParametricModel:
             The prediction.
         """
         n = len(data)
-        try:
-            out = self.predict_fn(self._params(theta), data)
-            values = np.asarray(out, dtype=float)
-        except Exception as exc:
-            raise ModelError(f"model {self.source}: predict raised {_first_line(exc)}") from None
-        if values.ndim == 1:
-            values = values[:, None]
-        if values.ndim != 2 or values.shape[0] != n or (
-                n_targets is not None and values.shape[1] != n_targets):
-            want = "(rows,) or (rows, targets)" if n_targets is None else \
-                f"({n},)" if n_targets == 1 else f"({n}, {n_targets})"
-            raise ModelError(f"model {self.source}: predict returned shape "
-                             f"{np.shape(out)}, expected {want} for {n} rows")
+        values = self.predict_rows(theta, data, n_targets)
         bad = ~np.isfinite(values).all(axis=1)
         if bad.any():
             raise ModelError(f"model {self.source}: predict returned NaN or infinite values "

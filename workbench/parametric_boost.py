@@ -151,6 +151,15 @@ def _trial(model: ParametricModel, theta: np.ndarray, X: pd.DataFrame,
         return None
 
 
+def _predict_rows(model: Any, theta: np.ndarray, X: pd.DataFrame,
+                 n_targets: int) -> np.ndarray:
+    """``model``'s prediction at ``theta``, NaN or infinite where it returns them
+    (:meth:`~workbench.parametric.ParametricModel.predict_rows`; a model object without
+    that method, such as a spectrum that is always finite, through its ``predict``)."""
+    rows = getattr(model, "predict_rows", None)
+    return np.array((rows or model.predict)(theta, X, n_targets), dtype=float)
+
+
 def _fingerprint(X: pd.DataFrame, Y: np.ndarray) -> str:
     """A digest of the rows a fit sees (a warm start's calibration is reused only on the
     same rows)."""
@@ -542,8 +551,57 @@ class ParametricRegressor(DriftRegressor):
         """
         model = resolve_model(self.model)
         X = _as_frame(self, X, reset=False)
-        out = model.predict(self._corrected(X), X, self.n_targets_)
+        out = self._in_domain(model, X, self._corrected(X))[0]
         return out[:, 0] if self._y_1d else out
+
+    def outside_domain(self, X: pd.DataFrame) -> np.ndarray:
+        """Tell on which rows the corrected parameters leave the model's domain.
+
+        There the model returns NaN or infinite values (a drift that takes a lifetime
+        below zero under a square root, say), and :meth:`predict` gives those rows the
+        model at its calibrated parameters (the calibration's offsets, or a warm start's
+        intercepts), else at its start values.
+
+        Parameters
+        ----------
+        X : pandas.DataFrame of shape (n_samples, n_features)
+            The model's and the covariates' columns, by name.
+
+        Returns
+        -------
+        ndarray of bool, shape (n_samples,)
+            True where the corrected model is not finite.
+        """
+        model = resolve_model(self.model)
+        X = _as_frame(self, X, reset=False)
+        return self._in_domain(model, X, self._corrected(X))[1]
+
+    def _in_domain(self, model: ParametricModel, X: pd.DataFrame,
+                   theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The model at ``theta``, and where it is not finite, at the calibrated parameters,
+        else at the start values; and the rows so replaced. A row not finite even at its
+        start values is a :class:`ModelError`."""
+        values = _predict_rows(model, theta, X, self.n_targets_)
+        replaced = ~np.isfinite(values).all(axis=1)
+        rows = np.flatnonzero(replaced)
+        if rows.size:
+            start = model.start(X.iloc[rows])
+            offsets = self.calibration_["offset"].to_numpy(dtype=float)
+            pending = np.ones(rows.size, dtype=bool)
+            for fallback in (start + offsets, start):
+                idx = np.flatnonzero(pending)
+                sub = _predict_rows(model, fallback[idx], X.iloc[rows[idx]], self.n_targets_)
+                ok = np.isfinite(sub).all(axis=1)
+                values[rows[idx[ok]]] = sub[ok]
+                pending[idx[ok]] = False
+                if not pending.any():
+                    break
+            if pending.any():
+                bad = rows[pending]
+                raise ModelError(f"model {model.source}: predict returned NaN or infinite "
+                                 f"values on {bad.size} of {len(X)} rows even at its start "
+                                 f"values (first rows: {bad[:5].tolist()})")
+        return values, replaced
 
     def corrected_parameters(self, X: pd.DataFrame) -> pd.DataFrame:
         """``start(X) + delta(X)`` per row, one column per parameter.

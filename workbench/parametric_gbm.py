@@ -38,7 +38,14 @@ from sklearn.utils.validation import check_is_fitted, has_fit_parameter
 from .bases import basis_names, make_basis
 from .param_engine import PARAM_LOSSES
 from .parametric import ParametricModel, check_model, resolve_model
-from .parametric_boost import OUT_OF_BOUNDS, ParametricRegressor, _as_frame, _targets, _trial
+from .parametric_boost import (
+    OUT_OF_BOUNDS,
+    ParametricRegressor,
+    _as_frame,
+    _predict_rows,
+    _targets,
+    _trial,
+)
 
 __all__ = ["ParameterSpaceBoostRegressor", "make_regressor"]
 
@@ -374,7 +381,12 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
             yield theta
 
     def _out(self, theta: np.ndarray, X: pd.DataFrame) -> np.ndarray:
-        out = resolve_model(self.model).predict(theta, X, self.n_targets_)
+        """The model at ``theta``; rows where it is not finite (the boosted parameters left
+        the model's domain) get the start model's prediction (:attr:`init_`'s)."""
+        out = _predict_rows(resolve_model(self.model), theta, X, self.n_targets_)
+        bad = np.flatnonzero(~np.isfinite(out).all(axis=1))
+        if bad.size:
+            out[bad] = np.reshape(self.init_.predict(X.iloc[bad]), (bad.size, -1))
         return out[:, 0] if self._y_1d else out
 
     def staged_predict(self, X: Any) -> Iterator[np.ndarray]:

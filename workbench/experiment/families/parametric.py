@@ -365,7 +365,16 @@ class ParametricFamily(ModelFamily):
             sel = physics.selection_
             info["selection"] = {"cv_mae": sel.cv_mae, "steps": len(sel.path) - 1,
                                  "path": _records(sel.path), "seconds": sel.seconds}
-        return prior, scores, {"parametric": info}
+        details: dict[str, Any] = {"parametric": info}
+        if hasattr(regressor, "outside_domain"):  # not the parameter-space boost's
+            outside = int(regressor.outside_domain(_frame(ds).loc[ds.test_index]).sum())
+            info["outside_domain_test_rows"] = outside
+            if outside:
+                details["notes"] = [
+                    f"{outside} of {len(ds.test_index)} test rows: the corrected parameters "
+                    "leave the model's domain (its prediction is not finite there); they get "
+                    "the calibrated model's prediction"]
+        return prior, scores, details
 
     def begin_artifacts(self, cfg: ExperimentConfig, ds: Dataset, model: Any, setting: str,
                         quick: bool = False) -> Callable[..., Artifacts]:

@@ -349,6 +349,7 @@ def format_table(result: Result) -> str:
                      f"{model.avg('test_width'):.3f}; CV coverage "
                      f"{model.avg('cv_coverage'):.1%}, width {model.avg('cv_width'):.3f}")
     lines += choice_lines(result)
+    lines += result.details.get("notes", [])  # a family's remarks on this run
     for target, chosen in result.details.get("stages", {}).items():
         lines.append(f"{target}: each stage's basis by CV on its residuals: "
                      + " > ".join(chosen))
