@@ -286,3 +286,23 @@ def test_rows_the_drift_takes_outside_the_domain_get_the_calibrated_model(tmp_pa
     with pytest.raises(ModelError, match=r"NaN or infinite values on 1 of 2 rows even at its "
                                          r"start values \(first rows: \[0\]\)"):
         drift.predict(new.iloc[:2].assign(x=[np.nan, 1.0]))
+
+
+def test_targets_in_small_units_can_leave_the_prior(tmp_path):
+    """min_improvement is in the targets' unit, at most 1% of the prior's training MAE: a
+    rate in units of 1e-9 used to keep the prior (no gain can exceed 1e-3 there)."""
+    path = _write(tmp_path, "PARAMETERS = {'k': 1.0e-9, 'm': 3.0e-10}\n\n\n"
+                            "def predict(params, data):\n"
+                            "    return params['k'] * data['x'].to_numpy() + params['m']\n")
+    rng = np.random.default_rng(3)
+    X = pd.DataFrame({"x": rng.uniform(0.5, 2, 60), "z": rng.normal(size=60)})
+    y = 1.2e-9 * X["x"].to_numpy() * (1 + 0.1 * X["z"].to_numpy()) + 3e-10
+    est = ParametricBoostRegressor(model=path, features=["z"], max_steps=1, squares=False,
+                                   products=False, loss="squared_error", alpha=0.0,
+                                   random_state=0).fit(X, y)
+    prior_mae = est.choices_.set_index("candidate").loc["prior", "cv_mae"]
+    assert est.min_improvement_ == pytest.approx(0.01 * prior_mae)
+    assert est.choice_ == "drift"
+    assert np.mean(np.abs(est.predict(X) - y)) < 0.05 * prior_mae
+    big = clone(est).set_params(model=path).fit(X, y * 1e12)  # the same data in units of 1e-12
+    assert big.min_improvement_ == 1e-3 and big.choice_ == "drift"

@@ -646,6 +646,10 @@ class ParametricRegressor(DriftRegressor):
         return hasattr(self, "_coef")
 
 
+#: :class:`ParametricBoostRegressor`'s ``min_improvement`` is at most this share of the
+#: prior's MAE on the training rows.
+MIN_IMPROVEMENT_SHARE = 1e-2
+
 #: The candidates :class:`ParametricBoostRegressor` compares, simplest first.
 CANDIDATES = ("prior", "calibrated", "drift", "boost")
 
@@ -690,7 +694,10 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
     max_steps : int, default=20
         The most covariates the selection adds.
     min_improvement : float, default=1e-3
-        The CV MAE (targets' units) a covariate, or a more complex candidate, must gain.
+        The CV MAE (targets' units) a covariate, or a more complex candidate, must gain; at
+        most :data:`MIN_IMPROVEMENT_SHARE` of the prior's MAE on the training rows
+        (:attr:`min_improvement_`), so that targets in small units (1e-9 s) can leave the
+        prior.
     alpha, alpha_l1, loss, huber_delta, max_iter, tol, out_of_bounds, calibrate, solver
         :class:`ParametricRegressor`'s (``calibrate=False``: the calibrated candidate's and
         the drift's fits start their offsets at 0; a ``boost`` template with ``init=None``
@@ -721,6 +728,9 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         The folds every choice was scored on (positions into ``X``).
     cv_mae_ : float
         The winner's CV MAE.
+    min_improvement_ : float
+        The gain the selection and the choice asked for: ``min_improvement``, at most
+        :data:`MIN_IMPROVEMENT_SHARE` of the prior's training MAE.
     n_iter_ : int
         The winner's Gauss-Newton iterations.
     """
@@ -820,6 +830,10 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         prior = ParametricRegressor(**{**common, "max_iter": 0}, calibrate=False)
         prior_fit = clone(prior).fit(X, Y)  # also checks the model (one line per bad case)
         scores = {"prior": float(np.mean(np.abs(prior_fit.predict(X) - Y)))}
+        # in the targets' unit, but at most a share of the prior's error: a target measured
+        # in small units (1e-9 s) could otherwise never leave the prior
+        self.min_improvement_ = min(float(self.min_improvement),
+                                    MIN_IMPROVEMENT_SHARE * scores["prior"])
         rs = 0 if self.random_state is None else int(self.random_state)
         self.cv_splits_ = _cv_splits(X, self.cv, self.n_repeats, rs)
         folds = _sliced(X, Y, self.cv_splits_)
@@ -838,7 +852,7 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
             progress: Callable[[str], None] | None = print if self.verbose else None
             self.selection_ = _refit_select(X, base, current, pairs, folds,
                                             effective_n_jobs(self.n_jobs), self.max_steps,
-                                            self.min_improvement, progress, t0, common)
+                                            self.min_improvement_, progress, t0, common)
             drift = self.selection_.covariates
             scores["drift"] = float(self.selection_.cv_mae)
         booster = None
@@ -849,7 +863,7 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
                 drift and clone(base).set_params(covariates=drift))[:2]
         self.choice_ = "prior"
         for name in CANDIDATES[1:]:
-            if name in scores and scores[self.choice_] - scores[name] > self.min_improvement:
+            if name in scores and scores[self.choice_] - scores[name] > self.min_improvement_:
                 self.choice_ = name
         self.note_ = ("" if self.choice_ in ("drift", "boost") else
                       "the error is not a drift of the parameters: the drift did not beat "

@@ -96,7 +96,8 @@ class ParametricSettings(Section):
     parameter) or ``"none"`` (no drift candidate). ``loss``, ``huber_delta``, ``alpha``,
     ``alpha_l1``, ``max_iter``: the Gauss-Newton fit's (and the calibration's loss);
     ``selection_cv``, ``selection_repeats``, ``max_steps``, ``min_improvement``: the CV
-    that chooses among prior, calibrated model and drift, and the selection's; ``prior_cv``
+    that chooses among prior, calibrated model and drift, and the selection's
+    (``min_improvement`` in the targets' unit, at most 1% of the prior's training MAE); ``prior_cv``
     the folds of the out-of-fold priors the stage on top trains on. Both follow the data
     as BaseBoostCV's folds do (:func:`~..splits.folds.family_cv`): forward-chaining by
     ``[data] order_column``, whole groups with ``[selection] groups``, else shuffled

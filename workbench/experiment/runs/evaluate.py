@@ -224,8 +224,17 @@ def fit_and_score(cfg: ExperimentConfig, ds: Dataset, model: Any) -> tuple[Resul
     return result, model
 
 
-def _interval(bounds: Any) -> str:
-    return f"[{bounds[0]:.3f}, {bounds[1]:.3f}]"
+def _interval(bounds: Any, fmt: str = ".3f") -> str:
+    return f"[{bounds[0]:{fmt}}, {bounds[1]:{fmt}}]"
+
+
+def _number_format(result: Result) -> str:
+    """``".3f"`` for errors of everyday size in the targets' unit; significant digits
+    (``".4g"``) below 0.01 or from 1e6 on, where three decimals say nothing (targets in
+    seconds of 1e-9) or too much."""
+    values = np.abs(np.asarray([*result.prior.test_mae, *result.model.test_mae], dtype=float))
+    values = values[np.isfinite(values) & (values > 0)]
+    return ".3f" if not values.size or 1e-2 <= values.max() < 1e6 else ".4g"
 
 
 def _value(values: Any, j: int) -> float | None:
@@ -319,15 +328,16 @@ def format_table(result: Result) -> str:
     """
     w = max(10, *(len(t) + 2 for t in result.targets))
     rule = "-" * (w + 46)
+    f = _number_format(result)
     lines = [f"{'target':<{w}}{'prior MAE':>11}{'model MAE':>11}{'model CV MAE':>14}  selected",
              rule]
     rows = zip(result.targets, result.prior.test_mae, result.model.test_mae,
                result.model.cv_mae, result.model.selected)
     for name, p, m, c, s in rows:
-        lines.append(f"{name:<{w}}{p:>11.3f}{m:>11.3f}{c:>14.3f}  {s}")
+        lines.append(f"{name:<{w}}{p:>11{f}}{m:>11{f}}{c:>14{f}}  {s}")
     lines.append(rule)
-    lines.append(f"{'average':<{w}}{result.prior.avg('test_mae'):>11.3f}"
-                 f"{result.model.avg('test_mae'):>11.3f}{result.model.avg('cv_mae'):>14.3f}")
+    lines.append(f"{'average':<{w}}{result.prior.avg('test_mae'):>11{f}}"
+                 f"{result.model.avg('test_mae'):>11{f}}{result.model.avg('cv_mae'):>14{f}}")
     lines.append(f"test MAE in {unit_name(result.unit)}; "
                  f"wall time {result.wall_s:.1f} s")
     if result.folds:
@@ -337,17 +347,17 @@ def format_table(result: Result) -> str:
         ci_level = f"{boot['level']:.0%} " if "level" in boot else ""
         over = f" over the {boot['n_rows']} test rows" if "n_rows" in boot else ""
         lines.append(f"{ci_level}bootstrap intervals{over}, average test MAE: prior "
-                     f"{_interval(result.prior.test_mae_avg_ci)}, model "
-                     f"{_interval(result.model.test_mae_avg_ci)}, model - prior "
-                     f"{_interval(result.model.test_mae_diff_avg_ci)}")
+                     f"{_interval(result.prior.test_mae_avg_ci, f)}, model "
+                     f"{_interval(result.model.test_mae_avg_ci, f)}, model - prior "
+                     f"{_interval(result.model.test_mae_diff_avg_ci, f)}")
     if result.model.test_coverage:
         model, iv = result.model, result.intervals
         level = f"{iv['level']:.0%} " if "level" in iv else ""
         lines.append(f"{level}prediction intervals ({iv.get('method', 'conformal')}): test "
                      f"coverage {model.avg('test_coverage'):.1%} (per target "
                      f"{', '.join(f'{c:.0%}' for c in model.test_coverage)}), mean width "
-                     f"{model.avg('test_width'):.3f}; CV coverage "
-                     f"{model.avg('cv_coverage'):.1%}, width {model.avg('cv_width'):.3f}")
+                     f"{model.avg('test_width'):{f}}; CV coverage "
+                     f"{model.avg('cv_coverage'):.1%}, width {model.avg('cv_width'):{f}}")
     lines += choice_lines(result)
     lines += result.details.get("notes", [])  # a family's remarks on this run
     for target, chosen in result.details.get("stages", {}).items():
@@ -356,13 +366,13 @@ def format_table(result: Result) -> str:
     if result.repeated_cv is not None:
         r = result.repeated_cv
         lines.append(f"repeated CV on the training rows ({r.repeats} x {r.folds} folds): "
-                     f"model {r.model_mae_avg:.3f}, prior {r.prior_mae_avg:.3f}")
+                     f"model {r.model_mae_avg:{f}}, prior {r.prior_mae_avg:{f}}")
     if result.nested_cv_all is not None:
         r = result.nested_cv_all
         lines.append(f"nested CV over all {r.n_rows} rows ({r.folds} outer folds): "
-                     f"model {r.model_mae_avg:.3f}, prior {r.prior_mae_avg:.3f}")
+                     f"model {r.model_mae_avg:{f}}, prior {r.prior_mae_avg:{f}}")
     if result.sweep is not None:
         sweep = result.sweep
-        lines.append(f"nested-CV MAE: model {sweep.nested_cv_mae_avg:.3f}, prior "
-                     f"{sweep.nested_cv_prior_mae_avg:.3f} (average over targets)")
+        lines.append(f"nested-CV MAE: model {sweep.nested_cv_mae_avg:{f}}, prior "
+                     f"{sweep.nested_cv_prior_mae_avg:{f}} (average over targets)")
     return "\n".join(lines)
