@@ -57,7 +57,7 @@ def _kill_mid_trial(storage, proc, logs, timeout: float = 120) -> None:
 
     The studies are read only once a process's ``logs`` show a finished trial (before it,
     none is complete): read every 0.05 s from the processes' start, they cost this process
-    seconds of CPU while the commands import and start (tens on a loaded machine)."""
+    seconds of CPU while the commands import and start (about 4 of its 20 at load 13-16)."""
     deadline = time.monotonic() + timeout
     while not any("] trial " in log.read_text() for log in logs):
         assert proc.poll() is None and time.monotonic() < deadline, logs[0].read_text()[-3000:]

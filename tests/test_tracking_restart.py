@@ -55,7 +55,7 @@ def _kill_while_recording(server: MlflowServer, proc: subprocess.Popen, err,
     The server is asked only from the command's "tracking in" line on (written just before
     it logs the metrics): asked every 0.1 s from the command's start, the two requests a
     look makes cost the server and this process seconds of CPU while the command imports
-    and fits (about a minute of them on a loaded machine)."""
+    and fits (this process: 10.9 -> 7.9 CPU-s at load 13)."""
     deadline = time.monotonic() + timeout
     while "] tracking in " not in err.read_text():
         assert proc.poll() is None and time.monotonic() < deadline, err.read_text()[-3000:]
