@@ -51,10 +51,17 @@ def _running_trials(storage, pid: int) -> tuple[int, list]:
                   and t.user_attrs.get("worker", "").endswith(f":{pid}")]
 
 
-def _kill_mid_trial(storage, proc, timeout: float = 120) -> None:
+def _kill_mid_trial(storage, proc, logs, timeout: float = 120) -> None:
     """SIGKILL ``proc`` while it runs a trial, after some trials are complete. The process is
-    stopped (SIGSTOP) before the last look, so the trial seen running is the one killed."""
+    stopped (SIGSTOP) before the last look, so the trial seen running is the one killed.
+
+    The studies are read only once a process's ``logs`` show a finished trial (before it,
+    none is complete): read every 0.05 s from the processes' start, they cost this process
+    seconds of CPU while the commands import and start (about 4 of its 20 at load 13-16)."""
     deadline = time.monotonic() + timeout
+    while not any("] trial " in log.read_text() for log in logs):
+        assert proc.poll() is None and time.monotonic() < deadline, logs[0].read_text()[-3000:]
+        time.sleep(0.05)
     while time.monotonic() < deadline:
         done, mine = _running_trials(storage, proc.pid)
         if done >= 3 and mine:
@@ -105,7 +112,8 @@ def test_two_sweep_processes_share_postgres_and_mlflow_server(services, tmp_path
     cmd = workbench_cmd("sweep", cfg, "--storage", storage, "--tracking-uri", server.uri)
     (a, a_log), (b, b_log) = _start(cmd, tmp_path, "a"), _start(cmd, tmp_path, "b")
     try:
-        _kill_mid_trial(optuna.storages.RDBStorage(storage), a)  # a machine goes away
+        # a machine goes away
+        _kill_mid_trial(optuna.storages.RDBStorage(storage), a, [a_log, b_log])
         assert a.wait(timeout=30) == -signal.SIGKILL
         assert b.wait(timeout=240) == 0, b_log.read_text()[-3000:]
     finally:

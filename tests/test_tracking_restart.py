@@ -50,8 +50,16 @@ def _evaluate(tmp_path, uri: str, **env: str) -> tuple[subprocess.Popen, object]
 
 def _kill_while_recording(server: MlflowServer, proc: subprocess.Popen, err,
                           timeout: float = 120) -> None:
-    """SIGKILL the server once the run has its metrics: its artifacts and model are next."""
+    """SIGKILL the server once the run has its metrics: its artifacts and model are next.
+
+    The server is asked only from the command's "tracking in" line on (written just before
+    it logs the metrics): asked every 0.1 s from the command's start, the two requests a
+    look makes cost the server and this process seconds of CPU while the command imports
+    and fits (this process: 10.9 -> 7.9 CPU-s at load 13)."""
     deadline = time.monotonic() + timeout
+    while "] tracking in " not in err.read_text():
+        assert proc.poll() is None and time.monotonic() < deadline, err.read_text()[-3000:]
+        time.sleep(0.05)
     while True:
         assert proc.poll() is None and time.monotonic() < deadline, err.read_text()[-3000:]
         try:
