@@ -59,13 +59,30 @@ def test_log_link_refuses_values_that_are_not_positive():
     with pytest.raises(ValueError, match=r"the target y has 2 value\(s\) <= 0 \(rows \[3, 7\]\)"):
         _booster("log").fit(X, y)
     X2, y2 = _multiplicative(n=50)
-    model = _booster("log").fit(X2, y2)
     bad = X2.copy()
     bad.loc[5, "prior"] = 0.0
     with pytest.raises(ValueError, match=r"the prior has 1 value\(s\) <= 0 \(rows \[5\]\)"):
-        model.predict(bad)
+        _booster("log").fit(bad, y2)
     with pytest.raises(ValueError, match="link"):
         _booster("logit").fit(X2, y2)
+
+
+def test_log_link_predicts_a_new_rows_prior_that_is_not_positive():
+    """The fit refuses priors <= 0; a new row's prior may still be one (a physics model
+    computed on new data): its prediction is the same formula, prior * exp(correction), not
+    an error (it used to end evaluate with a traceback)."""
+    X, y = _multiplicative(n=50)
+    model = _booster("log").set_params(n_stages=2).fit(X, y)
+    new = X.iloc[:4].copy()
+    new["prior"] = [0.0, -2.0, 3.0, 1e-300]
+    pred = model.predict(new)
+    factor = model.predict(new.assign(prior=1.0))  # exp(correction) on each row
+    np.testing.assert_allclose(pred, new["prior"] * factor, rtol=1e-12)
+    np.testing.assert_allclose(model.predict(new.iloc[2:]), pred[2:])
+    staged = list(model.staged_predict(new))
+    assert len(staged) == 2 and all(np.isfinite(s).all() for s in staged)
+    np.testing.assert_allclose(staged[-1], pred)
+    np.testing.assert_allclose(model.predict_correction(new), pred - new["prior"], atol=1e-12)
 
 
 @pytest.mark.parametrize("link", ["identity", "log"])

@@ -492,17 +492,25 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
         """
         check_is_fitted(self)
         X_raw, X = X, validate_data(self, X, reset=False, dtype=float)
-        start = self._to_link(self.prior_model_._predict_validated(X_raw, X), "the prior")
+        prior = np.asarray(self.prior_model_._predict_validated(X_raw, X), dtype=float)
+        # the log link's fit needs positive priors; a new row's may not be: there the
+        # prediction is the same formula, prior * exp(correction), without its logarithm
+        positive = prior > 0 if self.link == "log" else np.ones(prior.shape, dtype=bool)
+        start = self._to_link(np.where(positive, prior, 1.0), "the prior")
         Z = self._basis_inputs(X)
         pred, correction = start, np.zeros(X.shape[0])
         for k, (est, coef) in enumerate(zip(self.estimators_, self.coefs_)):
             step = coef * np.asarray(est.predict(Z), dtype=float).ravel()
+            correction = correction + step
             if self.out_of_bounds == "clip":
-                correction = correction + step
                 pred = start + self._bounded(correction, k)
             else:
                 pred = pred + step
-            yield self._from_link(pred)
+            out = self._from_link(pred)
+            if not positive.all():
+                c = self._bounded(correction, k)[~positive]
+                out[~positive] = prior[~positive] * np.exp(c)
+            yield out
 
     def _bounded(self, correction: np.ndarray, stage: int) -> np.ndarray:
         """``correction`` (summed to ``stage``, link scale), clipped to the training rows'
@@ -514,7 +522,8 @@ class BaseBoostRegressor(CachedParamNames, RegressorMixin, BaseEstimator):
 
     def predict(self, X: Any) -> np.ndarray:
         """``prior(X) + sum_k coef_k * b_k(T(X))`` (``link="log"``: ``prior(X) *
-        exp(sum_k ...)``).
+        exp(sum_k ...)``, also where a new row's prior is not positive, which the log link's
+        fit refuses).
 
         Parameters
         ----------
