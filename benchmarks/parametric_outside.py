@@ -46,7 +46,10 @@ screening (``ion_random``, ``ion_heavy``), enthalpies of vaporization against Ki
 rule (``hvap_random``, ``hvap_hot``) and acentric factors against Edmister's estimate
 (``omega_random``, ``omega_hot``); each a random split (30%, seed 0) and an extrapolation split
 (the largest 25% of Z, Tb or Tc held out), their goals the issue's (``<= 0.75`` and ``<= 0.85``
-of the peer) and never worse than the prior; the peer's features are init's.
+of the peer) and never worse than the prior; the peer's features are init's. ``--link``
+sets ``[model] link`` in every variant's config (``identity``: the workaround where the
+template's log link fails on a row whose model prediction is <= 0); ``--keep-going`` records
+a split that raises and runs the next.
 
 Nothing is chosen on the test rows: every choice is the family's CV or the peer's on the
 training rows; every test score printed here has been seen (all of them). Paired bootstrap
