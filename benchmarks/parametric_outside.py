@@ -40,6 +40,17 @@ lie beyond the training rows in that column would: every CV of the family (its c
 selection, its out-of-fold priors, the stage on top) then chains forward by it, validating
 on the largest values of the training rows.
 
+Three more fields (``benchmarks/outside_fields.py``, :data:`FIELD_SPLITS`; not in the default
+``--splits``, select them by name or with ``--fields``): ionization energies against Slater's
+screening (``ion_random``, ``ion_heavy``), enthalpies of vaporization against Kistiakowsky's
+rule (``hvap_random``, ``hvap_hot``) and acentric factors against Edmister's estimate
+(``omega_random``, ``omega_hot``); each a random split (30%, seed 0) and an extrapolation split
+(the largest 25% of Z, Tb or Tc held out), their goals the issue's (``<= 0.75`` and ``<= 0.85``
+of the peer) and never worse than the prior; the peer's features are init's. ``--link``
+sets ``[model] link`` in every variant's config (``identity``: the workaround where the
+template's log link fails on a row whose model prediction is <= 0); ``--keep-going`` records
+a split that raises and runs the next.
+
 Nothing is chosen on the test rows: every choice is the family's CV or the peer's on the
 training rows; every test score printed here has been seen (all of them). Paired bootstrap
 intervals (:func:`~workbench.experiment.scoring.bootstrap.bootstrap_error_interval`) of each
@@ -90,6 +101,35 @@ NUCLEAR = Field(MODEL, TARGET, ("Z", "N"), tuple(PEER_FEATURES), "semf_mass_exce
 #: The second field: critical temperatures against Guldberg's rule (one parameter).
 CRITICAL = Field(ROOT / "experiments" / "models" / "guldberg.py", "Tc", ("Tb", "MW"),
                  ("Tb", "MW"), "guldberg_Tc")
+
+
+def _field(name: str) -> Field:
+    from outside_fields import FIELDS
+
+    info = FIELDS[name][0]
+    return Field(info.model, info.target, info.features, info.features, info.prior)
+
+
+#: The further outside fields (``benchmarks/outside_fields.py``): each split's name -> (the
+#: field, the table's split it is). Their goals are the issue's: 0.75 of the peer on the random
+#: split, 0.85 on the extrapolation split, and never worse than the prior.
+FIELD_SPLITS = {"ion_random": ("ionization", "random"), "ion_heavy": ("ionization", "ion_heavy"),
+                "hvap_random": ("vaporization", "random"),
+                "hvap_hot": ("vaporization", "hvap_hot"),
+                "omega_random": ("acentric", "random"), "omega_hot": ("acentric", "omega_hot")}
+GOALS.update({k: 0.75 if rule == "random" else 0.85 for k, (_, rule) in FIELD_SPLITS.items()})
+
+
+def field_table(split: str) -> tuple[Field, pd.DataFrame]:
+    """One of :data:`FIELD_SPLITS`: its :class:`Field` and its table, the split's test rows
+    in ``test_<split>``."""
+    from outside_fields import FIELDS
+
+    name, rule = FIELD_SPLITS[split]
+    frame = FIELDS[name][1]()
+    frame[f"test_{split}"] = frame[f"test_{rule}"]
+    return _field(name), frame
+
 
 #: The parameter-space boosting candidate (issue 42), chosen on the random split's training
 #: rows (``--inner``: 5-fold CV 0.330 MeV at 300 rounds, 0.320 at 600; depth 5: 0.380):
@@ -168,6 +208,19 @@ def guarded(init: Path, out_of_bounds: str | None) -> Path:
     return init
 
 
+def linked(init: Path, link: str | None) -> Path:
+    """``init``'s config with ``[model] link = link`` (None: as written)."""
+    if link is None:
+        return init
+    text = init.read_text()
+    head, sep, rest = text.partition("\n[model]\n")
+    body, nxt, tail = rest.partition("\n[")
+    body = "\n".join(x for x in body.split("\n") if not x.startswith("link "))
+    init.write_text(head + sep + f'link = "{link}"\n' + body + nxt + tail)
+    tomllib.loads(init.read_text())  # still TOML
+    return init
+
+
 def boost_config(init: Path) -> Path:
     """``init``'s config with :data:`BOOST_TABLE`, the parameter-space boosting candidate."""
     out = init.with_name("boost.toml")
@@ -236,7 +289,8 @@ def critical_table() -> pd.DataFrame:
 
 def run_split(frame: pd.DataFrame, split: str, trials: int, tmp: Path,
               variants: Sequence[str] = VARIANTS, field: Field = NUCLEAR,
-              out_of_bounds: str | None = None, order: str | None = None) -> dict:
+              out_of_bounds: str | None = None, order: str | None = None,
+              link: str | None = None) -> dict:
     """Every system on one split: test MAEs, ratios, paired intervals, what CV chose."""
     from workbench.experiment.scoring.bootstrap import bootstrap_error_interval
 
@@ -248,7 +302,7 @@ def run_split(frame: pd.DataFrame, split: str, trials: int, tmp: Path,
     out = frame[[*field.features, field.target]].assign(split=np.where(test, "test", "train"))
     out.to_csv(csv, index=False)
     (folder / field.model.name).write_text(field.model.read_text())
-    init = guarded(init_config(folder, csv, field, order), out_of_bounds)
+    init = linked(guarded(init_config(folder, csv, field, order), out_of_bounds), link)
     configs = {"parametric": init, "parametric_ridge": ridge_config(init),
                "parametric_boost": boost_config(init)}
     errors = {"prior": y - frame.loc[test, field.prior].to_numpy(float)}
@@ -266,7 +320,7 @@ def run_split(frame: pd.DataFrame, split: str, trials: int, tmp: Path,
                ci={k: bootstrap_error_interval(e).average for k, e in errors.items()},
                cpu_seconds=seconds, details=details, goal_ratio=GOALS[split],
                variants=list(variants), model=str(field.model.relative_to(ROOT)),
-               out_of_bounds=out_of_bounds, order_column=order)
+               out_of_bounds=out_of_bounds, order_column=order, link=link)
     for name in variants:
         row[f"{name}_over_peer"] = mae[name] / mae["peer"]
         row[f"{name}_minus_peer"] = bootstrap_error_interval(
@@ -284,6 +338,17 @@ def inner(frame: pd.DataFrame, split: str) -> pd.DataFrame:
     from sklearn.model_selection import train_test_split
 
     frame = frame[~frame[f"test_{split}"]].reset_index(drop=True)
+    if split in FIELD_SPLITS:       # the same rule as the table's (outside_fields.add_splits)
+        from outside_fields import FIELDS
+
+        name, rule = FIELD_SPLITS[split]
+        if rule == "random":
+            _, test = train_test_split(np.arange(len(frame)), test_size=0.3, random_state=1)
+            frame[f"test_{split}"] = np.isin(np.arange(len(frame)), test)
+        else:
+            col = frame[FIELDS[name][0].by]
+            frame[f"test_{split}"] = (col >= col.quantile(0.75)).to_numpy()
+        return frame
     if split == "random":
         _, test = train_test_split(np.arange(len(frame)), test_size=0.3, random_state=1)
         frame["test_random"] = np.isin(np.arange(len(frame)), test)
@@ -311,7 +376,11 @@ def main(argv: list[str] | None = None) -> None:
     from scaling import write_json
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--splits", nargs="+", choices=SPLITS, default=list(SPLITS))
+    parser.add_argument("--splits", nargs="+", choices=[*SPLITS, *FIELD_SPLITS],
+                        default=None, help=f"default: {' '.join(SPLITS)}")
+    parser.add_argument("--fields", nargs="+", choices=sorted({f for f, _ in
+                                                              FIELD_SPLITS.values()}),
+                        default=[], help="also every split of these further fields")
     parser.add_argument("--trials", type=int, default=50, help="the peer's Optuna trials")
     parser.add_argument("--variants", nargs="+", choices=VARIANTS, default=list(VARIANTS))
     parser.add_argument("--json", type=Path, help="also write the rows as JSON")
@@ -324,25 +393,46 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--order", metavar="COLUMN", default=None,
                         help="init's --order-column (e.g. Z): the family's CV folds chain "
                              "forward by it")
+    parser.add_argument("--link", choices=("identity", "log"), default=None,
+                        help="[model] link in every variant's config (default: as init "
+                             "writes it, CV between both)")
+    parser.add_argument("--keep-going", action="store_true",
+                        help="a split whose run raises is recorded (its error) and the next "
+                             "one runs")
     args = parser.parse_args(argv)
+    extra = [k for k, (f, _) in FIELD_SPLITS.items() if f in args.fields]
+    args.splits = [*(args.splits or ([] if extra else SPLITS)),
+                   *(k for k in extra if k not in (args.splits or []))]
     before = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for split in args.splits:
             print(f"{split}: ...", flush=True)
-            field = CRITICAL if split == "critical" else NUCLEAR
-            frame = critical_table() if split == "critical" else table()
+            if split in FIELD_SPLITS:
+                field, frame = field_table(split)
+            else:
+                field = CRITICAL if split == "critical" else NUCLEAR
+                frame = critical_table() if split == "critical" else table()
             if args.inner:
                 frame = inner(frame, split)
-            rows.append(run_split(frame, split, args.trials, Path(tmp), args.variants, field,
-                                  args.out_of_bounds, args.order))
+            try:
+                rows.append(run_split(frame, split, args.trials, Path(tmp), args.variants,
+                                      field, args.out_of_bounds, args.order, args.link))
+            except Exception as exc:  # noqa: BLE001 - recorded, the next split runs
+                if not args.keep_going:
+                    raise
+                rows.append({"split": split, "error": f"{type(exc).__name__}: {exc}",
+                             "variants": list(args.variants), "link": args.link})
+                print(f"{split}: {rows[-1]['error']}", flush=True)
+                continue
             print(line(rows[-1]), flush=True)
     after = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
     if args.json:
         write_json(args.json, {"rows": rows, "model": str(MODEL.relative_to(ROOT)),
                                "peer_trials": args.trials, "goals": GOALS,
                                "inner": args.inner, "out_of_bounds": args.out_of_bounds,
-                               "order_column": args.order}, before, after)
+                               "order_column": args.order, "link": args.link},
+                   before, after)
 
 
 if __name__ == "__main__":
