@@ -402,6 +402,9 @@ def test_test_rows_outside_the_models_domain_are_said_not_a_crash(tmp_path, caps
                  "--no-intervals"]) == 0
     result = json.loads(out.read_text())
     assert result["parametric"]["outside_domain_test_rows"] == 2
+    assert result["parametric"]["outside_box_test_rows"] == 2  # temp -3 and -2.5
     assert np.isfinite(result["model"]["test_mae"][0])
-    assert "2 of 4 test rows: the corrected parameters leave the model's domain" in \
-        capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "2 of 4 test rows: the corrected parameters leave the model's domain" in printed
+    assert ("2 of 4 test rows lie outside the box the training rows' covariates span: the "
+            "drift extrapolates there") in printed

@@ -241,6 +241,30 @@ def _computed_prior(cfg: ExperimentConfig) -> bool:
     return cfg.data.source == "csv" and cfg.data.prior is None
 
 
+def _test_row_notes(regressor: Any, X_test: pd.DataFrame, info: dict[str, Any]) -> list[str]:
+    """Count the test rows outside the training rows' covariate box and those whose
+    corrected parameters leave the model's domain (into ``info``); a line for each kind
+    that occurs. Only the rows' features are used, never their targets."""
+    n, notes = len(X_test), []
+    beyond = int(regressor.outside(X_test).sum())
+    info["outside_box_test_rows"] = beyond
+    if beyond:
+        there = ("they get the calibrated model's parameters (out_of_bounds = \"calibrated\")"
+                 if regressor.out_of_bounds == "calibrated" else
+                 "the drift is clipped to the box there" if regressor.out_of_bounds == "clip"
+                 else "the drift extrapolates there; [model.parametric] out_of_bounds = "
+                 "\"calibrated\" would keep the calibrated model")
+        notes.append(f"{beyond} of {n} test rows lie outside the box the training rows' "
+                     f"covariates span: {there}")
+    outside = int(regressor.outside_domain(X_test).sum())
+    info["outside_domain_test_rows"] = outside
+    if outside:
+        notes.append(f"{outside} of {n} test rows: the corrected parameters leave the model's "
+                     "domain (its prediction is not finite there); they get the calibrated "
+                     "model's prediction")
+    return notes
+
+
 def _records(table: pd.DataFrame) -> list[dict[str, Any]]:
     return table.astype(object).where(table.notna(), None).to_dict(orient="records")
 
@@ -368,13 +392,7 @@ class ParametricFamily(ModelFamily):
                                  "path": _records(sel.path), "seconds": sel.seconds}
         details: dict[str, Any] = {"parametric": info}
         if hasattr(regressor, "outside_domain"):  # not the parameter-space boost's
-            outside = int(regressor.outside_domain(_frame(ds).loc[ds.test_index]).sum())
-            info["outside_domain_test_rows"] = outside
-            if outside:
-                details["notes"] = [
-                    f"{outside} of {len(ds.test_index)} test rows: the corrected parameters "
-                    "leave the model's domain (its prediction is not finite there); they get "
-                    "the calibrated model's prediction"]
+            details["notes"] = _test_row_notes(regressor, _frame(ds).loc[ds.test_index], info)
         return prior, scores, details
 
     def begin_artifacts(self, cfg: ExperimentConfig, ds: Dataset, model: Any, setting: str,
