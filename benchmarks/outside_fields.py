@@ -33,10 +33,11 @@ pinned sha256 and cached under ``~/.cache/workbench/<name>``, as ``outside_data.
   ``experiments/models/edmister.py``). Features Tb, Tc and Pc. The vapour-pressure curve's
   curvature, which the two-point Clausius-Clapeyron line ignores, grows with theta: a drift.
 
-Splits (``benchmarks/decisions/outside_fields_splits.md``, fixed before any model saw the data): ``random`` (30% of
-the rows held out, seed 0) and one extrapolation split each, the 25% of rows with the
-largest value of one column held out: ``ion_heavy`` (Z), ``hvap_hot`` (Tb), ``omega_hot``
-(Tc). Each table's rows are sorted by a stable key before the random split.
+Splits (``benchmarks/decisions/outside_fields_splits.md``, fixed before any model saw the
+data): ``random`` (30% of the rows held out, seed 0) and one extrapolation split each, the
+25% of rows with the largest value of one column held out: ``ion_heavy`` (Z), ``hvap_hot``
+(Tb), ``omega_hot`` (Tc). Each table's rows are sorted by a stable key before the random
+split.
 """
 
 from __future__ import annotations
