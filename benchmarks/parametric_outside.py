@@ -300,7 +300,8 @@ def run_split(frame: pd.DataFrame, split: str, trials: int, tmp: Path,
         t0 = time.process_time()
         pred, details[name] = family(configs[name])
         errors[name], seconds[name] = y - pred, time.process_time() - t0
-        print(f"  {split} {name}: {np.mean(np.abs(errors[name])):.4f}", flush=True)
+        print(f"  {split} {name}: {np.mean(np.abs(errors[name])):.4f} "
+              f"({seconds[name]:.1f} CPU-s)", flush=True)
     mae = {k: float(np.mean(np.abs(e))) for k, e in errors.items()}
     row = dict(split=split, train_rows=int((~test).sum()), test_rows=int(test.sum()), mae=mae,
                ci={k: bootstrap_error_interval(e).average for k, e in errors.items()},
