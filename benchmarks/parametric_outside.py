@@ -14,11 +14,21 @@ no ``jacobian``). Three splits: ``random`` (30% of the nuclides held out, seed 0
   LightGBM tuned by CV, 50 trials) boosted from that calibrated prediction, features Z, N,
   A, the asymmetry (N-Z)/A and the parities of Z and N;
 * ``parametric``: what a new user gets: ``workbench init nuclides.csv --model
-  liquid_drop.py --target mass_excess_MeV --features Z N --split-column split`` writes the
+  liquid_drop.py --target mass_excess_MeV --features Z N A asymmetry Z_odd N_odd
+  --split-column split`` (the peer's features: the user hands over all of them) writes the
   config (the template ``parametric.toml``: the family's CV choice among prior, calibrated
-  model and linear drifts of the parameters in Z, N, their squares and product, then the
-  generic template's output-space stage on top, a ridge stage or LightGBM settings drawn
-  from the peer's space, chosen by CV and kept where CV says so), then ``evaluate`` of it;
+  model and linear drifts of the parameters in the features, their squares and products
+  chosen by forward selection, then the generic template's output-space stage on top, a
+  ridge stage or LightGBM settings drawn from the peer's space, chosen by CV and kept where
+  CV says so), then ``evaluate`` of it;
+* ``parametric_narrow``: the same with ``init --features Z N`` (the protocol before the
+  feature-parity fix, ``benchmarks/decisions/ridge_drift.md``: the stage on top never saw
+  the parities); ``parametric_pool``: all features, but the drift's pool a ``[model.parametric]
+  candidates`` table of Z, N, their squares and product (``Field.pool``);
+* ``parametric_ridge_drift`` / ``parametric_both``: ``parametric`` with ``[model.parametric]
+  drift = "ridge"`` (every parameter drifts in the whole pool at once, a ridge penalty chosen
+  by CV, no selection: issue 42's quick check) / ``"both"`` (forward and ridge drifts, CV
+  choosing);
 * ``parametric_ridge``: the same config with the template's former stage (a ridge stage
   alone, ``hamiltonian.toml``'s), which cannot follow the shell structure this formula
   misses: it shows what the drift of the parameters alone gives here;
