@@ -67,7 +67,8 @@ class ParameterBoostSettings(Section):
     ``"newton"`` (curvature-weighted) or ``"gradient"``, ``update`` ``"joint"`` (every
     parameter each round) or ``"greedy"`` (the best one), ``subsample`` the rows each round
     sees, ``parameters`` the parameters boosted (empty: all), ``start`` ``"calibrated"`` or
-    ``"drift"`` (the linear drift forward selection chose, where there is one).
+    ``"drift"`` (the linear drift, where there is one: with ``drift = "both"`` the one,
+    forward or ridge, that CV scored best).
     """
 
     regressor: str = "tree"
