@@ -152,8 +152,8 @@ def test_a_ridge_drift_through_evaluate(decay_csv, tmp_path):
     ridge = pd.read_csv(tmp_path / "tables" / "ridge_path.csv")
     assert ridge["chosen"].sum() == 1
     assert result["model"]["test_mae"][0] < 0.2 * result["prior"]["test_mae"][0]
-    assert main(["evaluate", str(config), "--no-track", "--set",
-                 'model.parametric.drift="lasso"']) != 0
+    for bad in ('model.parametric.drift="lasso"', "model.parametric.ridge_alphas=[-1.0]"):
+        assert main(["evaluate", str(config), "--no-track", "--set", bad]) != 0
 
 
 SMALL = {"n_jobs": 1, "max_steps": 1, "selection_cv": 3, "boost_stage": False}

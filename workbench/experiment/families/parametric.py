@@ -21,6 +21,7 @@ selection path; a tracked run adds a learning curve and SHAP summaries of the co
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -141,6 +142,13 @@ class ParametricSettings(Section):
     boost_stage: bool = True
     prior_cv: int = Field(default=5, ge=2, le=10_000)
     boost: ParameterBoostSettings | None = None
+
+    @field_validator("ridge_alphas")
+    @classmethod
+    def _penalties(cls, value: list[float]) -> list[float]:
+        if any(not math.isfinite(a) or a < 0 for a in value):
+            raise ValueError("every ridge penalty must be finite and >= 0")
+        return value
 
 
 def model_path(cfg: ExperimentConfig, settings: ParametricSettings) -> Path:
