@@ -14,11 +14,21 @@ no ``jacobian``). Three splits: ``random`` (30% of the nuclides held out, seed 0
   LightGBM tuned by CV, 50 trials) boosted from that calibrated prediction, features Z, N,
   A, the asymmetry (N-Z)/A and the parities of Z and N;
 * ``parametric``: what a new user gets: ``workbench init nuclides.csv --model
-  liquid_drop.py --target mass_excess_MeV --features Z N --split-column split`` writes the
+  liquid_drop.py --target mass_excess_MeV --features Z N A asymmetry Z_odd N_odd
+  --split-column split`` (the peer's features: the user hands over all of them) writes the
   config (the template ``parametric.toml``: the family's CV choice among prior, calibrated
-  model and linear drifts of the parameters in Z, N, their squares and product, then the
-  generic template's output-space stage on top, a ridge stage or LightGBM settings drawn
-  from the peer's space, chosen by CV and kept where CV says so), then ``evaluate`` of it;
+  model and linear drifts of the parameters in the features, their squares and products
+  chosen by forward selection, then the generic template's output-space stage on top, a
+  ridge stage or LightGBM settings drawn from the peer's space, chosen by CV and kept where
+  CV says so), then ``evaluate`` of it;
+* ``parametric_narrow``: the same with ``init --features Z N`` (the protocol before the
+  feature-parity fix, ``benchmarks/decisions/ridge_drift.md``: the stage on top never saw
+  the parities); ``parametric_pool``: all features, but the drift's pool a ``[model.parametric]
+  candidates`` table of Z, N, their squares and product (``Field.pool``);
+* ``parametric_ridge_drift`` / ``parametric_both``: ``parametric`` with ``[model.parametric]
+  drift = "ridge"`` (every parameter drifts in the whole pool at once, a ridge penalty chosen
+  by CV, no selection: issue 42's quick check) / ``"both"`` (forward and ridge drifts, CV
+  choosing);
 * ``parametric_ridge``: the same config with the template's former stage (a ridge stage
   alone, ``hamiltonian.toml``'s), which cannot follow the shell structure this formula
   misses: it shows what the drift of the parameters alone gives here;
@@ -82,7 +92,8 @@ TARGET = "mass_excess_MeV"
 PEER_FEATURES = ["Z", "N", "A", "asymmetry", "Z_odd", "N_odd"]
 GOALS = {"random": 0.75, "far": 0.85, "heavy": 0.85, "critical": 1.05}
 SPLITS = ("random", "far", "heavy", "critical")
-VARIANTS = ("parametric", "parametric_ridge", "parametric_boost")
+VARIANTS = ("parametric", "parametric_ridge", "parametric_boost", "parametric_narrow",
+            "parametric_pool", "parametric_ridge_drift", "parametric_both")
 
 
 @dataclass(frozen=True)
@@ -95,9 +106,14 @@ class Field:
     features: tuple[str, ...]
     peer_features: tuple[str, ...]
     prior: str
+    #: The small drift pool of ``parametric_narrow`` / ``parametric_pool`` (empty: features).
+    pool: tuple[str, ...] = ()
 
 
-NUCLEAR = Field(MODEL, TARGET, ("Z", "N"), tuple(PEER_FEATURES), "semf_mass_excess_MeV")
+#: ``init`` gets the peer's features (feature parity: the user hands over all of them;
+#: ``benchmarks/decisions/ridge_drift.md``); ``parametric_narrow`` the former Z, N only.
+NUCLEAR = Field(MODEL, TARGET, tuple(PEER_FEATURES), tuple(PEER_FEATURES),
+                "semf_mass_excess_MeV", pool=("Z", "N"))
 #: The second field: critical temperatures against Guldberg's rule (one parameter).
 CRITICAL = Field(ROOT / "experiments" / "models" / "guldberg.py", "Tc", ("Tb", "MW"),
                  ("Tb", "MW"), "guldberg_Tc")
@@ -183,13 +199,16 @@ def peer(frame: pd.DataFrame, test: np.ndarray, trials: int,
 
 
 def init_config(folder: Path, csv: Path, field: Field = NUCLEAR,
-                order: str | None = None) -> Path:
+                order: str | None = None, features: Sequence[str] | None = None,
+                name: str = "init.toml") -> Path:
     """``workbench init`` of the CSV with the model file (the new user's first config);
-    ``order``: its ``--order-column`` (the CV folds chain forward by it)."""
-    out = folder / "init.toml"
+    ``order``: its ``--order-column`` (the CV folds chain forward by it); ``features``:
+    the features it names (None: the field's)."""
+    out = folder / name
     subprocess.run([sys.executable, "-m", "workbench.experiment.cli", "init", str(csv),
                     "--model", field.model.name, "--target", field.target, "--features",
-                    *field.features, "--split-column", "split", "--out", str(out), "--force",
+                    *(features or field.features), "--split-column", "split", "--out",
+                    str(out), "--force",
                     *(["--order-column", order] if order else [])],
                    check=True, cwd=folder, capture_output=True, text=True)
     return out
@@ -219,6 +238,27 @@ def linked(init: Path, link: str | None) -> Path:
     init.write_text(head + sep + f'link = "{link}"\n' + body + nxt + tail)
     tomllib.loads(init.read_text())  # still TOML
     return init
+def with_keys(init: Path, name: str, **keys: str) -> Path:
+    """A copy of ``init`` named ``name`` with ``[model.parametric]`` keys set (TOML values)."""
+    head, sep, rest = init.read_text().partition("\n[model.parametric]\n")
+    body, nxt, tail = rest.partition("\n[")
+    body = "\n".join(x for x in body.split("\n")
+                     if not any(x.startswith(f"{k} ") or x.startswith(f"{k}=") for k in keys))
+    body = "".join(f"{k} = {v}\n" for k, v in keys.items()) + body
+    out = init.with_name(name)
+    out.write_text(head + sep + body + nxt + tail)
+    tomllib.loads(out.read_text())  # still TOML
+    return out
+
+
+def pool_table(field: Field) -> str:
+    """``candidates``: every parameter drifts in the field's small pool (its squares, products)."""
+    from workbench.parametric import load_model
+    from workbench.parametric_boost import covariate_pool
+
+    pool = covariate_pool(field.pool or field.features, load_model(field.model).names)
+    return "{ " + ", ".join(f"{p} = [{', '.join(repr(c) for c in v)}]"
+                            for p, v in pool.items()) + " }"
 
 
 def boost_config(init: Path) -> Path:
@@ -274,7 +314,8 @@ def family(config: Path) -> tuple[np.ndarray, dict]:
                   "coefficients": info.get("coefficients"),
                   "evaluate_test_mae": float(np.mean(ev.result.model.test_mae)),
                   "cv_mae": ev.result.model.cv_mae,  # training rows' CV of the whole model
-                  "cv_mae_parametric": ev.result.model.extra.get("cv_mae_parametric")}
+                  "cv_mae_parametric": ev.result.model.extra.get("cv_mae_parametric"),
+                  "ridge_path": info.get("ridge_path")}
 
 
 def critical_table() -> pd.DataFrame:
@@ -304,7 +345,14 @@ def run_split(frame: pd.DataFrame, split: str, trials: int, tmp: Path,
     (folder / field.model.name).write_text(field.model.read_text())
     init = linked(guarded(init_config(folder, csv, field, order), out_of_bounds), link)
     configs = {"parametric": init, "parametric_ridge": ridge_config(init),
-               "parametric_boost": boost_config(init)}
+               "parametric_boost": boost_config(init),
+               "parametric_pool": with_keys(init, "pool.toml", candidates=pool_table(field)),
+               "parametric_ridge_drift": with_keys(init, "rdrift.toml", drift='"ridge"'),
+               "parametric_both": with_keys(init, "both.toml", drift='"both"')}
+    if "parametric_narrow" in variants:  # the former protocol: init names the pool only
+        configs["parametric_narrow"] = guarded(init_config(
+            folder, csv, field, order, field.pool or field.features, "narrow.toml"),
+            out_of_bounds)
     errors = {"prior": y - frame.loc[test, field.prior].to_numpy(float)}
     seconds, details = {}, {}
     t0 = time.process_time()
@@ -314,7 +362,8 @@ def run_split(frame: pd.DataFrame, split: str, trials: int, tmp: Path,
         t0 = time.process_time()
         pred, details[name] = family(configs[name])
         errors[name], seconds[name] = y - pred, time.process_time() - t0
-        print(f"  {split} {name}: {np.mean(np.abs(errors[name])):.4f}", flush=True)
+        print(f"  {split} {name}: {np.mean(np.abs(errors[name])):.4f} "
+              f"({seconds[name]:.1f} CPU-s)", flush=True)
     mae = {k: float(np.mean(np.abs(e))) for k, e in errors.items()}
     row = dict(split=split, train_rows=int((~test).sum()), test_rows=int(test.sum()), mae=mae,
                ci={k: bootstrap_error_interval(e).average for k, e in errors.items()},

@@ -63,12 +63,23 @@ def test_the_benchmark_configs_differ_only_in_the_stage(tmp_path):
                   "mass_excess_MeV": np.arange(20.0),
                   "split": ["train"] * 15 + ["test"] * 5}).to_csv(csv, index=False)
     (tmp_path / MODEL.name).write_text(MODEL.read_text())
-    init = tomllib.loads(bench.init_config(tmp_path, csv).read_text())
+    init = tomllib.loads(bench.init_config(tmp_path, csv, features=["Z", "N"]).read_text())
     ridge = tomllib.loads(bench.ridge_config(tmp_path / "init.toml").read_text())
     assert init["model"]["family"] == ridge["model"]["family"] == "parametric"
     assert init["model"]["parametric"] == ridge["model"]["parametric"]
     assert init["data"] == ridge["data"]
     assert init["model"]["basis"] == ["ridge", "lightgbm"] and ridge["model"]["basis"] == "ridge"
+    # the drift variants change [model.parametric] only: the drift, or a Z, N pool per parameter
+    both = tomllib.loads(bench.with_keys(tmp_path / "init.toml", "both.toml",
+                                         drift='"both"').read_text())
+    assert both["model"]["parametric"] == {**init["model"]["parametric"], "drift": "both"}
+    pool = tomllib.loads(bench.with_keys(tmp_path / "init.toml", "pool.toml",
+                                         candidates=bench.pool_table(bench.NUCLEAR)).read_text())
+    candidates = pool["model"]["parametric"]["candidates"]
+    assert set(candidates) == set(load_model(MODEL).names)
+    assert all(v == ["Z", "N", "Z^2", "N^2", "Z*N"] for v in candidates.values())
+    assert {k: v for k, v in pool.items() if k != "model"} == {
+        k: v for k, v in init.items() if k != "model"}
 
 
 def test_the_parametric_template_has_the_generic_stage():

@@ -306,3 +306,36 @@ def test_targets_in_small_units_can_leave_the_prior(tmp_path):
     assert np.mean(np.abs(est.predict(X) - y)) < 0.05 * prior_mae
     big = clone(est).set_params(model=path).fit(X, y * 1e12)  # the same data in units of 1e-12
     assert big.min_improvement_ == 1e-3 and big.choice_ == "drift"
+def test_ridge_drift_fits_the_whole_library_with_a_cv_penalty(tmp_path):
+    path = _write(tmp_path, DECAY)
+    X, y = _data()
+    kw = dict(model=path, features=["temp", "humidity"], huber_delta=0.05, random_state=0,
+              max_steps=2, ridge_alphas=[10.0, 0.01])
+    ridge = ParametricBoostRegressor(drift="ridge", **kw).fit(X, y)
+    assert ridge.choice_ == "ridge_drift" and ridge.note_ == "" and ridge.selection_ is None
+    assert list(ridge.choices_["candidate"]) == ["prior", "calibrated", "ridge_drift"]
+    # no selection: every parameter drifts in every covariate of the pool (5 + intercept)
+    assert all(len(v) == 6 for v in ridge.estimator_.covariate_names_.values())
+    path_ = ridge.ridge_path_
+    assert list(path_["alpha"]) == [10.0, 0.01] and path_["chosen"].sum() == 1
+    assert ridge.estimator_.alpha == path_.loc[path_["chosen"], "alpha"].item()
+    assert ridge.cv_mae_ == path_["cv_mae"].min()
+    table = ridge.estimator_.coefficient_table().set_index(["parameter", "covariate"])
+    slope = table.loc[("tau", "temp"), "coef"] / table.loc[("tau", "temp"), "covariate_sd"]
+    assert slope == pytest.approx(0.3, rel=0.15)
+    both = ParametricBoostRegressor(drift="both", **kw).fit(X, y)
+    cv = both.choices_.set_index("candidate")["cv_mae"]
+    assert list(cv.index) == ["prior", "calibrated", "drift", "ridge_drift"]
+    # the same folds: each drift scores as it does alone, and CV picks between them
+    assert cv["ridge_drift"] == pytest.approx(ridge.cv_mae_, rel=1e-9)
+    assert both.choice_ == ("ridge_drift" if cv["drift"] - cv["ridge_drift"] > 1e-3
+                            else "drift")
+
+
+def test_ridge_drift_settings_are_validated(tmp_path):
+    path = _write(tmp_path, DECAY)
+    X, y = _data(n=40)
+    with pytest.raises(ValueError, match="ridge_alphas"):
+        ParametricBoostRegressor(model=path, drift="ridge", ridge_alphas=[-1.0]).fit(X, y)
+    with pytest.raises(ValueError, match="drift"):
+        ParametricBoostRegressor(model=path, drift="lasso").fit(X, y)

@@ -133,6 +133,29 @@ def test_the_chain_model_file_is_the_control_program(google_5q):
 
 
 
+def test_a_ridge_drift_through_evaluate(decay_csv, tmp_path):
+    """``drift = "ridge"``: the whole pool at once, its penalty chosen by CV, in the tables."""
+    config = tmp_path / "decay.toml"
+    assert main(["init", str(decay_csv), "--model", str(tmp_path / "models" / "decay.py"),
+                 "--target", "y", "--out", str(config)]) == 0
+    out = tmp_path / "result.json"
+    assert main(["evaluate", str(config), "--no-track", "--json", str(out),
+                 "--out", str(tmp_path / "tables"), "--jobs", "1",
+                 "--set", 'model.parametric.drift="ridge"',
+                 "--set", "model.parametric.ridge_alphas=[1.0, 0.01]",
+                 "--set", "model.parametric.selection_cv=3",
+                 "--set", "model.parametric.boost_stage=false"]) == 0
+    result = json.loads(out.read_text())
+    assert result["model"]["selected"] == ["parametric:ridge_drift"]
+    info = result["parametric"]
+    assert "selection" not in info and [r["alpha"] for r in info["ridge_path"]] == [1.0, 0.01]
+    ridge = pd.read_csv(tmp_path / "tables" / "ridge_path.csv")
+    assert ridge["chosen"].sum() == 1
+    assert result["model"]["test_mae"][0] < 0.2 * result["prior"]["test_mae"][0]
+    for bad in ('model.parametric.drift="lasso"', "model.parametric.ridge_alphas=[-1.0]"):
+        assert main(["evaluate", str(config), "--no-track", "--set", bad]) != 0
+
+
 SMALL = {"n_jobs": 1, "max_steps": 1, "selection_cv": 3, "boost_stage": False}
 
 

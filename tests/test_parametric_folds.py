@@ -176,9 +176,11 @@ def test_the_outside_benchmark_s_order_flag_writes_the_order_column(tmp_path):
                   "mass_excess_MeV": np.arange(20.0),
                   "split": ["train"] * 15 + ["test"] * 5}).to_csv(csv, index=False)
     (tmp_path / bench.MODEL.name).write_text(bench.MODEL.read_text())
-    data = tomllib.loads(bench.init_config(tmp_path, csv, order="Z").read_text())["data"]
+    zn = ["Z", "N"]  # this CSV's features (the benchmark's field names six)
+    data = tomllib.loads(bench.init_config(tmp_path, csv, order="Z", features=zn)
+                         .read_text())["data"]
     assert data["order_column"] == "Z" and data["features"] == ["Z", "N"]
-    assert "order_column" not in tomllib.loads(bench.init_config(tmp_path, csv)
+    assert "order_column" not in tomllib.loads(bench.init_config(tmp_path, csv, features=zn)
                                                .read_text())["data"]
 
 

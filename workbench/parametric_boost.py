@@ -45,7 +45,8 @@ from .parametric import (
     resolve_model,
 )
 
-__all__ = ["ParametricBoostRegressor", "ParametricRegressor", "boost_candidate", "covariate_pool"]
+__all__ = ["ParametricBoostRegressor", "ParametricRegressor", "boost_candidate", "covariate_pool",
+           "ridge_drift"]
 
 #: ``out_of_bounds``: what a new row beyond the training rows gets.
 OUT_OF_BOUNDS = ("extrapolate", "clip", "calibrated")
@@ -651,7 +652,13 @@ class ParametricRegressor(DriftRegressor):
 MIN_IMPROVEMENT_SHARE = 1e-2
 
 #: The candidates :class:`ParametricBoostRegressor` compares, simplest first.
-CANDIDATES = ("prior", "calibrated", "drift", "boost")
+CANDIDATES = ("prior", "calibrated", "drift", "ridge_drift", "boost")
+
+#: ``drift``: how the drift candidates are made (forward selection, ridge over the whole pool).
+DRIFTS = ("forward", "ridge", "both")
+
+#: The ridge drift's penalties, chosen by the choice's CV (largest first: warm starts).
+RIDGE_ALPHAS = (1e4, 1e3, 1e2, 1e1, 1.0, 1e-1, 1e-2)
 
 
 class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
@@ -665,9 +672,12 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
     every split, warm-started). A more complex candidate wins only by more than
     ``min_improvement``; the winner is refitted on all rows (``estimator_``).
     :attr:`choices_` tells the CV MAE of each and which won; where the drift does not win,
-    :attr:`note_` says the error is not a drift of the parameters. With ``boost``, the
+    :attr:`note_` says the error is not a drift of the parameters. With ``drift="ridge"``
+    (or ``"both"``) the ``"ridge_drift"`` candidate replaces (or joins) the forward drift:
+    every parameter drifts in its whole pool (``start`` and ``candidates``), no selection,
+    its ridge penalty chosen from ``ridge_alphas`` on the same folds. With ``boost``, the
     parameter-space boosting (:mod:`workbench.parametric_gbm`, any scikit-learn regressor
-    per parameter) is a fourth candidate, its rounds chosen on the same folds.
+    per parameter) is a further candidate, its rounds chosen on the same folds.
 
     Parameters
     ----------
@@ -698,6 +708,13 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         most :data:`MIN_IMPROVEMENT_SHARE` of the prior's MAE on the training rows
         (:attr:`min_improvement_`), so that targets in small units (1e-9 s) can leave the
         prior.
+    drift : {"forward", "ridge", "both"}, default="forward"
+        The drift candidates: ``"forward"``, covariates chosen by forward selection (fitted
+        with ``alpha``); ``"ridge"``, the ``"ridge_drift"`` candidate, every parameter's
+        whole pool at once with the ridge penalty CV picks from ``ridge_alphas`` (no
+        selection: many covariates, shrunk); ``"both"``, the two, CV choosing.
+    ridge_alphas : sequence of float, default=None
+        The ridge drift's penalties (None: :data:`RIDGE_ALPHAS`, 1e-2 to 1e4).
     alpha, alpha_l1, loss, huber_delta, max_iter, tol, out_of_bounds, calibrate, solver
         :class:`ParametricRegressor`'s (``calibrate=False``: the calibrated candidate's and
         the drift's fits start their offsets at 0; a ``boost`` template with ``init=None``
@@ -718,12 +735,14 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
     estimator_ : ParametricRegressor or ParameterSpaceBoostRegressor
         The winner, refitted on all rows.
     choice_ : str
-        ``"prior"``, ``"calibrated"``, ``"drift"`` or ``"boost"``.
+        ``"prior"``, ``"calibrated"``, ``"drift"``, ``"ridge_drift"`` or ``"boost"``.
     choices_ : DataFrame
         ``candidate``, ``cv_mae``, ``chosen``.
     note_ : str
     selection_ : SelectionResult or None
         The forward selection (its path).
+    ridge_path_ : DataFrame or None
+        With a ridge drift: ``alpha``, ``cv_mae`` and ``chosen`` per penalty tried.
     cv_splits_ : list of (fit, validation) index arrays
         The folds every choice was scored on (positions into ``X``).
     cv_mae_ : float
@@ -747,6 +766,8 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         "n_repeats": [Interval(numbers.Integral, 1, None, closed="left")],
         "max_steps": [Interval(numbers.Integral, 0, None, closed="left")],
         "min_improvement": [Interval(numbers.Real, 0, None, closed="left")],
+        "drift": [StrOptions(set(DRIFTS))],
+        "ridge_alphas": [None, "array-like"],
         **{k: v for k, v in ParametricRegressor._parameter_constraints.items()
            if k not in ("model", "covariates")},
         "random_state": [None, numbers.Integral],
@@ -760,7 +781,9 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
                  candidates: str | dict[str, list[str]] | None = "auto",
                  features: Sequence[str] | None = None, squares: bool = True,
                  products: bool = True, cv: Any = 5, n_repeats: int = 1, max_steps: int = 20,
-                 min_improvement: float = 1e-3, alpha: float = 1.0, alpha_l1: float = 0.0,
+                 min_improvement: float = 1e-3, drift: str = "forward",
+                 ridge_alphas: Sequence[float] | None = None, alpha: float = 1.0,
+                 alpha_l1: float = 0.0,
                  loss: str = "huber", huber_delta: float = 1.0, max_iter: int = 20,
                  tol: float = 1e-6, out_of_bounds: str = "extrapolate", calibrate: bool = True,
                  solver: str = "newton", random_state: int | None = None,
@@ -775,6 +798,8 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         self.n_repeats = n_repeats
         self.max_steps = max_steps
         self.min_improvement = min_improvement
+        self.drift = drift
+        self.ridge_alphas = ridge_alphas
         self.alpha = alpha
         self.alpha_l1 = alpha_l1
         self.loss = loss
@@ -803,8 +828,16 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         return covariate_pool(features, model.names, squares=self.squares,
                               products=self.products)
 
+    def _alphas(self) -> list[float]:
+        alphas = RIDGE_ALPHAS if self.ridge_alphas is None else self.ridge_alphas
+        out = sorted((float(a) for a in np.ravel(alphas)), reverse=True)
+        if not out or any(not np.isfinite(a) or a < 0 for a in out):
+            raise ValueError(f"ridge_alphas must be finite penalties >= 0, at least one; "
+                             f"got {list(np.ravel(alphas))}")
+        return out
+
     def fit(self, X: pd.DataFrame, y: Any) -> Self:
-        """Choose among prior, calibrated model and drift by CV; refit the winner.
+        """Choose among prior, calibrated model and drifts by CV; refit the winner.
 
         Parameters
         ----------
@@ -847,32 +880,41 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         pairs = [(p, c) for p in model.names for c in dict.fromkeys(pool.get(p, []))
                  if c not in current[p]]
         self.selection_: SelectionResult | None = None
+        self.ridge_path_: pd.DataFrame | None = None
         drift: dict[str, list[str]] | None = None
-        if pairs or any(current.values()):
+        ridge: ParametricRegressor | None = None
+        if self.drift != "ridge" and (pairs or any(current.values())):
             progress: Callable[[str], None] | None = print if self.verbose else None
             self.selection_ = _refit_select(X, base, current, pairs, folds,
                                             effective_n_jobs(self.n_jobs), self.max_steps,
                                             self.min_improvement_, progress, t0, common)
             drift = self.selection_.covariates
             scores["drift"] = float(self.selection_.cv_mae)
+        if self.drift != "forward" and (pairs or any(current.values())):
+            library = {p: current[p] + [c for q, c in pairs if q == p] for p in model.names}
+            ridge, scores["ridge_drift"], self.ridge_path_ = ridge_drift(
+                clone(base).set_params(covariates=library), folds, self._alphas())
+        drifts = {"drift": drift and clone(base).set_params(covariates=drift),
+                  "ridge_drift": ridge}
         booster = None
-        if self.boost is not None:
+        if self.boost is not None:  # from the better drift by CV (None: the calibrated)
+            best = min((k for k in drifts if k in scores), key=scores.__getitem__,
+                       default="drift")
             booster, scores["boost"] = boost_candidate(clone(self.boost).set_params(
                 model=self.model, loss=self.loss, huber_delta=self.huber_delta,
-                out_of_bounds=self.out_of_bounds, random_state=rs), folds,
-                drift and clone(base).set_params(covariates=drift))[:2]
+                out_of_bounds=self.out_of_bounds, random_state=rs), folds, drifts[best])[:2]
         self.choice_ = "prior"
         for name in CANDIDATES[1:]:
             if name in scores and scores[self.choice_] - scores[name] > self.min_improvement_:
                 self.choice_ = name
-        self.note_ = ("" if self.choice_ in ("drift", "boost") else
+        beaten = ("calibrated model" if {"drift", "ridge_drift"} & set(scores)
+                  else "other candidates")
+        self.note_ = ("" if self.choice_ in ("drift", "ridge_drift", "boost") else
                       "the error is not a drift of the parameters: the drift did not beat "
-                      f"the {'calibrated model' if 'drift' in scores else 'other candidates'}"
-                      " in CV")
+                      f"the {beaten} in CV")
         self.choices_ = pd.DataFrame({"candidate": list(scores), "cv_mae": list(scores.values()),
                                       "chosen": [k == self.choice_ for k in scores]})
-        winner = {"prior": prior, "calibrated": base,
-                  "drift": clone(base).set_params(covariates=drift), "boost": booster}[self.choice_]
+        winner = {"prior": prior, "calibrated": base, **drifts, "boost": booster}[self.choice_]
         self.estimator_ = clone(winner).fit(X, np.asarray(y, dtype=float))
         self.cv_mae_ = scores[self.choice_]
         self.n_iter_ = self.estimator_.n_iter_
@@ -967,3 +1009,41 @@ def boost_candidate(template: Any, folds: list[tuple],
     curve = abs_sum / count
     rounds = int(np.argmin(curve))
     return clone(template).set_params(n_estimators=rounds), float(curve[rounds]), curve
+
+
+def ridge_drift(template: ParametricRegressor, folds: list[tuple],
+                alphas: Sequence[float]) -> tuple[ParametricRegressor, float, pd.DataFrame]:
+    """Choose the ridge penalty of a drift over a whole covariate library by CV.
+
+    Every parameter drifts in all of ``template.covariates`` at once (no selection); each
+    penalty of ``alphas`` is scored on the sliced ``folds``, in the given order, each fold's
+    fit warm-started from the previous penalty's (largest first: the next fit starts near).
+
+    Parameters
+    ----------
+    template : ParametricRegressor
+        The unfitted drift, its ``covariates`` the whole library.
+    folds : list of tuple
+        ``(X_fit, y_fit, X_val, y_val)`` per fold.
+    alphas : sequence of float
+        The penalties tried.
+
+    Returns
+    -------
+    estimator : ParametricRegressor
+        ``template`` with the chosen ``alpha`` (unfitted).
+    cv_mae : float
+        Its CV MAE.
+    path : DataFrame
+        ``alpha``, ``cv_mae`` and ``chosen`` per penalty.
+    """
+    warm: list = [None] * len(folds)
+    maes = []
+    for a in alphas:
+        mae, warm = _fit_splits(clone(template).set_params(alpha=float(a)),
+                                template.covariates or {}, folds, warm)
+        maes.append(float(mae))
+    k = int(np.argmin(maes))
+    path = pd.DataFrame({"alpha": [float(a) for a in alphas], "cv_mae": maes,
+                         "chosen": [i == k for i in range(len(maes))]})
+    return clone(template).set_params(alpha=float(alphas[k])), maes[k], path

@@ -21,6 +21,7 @@ selection path; a tracked run adds a learning curve and SHAP summaries of the co
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -33,7 +34,7 @@ from sklearn.model_selection import KFold
 
 from ...fitted_prior import FittedPriorBoost
 from ...parametric import ModelError, load_model
-from ...parametric_boost import ParametricBoostRegressor
+from ...parametric_boost import RIDGE_ALPHAS, ParametricBoostRegressor
 from ...parametric_gbm import ParameterSpaceBoostRegressor, make_regressor
 from ..config.schema import Section
 from ..config.toml_text import toml_string
@@ -67,7 +68,8 @@ class ParameterBoostSettings(Section):
     ``"newton"`` (curvature-weighted) or ``"gradient"``, ``update`` ``"joint"`` (every
     parameter each round) or ``"greedy"`` (the best one), ``subsample`` the rows each round
     sees, ``parameters`` the parameters boosted (empty: all), ``start`` ``"calibrated"`` or
-    ``"drift"`` (the linear drift forward selection chose, where there is one).
+    ``"drift"`` (the linear drift, where there is one: with ``drift = "both"`` the one,
+    forward or ridge, that CV scored best).
     """
 
     regressor: str = "tree"
@@ -93,11 +95,15 @@ class ParametricSettings(Section):
     ``model``: the model file, relative to the config file. ``start``: covariates every drift
     model has, per parameter; ``candidates``: the forward selection's pool, per parameter,
     or ``"auto"`` (the dataset's features, their squares and pairwise products, for every
-    parameter) or ``"none"`` (no drift candidate). ``loss``, ``huber_delta``, ``alpha``,
-    ``alpha_l1``, ``max_iter``: the Gauss-Newton fit's (and the calibration's loss);
-    ``selection_cv``, ``selection_repeats``, ``max_steps``, ``min_improvement``: the CV
-    that chooses among prior, calibrated model and drift, and the selection's
-    (``min_improvement`` in the targets' unit, at most 1% of the prior's training MAE); ``prior_cv``
+    parameter) or ``"none"`` (no drift candidate); ``drift``: how the drift candidates are
+    made from that pool, ``"forward"`` (forward selection), ``"ridge"`` (every covariate of
+    the pool at once, the ridge penalty chosen by CV from ``ridge_alphas``: the
+    ``ridge_drift`` candidate) or ``"both"`` (the two, CV choosing). ``loss``,
+    ``huber_delta``, ``alpha``, ``alpha_l1``, ``max_iter``: the Gauss-Newton fit's (and the
+    calibration's loss); ``selection_cv``, ``selection_repeats``, ``max_steps``,
+    ``min_improvement``: the CV that chooses among prior, calibrated model and drifts, and
+    the selection's (``min_improvement`` in the targets' unit, at most 1% of the prior's
+    training MAE); ``prior_cv``
     the folds of the out-of-fold priors the stage on top trains on. Both follow the data
     as BaseBoostCV's folds do (:func:`~..splits.folds.family_cv`): forward-chaining by
     ``[data] order_column``, whole groups with ``[selection] groups``, else shuffled
@@ -132,9 +138,18 @@ class ParametricSettings(Section):
     selection_repeats: int = Field(default=1, ge=1, le=1000)
     max_steps: int = Field(default=20, ge=0, le=100_000)
     min_improvement: float = Field(default=1e-3, ge=0)
+    drift: Literal["forward", "ridge", "both"] = "forward"
+    ridge_alphas: list[float] = Field(default_factory=lambda: list(RIDGE_ALPHAS), min_length=1)
     boost_stage: bool = True
     prior_cv: int = Field(default=5, ge=2, le=10_000)
     boost: ParameterBoostSettings | None = None
+
+    @field_validator("ridge_alphas")
+    @classmethod
+    def _penalties(cls, value: list[float]) -> list[float]:
+        if any(not math.isfinite(a) or a < 0 for a in value):
+            raise ValueError("every ridge penalty must be finite and >= 0")
+        return value
 
 
 def model_path(cfg: ExperimentConfig, settings: ParametricSettings) -> Path:
@@ -162,7 +177,8 @@ def make_parametric(cfg: ExperimentConfig, ds: Dataset) -> ParametricBoostRegres
         model=model, start=s.start or None, candidates=candidates, features=ds.feature_names,
         squares=s.squares, products=s.products, cv=choice_cv(cfg, ds),
         n_repeats=s.selection_repeats, max_steps=s.max_steps,
-        min_improvement=float(s.min_improvement), alpha=float(s.alpha),
+        min_improvement=float(s.min_improvement), drift=s.drift,
+        ridge_alphas=[float(a) for a in s.ridge_alphas], alpha=float(s.alpha),
         alpha_l1=float(s.alpha_l1), loss=s.loss, huber_delta=float(s.huber_delta),
         max_iter=s.max_iter, out_of_bounds=s.out_of_bounds, calibrate=s.calibrate,
         solver=s.solver, random_state=cfg.random_state,
@@ -345,7 +361,7 @@ class ParametricFamily(ModelFamily):
         return clone(model).set_params(physics=clone(model.physics_.estimator_))
 
     def selected(self, model: Any, targets: list[str]) -> list[str]:
-        """Label per target ``"parametric:<prior|calibrated|drift>"``.
+        """Label per target ``"parametric:<prior|calibrated|drift|ridge_drift|boost>"``.
 
         ``" (error not a drift)"`` follows the prior or the calibrated model: CV found no
         drift of the parameters that helps.
@@ -390,6 +406,8 @@ class ParametricFamily(ModelFamily):
             sel = physics.selection_
             info["selection"] = {"cv_mae": sel.cv_mae, "steps": len(sel.path) - 1,
                                  "path": _records(sel.path), "seconds": sel.seconds}
+        if getattr(physics, "ridge_path_", None) is not None:
+            info["ridge_path"] = _records(physics.ridge_path_)
         details: dict[str, Any] = {"parametric": info}
         if hasattr(regressor, "outside_domain"):  # not the parameter-space boost's
             details["notes"] = _test_row_notes(regressor, _frame(ds).loc[ds.test_index], info)
@@ -467,6 +485,8 @@ class ParametricFamily(ModelFamily):
                 corrected, axes_by, calibrated=calibrated,
                 groups={"training rows": ds.train_index, "test rows": ds.test_index},
                 setting=setting)
+        if getattr(physics, "ridge_path_", None) is not None:
+            out.tables["ridge_path"] = physics.ridge_path_
         if physics.selection_ is not None:
             sel = physics.selection_
             out.tables["selection_path"] = sel.path
