@@ -52,6 +52,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from outside_data import CHEMICALS  # benchmarks/ is on sys.path, as for every script here
 
 from workbench.datasets.wheel import WheelData
 
@@ -64,11 +65,11 @@ MENDELEEV = WheelData(
     files={"elements.db": ("mendeleev/elements.db",
                            "8a6312b57603e22c58ab28005bb8cacfbff721bc859eea8ddc2b784c17ffd717")},
     env_var="WORKBENCH_MENDELEEV_DIR")
-#: the chemicals wheel's tables these fields read (the same wheel and cache directory as
-#: ``outside_data.CHEMICALS``; each object checks only its own files)
+#: the chemicals wheel's tables these fields read: ``outside_data.CHEMICALS``'s wheel (its
+#: pin and cache directory, declared there once) with these files (each object checks only
+#: its own files)
 CHEMICALS_TABLES = WheelData(
-    name="chemicals", spec="chemicals==1.5.2",
-    sha256="f85ef7f36e77fee634686c26562929ee61026cd548d89cebd57b2251ca843d6e",
+    name=CHEMICALS.name, spec=CHEMICALS.spec, sha256=CHEMICALS.sha256,
     files={"CRC Handbook Heat of Vaporization.tsv": (
                "chemicals/Phase Change/CRC Handbook Heat of Vaporization.tsv",
                "3167c400fc9581f2e3c82a6581c8b7959e53d6565945042c0dc9c2c54592cf69"),
@@ -78,7 +79,7 @@ CHEMICALS_TABLES = WheelData(
            "Physical Constants of Organic Compounds.csv": (
                "chemicals/Misc/Physical Constants of Organic Compounds.csv",
                "375cc9b2db48877ac5b8fb60c3713ef05adbbe927957c45094362d806ecfe383")},
-    env_var="WORKBENCH_CHEMICALS_DIR")
+    env_var=CHEMICALS.env_var)
 
 
 @dataclass(frozen=True)
