@@ -50,6 +50,10 @@ lie beyond the training rows in that column would: every CV of the family (its c
 selection, its out-of-fold priors, the stage on top) then chains forward by it, validating
 on the largest values of the training rows.
 
+``parametric_calibrated_stage`` is ``init``'s config with ``calibrated_stage = true``: the
+stage on top is also fitted on the calibrated model's prediction and CV keeps, per target,
+the prior it scores better on (``benchmarks/decisions/calibrated_stage.md``).
+
 Three more fields (``benchmarks/outside_fields.py``, :data:`FIELD_SPLITS`; not in the default
 ``--splits``, select them by name or with ``--fields``): ionization energies against Slater's
 screening (``ion_random``, ``ion_heavy``), enthalpies of vaporization against Kistiakowsky's
@@ -93,7 +97,8 @@ PEER_FEATURES = ["Z", "N", "A", "asymmetry", "Z_odd", "N_odd"]
 GOALS = {"random": 0.75, "far": 0.85, "heavy": 0.85, "critical": 1.05}
 SPLITS = ("random", "far", "heavy", "critical")
 VARIANTS = ("parametric", "parametric_ridge", "parametric_boost", "parametric_narrow",
-            "parametric_pool", "parametric_ridge_drift", "parametric_both")
+            "parametric_pool", "parametric_ridge_drift", "parametric_both",
+            "parametric_calibrated_stage")
 
 
 @dataclass(frozen=True)
@@ -315,7 +320,8 @@ def family(config: Path) -> tuple[np.ndarray, dict]:
                   "evaluate_test_mae": float(np.mean(ev.result.model.test_mae)),
                   "cv_mae": ev.result.model.cv_mae,  # training rows' CV of the whole model
                   "cv_mae_parametric": ev.result.model.extra.get("cv_mae_parametric"),
-                  "ridge_path": info.get("ridge_path")}
+                  "ridge_path": info.get("ridge_path"),
+                  "stage_cv_mae": info.get("stage_cv_mae")}
 
 
 def critical_table() -> pd.DataFrame:
@@ -348,7 +354,9 @@ def run_split(frame: pd.DataFrame, split: str, trials: int, tmp: Path,
                "parametric_boost": boost_config(init),
                "parametric_pool": with_keys(init, "pool.toml", candidates=pool_table(field)),
                "parametric_ridge_drift": with_keys(init, "rdrift.toml", drift='"ridge"'),
-               "parametric_both": with_keys(init, "both.toml", drift='"both"')}
+               "parametric_both": with_keys(init, "both.toml", drift='"both"'),
+               "parametric_calibrated_stage": with_keys(init, "cstage.toml",
+                                                        calibrated_stage="true")}
     if "parametric_narrow" in variants:  # the former protocol: init names the pool only
         configs["parametric_narrow"] = guarded(init_config(
             folder, csv, field, order, field.pool or field.features, "narrow.toml"),

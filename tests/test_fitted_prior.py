@@ -146,6 +146,72 @@ def test_fallback_keeps_the_control_prediction_where_the_physics_model_does_not_
     assert without.physics_selected_.all()
 
 
+def test_the_stage_chooses_its_prior_per_target_between_physics_and_alternative():
+    """``alternative``: the stage is fitted on both models' out-of-fold priors and each
+    target keeps the one it scores the lower CV MAE on (target 0 the physics model, which
+    captures a curvature the stage's basis cannot learn; target 1 the alternative, exact
+    but for what the stage learns); the final stage is refitted on that mixed prior, and
+    the choice is the one the stage's own CV made (stage_cv_mae_)."""
+    from sklearn.linear_model import LinearRegression
+
+    class Columns(RegressorMixin, BaseEstimator):  # the control program's columns
+        def fit(self, X, Y):
+            self.fitted_ = True
+            return self
+
+        def predict(self, X):
+            return X[["c0", "c1"]].to_numpy()
+
+    class Physics(LinearRegression):  # linear in x and x**2, blind to the rest
+        def fit(self, X, Y):
+            return super().fit(X[["x", "x2"]], Y)
+
+        def predict(self, X):
+            return super().predict(X[["x", "x2"]])
+
+    rng = np.random.default_rng(1)
+    n = 300
+    x, z = rng.uniform(-1, 1, n), rng.normal(size=n)
+    control = np.column_stack([3 * x, 2 * np.sin(3 * x)])
+    Y = (control + np.column_stack([0.5 * x ** 2, np.zeros(n)]) + np.outer(z, [1.0, 1.0])
+         + 0.02 * rng.standard_normal((n, 2)))
+    X = pd.DataFrame({"x": x, "x2": x ** 2, "z": z, "c0": control[:, 0], "c1": control[:, 1]})
+    priors = ["prior_y0", "prior_y1"]
+    booster = BaseBoostRegressor(basis=Ridge(alpha=1e-3), basis_features=["z"],
+                                 line_search_penalty=0.0)
+    stage = MultiTargetBaseBoost(BaseBoostCV(booster, cv=5), random_state=0)
+    Yf = pd.DataFrame(Y, columns=["y0", "y1"])
+    train, test = np.arange(200), np.arange(200, n)
+    model = FittedPriorBoost(Physics(), stage, alternative=Columns(), cv=5)
+    model.fit(X.iloc[train], Yf.iloc[train])
+    assert model.prior_columns_ == priors
+    assert model.alternative_selected_.tolist() == [False, True]
+    cv = model.stage_cv_mae_
+    assert list(cv.index) == ["y0", "y1"]
+    assert cv.loc["y0", "physics"] < cv.loc["y0", "alternative"]
+    assert cv.loc["y1", "alternative"] <= cv.loc["y1", "physics"]
+    prior = model.predict_prior(X.iloc[test])
+    np.testing.assert_allclose(prior[:, 1], X["c1"].iloc[test])
+    np.testing.assert_allclose(prior[:, 0], model.physics_.predict(X.iloc[test])[:, 0])
+    np.testing.assert_allclose(model.oof_prior_["prior_y1"], X["c1"].iloc[train])
+
+    def test_mae(m):
+        return np.abs(m.predict(X.iloc[test]).to_numpy() - Y[test]).mean(axis=0)
+
+    alone = FittedPriorBoost(Physics(), clone(stage), cv=5).fit(X.iloc[train], Yf.iloc[train])
+    mixed, physics_only = test_mae(model), test_mae(alone)
+    assert mixed[0] == pytest.approx(physics_only[0], rel=0.2)
+    assert mixed[1] < 0.5 * physics_only[1]
+    # the same physics model as its own alternative: one stage, nothing switched
+    same = FittedPriorBoost(Physics(), clone(stage), alternative=Physics(), cv=5)
+    same.fit(X.iloc[train], Yf.iloc[train])
+    assert not same.alternative_selected_.any()
+    np.testing.assert_allclose(same.predict(X.iloc[test]), alone.predict(X.iloc[test]))
+    with pytest.raises(ValueError, match="alternative and fallback"):
+        FittedPriorBoost(Physics(), clone(stage), alternative=Columns(),
+                         fallback=["c0", "c1"]).fit(X, Yf)
+
+
 def test_out_of_fold_refits_only_when_something_uses_them(crosstalk, monkeypatch):
     """Without a stage or a fallback, cv_predictions=False fits the physics model once (no
     fold refits) and has no out-of-fold predictions; the default keeps them."""

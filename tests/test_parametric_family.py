@@ -431,3 +431,44 @@ def test_test_rows_outside_the_models_domain_are_said_not_a_crash(tmp_path, caps
     assert "2 of 4 test rows: the corrected parameters leave the model's domain" in printed
     assert ("2 of 4 test rows lie outside the box the training rows' covariates span: the "
             "drift extrapolates there") in printed
+
+
+def test_the_stage_compares_the_drift_with_the_calibrated_model(decay_csv, tmp_path):
+    """``calibrated_stage = true``: the stage on top is also fitted on the calibrated
+    model's out-of-fold prior (the generic path), and the target keeps the prior the stage
+    scored better in CV; the table records both CV MAEs, the label says which prior, and a
+    learning curve's fits keep that choice."""
+    from workbench.experiment.runs.prepare import load_config, prepare
+
+    stage = ('[model]\nfamily = "parametric"\nbasis = "lightgbm"\n'
+             'basis_inputs = "prior+features"\nline_search_penalty = 0.0\n'
+             '[model.basis_params]\nn_estimators = 30\nnum_leaves = 4\n'
+             'min_child_samples = 5\nverbose = -1\n[selection]\ncv = 3\nshuffle = true\n')
+    config = tmp_path / "c.toml"
+    config.write_text(_decay_config(tmp_path).read_text()
+                      .replace('[model]\nfamily = "parametric"\n', stage)
+                      .replace("boost_stage = false\n", "calibrated_stage = true\n"))
+    out = tmp_path / "r.json"
+    assert main(["evaluate", str(config), "--no-track", "--json", str(out), "--jobs", "1"]) == 0
+    result = json.loads(out.read_text())
+    rows = result["parametric"]["stage_cv_mae"]
+    assert [r["target"] for r in rows] == ["y"]
+    (row,) = rows
+    assert row["alternative_chosen"] == (row["alternative"] <= row["physics"])
+    label = result["model"]["selected"][0]
+    assert label.startswith("parametric:calibrated (the stage did better on it)"
+                            if row["alternative_chosen"] else "parametric:drift")
+    run = prepare(load_config(config))
+    model = run.family.build(run.config, run.dataset)
+    assert model.alternative is not None
+    X, Y = run.family.inputs(run.config, run.dataset), run.dataset.targets
+    model.fit(X.loc[run.dataset.train_index], Y.loc[run.dataset.train_index])
+    fixed = run.family.fixed_choices(model)
+    assert fixed.alternative is None  # one target: its choice is fixed
+    if model.alternative_selected_[0]:  # the calibrated model, no covariates
+        def settings(m):
+            return {k: v for k, v in m.get_params().items() if k != "model"}
+
+        assert settings(fixed.physics) == settings(model.alternative)
+    else:  # the drift, its covariates fixed
+        assert fixed.physics.covariates == model.physics_.estimator_.covariates

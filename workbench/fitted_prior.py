@@ -86,6 +86,13 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         is below the control prediction's MAE there; elsewhere the control prediction is the
         prior (so where the control model is already right, fitting corrections that only
         chase noise is not kept).
+    alternative : regressor, default=None
+        A second physics model of all targets whose prediction may be the stage's prior
+        instead (the parametric family's calibrated model beside its drift). With a stage,
+        the stage is fitted on the out-of-fold prior of each, and a target keeps the
+        alternative where the stage's CV MAE on it is no larger: the stage is scored as it
+        is used, where the physics model's own CV scored it without the stage. Not with
+        ``fallback``.
 
     Attributes
     ----------
@@ -93,6 +100,13 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         The fitted physics model.
     physics_selected_ : ndarray of bool
         Per target, whether the physics model is the prior (all true without ``fallback``).
+    alternative_ : regressor or None
+        The fitted alternative (None without one, or without a stage).
+    alternative_selected_ : ndarray of bool
+        Per target, whether the alternative is the prior (all false without one).
+    stage_cv_mae_ : DataFrame or None
+        With an alternative: per target (rows) the stage's CV MAE on the physics model's
+        prior (``physics``) and on the alternative's (``alternative``).
     boost_ : MultiTargetBaseBoost
         The fitted boosting stage (``boost_stage=True``).
     prior_columns_ : list of str
@@ -115,11 +129,13 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         "fallback": [None, list, tuple],
         "cv_predictions": ["boolean"],
         "n_jobs": [None, Integral],
+        "alternative": [None, HasMethods(["fit", "predict"])],
     }
 
     def __init__(self, physics: Any = None, boost: Any = None, *, prior_prefix: str = "prior_",
                  cv: Any = 5, boost_stage: bool = True, fallback: Sequence[str] | None = None,
-                 cv_predictions: bool = True, n_jobs: int | None = None) -> None:
+                 cv_predictions: bool = True, n_jobs: int | None = None,
+                 alternative: Any = None) -> None:
         self.physics = physics
         self.boost = boost
         self.prior_prefix = prior_prefix
@@ -128,6 +144,7 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         self.fallback = fallback
         self.cv_predictions = cv_predictions
         self.n_jobs = n_jobs
+        self.alternative = alternative
 
     def _with_prior(self, X: pd.DataFrame, prior: np.ndarray) -> pd.DataFrame:
         clash = [c for c in self.prior_columns_ if c in X.columns]
@@ -164,42 +181,85 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         if self.fallback is not None and len(self.fallback) != len(names):
             raise ValueError(f"fallback names {len(self.fallback)} column(s) for "
                              f"{len(names)} targets")
+        if self.alternative is not None and self.fallback is not None:
+            raise ValueError("alternative and fallback cannot be combined: give one")
         # the out-of-fold prior: the stage's training prior, the fallback's evidence, and
         # (without a stage) the model's own out-of-fold predictions (cv_predictions_)
+        self.alternative_: Any = None
+        self.alternative_selected_ = np.zeros(len(names), dtype=bool)
+        self.stage_cv_mae_: pd.DataFrame | None = None
         if not (self.boost_stage or self.fallback is not None or self.cv_predictions):
             return self
-        model, fit_params = _refittable(self.physics_)
         splits = list(check_cv(self.cv).split(X))
         held = np.zeros(len(X), dtype=bool)
         for _, val in splits:
             held[val] = True
         never = np.flatnonzero(~held)  # e.g. the earliest rows of forward-chaining folds
         tasks = [*splits, *([(never, never)] if len(never) else [])]
-        preds = map_tasks([Task(_fold_prediction, model, fit_params, X, Y_arr, train, val)
-                           for train, val in tasks], self.n_jobs)
-        oof = np.empty_like(Y_arr)
+        oof = self._out_of_fold(self.physics_, X, Y_arr, tasks)
         folds = np.full(len(X), -1, dtype=int)
-        for k, ((_, val), pred) in enumerate(zip(tasks, preds, strict=True)):
-            oof[val] = pred
-            folds[val] = k if k < len(splits) else -1
+        for k, (_, val) in enumerate(splits):
+            folds[val] = k
         self.prior_folds_ = folds
         if self.fallback is not None:
             control = X[list(self.fallback)].to_numpy(dtype=float)
             self.physics_selected_ = (np.mean(np.abs(Y_arr - oof), axis=0)
                                       < np.mean(np.abs(Y_arr - control), axis=0))
             oof = np.where(self.physics_selected_, oof, control)
-        self.oof_prior_ = pd.DataFrame(oof, columns=self.prior_columns_, index=X.index)
         if not self.boost_stage:
+            self.oof_prior_ = pd.DataFrame(oof, columns=self.prior_columns_, index=X.index)
             return self
         boost = MultiTargetBaseBoost() if self.boost is None else clone(self.boost)
         boost.set_params(priors=self.prior_columns_)
         Y_frame = pd.DataFrame(Y_arr, columns=names, index=X.index)
-        self.boost_ = boost.fit(self._with_prior(X, oof), Y_frame)
+        self.boost_ = clone(boost).fit(self._with_prior(X, oof), Y_frame)
+        if self.alternative is not None:
+            oof = self._choose_prior(X, Y_arr, Y_frame, tasks, oof, boost)
+        self.oof_prior_ = pd.DataFrame(oof, columns=self.prior_columns_, index=X.index)
         return self
+
+    def _out_of_fold(self, fitted: Any, X: pd.DataFrame, Y: np.ndarray,
+                     tasks: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+        """``fitted``'s out-of-fold prediction: refitted with its choices fixed per task."""
+        model, fit_params = _refittable(fitted)
+        preds = map_tasks([Task(_fold_prediction, model, fit_params, X, Y, train, val)
+                           for train, val in tasks], self.n_jobs)
+        oof = np.empty_like(Y)
+        for (_, val), pred in zip(tasks, preds, strict=True):
+            oof[val] = pred
+        return oof
+
+    def _choose_prior(self, X: pd.DataFrame, Y: np.ndarray, Y_frame: pd.DataFrame,
+                      tasks: list[tuple[np.ndarray, np.ndarray]], oof: np.ndarray,
+                      boost: Any) -> np.ndarray:
+        """Fit the alternative and the stage on its out-of-fold prior; per target keep the
+        prior whose stage scored the lower CV MAE (ties: the alternative); return the
+        out-of-fold prior the final stage is trained on."""
+        self.alternative_ = clone(self.alternative).fit(X, Y)
+        alt = self._out_of_fold(self.alternative_, X, Y, tasks)
+        ours = [-e.cv_score_ for e in self.boost_.estimators_]
+        if np.array_equal(alt, oof):  # the physics model is the alternative: one stage
+            self.stage_cv_mae_ = pd.DataFrame({"physics": ours, "alternative": ours},
+                                              index=list(Y_frame.columns))
+            return oof
+        alt_boost = clone(boost).fit(self._with_prior(X, alt), Y_frame)
+        theirs = [-e.cv_score_ for e in alt_boost.estimators_]
+        self.stage_cv_mae_ = pd.DataFrame({"physics": ours, "alternative": theirs},
+                                          index=list(Y_frame.columns))
+        self.alternative_selected_ = np.asarray(theirs) <= np.asarray(ours)
+        if self.alternative_selected_.all():
+            self.boost_ = alt_boost
+            return alt
+        if not self.alternative_selected_.any():
+            return oof
+        mixed = np.where(self.alternative_selected_, alt, oof)
+        self.boost_ = clone(boost).fit(self._with_prior(X, mixed), Y_frame)
+        return mixed
 
     def predict_prior(self, X: pd.DataFrame) -> np.ndarray:
         """The prior of the stage: the physics model's prediction (the control prediction for
-        targets where it fell back), shape ``(n, n_targets)``.
+        targets where it fell back, the alternative's where the stage chose it), shape
+        ``(n, n_targets)``.
 
         Parameters
         ----------
@@ -216,6 +276,9 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         if self.fallback is not None and not self.physics_selected_.all():
             prior = np.where(self.physics_selected_, prior,
                              X[list(self.fallback)].to_numpy(dtype=float))
+        if getattr(self, "alternative_", None) is not None and self.alternative_selected_.any():
+            theirs = np.asarray(self.alternative_.predict(X), dtype=float).reshape(prior.shape)
+            prior = np.where(self.alternative_selected_, theirs, prior)
         return prior
 
     def predict(self, X: pd.DataFrame) -> pd.DataFrame:

@@ -859,7 +859,7 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         common: dict[str, Any] = dict(model=self.model, alpha=self.alpha, alpha_l1=self.alpha_l1,
                       loss=self.loss, huber_delta=self.huber_delta, max_iter=self.max_iter,
                       tol=self.tol, out_of_bounds=self.out_of_bounds, solver=self.solver)
-        base = ParametricRegressor(**common, calibrate=self.calibrate)
+        base = self.calibrated_model()
         prior = ParametricRegressor(**{**common, "max_iter": 0}, calibrate=False)
         prior_fit = clone(prior).fit(X, Y)  # also checks the model (one line per bad case)
         scores = {"prior": float(np.mean(np.abs(prior_fit.predict(X) - Y)))}
@@ -920,6 +920,21 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         self.n_iter_ = self.estimator_.n_iter_
         self.seconds_ = time.perf_counter() - t0
         return self
+
+    def calibrated_model(self) -> ParametricRegressor:
+        """The ``"calibrated"`` candidate, unfitted: the model with its parameters calibrated
+        and no drift, the fit settings these.
+
+        Returns
+        -------
+        ParametricRegressor
+            Unfitted; with these ``model``, ``calibrate``, penalties, loss, ``max_iter``,
+            ``tol``, ``out_of_bounds`` and ``solver``.
+        """
+        return ParametricRegressor(
+            model=self.model, alpha=self.alpha, alpha_l1=self.alpha_l1, loss=self.loss,
+            huber_delta=self.huber_delta, max_iter=self.max_iter, tol=self.tol,
+            out_of_bounds=self.out_of_bounds, solver=self.solver, calibrate=self.calibrate)
 
     def predict(self, X: pd.DataFrame) -> np.ndarray:
         """The winner's prediction.

@@ -27,6 +27,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar, Literal, cast
 
+import numpy as np
 import pandas as pd
 from pydantic import Field, field_validator
 from sklearn.base import clone
@@ -114,6 +115,10 @@ class ParametricSettings(Section):
     boosting there); ``"clip"``, its covariates clipped to their training range (the drift's
     corrections at the nearest training point); the default ``"extrapolate"``, the drift's
     squares and products grown beyond them.
+    ``calibrated_stage = true`` (with the stage on top) also boosts from the calibrated
+    model's prediction, the generic path, and keeps per target the prior on which the
+    stage scores the lower CV MAE (``FittedPriorBoost``'s ``alternative``): the choice
+    above scores the physics models without the stage.
     ``boost``: the table :class:`ParameterBoostSettings`, parameter-space boosting as a
     fourth candidate (absent: none). ``calibrate = false`` starts every fit's offsets at 0
     instead of a robust least-squares calibration, and ``solver = "irls"`` keeps IRLS
@@ -141,6 +146,7 @@ class ParametricSettings(Section):
     drift: Literal["forward", "ridge", "both"] = "forward"
     ridge_alphas: list[float] = Field(default_factory=lambda: list(RIDGE_ALPHAS), min_length=1)
     boost_stage: bool = True
+    calibrated_stage: bool = False
     prior_cv: int = Field(default=5, ge=2, le=10_000)
     boost: ParameterBoostSettings | None = None
 
@@ -328,7 +334,11 @@ class ParametricFamily(ModelFamily):
         s = cast(ParametricSettings, cfg.family_settings)
         priors = [f"{PRIOR_PREFIX}{t}" for t in ds.target_names]
         boost = per_target_boost(cfg, ds, priors, boost_from_prior=False)
-        return FittedPriorBoost(make_parametric(cfg, ds), boost, prior_prefix=PRIOR_PREFIX,
+        physics = make_parametric(cfg, ds)
+        alternative = (physics.calibrated_model() if s.calibrated_stage and s.boost_stage
+                       else None)
+        return FittedPriorBoost(physics, boost, prior_prefix=PRIOR_PREFIX,
+                                alternative=alternative,
                                 cv=family_cv(cfg, ds, s.prior_cv),
                                 boost_stage=s.boost_stage,
                                 cv_predictions=cfg.intervals.enabled
@@ -357,8 +367,15 @@ class ParametricFamily(ModelFamily):
         return "; ".join(f"{k} {v}" for k, v in parts.items())
 
     def fixed_choices(self, model: Any) -> Any:
-        """Keep the physics model's choice (and selected covariates)."""
-        return clone(model).set_params(physics=clone(model.physics_.estimator_))
+        """Keep the physics model's choice (and selected covariates), and the stage's prior
+        where ``calibrated_stage`` chose one for every target."""
+        fixed = clone(model).set_params(physics=clone(model.physics_.estimator_))
+        chose = getattr(model, "alternative_selected_", None)
+        if model.alternative is None or chose is None or chose.all() or not chose.any():
+            fixed.set_params(alternative=None)
+        if model.alternative is not None and chose is not None and chose.all():
+            fixed.set_params(physics=clone(model.alternative_))
+        return fixed
 
     def selected(self, model: Any, targets: list[str]) -> list[str]:
         """Label per target ``"parametric:<prior|calibrated|drift|ridge_drift|boost>"``.
@@ -372,10 +389,11 @@ class ParametricFamily(ModelFamily):
         if physics in ("prior", "calibrated"):  # the table says the drift did not help
             physics += " (error not a drift)"
         stages = model.boost_.estimators_ if model.boost_stage else [None] * len(targets)
-        return [f"parametric:{physics}"
+        chose = getattr(model, "alternative_selected_", np.zeros(len(targets), dtype=bool))
+        return [f"parametric:{'calibrated (the stage did better on it)' if c else physics}"
                 + (f"+{getattr(e, 'selected_candidate_', None) or 'boosted'}"
                    if s == "boosted" else "")
-                for s, e in zip(model.selected_, stages)]
+                for s, e, c in zip(model.selected_, stages, chose)]
 
     def scores(self, ds: Dataset, model: Any, Y_train: pd.DataFrame, prior_test: Any,
                y_test: Any, pred: Any) -> tuple[Scores, ModelScores, dict[str, Any]]:
@@ -408,8 +426,14 @@ class ParametricFamily(ModelFamily):
                                  "path": _records(sel.path), "seconds": sel.seconds}
         if getattr(physics, "ridge_path_", None) is not None:
             info["ridge_path"] = _records(physics.ridge_path_)
+        if getattr(model, "stage_cv_mae_", None) is not None:
+            table = model.stage_cv_mae_.rename_axis("target").reset_index()
+            info["stage_cv_mae"] = _records(table.assign(
+                alternative_chosen=model.alternative_selected_))
         details: dict[str, Any] = {"parametric": info}
-        if hasattr(regressor, "outside_domain"):  # not the parameter-space boost's
+        if hasattr(regressor, "outside_domain") and not (
+                getattr(model, "alternative_", None) is not None
+                and model.alternative_selected_.all()):  # not the parameter-space boost's
             details["notes"] = _test_row_notes(regressor, _frame(ds).loc[ds.test_index], info)
         return prior, scores, details
 
