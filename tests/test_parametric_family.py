@@ -459,6 +459,9 @@ def test_the_stage_compares_the_drift_with_the_calibrated_model(decay_csv, tmp_p
     assert label.startswith("parametric:calibrated (the stage did better on it)"
                             if row["alternative_chosen"] else "parametric:drift")
     run = prepare(load_config(config))
+    metrics = run.family.run_metrics(result)
+    assert metrics["parametric/stage_cv_mae/physics/y"] == row["physics"]
+    assert metrics["parametric/stage_cv_mae/alternative/y"] == row["alternative"]
     model = run.family.build(run.config, run.dataset)
     assert model.alternative is not None
     X, Y = run.family.inputs(run.config, run.dataset), run.dataset.targets

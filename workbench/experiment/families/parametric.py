@@ -473,7 +473,9 @@ class ParametricFamily(ModelFamily):
 
         ``parametric/calibrated/<p>`` (start plus offset; a parameter that starts from a
         column has its ``parametric/offset/<p>`` only) and ``parametric/cv_mae/<candidate>``
-        (prior, calibrated, drift: the CV MAE the choice was made on).
+        (prior, calibrated, drift: the CV MAE the choice was made on); with
+        ``calibrated_stage``, ``parametric/stage_cv_mae/<physics|alternative>/<target>``
+        (the stage's CV MAE on the chosen model's prior and on the calibrated model's).
         """
         info = details.get("parametric") or {}
         out: dict[str, float] = {}
@@ -485,6 +487,9 @@ class ParametricFamily(ModelFamily):
         for row in info.get("choices", []):
             if row.get("cv_mae") is not None:
                 out[f"parametric/cv_mae/{row['candidate']}"] = float(row["cv_mae"])
+        for row in info.get("stage_cv_mae", []):
+            for side in ("physics", "alternative"):
+                out[f"parametric/stage_cv_mae/{side}/{row['target']}"] = float(row[side])
         return out
 
     def outputs(self, model: Any, ds: Dataset, setting: str | None = None) -> Artifacts:
