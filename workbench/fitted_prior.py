@@ -26,6 +26,7 @@ from sklearn.model_selection import check_cv
 from sklearn.utils._param_validation import HasMethods
 from sklearn.utils.validation import check_is_fitted
 
+from ._progress import Progress
 from .multitarget import MultiTargetBaseBoost, check_targets
 from .parallel import Task, map_tasks
 
@@ -86,6 +87,11 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         is below the control prediction's MAE there; elsewhere the control prediction is the
         prior (so where the control model is already right, fitting corrections that only
         chase noise is not kept).
+    verbose : bool, default=False
+        Report the phases of ``fit`` after the physics model's own (the out-of-fold refits,
+        the stage): INFO records of the ``workbench.fitted_prior`` logger, or printed to
+        standard error where no logging is set up (:mod:`workbench._progress`). The physics
+        model reports through its own ``verbose``. No number depends on it.
 
     Attributes
     ----------
@@ -115,11 +121,13 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         "fallback": [None, list, tuple],
         "cv_predictions": ["boolean"],
         "n_jobs": [None, Integral],
+        "verbose": ["boolean"],
     }
 
     def __init__(self, physics: Any = None, boost: Any = None, *, prior_prefix: str = "prior_",
                  cv: Any = 5, boost_stage: bool = True, fallback: Sequence[str] | None = None,
-                 cv_predictions: bool = True, n_jobs: int | None = None) -> None:
+                 cv_predictions: bool = True, n_jobs: int | None = None,
+                 verbose: bool = False) -> None:
         self.physics = physics
         self.boost = boost
         self.prior_prefix = prior_prefix
@@ -128,6 +136,7 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         self.fallback = fallback
         self.cv_predictions = cv_predictions
         self.n_jobs = n_jobs
+        self.verbose = verbose
 
     def _with_prior(self, X: pd.DataFrame, prior: np.ndarray) -> pd.DataFrame:
         clash = [c for c in self.prior_columns_ if c in X.columns]
@@ -152,6 +161,7 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
             The fitted model.
         """
         self._validate_params()
+        say = Progress(__name__, self.verbose, "stage: ")
         if not isinstance(X, pd.DataFrame):
             raise ValueError(f"X must be a pandas DataFrame, got {type(X).__name__}")
         Y_arr, names = check_targets(X, Y)
@@ -175,6 +185,7 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
             held[val] = True
         never = np.flatnonzero(~held)  # e.g. the earliest rows of forward-chaining folds
         tasks = [*splits, *([(never, never)] if len(never) else [])]
+        say(f"out-of-fold priors: {len(tasks)} refits of the physics model, its choices kept")
         preds = map_tasks([Task(_fold_prediction, model, fit_params, X, Y_arr, train, val)
                            for train, val in tasks], self.n_jobs)
         oof = np.empty_like(Y_arr)
@@ -194,7 +205,12 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         boost = MultiTargetBaseBoost() if self.boost is None else clone(self.boost)
         boost.set_params(priors=self.prior_columns_)
         Y_frame = pd.DataFrame(Y_arr, columns=names, index=X.index)
+        say(f"base boosting {len(names)} target(s) from the out-of-fold priors "
+            f"({say.elapsed()})")
         self.boost_ = boost.fit(self._with_prior(X, oof), Y_frame)
+        if say:
+            kept = sum(s == "boosted" for s in self.selected_)
+            say(f"kept on {kept} of {len(names)} target(s) ({say.elapsed()})")
         return self
 
     def predict_prior(self, X: pd.DataFrame) -> np.ndarray:
