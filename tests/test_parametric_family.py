@@ -335,27 +335,31 @@ def test_progress_prints_where_no_logging_is_set_up(capsys, monkeypatch):
 
 def test_the_fits_choices_kept_and_a_sweeps_trials_report_no_progress(decay_csv, tmp_path,
                                                                       caplog):
-    """Refits with the choices kept (repeated CV, learning curves) and a sweep's trials
-    build quiet fits: the sweep's progress is its line per trial."""
+    """Refits with the choices kept (repeated CV, learning curves) and a sweep's trials fit
+    quietly (the sweep's progress is its line per trial); the fit evaluate builds reports,
+    and cloning keeps its ``verbose``."""
     import logging
 
+    from optuna.trial import FixedTrial
     from sklearn.base import clone
+    from sklearn.model_selection import KFold
 
-    from workbench.experiment.families import parametric
     from workbench.experiment.runs.prepare import load_config, prepare
 
-    run = prepare(load_config(_decay_config(tmp_path)))
+    search = "[search.parametric]\nalpha = { low = 0.1, high = 10.0, log = true }\n"
+    run = prepare(load_config(_decay_config(tmp_path, search)))
+    ds, family = run.dataset, run.family
+    X, Y = family.inputs(run.config, ds).loc[ds.train_index], ds.targets.loc[ds.train_index]
+    folds = []
     with caplog.at_level(logging.INFO, logger="workbench"):
-        model = run.family.build(run.config, run.dataset)
-        with parametric._quiet_progress():
-            quiet = run.family.build(run.config, run.dataset)
+        model = family.build(run.config, ds)
+        family.objective(run.config, ds, ["y"], X, Y, FixedTrial({"parametric.alpha": 3.0}),
+                         KFold(2), lambda i, mae, prior: folds.append(mae))
+    assert len(folds) == 2 and not caplog.records  # the trial's two fits said nothing
     assert model.verbose and model.physics.verbose
-    assert not (quiet.verbose or quiet.physics.verbose)
     assert clone(model).get_params()["physics__verbose"] is True
-    ds = run.dataset
-    X = run.family.inputs(run.config, ds)
-    fitted = model.fit(X.loc[ds.train_index], ds.targets.loc[ds.train_index])
-    assert run.family.fixed_choices(fitted).verbose is False
+    fitted = model.fit(X, Y)
+    assert family.fixed_choices(fitted).verbose is False
 
 
 def test_a_fitted_model_needs_no_model_file(decay_csv, tmp_path):
