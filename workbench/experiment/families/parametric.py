@@ -360,7 +360,8 @@ class ParametricFamily(ModelFamily):
     def build(self, cfg: ExperimentConfig, ds: Dataset) -> FittedPriorBoost:
         """Build a :class:`FittedPriorBoost` over :func:`make_parametric`.
 
-        Both report their progress where :func:`_showing_progress`.
+        Both report their progress (``verbose``) where the ``workbench`` logger shows INFO
+        lines, except in a sweep's trials (:func:`_showing_progress`).
         """
         s = cast(ParametricSettings, cfg.family_settings)
         priors = [f"{PRIOR_PREFIX}{t}" for t in ds.target_names]
