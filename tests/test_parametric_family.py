@@ -260,6 +260,108 @@ def test_a_sweep_varies_the_parametric_settings(decay_csv, tmp_path):
             load_config(_decay_config(tmp_path, f"[search.parametric]\n{bad}\n"))
 
 
+def _evaluate_logged(config, caplog, level):
+    """Evaluate ``config`` with the ``workbench`` logger at ``level``: its result and lines."""
+    from workbench.experiment.runs.evaluate import evaluate
+    from workbench.experiment.runs.prepare import load_config
+
+    caplog.clear()
+    with caplog.at_level(level, logger="workbench"):
+        result = evaluate(load_config(config))
+    return result.to_json(), [r.getMessage() for r in caplog.records]
+
+
+def _without_timings(result):
+    out = {k: v for k, v in result.items() if k != "wall_s"}
+    out["parametric"] = {k: v for k, v in result["parametric"].items() if k != "selection"}
+    out["parametric"]["path"] = result["parametric"]["selection"]["path"]
+    return out
+
+
+def test_evaluate_reports_the_fits_progress_and_no_number_depends_on_it(decay_csv, tmp_path,
+                                                                         caplog):
+    """Each phase, CV fold and selection step of the family's fit is a line on the
+    ``workbench`` logger (which a command prints), in the order they run; with that logger
+    quiet there are none, and every number is the same."""
+    import logging
+
+    config = _decay_config(tmp_path, 'drift = "both"\nridge_alphas = [1.0, 0.01]\n'
+                                     "[model.parametric.boost]\nrounds = 4\n")
+    config.write_text(config.read_text().replace("boost_stage = false", "boost_stage = true"))
+    shown, lines = _evaluate_logged(config, caplog, logging.INFO)
+    expected = ["[c] fitting 1 targets",
+                "parametric: 3 parameters, 49 rows, 3 CV folds; the prior's training MAE",
+                *[f"parametric: calibrated model: CV fold {k}/3" for k in (1, 2, 3)],
+                "parametric: calibrated model: cv_mae=",
+                "parametric: drift: forward selection over 12 candidate terms, at most 1 step(s)",
+                "parametric: selection start: cv_mae=",
+                "parametric: selection step 1: tau <- temp  cv_mae=",
+                "parametric: drift: 1 step(s), cv_mae=",
+                "parametric: ridge drift: alpha 1 (1/2) cv_mae=",
+                "parametric: ridge drift: alpha 0.01 (2/2) cv_mae=",
+                *[f"parametric: boost: 4 rounds at most: CV fold {k}/3" for k in (1, 2, 3)],
+                "parametric: boost: ",
+                "parametric: chose ",
+                "stage: out-of-fold priors: 2 refits of the physics model",
+                "stage: base boosting 1 target(s) from the out-of-fold priors",
+                "stage: kept on "]
+    at = 0
+    for want in expected:  # each in turn, after the one before
+        found = [i for i, line in enumerate(lines) if i >= at and line.startswith(want)]
+        assert found, f"no line {want!r} after line {at}: {lines}"
+        at = found[0] + 1
+    progress = [line for line in lines if line.startswith(("parametric:", "stage:"))]
+    assert len(progress) == len(expected) - 1  # a line per phase, fold and step, no more
+    quiet, lines = _evaluate_logged(config, caplog, logging.WARNING)
+    assert not [line for line in lines if line.startswith(("parametric:", "stage:"))]
+    assert _without_timings(quiet) == _without_timings(shown)
+    assert shown["parametric"]["choices"] == quiet["parametric"]["choices"]
+
+
+def test_progress_prints_where_no_logging_is_set_up(capsys, monkeypatch):
+    """``verbose=True`` is never silent: without a handler the lines go to standard error
+    (as scikit-learn's verbose prints); ``verbose=False`` reports nothing."""
+    import logging
+
+    from workbench._progress import Progress
+
+    logger = logging.getLogger("workbench.test_progress")
+    monkeypatch.setattr(logger, "hasHandlers", lambda: False)
+    Progress(logger.name, enabled=True, prefix="parametric: ")("calibrated model: CV fold 1/5")
+    Progress(logger.name, enabled=False)("nothing")
+    captured = capsys.readouterr()
+    assert (captured.out, captured.err) == ("", "parametric: calibrated model: CV fold 1/5\n")
+
+
+def test_the_fits_choices_kept_and_a_sweeps_trials_report_no_progress(decay_csv, tmp_path,
+                                                                      caplog):
+    """Refits with the choices kept (repeated CV, learning curves) and a sweep's trials fit
+    quietly (the sweep's progress is its line per trial); the fit evaluate builds reports,
+    and cloning keeps its ``verbose``."""
+    import logging
+
+    from optuna.trial import FixedTrial
+    from sklearn.base import clone
+    from sklearn.model_selection import KFold
+
+    from workbench.experiment.runs.prepare import load_config, prepare
+
+    search = "[search.parametric]\nalpha = { low = 0.1, high = 10.0, log = true }\n"
+    run = prepare(load_config(_decay_config(tmp_path, search)))
+    ds, family = run.dataset, run.family
+    X, Y = family.inputs(run.config, ds).loc[ds.train_index], ds.targets.loc[ds.train_index]
+    folds = []
+    with caplog.at_level(logging.INFO, logger="workbench"):
+        model = family.build(run.config, ds)
+        family.objective(run.config, ds, ["y"], X, Y, FixedTrial({"parametric.alpha": 3.0}),
+                         KFold(2), lambda i, mae, prior: folds.append(mae))
+    assert len(folds) == 2 and not caplog.records  # the trial's two fits said nothing
+    assert model.verbose and model.physics.verbose
+    assert clone(model).get_params()["physics__verbose"] is True
+    fitted = model.fit(X, Y)
+    assert family.fixed_choices(fitted).verbose is False
+
+
 def test_a_fitted_model_needs_no_model_file(decay_csv, tmp_path):
     """The model file travels inside the fitted model (its source code): unpickled after the
     file is gone (a model server, another machine), it predicts the same."""

@@ -26,6 +26,7 @@ from sklearn.model_selection import check_cv
 from sklearn.utils._param_validation import HasMethods
 from sklearn.utils.validation import check_is_fitted
 
+from ._progress import Progress
 from .multitarget import MultiTargetBaseBoost, check_targets
 from .parallel import Task, map_tasks
 
@@ -93,6 +94,11 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         alternative where the stage's CV MAE on it is no larger: the stage is scored as it
         is used, where the physics model's own CV scored it without the stage. Not with
         ``fallback``.
+    verbose : bool, default=False
+        Report the phases of ``fit`` after the physics model's own (the out-of-fold refits,
+        the stage): INFO records of the ``workbench.fitted_prior`` logger, or printed to
+        standard error where no logging is set up (:mod:`workbench._progress`). The physics
+        model reports through its own ``verbose``. No number depends on it.
 
     Attributes
     ----------
@@ -130,12 +136,13 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         "cv_predictions": ["boolean"],
         "n_jobs": [None, Integral],
         "alternative": [None, HasMethods(["fit", "predict"])],
+        "verbose": ["boolean"],
     }
 
     def __init__(self, physics: Any = None, boost: Any = None, *, prior_prefix: str = "prior_",
                  cv: Any = 5, boost_stage: bool = True, fallback: Sequence[str] | None = None,
                  cv_predictions: bool = True, n_jobs: int | None = None,
-                 alternative: Any = None) -> None:
+                 alternative: Any = None, verbose: bool = False) -> None:
         self.physics = physics
         self.boost = boost
         self.prior_prefix = prior_prefix
@@ -145,6 +152,7 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         self.cv_predictions = cv_predictions
         self.n_jobs = n_jobs
         self.alternative = alternative
+        self.verbose = verbose
 
     def _with_prior(self, X: pd.DataFrame, prior: np.ndarray) -> pd.DataFrame:
         clash = [c for c in self.prior_columns_ if c in X.columns]
@@ -169,6 +177,7 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
             The fitted model.
         """
         self._validate_params()
+        say = Progress(__name__, self.verbose, "stage: ")
         if not isinstance(X, pd.DataFrame):
             raise ValueError(f"X must be a pandas DataFrame, got {type(X).__name__}")
         Y_arr, names = check_targets(X, Y)
@@ -196,6 +205,7 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
             held[val] = True
         never = np.flatnonzero(~held)  # e.g. the earliest rows of forward-chaining folds
         tasks = [*splits, *([(never, never)] if len(never) else [])]
+        say(f"out-of-fold priors: {len(tasks)} refits of the physics model, its choices kept")
         oof = self._out_of_fold(self.physics_, X, Y_arr, tasks)
         folds = np.full(len(X), -1, dtype=int)
         for k, (_, val) in enumerate(splits):
@@ -212,9 +222,14 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         boost = MultiTargetBaseBoost() if self.boost is None else clone(self.boost)
         boost.set_params(priors=self.prior_columns_)
         Y_frame = pd.DataFrame(Y_arr, columns=names, index=X.index)
+        say(f"base boosting {len(names)} target(s) from the out-of-fold priors "
+            f"({say.elapsed()})")
         self.boost_ = clone(boost).fit(self._with_prior(X, oof), Y_frame)
         if self.alternative is not None:
-            oof = self._choose_prior(X, Y_arr, Y_frame, tasks, oof, boost)
+            oof = self._choose_prior(X, Y_arr, Y_frame, tasks, oof, boost, say)
+        if say:
+            kept = sum(s == "boosted" for s in self.selected_)
+            say(f"kept on {kept} of {len(names)} target(s) ({say.elapsed()})")
         self.oof_prior_ = pd.DataFrame(oof, columns=self.prior_columns_, index=X.index)
         return self
 
@@ -231,10 +246,12 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
 
     def _choose_prior(self, X: pd.DataFrame, Y: np.ndarray, Y_frame: pd.DataFrame,
                       tasks: list[tuple[np.ndarray, np.ndarray]], oof: np.ndarray,
-                      boost: Any) -> np.ndarray:
+                      boost: Any, say: Progress) -> np.ndarray:
         """Fit the alternative and the stage on its out-of-fold prior; per target keep the
         prior whose stage scored the lower CV MAE (ties: the alternative); return the
         out-of-fold prior the final stage is trained on."""
+        say(f"the alternative prior: its fit, {len(tasks)} refits and its stage "
+            f"({say.elapsed()})")
         self.alternative_ = clone(self.alternative).fit(X, Y)
         alt = self._out_of_fold(self.alternative_, X, Y, tasks)
         ours = [-e.cv_score_ for e in self.boost_.estimators_]
@@ -247,6 +264,9 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         self.stage_cv_mae_ = pd.DataFrame({"physics": ours, "alternative": theirs},
                                           index=list(Y_frame.columns))
         self.alternative_selected_ = np.asarray(theirs) <= np.asarray(ours)
+        say(f"the alternative's prior kept on {int(self.alternative_selected_.sum())} of "
+            f"{len(ours)} target(s) (stage CV MAE {', '.join(f'{a:.4g}' for a in theirs)} "
+            f"against {', '.join(f'{b:.4g}' for b in ours)})")
         if self.alternative_selected_.all():
             self.boost_ = alt_boost
             return alt

@@ -253,17 +253,20 @@ def cv_mae(estimator: Any, X: pd.DataFrame, y: ArrayLike, *, cv: int = 5, n_repe
 
 
 def _fit_splits(base: Any, covariates: dict[str, list[str]], folds: list[tuple], warm: list,
-                models: bool = False) -> tuple:
+                models: bool = False, done: Callable[[int], None] | None = None) -> tuple:
     """CV MAE of ``base`` with ``covariates`` over the sliced ``folds``, and each fold's
-    coefficients (to warm-start the next fits); with ``models``, also the fitted models."""
+    coefficients (to warm-start the next fits); with ``models``, also the fitted models.
+    ``done(k)`` is called after fold ``k`` (from 1), to report progress."""
     est = clone(base).set_params(covariates=covariates)
     abs_sum, count, coefs, fits = 0.0, 0, [], []
-    for (X_fit, y_fit, X_val, y_val), init in zip(folds, warm):
+    for k, ((X_fit, y_fit, X_val, y_val), init) in enumerate(zip(folds, warm), 1):
         fitted = clone(est).fit(X_fit, y_fit, coef_init=init)
         abs_sum += np.abs(fitted.predict(X_val) - y_val).sum()
         count += y_val.size
         coefs.append(fitted.coef_dict())
         fits.append(fitted)
+        if done is not None:
+            done(k)
     return (abs_sum / count, coefs, fits) if models else (abs_sum / count, coefs)
 
 
@@ -498,7 +501,7 @@ def _refit_select(X: pd.DataFrame, base: HamiltonianParameterRegressor,
     best, warm = _fit_splits(base, current, folds, [None] * len(folds))
     rows = [dict(step=0, parameter=None, covariate=None, cv_mae=best)]
     if progress:
-        progress(f"start: cv_mae={best:.4f} ({len(pool)} candidate terms)")
+        progress(f"start: cv_mae={best:.4g} ({len(pool)} candidate terms)")
     for step in range(1, int(max_steps) + 1):
         if not pool:
             break
@@ -512,7 +515,7 @@ def _refit_select(X: pd.DataFrame, base: HamiltonianParameterRegressor,
         best, warm = _fit_splits(base, current, folds, warm)
         rows.append(dict(step=step, parameter=p, covariate=c, cv_mae=best))
         if progress:
-            progress(f"step {step}: {p} <- {c}  cv_mae={best:.4f} "
+            progress(f"step {step}: {p} <- {c}  cv_mae={best:.4g} "
                      f"({time.perf_counter() - t0:.0f} s)")
     return _selection_result(X, current, rows, best, regressor_params, t0)
 
@@ -567,7 +570,7 @@ def _linearised_select(X: pd.DataFrame, base: HamiltonianParameterRegressor,
         best, warm, models = fit_libs([current], [None] * len(folds))[0]
         rows = [dict(step=0, parameter=None, covariate=None, cv_mae=best)]
         if progress:
-            progress(f"start: cv_mae={best:.4f} ({len(pool)} candidate terms, linearised)")
+            progress(f"start: cv_mae={best:.4g} ({len(pool)} candidate terms, linearised)")
         n_params = sum(1 for v in current.values() if v) or 1
         size = max(1, n_params // 10) if batch == "auto" else int(batch)
         step = 0
@@ -612,7 +615,7 @@ def _linearised_select(X: pd.DataFrame, base: HamiltonianParameterRegressor,
                                  cv_mae=best))
             if progress:
                 added = ", ".join(f"{pool[k][0]} <- {pool[k][1]}" for k in ks)
-                progress(f"step {step}: {added}  cv_mae={best:.4f} "
+                progress(f"step {step}: {added}  cv_mae={best:.4g} "
                          f"({time.perf_counter() - t0:.0f} s)")
             current = lib
             pool = [pc for k, pc in enumerate(pool) if k not in set(ks)]

@@ -34,6 +34,7 @@ from sklearn.base import BaseEstimator, RegressorMixin, clone
 from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from ._progress import Progress
 from .parallel import effective_n_jobs
 from .param_engine import PARAM_LOSSES, SOLVERS, DriftRegressor
 from .param_engine import drift as _drift
@@ -835,7 +836,10 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
     n_jobs : int, default=None
         Processes scoring the selection's candidates (:mod:`workbench.parallel`).
     verbose : bool, default=False
-        Print a line per selection step.
+        Report what ``fit`` does, a line per phase, CV fold and selection step (e.g.
+        ``parametric: selection step 3: a_s <- Z*N  cv_mae=1.7400 (12 s)``): INFO records of
+        the ``workbench.parametric_boost`` logger, or printed to standard error where no
+        logging is set up (:mod:`workbench._progress`). No number depends on it.
     boost : ParameterSpaceBoostRegressor, default=None
         The ``"boost"`` candidate's template (None: no such candidate); its ``model``,
         ``loss``, ``huber_delta``, ``out_of_bounds`` and ``random_state`` are set from
@@ -965,6 +969,7 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         self._validate_params()
         X = _as_frame(self, X, reset=True)
         t0 = time.perf_counter()
+        say = Progress(__name__, self.verbose, "parametric: ")
         model = resolve_model(self.model)
         Y = _targets(y)
         common: dict[str, Any] = dict(model=self.model, alpha=self.alpha, alpha_l1=self.alpha_l1,
@@ -981,7 +986,12 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         rs = 0 if self.random_state is None else int(self.random_state)
         self.cv_splits_ = _cv_splits(X, self.cv, self.n_repeats, rs)
         folds = _sliced(X, Y, self.cv_splits_)
-        scores["calibrated"] = float(_fit_splits(base, {}, folds, [None] * len(folds))[0])
+        say(f"{len(model.names)} parameters, {len(X)} rows, {len(folds)} CV folds; the "
+            f"prior's training MAE {scores['prior']:.4g}")
+        scores["calibrated"] = float(_fit_splits(
+            base, {}, folds, [None] * len(folds),
+            done=_fold_lines(say, "calibrated model", len(folds)))[0])
+        say(f"calibrated model: cv_mae={scores['calibrated']:.4g} ({say.elapsed()})")
         pool = self._pool(model, X)
         unknown = [p for p in list(pool) + list(self.start or {}) if p not in model.parameters]
         if unknown:
@@ -995,16 +1005,21 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         drift: dict[str, list[str]] | None = None
         ridge: ParametricRegressor | None = None
         if self.drift != "ridge" and (pairs or any(current.values())):
-            progress: Callable[[str], None] | None = print if self.verbose else None
+            say(f"drift: forward selection over {len(pairs)} candidate terms, at most "
+                f"{self.max_steps} step(s)")
             self.selection_ = _refit_select(X, base, current, pairs, folds,
                                             effective_n_jobs(self.n_jobs), self.max_steps,
-                                            self.min_improvement_, progress, t0, common)
+                                            self.min_improvement_, say.child("selection "), t0,
+                                            common)
             drift = self.selection_.covariates
             scores["drift"] = float(self.selection_.cv_mae)
+            say(f"drift: {len(self.selection_.path) - 1} step(s), cv_mae={scores['drift']:.4g} "
+                f"({say.elapsed()})")
         if self.drift != "forward" and (pairs or any(current.values())):
             library = {p: current[p] + [c for q, c in pairs if q == p] for p in model.names}
             ridge, scores["ridge_drift"], self.ridge_path_ = ridge_drift(
-                clone(base).set_params(covariates=library), folds, self._alphas())
+                clone(base).set_params(covariates=library), folds, self._alphas(),
+                progress=say.child("ridge drift: "))
         drifts = {"drift": drift and clone(base).set_params(covariates=drift),
                   "ridge_drift": ridge}
         booster = None
@@ -1013,7 +1028,8 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
                        default="drift")
             booster, scores["boost"] = boost_candidate(clone(self.boost).set_params(
                 model=self.model, loss=self.loss, huber_delta=self.huber_delta,
-                out_of_bounds=self.out_of_bounds, random_state=rs), folds, drifts[best])[:2]
+                out_of_bounds=self.out_of_bounds, random_state=rs), folds, drifts[best],
+                progress=say.child("boost: "))[:2]
         self.choice_ = "prior"
         for name in CANDIDATES[1:]:
             if name in scores and scores[self.choice_] - scores[name] > self.min_improvement_:
@@ -1026,6 +1042,10 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         self.choices_ = pd.DataFrame({"candidate": list(scores), "cv_mae": list(scores.values()),
                                       "chosen": [k == self.choice_ for k in scores]})
         winner = {"prior": prior, "calibrated": base, **drifts, "boost": booster}[self.choice_]
+        if say:
+            cv = ", ".join(f"{k} {v:.4g}" for k, v in scores.items() if k != "prior")
+            say(f"chose {self.choice_} (cv_mae: {cv}; the prior's training MAE "
+                f"{scores['prior']:.4g}); refitting it on all {len(X)} rows")
         self.estimator_ = clone(winner).fit(X, np.asarray(y, dtype=float))
         if self.out_of_bounds == "validated" and hasattr(self.estimator_,
                                                          "validate_extrapolation"):
@@ -1094,8 +1114,21 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         return hasattr(self, "estimator_")
 
 
-def boost_candidate(template: Any, folds: list[tuple],
-                    drift: Any = None) -> tuple[Any, float, np.ndarray]:
+def _fold_lines(say: Callable[[str], None] | None, what: str,
+                n_folds: int) -> Callable[[int], None] | None:
+    """``done(k)`` reporting ``"<what>: CV fold k/n"`` (and ``" (t s)"``, the time since
+    the fit began, from a :class:`~workbench._progress.Progress`), or None when ``say`` is
+    off."""
+    if not say:
+        return None
+    elapsed = getattr(say, "elapsed", None)
+    return lambda k: say(f"{what}: CV fold {k}/{n_folds}"
+                         + (f" ({elapsed()})" if elapsed is not None else ""))
+
+
+def boost_candidate(template: Any, folds: list[tuple], drift: Any = None, *,
+                    progress: Callable[[str], None] | None = None
+                    ) -> tuple[Any, float, np.ndarray]:
     """Score ``template`` by CV on the sliced ``folds`` (``(X_fit, y_fit, X_val, y_val)``).
 
     Each fold is fitted with ``template.n_estimators`` rounds; the CV MAE after every round
@@ -1112,6 +1145,9 @@ def boost_candidate(template: Any, folds: list[tuple],
         ``(X_fit, y_fit, X_val, y_val)`` per fold.
     drift : ParametricRegressor, optional
         The start of an ``init="drift"`` template.
+    progress : callable, optional
+        Called with a line after each fold and with the chosen rounds (e.g. the fit's
+        :class:`~workbench._progress.Progress`); None or false: no lines.
 
     Returns
     -------
@@ -1126,7 +1162,8 @@ def boost_candidate(template: Any, folds: list[tuple],
         template = clone(template).set_params(init=drift)
     n = template.n_estimators + 1
     abs_sum, count = np.zeros(n), 0
-    for X_fit, y_fit, X_val, y_val in folds:
+    done = _fold_lines(progress, f"{n - 1} rounds at most", len(folds))
+    for k, (X_fit, y_fit, X_val, y_val) in enumerate(folds, 1):
         fitted = clone(template).fit(X_fit, y_fit)
         y_val = np.asarray(y_val, dtype=float)
         last = 0.0
@@ -1135,13 +1172,18 @@ def boost_candidate(template: Any, folds: list[tuple],
             abs_sum[m] += last
         abs_sum[fitted.n_iter_ + 1:] += last  # a fold that stopped early keeps its last
         count += y_val.size
+        if done is not None:
+            done(k)
     curve = abs_sum / count
     rounds = int(np.argmin(curve))
+    if progress:
+        progress(f"{rounds} rounds chosen, cv_mae={curve[rounds]:.4g}")
     return clone(template).set_params(n_estimators=rounds), float(curve[rounds]), curve
 
 
-def ridge_drift(template: ParametricRegressor, folds: list[tuple],
-                alphas: Sequence[float]) -> tuple[ParametricRegressor, float, pd.DataFrame]:
+def ridge_drift(template: ParametricRegressor, folds: list[tuple], alphas: Sequence[float], *,
+                progress: Callable[[str], None] | None = None
+                ) -> tuple[ParametricRegressor, float, pd.DataFrame]:
     """Choose the ridge penalty of a drift over a whole covariate library by CV.
 
     Every parameter drifts in all of ``template.covariates`` at once (no selection); each
@@ -1156,6 +1198,8 @@ def ridge_drift(template: ParametricRegressor, folds: list[tuple],
         ``(X_fit, y_fit, X_val, y_val)`` per fold.
     alphas : sequence of float
         The penalties tried.
+    progress : callable, optional
+        Called with a line after each penalty is scored; None or false: no lines.
 
     Returns
     -------
@@ -1168,10 +1212,12 @@ def ridge_drift(template: ParametricRegressor, folds: list[tuple],
     """
     warm: list = [None] * len(folds)
     maes = []
-    for a in alphas:
+    for i, a in enumerate(alphas, 1):
         mae, warm = _fit_splits(clone(template).set_params(alpha=float(a)),
                                 template.covariates or {}, folds, warm)
         maes.append(float(mae))
+        if progress:
+            progress(f"alpha {float(a):g} ({i}/{len(alphas)}) cv_mae={float(mae):.4g}")
     k = int(np.argmin(maes))
     path = pd.DataFrame({"alpha": [float(a) for a in alphas], "cv_mae": maes,
                          "chosen": [i == k for i in range(len(maes))]})

@@ -16,14 +16,25 @@ parameter's start and calibrated offset), ``coefficients`` (the corrections'),
 parameters against their start values and against the covariates they drift with, and the
 selection path; a tracked run adds a learning curve and SHAP summaries of the correction
 (:mod:`.parametric_artifacts`).
+
+Progress: where the ``workbench`` logger shows INFO lines (a command's), a fit the family
+builds reports a line per phase, CV fold and selection step (the estimators' ``verbose``,
+:mod:`workbench._progress`), e.g. ``parametric: calibrated model: CV fold 2/5 (3 s)``,
+``parametric: selection step 1: tau <- temp  cv_mae=0.0123 (4 s)``, ``stage: out-of-fold
+priors: 5 refits of the physics model, its choices kept``. A sweep's trials report none (its
+progress is a line per trial); refits with the choices kept (repeated CV, learning curves,
+intervals) neither.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar, Literal, cast
 
@@ -43,7 +54,7 @@ from ..process.errors import ConfigError
 from ..scoring.scores import ModelScores, Scores, mae, mse
 from ..splits.folds import describe_folds, family_cv
 from .artifacts import Artifacts
-from .base import ModelFamily
+from .base import ModelFamily, Report
 from .hamiltonian_figures import parameter_corrections, selection_path_figure
 from .parametric_artifacts import run_artifacts
 from .parametric_figures import drift_axes, parameter_drift_figure
@@ -57,6 +68,28 @@ __all__ = ["ParametricFamily", "ParametricSettings", "make_parametric"]
 
 #: Prefix of the columns holding the physics model's prediction (the stage's prior).
 PRIOR_PREFIX = "prior_"
+
+#: Whether the fits built here report their progress (off inside a sweep's trials).
+_PROGRESS: ContextVar[bool] = ContextVar("parametric_progress", default=True)
+
+
+def _showing_progress() -> bool:
+    """Tell whether a fit built now reports its progress (its ``verbose``).
+
+    It does where the ``workbench`` logger shows INFO lines (a command set it up, or a test
+    captures it), except inside :func:`_quiet_progress`. No number depends on it.
+    """
+    return _PROGRESS.get() and logging.getLogger("workbench").isEnabledFor(logging.INFO)
+
+
+@contextmanager
+def _quiet_progress() -> Iterator[None]:
+    """Build fits that report no progress inside the ``with`` block."""
+    token = _PROGRESS.set(False)
+    try:
+        yield
+    finally:
+        _PROGRESS.reset(token)
 
 
 class ParameterBoostSettings(Section):
@@ -192,7 +225,8 @@ def make_parametric(cfg: ExperimentConfig, ds: Dataset) -> ParametricBoostRegres
         alpha_l1=float(s.alpha_l1), loss=s.loss, huber_delta=float(s.huber_delta),
         max_iter=s.max_iter, out_of_bounds=s.out_of_bounds, calibrate=s.calibrate,
         solver=s.solver, random_state=cfg.random_state,
-        n_jobs=cfg.n_jobs, boost=_booster(s.boost, ds.feature_names))
+        n_jobs=cfg.n_jobs, verbose=_showing_progress(),
+        boost=_booster(s.boost, ds.feature_names))
 
 
 def choice_cv(cfg: ExperimentConfig, ds: Dataset) -> Any:
@@ -340,7 +374,11 @@ class ParametricFamily(ModelFamily):
         return X
 
     def build(self, cfg: ExperimentConfig, ds: Dataset) -> FittedPriorBoost:
-        """Build a :class:`FittedPriorBoost` over :func:`make_parametric`."""
+        """Build a :class:`FittedPriorBoost` over :func:`make_parametric`.
+
+        Both report their progress (``verbose``) where the ``workbench`` logger shows INFO
+        lines, except in a sweep's trials (:func:`_showing_progress`).
+        """
         s = cast(ParametricSettings, cfg.family_settings)
         priors = [f"{PRIOR_PREFIX}{t}" for t in ds.target_names]
         boost = per_target_boost(cfg, ds, priors, boost_from_prior=False)
@@ -352,7 +390,8 @@ class ParametricFamily(ModelFamily):
                                 cv=family_cv(cfg, ds, s.prior_cv),
                                 boost_stage=s.boost_stage,
                                 cv_predictions=cfg.intervals.enabled
-                                and cfg.intervals.method == "oof", n_jobs=cfg.jobs)
+                                and cfg.intervals.method == "oof", n_jobs=cfg.jobs,
+                                verbose=_showing_progress())
 
     def folds_used(self, cfg: ExperimentConfig, ds: Dataset) -> str:
         """Say which folds made the choices: the stage's, the physics model's and its priors'.
@@ -378,14 +417,24 @@ class ParametricFamily(ModelFamily):
 
     def fixed_choices(self, model: Any) -> Any:
         """Keep the physics model's choice (and selected covariates), and the stage's prior
-        where ``calibrated_stage`` chose one for every target."""
-        fixed = clone(model).set_params(physics=clone(model.physics_.estimator_))
+        where ``calibrated_stage`` chose one for every target; no progress lines."""
+        fixed = clone(model).set_params(physics=clone(model.physics_.estimator_), verbose=False)
         chose = getattr(model, "alternative_selected_", None)
         if model.alternative is None or chose is None or chose.all() or not chose.any():
             fixed.set_params(alternative=None)
         if model.alternative is not None and chose is not None and chose.all():
             fixed.set_params(physics=clone(model.alternative_))
         return fixed
+
+    def objective(self, cfg: ExperimentConfig, ds: Dataset, targets: list[str], X: pd.DataFrame,
+                  Y: pd.DataFrame, trial: Any, cv: Any, report: Report) -> None:
+        """Score a trial as every family does, its fits without progress lines.
+
+        A sweep's progress is its line per trial; the fit of the chosen settings on all
+        training rows afterwards reports its own.
+        """
+        with _quiet_progress():
+            super().objective(cfg, ds, targets, X, Y, trial, cv, report)
 
     def selected(self, model: Any, targets: list[str]) -> list[str]:
         """Label per target ``"parametric:<prior|calibrated|drift|ridge_drift|boost>"``.
