@@ -229,7 +229,8 @@ class ParametricRegressor(DriftRegressor):
         one set fitted to all training rows at once. Rows inside the box are unchanged.
         ``"validated"``: the drift extrapolates only as far as CV has tested it, the
         calibrated parameters beyond (:meth:`validate_extrapolation`; until it has run,
-        as ``"calibrated"``).
+        as ``"extrapolate"``, so every fit before the test, a CV fold's or an out-of-fold
+        prior's, is the unguarded drift's).
     solver : {"newton", "irls"}, default="newton"
         The Gauss-Newton weights near the optimum (:func:`~workbench.param_engine.gauss_newton`):
         the loss's curvature once an iteration gains less than 10 %, stopping where such a
@@ -497,7 +498,7 @@ class ParametricRegressor(DriftRegressor):
 
         ``out_of_bounds="calibrated"``: the rows outside the box (:meth:`outside`);
         ``"validated"``: those with a covariate's column beyond :attr:`trusted_range_`
-        (before :meth:`validate_extrapolation`, the box); otherwise none.
+        (none before :meth:`validate_extrapolation`); otherwise none.
 
         Parameters
         ----------
@@ -512,8 +513,7 @@ class ParametricRegressor(DriftRegressor):
         check_is_fitted(self)
         X = _as_frame(self, X, reset=False)
         trusted: dict[str, tuple[float, float]] | None = getattr(self, "trusted_range_", None)
-        if self.out_of_bounds == "calibrated" or (self.out_of_bounds == "validated"
-                                                  and trusted is None):
+        if self.out_of_bounds == "calibrated":
             return self.outside(X)
         out = np.zeros(len(X), dtype=bool)
         if self.out_of_bounds != "validated" or trusted is None:

@@ -135,7 +135,7 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
         calibrated model's parameters, no drift and no boosted steps (``"calibrated"``:
         ``init_``'s calibration). ``"clip"`` and ``"calibrated"`` are also set on the start
         (a :class:`~workbench.parametric_boost.ParametricRegressor`). ``"validated"`` acts
-        as ``"calibrated"`` here (the boosted steps' extrapolation is not tested).
+        as ``"extrapolate"`` here (the boosted steps' extrapolation is not tested).
     random_state : int, default=None
         Seeds the subsamples and the regressors.
 
@@ -205,7 +205,8 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
                              "alone, pass a ParametricRegressor with covariates")
         init = (ParametricRegressor(max_iter=0) if self.init is None else clone(self.init))
         init.set_params(model=self.model, loss=self.loss, huber_delta=self.huber_delta)
-        if self.out_of_bounds != "extrapolate" and "out_of_bounds" in init.get_params():
+        if (self.out_of_bounds in ("clip", "calibrated")
+                and "out_of_bounds" in init.get_params()):
             init.set_params(out_of_bounds=self.out_of_bounds)
         return init.fit(X, Y)
 
@@ -271,7 +272,7 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
             raise ValueError(f"the features {self.features_} have missing or non-finite values")
         self.feature_range_ = np.stack([Z.min(axis=0), Z.max(axis=0)])
         self.init_ = self._start(X, Y)
-        if (self.out_of_bounds in ("calibrated", "validated")
+        if (self.out_of_bounds == "calibrated"
                 and not hasattr(self.init_, "calibrated_parameters")):
             raise ValueError(f"out_of_bounds={self.out_of_bounds!r} needs an init with "
                              "calibrated_parameters (a ParametricRegressor), got "
@@ -369,7 +370,7 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
         theta = self.init_.corrected_parameters(X).to_numpy(dtype=float, copy=True)
         Z = self._inputs(X)
         held = np.zeros(len(X), dtype=bool)
-        if self.out_of_bounds in ("calibrated", "validated"):  # beyond the box: calibrated
+        if self.out_of_bounds == "calibrated":  # beyond the box: the calibrated model
             held = self._outside(Z)
             if held.any():
                 theta[held] = self.init_.calibrated_parameters(X).to_numpy(dtype=float)[held]
