@@ -441,8 +441,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--trials", type=int, default=50, help="the peer's Optuna trials")
     parser.add_argument("--variants", nargs="+", choices=VARIANTS, default=list(VARIANTS))
     parser.add_argument("--json", type=Path, help="also write the rows as JSON")
-    parser.add_argument("--out-of-bounds",
-                        choices=("extrapolate", "clip", "calibrated", "validated"),
+    parser.add_argument("--out-of-bounds", choices=("extrapolate", "clip", "calibrated"),
                         help="[model.parametric] out_of_bounds in every variant's config "
                              "(default: as init writes it)")
     parser.add_argument("--inner", action="store_true",

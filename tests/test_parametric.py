@@ -242,48 +242,6 @@ def test_calibrated_guard_reuses_a_warm_start_only_on_the_same_rows(tmp_path):
     np.testing.assert_allclose(nocal.calibrated_offset_, cold.calibrated_offset_)
 
 
-def test_validated_guard_trusts_the_drift_only_as_far_as_it_was_tested(tmp_path):
-    """out_of_bounds="validated": per column and end the outer 20% of the training rows
-    are held out; the drift of tau in hum, whose truth (sin 3 hum) turns over at the low
-    end, loses to the calibrated model there and is not trusted beyond the training rows'
-    low end, while beyond the high end it is trusted as far as the held-out rows reached:
-    a row there gets the drift's extrapolation, a row farther the calibrated parameters.
-    Until validate_extrapolation runs nothing is guarded (as "extrapolate")."""
-    path = _write(tmp_path, DECAY)
-    rng = np.random.default_rng(0)
-    n = 300
-    X = pd.DataFrame({"t": rng.uniform(0, 3, n), "temp": rng.uniform(-1, 1, n),
-                      "hum": rng.uniform(-1, 1, n)})
-    tau = 1.5 + 0.6 * np.sin(3 * X["hum"].to_numpy())
-    y = 2.5 * np.exp(-X["t"].to_numpy() / tau) + 0.1 + rng.normal(0, 0.01, n)
-    kw = dict(model=path, covariates={"tau": ["hum", "temp"]}, loss="squared_error")
-    guard = ParametricRegressor(**kw, out_of_bounds="validated").fit(X, y)
-    free = ParametricRegressor(**kw).fit(X, y)
-    new = X.iloc[:4].assign(hum=[-1.2, 1.2, 2.5, 0.0], temp=0.0)
-    assert guard.outside(new)[:3].all() and not guard.untrusted(new).any()  # not yet tested
-    guard.validate_extrapolation(X, y)
-    table = guard.extrapolation_table_.set_index(["column", "end"])
-    assert len(table) == 4 and (table["held_out_rows"] == 60).all()
-    assert not table.loc[("hum", "low"), "trusted"]
-    assert table.loc[("hum", "low"), "drift_mae"] > table.loc[("hum", "low"), "calibrated_mae"]
-    assert table.loc[("hum", "high"), "trusted"]
-    low, high = guard.trusted_range_["hum"]
-    assert low == guard.column_range_["hum"][0]
-    assert high == pytest.approx(guard.column_range_["hum"][1]
-                                 + table.loc[("hum", "high"), "reach"])
-    assert 1.2 < high < 2.5
-    np.testing.assert_array_equal(guard.untrusted(new), [True, False, True, False])
-    calibrated = guard.calibrated_parameters(new).to_numpy()
-    corrected = guard.corrected_parameters(new).to_numpy()
-    np.testing.assert_allclose(corrected[[0, 2]], calibrated[[0, 2]])
-    np.testing.assert_allclose(corrected[[1, 3]], free.corrected_parameters(new).to_numpy()[[1, 3]])
-    np.testing.assert_allclose(guard.predict(X), free.predict(X))  # training rows: unchanged
-    chosen = ParametricBoostRegressor(model=path, candidates={"tau": ["hum", "temp"]},
-                                      loss="squared_error", out_of_bounds="validated",
-                                      max_steps=2, random_state=0).fit(X, y)
-    assert chosen.choice_ == "drift" and hasattr(chosen.estimator_, "trusted_range_")
-
-
 def test_out_of_bounds_is_validated_and_cloned(tmp_path):
     path = _write(tmp_path, DECAY)
     X, y = _unit_box(n=60)

@@ -577,17 +577,3 @@ def test_the_stage_compares_the_drift_with_the_calibrated_model(decay_csv, tmp_p
         assert settings(fixed.physics) == settings(model.alternative)
     else:  # the drift, its covariates fixed
         assert fixed.physics.covariates == model.physics_.estimator_.covariates
-
-
-def test_the_validated_guard_through_evaluate(decay_csv, tmp_path):
-    """out_of_bounds = "validated": evaluate records the extrapolation test per column and
-    end, and counts the test rows beyond the trusted range (features only)."""
-    config = _decay_config(tmp_path, 'out_of_bounds = "validated"\n')
-    out = tmp_path / "r.json"
-    assert main(["evaluate", str(config), "--no-track", "--json", str(out), "--jobs", "1"]) == 0
-    info = json.loads(out.read_text())["parametric"]
-    assert info["choice"] == "drift"
-    table = info["extrapolation"]
-    assert {(r["column"], r["end"]) for r in table} == {("temp", "low"), ("temp", "high")}
-    assert all(r["reach"] >= 0 and r["trusted"] == (r["reach"] > 0) for r in table)
-    assert 0 <= info["untrusted_test_rows"] <= info["outside_box_test_rows"]

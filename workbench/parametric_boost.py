@@ -50,11 +50,7 @@ __all__ = ["ParametricBoostRegressor", "ParametricRegressor", "boost_candidate",
            "ridge_drift"]
 
 #: ``out_of_bounds``: what a new row beyond the training rows gets.
-OUT_OF_BOUNDS = ("extrapolate", "clip", "calibrated", "validated")
-
-#: ``out_of_bounds="validated"``: the share of the training rows at each end of a column held
-#: out to test the drift's extrapolation there (:meth:`ParametricRegressor.validate_extrapolation`).
-EDGE_SHARE = 0.2
+OUT_OF_BOUNDS = ("extrapolate", "clip", "calibrated")
 
 #: scipy's robust losses for the calibration, by the regressor's ``loss``.
 _SCIPY_LOSS = {"squared_error": "linear", "absolute_error": "soft_l1", "huber": "huber"}
@@ -227,10 +223,6 @@ class ParametricRegressor(DriftRegressor):
         model's own variables (a nucleus' mass number), which keep changing beyond the box
         where clipped or clamped corrections no longer do; the calibrated parameters are the
         one set fitted to all training rows at once. Rows inside the box are unchanged.
-        ``"validated"``: the drift extrapolates only as far as CV has tested it, the
-        calibrated parameters beyond (:meth:`validate_extrapolation`; until it has run,
-        as ``"extrapolate"``, so every fit before the test, a CV fold's or an out-of-fold
-        prior's, is the unguarded drift's).
     solver : {"newton", "irls"}, default="newton"
         The Gauss-Newton weights near the optimum (:func:`~workbench.param_engine.gauss_newton`):
         the loss's curvature once an iteration gains less than 10 %, stopping where such a
@@ -253,16 +245,8 @@ class ParametricRegressor(DriftRegressor):
     variable_range_ : dict of str -> (float, float)
         The training range of every covariate's column, product or difference (the box).
     calibrated_offset_ : ndarray of shape (n_parameters,)
-        With ``out_of_bounds="calibrated"`` or ``"validated"``: the calibration's offsets on
-        the training rows (computed even with ``calibrate=False``), the parameters a row
-        outside the box (beyond the trusted range) gets.
-    trusted_range_ : dict of str -> (float, float)
-        After :meth:`validate_extrapolation`: per column of the covariates, the range the
-        drift is trusted in.
-    extrapolation_table_ : DataFrame
-        After :meth:`validate_extrapolation`: per column and end, the held-out rows, the
-        drift's and the calibrated model's MAE on them, whether the drift is trusted and
-        how far beyond the training range.
+        With ``out_of_bounds="calibrated"``: the calibration's offsets on the training rows
+        (computed even with ``calibrate=False``), the parameters a row outside the box gets.
     """
 
     _parameter_constraints: dict = {
@@ -423,7 +407,7 @@ class ParametricRegressor(DriftRegressor):
         c = self._coef_start(coef_init, self._index)
         if coef_init is None and self.calibrate:
             c[[s.start for s in self._slices]] = self._calibrate(model, X, start, Y)
-        if self.out_of_bounds in ("calibrated", "validated"):
+        if self.out_of_bounds == "calibrated":
             self.calibrated_offset_ = self._held(model, X, start, Y, c, coef_init)
         self.calibration_ = pd.DataFrame({
             "parameter": model.names,
@@ -493,104 +477,9 @@ class ParametricRegressor(DriftRegressor):
             out |= ~((values >= low) & (values <= high))
         return out
 
-    def untrusted(self, X: pd.DataFrame) -> np.ndarray:
-        """Tell which rows get the calibrated parameters under the guard.
-
-        ``out_of_bounds="calibrated"``: the rows outside the box (:meth:`outside`);
-        ``"validated"``: those with a covariate's column beyond :attr:`trusted_range_`
-        (none before :meth:`validate_extrapolation`); otherwise none.
-
-        Parameters
-        ----------
-        X : pandas.DataFrame of shape (n_samples, n_features)
-            The model's and the covariates' columns, by name.
-
-        Returns
-        -------
-        ndarray of bool, shape (n_samples,)
-            True where the row gets the calibrated parameters.
-        """
-        check_is_fitted(self)
-        X = _as_frame(self, X, reset=False)
-        trusted: dict[str, tuple[float, float]] | None = getattr(self, "trusted_range_", None)
-        if self.out_of_bounds == "calibrated":
-            return self.outside(X)
-        out = np.zeros(len(X), dtype=bool)
-        if self.out_of_bounds != "validated" or trusted is None:
-            return out
-        for c, (low, high) in trusted.items():
-            values = _column(X, c)
-            out |= ~((values >= low) & (values <= high))
-        return out
-
-    def validate_extrapolation(self, X: pd.DataFrame, y: Any) -> Self:
-        """Test, per column of the covariates and per end, whether the drift extrapolates.
-
-        The :data:`EDGE_SHARE` of the training rows with the highest (lowest) values of the
-        column are held out, the drift (its covariates kept, warm-started) and the
-        calibrated model are refitted on the rest, and their MAE on the held-out rows
-        compared. Where the drift is no worse, it is trusted beyond the training range by
-        as far as the held-out rows reached beyond the rows it was refitted on; elsewhere
-        not at all. With ``out_of_bounds="validated"`` a new row beyond the trusted range
-        of any column gets the calibrated parameters.
-
-        Parameters
-        ----------
-        X : pandas.DataFrame of shape (n_samples, n_features)
-            The training rows this model was fitted on.
-        y : array-like of shape (n_samples,) or (n_samples, n_targets)
-            Their targets.
-
-        Returns
-        -------
-        self
-            With :attr:`trusted_range_` and :attr:`extrapolation_table_`.
-        """
-        check_is_fitted(self)
-        X = _as_frame(self, X, reset=False)
-        Y = _targets(y)
-        trusted = dict(self.column_range_)
-        rows = []
-        drift = clone(self).set_params(out_of_bounds="extrapolate")
-        calibrated = clone(drift).set_params(covariates=None)
-        start = self.coef_dict()
-        for c in self.column_range_:
-            values = _column(X, c)
-            for end in ("low", "high"):
-                cut = np.quantile(values, EDGE_SHARE if end == "low" else 1 - EDGE_SHARE)
-                held = values < cut if end == "low" else values > cut
-                if held.sum() < 2 or (~held).sum() < 2:  # e.g. a 0/1 column's end
-                    continue
-                fit = ~held
-                errors = []
-                for m, init in ((drift, start), (calibrated, None)):
-                    try:
-                        fitted = clone(m).fit(X[fit], Y[fit], **(
-                            {"coef_init": init} if init is not None else {}))
-                        pred = np.asarray(fitted.predict(X[held]), dtype=float)
-                        errors.append(float(np.mean(np.abs(
-                            Y[held] - pred.reshape(Y[held].shape)))))
-                    except (ValueError, ModelError, np.linalg.LinAlgError):
-                        errors.append(float("inf"))
-                kept = values[fit]
-                reach = (float(kept.min() - values.min()) if end == "low"
-                         else float(values.max() - kept.max()))
-                ok = bool(np.isfinite(errors[0]) and errors[0] <= errors[1])
-                if ok:
-                    lo, hi = trusted[c]
-                    trusted[c] = (lo - reach, hi) if end == "low" else (lo, hi + reach)
-                rows.append({"column": c, "end": end, "held_out_rows": int(held.sum()),
-                             "drift_mae": errors[0], "calibrated_mae": errors[1],
-                             "trusted": ok, "reach": reach if ok else 0.0})
-        self.trusted_range_ = trusted
-        self.extrapolation_table_ = pd.DataFrame(
-            rows, columns=["column", "end", "held_out_rows", "drift_mae", "calibrated_mae",
-                           "trusted", "reach"])
-        return self
-
     def calibrated_parameters(self, X: pd.DataFrame) -> pd.DataFrame:
         """The calibrated model's parameters per row, ``start(X) + calibrated_offset_``
-        (``out_of_bounds="calibrated"`` or ``"validated"``).
+        (``out_of_bounds="calibrated"`` only).
 
         Parameters
         ----------
@@ -609,12 +498,12 @@ class ParametricRegressor(DriftRegressor):
 
     # ------------------------------------------------------------------ results
     def _corrected(self, X: Any) -> np.ndarray:
-        """``start + drift`` per row; with the guard (``out_of_bounds="calibrated"`` or
-        ``"validated"``) the calibrated parameters on the rows it does not trust."""
+        """``start + drift`` per row; with ``out_of_bounds="calibrated"`` the calibrated
+        parameters on the rows outside the box."""
         data, start, phis = self._rows(X)
         theta = start + _drift(phis, self._coef)
-        if self.out_of_bounds in ("calibrated", "validated"):
-            out = self.untrusted(data)
+        if self.out_of_bounds == "calibrated":
+            out = self.outside(data)
             theta[out] = start[out] + self.calibrated_offset_
         return theta
 
@@ -633,8 +522,8 @@ class ParametricRegressor(DriftRegressor):
             In :attr:`coef_`'s order.
         """
         out = super().coef_jacobian(X)
-        if self.out_of_bounds in ("calibrated", "validated"):
-            out[self.untrusted(_as_frame(self, X, reset=False))] = 0.0
+        if self.out_of_bounds == "calibrated":
+            out[self.outside(_as_frame(self, X, reset=False))] = 0.0
         return out
 
     def _physics(self) -> ParametricModel:
@@ -1047,9 +936,6 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
             say(f"chose {self.choice_} (cv_mae: {cv}; the prior's training MAE "
                 f"{scores['prior']:.4g}); refitting it on all {len(X)} rows")
         self.estimator_ = clone(winner).fit(X, np.asarray(y, dtype=float))
-        if self.out_of_bounds == "validated" and hasattr(self.estimator_,
-                                                         "validate_extrapolation"):
-            self.estimator_.validate_extrapolation(X, np.asarray(y, dtype=float))
         self.cv_mae_ = scores[self.choice_]
         self.n_iter_ = self.estimator_.n_iter_
         self.seconds_ = time.perf_counter() - t0

@@ -127,15 +127,14 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
     loss : {"squared_error", "absolute_error", "huber"}, default="huber"
     huber_delta : float, default=1.0
         Huber's threshold (targets' units).
-    out_of_bounds : {"extrapolate", "clip", "calibrated", "validated"}, default="extrapolate"
+    out_of_bounds : {"extrapolate", "clip", "calibrated"}, default="extrapolate"
         What a new row with a feature beyond its training range gets: the regressors'
         predictions there (``"extrapolate"``: trees predict their edge leaves' values, so the
         parameters' steps are those at the edge, applied where the model's own variables
         have moved on); the features clipped to their training range (``"clip"``); or the
         calibrated model's parameters, no drift and no boosted steps (``"calibrated"``:
         ``init_``'s calibration). ``"clip"`` and ``"calibrated"`` are also set on the start
-        (a :class:`~workbench.parametric_boost.ParametricRegressor`). ``"validated"`` acts
-        as ``"extrapolate"`` here (the boosted steps' extrapolation is not tested).
+        (a :class:`~workbench.parametric_boost.ParametricRegressor`).
     random_state : int, default=None
         Seeds the subsamples and the regressors.
 
@@ -205,8 +204,7 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
                              "alone, pass a ParametricRegressor with covariates")
         init = (ParametricRegressor(max_iter=0) if self.init is None else clone(self.init))
         init.set_params(model=self.model, loss=self.loss, huber_delta=self.huber_delta)
-        if (self.out_of_bounds in ("clip", "calibrated")
-                and "out_of_bounds" in init.get_params()):
+        if self.out_of_bounds != "extrapolate" and "out_of_bounds" in init.get_params():
             init.set_params(out_of_bounds=self.out_of_bounds)
         return init.fit(X, Y)
 
@@ -272,9 +270,8 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
             raise ValueError(f"the features {self.features_} have missing or non-finite values")
         self.feature_range_ = np.stack([Z.min(axis=0), Z.max(axis=0)])
         self.init_ = self._start(X, Y)
-        if (self.out_of_bounds == "calibrated"
-                and not hasattr(self.init_, "calibrated_parameters")):
-            raise ValueError(f"out_of_bounds={self.out_of_bounds!r} needs an init with "
+        if self.out_of_bounds == "calibrated" and not hasattr(self.init_, "calibrated_parameters"):
+            raise ValueError("out_of_bounds='calibrated' needs an init with "
                              "calibrated_parameters (a ParametricRegressor), got "
                              f"{type(self.init_).__name__}")
         self.calibration_ = self.init_.calibration_

@@ -145,13 +145,9 @@ class ParametricSettings(Section):
     groups: a ConfigError).
     ``out_of_bounds``: what a new row outside the box the training rows span gets:
     ``"calibrated"``, the calibrated model's parameters (no drift, no parameter-space
-    boosting there); ``"validated"``, the same beyond the range the drift's extrapolation
-    was tested in (per column and end, the outer 20% of the training rows held out: where
-    the drift beat the calibrated model there, it is trusted as far beyond the training
-    rows as those rows reached; elsewhere not beyond them); ``"clip"``, its covariates
-    clipped to their training range (the drift's corrections at the nearest training
-    point); the default ``"extrapolate"``, the drift's squares and products grown beyond
-    them.
+    boosting there); ``"clip"``, its covariates clipped to their training range (the drift's
+    corrections at the nearest training point); the default ``"extrapolate"``, the drift's
+    squares and products grown beyond them.
     ``calibrated_stage = true`` (with the stage on top) also boosts from the calibrated
     model's prediction, the generic path, and keeps per target the prior on which the
     stage scores the lower CV MAE (``FittedPriorBoost``'s ``alternative``): the choice
@@ -169,7 +165,7 @@ class ParametricSettings(Section):
     alpha: float = Field(default=1.0, ge=0)
     alpha_l1: float = Field(default=0.0, ge=0)
     max_iter: int = Field(default=20, ge=0, le=100_000)
-    out_of_bounds: Literal["extrapolate", "clip", "calibrated", "validated"] = "extrapolate"
+    out_of_bounds: Literal["extrapolate", "clip", "calibrated"] = "extrapolate"
     calibrate: bool = True
     solver: Literal["newton", "irls"] = "newton"
     start: dict[str, list[str]] = Field(default_factory=dict)
@@ -308,15 +304,9 @@ def _test_row_notes(regressor: Any, X_test: pd.DataFrame, info: dict[str, Any]) 
     n, notes = len(X_test), []
     beyond = int(regressor.outside(X_test).sum())
     info["outside_box_test_rows"] = beyond
-    guarded = regressor.out_of_bounds == "validated"
-    if guarded:
-        info["untrusted_test_rows"] = int(regressor.untrusted(X_test).sum())
     if beyond:
         there = ("they get the calibrated model's parameters (out_of_bounds = \"calibrated\")"
                  if regressor.out_of_bounds == "calibrated" else
-                 f"{info['untrusted_test_rows']} of them lie beyond the range the drift's "
-                 "extrapolation was tested in and get the calibrated model's parameters "
-                 "(out_of_bounds = \"validated\")" if guarded else
                  "the drift is clipped to the box there" if regressor.out_of_bounds == "clip"
                  else "the drift extrapolates there; [model.parametric] out_of_bounds = "
                  "\"calibrated\" would keep the calibrated model")
@@ -483,8 +473,6 @@ class ParametricFamily(ModelFamily):
             sel = physics.selection_
             info["selection"] = {"cv_mae": sel.cv_mae, "steps": len(sel.path) - 1,
                                  "path": _records(sel.path), "seconds": sel.seconds}
-        if getattr(regressor, "extrapolation_table_", None) is not None:
-            info["extrapolation"] = _records(regressor.extrapolation_table_)
         if getattr(physics, "ridge_path_", None) is not None:
             info["ridge_path"] = _records(physics.ridge_path_)
         if getattr(model, "stage_cv_mae_", None) is not None:
