@@ -76,6 +76,21 @@ def test_cv_falls_back_where_the_error_is_not_in_the_parameters():
     assert cv[est.choice_] <= cv.min() + est.min_improvement  # never worse than the others
 
 
+def test_a_boost_from_the_drift_starts_from_the_calibration_when_nothing_is_selected():
+    # init="drift" with a selection that takes no covariate (the acentric factors' inner
+    # omega_hot split): the boost starts from the calibrated model instead of raising
+    X, y = _data(step=0.4, n=120)
+    est = ParametricBoostRegressor(
+        model=MODEL, features=FEATURES, huber_delta=0.05, max_steps=0, random_state=0,
+        boost=ParameterSpaceBoostRegressor(features=FEATURES, n_estimators=20,
+                                           init="drift")).fit(X, y)
+    assert est.selection_ is not None and est.selection_.covariates == {}
+    cv = est.choices_.set_index("candidate")["cv_mae"]
+    assert est.choice_ == "boost" and cv["boost"] < cv["calibrated"]
+    start = est.estimator_.init_
+    assert start.max_iter == 0 and not getattr(start, "covariates", None)  # the calibration
+
+
 @pytest.mark.parametrize("kw", [dict(step="gradient"), dict(update="greedy"),
                                 dict(estimator=Ridge(alpha=1.0)),
                                 dict(parameters=["tau"], subsample=0.7)])

@@ -909,7 +909,7 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
             ridge, scores["ridge_drift"], self.ridge_path_ = ridge_drift(
                 clone(base).set_params(covariates=library), folds, self._alphas(),
                 progress=say.child("ridge drift: "))
-        drifts = {"drift": drift and clone(base).set_params(covariates=drift),
+        drifts = {"drift": clone(base).set_params(covariates=drift) if drift else None,
                   "ridge_drift": ridge}
         booster = None
         if self.boost is not None:  # from the better drift by CV (None: the calibrated)
