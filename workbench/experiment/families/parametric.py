@@ -285,7 +285,9 @@ def config_section(entry: str, path: str | os.PathLike[str]) -> str:
         f"model = {toml_string(entry)}   # PARAMETERS, predict(params, data), optionally jacobian",
         'loss = "squared_error"       # or "huber", huber_delta in the targets\' unit',
         'candidates = "auto"          # each parameter\'s drift: features, squares, products',
-        "max_steps = 10", ""])
+        "max_steps = 10",
+        "calibrated_stage = true      # the stage also from the calibrated model; CV keeps "
+        "the better", ""])
 
 
 def _frame(ds: Dataset) -> pd.DataFrame:
