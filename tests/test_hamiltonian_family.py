@@ -288,12 +288,25 @@ def parse_config_from(path: Path):
         update={"cv_repeats": 0, "nested_folds": 0}))
 
 
-def test_same_seed_same_numbers(device):
+def test_same_seed_same_numbers(device, caplog):
+    """The same seed gives the same numbers, with the progress lines shown (the first run:
+    the selection's steps, the out-of-fold priors and the stage, on the ``workbench``
+    logger a command prints) or not (the second)."""
+    import logging
+
     # one selection step (a CV over every candidate, then the refit): 2 s of CPU per evaluate
     # instead of 5 with FAST's three
     cfg = parse_config(_raw(hamiltonian={"max_steps": 1}), device / "config.toml")
-    first = evaluate(cfg).to_json()
-    second = evaluate(cfg).to_json()
+    with caplog.at_level(logging.INFO, logger="workbench"):
+        first = evaluate(cfg).to_json()
+    lines = [r.getMessage() for r in caplog.records]
+    for want in ("hamiltonian: selection start: cv_mae=", "hamiltonian: selection step 1: ",
+                 "stage: out-of-fold priors: ", "stage: kept on "):
+        assert any(line.startswith(want) for line in lines), (want, lines)
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="workbench"):
+        second = evaluate(cfg).to_json()
+    assert not [r for r in caplog.records if r.getMessage().startswith("hamiltonian: ")]
     for key in ("test_mae", "cv_mae"):
         assert first["model"][key] == second["model"][key]
     assert first["hamiltonian"]["coefficients"] == second["hamiltonian"]["coefficients"]

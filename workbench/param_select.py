@@ -10,7 +10,6 @@ one estimator (as ``LassoCV`` wraps its path), so nested CV is ``cross_val_predi
 from __future__ import annotations
 
 import numbers
-import sys
 import time
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -27,6 +26,7 @@ from sklearn.utils import check_random_state
 from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted
 
+from ._progress import Progress
 from .hamiltonian import CouplingGraph
 from .parallel import Task, effective_n_jobs, map_tasks
 from .param_boost import (
@@ -622,10 +622,6 @@ def _linearised_select(X: pd.DataFrame, base: HamiltonianParameterRegressor,
     return _selection_result(X, current, rows, best, regressor_params, t0)
 
 
-def _print_progress(line: str) -> None:
-    print(f"[selection] {line}", file=sys.stderr, flush=True)
-
-
 class HamiltonianSelectionCV(RegressorMixin, BaseEstimator):
     """Forward covariate selection by CV (on the rows given to ``fit``), then a refit.
 
@@ -655,7 +651,9 @@ class HamiltonianSelectionCV(RegressorMixin, BaseEstimator):
     method, shortlist, batch : default="refit", 5, "auto"
         As in :func:`forward_select` (``"linearised"`` for large devices).
     verbose : bool, default=False
-        Print one line per selection step (to stderr).
+        Report one line per selection step: INFO records of the
+        ``workbench.param_select`` logger, or printed to standard error where no logging
+        is set up (:mod:`workbench._progress`). No number depends on it.
 
     Attributes
     ----------
@@ -725,7 +723,8 @@ class HamiltonianSelectionCV(RegressorMixin, BaseEstimator):
             seed = int(self.random_state)
         else:
             seed = int(check_random_state(self.random_state).randint(2**31 - 1 - self.n_repeats))
-        progress = _print_progress if self.verbose else None
+        progress = (Progress(__name__, True, "hamiltonian: selection ") if self.verbose
+                    else None)
         self.selection_ = forward_select(
             X, y, candidates=candidates, cv=self.cv, n_repeats=self.n_repeats,
             random_state=seed, max_steps=self.max_steps, min_improvement=self.min_improvement,

@@ -7,7 +7,10 @@ block is then "all targets").
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
+import logging
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
@@ -28,7 +31,40 @@ if TYPE_CHECKING:
     from ...datasets import Dataset
     from ..config import DataConfig, ExperimentConfig
 
-__all__ = ["ALL_TARGETS", "ModelFamily", "Report"]
+__all__ = ["ALL_TARGETS", "ModelFamily", "Report", "quiet_progress", "showing_progress"]
+
+#: Whether the fits a family builds now report their progress (off inside a sweep's trials).
+_PROGRESS: ContextVar[bool] = ContextVar("family_progress", default=True)
+
+
+def showing_progress() -> bool:
+    """Tell whether a fit a family builds now reports its progress (its ``verbose``).
+
+    It does where the ``workbench`` logger shows INFO lines (a command set it up, or a test
+    captures it), except inside :func:`quiet_progress` (a sweep's trials). No number depends
+    on it.
+
+    Returns
+    -------
+    bool
+        The ``verbose`` to build with.
+    """
+    return _PROGRESS.get() and logging.getLogger("workbench").isEnabledFor(logging.INFO)
+
+
+@contextmanager
+def quiet_progress() -> Iterator[None]:
+    """Build fits that report no progress inside the ``with`` block.
+
+    Yields
+    ------
+    None
+    """
+    token = _PROGRESS.set(False)
+    try:
+        yield
+    finally:
+        _PROGRESS.reset(token)
 
 #: The study block of a family whose one model predicts every target.
 ALL_TARGETS = "all"
@@ -305,7 +341,8 @@ class ModelFamily:
             ``report(fold, mae, prior_mae)``, called after each fold (MAE averaged over
             ``targets``).
         """
-        model = self.build(self.with_trial(cfg, trial, targets), ds)
+        with quiet_progress():  # a sweep's progress is its line per trial
+            model = self.build(self.with_trial(cfg, trial, targets), ds)
         prior = ds.prior.loc[X.index].to_numpy()[:, [ds.target_names.index(t) for t in targets]]
         for i, (train, val) in enumerate(cv.split(X)):
             fitted = quiet_fit(clone(model), X.iloc[train], Y.iloc[train])

@@ -40,7 +40,7 @@ from ..config.schema import ParameterOf, Section
 from ..process.errors import ConfigError
 from ..scoring.scores import ModelScores, Scores, mae, mse
 from .artifacts import Artifacts
-from .base import ModelFamily
+from .base import ModelFamily, showing_progress
 from .hamiltonian_figures import parameter_corrections, selection_path_figure
 from .stage import per_target_boost, stage_scores
 
@@ -108,7 +108,8 @@ class HamiltonianSettings(Section):
 
 
 def make_hamiltonian(settings: HamiltonianSettings, ds: Dataset, *,
-                     random_state: int | None = None, n_jobs: int | None = None
+                     random_state: int | None = None, n_jobs: int | None = None,
+                     verbose: bool = False
                      ) -> HamiltonianParameterRegressor | HamiltonianSelectionCV:
     """Make the parameter-space model that ``[model.hamiltonian]`` describes.
 
@@ -122,6 +123,8 @@ def make_hamiltonian(settings: HamiltonianSettings, ds: Dataset, *,
         Seeds the selection's folds.
     n_jobs : int, optional
         The selection's processes.
+    verbose : bool, default=False
+        The selection reports a line per step (the ``workbench`` logger).
 
     Returns
     -------
@@ -165,7 +168,7 @@ def make_hamiltonian(settings: HamiltonianSettings, ds: Dataset, *,
                                   n_repeats=s.selection_repeats, max_steps=s.max_steps,
                                   min_improvement=float(s.min_improvement),
                                   method="linearised" if s.selection == "linearised" else "refit",
-                                  random_state=random_state, n_jobs=n_jobs)
+                                  random_state=random_state, n_jobs=n_jobs, verbose=verbose)
 
 
 def physics_regressor(model: Any) -> HamiltonianParameterRegressor:
@@ -217,18 +220,22 @@ class HamiltonianFamily(ModelFamily):
         """Build a :class:`FittedPriorBoost` over :func:`make_hamiltonian`.
 
         Its per-target stage is BaseBoostCV, boosting from the physics model's prediction
-        (columns ``prior_<target>``).
+        (columns ``prior_<target>``). Both report their progress where the ``workbench``
+        logger shows INFO lines, except in a sweep's trials
+        (:func:`~.base.showing_progress`).
         """
         h = cast(HamiltonianSettings, cfg.family_settings)  # validated by `settings`
         priors = [f"{PRIOR_PREFIX}{t}" for t in ds.target_names]
         boost = per_target_boost(cfg, ds, priors, boost_from_prior=False)
-        physics = make_hamiltonian(h, ds, random_state=cfg.random_state, n_jobs=cfg.n_jobs)
+        physics = make_hamiltonian(h, ds, random_state=cfg.random_state, n_jobs=cfg.n_jobs,
+                                   verbose=showing_progress())
         return FittedPriorBoost(physics, boost, prior_prefix=PRIOR_PREFIX,
                                 cv=KFold(h.prior_cv, shuffle=True,
                                          random_state=cfg.random_state or 0),
                                 boost_stage=h.boost_stage,
                                 fallback=list(ds.prior_names) if h.fallback else None,
-                                cv_predictions=self._needs_oof(cfg), n_jobs=cfg.jobs)
+                                cv_predictions=self._needs_oof(cfg), n_jobs=cfg.jobs,
+                                verbose=showing_progress())
 
     @staticmethod
     def _needs_oof(cfg: ExperimentConfig) -> bool:
@@ -241,11 +248,12 @@ class HamiltonianFamily(ModelFamily):
         return cfg.intervals.enabled and cfg.intervals.method == "oof"
 
     def fixed_choices(self, model: Any) -> Any:
-        """Keep the selected covariates (refitting the selection would remake it)."""
+        """Keep the selected covariates (refitting the selection would remake it); no
+        progress lines."""
         selection = getattr(model.physics_, "selection_", None)
         if selection is not None:
-            return clone(model).set_params(physics=selection.estimator())
-        return clone(model)
+            return clone(model).set_params(physics=selection.estimator(), verbose=False)
+        return clone(model).set_params(verbose=False)
 
     def selected(self, model: Any, targets: list[str]) -> list[str]:
         """Label per target "hamiltonian", or "hamiltonian+boosted" where the stage was kept.

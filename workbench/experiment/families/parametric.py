@@ -29,12 +29,9 @@ intervals) neither.
 from __future__ import annotations
 
 import dataclasses
-import logging
 import math
 import os
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
-from contextvars import ContextVar
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar, Literal, cast
 
@@ -54,7 +51,7 @@ from ..process.errors import ConfigError
 from ..scoring.scores import ModelScores, Scores, mae, mse
 from ..splits.folds import describe_folds, family_cv
 from .artifacts import Artifacts
-from .base import ModelFamily, Report
+from .base import ModelFamily, showing_progress
 from .hamiltonian_figures import parameter_corrections, selection_path_figure
 from .parametric_artifacts import run_artifacts
 from .parametric_figures import drift_axes, parameter_drift_figure
@@ -68,29 +65,6 @@ __all__ = ["ParametricFamily", "ParametricSettings", "make_parametric"]
 
 #: Prefix of the columns holding the physics model's prediction (the stage's prior).
 PRIOR_PREFIX = "prior_"
-
-#: Whether the fits built here report their progress (off inside a sweep's trials).
-_PROGRESS: ContextVar[bool] = ContextVar("parametric_progress", default=True)
-
-
-def _showing_progress() -> bool:
-    """Tell whether a fit built now reports its progress (its ``verbose``).
-
-    It does where the ``workbench`` logger shows INFO lines (a command set it up, or a test
-    captures it), except inside :func:`_quiet_progress`. No number depends on it.
-    """
-    return _PROGRESS.get() and logging.getLogger("workbench").isEnabledFor(logging.INFO)
-
-
-@contextmanager
-def _quiet_progress() -> Iterator[None]:
-    """Build fits that report no progress inside the ``with`` block."""
-    token = _PROGRESS.set(False)
-    try:
-        yield
-    finally:
-        _PROGRESS.reset(token)
-
 
 class ParameterBoostSettings(Section):
     """``[model.parametric.boost]``: boosting in the model's parameter space, a candidate.
@@ -221,7 +195,7 @@ def make_parametric(cfg: ExperimentConfig, ds: Dataset) -> ParametricBoostRegres
         alpha_l1=float(s.alpha_l1), loss=s.loss, huber_delta=float(s.huber_delta),
         max_iter=s.max_iter, out_of_bounds=s.out_of_bounds, calibrate=s.calibrate,
         solver=s.solver, random_state=cfg.random_state,
-        n_jobs=cfg.n_jobs, verbose=_showing_progress(),
+        n_jobs=cfg.n_jobs, verbose=showing_progress(),
         boost=_booster(s.boost, ds.feature_names))
 
 
@@ -369,7 +343,7 @@ class ParametricFamily(ModelFamily):
         """Build a :class:`FittedPriorBoost` over :func:`make_parametric`.
 
         Both report their progress (``verbose``) where the ``workbench`` logger shows INFO
-        lines, except in a sweep's trials (:func:`_showing_progress`).
+        lines, except in a sweep's trials (:func:`~.base.showing_progress`).
         """
         s = cast(ParametricSettings, cfg.family_settings)
         priors = [f"{PRIOR_PREFIX}{t}" for t in ds.target_names]
@@ -383,7 +357,7 @@ class ParametricFamily(ModelFamily):
                                 boost_stage=s.boost_stage,
                                 cv_predictions=cfg.intervals.enabled
                                 and cfg.intervals.method == "oof", n_jobs=cfg.jobs,
-                                verbose=_showing_progress())
+                                verbose=showing_progress())
 
     def folds_used(self, cfg: ExperimentConfig, ds: Dataset) -> str:
         """Say which folds made the choices: the stage's, the physics model's and its priors'.
@@ -417,16 +391,6 @@ class ParametricFamily(ModelFamily):
         if model.alternative is not None and chose is not None and chose.all():
             fixed.set_params(physics=clone(model.alternative_))
         return fixed
-
-    def objective(self, cfg: ExperimentConfig, ds: Dataset, targets: list[str], X: pd.DataFrame,
-                  Y: pd.DataFrame, trial: Any, cv: Any, report: Report) -> None:
-        """Score a trial as every family does, its fits without progress lines.
-
-        A sweep's progress is its line per trial; the fit of the chosen settings on all
-        training rows afterwards reports its own.
-        """
-        with _quiet_progress():
-            super().objective(cfg, ds, targets, X, Y, trial, cv, report)
 
     def selected(self, model: Any, targets: list[str]) -> list[str]:
         """Label per target ``"parametric:<prior|calibrated|drift|ridge_drift|boost>"``.
