@@ -254,3 +254,24 @@ def test_fold_refits_give_the_same_numbers_on_several_processes(crosstalk):
         model = _physics().fit(train[~rows], train[MEASURED].to_numpy()[~rows])
         cold[rows] = model.predict(train[rows])
     np.testing.assert_allclose(a, cold, atol=0.01)
+
+
+def test_a_model_pickled_before_the_alternative_and_verbose_keeps_working():
+    """A FittedPriorBoost pickled by an earlier release (no ``alternative``, ``verbose``,
+    ``alternative_``) unpickles with their defaults: get_params, clone, repr and predict."""
+    import pickle
+
+    from sklearn.linear_model import LinearRegression
+
+    rng = np.random.default_rng(0)
+    X = pd.DataFrame({"x": rng.normal(size=40)})
+    Y = np.column_stack([2 * X["x"], -X["x"]]) + 0.1 * rng.normal(size=(40, 2))
+    model = FittedPriorBoost(LinearRegression(), boost_stage=False, cv=3).fit(X, Y)
+    old = pickle.loads(pickle.dumps(model))
+    for name in ("alternative", "verbose", "alternative_", "alternative_selected_",
+                 "stage_cv_mae_"):
+        old.__dict__.pop(name, None)
+    back = pickle.loads(pickle.dumps(old))
+    assert back.get_params()["alternative"] is None and back.get_params()["verbose"] is False
+    assert "FittedPriorBoost" in repr(back) and clone(back).verbose is False
+    np.testing.assert_allclose(back.predict(X), model.predict(X))

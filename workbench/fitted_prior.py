@@ -154,6 +154,14 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         self.alternative = alternative
         self.verbose = verbose
 
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Unpickle, giving a model pickled before ``alternative`` and ``verbose`` existed
+        their defaults (a registered model keeps ``get_params``, ``clone`` and ``repr``)."""
+        super().__setstate__(state)
+        for name, default in (("alternative", None), ("verbose", False)):
+            if name not in self.__dict__:
+                setattr(self, name, default)
+
     def _with_prior(self, X: pd.DataFrame, prior: np.ndarray) -> pd.DataFrame:
         clash = [c for c in self.prior_columns_ if c in X.columns]
         if clash:
