@@ -50,9 +50,12 @@ lie beyond the training rows in that column would: every CV of the family (its c
 selection, its out-of-fold priors, the stage on top) then chains forward by it, validating
 on the largest values of the training rows.
 
-``parametric_calibrated_stage`` is ``init``'s config with ``calibrated_stage = true``: the
-stage on top is also fitted on the calibrated model's prediction and CV keeps, per target,
-the prior it scores better on (``benchmarks/decisions/calibrated_stage.md``).
+``parametric_calibrated_stage`` is ``init``'s config with ``stage_priors = "calibrated"``
+(the stage on top also fitted on the calibrated model's prediction, CV keeping per target the
+prior it scores better on; ``benchmarks/decisions/calibrated_stage.md``), which ``init`` has
+written since. ``parametric_candidates`` sets ``stage_priors = "candidates"`` (the stage on
+every candidate the family's choice scored), ``parametric_boost_candidates`` the same with
+:data:`BOOST_TABLE` (``benchmarks/decisions/stage_candidates.md``).
 
 Three more fields (``benchmarks/outside_fields.py``, :data:`FIELD_SPLITS`; not in the default
 ``--splits``, select them by name or with ``--fields``): ionization energies against Slater's
@@ -98,7 +101,8 @@ GOALS = {"random": 0.75, "far": 0.85, "heavy": 0.85, "critical": 1.05}
 SPLITS = ("random", "far", "heavy", "critical")
 VARIANTS = ("parametric", "parametric_ridge", "parametric_boost", "parametric_narrow",
             "parametric_pool", "parametric_ridge_drift", "parametric_both",
-            "parametric_calibrated_stage")
+            "parametric_calibrated_stage", "parametric_candidates",
+            "parametric_boost_candidates")
 
 
 @dataclass(frozen=True)
@@ -356,7 +360,11 @@ def run_split(frame: pd.DataFrame, split: str, trials: int, tmp: Path,
                "parametric_ridge_drift": with_keys(init, "rdrift.toml", drift='"ridge"'),
                "parametric_both": with_keys(init, "both.toml", drift='"both"'),
                "parametric_calibrated_stage": with_keys(init, "cstage.toml",
-                                                        calibrated_stage="true")}
+                                                        stage_priors='"calibrated"'),
+               "parametric_candidates": with_keys(init, "cand.toml",
+                                                  stage_priors='"candidates"'),
+               "parametric_boost_candidates": with_keys(boost_config(init), "bcand.toml",
+                                                        stage_priors='"candidates"')}
     if "parametric_narrow" in variants:  # the former protocol: init names the pool only
         configs["parametric_narrow"] = guarded(init_config(
             folder, csv, field, order, field.pool or field.features, "narrow.toml"),

@@ -210,6 +210,26 @@ def test_the_stage_chooses_its_prior_per_target_between_physics_and_alternative(
     with pytest.raises(ValueError, match="alternative and fallback"):
         FittedPriorBoost(Physics(), clone(stage), alternative=Columns(),
                          fallback=["c0", "c1"]).fit(X, Yf)
+    # several by name: each its stage; the columns' prior still wins target 1, a model
+    # as blind as the physics one (x only) wins nothing; its stage's CV is recorded
+    class Linear(Physics):
+        def fit(self, X, Y):
+            return LinearRegression.fit(self, X[["x"]], Y)
+
+        def predict(self, X):
+            return LinearRegression.predict(self, X[["x"]])
+
+    named = FittedPriorBoost(Physics(), clone(stage), cv=5,
+                             alternative={"linear": Linear(), "columns": Columns()})
+    named.fit(X.iloc[train], Yf.iloc[train])
+    assert list(named.stage_cv_mae_.columns) == ["physics", "linear", "columns"]
+    assert named.prior_choice_.tolist() == ["physics", "columns"]
+    assert list(named.alternatives_) == ["linear", "columns"]
+    np.testing.assert_allclose(named.predict(X.iloc[test]), model.predict(X.iloc[test]))
+    with pytest.raises(ValueError, match='"physics" names the physics model'):
+        FittedPriorBoost(Physics(), clone(stage), alternative={"physics": Columns()}).fit(X, Yf)
+    with pytest.raises(ValueError, match="other_candidates_.*Physics has none"):
+        FittedPriorBoost(Physics(), clone(stage), alternative="candidates").fit(X, Yf)
 
 
 def test_out_of_fold_refits_only_when_something_uses_them(crosstalk, monkeypatch):
@@ -258,7 +278,8 @@ def test_fold_refits_give_the_same_numbers_on_several_processes(crosstalk):
 
 def test_a_model_pickled_before_the_alternative_and_verbose_keeps_working():
     """A FittedPriorBoost pickled by an earlier release (no ``alternative``, ``verbose``,
-    ``alternative_``) unpickles with their defaults: get_params, clone, repr and predict."""
+    ``alternatives_``) unpickles with their defaults: get_params, clone, repr and predict;
+    one with a single fitted ``alternative_`` gets it by name."""
     import pickle
 
     from sklearn.linear_model import LinearRegression
@@ -268,10 +289,24 @@ def test_a_model_pickled_before_the_alternative_and_verbose_keeps_working():
     Y = np.column_stack([2 * X["x"], -X["x"]]) + 0.1 * rng.normal(size=(40, 2))
     model = FittedPriorBoost(LinearRegression(), boost_stage=False, cv=3).fit(X, Y)
     old = pickle.loads(pickle.dumps(model))
-    for name in ("alternative", "verbose", "alternative_", "alternative_selected_",
-                 "stage_cv_mae_"):
+    for name in ("alternative", "verbose", "alternatives_", "prior_choice_",
+                 "alternative_selected_", "stage_cv_mae_"):
         old.__dict__.pop(name, None)
     back = pickle.loads(pickle.dumps(old))
     assert back.get_params()["alternative"] is None and back.get_params()["verbose"] is False
     assert "FittedPriorBoost" in repr(back) and clone(back).verbose is False
     np.testing.assert_allclose(back.predict(X), model.predict(X))
+    assert back.prior_choice_.tolist() == ["physics", "physics"]
+    # fitted by the release whose one alternative was ``alternative_``: kept per target
+    stage = MultiTargetBaseBoost(BaseBoostCV(BaseBoostRegressor(
+        basis=Ridge(), line_search_penalty=0.0), cv=3), random_state=0)
+    staged = FittedPriorBoost(LinearRegression(), stage, alternative=LinearRegression(), cv=3)
+    staged.fit(X, Y)
+    former = pickle.loads(pickle.dumps(staged))
+    former.__dict__["alternative_"] = former.__dict__.pop("alternatives_").get("alternative")
+    former.__dict__["alternative_selected_"] = np.array([False, True])
+    del former.__dict__["prior_choice_"]
+    back = pickle.loads(pickle.dumps(former))
+    assert back.prior_choice_.tolist() == ["physics", "alternative"]
+    assert list(back.alternatives_) == ["alternative"]
+    assert back.predict(X).shape == (40, 2)

@@ -39,7 +39,7 @@ def test_init_with_a_model_file_then_evaluate(decay_csv, tmp_path, capsys):
     text = config.read_text()
     assert 'family = "parametric"' in text and 'model = "models/decay.py"' in text
     assert "prior =" not in text  # the model is the prior
-    assert "calibrated_stage = true" in text  # benchmarks/decisions/calibrated_stage.md
+    assert 'stage_priors = "calibrated"' in text  # benchmarks/decisions/calibrated_stage.md
     out = tmp_path / "result.json"
     assert main(["evaluate", str(config), "--no-track", "--json", str(out),
                  "--out", str(tmp_path / "tables"), "--jobs", "1",
@@ -212,6 +212,13 @@ def test_the_hamiltonian_family_is_the_parametric_family_on_the_device_model_fil
     np.testing.assert_allclose(parametric.estimator_.coef_["coef"].to_numpy(),
                                h_coef.to_numpy(), rtol=0, atol=1e-8)
     assert list(parametric.estimator_.coef_.index) == list(h_coef.index)
+
+
+#: A small LightGBM stage on top, for the tests of the stage's priors.
+STAGE = ('[model]\nfamily = "parametric"\nbasis = "lightgbm"\n'
+         'basis_inputs = "prior+features"\nline_search_penalty = 0.0\n'
+         '[model.basis_params]\nn_estimators = 30\nnum_leaves = 4\n'
+         'min_child_samples = 5\nverbose = -1\n[selection]\ncv = 3\nshuffle = true\n')
 
 
 def _decay_config(tmp_path, extra=""):
@@ -537,36 +544,33 @@ def test_test_rows_outside_the_models_domain_are_said_not_a_crash(tmp_path, caps
 
 
 def test_the_stage_compares_the_drift_with_the_calibrated_model(decay_csv, tmp_path):
-    """``calibrated_stage = true``: the stage on top is also fitted on the calibrated
+    """``stage_priors = "calibrated"``: the stage on top is also fitted on the calibrated
     model's out-of-fold prior (the generic path), and the target keeps the prior the stage
     scored better in CV; the table records both CV MAEs, the label says which prior, and a
     learning curve's fits keep that choice."""
-    from workbench.experiment.runs.prepare import load_config, prepare
+    from workbench.experiment.runs.prepare import ConfigError, load_config, prepare
 
-    stage = ('[model]\nfamily = "parametric"\nbasis = "lightgbm"\n'
-             'basis_inputs = "prior+features"\nline_search_penalty = 0.0\n'
-             '[model.basis_params]\nn_estimators = 30\nnum_leaves = 4\n'
-             'min_child_samples = 5\nverbose = -1\n[selection]\ncv = 3\nshuffle = true\n')
     config = tmp_path / "c.toml"
     config.write_text(_decay_config(tmp_path).read_text()
-                      .replace('[model]\nfamily = "parametric"\n', stage)
-                      .replace("boost_stage = false\n", "calibrated_stage = true\n"))
+                      .replace('[model]\nfamily = "parametric"\n', STAGE)
+                      .replace("boost_stage = false\n", 'stage_priors = "calibrated"\n'))
     out = tmp_path / "r.json"
     assert main(["evaluate", str(config), "--no-track", "--json", str(out), "--jobs", "1"]) == 0
     result = json.loads(out.read_text())
     rows = result["parametric"]["stage_cv_mae"]
     assert [r["target"] for r in rows] == ["y"]
     (row,) = rows
-    assert row["alternative_chosen"] == (row["alternative"] <= row["physics"])
+    calibrated = row["calibrated"] <= row["physics"]
+    assert row["stage_prior"] == ("calibrated" if calibrated else "physics")
     label = result["model"]["selected"][0]
     assert label.startswith("parametric:calibrated (the stage did better on it)"
-                            if row["alternative_chosen"] else "parametric:drift")
+                            if calibrated else "parametric:drift")
     run = prepare(load_config(config))
     metrics = run.family.run_metrics(result)
     assert metrics["parametric/stage_cv_mae/physics/y"] == row["physics"]
-    assert metrics["parametric/stage_cv_mae/alternative/y"] == row["alternative"]
+    assert metrics["parametric/stage_cv_mae/calibrated/y"] == row["calibrated"]
     model = run.family.build(run.config, run.dataset)
-    assert model.alternative is not None
+    assert list(model.alternative) == ["calibrated"]
     X, Y = run.family.inputs(run.config, run.dataset), run.dataset.targets
     model.fit(X.loc[run.dataset.train_index], Y.loc[run.dataset.train_index])
     fixed = run.family.fixed_choices(model)
@@ -575,6 +579,46 @@ def test_the_stage_compares_the_drift_with_the_calibrated_model(decay_csv, tmp_p
         def settings(m):
             return {k: v for k, v in m.get_params().items() if k != "model"}
 
-        assert settings(fixed.physics) == settings(model.alternative)
+        assert settings(fixed.physics) == settings(model.alternative["calibrated"])
     else:  # the drift, its covariates fixed
         assert fixed.physics.covariates == model.physics_.estimator_.covariates
+    with pytest.raises(ConfigError, match="'calibrated_stage' is now 'stage_priors = "):
+        load_config(_decay_config(tmp_path, "calibrated_stage = true\n"))
+
+
+def test_the_stage_chooses_among_every_candidate(decay_csv, tmp_path):
+    """``stage_priors = "candidates"``: the stage is fitted on the out-of-fold prior of
+    every candidate the choice scored (the calibrated model, the drift, the
+    parameter-space boost), the target keeps the one with the lowest stage CV MAE, and
+    the fixed choices keep that candidate with its own choices (covariates, rounds)."""
+    from workbench.experiment.runs.prepare import load_config, prepare
+
+    config = _decay_config(tmp_path, 'stage_priors = "candidates"\n'
+                           '[model.parametric.boost]\nregressor = "tree"\nrounds = 8\n')
+    config.write_text(config.read_text().replace('[model]\nfamily = "parametric"\n', STAGE)
+                      .replace("boost_stage = false\n", ""))
+    run = prepare(load_config(config))
+    X, Y = run.family.inputs(run.config, run.dataset), run.dataset.targets
+    model = run.family.build(run.config, run.dataset)
+    model.fit(X.loc[run.dataset.train_index], Y.loc[run.dataset.train_index])
+    physics = model.physics_
+    scored = [c for c in physics.choices_["candidate"] if c != "prior"]
+    assert set(scored) == {"calibrated", "drift", "boost"}
+    assert list(model.stage_cv_mae_.columns) == ["physics", *physics.other_candidates_]
+    assert set(physics.other_candidates_) == set(scored) - {physics.choice_}
+    cv = model.stage_cv_mae_.loc["y"]
+    (chosen,) = model.prior_choice_
+    assert cv[chosen] == cv.min()
+    label = run.family.selected(model, ["y"])[0]
+    fixed = run.family.fixed_choices(model)
+    assert fixed.alternative is None
+    if chosen == "physics":
+        assert label.startswith(f"parametric:{physics.choice_}")
+        kept = physics.estimator_
+    else:
+        assert label.startswith(f"parametric:{chosen} (the stage did better on it)")
+        kept = model.alternatives_[chosen]
+    assert type(fixed.physics) is type(kept)
+    assert fixed.physics.get_params().keys() == kept.get_params().keys()
+    pred = model.predict(X.loc[run.dataset.test_index])
+    assert np.isfinite(pred.to_numpy()).all()

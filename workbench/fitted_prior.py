@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 from sklearn.base import BaseEstimator, MetaEstimatorMixin, RegressorMixin, clone
 from sklearn.model_selection import check_cv
-from sklearn.utils._param_validation import HasMethods
+from sklearn.utils._param_validation import HasMethods, StrOptions
 from sklearn.utils.validation import check_is_fitted
 
 from ._progress import Progress
@@ -87,13 +87,17 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         is below the control prediction's MAE there; elsewhere the control prediction is the
         prior (so where the control model is already right, fitting corrections that only
         chase noise is not kept).
-    alternative : regressor, default=None
-        A second physics model of all targets whose prediction may be the stage's prior
-        instead (the parametric family's calibrated model beside its drift). With a stage,
-        the stage is fitted on the out-of-fold prior of each, and a target keeps the
-        alternative where the stage's CV MAE on it is no larger: the stage is scored as it
-        is used, where the physics model's own CV scored it without the stage. Not with
-        ``fallback``.
+    alternative : regressor, dict of str -> regressor or "candidates", default=None
+        Other physics models of all targets whose prediction may be the stage's prior
+        instead (the parametric family's calibrated model beside its drift): one (named
+        ``"alternative"``), several by name (simplest first), or ``"candidates"``, the
+        fitted physics model's ``other_candidates_`` (e.g.
+        :class:`~workbench.parametric_boost.ParametricBoostRegressor`'s candidates its own
+        CV did not choose, their choices kept). With a stage, the stage is fitted on the
+        out-of-fold prior of each, and a target keeps the prior on which the stage's CV MAE
+        is lowest (ties: the earliest alternative, the physics model last): the stage is
+        scored as it is used, where the physics model's own CV scored it without the stage.
+        Not with ``fallback``.
     verbose : bool, default=False
         Report the phases of ``fit`` after the physics model's own (the out-of-fold refits,
         the stage): INFO records of the ``workbench.fitted_prior`` logger, or printed to
@@ -106,13 +110,15 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         The fitted physics model.
     physics_selected_ : ndarray of bool
         Per target, whether the physics model is the prior (all true without ``fallback``).
-    alternative_ : regressor or None
-        The fitted alternative (None without one, or without a stage).
+    alternatives_ : dict of str -> regressor
+        The fitted alternatives by name (empty without any, or without a stage).
+    prior_choice_ : ndarray of str
+        Per target, the stage's prior: ``"physics"`` or an alternative's name.
     alternative_selected_ : ndarray of bool
-        Per target, whether the alternative is the prior (all false without one).
+        Per target, whether an alternative is the prior (all false without one).
     stage_cv_mae_ : DataFrame or None
-        With an alternative: per target (rows) the stage's CV MAE on the physics model's
-        prior (``physics``) and on the alternative's (``alternative``).
+        With alternatives: per target (rows) the stage's CV MAE on the physics model's
+        prior (column ``physics``) and on each alternative's (its name).
     boost_ : MultiTargetBaseBoost
         The fitted boosting stage (``boost_stage=True``).
     prior_columns_ : list of str
@@ -135,7 +141,8 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         "fallback": [None, list, tuple],
         "cv_predictions": ["boolean"],
         "n_jobs": [None, Integral],
-        "alternative": [None, HasMethods(["fit", "predict"])],
+        "alternative": [None, HasMethods(["fit", "predict"]), dict,
+                        StrOptions({"candidates"})],
         "verbose": ["boolean"],
     }
 
@@ -156,11 +163,21 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         """Unpickle, giving a model pickled before ``alternative`` and ``verbose`` existed
-        their defaults (a registered model keeps ``get_params``, ``clone`` and ``repr``)."""
+        their defaults, and one fitted with a single ``alternative_`` its ``alternatives_``
+        and ``prior_choice_`` (a registered model keeps ``get_params``, ``clone``, ``repr``
+        and ``predict``)."""
         super().__setstate__(state)
         for name, default in (("alternative", None), ("verbose", False)):
             if name not in self.__dict__:
                 setattr(self, name, default)
+        if "physics_" in self.__dict__ and "prior_choice_" not in self.__dict__:
+            single = self.__dict__.pop("alternative_", None)
+            chose = self.__dict__.get("alternative_selected_",
+                                      np.zeros(len(self.target_names_), dtype=bool))
+            self.alternatives_: dict[str, Any] = ({} if single is None
+                                                  else {"alternative": single})
+            self.prior_choice_ = np.where(chose, "alternative", "physics").astype(object)
+            self.alternative_selected_ = np.asarray(chose, dtype=bool)
 
     def _with_prior(self, X: pd.DataFrame, prior: np.ndarray) -> pd.DataFrame:
         clash = [c for c in self.prior_columns_ if c in X.columns]
@@ -202,7 +219,8 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
             raise ValueError("alternative and fallback cannot be combined: give one")
         # the out-of-fold prior: the stage's training prior, the fallback's evidence, and
         # (without a stage) the model's own out-of-fold predictions (cv_predictions_)
-        self.alternative_: Any = None
+        self.alternatives_ = {}
+        self.prior_choice_ = np.full(len(names), "physics", dtype=object)
         self.alternative_selected_ = np.zeros(len(names), dtype=bool)
         self.stage_cv_mae_: pd.DataFrame | None = None
         if not (self.boost_stage or self.fallback is not None or self.cv_predictions):
@@ -252,41 +270,64 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
             oof[val] = pred
         return oof
 
+    def _alternatives(self) -> dict[str, Any]:
+        """The unfitted alternatives by name, simplest first."""
+        if isinstance(self.alternative, str):  # "candidates": the physics model's own
+            others = getattr(self.physics_, "other_candidates_", None)
+            if not isinstance(others, dict):
+                raise ValueError(f'alternative="candidates" needs a physics model with '
+                                 f"other_candidates_ (e.g. ParametricBoostRegressor); "
+                                 f"{type(self.physics_).__name__} has none")
+            return dict(others)
+        if isinstance(self.alternative, dict):
+            if "physics" in self.alternative:
+                raise ValueError('"physics" names the physics model\'s own prior: give the '
+                                 "alternative another name")
+            return dict(self.alternative)
+        return {"alternative": self.alternative}
+
     def _choose_prior(self, X: pd.DataFrame, Y: np.ndarray, Y_frame: pd.DataFrame,
                       tasks: list[tuple[np.ndarray, np.ndarray]], oof: np.ndarray,
                       boost: Any, say: Progress) -> np.ndarray:
-        """Fit the alternative and the stage on its out-of-fold prior; per target keep the
-        prior whose stage scored the lower CV MAE (ties: the alternative); return the
-        out-of-fold prior the final stage is trained on."""
-        say(f"the alternative prior: its fit, {len(tasks)} refits and its stage "
-            f"({say.elapsed()})")
-        self.alternative_ = clone(self.alternative).fit(X, Y)
-        alt = self._out_of_fold(self.alternative_, X, Y, tasks)
-        ours = [-e.cv_score_ for e in self.boost_.estimators_]
-        if np.array_equal(alt, oof):  # the physics model is the alternative: one stage
-            self.stage_cv_mae_ = pd.DataFrame({"physics": ours, "alternative": ours},
-                                              index=list(Y_frame.columns))
-            return oof
-        alt_boost = clone(boost).fit(self._with_prior(X, alt), Y_frame)
-        theirs = [-e.cv_score_ for e in alt_boost.estimators_]
-        self.stage_cv_mae_ = pd.DataFrame({"physics": ours, "alternative": theirs},
-                                          index=list(Y_frame.columns))
-        self.alternative_selected_ = np.asarray(theirs) <= np.asarray(ours)
-        say(f"the alternative's prior kept on {int(self.alternative_selected_.sum())} of "
-            f"{len(ours)} target(s) (stage CV MAE {', '.join(f'{a:.4g}' for a in theirs)} "
-            f"against {', '.join(f'{b:.4g}' for b in ours)})")
-        if self.alternative_selected_.all():
-            self.boost_ = alt_boost
-            return alt
-        if not self.alternative_selected_.any():
-            return oof
-        mixed = np.where(self.alternative_selected_, alt, oof)
+        """Fit each alternative and the stage on its out-of-fold prior; per target keep the
+        prior whose stage scored the lowest CV MAE (ties: the earliest alternative, the
+        physics model last); return the out-of-fold prior the final stage is trained on."""
+        priors, stages = {"physics": oof}, {"physics": self.boost_}
+        cv = {"physics": [-e.cv_score_ for e in self.boost_.estimators_]}
+        choosable = []
+        for name, model in self._alternatives().items():
+            say(f"the alternative prior {name!r}: its fit, {len(tasks)} refits and its stage "
+                f"({say.elapsed()})")
+            self.alternatives_[name] = clone(model).fit(X, Y)
+            priors[name] = self._out_of_fold(self.alternatives_[name], X, Y, tasks)
+            if np.array_equal(priors[name], oof):  # the physics model itself: one stage
+                cv[name] = cv["physics"]
+                continue
+            stages[name] = clone(boost).fit(self._with_prior(X, priors[name]), Y_frame)
+            cv[name] = [-e.cv_score_ for e in stages[name].estimators_]
+            choosable.append(name)
+        self.stage_cv_mae_ = pd.DataFrame(cv, index=list(Y_frame.columns))
+        order = [*choosable, "physics"]
+        table = self.stage_cv_mae_[order].to_numpy()
+        self.prior_choice_ = np.asarray([order[int(np.argmin(row))] for row in table],
+                                        dtype=object)
+        self.alternative_selected_ = self.prior_choice_ != "physics"
+        if say:
+            say("the stage's prior per target: " + ", ".join(
+                f"{t} {c} (stage CV MAE {self.stage_cv_mae_.loc[t, c]:.4g})"
+                for t, c in zip(Y_frame.columns, self.prior_choice_, strict=True)))
+        chosen = set(self.prior_choice_)
+        if len(chosen) == 1:
+            (only,) = chosen
+            self.boost_ = stages[only]
+            return priors[only]
+        mixed = np.column_stack([priors[c][:, j] for j, c in enumerate(self.prior_choice_)])
         self.boost_ = clone(boost).fit(self._with_prior(X, mixed), Y_frame)
         return mixed
 
     def predict_prior(self, X: pd.DataFrame) -> np.ndarray:
         """The prior of the stage: the physics model's prediction (the control prediction for
-        targets where it fell back, the alternative's where the stage chose it), shape
+        targets where it fell back, an alternative's where the stage chose it), shape
         ``(n, n_targets)``.
 
         Parameters
@@ -304,9 +345,10 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         if self.fallback is not None and not self.physics_selected_.all():
             prior = np.where(self.physics_selected_, prior,
                              X[list(self.fallback)].to_numpy(dtype=float))
-        if getattr(self, "alternative_", None) is not None and self.alternative_selected_.any():
-            theirs = np.asarray(self.alternative_.predict(X), dtype=float).reshape(prior.shape)
-            prior = np.where(self.alternative_selected_, theirs, prior)
+        for name in dict.fromkeys(self.prior_choice_):
+            if name != "physics":
+                theirs = np.asarray(self.alternatives_[name].predict(X), dtype=float)
+                prior = np.where(self.prior_choice_ == name, theirs.reshape(prior.shape), prior)
         return prior
 
     def predict(self, X: pd.DataFrame) -> pd.DataFrame:

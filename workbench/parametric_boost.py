@@ -743,6 +743,11 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
     choices_ : DataFrame
         ``candidate``, ``cv_mae``, ``chosen``.
     note_ : str
+    other_candidates_ : dict of str -> estimator
+        The candidates CV scored but did not choose, unfitted with their choices made
+        (covariates, ridge penalty, boosting rounds), simplest first, the prior left out:
+        :class:`~workbench.fitted_prior.FittedPriorBoost`'s ``alternative="candidates"``
+        fits the stage on each of them.
     selection_ : SelectionResult or None
         The forward selection (its path).
     ridge_path_ : DataFrame or None
@@ -930,7 +935,11 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
                       f"the {beaten} in CV")
         self.choices_ = pd.DataFrame({"candidate": list(scores), "cv_mae": list(scores.values()),
                                       "chosen": [k == self.choice_ for k in scores]})
-        winner = {"prior": prior, "calibrated": base, **drifts, "boost": booster}[self.choice_]
+        models = {"prior": prior, "calibrated": base, **drifts, "boost": booster}
+        winner = models[self.choice_]
+        self.other_candidates_ = {k: clone(models[k]) for k in CANDIDATES[1:]
+                                  if k in scores and k != self.choice_
+                                  and models[k] is not None}
         if say:
             cv = ", ".join(f"{k} {v:.4g}" for k, v in scores.items() if k != "prior")
             say(f"chose {self.choice_} (cv_mae: {cv}; the prior's training MAE "

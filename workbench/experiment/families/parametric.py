@@ -35,7 +35,6 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar, Literal, cast
 
-import numpy as np
 import pandas as pd
 from pydantic import Field, field_validator
 from sklearn.base import clone
@@ -122,10 +121,12 @@ class ParametricSettings(Section):
     boosting there); ``"clip"``, its covariates clipped to their training range (the drift's
     corrections at the nearest training point); the default ``"extrapolate"``, the drift's
     squares and products grown beyond them.
-    ``calibrated_stage = true`` (with the stage on top) also boosts from the calibrated
-    model's prediction, the generic path, and keeps per target the prior on which the
-    stage scores the lower CV MAE (``FittedPriorBoost``'s ``alternative``): the choice
-    above scores the physics models without the stage.
+    ``stage_priors``: which priors the stage on top is fitted on, keeping per target the
+    one on which it scores the lowest CV MAE (``FittedPriorBoost``'s ``alternative``): the
+    choice above scores the physics models without the stage. ``"chosen"`` (default), the
+    chosen model's only; ``"calibrated"``, also the calibrated model's (the generic path);
+    ``"candidates"``, every candidate's the choice scored (calibrated, drifts, the
+    parameter-space boost; the prior only where chosen).
     ``boost``: the table :class:`ParameterBoostSettings`, parameter-space boosting as a
     fourth candidate (absent: none). ``calibrate = false`` starts every fit's offsets at 0
     instead of a robust least-squares calibration, and ``solver = "irls"`` keeps IRLS
@@ -153,9 +154,11 @@ class ParametricSettings(Section):
     drift: Literal["forward", "ridge", "both"] = "forward"
     ridge_alphas: list[float] = Field(default_factory=lambda: list(RIDGE_ALPHAS), min_length=1)
     boost_stage: bool = True
-    calibrated_stage: bool = False
+    stage_priors: Literal["chosen", "calibrated", "candidates"] = "chosen"
     prior_cv: int = Field(default=5, ge=2, le=10_000)
     boost: ParameterBoostSettings | None = None
+
+    renamed: ClassVar[dict[str, str]] = {"calibrated_stage": 'stage_priors = "calibrated"'}
 
     @field_validator("ridge_alphas")
     @classmethod
@@ -260,7 +263,7 @@ def config_section(entry: str, path: str | os.PathLike[str]) -> str:
         'loss = "squared_error"       # or "huber", huber_delta in the targets\' unit',
         'candidates = "auto"          # each parameter\'s drift: features, squares, products',
         "max_steps = 10",
-        "calibrated_stage = true      # the stage also from the calibrated model; CV keeps "
+        'stage_priors = "calibrated"  # the stage also from the calibrated model; CV keeps '
         "the better", ""])
 
 
@@ -295,6 +298,16 @@ def _test_row_notes(regressor: Any, X_test: pd.DataFrame, info: dict[str, Any]) 
                      "domain (its prediction is not finite there); they get the calibrated "
                      "model's prediction")
     return notes
+
+
+def _used_regressor(model: Any) -> Any:
+    """The parametric regressor whose prediction the stage's priors use: the chosen
+    physics model's where any target keeps it, else the one alternative every target has
+    (None where they mix alternatives)."""
+    chosen = set(getattr(model, "prior_choice_", ["physics"]))
+    if "physics" in chosen:
+        return model.physics_.estimator_
+    return model.alternatives_[chosen.pop()] if len(chosen) == 1 else None
 
 
 def _records(table: pd.DataFrame) -> list[dict[str, Any]]:
@@ -349,8 +362,9 @@ class ParametricFamily(ModelFamily):
         priors = [f"{PRIOR_PREFIX}{t}" for t in ds.target_names]
         boost = per_target_boost(cfg, ds, priors, boost_from_prior=False)
         physics = make_parametric(cfg, ds)
-        alternative = (physics.calibrated_model() if s.calibrated_stage and s.boost_stage
-                       else None)
+        alternative = (None if not s.boost_stage or s.stage_priors == "chosen" else
+                       {"calibrated": physics.calibrated_model()}
+                       if s.stage_priors == "calibrated" else "candidates")
         return FittedPriorBoost(physics, boost, prior_prefix=PRIOR_PREFIX,
                                 alternative=alternative,
                                 cv=family_cv(cfg, ds, s.prior_cv),
@@ -382,15 +396,18 @@ class ParametricFamily(ModelFamily):
         return "; ".join(f"{k} {v}" for k, v in parts.items())
 
     def fixed_choices(self, model: Any) -> Any:
-        """Keep the physics model's choice (and selected covariates), and the stage's prior
-        where ``calibrated_stage`` chose one for every target; no progress lines."""
-        fixed = clone(model).set_params(physics=clone(model.physics_.estimator_), verbose=False)
-        chose = getattr(model, "alternative_selected_", None)
-        if model.alternative is None or chose is None or chose.all() or not chose.any():
-            fixed.set_params(alternative=None)
-        if model.alternative is not None and chose is not None and chose.all():
-            fixed.set_params(physics=clone(model.alternative_))
-        return fixed
+        """Keep the physics model's choice (and selected covariates), and the stage's priors
+        where ``stage_priors`` chose among several (the one prior where every target has
+        it); no progress lines."""
+        fixed = clone(model).set_params(physics=clone(model.physics_.estimator_),
+                                        alternative=None, verbose=False)
+        chosen = list(dict.fromkeys(getattr(model, "prior_choice_", ["physics"])))
+        if chosen == ["physics"] or not model.boost_stage:
+            return fixed
+        if len(chosen) == 1:
+            return fixed.set_params(physics=clone(model.alternatives_[chosen[0]]))
+        return fixed.set_params(alternative={name: clone(model.alternatives_[name])
+                                             for name in chosen if name != "physics"})
 
     def selected(self, model: Any, targets: list[str]) -> list[str]:
         """Label per target ``"parametric:<prior|calibrated|drift|ridge_drift|boost>"``.
@@ -404,8 +421,8 @@ class ParametricFamily(ModelFamily):
         if physics in ("prior", "calibrated"):  # the table says the drift did not help
             physics += " (error not a drift)"
         stages = model.boost_.estimators_ if model.boost_stage else [None] * len(targets)
-        chose = getattr(model, "alternative_selected_", np.zeros(len(targets), dtype=bool))
-        return [f"parametric:{'calibrated (the stage did better on it)' if c else physics}"
+        chose = getattr(model, "prior_choice_", ["physics"] * len(targets))
+        return [f"parametric:{physics if c == 'physics' else f'{c} (the stage did better on it)'}"
                 + (f"+{getattr(e, 'selected_candidate_', None) or 'boosted'}"
                    if s == "boosted" else "")
                 for s, e, c in zip(model.selected_, stages, chose)]
@@ -443,13 +460,11 @@ class ParametricFamily(ModelFamily):
             info["ridge_path"] = _records(physics.ridge_path_)
         if getattr(model, "stage_cv_mae_", None) is not None:
             table = model.stage_cv_mae_.rename_axis("target").reset_index()
-            info["stage_cv_mae"] = _records(table.assign(
-                alternative_chosen=model.alternative_selected_))
+            info["stage_cv_mae"] = _records(table.assign(stage_prior=model.prior_choice_))
         details: dict[str, Any] = {"parametric": info}
-        if hasattr(regressor, "outside_domain") and not (
-                getattr(model, "alternative_", None) is not None
-                and model.alternative_selected_.all()):  # not the parameter-space boost's
-            details["notes"] = _test_row_notes(regressor, _frame(ds).loc[ds.test_index], info)
+        used = _used_regressor(model)
+        if hasattr(used, "outside") and hasattr(used, "outside_domain"):
+            details["notes"] = _test_row_notes(used, _frame(ds).loc[ds.test_index], info)
         return prior, scores, details
 
     def begin_artifacts(self, cfg: ExperimentConfig, ds: Dataset, model: Any, setting: str,
@@ -477,8 +492,8 @@ class ParametricFamily(ModelFamily):
         ``parametric/calibrated/<p>`` (start plus offset; a parameter that starts from a
         column has its ``parametric/offset/<p>`` only) and ``parametric/cv_mae/<candidate>``
         (prior, calibrated, drift: the CV MAE the choice was made on); with
-        ``calibrated_stage``, ``parametric/stage_cv_mae/<physics|alternative>/<target>``
-        (the stage's CV MAE on the chosen model's prior and on the calibrated model's).
+        ``stage_priors``, ``parametric/stage_cv_mae/<prior>/<target>`` (the stage's CV
+        MAE on the chosen model's prior, ``physics``, and on each other candidate's).
         """
         info = details.get("parametric") or {}
         out: dict[str, float] = {}
@@ -491,8 +506,9 @@ class ParametricFamily(ModelFamily):
             if row.get("cv_mae") is not None:
                 out[f"parametric/cv_mae/{row['candidate']}"] = float(row["cv_mae"])
         for row in info.get("stage_cv_mae", []):
-            for side in ("physics", "alternative"):
-                out[f"parametric/stage_cv_mae/{side}/{row['target']}"] = float(row[side])
+            for side, value in row.items():
+                if side not in ("target", "stage_prior"):
+                    out[f"parametric/stage_cv_mae/{side}/{row['target']}"] = float(value)
         return out
 
     def outputs(self, model: Any, ds: Dataset, setting: str | None = None) -> Artifacts:
