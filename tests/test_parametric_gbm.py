@@ -67,6 +67,22 @@ def test_boosting_in_parameter_space_wins_where_the_drift_is_not_linear():
     np.testing.assert_allclose(staged[-1], booster.predict(X))
 
 
+def test_the_candidates_not_chosen_are_kept_unfitted_for_the_stage():
+    """``other_candidates_``: every candidate CV scored but did not choose, simplest first,
+    with its own choices made (the drift's covariates, the boost's rounds); a boost of 0
+    rounds is its start model and is left out."""
+    X, y = _data(step=0.4)
+    est = _choice().fit(X, y)
+    others = est.other_candidates_
+    assert est.choice_ == "boost" and list(others) == ["calibrated", "drift"]
+    assert others["drift"].covariates == est.selection_.covariates
+    assert not hasattr(others["drift"], "coef_")  # unfitted
+    X, y = _data(n=120)  # no drift to find: the boost stops at once
+    idle = _choice().set_params(boost=ParameterSpaceBoostRegressor(
+        features=FEATURES, n_estimators=0)).fit(X, y)
+    assert "boost" in set(idle.choices_["candidate"]) and "boost" not in idle.other_candidates_
+
+
 def test_cv_falls_back_where_the_error_is_not_in_the_parameters():
     X, y = _data(missing=0.2)  # a step in t: no parameter moved by temp or humidity makes it
     est = _choice().fit(X, y)

@@ -745,7 +745,8 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
     note_ : str
     other_candidates_ : dict of str -> estimator
         The candidates CV scored but did not choose, unfitted with their choices made
-        (covariates, ridge penalty, boosting rounds), simplest first, the prior left out:
+        (covariates, ridge penalty, boosting rounds), simplest first, the prior and a boost
+        of 0 rounds (its start model) left out:
         :class:`~workbench.fitted_prior.FittedPriorBoost`'s ``alternative="candidates"``
         fits the stage on each of them.
     selection_ : SelectionResult or None
@@ -937,9 +938,11 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
                                       "chosen": [k == self.choice_ for k in scores]})
         models = {"prior": prior, "calibrated": base, **drifts, "boost": booster}
         winner = models[self.choice_]
+        # a boost of 0 rounds is its start model, a candidate already
+        idle = booster is not None and booster.n_estimators == 0
         self.other_candidates_ = {k: clone(models[k]) for k in CANDIDATES[1:]
                                   if k in scores and k != self.choice_
-                                  and models[k] is not None}
+                                  and models[k] is not None and not (k == "boost" and idle)}
         if say:
             cv = ", ".join(f"{k} {v:.4g}" for k, v in scores.items() if k != "prior")
             say(f"chose {self.choice_} (cv_mae: {cv}; the prior's training MAE "

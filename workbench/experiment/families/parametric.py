@@ -263,8 +263,8 @@ def config_section(entry: str, path: str | os.PathLike[str]) -> str:
         'loss = "squared_error"       # or "huber", huber_delta in the targets\' unit',
         'candidates = "auto"          # each parameter\'s drift: features, squares, products',
         "max_steps = 10",
-        'stage_priors = "calibrated"  # the stage also from the calibrated model; CV keeps '
-        "the better", ""])
+        'stage_priors = "candidates"  # the stage on every candidate; its CV keeps the best',
+        ""])
 
 
 def _frame(ds: Dataset) -> pd.DataFrame:
