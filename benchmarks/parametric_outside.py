@@ -68,6 +68,10 @@ sets ``[model] link`` in every variant's config (``identity``: the workaround wh
 template's log link fails on a row whose model prediction is <= 0); ``--keep-going`` records
 a split that raises and runs the next.
 
+Each row also records ``blend_with_peer`` (:func:`blend`): per variant, the MAE of its
+prediction averaged with the peer's, and the best mix of the two in hindsight, an oracle
+bound for any stack of the family's path with the generic one.
+
 Nothing is chosen on the test rows: every choice is the family's CV or the peer's on the
 training rows; every test score printed here has been seen (all of them). Paired bootstrap
 intervals (:func:`~workbench.experiment.scoring.bootstrap.bootstrap_error_interval`) of each
@@ -386,6 +390,7 @@ def run_split(frame: pd.DataFrame, split: str, trials: int, tmp: Path,
                cpu_seconds=seconds, details=details, goal_ratio=GOALS[split],
                variants=list(variants), model=str(field.model.relative_to(ROOT)),
                out_of_bounds=out_of_bounds, order_column=order, link=link)
+    row["blend_with_peer"] = {name: blend(errors[name], errors["peer"]) for name in variants}
     for name in variants:
         row[f"{name}_over_peer"] = mae[name] / mae["peer"]
         row[f"{name}_minus_peer"] = bootstrap_error_interval(
@@ -394,6 +399,21 @@ def run_split(frame: pd.DataFrame, split: str, trials: int, tmp: Path,
         row[f"{name}_goal_met"] = bool(mae[name] / mae["peer"] <= GOALS[split] and (
             field is NUCLEAR or mae[name] <= mae["prior"]))
     return row
+
+
+#: The weights of :func:`blend`'s oracle.
+BLEND_WEIGHTS = np.linspace(0.0, 1.0, 101)
+
+
+def blend(ours: np.ndarray, theirs: np.ndarray) -> dict[str, float]:
+    """The MAE of ``w * ours + (1 - w) * theirs`` (errors of two predictions of the same
+    rows): ``half`` at w = 0.5, and the ``oracle``, the best ``weight`` on the grid
+    :data:`BLEND_WEIGHTS` chosen on these rows themselves (a bound in hindsight, never a
+    setting: what any mix of the family's prediction with the peer's could reach)."""
+    maes = [float(np.mean(np.abs(w * ours + (1 - w) * theirs))) for w in BLEND_WEIGHTS]
+    k = int(np.argmin(maes))
+    return {"half": float(np.mean(np.abs(0.5 * ours + 0.5 * theirs))), "oracle": maes[k],
+            "weight": float(BLEND_WEIGHTS[k])}
 
 
 def inner(frame: pd.DataFrame, split: str) -> pd.DataFrame:
@@ -434,6 +454,9 @@ def line(r: dict) -> str:
                  f"[{lo:+.3f}, {hi:+.3f}], goal <= {r['goal_ratio']}: "
                  f"{'met' if r[f'{name}_goal_met'] else 'not met'}; "
                  f"{', '.join(r['details'][name]['selected'])})")
+    for name, b in r.get("blend_with_peer", {}).items():
+        text += (f"; {name} mixed with the peer: half {b['half'] / m['peer']:.3f} of the peer, "
+                 f"the oracle weight {b['weight']:.2f} {b['oracle'] / m['peer']:.3f}")
     return text
 
 
