@@ -313,9 +313,11 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
                                         dtype=object)
         self.alternative_selected_ = self.prior_choice_ != "physics"
         if say:
-            say("the stage's prior per target: " + ", ".join(
-                f"{t} {c} (stage CV MAE {self.stage_cv_mae_.loc[t, c]:.4g})"
-                for t, c in zip(Y_frame.columns, self.prior_choice_, strict=True)))
+            for t, kept in zip(Y_frame.columns, self.prior_choice_, strict=True):
+                say(f"{t}: the stage's CV MAE on each prior: " + ", ".join(
+                    f"{'the physics model' if c == 'physics' else c} "
+                    f"{self.stage_cv_mae_.loc[t, c]:.4g}" + (" (kept)" if c == kept else "")
+                    for c in ["physics", *choosable]))
         chosen = set(self.prior_choice_)
         if len(chosen) == 1:
             (only,) = chosen
