@@ -55,7 +55,8 @@ on the largest values of the training rows.
 prior it scores better on; ``benchmarks/decisions/calibrated_stage.md``), which ``init`` has
 written since. ``parametric_candidates`` sets ``stage_priors = "candidates"`` (the stage on
 every candidate the family's choice scored), ``parametric_boost_candidates`` the same with
-:data:`BOOST_TABLE` (``benchmarks/decisions/stage_candidates.md``).
+:data:`BOOST_TABLE` (``benchmarks/decisions/stage_candidates.md``), ``parametric_stage_mean``
+``init``'s config with ``stage_mean = true`` (``benchmarks/decisions/stage_mean.md``).
 
 Three more fields (``benchmarks/outside_fields.py``, :data:`FIELD_SPLITS`; not in the default
 ``--splits``, select them by name or with ``--fields``): ionization energies against Slater's
@@ -106,7 +107,7 @@ SPLITS = ("random", "far", "heavy", "critical")
 VARIANTS = ("parametric", "parametric_ridge", "parametric_boost", "parametric_narrow",
             "parametric_pool", "parametric_ridge_drift", "parametric_both",
             "parametric_calibrated_stage", "parametric_candidates",
-            "parametric_boost_candidates")
+            "parametric_boost_candidates", "parametric_stage_mean")
 
 
 @dataclass(frozen=True)
@@ -368,7 +369,8 @@ def run_split(frame: pd.DataFrame, split: str, trials: int, tmp: Path,
                "parametric_candidates": with_keys(init, "cand.toml",
                                                   stage_priors='"candidates"'),
                "parametric_boost_candidates": with_keys(boost_config(init), "bcand.toml",
-                                                        stage_priors='"candidates"')}
+                                                        stage_priors='"candidates"'),
+               "parametric_stage_mean": with_keys(init, "smean.toml", stage_mean="true")}
     if "parametric_narrow" in variants:  # the former protocol: init names the pool only
         configs["parametric_narrow"] = guarded(init_config(
             folder, csv, field, order, field.pool or field.features, "narrow.toml"),

@@ -232,6 +232,54 @@ def test_the_stage_chooses_its_prior_per_target_between_physics_and_alternative(
         FittedPriorBoost(Physics(), clone(stage), alternative="candidates").fit(X, Yf)
 
 
+def test_the_mean_of_the_stages_is_kept_where_its_cv_is_lowest():
+    """``stage_mean``: two priors with independent errors the stage cannot learn; each
+    stage learns the shared effect of z, and the mean of the two stages halves the rest:
+    its CV MAE (the mean of their CV predictions) is the lowest, so it is kept, and
+    predict, predict_prior and cv_predictions_ are the means."""
+    class Column(RegressorMixin, BaseEstimator):
+        def __init__(self, column="a"):
+            self.column = column
+
+        def fit(self, X, Y):
+            self.fitted_ = True
+            return self
+
+        def predict(self, X):
+            return X[[self.column]].to_numpy()
+
+    rng = np.random.default_rng(3)
+    n = 400
+    truth, z = rng.normal(size=n), rng.normal(size=n)
+    X = pd.DataFrame({"a": truth + 0.3 * rng.standard_normal(n),
+                      "b": truth + 0.3 * rng.standard_normal(n), "z": z})
+    Y = pd.DataFrame({"y": truth + z})
+    booster = BaseBoostRegressor(basis=Ridge(alpha=1e-3), basis_features=["z"],
+                                 line_search_penalty=0.0)
+    stage = MultiTargetBaseBoost(BaseBoostCV(booster, cv=5), random_state=0)
+    train, test = np.arange(300), np.arange(300, n)
+    model = FittedPriorBoost(Column("a"), stage, alternative={"b": Column("b")}, cv=5,
+                             stage_mean=True).fit(X.iloc[train], Y.iloc[train])
+    cv = model.stage_cv_mae_.loc["y"]
+    assert list(cv.index) == ["physics", "b", "mean"]
+    assert model.prior_choice_.tolist() == ["mean"] and cv["mean"] < 0.85 * min(cv["physics"],
+                                                                                 cv["b"])
+    assert list(model.stages_) == ["physics", "b"] and model.selected_ == ["boosted"]
+    assert np.mean(np.abs(Y.iloc[train].to_numpy() - model.cv_predictions_)) == pytest.approx(
+        cv["mean"])
+    Xt = X.iloc[test]
+    each = [s.predict(model._with_prior(Xt, Xt[[c]].to_numpy())).to_numpy()
+            for s, c in zip(model.stages_.values(), ["a", "b"], strict=True)]
+    np.testing.assert_allclose(model.predict(Xt).to_numpy(), np.mean(each, axis=0))
+    np.testing.assert_allclose(model.predict_prior(Xt), Xt[["a", "b"]].mean(axis=1).to_numpy()
+                               .reshape(-1, 1))
+    err = np.abs(model.predict(Xt).to_numpy() - Y.iloc[test].to_numpy()).mean()
+    assert err < 0.85 * min(np.abs(e - Y.iloc[test].to_numpy()).mean() for e in each)
+    # without it, a single prior's stage, as before
+    single = clone(model).set_params(stage_mean=False).fit(X.iloc[train], Y.iloc[train])
+    assert "mean" not in single.stage_cv_mae_ and not single.stages_
+
+
 def test_out_of_fold_refits_only_when_something_uses_them(crosstalk, monkeypatch):
     """Without a stage or a fallback, cv_predictions=False fits the physics model once (no
     fold refits) and has no out-of-fold predictions; the default keeps them."""
@@ -289,8 +337,8 @@ def test_a_model_pickled_before_the_alternative_and_verbose_keeps_working():
     Y = np.column_stack([2 * X["x"], -X["x"]]) + 0.1 * rng.normal(size=(40, 2))
     model = FittedPriorBoost(LinearRegression(), boost_stage=False, cv=3).fit(X, Y)
     old = pickle.loads(pickle.dumps(model))
-    for name in ("alternative", "verbose", "alternatives_", "prior_choice_",
-                 "alternative_selected_", "stage_cv_mae_"):
+    for name in ("alternative", "stage_mean", "verbose", "alternatives_", "prior_choice_",
+                 "stages_", "alternative_selected_", "stage_cv_mae_"):
         old.__dict__.pop(name, None)
     back = pickle.loads(pickle.dumps(old))
     assert back.get_params()["alternative"] is None and back.get_params()["verbose"] is False

@@ -622,3 +622,41 @@ def test_the_stage_chooses_among_every_candidate(decay_csv, tmp_path):
     assert fixed.physics.get_params().keys() == kept.get_params().keys()
     pred = model.predict(X.loc[run.dataset.test_index])
     assert np.isfinite(pred.to_numpy()).all()
+
+
+def test_the_stage_mean_is_scored_beside_each_prior(decay_csv, tmp_path):
+    """``stage_mean = true``: the mean of the stages over the candidates' priors is scored
+    by its CV (the ``mean`` column) and kept where lowest; the table's CV MAE, the label
+    and the fixed choices follow what was kept."""
+    from workbench.experiment.runs.prepare import load_config, prepare
+
+    config = _decay_config(tmp_path, 'stage_priors = "candidates"\nstage_mean = true\n')
+    config.write_text(config.read_text().replace('[model]\nfamily = "parametric"\n', STAGE)
+                      .replace("boost_stage = false\n", ""))
+    out = tmp_path / "r.json"
+    assert main(["evaluate", str(config), "--no-track", "--json", str(out), "--jobs", "1"]) == 0
+    result = json.loads(out.read_text())
+    (row,) = result["parametric"]["stage_cv_mae"]
+    scored = {k: v for k, v in row.items() if k not in ("target", "stage_prior")}
+    assert set(scored) == {"physics", "calibrated", "mean"}
+    assert scored[row["stage_prior"]] == min(scored.values())
+    label = result["model"]["selected"][0]
+    run = prepare(load_config(config))
+    model = run.family.build(run.config, run.dataset)
+    assert model.stage_mean
+    X, Y = run.family.inputs(run.config, run.dataset), run.dataset.targets
+    model.fit(X.loc[run.dataset.train_index], Y.loc[run.dataset.train_index])
+    assert model.prior_choice_.tolist() == [row["stage_prior"]]
+    fixed = run.family.fixed_choices(model)
+    if row["stage_prior"] == "mean":
+        assert label.startswith("parametric:mean of the stages on drift, calibrated")
+        assert result["model"]["cv_mae"][0] == pytest.approx(row["mean"])
+        assert list(fixed.alternative) == ["calibrated"] and fixed.stage_mean
+    else:
+        assert "mean of the stages" not in label and fixed.alternative is None
+    # without alternatives the option has nothing to mix: no mean scored
+    plain = _decay_config(tmp_path, "stage_mean = true\n")
+    plain.write_text(plain.read_text().replace('[model]\nfamily = "parametric"\n', STAGE)
+                     .replace("boost_stage = false\n", ""))
+    run = prepare(load_config(plain))
+    assert not run.family.build(run.config, run.dataset).stage_mean

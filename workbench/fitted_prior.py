@@ -98,6 +98,13 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         is lowest (ties: the earliest alternative, the physics model last): the stage is
         scored as it is used, where the physics model's own CV scored it without the stage.
         Not with ``fallback``.
+    stage_mean : bool, default=False
+        With alternatives: also score, per target, the mean of the stages over every prior
+        (the physics model's and each alternative's, each stage on its own prior) by the MAE
+        of the mean of their CV predictions (the stages share their folds), and keep it
+        where that is the lowest stage CV MAE (ties: a single prior). Mixing the physics
+        path with the generic one helps where new rows are like the training rows; the
+        random folds that choose it do not see extrapolation, where it can be worse.
     verbose : bool, default=False
         Report the phases of ``fit`` after the physics model's own (the out-of-fold refits,
         the stage): INFO records of the ``workbench.fitted_prior`` logger, or printed to
@@ -113,12 +120,17 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
     alternatives_ : dict of str -> regressor
         The fitted alternatives by name (empty without any, or without a stage).
     prior_choice_ : ndarray of str
-        Per target, the stage's prior: ``"physics"`` or an alternative's name.
+        Per target, the stage's prior: ``"physics"``, an alternative's name, or ``"mean"``
+        (``stage_mean``: the mean of the stages over every prior).
+    stages_ : dict of str -> MultiTargetBaseBoost
+        Where a target keeps the mean: the stage fitted on each prior, by name (``physics``
+        and the alternatives'); else empty.
     alternative_selected_ : ndarray of bool
         Per target, whether an alternative is the prior (all false without one).
     stage_cv_mae_ : DataFrame or None
         With alternatives: per target (rows) the stage's CV MAE on the physics model's
-        prior (column ``physics``) and on each alternative's (its name).
+        prior (column ``physics``) and on each alternative's (its name); with
+        ``stage_mean``, of their mean (``mean``).
     boost_ : MultiTargetBaseBoost
         The fitted boosting stage (``boost_stage=True``).
     prior_columns_ : list of str
@@ -143,13 +155,15 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         "n_jobs": [None, Integral],
         "alternative": [None, HasMethods(["fit", "predict"]), dict,
                         StrOptions({"candidates"})],
+        "stage_mean": ["boolean"],
         "verbose": ["boolean"],
     }
 
     def __init__(self, physics: Any = None, boost: Any = None, *, prior_prefix: str = "prior_",
                  cv: Any = 5, boost_stage: bool = True, fallback: Sequence[str] | None = None,
                  cv_predictions: bool = True, n_jobs: int | None = None,
-                 alternative: Any = None, verbose: bool = False) -> None:
+                 alternative: Any = None, stage_mean: bool = False,
+                 verbose: bool = False) -> None:
         self.physics = physics
         self.boost = boost
         self.prior_prefix = prior_prefix
@@ -159,6 +173,7 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         self.cv_predictions = cv_predictions
         self.n_jobs = n_jobs
         self.alternative = alternative
+        self.stage_mean = stage_mean
         self.verbose = verbose
 
     def __setstate__(self, state: dict[str, Any]) -> None:
@@ -167,9 +182,12 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         and ``prior_choice_`` (a registered model keeps ``get_params``, ``clone``, ``repr``
         and ``predict``)."""
         super().__setstate__(state)
-        for name, default in (("alternative", None), ("verbose", False)):
+        for name, default in (("alternative", None), ("stage_mean", False),
+                              ("verbose", False)):
             if name not in self.__dict__:
                 setattr(self, name, default)
+        if "physics_" in self.__dict__ and "stages_" not in self.__dict__:
+            self.stages_: dict[str, Any] = {}
         if "physics_" in self.__dict__ and "prior_choice_" not in self.__dict__:
             single = self.__dict__.pop("alternative_", None)
             chose = self.__dict__.get("alternative_selected_",
@@ -220,6 +238,7 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         # the out-of-fold prior: the stage's training prior, the fallback's evidence, and
         # (without a stage) the model's own out-of-fold predictions (cv_predictions_)
         self.alternatives_ = {}
+        self.stages_ = {}
         self.prior_choice_ = np.full(len(names), "physics", dtype=object)
         self.alternative_selected_ = np.zeros(len(names), dtype=bool)
         self.stage_cv_mae_: pd.DataFrame | None = None
@@ -306,8 +325,18 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
             stages[name] = clone(boost).fit(self._with_prior(X, priors[name]), Y_frame)
             cv[name] = [-e.cv_score_ for e in stages[name].estimators_]
             choosable.append(name)
-        self.stage_cv_mae_ = pd.DataFrame(cv, index=list(Y_frame.columns))
         order = [*choosable, "physics"]
+        if self.stage_mean and choosable:
+            names = ["physics", *choosable]
+            folds = [np.asarray(stages[k].cv_folds_) for k in names]
+            if not all(np.array_equal(folds[0], f) for f in folds):
+                raise ValueError("stage_mean needs the stages' CV folds to agree; the stage's "
+                                 "cv must be a fixed splitter or seeded")
+            mean = np.mean([np.asarray(stages[k].cv_predictions_, dtype=float)
+                            for k in names], axis=0)
+            cv["mean"] = list(np.mean(np.abs(Y - mean), axis=0))
+            order.append("mean")
+        self.stage_cv_mae_ = pd.DataFrame(cv, index=list(Y_frame.columns))
         table = self.stage_cv_mae_[order].to_numpy()
         self.prior_choice_ = np.asarray([order[int(np.argmin(row))] for row in table],
                                         dtype=object)
@@ -318,14 +347,20 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
                     f"{'the physics model' if c == 'physics' else c} "
                     f"{self.stage_cv_mae_.loc[t, c]:.4g}" + (" (kept)" if c == kept else "")
                     for c in ["physics", *choosable]))
-        chosen = set(self.prior_choice_)
+        if "mean" in self.prior_choice_:  # its targets: every stage, each on its prior
+            self.stages_ = {k: stages[k] for k in ["physics", *choosable]}
+            priors["mean"] = np.mean([priors[k] for k in self.stages_], axis=0)
+        # the targets that keep the mean take the physics model's stage in boost_ (its
+        # prediction there is replaced by the stages' mean)
+        single = np.where(self.prior_choice_ == "mean", "physics", self.prior_choice_)
+        chosen = set(single)
         if len(chosen) == 1:
             (only,) = chosen
             self.boost_ = stages[only]
-            return priors[only]
-        mixed = np.column_stack([priors[c][:, j] for j, c in enumerate(self.prior_choice_)])
-        self.boost_ = clone(boost).fit(self._with_prior(X, mixed), Y_frame)
-        return mixed
+        else:
+            mixed = np.column_stack([priors[c][:, j] for j, c in enumerate(single)])
+            self.boost_ = clone(boost).fit(self._with_prior(X, mixed), Y_frame)
+        return np.column_stack([priors[c][:, j] for j, c in enumerate(self.prior_choice_)])
 
     def predict_prior(self, X: pd.DataFrame) -> np.ndarray:
         """The prior of the stage: the physics model's prediction (the control prediction for
@@ -347,11 +382,24 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         if self.fallback is not None and not self.physics_selected_.all():
             prior = np.where(self.physics_selected_, prior,
                              X[list(self.fallback)].to_numpy(dtype=float))
-        for name in dict.fromkeys(self.prior_choice_):
-            if name != "physics":
-                theirs = np.asarray(self.alternatives_[name].predict(X), dtype=float)
-                prior = np.where(self.prior_choice_ == name, theirs.reshape(prior.shape), prior)
-        return prior
+        return self._priors(X, prior)["chosen"]
+
+    def _priors(self, X: pd.DataFrame, physics: np.ndarray) -> dict[str, np.ndarray]:
+        """Every prior the stages use, by name (``physics``: ``physics``, the physics model's
+        prediction), and ``chosen``: per target the prior :attr:`prior_choice_` names (the
+        mean of the stages' priors for ``"mean"``)."""
+        names = set(self.prior_choice_) | set(self.stages_)
+        out = {"physics": physics}
+        for name in sorted(names - {"physics", "mean"}):
+            out[name] = np.asarray(self.alternatives_[name].predict(X),
+                                   dtype=float).reshape(physics.shape)
+        if self.stages_:
+            out["mean"] = np.mean([out[k] for k in self.stages_], axis=0)
+        chosen = physics.copy()
+        for j, name in enumerate(self.prior_choice_):
+            chosen[:, j] = out[name][:, j]
+        out["chosen"] = chosen
+        return out
 
     def predict(self, X: pd.DataFrame) -> pd.DataFrame:
         """Predictions as a DataFrame with one column per target.
@@ -370,7 +418,16 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         prior = self.predict_prior(X)
         if not self.boost_stage:
             return pd.DataFrame(prior, columns=self.target_names_, index=X.index)
-        return self.boost_.predict(self._with_prior(X, prior))
+        if not self.stages_:
+            return self.boost_.predict(self._with_prior(X, prior))
+        mean = self.prior_choice_ == "mean"
+        priors = self._priors(X, np.asarray(self.physics_.predict(X), dtype=float))
+        single = np.where(mean, priors["physics"], priors["chosen"])
+        pred = self.boost_.predict(self._with_prior(X, single))
+        stages = [np.asarray(stage.predict(self._with_prior(X, priors[name])), dtype=float)
+                  for name, stage in self.stages_.items()]
+        pred.loc[:, mean] = np.mean(stages, axis=0)[:, mean]
+        return pred
 
     def _check_oof(self) -> None:
         """Raise where fit computed no out-of-fold prior (``cv_predictions=False``)."""
@@ -387,7 +444,12 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         """
         check_is_fitted(self)
         if self.boost_stage:
-            return self.boost_.cv_predictions_
+            cv = np.array(self.boost_.cv_predictions_, dtype=float)
+            mean = self.prior_choice_ == "mean"
+            if mean.any():  # the mean of the stages' own (their folds agree)
+                cv[:, mean] = np.mean([np.asarray(s.cv_predictions_, dtype=float)
+                                       for s in self.stages_.values()], axis=0)[:, mean]
+            return cv
         self._check_oof()
         return self.oof_prior_.to_numpy()
 
@@ -403,11 +465,17 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
 
     @property
     def selected_(self) -> list[str]:
-        """Per target: ``"prior"`` (the physics model alone) or ``"boosted"``."""
+        """Per target: ``"prior"`` (the physics model alone) or ``"boosted"`` (for a target
+        keeping the mean of the stages: ``"boosted"`` where any of them boosted)."""
         check_is_fitted(self)
         if not self.boost_stage:
             return ["prior"] * len(self.target_names_)
-        return self.boost_.selected_
+        selected = list(self.boost_.selected_)
+        for j, name in enumerate(self.prior_choice_):
+            if name == "mean":
+                selected[j] = ("boosted" if any(s.selected_[j] == "boosted"
+                                                for s in self.stages_.values()) else "prior")
+        return selected
 
     def __sklearn_is_fitted__(self) -> bool:
         """Tell scikit-learn whether :meth:`fit` has run."""

@@ -35,6 +35,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar, Literal, cast
 
+import numpy as np
 import pandas as pd
 from pydantic import Field, field_validator
 from sklearn.base import clone
@@ -126,7 +127,11 @@ class ParametricSettings(Section):
     choice above scores the physics models without the stage. ``"chosen"`` (default), the
     chosen model's only; ``"calibrated"``, also the calibrated model's (the generic path);
     ``"candidates"``, every candidate's the choice scored (calibrated, drifts, the
-    parameter-space boost; the prior only where chosen).
+    parameter-space boost; the prior only where chosen). ``stage_mean = true`` (with
+    ``stage_priors`` other than ``"chosen"``) also scores the mean of those stages, each on
+    its own prior, by the MAE of the mean of their CV predictions, and keeps it per target
+    where that is lowest: the physics path mixed with the generic one, for new rows like
+    the training rows (random folds choose it, and they do not see extrapolation).
     ``boost``: the table :class:`ParameterBoostSettings`, parameter-space boosting as a
     fourth candidate (absent: none). ``calibrate = false`` starts every fit's offsets at 0
     instead of a robust least-squares calibration, and ``solver = "irls"`` keeps IRLS
@@ -155,6 +160,7 @@ class ParametricSettings(Section):
     ridge_alphas: list[float] = Field(default_factory=lambda: list(RIDGE_ALPHAS), min_length=1)
     boost_stage: bool = True
     stage_priors: Literal["chosen", "calibrated", "candidates"] = "chosen"
+    stage_mean: bool = False
     prior_cv: int = Field(default=5, ge=2, le=10_000)
     boost: ParameterBoostSettings | None = None
 
@@ -367,6 +373,7 @@ class ParametricFamily(ModelFamily):
                        if s.stage_priors == "calibrated" else "candidates")
         return FittedPriorBoost(physics, boost, prior_prefix=PRIOR_PREFIX,
                                 alternative=alternative,
+                                stage_mean=s.stage_mean and alternative is not None,
                                 cv=family_cv(cfg, ds, s.prior_cv),
                                 boost_stage=s.boost_stage,
                                 cv_predictions=cfg.intervals.enabled
@@ -404,10 +411,12 @@ class ParametricFamily(ModelFamily):
         chosen = list(dict.fromkeys(getattr(model, "prior_choice_", ["physics"])))
         if chosen == ["physics"] or not model.boost_stage:
             return fixed
-        if len(chosen) == 1:
+        if len(chosen) == 1 and chosen != ["mean"]:
             return fixed.set_params(physics=clone(model.alternatives_[chosen[0]]))
+        used = dict.fromkeys([*getattr(model, "stages_", {}), *chosen])
         return fixed.set_params(alternative={name: clone(model.alternatives_[name])
-                                             for name in chosen if name != "physics"})
+                                             for name in used
+                                             if name not in ("physics", "mean")})
 
     def selected(self, model: Any, targets: list[str]) -> list[str]:
         """Label per target ``"parametric:<prior|calibrated|drift|ridge_drift|boost>"``.
@@ -415,15 +424,21 @@ class ParametricFamily(ModelFamily):
         ``" (error not a drift)"`` follows the prior or the calibrated model: CV found no
         drift of the parameters that helps.
 
-        ``"+boosted"`` is added where the stage was kept.
+        ``"+boosted"`` is added where the stage was kept. With ``stage_priors``, a target
+        on another candidate's prior says ``"<candidate> (the stage did better on it)"``,
+        one on the stages' mean (``stage_mean``) ``"mean of the stages on drift,
+        calibrated"``.
         """
         physics = getattr(model.physics_, "choice_", "fixed")
         if physics in ("prior", "calibrated"):  # the table says the drift did not help
             physics += " (error not a drift)"
         stages = model.boost_.estimators_ if model.boost_stage else [None] * len(targets)
         chose = getattr(model, "prior_choice_", ["physics"] * len(targets))
-        return [f"parametric:{physics if c == 'physics' else f'{c} (the stage did better on it)'}"
-                + (f"+{getattr(e, 'selected_candidate_', None) or 'boosted'}"
+        mixed = ", ".join(physics.split(" (")[0] if k == "physics" else k
+                          for k in getattr(model, "stages_", {}))
+        names = {"physics": physics, "mean": f"mean of the stages on {mixed}"}
+        return [f"parametric:{names.get(c) or f'{c} (the stage did better on it)'}"
+                + (f"+{(c != 'mean' and getattr(e, 'selected_candidate_', None)) or 'boosted'}"
                    if s == "boosted" else "")
                 for s, e, c in zip(model.selected_, stages, chose)]
 
@@ -435,6 +450,12 @@ class ParametricFamily(ModelFamily):
         Y = Y_train.to_numpy(dtype=float)
         staged = model.boost_stage
         s: dict[str, list[Any]] = stage_scores(model.boost_.estimators_, Y) if staged else {}
+        for j, prior in enumerate(getattr(model, "prior_choice_", [])):
+            if prior == "mean":  # the stages' mean: its CV figures, no single stage's
+                cv = model.cv_predictions_[:, j]
+                s["cv_mae"][j] = float(model.stage_cv_mae_.iloc[j]["mean"])
+                s["cv_mse"][j] = float(np.mean((Y[:, j] - cv) ** 2))
+                s["coefs"][j] = []
         prior = Scores(test_mae=mae(y_test, prior_test), test_mse=mse(y_test, prior_test),
                        cv_mae=mae(Y_train, prior_train), cv_mse=mse(Y_train, prior_train))
         stage_cv = s["prior_cv_mae"] if staged else nan
