@@ -660,3 +660,21 @@ def test_the_stage_mean_is_scored_beside_each_prior(decay_csv, tmp_path):
                      .replace("boost_stage = false\n", ""))
     run = prepare(load_config(plain))
     assert not run.family.build(run.config, run.dataset).stage_mean
+
+
+def test_the_test_row_notes_follow_the_prior_the_stage_kept():
+    """The notes on test rows outside the box come from the regressor the kept priors use:
+    the chosen model's where a target keeps it alone or in the stages' mean (it raised a
+    KeyError on the mean), the one alternative every target has, else none."""
+    from types import SimpleNamespace
+
+    from workbench.experiment.families.parametric import _used_regressor
+
+    chosen, other = object(), object()
+    physics = SimpleNamespace(estimator_=chosen)
+    for choice, expected in ((["physics"], chosen), (["mean"], chosen),
+                             (["mean", "calibrated"], chosen), (["calibrated"], other),
+                             (["calibrated", "boost"], None)):
+        model = SimpleNamespace(physics_=physics, prior_choice_=choice,
+                                alternatives_={"calibrated": other, "boost": object()})
+        assert _used_regressor(model) is expected

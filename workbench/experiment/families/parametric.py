@@ -308,10 +308,10 @@ def _test_row_notes(regressor: Any, X_test: pd.DataFrame, info: dict[str, Any]) 
 
 def _used_regressor(model: Any) -> Any:
     """The parametric regressor whose prediction the stage's priors use: the chosen
-    physics model's where any target keeps it, else the one alternative every target has
-    (None where they mix alternatives)."""
+    physics model's where any target keeps it (alone or in the stages' mean), else the one
+    alternative every target has (None where they mix alternatives)."""
     chosen = set(getattr(model, "prior_choice_", ["physics"]))
-    if "physics" in chosen:
+    if chosen & {"physics", "mean"}:
         return model.physics_.estimator_
     return model.alternatives_[chosen.pop()] if len(chosen) == 1 else None
 
