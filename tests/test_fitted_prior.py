@@ -232,7 +232,7 @@ def test_the_stage_chooses_its_prior_per_target_between_physics_and_alternative(
         FittedPriorBoost(Physics(), clone(stage), alternative="candidates").fit(X, Yf)
 
 
-def test_the_mean_of_the_stages_is_kept_where_its_cv_is_lowest():
+def test_the_mean_of_the_stages_is_kept_where_its_cv_is_lowest(caplog):
     """``stage_mean``: two priors with independent errors the stage cannot learn; each
     stage learns the shared effect of z, and the mean of the two stages halves the rest:
     its CV MAE (the mean of their CV predictions) is the lowest, so it is kept, and
@@ -258,8 +258,11 @@ def test_the_mean_of_the_stages_is_kept_where_its_cv_is_lowest():
                                  line_search_penalty=0.0)
     stage = MultiTargetBaseBoost(BaseBoostCV(booster, cv=5), random_state=0)
     train, test = np.arange(300), np.arange(300, n)
-    model = FittedPriorBoost(Column("a"), stage, alternative={"b": Column("b")}, cv=5,
-                             stage_mean=True).fit(X.iloc[train], Y.iloc[train])
+    with caplog.at_level("INFO", logger="workbench"):
+        model = FittedPriorBoost(Column("a"), stage, alternative={"b": Column("b")}, cv=5,
+                                 stage_mean=True, verbose=True).fit(X.iloc[train], Y.iloc[train])
+    line = next(r.getMessage() for r in caplog.records if "on each prior" in r.getMessage())
+    assert "the physics model" in line and " b " in line and "(kept)" in line.split("mean")[-1]
     cv = model.stage_cv_mae_.loc["y"]
     assert list(cv.index) == ["physics", "b", "mean"]
     assert model.prior_choice_.tolist() == ["mean"] and cv["mean"] < 0.85 * min(cv["physics"],

@@ -346,7 +346,7 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
                 say(f"{t}: the stage's CV MAE on each prior: " + ", ".join(
                     f"{'the physics model' if c == 'physics' else c} "
                     f"{self.stage_cv_mae_.loc[t, c]:.4g}" + (" (kept)" if c == kept else "")
-                    for c in ["physics", *choosable]))
+                    for c in ["physics", *choosable, *order[len(choosable) + 1:]]))
         if "mean" in self.prior_choice_:  # its targets: every stage, each on its prior
             self.stages_ = {k: stages[k] for k in ["physics", *choosable]}
             priors["mean"] = np.mean([priors[k] for k in self.stages_], axis=0)
