@@ -378,16 +378,16 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
             The prior.
         """
         check_is_fitted(self)
-        prior = np.asarray(self.physics_.predict(X), dtype=float)
-        if self.fallback is not None and not self.physics_selected_.all():
-            prior = np.where(self.physics_selected_, prior,
-                             X[list(self.fallback)].to_numpy(dtype=float))
-        return self._priors(X, prior)["chosen"]
+        return self._priors(X)["chosen"]
 
-    def _priors(self, X: pd.DataFrame, physics: np.ndarray) -> dict[str, np.ndarray]:
-        """Every prior the stages use, by name (``physics``: ``physics``, the physics model's
-        prediction), and ``chosen``: per target the prior :attr:`prior_choice_` names (the
-        mean of the stages' priors for ``"mean"``)."""
+    def _priors(self, X: pd.DataFrame) -> dict[str, np.ndarray]:
+        """Every prior the stages use, by name (``physics``: the physics model's prediction,
+        the control prediction where it fell back), and ``chosen``: per target the prior
+        :attr:`prior_choice_` names (the mean of the stages' priors for ``"mean"``)."""
+        physics = np.asarray(self.physics_.predict(X), dtype=float)
+        if self.fallback is not None and not self.physics_selected_.all():
+            physics = np.where(self.physics_selected_, physics,
+                               X[list(self.fallback)].to_numpy(dtype=float))
         names = set(self.prior_choice_) | set(self.stages_)
         out = {"physics": physics}
         for name in sorted(names - {"physics", "mean"}):
@@ -415,13 +415,12 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
             The predictions, indexed as ``X``.
         """
         check_is_fitted(self)
-        prior = self.predict_prior(X)
+        priors = self._priors(X)
         if not self.boost_stage:
-            return pd.DataFrame(prior, columns=self.target_names_, index=X.index)
+            return pd.DataFrame(priors["chosen"], columns=self.target_names_, index=X.index)
         if not self.stages_:
-            return self.boost_.predict(self._with_prior(X, prior))
+            return self.boost_.predict(self._with_prior(X, priors["chosen"]))
         mean = self.prior_choice_ == "mean"
-        priors = self._priors(X, np.asarray(self.physics_.predict(X), dtype=float))
         single = np.where(mean, priors["physics"], priors["chosen"])
         pred = self.boost_.predict(self._with_prior(X, single))
         stages = [np.asarray(stage.predict(self._with_prior(X, priors[name])), dtype=float)
