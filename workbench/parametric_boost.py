@@ -867,10 +867,10 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         say = Progress(__name__, self.verbose, "parametric: ")
         model = resolve_model(self.model)
         Y = _targets(y)
-        common: dict[str, Any] = dict(model=self.model, alpha=self.alpha, alpha_l1=self.alpha_l1,
-                      loss=self.loss, huber_delta=self.huber_delta, max_iter=self.max_iter,
-                      tol=self.tol, out_of_bounds=self.out_of_bounds, solver=self.solver)
         base = self.calibrated_model()
+        # the fit settings every candidate shares (calibrated_model's, one declaration)
+        common: dict[str, Any] = {k: v for k, v in base.get_params(deep=False).items()
+                                  if k not in ("covariates", "calibrate")}
         prior = ParametricRegressor(**{**common, "max_iter": 0}, calibrate=False)
         prior_fit = clone(prior).fit(X, Y)  # also checks the model (one line per bad case)
         scores = {"prior": float(np.mean(np.abs(prior_fit.predict(X) - Y)))}

@@ -450,11 +450,12 @@ class ParametricFamily(ModelFamily):
         Y = Y_train.to_numpy(dtype=float)
         staged = model.boost_stage
         s: dict[str, list[Any]] = stage_scores(model.boost_.estimators_, Y) if staged else {}
-        for j, prior in enumerate(getattr(model, "prior_choice_", [])):
-            if prior == "mean":  # the stages' mean: its CV figures, no single stage's
-                cv = model.cv_predictions_[:, j]
+        mean = [j for j, p in enumerate(getattr(model, "prior_choice_", [])) if p == "mean"]
+        if mean:  # the stages' mean: its CV figures, no single stage's
+            cv = model.cv_predictions_  # the mean over the stages, computed once
+            for j in mean:
                 s["cv_mae"][j] = float(model.stage_cv_mae_.iloc[j]["mean"])
-                s["cv_mse"][j] = float(np.mean((Y[:, j] - cv) ** 2))
+                s["cv_mse"][j] = float(np.mean((Y[:, j] - cv[:, j]) ** 2))
                 s["coefs"][j] = []
         prior = Scores(test_mae=mae(y_test, prior_test), test_mse=mse(y_test, prior_test),
                        cv_mae=mae(Y_train, prior_train), cv_mse=mse(Y_train, prior_train))
