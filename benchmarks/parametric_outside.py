@@ -58,12 +58,14 @@ every candidate the family's choice scored), ``parametric_boost_candidates`` the
 :data:`BOOST_TABLE` (``benchmarks/decisions/stage_candidates.md``), ``parametric_stage_mean``
 ``init``'s config with ``stage_mean = true`` (``benchmarks/decisions/stage_mean.md``).
 
-Three more fields (``benchmarks/outside_fields.py``, :data:`FIELD_SPLITS`; not in the default
+Five more fields (``benchmarks/outside_fields.py``, :data:`FIELD_SPLITS`; not in the default
 ``--splits``, select them by name or with ``--fields``): ionization energies against Slater's
 screening (``ion_random``, ``ion_heavy``), enthalpies of vaporization against Kistiakowsky's
-rule (``hvap_random``, ``hvap_hot``) and acentric factors against Edmister's estimate
-(``omega_random``, ``omega_hot``); each a random split (30%, seed 0) and an extrapolation split
-(the largest 25% of Z, Tb or Tc held out), their goals the issue's (``<= 0.75`` and ``<= 0.85``
+rule (``hvap_random``, ``hvap_hot``), acentric factors against Edmister's estimate
+(``omega_random``, ``omega_hot``), critical volumes against Pitzer's critical compressibility
+(``vc_random``, ``vc_acentric``) and heats of fusion against Walden's rule (``fus_random``,
+``fus_hot``); each a random split (30%, seed 0) and an extrapolation split (the largest 25% of
+Z, Tb, Tc, omega or Tm held out), their goals the issue's (``<= 0.75`` and ``<= 0.85``
 of the peer) and never worse than the prior; the peer's features are init's. ``--link``
 sets ``[model] link`` in every variant's config (``identity``: the workaround where the
 template's log link fails on a row whose model prediction is <= 0); ``--keep-going`` records
@@ -146,7 +148,10 @@ def _field(name: str) -> Field:
 FIELD_SPLITS = {"ion_random": ("ionization", "random"), "ion_heavy": ("ionization", "ion_heavy"),
                 "hvap_random": ("vaporization", "random"),
                 "hvap_hot": ("vaporization", "hvap_hot"),
-                "omega_random": ("acentric", "random"), "omega_hot": ("acentric", "omega_hot")}
+                "omega_random": ("acentric", "random"), "omega_hot": ("acentric", "omega_hot"),
+                "vc_random": ("critical_volume", "random"),
+                "vc_acentric": ("critical_volume", "vc_acentric"),
+                "fus_random": ("fusion", "random"), "fus_hot": ("fusion", "fus_hot")}
 GOALS.update({k: 0.75 if rule == "random" else 0.85 for k, (_, rule) in FIELD_SPLITS.items()})
 
 

@@ -1,5 +1,6 @@
-"""benchmarks/outside_fields.py (three more outside fields of issue 42), their model files
-(experiments/models/slater.py, kistiakowsky.py, edmister.py) and their splits in
+"""benchmarks/outside_fields.py (five more outside fields of issue 42), their model files
+(experiments/models/slater.py, kistiakowsky.py, edmister.py, pitzer_zc.py, walden.py) and
+their splits in
 benchmarks/parametric_outside.py. The tables come from cached wheels; a test that needs one
 skips when it cannot be fetched."""
 
@@ -50,6 +51,10 @@ CASES = {
     "edmister.py": (["a", "b"], pd.DataFrame({"Tb": [111.7, 341.9, 353.2],
                                               "Tc": [190.6, 507.6, 562.0],
                                               "Pc_bar": [46.0, 30.25, 48.98]})),
+    "pitzer_zc.py": (["a", "b"], pd.DataFrame({"Tc": [190.6, 507.6, 647.1],
+                                               "Pc_bar": [46.0, 30.25, 220.6],
+                                               "omega": [0.011, 0.301, 0.345]})),
+    "walden.py": (["a"], pd.DataFrame({"Tm": [273.15, 353.4, 278.7]})),
 }
 
 
@@ -72,7 +77,8 @@ def test_each_model_file_meets_the_contract(name):
 def test_the_textbook_values_are_the_textbooks():
     """Slater: hydrogen's 13.6 eV exactly, sodium's 3s at 13.6 (2.2 / 3)^2 = 7.3 eV;
     Kistiakowsky: benzene's 30.0 kJ/mol (measured 30.7); Edmister: n-hexane's 0.305
-    (tabulated 0.30)."""
+    (tabulated 0.30); Pitzer: methane's critical volume 99.9 cm^3/mol (tabulated 98.6);
+    Walden: naphthalene's heat of fusion 20.0 kJ/mol (measured 19.1)."""
     slater = load_model(MODELS / "slater.py")
     data = CASES["slater.py"][1]
     ie = np.exp(slater.predict(slater.start(data), data, 1)[:, 0])
@@ -85,6 +91,14 @@ def test_the_textbook_values_are_the_textbooks():
     edm = load_model(MODELS / "edmister.py")
     data = CASES["edmister.py"][1]
     assert edm.predict(edm.start(data), data, 1)[1, 0] == pytest.approx(0.305, abs=0.002)
+    pitzer = load_model(MODELS / "pitzer_zc.py")
+    data = CASES["pitzer_zc.py"][1]
+    vc = pitzer.predict(pitzer.start(data), data, 1)[:, 0]
+    assert vc[0] == pytest.approx((0.291 - 0.080 * 0.011) * 83.14462618 * 190.6 / 46.0)
+    assert abs(vc[0] - 98.6) < 2.0
+    walden = load_model(MODELS / "walden.py")
+    data = CASES["walden.py"][1]
+    assert walden.predict(walden.start(data), data, 1)[1, 0] == pytest.approx(19.97, abs=0.01)
 
 
 def test_slater_counts_follow_the_rules():
@@ -101,7 +115,8 @@ def test_slater_counts_follow_the_rules():
         fields.subshells("[Ar].3x2")
 
 
-@pytest.mark.parametrize("name", ["ionization", "vaporization", "acentric"])
+@pytest.mark.parametrize("name", ["ionization", "vaporization", "acentric", "critical_volume",
+                                  "fusion"])
 def test_each_table_has_its_prior_and_splits(name):
     """No NaN; the prior column is the model file at its start values; the random split holds
     out 30% and the extrapolation split the largest 25% of its column."""
@@ -151,3 +166,5 @@ def test_the_benchmark_splits_and_inner_splits(monkeypatch):
     inner = bench.inner(table, "hvap_random")
     assert inner["test_hvap_random"].mean() == pytest.approx(0.3, abs=0.01)
     assert bench.GOALS["hvap_random"] == 0.75 and bench.GOALS["hvap_hot"] == 0.85
+    assert bench.FIELD_SPLITS["vc_acentric"] == ("critical_volume", "vc_acentric")
+    assert bench.GOALS["fus_random"] == 0.75 and bench.GOALS["fus_hot"] == 0.85
