@@ -45,8 +45,8 @@ Splits (``benchmarks/decisions/outside_fields_splits.md`` and, for the last two,
 ``outside_fields_more_splits.md``, each fixed before any model saw the data): ``random`` (30%
 of the rows held out, seed 0) and one extrapolation split each, the 25% of rows with the
 largest value of one column held out: ``ion_heavy`` (Z), ``hvap_hot`` (Tb), ``omega_hot``
-(Tc), ``vc_acentric`` (omega), ``fus_hot`` (Tm). Each table's rows are sorted by a stable key before the random
-split.
+(Tc), ``vc_acentric`` (omega), ``fus_hot`` (Tm). Each table's rows are sorted by a stable key
+before the random split.
 """
 
 from __future__ import annotations
