@@ -56,7 +56,9 @@ prior it scores better on; ``benchmarks/decisions/calibrated_stage.md``), which 
 written since. ``parametric_candidates`` sets ``stage_priors = "candidates"`` (the stage on
 every candidate the family's choice scored), ``parametric_boost_candidates`` the same with
 :data:`BOOST_TABLE` (``benchmarks/decisions/stage_candidates.md``), ``parametric_stage_mean``
-``init``'s config with ``stage_mean = true`` (``benchmarks/decisions/stage_mean.md``).
+``init``'s config with ``stage_mean = true`` (``benchmarks/decisions/stage_mean.md``), which
+``init`` has written since ``benchmarks/decisions/stage_mean_fresh_fields.md``;
+``parametric_no_mean`` the same with ``stage_mean = false`` (the template before it).
 
 Five more fields (``benchmarks/outside_fields.py``, :data:`FIELD_SPLITS`; not in the default
 ``--splits``, select them by name or with ``--fields``): ionization energies against Slater's
@@ -109,7 +111,7 @@ SPLITS = ("random", "far", "heavy", "critical")
 VARIANTS = ("parametric", "parametric_ridge", "parametric_boost", "parametric_narrow",
             "parametric_pool", "parametric_ridge_drift", "parametric_both",
             "parametric_calibrated_stage", "parametric_candidates",
-            "parametric_boost_candidates", "parametric_stage_mean")
+            "parametric_boost_candidates", "parametric_stage_mean", "parametric_no_mean")
 
 
 @dataclass(frozen=True)
@@ -375,7 +377,8 @@ def run_split(frame: pd.DataFrame, split: str, trials: int, tmp: Path,
                                                   stage_priors='"candidates"'),
                "parametric_boost_candidates": with_keys(boost_config(init), "bcand.toml",
                                                         stage_priors='"candidates"'),
-               "parametric_stage_mean": with_keys(init, "smean.toml", stage_mean="true")}
+               "parametric_stage_mean": with_keys(init, "smean.toml", stage_mean="true"),
+               "parametric_no_mean": with_keys(init, "nomean.toml", stage_mean="false")}
     if "parametric_narrow" in variants:  # the former protocol: init names the pool only
         configs["parametric_narrow"] = guarded(init_config(
             folder, csv, field, order, field.pool or field.features, "narrow.toml"),
