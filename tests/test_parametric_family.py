@@ -679,3 +679,24 @@ def test_the_test_row_notes_follow_the_prior_the_stage_kept():
         model = SimpleNamespace(physics_=physics, prior_choice_=choice,
                                 alternatives_={"calibrated": other, "boost": object()})
         assert _used_regressor(model) is expected
+
+
+def test_a_note_where_test_rows_lie_beyond_and_a_target_keeps_the_mean():
+    """Test rows outside the training rows' box and a target on the mean of the stages: a
+    note says the mean was chosen on the training rows' folds and how to keep a single
+    stage; without the mean, or with every row inside the box, no such note."""
+    from types import SimpleNamespace
+
+    from workbench.experiment.families.parametric import _test_row_notes
+
+    X = pd.DataFrame({"t": [0.5, 4.0, 5.0]})
+    regressor = SimpleNamespace(outside=lambda X: (X["t"] > 3).to_numpy(),
+                                outside_domain=lambda X: np.zeros(len(X), dtype=bool),
+                                out_of_bounds="extrapolate")
+    info: dict = {}
+    notes = _test_row_notes(regressor, X, info, mean_targets=1)
+    assert info["outside_box_test_rows"] == 2 and len(notes) == 2
+    assert notes[1].startswith("1 target(s) keep the mean of the stages")
+    assert "stage_mean = false" in notes[1]
+    assert len(_test_row_notes(regressor, X, {}, mean_targets=0)) == 1
+    assert _test_row_notes(regressor, X.iloc[:1], {}, mean_targets=1) == []

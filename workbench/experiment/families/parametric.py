@@ -283,10 +283,12 @@ def _computed_prior(cfg: ExperimentConfig) -> bool:
     return cfg.data.source == "csv" and cfg.data.prior is None
 
 
-def _test_row_notes(regressor: Any, X_test: pd.DataFrame, info: dict[str, Any]) -> list[str]:
+def _test_row_notes(regressor: Any, X_test: pd.DataFrame, info: dict[str, Any],
+                    mean_targets: int = 0) -> list[str]:
     """Count the test rows outside the training rows' covariate box and those whose
     corrected parameters leave the model's domain (into ``info``); a line for each kind
-    that occurs. Only the rows' features are used, never their targets."""
+    that occurs, and one where rows lie outside the box and ``mean_targets`` targets keep
+    the mean of the stages. Only the rows' features are used, never their targets."""
     n, notes = len(X_test), []
     beyond = int(regressor.outside(X_test).sum())
     info["outside_box_test_rows"] = beyond
@@ -298,6 +300,11 @@ def _test_row_notes(regressor: Any, X_test: pd.DataFrame, info: dict[str, Any]) 
                  "\"calibrated\" would keep the calibrated model")
         notes.append(f"{beyond} of {n} test rows lie outside the box the training rows' "
                      f"covariates span: {there}")
+        if mean_targets:
+            notes.append(f"{mean_targets} target(s) keep the mean of the stages, chosen on "
+                         "folds of the training rows; beyond them it has extrapolated worse "
+                         "than a single stage on some fields: [model.parametric] stage_mean "
+                         "= false keeps a single stage")
     outside = int(regressor.outside_domain(X_test).sum())
     info["outside_domain_test_rows"] = outside
     if outside:
@@ -487,7 +494,8 @@ class ParametricFamily(ModelFamily):
         details: dict[str, Any] = {"parametric": info}
         used = _used_regressor(model)
         if hasattr(used, "outside") and hasattr(used, "outside_domain"):
-            details["notes"] = _test_row_notes(used, _frame(ds).loc[ds.test_index], info)
+            details["notes"] = _test_row_notes(used, _frame(ds).loc[ds.test_index], info,
+                                               len(mean))
         return prior, scores, details
 
     def begin_artifacts(self, cfg: ExperimentConfig, ds: Dataset, model: Any, setting: str,
