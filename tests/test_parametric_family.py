@@ -40,7 +40,7 @@ def test_init_with_a_model_file_then_evaluate(decay_csv, tmp_path, capsys):
     assert 'family = "parametric"' in text and 'model = "models/decay.py"' in text
     assert "prior =" not in text  # the model is the prior
     assert 'stage_priors = "candidates"' in text  # benchmarks/decisions/stage_candidates.md
-    assert "stage_mean = true" in text  # benchmarks/decisions/stage_mean_fresh_fields.md
+    assert "stage_mean = false" in text  # benchmarks/decisions/stage_mean_fresh_fields.md
     out = tmp_path / "result.json"
     assert main(["evaluate", str(config), "--no-track", "--json", str(out),
                  "--out", str(tmp_path / "tables"), "--jobs", "1",
