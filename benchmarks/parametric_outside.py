@@ -56,9 +56,11 @@ prior it scores better on; ``benchmarks/decisions/calibrated_stage.md``), which 
 written since. ``parametric_candidates`` sets ``stage_priors = "candidates"`` (the stage on
 every candidate the family's choice scored), ``parametric_boost_candidates`` the same with
 :data:`BOOST_TABLE` (``benchmarks/decisions/stage_candidates.md``), ``parametric_stage_mean``
-``init``'s config with ``stage_mean = true`` (``benchmarks/decisions/stage_mean.md``), which
-``init`` has written since ``benchmarks/decisions/stage_mean_fresh_fields.md``;
-``parametric_no_mean`` the same with ``stage_mean = false`` (the template before it).
+``init``'s config with ``stage_mean = true`` (``benchmarks/decisions/stage_mean.md``),
+``parametric_no_mean`` with ``stage_mean = false``, as ``init`` writes it (the pair compared
+in ``benchmarks/decisions/stage_mean_fresh_fields.md``, whose adoption of the mean was
+retracted). :func:`evaluate_inner` fits one such config on an inner split for the
+prototypes (``benchmarks/stage_mean_prototype.py``, ``mean_domain_prototype.py``).
 
 Five more fields (``benchmarks/outside_fields.py``, :data:`FIELD_SPLITS`; not in the default
 ``--splits``, select them by name or with ``--fields``): ionization energies against Slater's
@@ -98,6 +100,7 @@ import tomllib
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -270,6 +273,34 @@ def with_keys(init: Path, name: str, **keys: str) -> Path:
     out.write_text(head + sep + body + nxt + tail)
     tomllib.loads(out.read_text())  # still TOML
     return out
+
+
+def evaluate_inner(split: str, **keys: str) -> tuple[Any, Any, Field, float]:
+    """``init``'s config (``[model.parametric]`` ``keys`` set, TOML values) fitted through
+    ``evaluate`` on one split's inner split (:func:`inner`: training rows only): the loaded
+    config, ``evaluate``'s result with its model, the split's field and the CPU-s it took.
+    For the prototypes measured before a variant is built."""
+    from workbench.experiment.runs.evaluate import evaluate
+    from workbench.experiment.runs.prepare import load_config
+
+    if split in FIELD_SPLITS:
+        field, frame = field_table(split)
+    else:
+        field = CRITICAL if split == "critical" else NUCLEAR
+        frame = critical_table() if split == "critical" else table()
+    frame = inner(frame, split)
+    test = frame[f"test_{split}"].to_numpy(bool)
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        csv = folder / "data.csv"
+        frame[[*field.features, field.target]].assign(
+            split=np.where(test, "test", "train")).to_csv(csv, index=False)
+        (folder / field.model.name).write_text(field.model.read_text())
+        config = init_config(folder, csv, field, None)
+        cfg = load_config(with_keys(config, "keys.toml", **keys) if keys else config, {})
+        t0 = time.process_time()
+        ev = evaluate(cfg, return_model=True)
+        return cfg, ev, field, time.process_time() - t0
 
 
 def pool_table(field: Field) -> str:

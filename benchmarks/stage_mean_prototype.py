@@ -19,9 +19,7 @@ import argparse
 import inspect
 import subprocess
 import sys
-import tempfile
 import textwrap
-import time
 from pathlib import Path
 
 import numpy as np
@@ -49,26 +47,7 @@ def _keep_stages() -> None:
 
 def measure(split: str) -> dict:
     """B' and M on one inner split."""
-    from workbench.experiment.runs.evaluate import evaluate
-    from workbench.experiment.runs.prepare import load_config
-
-    if split in po.FIELD_SPLITS:
-        field, frame = po.field_table(split)
-    else:
-        field = po.CRITICAL if split == "critical" else po.NUCLEAR
-        frame = po.critical_table() if split == "critical" else po.table()
-    frame = po.inner(frame, split)
-    test = frame[f"test_{split}"].to_numpy(bool)
-    with tempfile.TemporaryDirectory() as tmp:
-        folder = Path(tmp)
-        csv = folder / "data.csv"
-        frame[[*field.features, field.target]].assign(
-            split=np.where(test, "test", "train")).to_csv(csv, index=False)
-        (folder / field.model.name).write_text(field.model.read_text())
-        cfg = load_config(po.init_config(folder, csv, field, None), {})
-        t0 = time.process_time()
-        ev = evaluate(cfg, return_model=True)
-        seconds = time.process_time() - t0
+    cfg, ev, _, seconds = po.evaluate_inner(split)
     model = ev.model
     while not isinstance(model, FittedPriorBoost):
         model = model.estimator_
