@@ -14,8 +14,6 @@ without the mean), with the share of validation rows inside the domain.
 
 from __future__ import annotations
 
-import argparse
-import subprocess
 import sys
 from pathlib import Path
 
@@ -82,25 +80,10 @@ def measure(split: str) -> dict:
 
 
 def main() -> None:
-    from scaling import write_json
-
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--splits", nargs="+", required=True)
-    parser.add_argument("--json", type=Path)
-    args = parser.parse_args()
-    before = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
-    rows = []
-    for split in args.splits:
-        rows.append(measure(split))
-        r = rows[-1]
-        print(f"{split}: B' {r['B']:.5g}, M {r['M']:.5g}, M_D {r['M_D']:.5g} (M_D / B' "
-              f"{r['M_D'] / r['B']:.3f}; inside {r['inside_share']:.2f}; {r['choice']})",
-              flush=True)
-    after = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
-    if args.json:
-        write_json(args.json, {"rows": rows, "inner": True, "k": K, "quantile": QUANTILE},
-                   before, after)
-
+    po.prototype_main(__doc__, measure, lambda r: (
+        f"B' {r['B']:.5g}, M {r['M']:.5g}, M_D {r['M_D']:.5g} (M_D / B' "
+        f"{r['M_D'] / r['B']:.3f}; inside {r['inside_share']:.2f}; {r['choice']})"),
+        k=K, quantile=QUANTILE)
 
 if __name__ == "__main__":
     main()

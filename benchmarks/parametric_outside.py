@@ -97,7 +97,7 @@ import sys
 import tempfile
 import time
 import tomllib
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -301,6 +301,27 @@ def evaluate_inner(split: str, **keys: str) -> tuple[Any, Any, Field, float]:
         t0 = time.process_time()
         ev = evaluate(cfg, return_model=True)
         return cfg, ev, field, time.process_time() - t0
+
+
+def prototype_main(doc: str, measure: Callable[[str], dict], line: Callable[[dict], str],
+                   **extra: Any) -> None:
+    """A prototype's command line (``--splits``, ``--json``): ``measure`` each inner split,
+    print ``line`` of its row, write the rows (and ``extra``) as JSON with the load before
+    and after."""
+    from scaling import write_json
+
+    parser = argparse.ArgumentParser(description=doc.splitlines()[0])
+    parser.add_argument("--splits", nargs="+", required=True)
+    parser.add_argument("--json", type=Path)
+    args = parser.parse_args()
+    before = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+    rows = []
+    for split in args.splits:
+        rows.append(measure(split))
+        print(f"{split}: {line(rows[-1])}", flush=True)
+    after = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+    if args.json:
+        write_json(args.json, {"rows": rows, "inner": True, **extra}, before, after)
 
 
 def pool_table(field: Field) -> str:

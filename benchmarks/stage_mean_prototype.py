@@ -15,9 +15,7 @@ the prototype's (M) validation MAE.
 
 from __future__ import annotations
 
-import argparse
 import inspect
-import subprocess
 import sys
 import textwrap
 from pathlib import Path
@@ -86,25 +84,10 @@ def measure(split: str) -> dict:
 
 
 def main() -> None:
-    from scaling import write_json
-
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--splits", nargs="+", required=True)
-    parser.add_argument("--json", type=Path)
-    args = parser.parse_args()
     _keep_stages()
-    before = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
-    rows = []
-    for split in args.splits:
-        rows.append(measure(split))
-        r = rows[-1]
-        print(f"{split}: B' {r['B']:.5g}, M {r['M']:.5g} (M / B' {r['M'] / r['B']:.3f}; "
-              f"{r['choice']}; stage CV {r['stage_cv_mae']}, mean {r.get('mean_cv_mae')})",
-              flush=True)
-    after = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
-    if args.json:
-        write_json(args.json, {"rows": rows, "inner": True}, before, after)
-
+    po.prototype_main(__doc__, measure, lambda r: (
+        f"B' {r['B']:.5g}, M {r['M']:.5g} (M / B' {r['M'] / r['B']:.3f}; {r['choice']}; "
+        f"stage CV {r['stage_cv_mae']}, mean {r.get('mean_cv_mae')})"))
 
 if __name__ == "__main__":
     main()
