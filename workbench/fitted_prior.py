@@ -421,10 +421,14 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         if not self.stages_:
             return self.boost_.predict(self._with_prior(X, priors["chosen"]))
         mean = self.prior_choice_ == "mean"
-        single = np.where(mean, priors["physics"], priors["chosen"])
-        pred = self.boost_.predict(self._with_prior(X, single))
-        stages = [np.asarray(stage.predict(self._with_prior(X, priors[name])), dtype=float)
-                  for name, stage in self.stages_.items()]
+        each = {name: stage.predict(self._with_prior(X, priors[name]))
+                for name, stage in self.stages_.items()}
+        if self.boost_ is self.stages_.get("physics"):  # every other target on the physics
+            pred = each["physics"].copy()                # prior: that stage's prediction
+        else:
+            single = np.where(mean, priors["physics"], priors["chosen"])
+            pred = self.boost_.predict(self._with_prior(X, single))
+        stages = [np.asarray(p, dtype=float) for p in each.values()]
         pred.loc[:, mean] = np.mean(stages, axis=0)[:, mean]
         return pred
 
