@@ -168,28 +168,36 @@ def _small(path, table):
                               for k, v in SMALL.items()})
 
 
-def test_the_hamiltonian_family_is_the_parametric_family_on_the_device_model_file(google_5q):
+@pytest.mark.parametrize("hamiltonian_toml, parametric_toml, parasitic", [
+    ("hamiltonian.toml", "parametric_device.toml", None),
+    # its estimators' fit: tests/test_parametric_optional.py (cheap); its tables: below
+    pytest.param("hamiltonian_parasitic.toml", "parametric_parasitic.toml", "next_nearest",
+                 marks=pytest.mark.slow)])
+def test_the_hamiltonian_family_is_the_parametric_family_on_the_device_model_file(
+        google_5q, hamiltonian_toml, parametric_toml, parasitic):
     """One engine: experiments/models/hamiltonian_device.py (HamiltonianModel's file functions,
     its Hellmann-Feynman jacobian) through family = "parametric" (parametric_device.toml, with
     the Hamiltonian family's Gauss-Newton settings) fits what family = "hamiltonian"
     (hamiltonian.toml) fits: the same library, the same covariates chosen on the same CV
     scores, the same corrected parameters and predictions (to rounding: the file's predict
-    and jacobian diagonalise separately, the family's model object once)."""
+    and jacobian diagonalise separately, the family's model object once). The same with the
+    parasitic couplings (hamiltonian_device_parasitic.py's OPTIONAL parameters)."""
     from pathlib import Path
 
     from workbench.param_boost import default_library
     from workbench.param_select import candidate_pool
 
     root = Path(__file__).resolve().parents[1] / "experiments"
-    ham_cfg = _small(root / "hamiltonian.toml", "hamiltonian")
-    par_cfg = _small(root / "parametric_device.toml", "parametric")
+    ham_cfg = _small(root / hamiltonian_toml, "hamiltonian")
+    par_cfg = _small(root / parametric_toml, "parametric")
     ham = google_5q.hamiltonian
     on, co = list(ham.onsite.columns), list(ham.couplings.columns)
     # the config's tables are the Hamiltonian family's library ("default" start, "physical" pool)
     settings = par_cfg.family_settings
     assert settings.start == default_library(on, co)
     assert settings.candidates == candidate_pool(on, co, ham.qubit_features,
-                                                 ham.coupler_features, base=None)
+                                                 ham.coupler_features, base=None,
+                                                 parasitic=parasitic)
     rows = google_5q.train_index[:48]  # a small slice of the training rows
     X = ham_cfg.family.inputs(ham_cfg, google_5q).loc[rows]
     assert X.equals(par_cfg.family.inputs(par_cfg, google_5q).loc[rows])
@@ -213,6 +221,30 @@ def test_the_hamiltonian_family_is_the_parametric_family_on_the_device_model_fil
     np.testing.assert_allclose(parametric.estimator_.coef_["coef"].to_numpy(),
                                h_coef.to_numpy(), rtol=0, atol=1e-8)
     assert list(parametric.estimator_.coef_.index) == list(h_coef.index)
+
+
+def test_the_parasitic_device_config_has_the_hamiltonian_familys_library(google_5q):
+    """parametric_parasitic.toml's tables are hamiltonian_parasitic.toml's library (start
+    "default", pool "physical" with the parasitic next-nearest couplings), and its model
+    file's OPTIONAL parameters are those couplings."""
+    from pathlib import Path
+
+    from workbench.param_boost import default_library
+    from workbench.param_select import candidate_pool
+    from workbench.parametric import load_model
+
+    root = Path(__file__).resolve().parents[1] / "experiments"
+    cfg = _small(root / "parametric_parasitic.toml", "parametric")
+    ham = google_5q.hamiltonian
+    on, co = list(ham.onsite.columns), list(ham.couplings.columns)
+    settings = cfg.family_settings
+    assert settings.start == default_library(on, co)
+    assert settings.candidates == candidate_pool(on, co, ham.qubit_features,
+                                                 ham.coupler_features, base=None,
+                                                 parasitic="next_nearest")
+    model = load_model(root / "models" / "hamiltonian_device_parasitic.py")
+    assert model.optional == ("f1~f3", "f2~f4", "f3~f5")
+    assert model.names == on + co + list(model.optional)
 
 
 #: A small LightGBM stage on top, for the tests of the stage's priors.

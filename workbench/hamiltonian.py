@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .parametric import ModelError
+from .parametric import ModelError, _restricted
 
 __all__ = ["TOPOLOGIES", "CouplingGraph", "HamiltonianModel", "chain_hamiltonian", "chain_spectrum",
            "graph_hamiltonian", "graph_spectrum", "make_graph"]
@@ -655,6 +655,41 @@ class HamiltonianModel:
         """Each parameter's start: its data column, or 0.0 for a parasitic coupling."""
         return {**{p: p for p in (*self.onsite, *self.couplings)},
                 **{p: 0.0 for p in self.parasitic}}
+
+    @property
+    def optional(self) -> tuple[str, ...]:
+        """The parasitic couplings: terms the control model lacks (the contract's
+        ``OPTIONAL``), each in the model only where a fit's covariates name it."""
+        return self.parasitic
+
+    def restricted(self, keep: Sequence[str]) -> HamiltonianModel:
+        """The model with only the parasitic couplings ``keep`` names (the others left out
+        of the graph: held at 0).
+
+        Parameters
+        ----------
+        keep : sequence of str
+            The parameters to fit: every onsite and control coupling, and the parasitic
+            couplings to include.
+
+        Returns
+        -------
+        HamiltonianModel
+            The same device with fewer parasitic edges (the same object for the same
+            ``keep``).
+        """
+        def build(held: tuple[str, ...]) -> HamiltonianModel:
+            control = len(self.couplings)
+            kept = [(name, edge) for name, edge in zip(self.parasitic,
+                                                       self.graph.edges[control:], strict=True)
+                    if name not in held]
+            graph = CouplingGraph(self.graph.n_sites, self.graph.edges[:control],
+                                  self.graph.topology, self.graph.shape).with_edges(
+                [edge for _, edge in kept]) if held else self.graph
+            return HamiltonianModel(self.onsite, self.couplings, graph,
+                                    tuple(name for name, _ in kept), self.sign)
+
+        return _restricted(self, keep, build)
 
     def __repr__(self) -> str:
         """The model's source and parameters."""

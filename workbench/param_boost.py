@@ -35,8 +35,9 @@ from .param_engine import (
     DriftRegressor,
     padded,
 )
+from .parametric import restrict
 
-__all__ = ["HamiltonianParameterRegressor", "default_library",
+__all__ = ["HamiltonianParameterRegressor", "default_library", "device_model",
            "parasitic_names", "resolve_graph"]
 
 
@@ -126,6 +127,38 @@ def parasitic_names(onsite: Iterable[str], pairs: Iterable[tuple[int, int]]) -> 
     """
     on = list(onsite)
     return [f"{on[i]}~{on[j]}" for i, j in pairs]
+
+
+def device_model(onsite: Sequence[str], couplings: Sequence[str],
+                 edges: Iterable[Sequence[int]] | None = None,
+                 parasitic: str | Iterable[Sequence[int]] | None = None,
+                 sign: int = -1) -> HamiltonianModel:
+    """The device's spectrum as a parametric model with every parasitic coupling optional.
+
+    Each parasitic coupling (named by :func:`parasitic_names`) starts at 0 and is in the
+    model only where a fit's covariates name it (:meth:`HamiltonianModel.restricted`), as
+    :class:`HamiltonianParameterRegressor` and a
+    :class:`~workbench.parametric_boost.ParametricRegressor` with this model fit it alike.
+
+    Parameters
+    ----------
+    onsite, couplings : sequence of str
+        The onsite and control coupling columns, in site and edge order.
+    edges : iterable of (int, int), default=None
+        The control graph (None: the chain).
+    parasitic : str or iterable of (int, int), default=None
+        The parasitic couplings, as :func:`resolve_graph` reads them.
+    sign : {-1, 1}, default=-1
+        The spectrum is that of ``sign * H``.
+
+    Returns
+    -------
+    HamiltonianModel
+        The model, its parasitic couplings last.
+    """
+    graph, pairs = resolve_graph(len(onsite), edges, parasitic)
+    return HamiltonianModel(tuple(onsite), tuple(couplings), graph.with_edges(pairs),
+                            tuple(parasitic_names(onsite, pairs)), sign)
 
 
 def _detuning(on: Sequence[str], i: int, j: int) -> str:
@@ -490,8 +523,8 @@ class HamiltonianParameterRegressor(DriftRegressor):
         self.parasitic_ = extra
         self.graph_ = graph
         self.parameter_names_ = onsite + couplings + extra
-        self.model_ = HamiltonianModel(tuple(onsite), tuple(couplings), graph, tuple(extra),
-                                       self.sign)
+        self.model_ = restrict(device_model(onsite, couplings, self.edges, self.parasitic,
+                                            self.sign), self.parameter_names_)
         self._derived_ = self._derived(onsite, couplings, graph)
         self.terms_, self.columns_ = self._resolve_library(X, onsite, couplings, features,
                                                            library, extra)

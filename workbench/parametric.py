@@ -10,7 +10,11 @@ The contract (a file, ``model.py``, that defines):
   ``(rows,)`` for one target or ``(rows, targets)`` in the targets' order;
 * optionally ``jacobian(params, data)``: ``d predict / d params`` of shape
   ``(rows, targets, parameters)`` in ``PARAMETERS``' order. Without it, the derivatives are
-  central finite differences with a step scaled to each parameter.
+  central finite differences with a step scaled to each parameter;
+* optionally ``OPTIONAL``: a list of parameters (each with a number as its start) that are
+  terms the model may lack, e.g. a coupling the control program leaves out: each is held at
+  its start value and gets no calibration offset until a fit's covariates name it (the
+  selection offers it like any parameter, CV decides whether it enters).
 
 :func:`load_model` reads such a file (or :meth:`ParametricModel.from_functions` builds the
 same from Python objects); :func:`check_model` evaluates it on data and raises a
@@ -19,11 +23,12 @@ same from Python objects); :func:`check_model` evaluates it on data and raises a
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import os
 import types
 from collections import OrderedDict
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -32,7 +37,7 @@ import numpy as np
 import pandas as pd
 
 __all__ = ["ModelError", "ParametricModel", "cached_jacobian", "check_model", "load_model",
-           "resolve_model"]
+           "resolve_model", "restrict"]
 
 #: Relative step of the central differences: the cube root of the machine epsilon balances
 #: truncation and rounding errors.
@@ -70,6 +75,12 @@ class ParametricModel:
         The model file's source code (:func:`load_model`'s models). Such a model is
         pickled as that text and imported again where it is unpickled: a fitted estimator
         (a logged MLflow model, a worker process) does not need the file.
+    optional : tuple of str, default=()
+        The parameters the model may lack (``OPTIONAL``), each with a number as its start.
+    held : tuple of str, default=()
+        The optional parameters held at their start values (:meth:`restricted`): they are
+        not among :attr:`names`, ``theta`` has no column for them and the Jacobian no
+        derivative.
     """
 
     parameters: dict[str, float | str]
@@ -77,11 +88,15 @@ class ParametricModel:
     jacobian_fn: Callable[..., Any] | None = None
     source: str = "<model>"
     text: str | None = None
+    optional: tuple[str, ...] = ()
+    held: tuple[str, ...] = ()
 
     def __reduce_ex__(self, protocol: Any) -> Any:
         """Pickle a model file's model as its source text, so it loads without the file."""
         if self.text is None:  # functions from Python: pickled as they are
             return object.__reduce_ex__(self, protocol)
+        if self.held:
+            return _held_from_text, (self.text, self.source, self.held)
         return _from_text, (self.text, self.source)
 
     def __copy__(self) -> ParametricModel:
@@ -95,7 +110,8 @@ class ParametricModel:
     @classmethod
     def from_functions(cls, parameters: Mapping[str, float | str], predict: Callable[..., Any],
                        jacobian: Callable[..., Any] | None = None,
-                       source: str = "<model>") -> ParametricModel:
+                       source: str = "<model>",
+                       optional: Sequence[str] = ()) -> ParametricModel:
         """Build a model from a ``PARAMETERS`` dict and functions, checked as a file's are.
 
         Parameters
@@ -109,6 +125,9 @@ class ParametricModel:
             parameters)`` (``None``: central finite differences).
         source : str, default="<model>"
             Where the model comes from, in messages.
+        optional : sequence of str, default=()
+            ``OPTIONAL``: the parameters the model may lack (held at their start values
+            until a fit's covariates name them).
 
         Returns
         -------
@@ -118,10 +137,26 @@ class ParametricModel:
         Raises
         ------
         ModelError
-            A ``PARAMETERS`` or function that is not usable.
+            A ``PARAMETERS``, ``OPTIONAL`` or function that is not usable.
         """
         return _checked(dict(parameters) if isinstance(parameters, Mapping) else parameters,
-                        predict, jacobian, source)
+                        predict, jacobian, source, optional=optional)
+
+    def restricted(self, keep: Sequence[str]) -> ParametricModel:
+        """The model with the optional parameters ``keep`` does not name held at their
+        start values (the same model object for the same ``keep``).
+
+        Parameters
+        ----------
+        keep : sequence of str
+            The parameters to fit (every required one, and the optional ones to include).
+
+        Returns
+        -------
+        ParametricModel
+            The model whose :attr:`names` are ``keep``'s parameters in ``PARAMETERS``' order.
+        """
+        return _restricted(self, keep, lambda held: dataclasses.replace(self, held=held))
 
     def __repr__(self) -> str:
         """Name the model's source and parameters."""
@@ -129,8 +164,8 @@ class ParametricModel:
 
     @property
     def names(self) -> list[str]:
-        """The parameters' names, in ``PARAMETERS``' order."""
-        return list(self.parameters)
+        """The parameters fitted, in ``PARAMETERS``' order (all but the :attr:`held`)."""
+        return [p for p in self.parameters if p not in self.held]
 
     def start(self, data: pd.DataFrame) -> np.ndarray:
         """Start values of every row, shape ``(rows, parameters)``.
@@ -151,8 +186,9 @@ class ParametricModel:
             A column a parameter names is missing or not numeric.
         """
         n = len(data)
-        out = np.empty((n, len(self.parameters)))
-        for j, (name, value) in enumerate(self.parameters.items()):
+        out = np.empty((n, len(self.names)))
+        for j, name in enumerate(self.names):
+            value = self.parameters[name]
             if isinstance(value, str):
                 if value not in data.columns:
                     raise ModelError(f"model {self.source}: parameter {name!r} takes its values "
@@ -168,7 +204,12 @@ class ParametricModel:
         return out
 
     def _params(self, theta: np.ndarray) -> dict[str, np.ndarray]:
-        return {name: theta[:, j] for j, name in enumerate(self.parameters)}
+        if not self.held:
+            return {name: theta[:, j] for j, name in enumerate(self.parameters)}
+        fitted = {name: theta[:, j] for j, name in enumerate(self.names)}
+        return {name: fitted[name] if name in fitted
+                else np.full(len(theta), float(self.parameters[name]))
+                for name in self.parameters}
 
     def predict_rows(self, theta: np.ndarray, data: pd.DataFrame,
                      n_targets: int | None = None) -> np.ndarray:
@@ -270,12 +311,16 @@ class ParametricModel:
             except Exception as exc:
                 raise ModelError(f"model {self.source}: jacobian raised "
                                  f"{_first_line(exc)}") from None
-            if n_targets == 1 and jac.shape == (n, P):
+            every = len(self.parameters)  # the file's jacobian: every parameter's column
+            if n_targets == 1 and jac.shape == (n, every):
                 jac = jac[:, None, :]
-            if jac.shape != (n, n_targets, P):
+            if jac.shape != (n, n_targets, every):
                 raise ModelError(f"model {self.source}: jacobian returned shape {jac.shape}, "
                                  f"expected (rows, targets, parameters) = ({n}, {n_targets}, "
-                                 f"{P})")
+                                 f"{every})")
+            if self.held:
+                jac = jac[:, :, [j for j, p in enumerate(self.parameters)
+                                 if p not in self.held]]
             if not np.all(np.isfinite(jac)):
                 raise ModelError(f"model {self.source}: jacobian returned NaN or infinite "
                                  "values")
@@ -339,8 +384,61 @@ def cached_jacobian(model: ParametricModel, theta: np.ndarray, data: pd.DataFram
     return jac
 
 
+def _restricted(model: Any, keep: Sequence[str], build: Callable[[tuple[str, ...]], Any]) -> Any:
+    """``model`` with its optional parameters outside ``keep`` held (``build(held)``),
+    one object per (model, held): the Jacobian cache and the selection's warm starts key on
+    it."""
+    kept = set(keep)
+    every = list(model.parameters)
+    unknown = sorted(kept - set(every))
+    if unknown:
+        raise ValueError(f"unknown parameter(s) {unknown}; the model's parameters are {every}")
+    required = [p for p in every if p not in model.optional and p not in kept]
+    if required:
+        raise ValueError(f"parameter(s) {required} are not optional: only the model's "
+                         f"optional parameters {list(model.optional)} can be held")
+    held = tuple(p for p in model.optional if p not in kept)
+    if held == tuple(getattr(model, "held", ())):
+        return model
+    key = (id(model), held)
+    hit = _RESTRICTED.get(key)
+    if hit is not None and hit[0] is model:
+        return hit[1]
+    out = build(held)
+    _RESTRICTED[key] = (model, out)
+    while len(_RESTRICTED) > _RESTRICTED_KEPT:
+        _RESTRICTED.popitem(last=False)
+    return out
+
+
+#: :func:`_restricted`'s models: (id of the model, held) -> (the model, the restricted one).
+_RESTRICTED: OrderedDict[tuple[int, tuple[str, ...]], tuple[Any, Any]] = OrderedDict()
+_RESTRICTED_KEPT = 256
+
+
+def restrict(model: Any, keep: Sequence[str]) -> Any:
+    """``model`` fitting the parameters ``keep`` names: its optional parameters outside
+    ``keep`` held at their start values (a model without optional parameters as it is).
+
+    Parameters
+    ----------
+    model : ParametricModel or model object
+        The model (a model object without ``optional`` has none).
+    keep : sequence of str
+        The parameters to fit.
+
+    Returns
+    -------
+    ParametricModel or model object
+        The model whose :attr:`names` are ``keep``'s parameters.
+    """
+    if not getattr(model, "optional", ()):
+        return model
+    return model.restricted(keep)
+
+
 def _checked(parameters: Any, predict: Any, jacobian: Any, source: str,
-             text: str | None = None) -> ParametricModel:
+             text: str | None = None, optional: Any = ()) -> ParametricModel:
     """A :class:`ParametricModel` from the contract's objects, each checked."""
     if not isinstance(parameters, dict) or not parameters:
         raise ModelError(f"model {source}: PARAMETERS must be a non-empty dict from each "
@@ -358,8 +456,23 @@ def _checked(parameters: Any, predict: Any, jacobian: Any, source: str,
         raise ModelError(f"model {source}: predict must be a function predict(params, data)")
     if jacobian is not None and not callable(jacobian):
         raise ModelError(f"model {source}: jacobian must be a function jacobian(params, data)")
+    if isinstance(optional, str) or not isinstance(optional, (list, tuple)):
+        raise ModelError(f"model {source}: OPTIONAL must be a list of parameter names, got "
+                         f"{type(optional).__name__}")
+    for name in optional:
+        if name not in parameters:
+            raise ModelError(f"model {source}: OPTIONAL names {name!r}, not a parameter; the "
+                             f"parameters are {list(parameters)}")
+        if isinstance(parameters[name], str):
+            raise ModelError(f"model {source}: OPTIONAL parameter {name!r} must start at a "
+                             f"number (it is held there until fitted), not column "
+                             f"{parameters[name]!r}")
+    if len(set(optional)) == len(parameters):
+        raise ModelError(f"model {source}: every parameter is OPTIONAL; at least one must "
+                         "be fitted always")
     values = {k: v if isinstance(v, str) else float(v) for k, v in parameters.items()}
-    return ParametricModel(values, predict, jacobian, source, text)
+    return ParametricModel(values, predict, jacobian, source, text,
+                           tuple(dict.fromkeys(optional)))
 
 
 def _from_text(text: str, source: str) -> ParametricModel:
@@ -382,9 +495,15 @@ def _from_text(text: str, source: str) -> ParametricModel:
                              "PARAMETERS, predict(params, data) and optionally "
                              "jacobian(params, data))")
     model = _checked(module.PARAMETERS, module.predict, getattr(module, "jacobian", None),
-                     source, text)
+                     source, text, getattr(module, "OPTIONAL", ()))
     _by_text[key] = model
     return model
+
+
+def _held_from_text(text: str, source: str, held: tuple[str, ...]) -> ParametricModel:
+    """Unpickle a model file's model with parameters held (:meth:`ParametricModel.restricted`)."""
+    model = _from_text(text, source)
+    return model.restricted([p for p in model.parameters if p not in held])
 
 
 def load_model(path: str | os.PathLike[str]) -> ParametricModel:

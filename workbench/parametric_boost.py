@@ -44,6 +44,7 @@ from .parametric import (
     ParametricModel,
     check_model,
     resolve_model,
+    restrict,
 )
 
 __all__ = ["ParametricBoostRegressor", "ParametricRegressor", "boost_candidate", "covariate_pool",
@@ -59,10 +60,14 @@ _MODEL = [str, os.PathLike, HasMethods(["predict", "jacobian", "start"])]
 
 
 def _variable(name: str, columns: set[str]) -> tuple[str, ...] | None:
-    """A variable: a column ``(c,)``, a product ``("*", a, b)`` or a difference
-    ``("-", a, b)`` of two columns; None if ``name`` is none of these."""
+    """A variable: a column ``(c,)``, a product ``("*", a, b)``, a difference
+    ``("-", a, b)`` or a geometric mean ``("gm", a, b)`` (``"sqrt|a*b|"``) of two columns;
+    None if ``name`` is none of these."""
     if name in columns:
         return (name,)
+    if name.startswith("sqrt|") and name.endswith("|"):
+        inner = _variable(name[5:-1], columns)
+        return ("gm", *inner[1:]) if inner is not None and inner[0] == "*" else None
     for op in ("*", "-"):
         for k, char in enumerate(name):
             if char == op and name[:k] in columns and name[k + 1:] in columns:
@@ -78,8 +83,8 @@ def _term(name: str, columns: set[str]) -> tuple[str, int]:
     if sep and _variable(base, columns) and power.isdigit() and int(power) >= 1:
         return base, int(power)
     raise ValueError(f"unknown covariate {name!r}: a covariate is a column of X, a product "
-                     "'a*b' or a difference 'a-b' of two columns, optionally followed by "
-                     f"'^k'; X's columns are {sorted(columns)}")
+                     "'a*b', a difference 'a-b' or a geometric mean 'sqrt|a*b|' of two "
+                     f"columns, optionally followed by '^k'; X's columns are {sorted(columns)}")
 
 
 def covariate_pool(features: Sequence[str], parameters: Sequence[str], *, squares: bool = True,
@@ -184,9 +189,12 @@ class ParametricRegressor(DriftRegressor):
 
     ``predict(X) = f(start(X) + delta(X); X)``, ``delta_p(x) = c_p0 + sum_k c_pk z_pk(x)``:
     ``z_pk`` the covariates of ``covariates[p]`` (a column, a product ``a*b`` of two columns
-    (each factor centred), a difference ``a-b``, optionally to a power ``^k`` after centring;
-    standardised with the training rows' mean and sd). The coefficients are in the
-    parameter's units per covariate sd.
+    (each factor centred), a difference ``a-b``, a geometric mean ``sqrt|a*b|``, optionally to
+    a power ``^k`` after centring; standardised with the training rows' mean and sd). The
+    coefficients are in the parameter's units per covariate sd. A model's optional parameters
+    (the model file's ``OPTIONAL``; a Hamiltonian's parasitic couplings) are fitted only where
+    ``covariates`` names them (``["intercept"]``: the offset alone); the others stay at their
+    start values, outside :attr:`parameter_names_`.
 
     ``fit`` calibrates the intercepts ``c_p0`` first (``calibrate``: robust least squares
     over the training rows, the loss matching ``loss``), then minimises ``sum rho(y - f) +
@@ -200,7 +208,8 @@ class ParametricRegressor(DriftRegressor):
         The path of a model file (:func:`~workbench.parametric.load_model`) or a model.
     covariates : dict of str -> list of str, default=None
         Each parameter's covariates (None or a parameter left out: intercept only, the
-        calibrated model).
+        calibrated model; an optional parameter left out or given none is held at its
+        start).
     calibrate : bool, default=True
         Start from the robust global calibration of the intercepts (else from 0).
     alpha, alpha_l1 : float, default=1.0, 0.0
@@ -233,6 +242,7 @@ class ParametricRegressor(DriftRegressor):
     Attributes
     ----------
     parameter_names_ : list of str
+        The parameters fitted (the optional ones only where ``covariates`` names them).
     covariate_names_ : dict of str -> list of str
         Each parameter's covariates, ``"intercept"`` first.
     calibration_ : DataFrame
@@ -289,10 +299,15 @@ class ParametricRegressor(DriftRegressor):
             if self.out_of_bounds == "clip" and name in self.column_range_:
                 values = np.clip(values, *self.column_range_[name])
             return values
+        return self._combined(var, self._values(X, var[1]), self._values(X, var[2]))
+
+    def _combined(self, var: tuple[str, ...], va: np.ndarray, vb: np.ndarray) -> np.ndarray:
+        """The variable ``var`` (:func:`_variable`'s) of two columns' values."""
         op, a, b = var
-        va, vb = self._values(X, a), self._values(X, b)
         if op == "-":
             return va - vb
+        if op == "gm":
+            return np.sqrt(np.abs(va * vb))
         return (va - self.factor_mean_[a]) * (vb - self.factor_mean_[b])
 
     def _design(self, X: pd.DataFrame, fitting: bool) -> list[np.ndarray]:
@@ -339,22 +354,26 @@ class ParametricRegressor(DriftRegressor):
 
     def _setup(self, X: Any, y: Any) -> tuple[ParametricModel, np.ndarray, np.ndarray,
                                               list[np.ndarray]]:
-        model = resolve_model(self.model)
+        full = resolve_model(self.model)
         Y = _targets(y)
         self._y_1d = np.asarray(y).ndim == 1
         if len(Y) != len(X):
             raise ValueError(f"X has {len(X)} rows and y {len(Y)}")
-        self.parameter_names_ = model.names
         covariates = self.covariates or {}
-        unknown = [p for p in covariates if p not in model.parameters]
+        unknown = [p for p in covariates if p not in full.parameters]
         if unknown:
             raise ValueError(f"covariates name unknown parameter(s) {unknown}; the model's "
-                             f"parameters are {model.names}")
+                             f"parameters are {full.names}")
+        # an optional parameter is fitted only where its covariates are named
+        optional = set(getattr(full, "optional", ()))
+        model = restrict(full, [p for p in full.names if p not in optional or covariates.get(p)])
+        self.parameter_names_ = model.names
         self._columns = {str(c) for c in X.columns}
-        self.terms_ = {p: [_term(c, self._columns) for c in covariates.get(p, [])]
-                       for p in model.names}
-        self.covariate_names_ = {p: ["intercept"] + list(covariates.get(p, []))
-                                 for p in model.names}
+        # "intercept": the parameter's offset alone (an optional parameter's way in)
+        named = {p: [c for c in dict.fromkeys(covariates.get(p, [])) if c != "intercept"]
+                 for p in model.names}
+        self.terms_ = {p: [_term(c, self._columns) for c in named[p]] for p in model.names}
+        self.covariate_names_ = {p: ["intercept", *named[p]] for p in model.names}
         self.n_targets_ = Y.shape[1]
         start = model.start(X)
         phis = self._design(X, fitting=True)
@@ -411,7 +430,8 @@ class ParametricRegressor(DriftRegressor):
             self.calibrated_offset_ = self._held(model, X, start, Y, c, coef_init)
         self.calibration_ = pd.DataFrame({
             "parameter": model.names,
-            "start": [v if isinstance(v, str) else float(v) for v in model.parameters.values()],
+            "start": [v if isinstance(v, str) else float(v)
+                      for v in (model.parameters[p] for p in model.names)],
             "offset": c[[s.start for s in self._slices]]})
         # "newton": Newton weights once close to the optimum, stopping where a step finds no
         # decrease; "irls": IRLS weights throughout
@@ -468,12 +488,8 @@ class ParametricRegressor(DriftRegressor):
         for v, (low, high) in self.variable_range_.items():
             var = _variable(v, self._columns)
             assert var is not None
-            if len(var) == 1:
-                values = _column(X, v)
-            else:
-                a, b = (_column(X, f) for f in var[1:])
-                values = a - b if var[0] == "-" else ((a - self.factor_mean_[var[1]])
-                                                      * (b - self.factor_mean_[var[2]]))
+            values = (_column(X, v) if len(var) == 1 else
+                      self._combined(var, *(_column(X, f) for f in var[1:])))
             out |= ~((values >= low) & (values <= high))
         return out
 
@@ -493,7 +509,7 @@ class ParametricRegressor(DriftRegressor):
         """
         check_is_fitted(self, "calibrated_offset_")
         X = _as_frame(self, X, reset=False)
-        return pd.DataFrame(resolve_model(self.model).start(X) + self.calibrated_offset_,
+        return pd.DataFrame(self._physics().start(X) + self.calibrated_offset_,
                             columns=self.parameter_names_, index=X.index)
 
     # ------------------------------------------------------------------ results
@@ -527,7 +543,8 @@ class ParametricRegressor(DriftRegressor):
         return out
 
     def _physics(self) -> ParametricModel:
-        return resolve_model(self.model)
+        """The model fitted: the optional parameters without covariates held."""
+        return restrict(resolve_model(self.model), self.parameter_names_)
 
     def _n_outputs(self) -> int:
         return int(self.n_targets_)
@@ -535,7 +552,7 @@ class ParametricRegressor(DriftRegressor):
     def _rows(self, X: Any) -> tuple[pd.DataFrame, np.ndarray, list[np.ndarray]]:
         check_is_fitted(self)
         X = _as_frame(self, X, reset=False)
-        return X, resolve_model(self.model).start(X), self._design(X, fitting=False)
+        return X, self._physics().start(X), self._design(X, fitting=False)
 
     def predict(self, X: pd.DataFrame) -> np.ndarray:
         """The model at the corrected parameters: ``(rows,)`` if fitted on one-dimensional
@@ -551,7 +568,7 @@ class ParametricRegressor(DriftRegressor):
         ndarray
             The predictions.
         """
-        model = resolve_model(self.model)
+        model = self._physics()
         X = _as_frame(self, X, reset=False)
         out = self._in_domain(model, X, self._corrected(X))[0]
         return out[:, 0] if self._y_1d else out
@@ -574,7 +591,7 @@ class ParametricRegressor(DriftRegressor):
         ndarray of bool, shape (n_samples,)
             True where the corrected model is not finite.
         """
-        model = resolve_model(self.model)
+        model = self._physics()
         X = _as_frame(self, X, reset=False)
         return self._in_domain(model, X, self._corrected(X))[1]
 
@@ -634,7 +651,7 @@ class ParametricRegressor(DriftRegressor):
             One column per parameter, indexed as ``X``.
         """
         check_is_fitted(self)
-        return pd.DataFrame(resolve_model(self.model).start(X), columns=self.parameter_names_,
+        return pd.DataFrame(self._physics().start(X), columns=self.parameter_names_,
                             index=X.index)
 
     def __sklearn_tags__(self) -> Any:
@@ -688,7 +705,8 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         Covariates every drift model has (None: intercepts only).
     candidates : "auto", dict of str -> list of str or None, default="auto"
         The selection's pool; ``"auto"``: :func:`covariate_pool` of ``features`` for every
-        parameter; None: no drift candidate.
+        parameter, and ``"intercept"`` first for an optional one (the term as a constant);
+        None: no drift candidate.
     features : list of str, default=None
         The columns the ``"auto"`` pool is built from (None: every numeric column of ``X``
         that is no parameter's column).
@@ -835,8 +853,11 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
             used = {v for v in model.parameters.values() if isinstance(v, str)}
             features = [str(c) for c in X.columns if str(c) not in used
                         and pd.api.types.is_numeric_dtype(X[c])]
-        return covariate_pool(features, model.names, squares=self.squares,
+        pool = covariate_pool(features, model.names, squares=self.squares,
                               products=self.products)
+        for p in getattr(model, "optional", ()):  # an optional term may enter as a constant
+            pool[p] = ["intercept", *pool[p]]
+        return pool
 
     def _alphas(self) -> list[float]:
         alphas = RIDGE_ALPHAS if self.ridge_alphas is None else self.ridge_alphas

@@ -37,7 +37,7 @@ from sklearn.utils.validation import check_is_fitted, has_fit_parameter
 
 from .bases import basis_names, make_basis
 from .param_engine import PARAM_LOSSES
-from .parametric import ParametricModel, check_model, resolve_model
+from .parametric import ParametricModel, check_model, resolve_model, restrict
 from .parametric_boost import (
     OUT_OF_BOUNDS,
     ParametricRegressor,
@@ -246,17 +246,13 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
         if len(Y) != len(X):
             raise ValueError(f"X has {len(X)} rows and y {len(Y)}")
         self._y_1d = np.asarray(y).ndim == 1
-        model = resolve_model(self.model)
+        full = resolve_model(self.model)
         self.n_targets_ = T = Y.shape[1]
+        optional = set(getattr(full, "optional", ()))
+        # the optional parameters (held at their start) enter only through the init's drift
+        model = restrict(full, [p for p in full.names if p not in optional])
         check_model(model, X, T, model.start(X))  # one line per way the model is unusable
-        self.parameter_names_ = model.names
-        boosted = list(self.parameters) if self.parameters is not None else model.names
-        unknown = [p for p in boosted if p not in model.names]
-        if unknown:
-            raise ValueError(f"parameters names unknown parameter(s) {unknown}; the model's "
-                             f"parameters are {model.names}")
-        self._boosted = [model.names.index(p) for p in boosted]
-        used = {v for v in model.parameters.values() if isinstance(v, str)}
+        used = {v for v in full.parameters.values() if isinstance(v, str)}
         self.features_ = (list(self.features) if self.features is not None else
                           [str(c) for c in X.columns if str(c) not in used
                            and pd.api.types.is_numeric_dtype(X[c])])
@@ -270,6 +266,14 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
             raise ValueError(f"the features {self.features_} have missing or non-finite values")
         self.feature_range_ = np.stack([Z.min(axis=0), Z.max(axis=0)])
         self.init_ = self._start(X, Y)
+        model = restrict(full, getattr(self.init_, "parameter_names_", model.names))
+        self.parameter_names_ = model.names
+        boosted = list(self.parameters) if self.parameters is not None else model.names
+        unknown = [p for p in boosted if p not in model.names]
+        if unknown:
+            raise ValueError(f"parameters names unknown parameter(s) {unknown}; the model's "
+                             f"parameters are {model.names}")
+        self._boosted = [model.names.index(p) for p in boosted]
         if self.out_of_bounds == "calibrated" and not hasattr(self.init_, "calibrated_parameters"):
             raise ValueError("out_of_bounds='calibrated' needs an init with "
                              "calibrated_parameters (a ParametricRegressor), got "
@@ -383,7 +387,8 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
     def _out(self, theta: np.ndarray, X: pd.DataFrame) -> np.ndarray:
         """The model at ``theta``; rows where it is not finite (the boosted parameters left
         the model's domain) get the start model's prediction (:attr:`init_`'s)."""
-        out = _predict_rows(resolve_model(self.model), theta, X, self.n_targets_)
+        out = _predict_rows(restrict(resolve_model(self.model), self.parameter_names_), theta, X,
+                            self.n_targets_)
         bad = np.flatnonzero(~np.isfinite(out).all(axis=1))
         if bad.size:
             out[bad] = np.reshape(self.init_.predict(X.iloc[bad]), (bad.size, -1))

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pandas as pd
 
+from ...parametric_boost import _variable
 from ..figures.style import (
     INCUMBENT_COLOR,
     MODEL_COLOR,
@@ -32,21 +33,20 @@ __all__ = ["covariate_axis", "drift_axes", "parameter_drift_figure"]
 def covariate_axis(name: str, X: pd.DataFrame) -> tuple[str, np.ndarray] | None:
     """Return the variable a covariate is a power of, and its values on ``X``'s rows.
 
-    ``"day^2"`` -> ``("day", X["day"])``; ``"a*b"``, ``"a-b"`` (and their powers) -> the
-    product, the difference. ``None`` for a name that is none of these.
+    ``"day^2"`` -> ``("day", X["day"])``; ``"a*b"``, ``"a-b"``, ``"sqrt|a*b|"`` (and their
+    powers) -> the product, the difference, the geometric mean. ``None`` for a name that is
+    none of these (:func:`workbench.parametric_boost._variable` reads the names).
     """
     base, sep, power = name.rpartition("^")
     variable = base if sep and power.isdigit() else name
     columns = {str(c): c for c in X.columns}
-    if variable in columns:
+    var = _variable(variable, set(columns))
+    if var is None:
+        return None
+    if len(var) == 1:
         return variable, X[columns[variable]].to_numpy(dtype=float)
-    for op in ("*", "-"):
-        for k, char in enumerate(variable):
-            a, b = variable[:k], variable[k + 1:]
-            if char == op and a in columns and b in columns:
-                x, y = (X[columns[a]].to_numpy(dtype=float), X[columns[b]].to_numpy(dtype=float))
-                return variable, x * y if op == "*" else x - y
-    return None
+    op, x, y = var[0], *(X[columns[c]].to_numpy(dtype=float) for c in var[1:])
+    return variable, {"*": x * y, "-": x - y, "gm": np.sqrt(np.abs(x * y))}[op]
 
 
 def drift_axes(coefficients: pd.DataFrame, X: pd.DataFrame) -> dict[str, tuple[str, np.ndarray]]:
