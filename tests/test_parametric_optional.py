@@ -145,7 +145,7 @@ def test_parasitic_couplings_are_optional_parameters():
 
 def test_the_family_offers_a_model_files_optional_term(tmp_path):
     """``workbench init --model`` and ``evaluate`` on a model file with ``OPTIONAL``: the
-    selection brings the missing step in, the tables name it."""
+    (linearised) selection brings the missing step in, the tables name it."""
     import json
 
     import pandas as pd
@@ -163,8 +163,55 @@ def test_the_family_offers_a_model_files_optional_term(tmp_path):
                  "--out", str(tmp_path / "tables"), "--no-intervals",
                  "--set", "model.parametric.max_steps=1",
                  "--set", "model.parametric.products=false",
+                 "--set", 'model.parametric.selection="linearised"',
                  "--set", "model.parametric.boost_stage=false"]) == 0
     info = json.loads(out.read_text())["parametric"]
     assert info["choice"] == "drift" and info["selection"]["path"][1]["parameter"] == "step"
     calibration = pd.read_csv(tmp_path / "tables" / "calibration.csv")
     assert "step" in set(calibration["parameter"])
+
+
+def test_linearised_scores_are_the_same_for_both_regressors():
+    """The linearised selection's one-step scores of a parametric regressor (the whole
+    model's Jacobian, optional parameters included) are the Hamiltonian regressor's (its
+    eigenvectors): candidates of fitted, new parasitic and product covariates."""
+    from workbench.param_linear import linear_scores
+
+    device = simulate(4, 120, device_seed=5,
+                      mismatch=Mismatch(drift=0.3, crosstalk=0.05, noise_sd=0.2)).data
+    covariates = {"model_f1": ["model_f1", "v_q1"],
+                  "model_f1~model_f3": ["sqrt|model_g1*model_g2|"]}
+    fit, val = device.iloc[:90], device.iloc[90:]
+    settings = dict(covariates=covariates, alpha=0.5, loss="huber", huber_delta=0.5)
+    hamiltonian = HamiltonianParameterRegressor(onsite=ONSITE, couplings=COUPLINGS,
+                                                parasitic="next_nearest", **settings)
+    hamiltonian.fit(fit, fit[TARGETS])
+    parametric = ParametricRegressor(model=device_model(ONSITE, COUPLINGS,
+                                                        parasitic="next_nearest"),
+                                     calibrate=False, solver="irls", **settings)
+    parametric.fit(fit, fit[TARGETS].to_numpy())
+    candidates = [("model_f2", "v_q2"), ("model_f2", "v_q2^2"),
+                  ("model_g1", "model_f1-model_f2"), ("model_f1", "v_q1*v_q2"),
+                  ("model_f2~model_f4", "sqrt|model_g2*model_g3|"),
+                  ("model_f2~model_f4", "v_q3"), ("model_f1~model_f3", "v_c1")]
+    args = (fit, fit[TARGETS].to_numpy(), val, val[TARGETS].to_numpy(), candidates)
+    ours = linear_scores(parametric, *args)
+    np.testing.assert_allclose(ours, linear_scores(hamiltonian, *args), rtol=1e-9)
+    assert len(set(np.round(ours, 6))) == len(candidates)  # the scores tell them apart
+
+
+@pytest.mark.parametrize("missing, first", [(0.0, ("tau", "temp")), (0.2, "step")])
+def test_the_linearised_selection_finds_what_the_refit_finds(tmp_path, missing, first):
+    path = _write(tmp_path, STEP)
+    X, y = _data(drift=0.0 if missing else 0.3, missing=missing)
+    settings = dict(model=path, features=["temp", "humidity"], huber_delta=0.05, alpha=0.01,
+                    max_steps=2, products=False, random_state=0)
+    refit = ParametricBoostRegressor(**settings).fit(X, y)
+    linear = ParametricBoostRegressor(method="linearised", **settings).fit(X, y)
+    assert refit.choice_ == linear.choice_ == "drift"
+    for est in (refit, linear):
+        chosen = est.selection_.selected[0]
+        assert (chosen == first) if isinstance(first, tuple) else (chosen[0] == first)
+    assert linear.cv_mae_ == pytest.approx(refit.cv_mae_, rel=0.05)
+    with pytest.raises(ValueError, match="method"):
+        ParametricBoostRegressor(method="exact", **settings).fit(X, y)

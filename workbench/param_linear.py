@@ -1,19 +1,24 @@
 """Cheap scores of candidate covariates for forward selection: one Gauss-Newton step.
 
-Around a fitted :class:`~workbench.param_boost.HamiltonianParameterRegressor` the model is
-linear in its coefficients: ``lambda(c + dc) ~ lambda(c) + A dc`` with ``A`` the stacked
-``J[:, k, p] * phi_p(x)``. Adding candidate columns ``a`` (one covariate; for a parasitic
-coupling not yet in the model, its intercept too) and taking the Gauss-Newton step of the
-enlarged model (IRLS weights fixed) is a bordered linear system, solved through the Schur
-complement with the current normal matrix's inverse: O(n D) per candidate instead of a refit.
-The step predicts the held-out eigenvalues; :func:`linear_scores` returns the held-out
-absolute errors of every candidate. The Jacobian of a parasitic coupling that is not yet in
-the model (value 0) comes from the same eigenvectors (Hellmann-Feynman).
+Around a fitted drift regressor (:class:`~workbench.param_boost.HamiltonianParameterRegressor`
+or :class:`~workbench.parametric_boost.ParametricRegressor`) the model is linear in its
+coefficients: ``lambda(c + dc) ~ lambda(c) + A dc`` with ``A`` the stacked
+``J[:, k, p] * phi_p(x)``. Adding candidate columns ``a`` (one covariate; for an optional
+parameter not yet in the model, such as a parasitic coupling, its intercept too) and taking
+the Gauss-Newton step of the enlarged model (IRLS weights fixed) is a bordered linear system,
+solved through the Schur complement with the current normal matrix's inverse: O(n D) per
+candidate instead of a refit. The step predicts the held-out targets; :func:`linear_scores`
+returns the held-out absolute errors of every candidate. The Jacobian of an optional
+parameter not yet in the model (at its start value) is the whole model's: for the
+Hamiltonian from the same eigenvectors (Hellmann-Feynman), for any other model its
+``jacobian`` with every parameter free.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -28,7 +33,8 @@ from .param_boost import (
     product_factors,
     resolve_graph,
 )
-from .param_engine import _normal_equations, _weights
+from .param_engine import _normal_equations, _weights, padded
+from .parametric import cached_jacobian, resolve_model
 
 __all__ = ["linear_scores"]
 
@@ -111,39 +117,135 @@ class _Step:
     Hinv: np.ndarray  # (D, D) inverse of the penalised normal matrix
     g: np.ndarray  # (D,) penalised gradient
     base: np.ndarray  # (nv, N) held-out residuals after the model's own step
-    vf: _Variables  # the fitting rows' variables
-    vv: _Variables  # the held-out rows' variables
+    vf: Callable[[str], np.ndarray]  # the fitting rows' variables
+    vv: Callable[[str], np.ndarray]  # the held-out rows' variables
+    parse: Callable[[str], tuple[str, int]]  # a covariate's name -> (variable, power)
 
 
-def _current_step(est: HamiltonianParameterRegressor, X_fit: pd.DataFrame, y_fit: np.ndarray,
-                  X_val: pd.DataFrame, y_val: np.ndarray) -> _Step:
-    """The current design, normal equations and Newton step of ``est`` (as in fit, at the
-    solution)."""
+@dataclass
+class _Linearised:
+    """What the step needs of a fitted regressor on a fold: the whole model's prediction and
+    Jacobian (every parameter, the optional ones not yet in the model included, column
+    ``col[p]``), the current design and each row set's variables."""
+
+    col: dict[str, int]
+    lam_f: np.ndarray
+    lam_v: np.ndarray
+    J_f: np.ndarray
+    J_v: np.ndarray
+    Phi_f: np.ndarray
+    Phi_v: np.ndarray
+    sel: np.ndarray
+    vf: Callable[[str], np.ndarray]
+    vv: Callable[[str], np.ndarray]
+    parse: Callable[[str], tuple[str, int]]
+
+
+def _hamiltonian(est: HamiltonianParameterRegressor, X_fit: pd.DataFrame,
+                 X_val: pd.DataFrame) -> _Linearised:
+    """The Hamiltonian regressor's: eigenvectors give the spectrum and, by Hellmann-Feynman,
+    the derivatives by every coupling (the parasitic ones at 0 too)."""
     N = len(est.onsite_)
     _, all_pairs = resolve_graph(N, est.edges, est.parasitic)
     pairs = list(est.graph_.edges[:len(est.couplings_)]) + list(all_pairs)
     names = est.onsite_ + est.couplings_ + parasitic_names(est.onsite_, all_pairs)
     col = {p: j for j, p in enumerate(names)}
-    active = [col[p] for p in est.parameter_names_]
-
     lam_f, vec_f = _eigvecs(est, X_fit)
     lam_v, vec_v = _eigvecs(est, X_val)
     J_f = _jacobian(vec_f, est.sign, N, pairs)
     J_v = _jacobian(vec_v, est.sign, N, pairs)
     del vec_f, vec_v
-    r = y_fit - lam_f
-    rv = y_val - lam_v
-    n, nv = len(r), len(rv)
-    newton = getattr(est, "solver", "irls") == "newton"
-    w, wr = _weights(est.loss, r, est.huber_delta, newton)
-
-    # current design and normal equations (as in fit, at the solution)
     vf = _Variables(est, X_fit)
     vv = _Variables(est, X_val, ref=vf)
+    n, nv = len(X_fit), len(X_val)
     var_f = {v: vf(v) for ts in est.terms_.values() for v, _ in ts}
     var_v = {v: vv(v) for ts in est.terms_.values() for v, _ in ts}
     Phi_f, sel = est._padded(est._design(var_f, n, fitting=False))
     Phi_v, _ = est._padded(est._design(var_v, nv, fitting=False))
+    all_vars = set(est._derived_) | set(est.onsite_ + est.couplings_) | \
+        {str(v) for v in X_fit.columns}
+    return _Linearised(col, lam_f, lam_v, J_f, J_v, Phi_f, Phi_v, sel, vf, vv,
+                       lambda name: _parse(name, all_vars))
+
+
+class _Columns:
+    """A :class:`~workbench.parametric_boost.ParametricRegressor`'s variables on a frame (its
+    columns, products, differences, geometric means), a new product's factors centred by
+    the fitting rows' means (``ref``)."""
+
+    def __init__(self, est: Any, X: pd.DataFrame, ref: _Columns | None = None) -> None:
+        self.est, self.X, self.ref = est, X, ref
+        self.columns = {str(c) for c in X.columns}
+        self.cache: dict[str, np.ndarray] = {}
+
+    def _mean(self, factor: str) -> float:
+        known = getattr(self.est, "factor_mean_", None) or {}
+        return known[factor] if factor in known else float((self.ref or self)(factor).mean())
+
+    def __call__(self, name: str) -> np.ndarray:
+        from .parametric_boost import _column, _variable  # it imports the selection
+
+        if name not in self.cache:
+            var = _variable(name, self.columns)
+            if var is None:
+                raise ValueError(f"unknown covariate variable {name!r}")
+            if len(var) == 1:
+                v = _column(self.X, name)
+            elif var[0] == "*":
+                v = (self(var[1]) - self._mean(var[1])) * (self(var[2]) - self._mean(var[2]))
+            else:
+                v = self.est._combined(var, self(var[1]), self(var[2]))
+            self.cache[name] = v
+        return self.cache[name]
+
+
+def _parametric(est: Any, X_fit: pd.DataFrame, X_val: pd.DataFrame) -> _Linearised:
+    """A :class:`~workbench.parametric_boost.ParametricRegressor`'s: the whole model (every
+    optional parameter free, the ones not in the fit at their start values) and its Jacobian
+    at the fitted parameters."""
+    from .parametric_boost import _term  # it imports the selection
+
+    whole = resolve_model(est.model)
+    col = {p: j for j, p in enumerate(whole.names)}
+    T = est._n_outputs()
+    # the start of each parameter not in the fit (a column's parameter is always fitted)
+    held = np.asarray([0.0 if isinstance(v, str) else float(v)
+                       for v in (whole.parameters[p] for p in whole.names)])
+    out = []
+    for X in (X_fit, X_val):
+        theta = np.tile(held, (len(X), 1))
+        theta[:, [col[p] for p in est.parameter_names_]] = est._corrected(X)
+        if hasattr(whole, "predict_and_jacobian"):
+            lam, jac = whole.predict_and_jacobian(theta, X, T)
+        else:
+            lam = whole.predict(theta, X, T)
+            jac = cached_jacobian(whole, theta, X, T)
+        out.append((np.asarray(lam, dtype=float).reshape(len(X), T), jac,
+                    padded(est._design(X, fitting=False))))
+    (lam_f, J_f, (Phi_f, sel)), (lam_v, J_v, (Phi_v, _)) = out
+    vf = _Columns(est, X_fit)
+    vv = _Columns(est, X_val, ref=vf)
+    columns = {str(c) for c in X_fit.columns}
+    return _Linearised(col, lam_f, lam_v, J_f, J_v, Phi_f, Phi_v, sel, vf, vv,
+                       lambda name: _term(name, columns))
+
+
+def _current_step(est: Any, X_fit: pd.DataFrame, y_fit: np.ndarray,
+                  X_val: pd.DataFrame, y_val: np.ndarray, irls: bool = False) -> _Step:
+    """The current design, normal equations and Newton step of ``est`` (as in fit, at the
+    solution)."""
+    lin = (_hamiltonian if isinstance(est, HamiltonianParameterRegressor) else _parametric)(
+        est, X_fit, X_val)
+    col, J_f, J_v = lin.col, lin.J_f, lin.J_v
+    active = [col[p] for p in est.parameter_names_]
+    r = y_fit - lin.lam_f
+    rv = y_val - lin.lam_v
+    n = len(r)
+    newton = getattr(est, "solver", "irls") == "newton" and not irls
+    w, wr = _weights(est.loss, r, est.huber_delta, newton)
+
+    # current design and normal equations (as in fit, at the solution)
+    Phi_f, Phi_v, sel = lin.Phi_f, lin.Phi_v, lin.sel
     K = Phi_f.shape[2]
     pidx = sel // K
     Ja_f = np.ascontiguousarray(J_f[:, :, active])
@@ -168,36 +270,51 @@ def _current_step(est: HamiltonianParameterRegressor, X_fit: pd.DataFrame, y_fit
     Jw = np.ascontiguousarray(np.swapaxes(Ja_f * w[:, :, None], 1, 2))  # (n, Pa, N)
     s = np.matmul(wr[:, None, :], J_f)[:, 0, :]  # (n, P_all): sum_k J w r
     return _Step(col=col, J_f=J_f, J_v=J_v, Ja_v=Ja_v, w=w, s=s, Jw=Jw, flat_f=flat_f,
-                 PhiT_v=PhiT_v, sel=sel, pidx=pidx, Hinv=Hinv, g=g, base=base, vf=vf, vv=vv)
+                 PhiT_v=PhiT_v, sel=sel, pidx=pidx, Hinv=Hinv, g=g, base=base, vf=lin.vf,
+                 vv=lin.vv, parse=lin.parse)
 
 
-def _bordered_update(est: HamiltonianParameterRegressor, st: _Step, p: str,
-                     covariates: list[str], all_vars: set[str]
-                     ) -> tuple[np.ndarray, np.ndarray]:
+def _bordered_update(est: Any, st: _Step, p: str,
+                     covariates: list[str]) -> tuple[np.ndarray, np.ndarray]:
     """One Newton step of the model enlarged by each covariate of parameter ``p``: the
     change of the current coefficients ``(D, Cq)`` and the held-out change of ``p`` itself
-    ``(nv, Cq)``, by the Schur complement of the bordered normal equations."""
+    ``(nv, Cq)``, by the Schur complement of the bordered normal equations. ``covariates``
+    ``["intercept"]``: an optional parameter's offset alone (no change where ``p`` is in
+    the model: it has one)."""
     vf, vv = st.vf, st.vv
     n = len(st.w)
     q = st.col[p]
     is_new = p not in est.parameter_names_
+    if covariates == ["intercept"]:
+        nv = len(st.base)
+        if not is_new:
+            return np.zeros((len(st.sel), 1)), np.zeros((nv, 1))
+        Zf, Zv, pen = np.ones((n, 1, 1)), np.ones((nv, 1, 1)), np.array([0.0])
+        return _schur(est, st, q, Zf, Zv, pen)
     zf, zv = [], []  # each candidate's standardised covariate: fit rows, held-out rows
     for name in covariates:
-        v, k = _parse(name, all_vars)
+        v, k = st.parse(name)
         raw_f = (vf(v) - vf(v).mean()) ** k
         mu, sd = raw_f.mean(), raw_f.std()
         sd = sd if sd > 0 else 1.0
         zf.append((raw_f - mu) / sd)
         zv.append(((vv(v) - vf(v).mean()) ** k - mu) / sd)
     Zf, Zv = np.stack(zf, axis=1), np.stack(zv, axis=1)  # (n, Cq)
-    Cq = Zf.shape[1]
-    if is_new:  # the parasitic coupling's intercept enters with its first covariate
+    if is_new:  # an optional parameter's intercept enters with its first covariate
         Zf = np.stack([np.ones_like(Zf), Zf], axis=2)
         Zv = np.stack([np.ones_like(Zv), Zv], axis=2)
         pen = np.array([0.0, 1.0])
     else:
         Zf, Zv, pen = Zf[:, :, None], Zv[:, :, None], np.array([1.0])
-    mq = Zf.shape[2]
+    return _schur(est, st, q, Zf, Zv, pen)
+
+
+def _schur(est: Any, st: _Step, q: int, Zf: np.ndarray, Zv: np.ndarray,
+           pen: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The bordered step of the candidates' columns ``Zf`` (n, Cq, m) of the parameter in
+    column ``q`` (penalty weights ``pen``, one per column): the change of the current
+    coefficients ``(D, Cq)`` and the held-out change of that parameter ``(nv, Cq)``."""
+    n, Cq, mq = Zf.shape
     Jq = np.ascontiguousarray(st.J_f[:, :, q])
     Mq = np.matmul(st.Jw, Jq[:, :, None])[:, :, 0]  # (n, Pa)
     G = st.flat_f * Mq[:, st.pidx]  # (n, D)
@@ -216,14 +333,17 @@ def _bordered_update(est: HamiltonianParameterRegressor, st: _Step, p: str,
     return -np.einsum("cmd,cm->dc", HinvB, dca), np.einsum("jcm,cm->jc", Zv, dca)
 
 
-def linear_scores(est: HamiltonianParameterRegressor, X_fit: pd.DataFrame, y_fit: ArrayLike,
+def linear_scores(est: Any, X_fit: pd.DataFrame, y_fit: ArrayLike,
                   X_val: pd.DataFrame, y_val: ArrayLike,
-                  candidates: list[tuple[str, str]], chunk_elements: int = 4_000_000
-                  ) -> np.ndarray:
+                  candidates: list[tuple[str, str]], chunk_elements: int = 4_000_000,
+                  irls: bool = False) -> np.ndarray:
     """Held-out absolute-error sums after one Gauss-Newton step of ``est`` (fitted on
     ``X_fit``) enlarged by each candidate ``(parameter, covariate)``.
 
-    The step's weights are those of ``est.solver`` (IRLS or the loss's curvature). Cost:
+    The step's weights are those of ``est.solver`` (IRLS or the loss's curvature), or IRLS
+    with ``irls``: Huber's curvature is 0 beyond its threshold, so where most residuals of the
+    current fit lie beyond it (a model far from the data before its drift) the Newton step
+    sees few rows, and IRLS weights (``psi(r) / r``) keep every row. Cost:
     O(n D (P + C)) for the candidates' border columns, O(C D^2) for the Schur complements
     and O(n_val (D_pad + N P) C) for the held-out predictions, C candidates, D coefficients
     and P parameters; the held-out predictions are made for blocks of candidates of about
@@ -231,16 +351,18 @@ def linear_scores(est: HamiltonianParameterRegressor, X_fit: pd.DataFrame, y_fit
 
     Parameters
     ----------
-    est : HamiltonianParameterRegressor
+    est : HamiltonianParameterRegressor or ParametricRegressor
         The current model, fitted on ``X_fit``.
     X_fit, X_val : pandas.DataFrame
         The fold's fitting and held-out rows.
     y_fit, y_val : array-like of shape (rows, N)
-        Their measured eigenvalues.
+        Their measured targets (eigenvalues).
     candidates : list of (str, str)
         The ``(parameter, covariate)`` pairs to score.
     chunk_elements : int, default=4_000_000
         The size of a block of held-out predictions.
+    irls : bool, default=False
+        Score with IRLS weights whatever ``est.solver`` is.
 
     Returns
     -------
@@ -248,21 +370,21 @@ def linear_scores(est: HamiltonianParameterRegressor, X_fit: pd.DataFrame, y_fit
         Each candidate's held-out absolute-error sum.
     """
     y_fit, y_val = np.asarray(y_fit, float), np.asarray(y_val, float)
-    N = len(est.onsite_)
-    st = _current_step(est, X_fit, y_fit, X_val, y_val)
+    if y_fit.ndim == 1:
+        y_fit, y_val = y_fit[:, None], y_val[:, None]
+    st = _current_step(est, X_fit, y_fit, X_val, y_val, irls)
+    N = st.J_f.shape[1]
     nv, Pa = len(st.base), st.PhiT_v.shape[0]
-    by_param: dict[str, list[int]] = {}
-    for m, (p, _) in enumerate(candidates):
-        by_param.setdefault(p, []).append(m)
+    by_param: dict[tuple[str, bool], list[int]] = {}  # an offset alone is its own block
+    for m, (p, c) in enumerate(candidates):
+        by_param.setdefault((p, c == "intercept"), []).append(m)
     C = len(candidates)
     ddc = np.empty((len(st.sel), C))  # coefficient change of the current model's terms
     direct = np.empty((nv, C))  # held-out change of the candidate's parameter itself
     qs = np.empty(C, dtype=int)
-    all_vars = set(est._derived_) | set(est.onsite_ + est.couplings_) | \
-        {str(v) for v in X_fit.columns}
-    for p, members in by_param.items():
+    for (p, _), members in by_param.items():
         ddc[:, members], direct[:, members] = _bordered_update(
-            est, st, p, [candidates[m][1] for m in members], all_vars)
+            est, st, p, [candidates[m][1] for m in members])
         qs[members] = st.col[p]
     out = np.empty(C)
     block = max(1, chunk_elements // max(1, nv * (N + Pa)))

@@ -270,10 +270,10 @@ def _fit_splits(base: Any, covariates: dict[str, list[str]], folds: list[tuple],
     return (abs_sum / count, coefs, fits) if models else (abs_sum / count, coefs)
 
 
-def _linear_fold(est: HamiltonianParameterRegressor, fold: tuple,
-                 pool: list[tuple[str, str]]) -> np.ndarray:
+def _linear_fold(est: Any, fold: tuple, pool: list[tuple[str, str]],
+                 irls: bool = False) -> np.ndarray:
     X_fit, y_fit, X_val, y_val = fold
-    return linear_scores(est, X_fit, y_fit, X_val, y_val, pool)
+    return linear_scores(est, X_fit, y_fit, X_val, y_val, pool, irls=irls)
 
 
 def _score_many(base: Any, libraries: list[dict[str, list[str]]], folds: list[tuple],
@@ -540,12 +540,16 @@ def _fit_fold(est: HamiltonianParameterRegressor, lib: dict[str, list[str]], fol
             fitted.coef_dict(), fitted)
 
 
-def _linearised_select(X: pd.DataFrame, base: HamiltonianParameterRegressor,
+def _linearised_select(X: pd.DataFrame, base: Any,
                        current: dict[str, list[str]], pool: list[tuple[str, str]],
                        folds: list[tuple], jobs: int, max_steps: int, min_improvement: float,
                        shortlist: int, batch: int | str, progress: Callable[[str], None] | None,
-                       t0: float, regressor_params: dict[str, Any]) -> SelectionResult:
-    """Forward selection with linearised candidate scores (see :func:`forward_select`).
+                       t0: float, regressor_params: dict[str, Any],
+                       irls_scores: bool = False) -> SelectionResult:
+    """Forward selection with linearised candidate scores (see :func:`forward_select`);
+    ``base`` a drift regressor (:class:`~workbench.param_boost.HamiltonianParameterRegressor`
+    or :class:`~workbench.parametric_boost.ParametricRegressor`), ``irls_scores`` the
+    scores' weights (:func:`~workbench.param_linear.linear_scores`' ``irls``).
 
     Everything runs in this process: the folds' data and fitted models stay in memory from
     step to step (nothing is pickled), and with ``jobs > 1`` the (library, fold) fits and the
@@ -577,8 +581,8 @@ def _linearised_select(X: pd.DataFrame, base: HamiltonianParameterRegressor,
         while step < max_steps and pool:
             step += 1
             count = sum(f[3].size for f in folds)
-            lin = np.sum(run(_linear_fold, [(m, f, pool) for m, f in zip(models, folds)]),
-                         axis=0) / count
+            lin = np.sum(run(_linear_fold, [(m, f, pool, irls_scores)
+                                            for m, f in zip(models, folds)]), axis=0) / count
             hopeful = [int(k) for k in np.argsort(lin, kind="stable") if lin[k] < best]
             accepted = None
             while hopeful:

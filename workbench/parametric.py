@@ -26,6 +26,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import os
+import threading
 import types
 from collections import OrderedDict
 from collections.abc import Callable, Mapping, Sequence
@@ -344,6 +345,8 @@ class ParametricModel:
 _JACOBIANS: OrderedDict[tuple[int, int, int, bytes], tuple[Any, Any, np.ndarray]] = \
     OrderedDict()
 _JACOBIANS_KEPT = 64
+#: Guards the module's caches (:func:`cached_jacobian`, :func:`_restricted`).
+_CACHE_LOCK = threading.RLock()
 
 
 def cached_jacobian(model: ParametricModel, theta: np.ndarray, data: pd.DataFrame,
@@ -373,14 +376,16 @@ def cached_jacobian(model: ParametricModel, theta: np.ndarray, data: pd.DataFram
     # coefficients computes them in another order of summation
     key = (id(model), id(data), n_targets, (np.ascontiguousarray(theta).view(np.int64)
                                             >> 8).tobytes())
-    hit = _JACOBIANS.get(key)
-    if hit is not None and hit[0] is model and hit[1] is data:
-        _JACOBIANS.move_to_end(key)
-        return hit[2]
+    with _CACHE_LOCK:  # the linearised selection fits folds on threads
+        hit = _JACOBIANS.get(key)
+        if hit is not None and hit[0] is model and hit[1] is data:
+            _JACOBIANS.move_to_end(key)
+            return hit[2]
     jac = model.jacobian(theta, data, n_targets)
-    _JACOBIANS[key] = (model, data, jac)
-    while len(_JACOBIANS) > _JACOBIANS_KEPT:
-        _JACOBIANS.popitem(last=False)
+    with _CACHE_LOCK:
+        _JACOBIANS[key] = (model, data, jac)
+        while len(_JACOBIANS) > _JACOBIANS_KEPT:
+            _JACOBIANS.popitem(last=False)
     return jac
 
 
@@ -401,13 +406,14 @@ def _restricted(model: Any, keep: Sequence[str], build: Callable[[tuple[str, ...
     if held == tuple(getattr(model, "held", ())):
         return model
     key = (id(model), held)
-    hit = _RESTRICTED.get(key)
-    if hit is not None and hit[0] is model:
-        return hit[1]
-    out = build(held)
-    _RESTRICTED[key] = (model, out)
-    while len(_RESTRICTED) > _RESTRICTED_KEPT:
-        _RESTRICTED.popitem(last=False)
+    with _CACHE_LOCK:  # one object per (model, held), also across threads
+        hit = _RESTRICTED.get(key)
+        if hit is not None and hit[0] is model:
+            return hit[1]
+        out = build(held)
+        _RESTRICTED[key] = (model, out)
+        while len(_RESTRICTED) > _RESTRICTED_KEPT:
+            _RESTRICTED.popitem(last=False)
     return out
 
 

@@ -38,7 +38,15 @@ from ._progress import Progress
 from .parallel import effective_n_jobs
 from .param_engine import PARAM_LOSSES, SOLVERS, DriftRegressor
 from .param_engine import drift as _drift
-from .param_select import SelectionResult, _cv_splits, _fit_splits, _refit_select, _sliced
+from .param_select import (
+    SELECTION_METHODS,
+    SelectionResult,
+    _cv_splits,
+    _fit_splits,
+    _linearised_select,
+    _refit_select,
+    _sliced,
+)
 from .parametric import (
     ModelError,
     ParametricModel,
@@ -675,6 +683,10 @@ CANDIDATES = ("prior", "calibrated", "drift", "ridge_drift", "boost")
 #: ``drift``: how the drift candidates are made (forward selection, ridge over the whole pool).
 DRIFTS = ("forward", "ridge", "both")
 
+#: ``method="linearised"``: the best-scored single candidates refitted exactly each step
+#: (:func:`~workbench.param_select.forward_select`'s ``shortlist``).
+LINEARISED_SHORTLIST = 5
+
 #: The ridge drift's penalties, chosen by the choice's CV (largest first: warm starts).
 RIDGE_ALPHAS = (1e4, 1e3, 1e2, 1e1, 1.0, 1e-1, 1e-2)
 
@@ -721,7 +733,14 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
     n_repeats : int, default=1
         The repeats of an int ``cv`` (a splitter's folds are made once: it must be 1).
     max_steps : int, default=20
-        The most covariates the selection adds.
+        The most covariates the selection adds (``"linearised"``: the most steps).
+    method : {"refit", "linearised"}, default="refit"
+        How the forward selection scores a candidate: ``"refit"`` fits the model with it on
+        every fold; ``"linearised"`` takes one Gauss-Newton step of the enlarged model from
+        the current fit on every fold (:func:`~workbench.param_linear.linear_scores`, the
+        whole model's Jacobian, no refit) and refits only the best-scored candidates
+        (:func:`~workbench.param_select.forward_select`'s ``method``: for large pools and
+        models whose fits cost much).
     min_improvement : float, default=1e-3
         The CV MAE (targets' units) a covariate, or a more complex candidate, must gain; at
         most :data:`MIN_IMPROVEMENT_SHARE` of the prior's MAE on the training rows
@@ -793,6 +812,7 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
                HasMethods(["split", "get_n_splits"])],
         "n_repeats": [Interval(numbers.Integral, 1, None, closed="left")],
         "max_steps": [Interval(numbers.Integral, 0, None, closed="left")],
+        "method": [StrOptions(set(SELECTION_METHODS))],
         "min_improvement": [Interval(numbers.Real, 0, None, closed="left")],
         "drift": [StrOptions(set(DRIFTS))],
         "ridge_alphas": [None, "array-like"],
@@ -809,7 +829,7 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
                  candidates: str | dict[str, list[str]] | None = "auto",
                  features: Sequence[str] | None = None, squares: bool = True,
                  products: bool = True, cv: Any = 5, n_repeats: int = 1, max_steps: int = 20,
-                 min_improvement: float = 1e-3, drift: str = "forward",
+                 method: str = "refit", min_improvement: float = 1e-3, drift: str = "forward",
                  ridge_alphas: Sequence[float] | None = None, alpha: float = 1.0,
                  alpha_l1: float = 0.0,
                  loss: str = "huber", huber_delta: float = 1.0, max_iter: int = 20,
@@ -825,6 +845,7 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         self.cv = cv
         self.n_repeats = n_repeats
         self.max_steps = max_steps
+        self.method = method
         self.min_improvement = min_improvement
         self.drift = drift
         self.ridge_alphas = ridge_alphas
@@ -923,10 +944,18 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         if self.drift != "ridge" and (pairs or any(current.values())):
             say(f"drift: forward selection over {len(pairs)} candidate terms, at most "
                 f"{self.max_steps} step(s)")
-            self.selection_ = _refit_select(X, base, current, pairs, folds,
-                                            effective_n_jobs(self.n_jobs), self.max_steps,
-                                            self.min_improvement_, say.child("selection "), t0,
-                                            common)
+            jobs = effective_n_jobs(self.n_jobs)
+            if self.method == "linearised":
+                # IRLS-weighted scores: the calibrated model's residuals may lie far beyond
+                # Huber's threshold, where the Newton weights are 0 (linear_scores' irls)
+                self.selection_ = _linearised_select(
+                    X, base, current, pairs, folds, jobs, self.max_steps, self.min_improvement_,
+                    LINEARISED_SHORTLIST, "auto", say.child("selection "), t0, common,
+                    irls_scores=True)
+            else:
+                self.selection_ = _refit_select(X, base, current, pairs, folds, jobs,
+                                                self.max_steps, self.min_improvement_,
+                                                say.child("selection "), t0, common)
             drift = self.selection_.covariates
             scores["drift"] = float(self.selection_.cv_mae)
             say(f"drift: {len(self.selection_.path) - 1} step(s), cv_mae={scores['drift']:.4g} "

@@ -132,6 +132,10 @@ class ParametricSettings(Section):
     its own prior, by the MAE of the mean of their CV predictions, and keeps it per target
     where that is lowest: the physics path mixed with the generic one, for new rows like
     the training rows (random folds choose it, and they do not see extrapolation).
+    ``selection``: how the forward selection scores a candidate, ``"forward"`` (default:
+    a refit on every fold) or ``"linearised"`` (one Gauss-Newton step from the current fit,
+    only the best-scored candidates refitted: for large pools and costly models, as the
+    Hamiltonian family's ``selection = "linearised"``).
     ``boost``: the table :class:`ParameterBoostSettings`, parameter-space boosting as a
     fourth candidate (absent: none). ``calibrate = false`` starts every fit's offsets at 0
     instead of a robust least-squares calibration, and ``solver = "irls"`` keeps IRLS
@@ -157,6 +161,7 @@ class ParametricSettings(Section):
     max_steps: int = Field(default=20, ge=0, le=100_000)
     min_improvement: float = Field(default=1e-3, ge=0)
     drift: Literal["forward", "ridge", "both"] = "forward"
+    selection: Literal["forward", "linearised"] = "forward"
     ridge_alphas: list[float] = Field(default_factory=lambda: list(RIDGE_ALPHAS), min_length=1)
     boost_stage: bool = True
     stage_priors: Literal["chosen", "calibrated", "candidates"] = "chosen"
@@ -199,6 +204,7 @@ def make_parametric(cfg: ExperimentConfig, ds: Dataset) -> ParametricBoostRegres
         model=model, start=s.start or None, candidates=candidates, features=ds.feature_names,
         squares=s.squares, products=s.products, cv=choice_cv(cfg, ds),
         n_repeats=s.selection_repeats, max_steps=s.max_steps,
+        method="linearised" if s.selection == "linearised" else "refit",
         min_improvement=float(s.min_improvement), drift=s.drift,
         ridge_alphas=[float(a) for a in s.ridge_alphas], alpha=float(s.alpha),
         alpha_l1=float(s.alpha_l1), loss=s.loss, huber_delta=float(s.huber_delta),
