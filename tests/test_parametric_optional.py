@@ -215,3 +215,24 @@ def test_the_linearised_selection_finds_what_the_refit_finds(tmp_path, missing, 
     assert linear.cv_mae_ == pytest.approx(refit.cv_mae_, rel=0.05)
     with pytest.raises(ValueError, match="method"):
         ParametricBoostRegressor(method="exact", **settings).fit(X, y)
+
+
+def test_the_calibrated_guard_with_an_optional_term(tmp_path):
+    """``out_of_bounds="calibrated"``: a warm start hands its calibration only to a fit of the
+    same parameters (the selection bringing an optional term in used to break on it)."""
+    path = _write(tmp_path, STEP)
+    X, y = _data(drift=0.3, missing=0.2)
+    est = ParametricBoostRegressor(model=path, features=["temp", "humidity"], huber_delta=0.05,
+                                   alpha=0.01, max_steps=3, products=False,
+                                   out_of_bounds="calibrated", random_state=0).fit(X, y)
+    assert est.choice_ == "drift" and "step" in est.estimator_.parameter_names_
+    assert est.estimator_.calibrated_offset_.shape == (4,)
+    small = ParametricRegressor(model=path, covariates={"tau": ["temp"]},
+                                out_of_bounds="calibrated").fit(X, y)
+    grown = ParametricRegressor(model=path, covariates={"tau": ["temp"], "step": ["intercept"]},
+                                out_of_bounds="calibrated").fit(X, y, coef_init=small.coef_dict())
+    fresh = ParametricRegressor(model=path, covariates={"tau": ["temp"], "step": ["intercept"]},
+                                out_of_bounds="calibrated").fit(X, y)
+    np.testing.assert_allclose(grown.calibrated_offset_, fresh.calibrated_offset_)
+    outside = X.assign(temp=X["temp"] * 5)
+    assert np.all(np.isfinite(est.predict(outside)))

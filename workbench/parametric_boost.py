@@ -186,10 +186,10 @@ def _fingerprint(X: pd.DataFrame, Y: np.ndarray) -> str:
 
 class _WarmStart(dict):
     """:meth:`ParametricRegressor.coef_dict`: the coefficients, and the fit's calibration
-    with the digest of its rows (``out_of_bounds="calibrated"`` reuses it on the same rows
-    instead of calibrating again)."""
+    with the digest of its rows and its parameters' names (``out_of_bounds="calibrated"``
+    reuses it on the same rows and parameters instead of calibrating again)."""
 
-    calibration: tuple[str, np.ndarray] | None = None
+    calibration: tuple[str, tuple[str, ...], np.ndarray] | None = None
 
 
 class ParametricRegressor(DriftRegressor):
@@ -455,8 +455,10 @@ class ParametricRegressor(DriftRegressor):
         if coef_init is None and self.calibrate:
             return c[[s.start for s in self._slices]].copy()
         handed = getattr(coef_init, "calibration", None)
-        if handed is not None and handed[0] == self._rows_digest:
-            return np.asarray(handed[1], dtype=float).copy()
+        # the same rows and parameters (an optional parameter brought in changes the set)
+        if (handed is not None and len(handed) == 3 and handed[0] == self._rows_digest
+                and tuple(handed[1]) == tuple(model.names)):
+            return np.asarray(handed[2], dtype=float).copy()
         return self._calibrate(model, X, start, Y)
 
     def coef_dict(self) -> dict[tuple[str, str], float]:
@@ -471,7 +473,8 @@ class ParametricRegressor(DriftRegressor):
         """
         out = _WarmStart(super().coef_dict())
         if hasattr(self, "calibrated_offset_") and hasattr(self, "_rows_digest"):
-            out.calibration = (self._rows_digest, self.calibrated_offset_)
+            out.calibration = (self._rows_digest, tuple(self.parameter_names_),
+                               self.calibrated_offset_)
         return out
 
     def outside(self, X: pd.DataFrame) -> np.ndarray:
