@@ -555,6 +555,7 @@ class ParametricRegressor(DriftRegressor):
 
     def _physics(self) -> ParametricModel:
         """The model fitted: the optional parameters without covariates held."""
+        check_is_fitted(self)
         return restrict(resolve_model(self.model), self.parameter_names_)
 
     def _n_outputs(self) -> int:
