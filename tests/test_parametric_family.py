@@ -732,3 +732,24 @@ def test_a_note_where_test_rows_lie_beyond_and_a_target_keeps_the_mean():
     assert "stage_mean = false" in notes[1]
     assert len(_test_row_notes(regressor, X, {}, mean_targets=0)) == 1
     assert _test_row_notes(regressor, X.iloc[:1], {}, mean_targets=1) == []
+
+
+def test_design_asks_where_the_drifts_coefficients_are_least_known(decay_csv, tmp_path, capsys):
+    """``workbench design`` with the parametric family: the Fisher information of the drift's
+    coefficients (every covariate the selection could use), as the Hamiltonian family's."""
+    config = _decay_config(tmp_path)
+    rng = np.random.default_rng(7)
+    pool = tmp_path / "pool.csv"
+    pd.DataFrame({"t": rng.uniform(0, 3, 60), "temp": rng.normal(0, 2, 60)}).to_csv(
+        pool, index=False)
+    out = tmp_path / "next.csv"
+    assert main(["design", str(config), "--candidates", str(pool), "--n", "4",
+                 "--out", str(out)]) == 0
+    assert "4 of 60 candidates" in capsys.readouterr().out
+    chosen = pd.read_csv(out)
+    assert list(chosen["design_rank"]) == [1, 2, 3, 4]
+    assert chosen["design_reason"].str.contains("correction coefficients of the model's "
+                                                "parameters").all()
+    assert (chosen["y_sd"] > 0).all()
+    # the coefficients' information is largest far out in temp, where the drift is least known
+    assert chosen["temp"].abs().mean() > pd.read_csv(pool)["temp"].abs().mean()

@@ -867,6 +867,22 @@ class ParametricBoostRegressor(RegressorMixin, BaseEstimator):
         self.verbose = verbose
         self.boost = boost
 
+    def candidate_pool(self, X: pd.DataFrame) -> dict[str, list[str]]:
+        """Return the selection's pool on the rows ``X``: each parameter's candidate
+        covariates (``candidates``, or the ``"auto"`` pool of ``features``).
+
+        Parameters
+        ----------
+        X : pandas.DataFrame
+            The rows (the ``"auto"`` pool's columns without ``features``).
+
+        Returns
+        -------
+        dict of str -> list of str
+            Parameter -> its candidate covariates (empty with ``candidates=None``).
+        """
+        return self._pool(resolve_model(self.model), X)
+
     def _pool(self, model: ParametricModel, X: pd.DataFrame) -> dict[str, list[str]]:
         if self.candidates is None:
             return {}

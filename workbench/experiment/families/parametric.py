@@ -41,9 +41,10 @@ from pydantic import Field, field_validator
 from sklearn.base import clone
 from sklearn.model_selection import KFold
 
+from ...design import DesignProblem, robust_sd
 from ...fitted_prior import FittedPriorBoost
 from ...parametric import ModelError, load_model
-from ...parametric_boost import RIDGE_ALPHAS, ParametricBoostRegressor
+from ...parametric_boost import RIDGE_ALPHAS, ParametricBoostRegressor, ParametricRegressor
 from ...parametric_gbm import ParameterSpaceBoostRegressor, make_regressor
 from ..config.schema import Section
 from ..config.toml_text import toml_string
@@ -504,6 +505,43 @@ class ParametricFamily(ModelFamily):
             details["notes"] = _test_row_notes(used, _frame(ds).loc[ds.test_index], info,
                                                len(mean))
         return prior, scores, details
+
+    def design_problem(self, model: Any, X: pd.DataFrame, Y: pd.DataFrame,
+                       candidates: pd.DataFrame, random_state: int | None = None
+                       ) -> DesignProblem:
+        """Give the Fisher information of the drift's coefficients, as the Hamiltonian
+        family does.
+
+        Gauss-Newton: the model's Jacobian times the covariates
+        (:meth:`~workbench.param_engine.DriftRegressor.coef_jacobian`), plus the ridge
+        penalty as the coefficients' prior; one noise sd for every target, the robust sd of
+        the model's training residuals. The coefficients are those of every covariate the
+        selection could choose (the optional parameters' among them), not only the chosen
+        ones (at the fitted model, the others at 0: DuMouchel and Jones's "potential
+        terms"). The stage on top is not part of it. Where the physics model the priors use
+        is no drift regressor (the parameter-space boost, or targets mixing alternatives):
+        the default, the spread of fold models.
+        """
+        regressor = _used_regressor(model)
+        if not isinstance(regressor, ParametricRegressor):
+            return super().design_problem(model, X, Y, candidates, random_state)
+        library = {p: [c for c in names if c != "intercept"]
+                   for p, names in regressor.covariate_names_.items()}
+        for p, names in model.physics_.candidate_pool(X).items():
+            library[p] = list(dict.fromkeys(library.get(p, []) + list(names)))
+        full = clone(regressor).set_params(covariates=library, max_iter=0)
+        full.fit(X, Y, coef_init=regressor.coef_dict())
+        measured = Y.to_numpy(dtype=float)
+        fitted = np.asarray(regressor.predict(X), dtype=float).reshape(measured.shape)
+        sigma = float(robust_sd(measured - fitted))
+        names = [f"{p}:{c}" for p, c in full.coef_.index]
+        return DesignProblem(full.coef_jacobian(candidates) / sigma,
+                             full.information(X) / sigma**2,
+                             np.full(Y.shape[1], sigma), names,
+                             f"the {len(names)} correction coefficients of the model's "
+                             "parameters the selection could use",
+                             informs="the variance of the coefficient {name} falls "
+                                     "{fraction:.0%}")
 
     def begin_artifacts(self, cfg: ExperimentConfig, ds: Dataset, model: Any, setting: str,
                         quick: bool = False) -> Callable[..., Artifacts]:
