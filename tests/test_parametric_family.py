@@ -753,3 +753,18 @@ def test_design_asks_where_the_drifts_coefficients_are_least_known(decay_csv, tm
     assert (chosen["y_sd"] > 0).all()
     # the coefficients' information is largest far out in temp, where the drift is least known
     assert chosen["temp"].abs().mean() > pd.read_csv(pool)["temp"].abs().mean()
+
+
+def test_fallback_in_a_parametric_config(decay_csv, tmp_path, capsys):
+    """``[model.parametric] fallback = true``: the model at its start values per target where
+    the corrections do not help (here they do); not with a stage choosing among priors."""
+    config = _decay_config(tmp_path, "fallback = true\n")
+    out = tmp_path / "result.json"
+    assert main(["evaluate", str(config), "--no-track", "--no-intervals", "--jobs", "1",
+                 "--json", str(out)]) == 0
+    assert json.loads(out.read_text())["model"]["selected"] == ["parametric:drift"]
+    capsys.readouterr()
+    assert main(["evaluate", str(config), "--no-track", "--set",
+                 "model.parametric.boost_stage=true", "--set",
+                 'model.parametric.stage_priors="candidates"']) != 0
+    assert 'fallback = true needs stage_priors = "chosen"' in capsys.readouterr().err

@@ -15,7 +15,6 @@ physics model would learn from residuals that are smaller than the ones it meets
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from numbers import Integral
 from typing import Any, Self
 
@@ -81,12 +80,15 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
     n_jobs : int, default=None
         Processes for the out-of-fold refits (:mod:`workbench.parallel`; ``None``: 1,
         ``-1``: every core). The results do not depend on it.
-    fallback : list of str, default=None
-        Columns of ``X`` holding the control model's own prediction of each target. If given,
-        a target keeps the physics model only where its out-of-fold MAE on the training rows
-        is below the control prediction's MAE there; elsewhere the control prediction is the
-        prior (so where the control model is already right, fitting corrections that only
-        chase noise is not kept).
+    fallback : list of str or regressor, default=None
+        The control model's own prediction of each target: columns of ``X`` holding it, or a
+        regressor of all targets making it (e.g. a user's model at its start values,
+        ``ParametricRegressor(max_iter=0, calibrate=False)``; fitted on the rows, its
+        out-of-fold prediction on the same folds as the physics model's is the evidence). If
+        given, a target keeps the physics model only where its out-of-fold MAE on the
+        training rows is below the control prediction's MAE there; elsewhere the control
+        prediction is the prior (so where the control model is already right, fitting
+        corrections that only chase noise is not kept).
     alternative : regressor, dict of str -> regressor or "candidates", default=None
         Other physics models of all targets whose prediction may be the stage's prior
         instead (the parametric family's calibrated model beside its drift): one (named
@@ -117,6 +119,8 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         The fitted physics model.
     physics_selected_ : ndarray of bool
         Per target, whether the physics model is the prior (all true without ``fallback``).
+    fallback_ : regressor
+        With a regressor as ``fallback``: it, fitted on the rows.
     alternatives_ : dict of str -> regressor
         The fitted alternatives by name (empty without any, or without a stage).
     prior_choice_ : ndarray of str
@@ -150,7 +154,7 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         "prior_prefix": [str],
         "cv": ["cv_object"],
         "boost_stage": ["boolean"],
-        "fallback": [None, list, tuple],
+        "fallback": [None, list, tuple, HasMethods(["fit", "predict"])],
         "cv_predictions": ["boolean"],
         "n_jobs": [None, Integral],
         "alternative": [None, HasMethods(["fit", "predict"]), dict,
@@ -160,7 +164,7 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
     }
 
     def __init__(self, physics: Any = None, boost: Any = None, *, prior_prefix: str = "prior_",
-                 cv: Any = 5, boost_stage: bool = True, fallback: Sequence[str] | None = None,
+                 cv: Any = 5, boost_stage: bool = True, fallback: Any = None,
                  cv_predictions: bool = True, n_jobs: int | None = None,
                  alternative: Any = None, stage_mean: bool = False,
                  verbose: bool = False) -> None:
@@ -230,7 +234,8 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         self.n_features_in_ = X.shape[1]
         self.feature_names_in_ = np.asarray([str(c) for c in X.columns], dtype=object)
         self.physics_selected_ = np.ones(len(names), dtype=bool)
-        if self.fallback is not None and len(self.fallback) != len(names):
+        columns = isinstance(self.fallback, (list, tuple))
+        if isinstance(self.fallback, (list, tuple)) and len(self.fallback) != len(names):
             raise ValueError(f"fallback names {len(self.fallback)} column(s) for "
                              f"{len(names)} targets")
         if self.alternative is not None and self.fallback is not None:
@@ -257,7 +262,11 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
             folds[val] = k
         self.prior_folds_ = folds
         if self.fallback is not None:
-            control = X[list(self.fallback)].to_numpy(dtype=float)
+            if columns:
+                control = X[list(self.fallback)].to_numpy(dtype=float)
+            else:  # its out-of-fold prediction, as the physics model's
+                self.fallback_ = clone(self.fallback).fit(X, Y_arr)
+                control = self._out_of_fold(self.fallback_, X, Y_arr, tasks)
             self.physics_selected_ = (np.mean(np.abs(Y_arr - oof), axis=0)
                                       < np.mean(np.abs(Y_arr - control), axis=0))
             oof = np.where(self.physics_selected_, oof, control)
@@ -362,6 +371,12 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
             self.boost_ = clone(boost).fit(self._with_prior(X, mixed), Y_frame)
         return np.column_stack([priors[c][:, j] for j, c in enumerate(self.prior_choice_)])
 
+    def _control(self, X: pd.DataFrame) -> np.ndarray:
+        """The control prediction (``fallback``'s columns, or its fitted regressor's)."""
+        if isinstance(self.fallback, (list, tuple)):
+            return X[list(self.fallback)].to_numpy(dtype=float)
+        return np.asarray(self.fallback_.predict(X), dtype=float).reshape(len(X), -1)
+
     def predict_prior(self, X: pd.DataFrame) -> np.ndarray:
         """The prior of the stage: the physics model's prediction (the control prediction for
         targets where it fell back, an alternative's where the stage chose it), shape
@@ -386,8 +401,7 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         :attr:`prior_choice_` names (the mean of the stages' priors for ``"mean"``)."""
         physics = np.asarray(self.physics_.predict(X), dtype=float)
         if self.fallback is not None and not self.physics_selected_.all():
-            physics = np.where(self.physics_selected_, physics,
-                               X[list(self.fallback)].to_numpy(dtype=float))
+            physics = np.where(self.physics_selected_, physics, self._control(X))
         names = set(self.prior_choice_) | set(self.stages_)
         out = {"physics": physics}
         for name in sorted(names - {"physics", "mean"}):

@@ -137,6 +137,10 @@ class ParametricSettings(Section):
     a refit on every fold) or ``"linearised"`` (one Gauss-Newton step from the current fit,
     only the best-scored candidates refitted: for large pools and costly models, as the
     Hamiltonian family's ``selection = "linearised"``).
+    ``fallback = true``: per target, the model at its start values (the control
+    prediction) where the chosen physics model's out-of-fold MAE is not below its own, as the
+    Hamiltonian family's ``fallback`` (with ``stage_priors = "chosen"`` only: the other
+    settings choose per target among priors already).
     ``boost``: the table :class:`ParameterBoostSettings`, parameter-space boosting as a
     fourth candidate (absent: none). ``calibrate = false`` starts every fit's offsets at 0
     instead of a robust least-squares calibration, and ``solver = "irls"`` keeps IRLS
@@ -165,6 +169,7 @@ class ParametricSettings(Section):
     selection: Literal["forward", "linearised"] = "forward"
     ridge_alphas: list[float] = Field(default_factory=lambda: list(RIDGE_ALPHAS), min_length=1)
     boost_stage: bool = True
+    fallback: bool = False
     stage_priors: Literal["chosen", "calibrated", "candidates"] = "chosen"
     stage_mean: bool = False
     prior_cv: int = Field(default=5, ge=2, le=10_000)
@@ -387,8 +392,16 @@ class ParametricFamily(ModelFamily):
         alternative = (None if not s.boost_stage or s.stage_priors == "chosen" else
                        {"calibrated": physics.calibrated_model()}
                        if s.stage_priors == "calibrated" else "candidates")
+        fallback = None
+        if s.fallback:
+            if alternative is not None:
+                raise ConfigError(f'[model.parametric] fallback = true needs stage_priors = '
+                                  f'"chosen" (stage_priors = "{s.stage_priors}" chooses per '
+                                  "target among the candidates' priors already)")
+            # the control prediction: the user's model at its start values
+            fallback = ParametricRegressor(model=physics.model, max_iter=0, calibrate=False)
         return FittedPriorBoost(physics, boost, prior_prefix=PRIOR_PREFIX,
-                                alternative=alternative,
+                                alternative=alternative, fallback=fallback,
                                 stage_mean=s.stage_mean and alternative is not None,
                                 cv=family_cv(cfg, ds, s.prior_cv),
                                 boost_stage=s.boost_stage,
@@ -440,6 +453,7 @@ class ParametricFamily(ModelFamily):
         ``" (error not a drift)"`` follows the prior or the calibrated model: CV found no
         drift of the parameters that helps.
 
+        ``"parametric:control ..."`` where ``fallback`` kept the model at its start values.
         ``"+boosted"`` is added where the stage was kept. With ``stage_priors``, a target
         on another candidate's prior says ``"<candidate> (the stage did better on it)"``,
         one on the stages' mean (``stage_mean``) ``"mean of the stages on drift,
@@ -453,10 +467,12 @@ class ParametricFamily(ModelFamily):
         mixed = ", ".join(physics.split(" (")[0] if k == "physics" else k
                           for k in getattr(model, "stages_", {}))
         names = {"physics": physics, "mean": f"mean of the stages on {mixed}"}
-        return [f"parametric:{names.get(c) or f'{c} (the stage did better on it)'}"
+        kept = getattr(model, "physics_selected_", [True] * len(targets))
+        return [(f"parametric:{names.get(c) or f'{c} (the stage did better on it)'}"
+                 if k else "parametric:control (the model at its start values: fallback)")
                 + (f"+{(c != 'mean' and getattr(e, 'selected_candidate_', None)) or 'boosted'}"
                    if s == "boosted" else "")
-                for s, e, c in zip(model.selected_, stages, chose)]
+                for s, e, c, k in zip(model.selected_, stages, chose, kept)]
 
     def scores(self, ds: Dataset, model: Any, Y_train: pd.DataFrame, prior_test: Any,
                y_test: Any, pred: Any) -> tuple[Scores, ModelScores, dict[str, Any]]:
