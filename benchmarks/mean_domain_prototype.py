@@ -24,8 +24,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import parametric_outside as po  # noqa: E402
 
-from workbench.fitted_prior import FittedPriorBoost  # noqa: E402
-
 #: the domain's neighbours and the training rows' quantile of their distances
 K, QUANTILE = 5, 0.95
 
@@ -51,11 +49,7 @@ def in_domain(train: pd.DataFrame, new: pd.DataFrame) -> np.ndarray:
 def measure(split: str) -> dict:
     """B', M and M_D on one inner split."""
     cfg, ev, field, seconds = po.evaluate_inner(split, stage_mean="true")
-    model = ev.model
-    while not isinstance(model, FittedPriorBoost):
-        model = model.estimator_
-    ds = ev.dataset
-    X = cfg.family.inputs(cfg, ds)
+    model, ds, X = po.fitted_rows(cfg, ev)
     X_val = X.loc[ds.test_index]
     y_val = ds.targets.loc[ds.test_index].to_numpy(float)
     m = np.asarray(model.predict(X_val), dtype=float)

@@ -303,6 +303,17 @@ def evaluate_inner(split: str, **keys: str) -> tuple[Any, Any, Field, float]:
         return cfg, ev, field, time.process_time() - t0
 
 
+def fitted_rows(cfg: Any, ev: Any) -> tuple[Any, Any, pd.DataFrame]:
+    """``evaluate_inner``'s fitted :class:`~workbench.fitted_prior.FittedPriorBoost` (inside
+    any wrapper), its dataset and the model's inputs of every row."""
+    from workbench.fitted_prior import FittedPriorBoost
+
+    model = ev.model
+    while not isinstance(model, FittedPriorBoost):
+        model = model.estimator_
+    return model, ev.dataset, cfg.family.inputs(cfg, ev.dataset)
+
+
 def prototype_main(doc: str, measure: Callable[[str], dict], line: Callable[[dict], str],
                    **extra: Any) -> None:
     """A prototype's command line (``--splits``, ``--json``): ``measure`` each inner split,

@@ -122,11 +122,7 @@ def physics_oof(model: FittedPriorBoost, X: pd.DataFrame, y: np.ndarray) -> np.n
 def measure(split: str) -> dict:
     """Every system on one inner split."""
     cfg, ev, field, template_s = po.evaluate_inner(split)
-    model = ev.model
-    while not isinstance(model, FittedPriorBoost):
-        model = model.estimator_
-    ds = ev.dataset
-    X = cfg.family.inputs(cfg, ds)
+    model, ds, X = po.fitted_rows(cfg, ev)
     X_tr, X_val = X.loc[ds.train_index], X.loc[ds.test_index]
     y_tr = ds.targets.loc[ds.train_index].to_numpy(float)[:, 0]
     y_val = ds.targets.loc[ds.test_index].to_numpy(float)[:, 0]

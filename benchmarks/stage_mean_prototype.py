@@ -46,11 +46,7 @@ def _keep_stages() -> None:
 def measure(split: str) -> dict:
     """B' and M on one inner split."""
     cfg, ev, _, seconds = po.evaluate_inner(split)
-    model = ev.model
-    while not isinstance(model, FittedPriorBoost):
-        model = model.estimator_
-    ds = ev.dataset
-    X = cfg.family.inputs(cfg, ds)
+    model, ds, X = po.fitted_rows(cfg, ev)
     X_val, Y = X.loc[ds.test_index], ds.targets.loc[ds.train_index].to_numpy(float)
     y_val = ds.targets.loc[ds.test_index].to_numpy(float)
     b = np.asarray(model.predict(X_val), dtype=float)

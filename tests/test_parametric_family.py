@@ -1,6 +1,7 @@
 """Family ``parametric``: ``workbench init --model``, a CSV without prior columns, evaluate."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -161,6 +162,25 @@ def test_a_ridge_drift_through_evaluate(decay_csv, tmp_path):
 SMALL = {"n_jobs": 1, "max_steps": 1, "selection_cv": 3, "boost_stage": False}
 
 
+#: The project's configs.
+EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
+
+
+def _device_library(google_5q, parametric_toml, parasitic):
+    """The device config, checked: its start and candidates tables are the Hamiltonian
+    family's library ("default" start, "physical" pool, the parasitic couplings')."""
+    from workbench.param_boost import default_library
+    from workbench.param_select import candidate_pool
+
+    cfg = _small(EXPERIMENTS / parametric_toml, "parametric")
+    ham = google_5q.hamiltonian
+    on, co = list(ham.onsite.columns), list(ham.couplings.columns)
+    assert cfg.family_settings.start == default_library(on, co)
+    assert cfg.family_settings.candidates == candidate_pool(
+        on, co, ham.qubit_features, ham.coupler_features, base=None, parasitic=parasitic)
+    return cfg
+
+
 def _small(path, table):
     from workbench.experiment.runs.prepare import load_config
 
@@ -182,22 +202,10 @@ def test_the_hamiltonian_family_is_the_parametric_family_on_the_device_model_fil
     scores, the same corrected parameters and predictions (to rounding: the file's predict
     and jacobian diagonalise separately, the family's model object once). The same with the
     parasitic couplings (hamiltonian_device_parasitic.py's OPTIONAL parameters)."""
-    from pathlib import Path
-
-    from workbench.param_boost import default_library
-    from workbench.param_select import candidate_pool
-
-    root = Path(__file__).resolve().parents[1] / "experiments"
-    ham_cfg = _small(root / hamiltonian_toml, "hamiltonian")
-    par_cfg = _small(root / parametric_toml, "parametric")
+    ham_cfg = _small(EXPERIMENTS / hamiltonian_toml, "hamiltonian")
+    par_cfg = _device_library(google_5q, parametric_toml, parasitic)
     ham = google_5q.hamiltonian
     on, co = list(ham.onsite.columns), list(ham.couplings.columns)
-    # the config's tables are the Hamiltonian family's library ("default" start, "physical" pool)
-    settings = par_cfg.family_settings
-    assert settings.start == default_library(on, co)
-    assert settings.candidates == candidate_pool(on, co, ham.qubit_features,
-                                                 ham.coupler_features, base=None,
-                                                 parasitic=parasitic)
     rows = google_5q.train_index[:48]  # a small slice of the training rows
     X = ham_cfg.family.inputs(ham_cfg, google_5q).loc[rows]
     assert X.equals(par_cfg.family.inputs(par_cfg, google_5q).loc[rows])
@@ -227,22 +235,12 @@ def test_the_parasitic_device_config_has_the_hamiltonian_familys_library(google_
     """parametric_parasitic.toml's tables are hamiltonian_parasitic.toml's library (start
     "default", pool "physical" with the parasitic next-nearest couplings), and its model
     file's OPTIONAL parameters are those couplings."""
-    from pathlib import Path
-
-    from workbench.param_boost import default_library
-    from workbench.param_select import candidate_pool
     from workbench.parametric import load_model
 
-    root = Path(__file__).resolve().parents[1] / "experiments"
-    cfg = _small(root / "parametric_parasitic.toml", "parametric")
+    _device_library(google_5q, "parametric_parasitic.toml", "next_nearest")
     ham = google_5q.hamiltonian
     on, co = list(ham.onsite.columns), list(ham.couplings.columns)
-    settings = cfg.family_settings
-    assert settings.start == default_library(on, co)
-    assert settings.candidates == candidate_pool(on, co, ham.qubit_features,
-                                                 ham.coupler_features, base=None,
-                                                 parasitic="next_nearest")
-    model = load_model(root / "models" / "hamiltonian_device_parasitic.py")
+    model = load_model(EXPERIMENTS / "models" / "hamiltonian_device_parasitic.py")
     assert model.optional == ("f1~f3", "f2~f4", "f3~f5")
     assert model.names == on + co + list(model.optional)
 

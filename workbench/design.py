@@ -29,12 +29,16 @@ Core module: numpy only.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
+from sklearn.base import clone
 
-__all__ = ["CRITERIA", "Batch", "DesignProblem", "ensemble_blocks", "greedy_design",
+__all__ = ["CRITERIA", "Batch", "DesignProblem", "drift_problem", "ensemble_blocks",
+           "greedy_design",
            "robust_sd"]
 
 #: Design criteria of :func:`greedy_design`.
@@ -264,3 +268,53 @@ def ensemble_blocks(predictions: ArrayLike, noise_sd: ArrayLike) -> tuple[np.nda
     for t in range(q):
         blocks[:, t, t * K:(t + 1) * K] = E[:, :, t].T / sd[t]
     return blocks, np.eye(K * q)
+
+
+def drift_problem(regressor: Any, pool: Mapping[str, Sequence[str]], X: Any, Y: Any,
+                  candidates: Any, what: str, **params: Any) -> DesignProblem:
+    """The Fisher information of a fitted drift regressor's correction coefficients.
+
+    Gauss-Newton: the model's Jacobian times the covariates (the regressor's
+    ``coef_jacobian``), plus the ridge penalty as the coefficients' prior; one noise sd for
+    every target, the robust sd of the regressor's training residuals. The coefficients are
+    those of every covariate of ``pool`` besides the fitted ones (at the fitted model, the
+    others at 0: DuMouchel and Jones's "potential terms"), so a design does not starve the
+    terms a selection has not taken yet.
+
+    Parameters
+    ----------
+    regressor : DriftRegressor
+        The fitted regressor (:class:`~workbench.param_boost.HamiltonianParameterRegressor`
+        or :class:`~workbench.parametric_boost.ParametricRegressor`).
+    pool : mapping of str -> sequence of str
+        Each parameter's candidate covariates.
+    X, Y : DataFrame
+        The measured rows and targets the regressor was fitted on.
+    candidates : DataFrame
+        The candidate settings.
+    what : str
+        What the coefficients correct, for the problem's description.
+    **params
+        Further settings of the regressor with the whole pool.
+
+    Returns
+    -------
+    DesignProblem
+        One block per candidate.
+    """
+    library = {p: [c for c in names if c != "intercept"]
+               for p, names in regressor.covariate_names_.items()}
+    for p, names in pool.items():
+        library[p] = list(dict.fromkeys(library.get(p, []) + list(names)))
+    full = clone(regressor).set_params(covariates=library, max_iter=0, **params)
+    full.fit(X, Y, coef_init=regressor.coef_dict())
+    measured = np.asarray(Y, dtype=float)
+    fitted = np.asarray(regressor.predict(X), dtype=float).reshape(measured.shape)
+    sigma = float(robust_sd(measured - fitted))
+    names = [f"{p}:{c}" for p, c in full.coef_.index]
+    return DesignProblem(full.coef_jacobian(candidates) / sigma,
+                         full.information(X) / sigma**2,
+                         np.full(measured.shape[1], sigma), names,
+                         f"the {len(names)} correction coefficients of {what}",
+                         informs="the variance of the coefficient {name} falls "
+                                 "{fraction:.0%}")

@@ -26,13 +26,12 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, cast
 
-import numpy as np
 import pandas as pd
 from pydantic import Field
 from sklearn.base import clone
 from sklearn.model_selection import KFold
 
-from ...design import DesignProblem, robust_sd
+from ...design import DesignProblem, drift_problem
 from ...fitted_prior import FittedPriorBoost
 from ...param_boost import HamiltonianParameterRegressor, default_library
 from ...param_select import HamiltonianSelectionCV, candidate_pool
@@ -319,22 +318,9 @@ class HamiltonianFamily(ModelFamily):
         boosting stage on top is not part of it.
         """
         regressor = physics_regressor(model)
-        physics = model.physics_
-        library = {p: [c for c in names if c != "intercept"]
-                   for p, names in regressor.covariate_names_.items()}
-        for p, names in (getattr(physics, "candidates", None) or {}).items():
-            library[p] = list(dict.fromkeys(library.get(p, []) + list(names)))
-        full = clone(regressor).set_params(covariates=library, features=None, max_iter=0)
-        full.fit(X, Y, coef_init=regressor.coef_dict())
-        sigma = float(robust_sd(Y.to_numpy(dtype=float) - regressor.predict(X)))
-        names = [f"{p}:{c}" for p, c in full.coef_.index]
-        return DesignProblem(full.coef_jacobian(candidates) / sigma,
-                             full.information(X) / sigma**2,
-                             np.full(Y.shape[1], sigma), names,
-                             f"the {len(names)} correction coefficients of the Hamiltonian "
-                             "the selection could use",
-                             informs="the variance of the coefficient {name} falls "
-                                     "{fraction:.0%}")
+        pool = getattr(model.physics_, "candidates", None) or {}
+        return drift_problem(regressor, pool, X, Y, candidates,
+                             "the Hamiltonian the selection could use", features=None)
 
     def outputs(self, model: Any, ds: Dataset, setting: str | None = None) -> Artifacts:
         """Make the tables and figures of a fitted model.

@@ -41,7 +41,7 @@ from pydantic import Field, field_validator
 from sklearn.base import clone
 from sklearn.model_selection import KFold
 
-from ...design import DesignProblem, robust_sd
+from ...design import DesignProblem, drift_problem
 from ...fitted_prior import FittedPriorBoost
 from ...parametric import ModelError, load_model
 from ...parametric_boost import RIDGE_ALPHAS, ParametricBoostRegressor, ParametricRegressor
@@ -541,23 +541,8 @@ class ParametricFamily(ModelFamily):
         regressor = _used_regressor(model)
         if not isinstance(regressor, ParametricRegressor):
             return super().design_problem(model, X, Y, candidates, random_state)
-        library = {p: [c for c in names if c != "intercept"]
-                   for p, names in regressor.covariate_names_.items()}
-        for p, names in model.physics_.candidate_pool(X).items():
-            library[p] = list(dict.fromkeys(library.get(p, []) + list(names)))
-        full = clone(regressor).set_params(covariates=library, max_iter=0)
-        full.fit(X, Y, coef_init=regressor.coef_dict())
-        measured = Y.to_numpy(dtype=float)
-        fitted = np.asarray(regressor.predict(X), dtype=float).reshape(measured.shape)
-        sigma = float(robust_sd(measured - fitted))
-        names = [f"{p}:{c}" for p, c in full.coef_.index]
-        return DesignProblem(full.coef_jacobian(candidates) / sigma,
-                             full.information(X) / sigma**2,
-                             np.full(Y.shape[1], sigma), names,
-                             f"the {len(names)} correction coefficients of the model's "
-                             "parameters the selection could use",
-                             informs="the variance of the coefficient {name} falls "
-                                     "{fraction:.0%}")
+        return drift_problem(regressor, model.physics_.candidate_pool(X), X, Y, candidates,
+                             "the model's parameters the selection could use")
 
     def begin_artifacts(self, cfg: ExperimentConfig, ds: Dataset, model: Any, setting: str,
                         quick: bool = False) -> Callable[..., Artifacts]:
