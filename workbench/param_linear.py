@@ -24,6 +24,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import ArrayLike
 
+from ._covariates import column, term, variable
 from .hamiltonian import _hellmann_feynman
 from .param_boost import (
     HamiltonianParameterRegressor,
@@ -183,14 +184,12 @@ class _Columns:
         return known[factor] if factor in known else float((self.ref or self)(factor).mean())
 
     def __call__(self, name: str) -> np.ndarray:
-        from .parametric_boost import _column, _variable  # it imports the selection
-
         if name not in self.cache:
-            var = _variable(name, self.columns)
+            var = variable(name, self.columns)
             if var is None:
                 raise ValueError(f"unknown covariate variable {name!r}")
             if len(var) == 1:
-                v = _column(self.X, name)
+                v = column(self.X, name)
             elif var[0] == "*":
                 v = (self(var[1]) - self._mean(var[1])) * (self(var[2]) - self._mean(var[2]))
             else:
@@ -203,8 +202,6 @@ def _parametric(est: Any, X_fit: pd.DataFrame, X_val: pd.DataFrame) -> _Linearis
     """A :class:`~workbench.parametric_boost.ParametricRegressor`'s: the whole model (every
     optional parameter free, the ones not in the fit at their start values) and its Jacobian
     at the fitted parameters."""
-    from .parametric_boost import _term  # it imports the selection
-
     whole = resolve_model(est.model)
     col = {p: j for j, p in enumerate(whole.names)}
     T = est._n_outputs()
@@ -227,7 +224,7 @@ def _parametric(est: Any, X_fit: pd.DataFrame, X_val: pd.DataFrame) -> _Linearis
     vv = _Columns(est, X_val, ref=vf)
     columns = {str(c) for c in X_fit.columns}
     return _Linearised(col, lam_f, lam_v, J_f, J_v, Phi_f, Phi_v, sel, vf, vv,
-                       lambda name: _term(name, columns))
+                       lambda name: term(name, columns))
 
 
 def _current_step(est: Any, X_fit: pd.DataFrame, y_fit: np.ndarray,

@@ -34,6 +34,7 @@ from sklearn.base import BaseEstimator, RegressorMixin, clone
 from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from ._covariates import column, term, variable
 from ._progress import Progress
 from .parallel import effective_n_jobs
 from .param_engine import PARAM_LOSSES, SOLVERS, DriftRegressor
@@ -67,32 +68,6 @@ _SCIPY_LOSS = {"squared_error": "linear", "absolute_error": "soft_l1", "huber": 
 _MODEL = [str, os.PathLike, HasMethods(["predict", "jacobian", "start"])]
 
 
-def _variable(name: str, columns: set[str]) -> tuple[str, ...] | None:
-    """A variable: a column ``(c,)``, a product ``("*", a, b)``, a difference
-    ``("-", a, b)`` or a geometric mean ``("gm", a, b)`` (``"sqrt|a*b|"``) of two columns;
-    None if ``name`` is none of these."""
-    if name in columns:
-        return (name,)
-    if name.startswith("sqrt|") and name.endswith("|"):
-        inner = _variable(name[5:-1], columns)
-        return ("gm", *inner[1:]) if inner is not None and inner[0] == "*" else None
-    for op in ("*", "-"):
-        for k, char in enumerate(name):
-            if char == op and name[:k] in columns and name[k + 1:] in columns:
-                return (op, name[:k], name[k + 1:])
-    return None
-
-
-def _term(name: str, columns: set[str]) -> tuple[str, int]:
-    """Covariate name -> (variable, power): ``"x"``, ``"x^2"``, ``"a*b"``, ``"a-b^2"``."""
-    if _variable(name, columns):
-        return name, 1
-    base, sep, power = name.rpartition("^")
-    if sep and _variable(base, columns) and power.isdigit() and int(power) >= 1:
-        return base, int(power)
-    raise ValueError(f"unknown covariate {name!r}: a covariate is a column of X, a product "
-                     "'a*b', a difference 'a-b' or a geometric mean 'sqrt|a*b|' of two "
-                     f"columns, optionally followed by '^k'; X's columns are {sorted(columns)}")
 
 
 def covariate_pool(features: Sequence[str], parameters: Sequence[str], *, squares: bool = True,
@@ -120,13 +95,6 @@ def covariate_pool(features: Sequence[str], parameters: Sequence[str], *, square
         [f"{a}*{b}" for a, b in combinations(f, 2)] if products else [])
     return {p: list(names) for p in parameters}
 
-
-def _column(X: pd.DataFrame, name: str) -> np.ndarray:
-    """The column ``name`` of ``X`` as floats (a frame's columns by name, read as str)."""
-    key: Any = name
-    if name not in X.columns:
-        key = {str(c): c for c in X.columns}[name]
-    return pd.to_numeric(X[key], errors="coerce").to_numpy(dtype=float)
 
 
 def _targets(y: Any) -> np.ndarray:
@@ -300,17 +268,17 @@ class ParametricRegressor(DriftRegressor):
 
     # ------------------------------------------------------------------ design
     def _values(self, X: pd.DataFrame, name: str) -> np.ndarray:
-        var = _variable(name, self._columns)
+        var = variable(name, self._columns)
         assert var is not None
         if len(var) == 1:
-            values = _column(X, name)
+            values = column(X, name)
             if self.out_of_bounds == "clip" and name in self.column_range_:
                 values = np.clip(values, *self.column_range_[name])
             return values
         return self._combined(var, self._values(X, var[1]), self._values(X, var[2]))
 
     def _combined(self, var: tuple[str, ...], va: np.ndarray, vb: np.ndarray) -> np.ndarray:
-        """The variable ``var`` (:func:`_variable`'s) of two columns' values."""
+        """The variable ``var`` (:func:`workbench._covariates.variable`'s) of two columns."""
         op, a, b = var
         if op == "-":
             return va - vb
@@ -323,14 +291,14 @@ class ParametricRegressor(DriftRegressor):
         if fitting:
             self.column_range_ = {}
             columns = {c for ts in self.terms_.values() for v, _ in ts
-                       for c in (_variable(v, self._columns) or ())[-2:] if c in self._columns}
+                       for c in (variable(v, self._columns) or ())[-2:] if c in self._columns}
             for c in sorted(columns):
                 values = self._values(X, c)
                 self.column_range_[c] = (float(np.nanmin(values)), float(np.nanmax(values)))
             self.factor_mean_ = {}
             for ts in self.terms_.values():
                 for v, _ in ts:
-                    var = _variable(v, self._columns)
+                    var = variable(v, self._columns)
                     if var and var[0] == "*":
                         for f in var[1:]:
                             self.factor_mean_[f] = float(self._values(X, f).mean())
@@ -380,7 +348,7 @@ class ParametricRegressor(DriftRegressor):
         # "intercept": the parameter's offset alone (an optional parameter's way in)
         named = {p: [c for c in dict.fromkeys(covariates.get(p, [])) if c != "intercept"]
                  for p in model.names}
-        self.terms_ = {p: [_term(c, self._columns) for c in named[p]] for p in model.names}
+        self.terms_ = {p: [term(c, self._columns) for c in named[p]] for p in model.names}
         self.covariate_names_ = {p: ["intercept", *named[p]] for p in model.names}
         self.n_targets_ = Y.shape[1]
         start = model.start(X)
@@ -497,10 +465,10 @@ class ParametricRegressor(DriftRegressor):
         X = _as_frame(self, X, reset=False)
         out = np.zeros(len(X), dtype=bool)
         for v, (low, high) in self.variable_range_.items():
-            var = _variable(v, self._columns)
+            var = variable(v, self._columns)
             assert var is not None
-            values = (_column(X, v) if len(var) == 1 else
-                      self._combined(var, *(_column(X, f) for f in var[1:])))
+            values = (column(X, v) if len(var) == 1 else
+                      self._combined(var, *(column(X, f) for f in var[1:])))
             out |= ~((values >= low) & (values <= high))
         return out
 

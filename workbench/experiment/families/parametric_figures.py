@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pandas as pd
 
-from ...parametric_boost import _variable
+from ..._covariates import variable
 from ..figures.style import (
     INCUMBENT_COLOR,
     MODEL_COLOR,
@@ -35,18 +35,18 @@ def covariate_axis(name: str, X: pd.DataFrame) -> tuple[str, np.ndarray] | None:
 
     ``"day^2"`` -> ``("day", X["day"])``; ``"a*b"``, ``"a-b"``, ``"sqrt|a*b|"`` (and their
     powers) -> the product, the difference, the geometric mean. ``None`` for a name that is
-    none of these (:func:`workbench.parametric_boost._variable` reads the names).
+    none of these (:func:`workbench._covariates.variable` reads the names).
     """
     base, sep, power = name.rpartition("^")
-    variable = base if sep and power.isdigit() else name
+    axis = base if sep and power.isdigit() else name
     columns = {str(c): c for c in X.columns}
-    var = _variable(variable, set(columns))
+    var = variable(axis, set(columns))
     if var is None:
         return None
     if len(var) == 1:
-        return variable, X[columns[variable]].to_numpy(dtype=float)
+        return axis, X[columns[axis]].to_numpy(dtype=float)
     op, x, y = var[0], *(X[columns[c]].to_numpy(dtype=float) for c in var[1:])
-    return variable, {"*": x * y, "-": x - y, "gm": np.sqrt(np.abs(x * y))}[op]
+    return axis, {"*": x * y, "-": x - y, "gm": np.sqrt(np.abs(x * y))}[op]
 
 
 def drift_axes(coefficients: pd.DataFrame, X: pd.DataFrame) -> dict[str, tuple[str, np.ndarray]]:
