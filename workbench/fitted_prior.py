@@ -234,7 +234,6 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         self.n_features_in_ = X.shape[1]
         self.feature_names_in_ = np.asarray([str(c) for c in X.columns], dtype=object)
         self.physics_selected_ = np.ones(len(names), dtype=bool)
-        columns = isinstance(self.fallback, (list, tuple))
         if isinstance(self.fallback, (list, tuple)) and len(self.fallback) != len(names):
             raise ValueError(f"fallback names {len(self.fallback)} column(s) for "
                              f"{len(names)} targets")
@@ -262,8 +261,8 @@ class FittedPriorBoost(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
             folds[val] = k
         self.prior_folds_ = folds
         if self.fallback is not None:
-            if columns:
-                control = X[list(self.fallback)].to_numpy(dtype=float)
+            if isinstance(self.fallback, (list, tuple)):
+                control = self._control(X)
             else:  # its out-of-fold prediction, as the physics model's
                 self.fallback_ = clone(self.fallback).fit(X, Y_arr)
                 control = self._out_of_fold(self.fallback_, X, Y_arr, tasks)
