@@ -2,6 +2,7 @@
 warnings and worker pools behave."""
 
 import os
+import signal
 import time
 import warnings
 
@@ -11,6 +12,7 @@ import pytest
 from sklearn.exceptions import FitFailedWarning
 from sklearn.model_selection import KFold
 
+import workbench.parallel as par
 from workbench import (
     BaseBoostCV,
     BaseBoostRegressor,
@@ -20,6 +22,7 @@ from workbench import (
 )
 from workbench.bases import paper_stacking
 from workbench.curves import augmented_learning_curve
+from workbench.experiment.process import signals
 from workbench.parallel import (
     Task,
     effective_n_jobs,
@@ -125,6 +128,35 @@ def test_start_workers_forks_the_pool_from_the_calling_thread():
         thread.join()
         assert {o[0] for o in out} <= pids and [o[2] for o in out] == [0, 1, 4, 9]
     par.start_workers(2)  # no pool: nothing to do
+
+
+_INIT_WORKER = par.init_worker
+
+
+def _init_once_a_sigterm_waits(parent):
+    """A worker's initializer that first waits until a SIGTERM sent to it is pending, then
+    runs :func:`~workbench.parallel.init_worker`, whose default disposition ends it."""
+    deadline = time.monotonic() + 30
+    while signal.SIGTERM not in signal.sigpending() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    _INIT_WORKER(parent)
+    os._exit(3)  # not reached
+
+
+def test_a_sigterm_reaching_a_worker_before_its_initializer_waits_for_it(monkeypatch):
+    """A worker starts with SIGINT and SIGTERM blocked: one sent before its initializer ran
+    never runs the command's handler it was forked with (seen on a fresh clone: a config
+    error ended the pool at once, a child raised the command's interrupt just after fork()
+    and, unwinding into the parent's stack, ran the rest of the pytest worker's tests a
+    second time). It waits for the worker's own disposition and ends it."""
+    monkeypatch.setattr(par, "init_worker", _init_once_a_sigterm_waits)
+    with signals.handle_signals():  # the command's handler, as the fork inherits it
+        pool = par._Pool(1)
+        [proc] = pool.executor._processes.values()
+        os.kill(proc.pid, signal.SIGTERM)
+        proc.join(60)
+        pool.close(kill=True)
+    assert proc.exitcode == -signal.SIGTERM
 
 
 def _slow_pid(i):

@@ -184,12 +184,28 @@ def die_with_parent(parent: int, sig: int = signal.SIGKILL) -> None:
         os._exit(128 + sig)
 
 
+_ENDING_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+@contextlib.contextmanager
+def _signals_blocked() -> Iterator[None]:
+    """Block SIGINT and SIGTERM in this thread while the block runs (a process forked in it
+    starts with them blocked); one that arrives meanwhile is delivered after it."""
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, _ENDING_SIGNALS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
 def init_worker(parent: int) -> None:
     """Make this process a worker of process ``parent``: :func:`effective_n_jobs` is 1 here
     (the parent spreads the work; no nested processes), one BLAS/OpenMP thread, SIGINT
     ignored (the parent handles it and ends its workers; a task may handle signals itself,
-    as a sweep's worker does to queue its running trial again), and killed with its parent
-    (:func:`die_with_parent`).
+    as a sweep's worker does to queue its running trial again), SIGTERM's default action,
+    and killed with its parent (:func:`die_with_parent`). The pool forks with SIGINT and
+    SIGTERM blocked: they are unblocked here, once these dispositions replace the
+    parent's handlers.
 
     Parameters
     ----------
@@ -201,6 +217,7 @@ def init_worker(parent: int) -> None:
     _AMBIENT.clear()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, _ENDING_SIGNALS)  # blocked across the fork
     die_with_parent(parent, signal.SIGKILL)
     os.environ.update({k: "1" for k in THREAD_ENV})
     try:
@@ -250,9 +267,17 @@ class _Pool:
     def executor(self) -> ProcessPoolExecutor:
         if self._executor is None:
             ctx = multiprocessing.get_context("fork")
-            self._executor = ProcessPoolExecutor(self.n_jobs, mp_context=ctx,
-                                                 initializer=init_worker,
-                                                 initargs=(os.getpid(),))
+            ex = ProcessPoolExecutor(self.n_jobs, mp_context=ctx, initializer=init_worker,
+                                     initargs=(os.getpid(),))
+            # ProcessPoolExecutor forks every worker in its first submit. A child starts
+            # with this process's Python signal handlers: a SIGTERM (the pool ended at once,
+            # e.g. a config error) landing just after fork() ran the command's handler there
+            # and unwound the child into this process's stack, a second copy of the command
+            # (and of a pytest worker). Blocked across the fork, in the child a signal waits
+            # for init_worker's own dispositions.
+            with _signals_blocked():
+                ex.submit(int)
+            self._executor = ex
         return self._executor
 
     def close(self, *, kill: bool = False) -> None:
@@ -335,7 +360,7 @@ def start_workers(n_jobs: int | None) -> None:
         return
     pool = _AMBIENT[-1]
     if pool._executor is None:
-        pool.executor.submit(int).result()  # ProcessPoolExecutor forks every worker at once
+        pool.executor.submit(int).result()  # forked: one has started
 
 
 # --------------------------------------------------------------------------- plans
