@@ -4,8 +4,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from workbench._covariates import term
 from workbench.hamiltonian import CouplingGraph, graph_spectrum
-from workbench.param_boost import HamiltonianParameterRegressor, _parse, default_library
+from workbench.param_boost import HamiltonianParameterRegressor, default_library
 from workbench.param_select import candidate_pool, crosstalk_candidates, forward_select
 from workbench.simulate import Mismatch, simulate
 
@@ -48,14 +49,18 @@ def test_product_covariate_is_recovered_exactly():
 
 
 def test_product_names_parse():
-    variables = {"f1", "g1", "v_q1", "v_c1", "sqrt|g1*g2|", "a*b"}
-    assert _parse("v_q1*v_c1", variables) == ("v_q1*v_c1", 1)
-    assert _parse("v_q1*v_c1^2", variables) == ("v_q1*v_c1", 2)
-    assert _parse("sqrt|g1*g2|*f1", variables) == ("sqrt|g1*g2|*f1", 1)
-    assert _parse("sqrt|g1*g2|", variables) == ("sqrt|g1*g2|", 1)  # a variable, not a product
-    assert _parse("a*b", variables) == ("a*b", 1)  # a column whose name has a '*'
+    """The Hamiltonian regressor reads its covariates as the parametric one does
+    (:mod:`workbench._covariates`): products, differences and geometric means of columns."""
+    columns = {"f1", "f2", "g1", "g2", "v_q1", "v_c1", "a*b"}
+    assert term("v_q1*v_c1", columns) == ("v_q1*v_c1", 1)
+    assert term("v_q1*v_c1^2", columns) == ("v_q1*v_c1", 2)
+    assert term("f1-f2^2", columns) == ("f1-f2", 2)
+    assert term("sqrt|g1*g2|", columns) == ("sqrt|g1*g2|", 1)
+    assert term("a*b", columns) == ("a*b", 1)  # a column whose name has a '*'
     with pytest.raises(ValueError, match=r"unknown covariate 'v_q1\*v_q9'.*a product 'a\*b'"):
-        _parse("v_q1*v_q9", variables)
+        term("v_q1*v_q9", columns)
+    with pytest.raises(ValueError, match=r"unknown covariate 'sqrt\|g1\*g2\|\*f1'"):
+        term("sqrt|g1*g2|*f1", columns)  # a product of two columns only
 
 
 def test_crosstalk_candidates_follow_the_graph():

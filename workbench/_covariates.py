@@ -49,3 +49,26 @@ def column(X: pd.DataFrame, name: str) -> np.ndarray:
     if name not in X.columns:
         key = {str(c): c for c in X.columns}[name]
     return pd.to_numeric(X[key], errors="coerce").to_numpy(dtype=float)
+
+
+def float_block(X: pd.DataFrame, names: list[str]) -> np.ndarray:
+    """The columns ``names`` of ``X`` (by name, read as str) as one float array, converted
+    at once; raises ``KeyError`` for a missing one, ``TypeError`` or ``ValueError`` where
+    one is not numeric."""
+    position = {str(c): i for i, c in enumerate(X.columns)}
+    index = [position[n] for n in names]
+    try:  # an all-numeric frame converts as one block (the fits read it thousands of times)
+        return X.to_numpy(dtype=float)[:, index]
+    except (TypeError, ValueError):
+        return X.iloc[:, index].to_numpy(dtype=float)
+
+
+def columns(X: pd.DataFrame, names: list[str]) -> dict[str, np.ndarray]:
+    """The columns ``names`` of ``X`` as floats, each as :func:`column` reads it (a value
+    that is not a number is NaN), in one block where they convert at once."""
+    try:
+        block = float_block(X, names)
+    except (TypeError, ValueError):
+        return {n: column(X, n) for n in names}
+    return {n: block[:, j] for j, n in enumerate(names)}
+

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ._covariates import float_block
 from .parametric import ModelError, _restricted
 
 __all__ = ["TOPOLOGIES", "CouplingGraph", "HamiltonianModel", "chain_hamiltonian", "chain_spectrum",
@@ -715,7 +716,7 @@ class HamiltonianModel:
                                f"{missing}")
         out = np.zeros((len(data), len(self.names)))
         try:
-            out[:, :len(control)] = data[control].to_numpy(dtype=float)
+            out[:, :len(control)] = float_block(data, control)
         except (TypeError, ValueError) as exc:
             raise ModelError(f"model {self.source}: the parameter columns must be numeric: "
                                f"{exc}") from None

@@ -6,9 +6,10 @@ model's onsite frequencies and couplings (columns of ``X``) and the correction o
 parameter ``p`` is linear in a small covariate library, ``delta_p(x) = phi_p(x) . c_p``.
 The coefficients are fitted by (robust, regularised) Gauss-Newton with an exact
 re-diagonalisation at every iteration; the Jacobian comes from Hellmann-Feynman
-(:func:`workbench.hamiltonian.graph_spectrum`). The fit is the parameter-space engine both
-families share: the regressor is :class:`workbench.param_engine.DriftRegressor` with the
-physics of :class:`workbench.hamiltonian.HamiltonianModel` and this family's covariates.
+(:func:`workbench.hamiltonian.graph_spectrum`). It is the parametric family's regressor
+(:class:`workbench.param_regressor.ParametricRegressor`: its covariates, its fit) with the
+device's spectrum as the model (:func:`device_model`), its covariates named from the coupling
+graph (:func:`default_library`), no calibration step and IRLS weights by default.
 
 The device is any :class:`~workbench.hamiltonian.CouplingGraph` (``edges``; default the
 nearest-neighbour chain), optionally with *parasitic* couplings the control model lacks
@@ -20,21 +21,17 @@ parameter's correction, linear in covariates (by default the geometric means
 from __future__ import annotations
 
 import numbers
-from collections.abc import Collection, Container, Iterable, Sequence
-from typing import Any, Self
+from collections.abc import Iterable, Sequence
+from typing import Any, Self, cast
 
 import numpy as np
 import pandas as pd
-from sklearn.utils._param_validation import Interval, Options, StrOptions
+from sklearn.utils._param_validation import Options, StrOptions
 from sklearn.utils.validation import check_is_fitted
 
+from ._covariates import variable
 from .hamiltonian import PARASITIC_KINDS, CouplingGraph, HamiltonianModel
-from .param_engine import (
-    PARAM_LOSSES,
-    SOLVERS,
-    DriftRegressor,
-    padded,
-)
+from .param_regressor import ParametricRegressor
 from .parametric import restrict
 
 __all__ = ["HamiltonianParameterRegressor", "default_library", "device_model",
@@ -219,47 +216,7 @@ def default_library(onsite: Iterable[str], couplings: Iterable[str],
     return lib
 
 
-def product_factors(name: str, variables: Container[str]) -> tuple[str, str] | None:
-    """Split a product covariate's name into its two variables.
-
-    A name that is itself a variable is not a product.
-
-    Parameters
-    ----------
-    name : str
-        The covariate's name, e.g. ``"a*b"``.
-    variables : container of str
-        The variables' names.
-
-    Returns
-    -------
-    tuple of (str, str) or None
-        ``(a, b)`` when ``name`` is ``"a*b"`` and both are variables, else None.
-    """
-    if name in variables:
-        return None
-    for k, char in enumerate(name):
-        if char == "*" and name[:k] in variables and name[k + 1:] in variables:
-            return name[:k], name[k + 1:]
-    return None
-
-
-def _parse(name: str, variables: Collection[str]) -> tuple[str, int]:
-    """Covariate name -> (variable, power): ``"x"`` -> (x, 1), ``"x^2"`` -> (x, 2),
-    ``"x*z"`` -> (x*z, 1) (a product of two variables)."""
-    if name in variables or product_factors(name, variables):
-        return name, 1
-    base, sep, power = name.rpartition("^")
-    if (sep and (base in variables or product_factors(base, variables)) and power.isdigit()
-            and int(power) >= 1):
-        return base, int(power)
-    raise ValueError(f"unknown covariate {name!r}: a covariate is a parameter, a detuning "
-                     "'f_i-f_j', a geometric mean 'sqrt|g_a*g_b|', or a column of X, "
-                     "or a product 'a*b' of two of these, optionally followed by '^k'; "
-                     f"X's columns are {sorted(v for v in variables)}")
-
-
-class HamiltonianParameterRegressor(DriftRegressor):
+class HamiltonianParameterRegressor(ParametricRegressor):
     """Multi-output regressor of a device's N eigenvalues via corrections of its Hamiltonian.
 
     ``predict(X)`` = ascending eigenvalues of ``sign * H(theta(X) + delta(X))`` with
@@ -267,20 +224,22 @@ class HamiltonianParameterRegressor(DriftRegressor):
     ``delta_p(x) = phi_p(x) . c_p`` for each parameter ``p``.
 
     The covariates ``phi_p`` of parameter ``p`` are an intercept (never penalised) and the
-    covariates that ``covariates`` names for ``p``. A covariate is a *variable* optionally
-    raised to a power (``"f1^2"``); variables are the parameters themselves, the detunings
-    ``"f_i-f_j"`` (named from the onsite columns, lower site first), the geometric means
-    ``"sqrt|g_a*g_b|"`` of two couplings sharing a site, any column of ``X`` (e.g.
-    voltages), and the product ``"a*b"`` of two of these (each factor centred by its
-    training mean first; e.g. a qubit's bias times a neighbouring bias line, the first-order
-    frequency change from flux crosstalk). Every variable is centred by its training mean
+    covariates that ``covariates`` names for ``p``, in the parametric regressor's language
+    (:mod:`workbench._covariates`). A covariate is a *variable* optionally raised to a power
+    (``"f1^2"``); a variable is a column of ``X`` (the control parameters are columns; e.g.
+    voltages), or of two columns the difference ``"a-b"`` (a detuning ``"f_i-f_j"``), the
+    geometric mean ``"sqrt|a*b|"`` (of two couplings sharing a site) or the product
+    ``"a*b"`` (each factor centred by its training mean first; e.g. a qubit's bias times a
+    neighbouring bias line, the first-order frequency change from flux crosstalk). Every
+    variable is centred by its training mean
     before the power is taken; every covariate is then standardised with its training mean and
     sd (sd 0 -> 1), so a coefficient is in the targets' units (MHz) per standard deviation of
     its covariate.
 
     Fitting minimises ``sum rho(y - lambda) + alpha / 2 * ||c||^2 + alpha_l1 * ||c||_1``
-    (intercepts excluded from both penalties), ``rho`` one of :data:`PARAM_LOSSES`
-    (``r^2 / 2``, ``|r|`` or Huber), by Gauss-Newton with IRLS weights:
+    (intercepts excluded from both penalties), ``rho`` one of
+    :data:`~workbench.param_engine.PARAM_LOSSES` (``r^2 / 2``, ``|r|`` or Huber), by
+    Gauss-Newton with IRLS weights:
     ``(A^T W A + alpha D) dc = A^T W r - alpha D c`` with ``A`` the stacked
     ``J[:, k, p] * phi_p(x)``; with ``alpha_l1 > 0`` the step minimises the same quadratic
     model plus the L1 term (FISTA). The step is halved (up to 30 times) until
@@ -342,17 +301,16 @@ class HamiltonianParameterRegressor(DriftRegressor):
         ``coef_dict()`` gives the same as a dict.
     products_ : dict of str -> (str, str)
         The product covariates' variables and their two factors.
-    factor_mean_ : dict of str -> float or None
-        Training means of the product factors (None without products).
+    factor_mean_ : dict of str -> float
+        Training means of the product factors (empty without products).
+    model_ : HamiltonianModel
+        The spectrum fitted (:func:`device_model` with the active parasitic couplings).
     n_iter_ : int
         Gauss-Newton iterations taken.
     train_loss_ : ndarray
         Objective at the start and after each accepted iteration.
     n_features_in_, feature_names_in_
     """
-
-    #: the product covariates' factors' training means (set while fitting; a declaration only)
-    factor_mean_: dict[str, float] | None
 
     _parameter_constraints: dict = {
         "onsite": [None, list, tuple],
@@ -362,13 +320,9 @@ class HamiltonianParameterRegressor(DriftRegressor):
         "sign": [Options(numbers.Integral, {-1, 1})],
         "covariates": [StrOptions({"default"}), dict],
         "features": [None, list, tuple],
-        "alpha": [Interval(numbers.Real, 0, None, closed="left")],
-        "alpha_l1": [Interval(numbers.Real, 0, None, closed="left")],
-        "loss": [StrOptions(set(PARAM_LOSSES))],
-        "huber_delta": [Interval(numbers.Real, 0, None, closed="neither")],
-        "max_iter": [Interval(numbers.Integral, 0, None, closed="left")],
-        "tol": [Interval(numbers.Real, 0, None, closed="left")],
-        "solver": [StrOptions(set(SOLVERS))],
+        # the fit's settings, as the parametric regressor declares them
+        **{k: v for k, v in ParametricRegressor._parameter_constraints.items()
+           if k in ("alpha", "alpha_l1", "loss", "huber_delta", "max_iter", "tol", "solver")},
     }
 
     def __init__(self, *, onsite: Sequence[str] | None = None,
@@ -384,7 +338,7 @@ class HamiltonianParameterRegressor(DriftRegressor):
         self.edges = edges
         self.parasitic = parasitic
         self.sign = sign
-        self.covariates = covariates
+        self.covariates = covariates  # type: ignore[assignment]  # also "default"
         self.features = features
         self.alpha = alpha
         self.alpha_l1 = alpha_l1
@@ -412,143 +366,39 @@ class HamiltonianParameterRegressor(DriftRegressor):
             raise ValueError("onsite, couplings and features must name distinct columns")
         extra = parasitic_names(onsite, pairs)
         params = onsite + couplings
-        if isinstance(self.covariates, str):  # "default"
+        covariates: Any = self.covariates
+        if isinstance(covariates, str):  # "default"
             library = default_library(onsite, couplings, self.edges, pairs)
         else:
-            unknown = [p for p in self.covariates if p not in params + extra]
+            unknown = [p for p in covariates if p not in params + extra]
             if unknown:
                 raise ValueError(f"covariates names unknown parameter(s) {unknown}; "
                                  f"parameters are {params + extra}")
-            library = {p: _names(self.covariates.get(p, []), f"covariates[{p!r}]")
+            library = {p: _names(covariates.get(p, []), f"covariates[{p!r}]")
                        for p in params + extra}
         active = [(pair, p) for pair, p in zip(pairs, extra) if library.get(p)]
         graph = graph.with_edges([pair for pair, _ in active])
         return onsite, couplings, features, library, graph, [p for _, p in active]
 
-    # ------------------------------------------------------------------ covariates
-    def _derived(self, onsite: list[str], couplings: list[str],
-                 graph: CouplingGraph) -> dict[str, tuple]:
-        """Derived variables: detunings of every site pair and geometric means of every two
-        couplings sharing a site -> how to compute them from theta."""
-        out = {}
-        N = len(onsite)
-        for i in range(N):
-            for j in range(i + 1, N):
-                out[_detuning(onsite, i, j)] = ("-", i, j)
-            touching = [e for e in graph.site_edges(i) if e < len(couplings)]
-            for a in touching:
-                for b in touching:
-                    if a != b:
-                        out[_geomean(couplings[a], couplings[b])] = ("gm", N + a, N + b)
-        return out
+    #: The parametric regressor's settings this one fixes: no calibration (the control
+    #: values are the start, every intercept starts at 0), no guard beyond the training box.
+    calibrate = False
+    out_of_bounds = "extrapolate"
+    _IRLS_FALLBACK = True
+    _CHECK_MODEL = False  # the model is the device's spectrum; fit checks its columns
 
-    def _resolve_library(self, X: pd.DataFrame, onsite: list[str], couplings: list[str],
-                         features: list[str], library: dict[str, list[str]], extra: list[str]
-                         ) -> tuple[dict[str, list[tuple[str, int]]], list[str]]:
-        """(variable, power) terms of each parameter and the X columns they read."""
-        params = onsite + couplings + extra
-        internal = set(onsite + couplings) | set(self._derived_)
-        variables = internal | {str(c) for c in X.columns}
-        every = [(v, k) for v in features for k in (1, 2)]
-        terms = {p: [_parse(name, variables) for name in library[p]]
-                 + (every if p not in extra else []) for p in params}
-        used = list(dict.fromkeys(v for ts in terms.values() for v, _ in ts))
-        self.products_ = {v: pair for v in used
-                          if (pair := product_factors(v, variables)) is not None}
-        plain = [f for v in used for f in self.products_.get(v, (v,))]
-        columns = list(dict.fromkeys(v for v in plain if v not in internal))
-        return terms, columns
+    # ------------------------------------------------------------------ the model
+    def _whole_model(self) -> HamiltonianModel:
+        """The device's spectrum with every parasitic coupling (:func:`device_model`)."""
+        device = getattr(self, "_device", None)
+        if device is None:  # before fit
+            device = device_model(_names(self.onsite, "onsite"),
+                                  _names(self.couplings, "couplings"), self.edges,
+                                  self.parasitic, self.sign)
+        return device
 
-    def _variables(self, X: pd.DataFrame) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        """Control parameters ``theta0`` (n, N + E) and the variables the terms use."""
-        control = self.onsite_ + self.couplings_
-        theta = _columns(X, control, "parameter")
-        out = {name: theta[:, j] for j, name in enumerate(control)}
-        used = {v for ts in self.terms_.values() for v, _ in ts}
-        factors = {f for v in used for f in self.products_.get(v, ())}
-        for name in (used | factors) - set(self.products_):
-            how = self._derived_.get(name)
-            if how is None or name in out:
-                continue
-            kind, a, b = how
-            out[name] = (theta[:, a] - theta[:, b] if kind == "-"
-                         else np.sqrt(np.abs(theta[:, a] * theta[:, b])))
-        if self.columns_:
-            V = _columns(X, self.columns_, "covariate")
-            out.update({name: V[:, j] for j, name in enumerate(self.columns_)})
-        if self.products_:
-            if self.factor_mean_ is None:  # fitting: the factors' training means
-                self.factor_mean_ = {f: float(out[f].mean()) for f in factors}
-            for name, (a, b) in self.products_.items():
-                out[name] = (out[a] - self.factor_mean_[a]) * (out[b] - self.factor_mean_[b])
-        return theta, out
-
-    def _design(self, variables: dict[str, np.ndarray], n: int, fitting: bool) -> list:
-        """Standardised covariate matrix ``phi_p`` (with intercept first) of each parameter."""
-        phis = []
-        for p in self.parameter_names_:
-            cols = [(variables[v] - self.var_mean_[v]) ** k for v, k in self.terms_[p]]
-            raw = np.column_stack(cols) if cols else np.empty((n, 0))
-            if fitting:
-                sd = raw.std(axis=0)
-                self.col_mean_[p], self.col_scale_[p] = raw.mean(axis=0), np.where(sd > 0, sd, 1.0)
-            z = (raw - self.col_mean_[p]) / self.col_scale_[p]
-            phis.append(np.column_stack([np.ones(n), z]))
-        return phis
-
-    def _padded(self, phis: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-        """``phis`` as one (n, P, K) array (zero-padded) and the flat positions of the
-        coefficients in it."""
-        return padded(phis)
-
-    # ------------------------------------------------------------------ model
-    def _start(self, theta0: np.ndarray) -> np.ndarray:
-        """The parameters' start values: the control values, 0 for parasitic couplings."""
-        if theta0.shape[1] == len(self.parameter_names_):
-            return theta0
-        start = np.zeros((len(theta0), len(self.parameter_names_)))
-        start[:, :theta0.shape[1]] = theta0
-        return start
-
-    def _setup(self, X: pd.DataFrame, y: Any) -> tuple[np.ndarray, np.ndarray, list[np.ndarray],
-                                                     list[tuple[str, str]], np.ndarray]:
-        """Validate, resolve the covariates and build the design of the training rows."""
-        onsite, couplings, features, library, graph, extra = self._check_params()
-        if not isinstance(X, pd.DataFrame):
-            raise ValueError("X must be a pandas DataFrame holding the onsite, coupling and "
-                             f"covariate columns by name, got {type(X).__name__}")
-        if len(X) == 0:
-            raise ValueError("X has no rows")
-        self.onsite_, self.couplings_, self.features_ = onsite, couplings, features
-        self.parasitic_ = extra
-        self.graph_ = graph
-        self.parameter_names_ = onsite + couplings + extra
-        self.model_ = restrict(device_model(onsite, couplings, self.edges, self.parasitic,
-                                            self.sign), self.parameter_names_)
-        self._derived_ = self._derived(onsite, couplings, graph)
-        self.terms_, self.columns_ = self._resolve_library(X, onsite, couplings, features,
-                                                           library, extra)
-        self.factor_mean_ = None  # set by _variables
-        theta0, variables = self._variables(X)
-        n, N = len(theta0), len(onsite)
-        y = np.asarray(y, dtype=float)
-        if y.shape != (n, N):
-            raise ValueError(f"y must have shape (n_samples, n_sites) = ({n}, {N}), "
-                             f"got {y.shape}")
-        if not np.all(np.isfinite(y)):
-            raise ValueError("y contains NaN or infinite values")
-        self.feature_names_in_ = np.asarray([str(c) for c in X.columns], dtype=object)
-        self.n_features_in_ = X.shape[1]
-        self.var_mean_ = {k: float(v.mean()) for k, v in variables.items()}
-        self.col_mean_: dict[str, np.ndarray] = {}
-        self.col_scale_: dict[str, np.ndarray] = {}
-        phis = self._design(variables, n, fitting=True)
-        self.covariate_names_ = {
-            p: ["intercept"] + [v if k == 1 else f"{v}^{k}" for v, k in self.terms_[p]]
-            for p in self.parameter_names_}
-        index = [(p, name) for p in self.parameter_names_ for name in self.covariate_names_[p]]
-        self._layout(phis)
-        return theta0, y, phis, index, self._penalty()
+    def _named_covariates(self) -> dict[str, list[str]]:
+        return self._library
 
     def fit(self, X: pd.DataFrame, y: Any, coef_init: Any = None) -> Self:
         """Fit the coefficients on ``X`` (DataFrame) and ``y`` (n, N ascending eigenvalues).
@@ -570,12 +420,39 @@ class HamiltonianParameterRegressor(DriftRegressor):
         self
             The fitted model.
         """
-        theta0, y, phis, index, penalty = self._setup(X, y)
-        self._fit_drift(self.model_, X, self._start(theta0), y, phis,
-                        self._coef_start(coef_init, index), penalty, solver=self.solver,
-                        irls_fallback=True)
-        self._index = index
+        onsite, couplings, features, library, graph, extra = self._check_params()
+        if not isinstance(X, pd.DataFrame):
+            raise ValueError("X must be a pandas DataFrame holding the onsite, coupling and "
+                             f"covariate columns by name, got {type(X).__name__}")
+        if len(X) == 0:
+            raise ValueError("X has no rows")
+        n, N = len(X), len(onsite)
+        _columns(X, onsite + couplings, "parameter")  # present, numeric and finite
+        if features:
+            _columns(X, features, "feature")
+        y = np.asarray(y, dtype=float)
+        if y.shape != (n, N):
+            raise ValueError(f"y must have shape (n_samples, n_sites) = ({n}, {N}), "
+                             f"got {y.shape}")
+        if not np.all(np.isfinite(y)):
+            raise ValueError("y contains NaN or infinite values")
+        self.onsite_, self.couplings_, self.features_ = onsite, couplings, features
+        self.parasitic_, self.graph_ = extra, graph
+        self._device = device_model(onsite, couplings, self.edges, self.parasitic, self.sign)
+        every = [f"{v}^{k}" if k > 1 else v for v in features for k in (1, 2)]
+        self._library = {p: list(library.get(p, [])) + (every if p in onsite + couplings
+                                                         else [])
+                         for p in onsite + couplings + extra}
+        self._fit(X, y, coef_init)  # the parameters were validated above
+        self.model_ = restrict(self._device, self.parameter_names_)
+        self.products_ = {v: cast(tuple[str, str], tuple(var[1:]))
+                          for ts in self.terms_.values() for v, _ in ts
+                          if (var := variable(v, self._columns)) and var[0] == "*"}
         return self
+
+    def _physics(self) -> Any:
+        check_is_fitted(self)
+        return self.model_
 
     def _check_X(self, X: Any) -> None:
         check_is_fitted(self)
@@ -583,40 +460,13 @@ class HamiltonianParameterRegressor(DriftRegressor):
             raise ValueError("X must be a pandas DataFrame holding the onsite, coupling and "
                              f"covariate columns by name, got {type(X).__name__}")
 
-    def _physics(self) -> HamiltonianModel:
-        model = getattr(self, "model_", None)
-        if model is None:  # a model pickled before model_ existed
-            model = HamiltonianModel(tuple(self.onsite_), tuple(self.couplings_), self.graph_,
-                                     tuple(self.parasitic_), self.sign)
-        return model
-
-    def _n_outputs(self) -> int:
-        return len(self.onsite_)
-
     def _rows(self, X: Any) -> tuple[pd.DataFrame, np.ndarray, list[np.ndarray]]:
         self._check_X(X)
-        theta0, variables = self._variables(X)
-        return X, self._start(theta0), self._design(variables, len(theta0), fitting=False)
-
-    def corrected_parameters(self, X: pd.DataFrame) -> pd.DataFrame:
-        """``theta(X) + delta(X)``, columns named like the onsite and coupling inputs (and
-        the active parasitic couplings).
-
-        Parameters
-        ----------
-        X : pandas.DataFrame of shape (n_samples, n_features)
-            The onsite, coupling and covariate columns, by name.
-
-        Returns
-        -------
-        pandas.DataFrame
-            The corrected parameters, indexed as ``X``.
-        """
-        return pd.DataFrame(self._corrected(X), columns=self.parameter_names_, index=X.index)
+        return super()._rows(X)
 
     def control_parameters(self, X: pd.DataFrame) -> pd.DataFrame:
         """The control model's parameters ``theta(X)`` in :attr:`parameter_names_` order
-        (0 for the parasitic couplings it lacks).
+        (0 for the parasitic couplings it lacks): :meth:`start_parameters`.
 
         Parameters
         ----------
@@ -629,29 +479,4 @@ class HamiltonianParameterRegressor(DriftRegressor):
             The control parameters, indexed as ``X``.
         """
         self._check_X(X)
-        theta0 = _columns(X, self.onsite_ + self.couplings_, "parameter")
-        full = np.zeros((len(X), len(self.parameter_names_)))
-        full[:, :theta0.shape[1]] = theta0
-        return pd.DataFrame(full, columns=self.parameter_names_, index=X.index)
-
-    def _slice_of(self, p: str) -> slice:
-        return self._slices[self.parameter_names_.index(p)]
-
-    def predict(self, X: pd.DataFrame) -> np.ndarray:
-        """Ascending eigenvalues of ``sign * H(theta(X) + delta(X))``.
-
-        Parameters
-        ----------
-        X : pandas.DataFrame of shape (n_samples, n_features)
-            The onsite, coupling and covariate columns, by name.
-
-        Returns
-        -------
-        ndarray of shape (n_samples, N)
-            The predicted eigenvalues.
-        """
-        return self._physics().predict(self._corrected(X))
-
-    def __sklearn_is_fitted__(self) -> bool:
-        """Tell scikit-learn whether :meth:`fit` has run."""
-        return hasattr(self, "_coef")
+        return self.start_parameters(X)

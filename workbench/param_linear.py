@@ -1,7 +1,8 @@
 """Cheap scores of candidate covariates for forward selection: one Gauss-Newton step.
 
-Around a fitted drift regressor (:class:`~workbench.param_boost.HamiltonianParameterRegressor`
-or :class:`~workbench.parametric_boost.ParametricRegressor`) the model is linear in its
+Around a fitted :class:`~workbench.param_regressor.ParametricRegressor` (the Hamiltonian
+family's :class:`~workbench.param_boost.HamiltonianParameterRegressor` is one) the model is
+linear in its
 coefficients: ``lambda(c + dc) ~ lambda(c) + A dc`` with ``A`` the stacked
 ``J[:, k, p] * phi_p(x)``. Adding candidate columns ``a`` (one covariate; for an optional
 parameter not yet in the model, such as a parasitic coupling, its intercept too) and taking
@@ -9,9 +10,9 @@ the Gauss-Newton step of the enlarged model (IRLS weights fixed) is a bordered l
 solved through the Schur complement with the current normal matrix's inverse: O(n D) per
 candidate instead of a refit. The step predicts the held-out targets; :func:`linear_scores`
 returns the held-out absolute errors of every candidate. The Jacobian of an optional
-parameter not yet in the model (at its start value) is the whole model's: for the
-Hamiltonian from the same eigenvectors (Hellmann-Feynman), for any other model its
-``jacobian`` with every parameter free.
+parameter not yet in the model (at its start value) is the whole model's, every parameter
+free: its ``predict_and_jacobian`` where it has one (the Hamiltonian's: Hellmann-Feynman from
+one eigendecomposition), else its ``jacobian``.
 """
 
 from __future__ import annotations
@@ -25,78 +26,10 @@ import pandas as pd
 from numpy.typing import ArrayLike
 
 from ._covariates import column, term, variable
-from .hamiltonian import _hellmann_feynman
-from .param_boost import (
-    HamiltonianParameterRegressor,
-    _columns,
-    _parse,
-    parasitic_names,
-    product_factors,
-    resolve_graph,
-)
 from .param_engine import _normal_equations, _weights, padded
-from .parametric import cached_jacobian, resolve_model
+from .parametric import cached_jacobian
 
 __all__ = ["linear_scores"]
-
-
-def _eigvecs(est: HamiltonianParameterRegressor, X: pd.DataFrame
-             ) -> tuple[np.ndarray, np.ndarray]:
-    """Eigenvalues and eigenvectors of ``sign * H`` at the fitted corrected parameters."""
-    theta = est._corrected(X)
-    N = len(est.onsite_)
-    graph = est.graph_
-    h = np.zeros((len(theta), N, N))
-    d = np.arange(N)
-    h[:, d, d] = theta[:, :N]
-    for e, (a, b) in enumerate(graph.edges):
-        h[:, a, b] = h[:, b, a] = theta[:, N + e]
-    return np.linalg.eigh(est.sign * h)
-
-
-def _jacobian(vec: np.ndarray, sign: int, N: int, pairs: list[tuple[int, int]]) -> np.ndarray:
-    """``d lambda_k / d theta_p`` for the onsite terms and the couplings of ``pairs``."""
-    a = np.array([i for i, _ in pairs], dtype=int)
-    b = np.array([j for _, j in pairs], dtype=int)
-    return _hellmann_feynman(vec, sign, a, b, np.empty((vec.shape[0], N, N + len(pairs))))
-
-
-class _Variables:
-    """Raw variable values of a frame, as the regressor computes them (a product's factors
-    centred by the fitted model's means, or for a new product by those of ``ref``, the
-    fitting rows' variables)."""
-
-    def __init__(self, est: HamiltonianParameterRegressor, X: pd.DataFrame,
-                 ref: _Variables | None = None) -> None:
-        self.est, self.X, self.ref = est, X, ref
-        self.theta = _columns(X, est.onsite_ + est.couplings_, "parameter")
-        self.names = {n: j for j, n in enumerate(est.onsite_ + est.couplings_)}
-        self.cache: dict[str, np.ndarray] = {}
-        self.variables: set[str] | None = None
-
-    def _mean(self, factor: str) -> float:
-        known = self.est.factor_mean_ or {}
-        return known[factor] if factor in known else (self.ref or self)(factor).mean()
-
-    def __call__(self, name: str) -> np.ndarray:
-        if name not in self.cache:
-            if self.variables is None:
-                self.variables = (set(self.names) | set(self.est._derived_)
-                                  | {str(c) for c in self.X.columns})
-            factors = self.est.products_.get(name) or product_factors(name, self.variables)
-            if factors:
-                a, b = factors
-                v = (self(a) - self._mean(a)) * (self(b) - self._mean(b))
-            elif name in self.names:
-                v = self.theta[:, self.names[name]]
-            elif name in self.est._derived_:
-                kind, a, b = self.est._derived_[name]
-                v = (self.theta[:, a] - self.theta[:, b] if kind == "-"
-                     else np.sqrt(np.abs(self.theta[:, a] * self.theta[:, b])))
-            else:
-                v = _columns(self.X, [name], "covariate")[:, 0]
-            self.cache[name] = v
-        return self.cache[name]
 
 
 @dataclass
@@ -142,35 +75,8 @@ class _Linearised:
     parse: Callable[[str], tuple[str, int]]
 
 
-def _hamiltonian(est: HamiltonianParameterRegressor, X_fit: pd.DataFrame,
-                 X_val: pd.DataFrame) -> _Linearised:
-    """The Hamiltonian regressor's: eigenvectors give the spectrum and, by Hellmann-Feynman,
-    the derivatives by every coupling (the parasitic ones at 0 too)."""
-    N = len(est.onsite_)
-    _, all_pairs = resolve_graph(N, est.edges, est.parasitic)
-    pairs = list(est.graph_.edges[:len(est.couplings_)]) + list(all_pairs)
-    names = est.onsite_ + est.couplings_ + parasitic_names(est.onsite_, all_pairs)
-    col = {p: j for j, p in enumerate(names)}
-    lam_f, vec_f = _eigvecs(est, X_fit)
-    lam_v, vec_v = _eigvecs(est, X_val)
-    J_f = _jacobian(vec_f, est.sign, N, pairs)
-    J_v = _jacobian(vec_v, est.sign, N, pairs)
-    del vec_f, vec_v
-    vf = _Variables(est, X_fit)
-    vv = _Variables(est, X_val, ref=vf)
-    n, nv = len(X_fit), len(X_val)
-    var_f = {v: vf(v) for ts in est.terms_.values() for v, _ in ts}
-    var_v = {v: vv(v) for ts in est.terms_.values() for v, _ in ts}
-    Phi_f, sel = est._padded(est._design(var_f, n, fitting=False))
-    Phi_v, _ = est._padded(est._design(var_v, nv, fitting=False))
-    all_vars = set(est._derived_) | set(est.onsite_ + est.couplings_) | \
-        {str(v) for v in X_fit.columns}
-    return _Linearised(col, lam_f, lam_v, J_f, J_v, Phi_f, Phi_v, sel, vf, vv,
-                       lambda name: _parse(name, all_vars))
-
-
 class _Columns:
-    """A :class:`~workbench.parametric_boost.ParametricRegressor`'s variables on a frame (its
+    """A :class:`~workbench.param_regressor.ParametricRegressor`'s variables on a frame (its
     columns, products, differences, geometric means), a new product's factors centred by
     the fitting rows' means (``ref``)."""
 
@@ -199,10 +105,10 @@ class _Columns:
 
 
 def _parametric(est: Any, X_fit: pd.DataFrame, X_val: pd.DataFrame) -> _Linearised:
-    """A :class:`~workbench.parametric_boost.ParametricRegressor`'s: the whole model (every
+    """A :class:`~workbench.param_regressor.ParametricRegressor`'s: the whole model (every
     optional parameter free, the ones not in the fit at their start values) and its Jacobian
     at the fitted parameters."""
-    whole = resolve_model(est.model)
+    whole = est._whole_model()
     col = {p: j for j, p in enumerate(whole.names)}
     T = est._n_outputs()
     # the start of each parameter not in the fit (a column's parameter is always fitted)
@@ -231,8 +137,7 @@ def _current_step(est: Any, X_fit: pd.DataFrame, y_fit: np.ndarray,
                   X_val: pd.DataFrame, y_val: np.ndarray, irls: bool = False) -> _Step:
     """The current design, normal equations and Newton step of ``est`` (as in fit, at the
     solution)."""
-    lin = (_hamiltonian if isinstance(est, HamiltonianParameterRegressor) else _parametric)(
-        est, X_fit, X_val)
+    lin = _parametric(est, X_fit, X_val)
     col, J_f, J_v = lin.col, lin.J_f, lin.J_v
     active = [col[p] for p in est.parameter_names_]
     r = y_fit - lin.lam_f

@@ -37,8 +37,7 @@ from sklearn.utils.validation import check_is_fitted, has_fit_parameter
 
 from .bases import basis_names, make_basis
 from .param_engine import PARAM_LOSSES
-from .parametric import ParametricModel, check_model, resolve_model, restrict
-from .parametric_boost import (
+from .param_regressor import (
     OUT_OF_BOUNDS,
     ParametricRegressor,
     _as_frame,
@@ -46,6 +45,7 @@ from .parametric_boost import (
     _targets,
     _trial,
 )
+from .parametric import ParametricModel, check_model, resolve_model, restrict
 
 __all__ = ["ParameterSpaceBoostRegressor", "make_regressor"]
 
