@@ -288,6 +288,23 @@ def test_rows_the_drift_takes_outside_the_domain_get_the_calibrated_model(tmp_pa
         drift.predict(new.iloc[:2].assign(x=[np.nan, 1.0]))
 
 
+def test_a_covariate_column_with_missing_values_is_one_line(tmp_path):
+    """A covariate's column with a missing or non-numeric value: one line naming the
+    parameter and the column, in fit and in predict."""
+    path = _write(tmp_path, ROOT)
+    rng = np.random.default_rng(0)
+    X = pd.DataFrame({"x": rng.uniform(1, 2, 40), "temp": rng.uniform(0, 1, 40)})
+    y = np.sqrt(0.8 + 6.0 * X["temp"].to_numpy()) * X["x"].to_numpy()
+    est = ParametricRegressor(model=path, covariates={"k": ["temp*x"]})
+    match = r"covariates of parameter 'k' have missing or non-numeric values \(column\(s\) " \
+            r"\['temp'\]\)"
+    with pytest.raises(ValueError, match=match):
+        est.fit(X.assign(temp=X["temp"].where(X.index != 3)), y)
+    est.fit(X, y)
+    with pytest.raises(ValueError, match=match):
+        est.predict(X.assign(temp=["warm"] + list(X["temp"].iloc[1:])))
+
+
 def test_targets_in_small_units_can_leave_the_prior(tmp_path):
     """min_improvement is in the targets' unit, at most 1% of the prior's training MAE: a
     rate in units of 1e-9 used to keep the prior (no gain can exceed 1e-3 there)."""

@@ -105,6 +105,13 @@ def _fingerprint(X: pd.DataFrame, Y: np.ndarray) -> str:
     return digest.hexdigest()
 
 
+def _finite(values: dict[str, np.ndarray]) -> np.ndarray:
+    """Whether each of ``values``' arrays is finite everywhere (one check over them all)."""
+    if not values:
+        return np.ones(0, dtype=bool)
+    return np.isfinite(np.column_stack(list(values.values()))).all(axis=0)
+
+
 def _ranges(values: dict[str, np.ndarray], low: Any, high: Any) -> dict[str, tuple[float, float]]:
     """``(low, high)`` of each of ``values``' arrays (one reduction over them all)."""
     if not values:
@@ -112,13 +119,6 @@ def _ranges(values: dict[str, np.ndarray], low: Any, high: Any) -> dict[str, tup
     block = np.column_stack(list(values.values()))
     lo, hi = low(block, axis=0), high(block, axis=0)
     return {k: (float(a), float(b)) for k, a, b in zip(values, lo, hi)}
-
-
-def _leaves(name: str, names: set[str]) -> tuple[str, ...]:
-    """The columns a covariate's variable is made of."""
-    var = variable(name, names)
-    assert var is not None
-    return var if len(var) == 1 else var[1:]
 
 
 class _WarmStart(dict):
@@ -236,11 +236,26 @@ class ParametricRegressor(DriftRegressor):
         self.solver = solver
 
     # ------------------------------------------------------------------ design
+    def _var(self, name: str) -> tuple[str, ...]:
+        """:func:`~workbench._covariates.variable` of ``name`` over the training columns,
+        remembered (a selection designs thousands of fits)."""
+        parsed = self.__dict__.setdefault("_parsed", {})
+        var = parsed.get(name)
+        if var is None:
+            var = parsed[name] = variable(name, self._columns)
+            assert var is not None
+        return var
+
+    def _leaves(self, name: str) -> tuple[str, ...]:
+        """The columns a covariate's variable is made of."""
+        var = self._var(name)
+        return var if len(var) == 1 else var[1:]
+
     def _raw(self, X: pd.DataFrame) -> dict[str, np.ndarray]:
         """The columns the covariates are made of, read at once (clipped to their training
         range with ``out_of_bounds="clip"``)."""
         names = sorted({c for ts in self.terms_.values() for v, _ in ts
-                        for c in _leaves(v, self._columns)})
+                        for c in self._leaves(v)})
         raw = columns(X, names)
         if self.out_of_bounds == "clip":
             for c, (low, high) in getattr(self, "column_range_", {}).items():
@@ -249,8 +264,7 @@ class ParametricRegressor(DriftRegressor):
         return raw
 
     def _values(self, raw: dict[str, np.ndarray], name: str) -> np.ndarray:
-        var = variable(name, self._columns)
-        assert var is not None
+        var = self._var(name)
         if len(var) == 1:
             return raw[name]
         return self._combined(var, raw[var[1]], raw[var[2]])
@@ -269,13 +283,19 @@ class ParametricRegressor(DriftRegressor):
         if fitting:
             self.column_range_ = {}
         leaf = self._raw(X)
+        bad = [c for c, ok in zip(leaf, _finite(leaf)) if not ok]
+        if bad:  # named by the first parameter whose covariates read such a column
+            p = next(p for p in self.parameter_names_
+                     if any(set(self._leaves(v)) & set(bad) for v, _ in self.terms_[p]))
+            raise ValueError(f"the covariates of parameter {p!r} have missing or "
+                             f"non-numeric values (column(s) {bad})")
         if fitting:
             self.column_range_ = _ranges(leaf, np.nanmin, np.nanmax)
             self.factor_mean_ = {}
             for ts in self.terms_.values():
                 for v, _ in ts:
-                    var = variable(v, self._columns)
-                    if var and var[0] == "*":
+                    var = self._var(v)
+                    if var[0] == "*":
                         for f in var[1:]:
                             self.factor_mean_[f] = float(leaf[f].mean())
             self.var_mean_, self.col_mean_, self.col_scale_ = {}, {}, {}
@@ -290,9 +310,6 @@ class ParametricRegressor(DriftRegressor):
                         self.var_mean_[v] = float(cache[v].mean())
                 cols.append((cache[v] - self.var_mean_[v]) ** k)
             raw = np.column_stack(cols) if cols else np.empty((n, 0))
-            if not np.all(np.isfinite(raw)):
-                raise ValueError(f"the covariates of parameter {p!r} have missing or "
-                                 "non-numeric values")
             if fitting:
                 sd = raw.std(axis=0)
                 self.col_mean_[p] = raw.mean(axis=0)
@@ -351,6 +368,7 @@ class ParametricRegressor(DriftRegressor):
         model = restrict(full, [p for p in full.names if p not in optional or covariates.get(p)])
         self.parameter_names_ = model.names
         self._columns = {str(c) for c in X.columns}
+        self._parsed: dict[str, tuple[str, ...]] = {}  # _var's
         # "intercept": the parameter's offset alone (an optional parameter's way in)
         named = {p: [c for c in dict.fromkeys(covariates.get(p, [])) if c != "intercept"]
                  for p in model.names}
