@@ -12,7 +12,8 @@ import statistics
 import time
 
 from workbench.datasets import load_google_5q
-from workbench.param_boost import HamiltonianParameterRegressor, default_library
+from workbench.param_boost import default_library
+from workbench.param_regressor import HamiltonianParameterRegressor
 from workbench.param_select import candidate_pool, forward_select
 
 

@@ -9,7 +9,7 @@ no ``jacobian``). Three splits: ``random`` (30% of the nuclides held out, seed 0
 
 * ``prior``: the model at its textbook coefficients;
 * ``peer``: the five parameters calibrated on the training rows (a robust least squares,
-  Huber with delta 1 MeV: :class:`~workbench.parametric_boost.ParametricRegressor` with
+  Huber with delta 1 MeV: :class:`~workbench.param_regressor.ParametricRegressor` with
   ``max_iter=0``), then the peer (:func:`~workbench.experiment.paper.peer.peer_predict`,
   LightGBM tuned by CV, 50 trials) boosted from that calibrated prediction, features Z, N,
   A, the asymmetry (N-Z)/A and the parities of Z and N;
@@ -204,7 +204,7 @@ def peer(frame: pd.DataFrame, test: np.ndarray, trials: int,
          field: Field = NUCLEAR) -> tuple[np.ndarray, dict]:
     """Calibrate the model on the training rows, boost the peer from its prediction."""
     from workbench.experiment.paper.peer import peer_predict
-    from workbench.parametric_boost import ParametricRegressor
+    from workbench.param_regressor import ParametricRegressor
 
     X = frame[list(field.features)]
     target, features = field.target, list(field.peer_features)

@@ -75,7 +75,7 @@ def inner_frame(split: str) -> tuple[po.Field, pd.DataFrame]:
 
 def calibrated(frame: pd.DataFrame, test: np.ndarray, field: po.Field) -> np.ndarray:
     """The peer's prior column (``parametric_outside.peer``'s calibration) on every row."""
-    from workbench.parametric_boost import ParametricRegressor
+    from workbench.param_regressor import ParametricRegressor
 
     X = frame[list(field.features)]
     cal = ParametricRegressor(model=str(field.model), loss="huber", huber_delta=1.0,

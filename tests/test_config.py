@@ -264,7 +264,7 @@ def test_the_delegated_keys_and_their_defaults():
     from workbench.experiment.config import MODEL_DEFAULTS, BoostSettings, IntervalsConfig
     from workbench.experiment.config.schema import check_values, parameters_of
     from workbench.experiment.families.hamiltonian import HamiltonianSettings
-    from workbench.param_boost import HamiltonianParameterRegressor as HPR
+    from workbench.param_regressor import HamiltonianParameterRegressor as HPR
     from workbench.param_select import HamiltonianSelectionCV as HSCV
 
     boost = {k: (BaseBoostRegressor, k)

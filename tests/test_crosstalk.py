@@ -6,7 +6,8 @@ import pytest
 
 from workbench._covariates import term
 from workbench.hamiltonian import CouplingGraph, graph_spectrum
-from workbench.param_boost import HamiltonianParameterRegressor, default_library
+from workbench.param_boost import default_library
+from workbench.param_regressor import HamiltonianParameterRegressor
 from workbench.param_select import candidate_pool, crosstalk_candidates, forward_select
 from workbench.simulate import Mismatch, simulate
 

@@ -12,7 +12,7 @@ import pytest
 
 from workbench.design import ensemble_blocks, greedy_design, robust_sd
 from workbench.experiment.cli import main
-from workbench.param_boost import HamiltonianParameterRegressor
+from workbench.param_regressor import HamiltonianParameterRegressor
 from workbench.simulate import bias_columns, measure, simulate, write_simulation
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"

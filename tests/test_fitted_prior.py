@@ -11,7 +11,7 @@ from sklearn.linear_model import Ridge
 
 from workbench import BaseBoostCV, BaseBoostRegressor, MultiTargetBaseBoost
 from workbench.fitted_prior import FittedPriorBoost
-from workbench.param_boost import HamiltonianParameterRegressor
+from workbench.param_regressor import HamiltonianParameterRegressor
 from workbench.simulate import Mismatch, simulate
 
 N = 5

@@ -16,7 +16,8 @@ from workbench.hamiltonian import (
     graph_spectrum,
     make_graph,
 )
-from workbench.param_boost import HamiltonianParameterRegressor, default_library
+from workbench.param_boost import default_library
+from workbench.param_regressor import HamiltonianParameterRegressor
 from workbench.param_select import HamiltonianSelectionCV, candidate_pool, forward_select
 from workbench.simulate import Mismatch, simulate, write_simulation
 

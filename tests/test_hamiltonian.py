@@ -8,7 +8,8 @@ from sklearn.model_selection import KFold
 
 from workbench import BaseBoostCV, BaseBoostRegressor, make_basis, make_transform
 from workbench.hamiltonian import chain_hamiltonian, chain_spectrum
-from workbench.param_boost import HamiltonianParameterRegressor, default_library
+from workbench.param_boost import default_library
+from workbench.param_regressor import HamiltonianParameterRegressor
 from workbench.simulate import Mismatch, simulate
 
 

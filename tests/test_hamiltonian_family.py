@@ -16,7 +16,7 @@ from workbench.experiment.runs.evaluate import evaluate
 from workbench.experiment.runs.prepare import load_config, parse_config
 from workbench.experiment.tracking.runs import Tracker
 from workbench.fitted_prior import FittedPriorBoost
-from workbench.param_boost import HamiltonianParameterRegressor
+from workbench.param_regressor import HamiltonianParameterRegressor
 from workbench.param_select import HamiltonianSelectionCV
 from workbench.simulate import Mismatch, simulate, write_simulation
 

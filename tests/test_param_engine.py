@@ -6,9 +6,9 @@ import pandas as pd
 import pytest
 
 from workbench.hamiltonian import CouplingGraph, HamiltonianModel, graph_spectrum
-from workbench.param_boost import HamiltonianParameterRegressor
+from workbench.param_regressor import HamiltonianParameterRegressor, ParametricRegressor
 from workbench.parametric import FD_STEP, ModelError, ParametricModel, check_model
-from workbench.parametric_boost import ParametricBoostRegressor, ParametricRegressor
+from workbench.parametric_boost import ParametricBoostRegressor
 from workbench.simulate import Mismatch, simulate
 
 ONSITE = [f"model_f{k}" for k in range(1, 5)]

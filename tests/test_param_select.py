@@ -6,7 +6,8 @@ import pytest
 from sklearn.base import clone
 from sklearn.model_selection import KFold, cross_val_predict
 
-from workbench.param_boost import HamiltonianParameterRegressor, default_library
+from workbench.param_boost import default_library
+from workbench.param_regressor import HamiltonianParameterRegressor
 from workbench.param_select import HamiltonianSelectionCV, candidate_pool, cv_mae, forward_select
 from workbench.simulate import Mismatch, simulate
 

@@ -7,8 +7,9 @@ import pandas as pd
 import pytest
 from sklearn.base import clone
 
+from workbench.param_regressor import ParametricRegressor
 from workbench.parametric import ModelError, ParametricModel, load_model
-from workbench.parametric_boost import ParametricBoostRegressor, ParametricRegressor
+from workbench.parametric_boost import ParametricBoostRegressor
 
 # A textbook law: exponential decay towards an offset, y = A exp(-t / tau) + B.
 DECAY = """

@@ -204,7 +204,7 @@ def test_calibrated_guard_stops_the_boosted_steps_beyond_the_box():
     """out_of_bounds="calibrated": beyond the features' training range the boosted model
     gives the calibrated model's parameters (no drift, no boosted steps), inside it the
     same as without the guard; "clip" clips the regressors' inputs."""
-    from workbench.parametric_boost import ParametricRegressor
+    from workbench.param_regressor import ParametricRegressor
 
     X, y = _data(step=0.3)
     init = ParametricRegressor(covariates={"tau": ["temp"]})

@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 from test_parametric import DECAY, _data
 
-from workbench.param_boost import HamiltonianParameterRegressor, device_model
+from workbench.param_boost import device_model
+from workbench.param_regressor import HamiltonianParameterRegressor, ParametricRegressor
 from workbench.parametric import ModelError, ParametricModel, load_model
-from workbench.parametric_boost import ParametricBoostRegressor, ParametricRegressor
+from workbench.parametric_boost import ParametricBoostRegressor
 from workbench.simulate import Mismatch, simulate
 
 # the decay law and a term it may lack: a step at t = 1.5 (0 unless the data ask for it)

@@ -30,7 +30,7 @@ _EXPORTS = {
     "HalvingChoiceCV": "halving",
     "StageChoiceCV": "stagewise",
     "ParametricModel": "parametric", "ModelError": "parametric", "load_model": "parametric",
-    "ParametricRegressor": "parametric_boost", "ParametricBoostRegressor": "parametric_boost",
+    "ParametricRegressor": "param_regressor", "ParametricBoostRegressor": "parametric_boost",
 }
 
 __all__ = sorted(_EXPORTS)

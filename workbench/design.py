@@ -284,8 +284,8 @@ def drift_problem(regressor: Any, pool: Mapping[str, Sequence[str]], X: Any, Y: 
     Parameters
     ----------
     regressor : DriftRegressor
-        The fitted regressor (:class:`~workbench.param_boost.HamiltonianParameterRegressor`
-        or :class:`~workbench.parametric_boost.ParametricRegressor`).
+        The fitted regressor (:class:`~workbench.param_regressor.HamiltonianParameterRegressor`
+        or :class:`~workbench.param_regressor.ParametricRegressor`).
     pool : mapping of str -> sequence of str
         Each parameter's candidate covariates.
     X, Y : DataFrame

@@ -37,7 +37,7 @@ def _refittable(fitted: Any) -> tuple[Any, dict[str, Any]]:
     selection wrapper such as HamiltonianSelectionCV, else the model itself), and the fit
     parameters that warm-start it from the fitted model: ``coef_init`` for a model that
     takes it and whose fitted form has ``coef_dict`` (e.g.
-    :class:`~workbench.param_boost.HamiltonianParameterRegressor`)."""
+    :class:`~workbench.param_regressor.HamiltonianParameterRegressor`)."""
     chosen = getattr(fitted, "estimator_", fitted)
     start = getattr(chosen, "coef_dict", None)
     return clone(chosen), ({"coef_init": start()} if callable(start) else {})

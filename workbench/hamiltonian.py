@@ -582,9 +582,9 @@ class HamiltonianModel:
     finite differences), ``predict_and_jacobian`` both from one eigendecomposition.
     Each onsite and control coupling starts at the data column of its name (the control
     program's value); a parasitic coupling (an edge the control model lacks) starts at 0.
-    :mod:`workbench.param_engine` fits its drifts, for
-    :class:`~workbench.param_boost.HamiltonianParameterRegressor` and for
-    :class:`~workbench.parametric_boost.ParametricRegressor` alike.
+    :class:`~workbench.param_regressor.ParametricRegressor` (the Hamiltonian family's
+    :class:`~workbench.param_regressor.HamiltonianParameterRegressor` among its uses) fits
+    its drifts.
 
     Parameters
     ----------

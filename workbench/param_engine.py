@@ -9,9 +9,9 @@ covariates; :func:`gauss_newton` fits the coefficients ``c`` by minimising
 ``sum rho(y - f) + alpha / 2 ||c||^2 + alpha_l1 ||c||_1`` (intercepts unpenalised) with
 IRLS or Newton weights (:data:`PARAM_LOSSES`), the normal equations of
 :func:`_normal_equations` (never forming the design matrix), FISTA for the L1 term and step
-halving. :class:`~workbench.param_boost.HamiltonianParameterRegressor` and
-:class:`~workbench.parametric_boost.ParametricRegressor` are this engine with their own
-covariates.
+halving. :class:`~workbench.param_regressor.ParametricRegressor` (the Hamiltonian family's
+:class:`~workbench.param_regressor.HamiltonianParameterRegressor` among them) is the
+estimator around it.
 
 The model object needs ``predict(theta, data, n_targets)`` (``(rows, targets)``) and
 ``jacobian(theta, data, n_targets)`` (``(rows, targets, parameters)``). A model that gets
@@ -30,13 +30,11 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from sklearn.base import BaseEstimator, RegressorMixin
-from sklearn.utils.validation import check_is_fitted
 
 from .losses import AbsoluteError, Huber, SquaredError
 from .parametric import ModelError, cached_jacobian
 
-__all__ = ["PARAM_LOSSES", "SOLVERS", "Coefficients", "DriftRegressor", "GaussNewtonFit", "drift",
+__all__ = ["PARAM_LOSSES", "SOLVERS", "GaussNewtonFit", "drift",
            "gauss_newton", "objective"]
 
 
@@ -149,98 +147,6 @@ def _normal_equations(jac: np.ndarray, w: np.ndarray, r: np.ndarray, Phi: np.nda
             H[lo:hi, lo:] += F[:, lo:hi].T @ (M[:, p, pidx[lo:]] * F[:, lo:])
     H = np.triu(H) + np.triu(H, 1).T
     return H, g
-
-
-class Coefficients:
-    """The drift coefficients of a parameter-space regressor: their layout, start and table.
-
-    Shared by :class:`~workbench.param_boost.HamiltonianParameterRegressor` and
-    :class:`~workbench.parametric_boost.ParametricRegressor`: ``_index`` the
-    (parameter, covariate) of each coefficient, ``_slices`` each parameter's block,
-    ``_coef`` the fitted values; ``parameter_names_``, ``covariate_names_`` and
-    ``col_scale_`` (each parameter's covariates' training sd) are the regressor's.
-    """
-
-    _coef: np.ndarray
-    _index: list[tuple[str, str]]
-    _slices: list[slice]
-    parameter_names_: list[str]
-    covariate_names_: dict[str, list[str]]
-    col_scale_: dict[str, np.ndarray]
-
-    def _layout(self, phis: list[np.ndarray]) -> None:
-        """Each parameter's block of coefficients (``_slices``) from its covariates."""
-        sizes = [phi.shape[1] for phi in phis]
-        ends = np.cumsum(sizes)
-        self._slices = [slice(e - s, e) for s, e in zip(sizes, ends)]
-
-    def _penalty(self) -> np.ndarray:
-        """The ridge and L1 penalties' weight of each coefficient: 0 for the intercepts."""
-        penalty = np.ones(self._slices[-1].stop)
-        penalty[[s.start for s in self._slices]] = 0.0
-        return penalty
-
-    @staticmethod
-    def _coef_start(coef_init: Any, index: list[tuple[str, str]]) -> np.ndarray:
-        """Starting coefficients: ``coef_init``'s (a fitted model's ``coef_``, a Series or a
-        dict keyed by (parameter, covariate)) where it has a finite value, else 0."""
-        c = np.zeros(len(index))
-        if coef_init is None:
-            return c
-        if isinstance(coef_init, pd.DataFrame) and "coef" in coef_init.columns:
-            coef_init = coef_init["coef"]
-        if isinstance(coef_init, pd.Series):
-            known = coef_init.to_dict()
-        elif isinstance(coef_init, dict):
-            known = coef_init
-        else:
-            raise ValueError("coef_init must be a fitted model's coef_ (a DataFrame or Series "
-                             "indexed by (parameter, covariate)) or a dict keyed by "
-                             f"(parameter, covariate), got {type(coef_init).__name__}")
-        for j, key in enumerate(index):
-            value = known.get(key)
-            if value is not None and np.isfinite(value):
-                c[j] = value
-        return c
-
-    def coefficient_table(self) -> pd.DataFrame:
-        """The non-zero coefficients: parameter, covariate, coefficient (``coef``, the
-        parameter's units per covariate sd: MHz for a Hamiltonian; an intercept is the
-        parameter's offset) and, for non-intercept terms, the covariate's training sd
-        (``covariate_sd``).
-
-        Returns
-        -------
-        pandas.DataFrame
-            Columns ``parameter``, ``covariate``, ``coef``, ``covariate_sd``.
-        """
-        check_is_fitted(self)
-        rows = []
-        for p, sl in zip(self.parameter_names_, self._slices):
-            sds = np.concatenate([[np.nan], self.col_scale_[p]])
-            for name, coef, sd in zip(self.covariate_names_[p], self._coef[sl], sds):
-                if coef != 0.0:
-                    rows.append(dict(parameter=p, covariate=name, coef=float(coef),
-                                     covariate_sd=float(sd)))
-        return pd.DataFrame(rows, columns=["parameter", "covariate", "coef", "covariate_sd"])
-
-    @property
-    def coef_(self) -> pd.DataFrame:
-        """One row per (parameter, covariate), column ``"coef"``."""
-        check_is_fitted(self)
-        index = pd.MultiIndex.from_tuples(self._index, names=["parameter", "covariate"])
-        return pd.DataFrame({"coef": self._coef}, index=index)
-
-    def coef_dict(self) -> dict[tuple[str, str], float]:
-        """``{(parameter, covariate): coefficient}`` (a cheap ``coef_init``).
-
-        Returns
-        -------
-        dict
-            ``(parameter, covariate)`` -> coefficient.
-        """
-        check_is_fitted(self)
-        return dict(zip(self._index, self._coef.tolist()))
 
 
 def drift(phis: list[np.ndarray], c: np.ndarray) -> np.ndarray:
@@ -459,93 +365,3 @@ def gauss_newton(model: Any, data: pd.DataFrame, start: np.ndarray, Y: np.ndarra
         if improvement < tol:
             break
     return GaussNewtonFit(c, n_iter, np.asarray(history))
-
-
-class DriftRegressor(Coefficients, RegressorMixin, BaseEstimator):
-    """The one estimator core of the parameter-space families.
-
-    A physics model (a model object, :func:`gauss_newton`'s) at the parameters
-    ``start(X) + drift(X)``, ``drift_p(x) = phi_p(x) . c_p``, the coefficients fitted by
-    :func:`gauss_newton`. :class:`~workbench.param_boost.HamiltonianParameterRegressor` (the
-    Hamiltonian model, its covariate library of detunings, geometric means and parasitic
-    couplings) and :class:`~workbench.parametric_boost.ParametricRegressor` (a user's model,
-    covariates made of data columns, a calibration first) are this core with their own
-    covariates; a subclass provides ``_physics()`` (its model object), ``_n_outputs()`` and
-    ``_rows(X)`` (new rows' data, start values and covariates), and ends its ``fit`` in
-    :meth:`_fit_drift`. It has ``loss``, ``huber_delta``, ``alpha``, ``alpha_l1``,
-    ``max_iter`` and ``tol`` (:func:`gauss_newton`'s).
-    """
-
-    loss: str
-    huber_delta: float
-    alpha: float
-    alpha_l1: float
-    max_iter: int
-    tol: float
-
-    def _physics(self) -> Any:
-        raise NotImplementedError
-
-    def _n_outputs(self) -> int:
-        raise NotImplementedError
-
-    def _rows(self, X: Any) -> tuple[pd.DataFrame, np.ndarray, list[np.ndarray]]:
-        raise NotImplementedError
-
-    def _fit_drift(self, model: Any, X: pd.DataFrame, start: np.ndarray, Y: np.ndarray,
-                   phis: list[np.ndarray], coef: np.ndarray, penalty: np.ndarray, *,
-                   solver: str, irls_fallback: bool) -> None:
-        """Fit the coefficients (:func:`gauss_newton` with this regressor's settings) and
-        set ``_coef``, ``n_iter_`` and ``train_loss_``."""
-        fit = gauss_newton(model, X, start, Y, phis, coef, penalty, loss=self.loss,
-                           huber_delta=self.huber_delta, alpha=self.alpha,
-                           alpha_l1=self.alpha_l1, max_iter=self.max_iter, tol=self.tol,
-                           solver=solver, irls_fallback=irls_fallback)
-        self._coef = fit.coef
-        self.n_iter_ = fit.n_iter
-        self.train_loss_ = fit.history
-
-    def _corrected(self, X: Any) -> np.ndarray:
-        """The corrected parameters of each row, ``start + drift`` (rows, parameters)."""
-        _, start, phis = self._rows(X)
-        return start + drift(phis, self._coef)
-
-    def coef_jacobian(self, X: pd.DataFrame) -> np.ndarray:
-        """``d predict(X)[j, k] / d coef[d]`` at the fitted coefficients.
-
-        The model's Jacobian (a Hamiltonian's: Hellmann-Feynman) times each parameter's
-        covariates: the rows of the Gauss-Newton design matrix.
-
-        Parameters
-        ----------
-        X : DataFrame
-            The rows.
-
-        Returns
-        -------
-        ndarray of shape (rows, targets, coefficients)
-            In :attr:`coef_`'s order.
-        """
-        data, start, phis = self._rows(X)
-        jac = self._physics().jacobian(start + drift(phis, self._coef), data, self._n_outputs())
-        return np.concatenate([jac[:, :, p, None] * phi[:, None, :]
-                               for p, phi in enumerate(phis)], axis=2)
-
-    def information(self, X: pd.DataFrame) -> np.ndarray:
-        """The Gauss-Newton information of the coefficients from the rows of ``X``.
-
-        ``A^T A + alpha P`` (``A`` = :meth:`coef_jacobian`, ``P`` the ridge penalty's
-        diagonal: 0 for the intercepts), in units of the measurement noise's variance.
-
-        Parameters
-        ----------
-        X : DataFrame
-            The rows.
-
-        Returns
-        -------
-        ndarray of shape (coefficients, coefficients)
-            The information matrix, in :attr:`coef_`'s order.
-        """
-        A = self.coef_jacobian(X)
-        return np.einsum("nkd,nke->de", A, A) + self.alpha * np.diag(self._penalty())

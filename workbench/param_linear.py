@@ -1,7 +1,7 @@
 """Cheap scores of candidate covariates for forward selection: one Gauss-Newton step.
 
 Around a fitted :class:`~workbench.param_regressor.ParametricRegressor` (the Hamiltonian
-family's :class:`~workbench.param_boost.HamiltonianParameterRegressor` is one) the model is
+family's :class:`~workbench.param_regressor.HamiltonianParameterRegressor` is one) the model is
 linear in its
 coefficients: ``lambda(c + dc) ~ lambda(c) + A dc`` with ``A`` the stacked
 ``J[:, k, p] * phi_p(x)``. Adding candidate columns ``a`` (one covariate; for an optional

@@ -29,13 +29,9 @@ from sklearn.utils.validation import check_is_fitted
 from ._progress import Progress
 from .hamiltonian import CouplingGraph
 from .parallel import Task, effective_n_jobs, map_tasks
-from .param_boost import (
-    HamiltonianParameterRegressor,
-    default_library,
-    parasitic_names,
-    resolve_graph,
-)
+from .param_boost import default_library, parasitic_names, resolve_graph
 from .param_linear import linear_scores
+from .param_regressor import HamiltonianParameterRegressor
 
 __all__ = ["HamiltonianSelectionCV", "SelectionResult", "candidate_pool", "crosstalk_candidates",
            "cv_mae", "forward_select"]
@@ -406,7 +402,7 @@ def forward_select(X: pd.DataFrame, y: ArrayLike, *, candidates: dict[str, list[
     progress : callable, default=None
         Called with one line per step.
     **regressor_params
-        Passed to :class:`~workbench.param_boost.HamiltonianParameterRegressor`
+        Passed to :class:`~workbench.param_regressor.HamiltonianParameterRegressor`
         (``onsite``, ``couplings``, ``sign``, ``alpha``, ``loss``, ...; not ``covariates``).
 
     Returns
@@ -524,7 +520,7 @@ def _refit_select(X: pd.DataFrame, base: HamiltonianParameterRegressor,
 #: regressor's own ``tol`` when that is looser); the final refit on all rows uses ``tol``.
 SELECTION_TOL = 1e-5
 #: Solver of the linearised selection's fold refits and candidate steps (see
-#: :class:`~workbench.param_boost.HamiltonianParameterRegressor`): Newton steps converge
+#: :class:`~workbench.param_regressor.HamiltonianParameterRegressor`): Newton steps converge
 #: from a warm start in a few iterations where IRLS needs many, and its one-step candidate
 #: scores are closer to a refit's.
 SELECTION_SOLVER = "newton"
@@ -547,8 +543,8 @@ def _linearised_select(X: pd.DataFrame, base: Any,
                        t0: float, regressor_params: dict[str, Any],
                        irls_scores: bool = False) -> SelectionResult:
     """Forward selection with linearised candidate scores (see :func:`forward_select`);
-    ``base`` a drift regressor (:class:`~workbench.param_boost.HamiltonianParameterRegressor`
-    or :class:`~workbench.parametric_boost.ParametricRegressor`), ``irls_scores`` the
+    ``base`` a drift regressor (:class:`~workbench.param_regressor.HamiltonianParameterRegressor`
+    or :class:`~workbench.param_regressor.ParametricRegressor`), ``irls_scores`` the
     scores' weights (:func:`~workbench.param_linear.linear_scores`' ``irls``).
 
     Everything runs in this process: the folds' data and fitted models stay in memory from

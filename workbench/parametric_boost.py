@@ -3,8 +3,7 @@
 :class:`ParametricBoostRegressor` chooses by cross-validation on the rows it is given among
 the prior (the model at its start values), the calibrated model (no drift) and linear
 drifts whose covariates forward selection picks (:mod:`workbench.param_select`'s engine), each
-a :class:`~workbench.param_regressor.ParametricRegressor` (imported here too, its home
-since the first release).
+a :class:`~workbench.param_regressor.ParametricRegressor`.
 """
 
 from __future__ import annotations
@@ -35,8 +34,7 @@ from .param_select import (
 )
 from .parametric import ParametricModel, resolve_model
 
-__all__ = ["ParametricBoostRegressor", "ParametricRegressor", "boost_candidate", "covariate_pool",
-           "ridge_drift"]
+__all__ = ["ParametricBoostRegressor", "boost_candidate", "covariate_pool", "ridge_drift"]
 
 
 def covariate_pool(features: Sequence[str], parameters: Sequence[str], *, squares: bool = True,

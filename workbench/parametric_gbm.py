@@ -3,7 +3,7 @@
 :class:`ParameterSpaceBoostRegressor` fits ``y ~ f(theta(x); x)`` for a user's model ``f``
 (:mod:`workbench.parametric`) with ``theta(x) = theta_0(x) + nu sum_m rho_m h_m(x)``: the
 start ``theta_0`` is the calibrated model (or a linear drift,
-:class:`~workbench.parametric_boost.ParametricRegressor`), and every round ``m`` fits one
+:class:`~workbench.param_regressor.ParametricRegressor`), and every round ``m`` fits one
 regressor per boosted parameter, a clone of ``estimator``, to that parameter's
 pseudo-residuals, the negative gradient of the loss with respect to the parameter on each
 row, ``g_ip = sum_t J_itp psi(r_it)`` (``J`` the model's Jacobian, ``psi`` the loss's
@@ -134,7 +134,7 @@ class ParameterSpaceBoostRegressor(RegressorMixin, BaseEstimator):
         have moved on); the features clipped to their training range (``"clip"``); or the
         calibrated model's parameters, no drift and no boosted steps (``"calibrated"``:
         ``init_``'s calibration). ``"clip"`` and ``"calibrated"`` are also set on the start
-        (a :class:`~workbench.parametric_boost.ParametricRegressor`).
+        (a :class:`~workbench.param_regressor.ParametricRegressor`).
     random_state : int, default=None
         Seeds the subsamples and the regressors.
 

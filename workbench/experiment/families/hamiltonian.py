@@ -1,7 +1,7 @@
 """Family ``hamiltonian``: boosting in the Hamiltonian's parameter space.
 
 One model predicts every target: the parameter-space model
-(:class:`~workbench.param_boost.HamiltonianParameterRegressor`, with covariates chosen by
+(:class:`~workbench.param_regressor.HamiltonianParameterRegressor`, with covariates chosen by
 :class:`~workbench.param_select.HamiltonianSelectionCV`) corrects the control model's qubit
 frequencies and couplings and re-diagonalises; an eigenvalue-space boosting stage on top
 (``[model]`` keys, one BaseBoostCV per target, trained on out-of-fold priors) is kept per target
@@ -33,7 +33,8 @@ from sklearn.model_selection import KFold
 
 from ...design import DesignProblem, drift_problem
 from ...fitted_prior import FittedPriorBoost
-from ...param_boost import HamiltonianParameterRegressor, default_library
+from ...param_boost import default_library
+from ...param_regressor import HamiltonianParameterRegressor
 from ...param_select import HamiltonianSelectionCV, candidate_pool
 from ..config.schema import ParameterOf, Section
 from ..process.errors import ConfigError
@@ -307,7 +308,7 @@ class HamiltonianFamily(ModelFamily):
         """Give the Fisher information of the parameter-space model's correction coefficients.
 
         Gauss-Newton: the Hellmann-Feynman Jacobian of the eigenvalues times the covariates,
-        :meth:`~workbench.param_boost.HamiltonianParameterRegressor.coef_jacobian`, plus the
+        :meth:`~workbench.param_regressor.HamiltonianParameterRegressor.coef_jacobian`, plus the
         ridge penalty as the coefficients' prior; one noise sd for every eigenvalue: the
         robust sd of the model's training residuals.
 

@@ -43,8 +43,9 @@ from sklearn.model_selection import KFold
 
 from ...design import DesignProblem, drift_problem
 from ...fitted_prior import FittedPriorBoost
+from ...param_regressor import ParametricRegressor
 from ...parametric import ModelError, load_model
-from ...parametric_boost import RIDGE_ALPHAS, ParametricBoostRegressor, ParametricRegressor
+from ...parametric_boost import RIDGE_ALPHAS, ParametricBoostRegressor
 from ...parametric_gbm import ParameterSpaceBoostRegressor, make_regressor
 from ..config.schema import Section
 from ..config.toml_text import toml_string
@@ -529,7 +530,7 @@ class ParametricFamily(ModelFamily):
         family does.
 
         Gauss-Newton: the model's Jacobian times the covariates
-        (:meth:`~workbench.param_engine.DriftRegressor.coef_jacobian`), plus the ridge
+        (:meth:`~workbench.param_regressor.ParametricRegressor.coef_jacobian`), plus the ridge
         penalty as the coefficients' prior; one noise sd for every target, the robust sd of
         the model's training residuals. The coefficients are those of every covariate the
         selection could choose (the optional parameters' among them), not only the chosen
