@@ -340,7 +340,7 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
         Returns
         -------
         ndarray of shape (rows, targets, coefficients)
-            In :attr:`coef_`'s order.
+            In ``coef_``'s order.
         """
         data, start, phis = self._rows(X)
         jac = self._physics().jacobian(start + _drift(phis, self._coef), data, self._n_outputs())
@@ -361,7 +361,7 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
         Returns
         -------
         ndarray of shape (coefficients, coefficients)
-            The information matrix, in :attr:`coef_`'s order.
+            The information matrix, in ``coef_``'s order.
         """
         A = self.coef_jacobian(X)
         return np.einsum("nkd,nke->de", A, A) + self.alpha * np.diag(self._penalty())
@@ -672,7 +672,7 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
         Returns
         -------
         ndarray of shape (rows, targets, coefficients)
-            In :attr:`coef_`'s order.
+            In ``coef_``'s order.
         """
         out = self._coef_jacobian(X)
         if self.out_of_bounds == "calibrated":
@@ -883,9 +883,9 @@ class HamiltonianParameterRegressor(ParametricRegressor):
         The model's graph: the control edges, then the active parasitic ones.
     covariate_names_ : dict of str -> list of str
         Covariates of each parameter (starting with ``"intercept"``).
-    coef_ : pandas.DataFrame
+    coef_, coef_dict() : pandas.DataFrame, dict
         One row per (parameter, covariate), column ``"coef"`` (MHz per covariate sd);
-        ``coef_dict()`` gives the same as a dict.
+        ``coef_dict()`` gives the same as a dict (:class:`ParametricRegressor`'s).
     products_ : dict of str -> (str, str)
         The product covariates' variables and their two factors.
     factor_mean_ : dict of str -> float
