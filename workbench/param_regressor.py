@@ -116,20 +116,10 @@ def _fingerprint(X: pd.DataFrame, Y: np.ndarray) -> str:
     return digest.hexdigest()
 
 
-def _finite(values: dict[str, np.ndarray]) -> np.ndarray:
-    """Whether each of ``values``' arrays is finite everywhere (one check over them all)."""
-    if not values:
-        return np.ones(0, dtype=bool)
-    return np.isfinite(np.column_stack(list(values.values()))).all(axis=0)
-
-
-def _ranges(values: dict[str, np.ndarray], low: Any, high: Any) -> dict[str, tuple[float, float]]:
-    """``(low, high)`` of each of ``values``' arrays (one reduction over them all)."""
-    if not values:
-        return {}
-    block = np.column_stack(list(values.values()))
-    lo, hi = low(block, axis=0), high(block, axis=0)
-    return {k: (float(a), float(b)) for k, a, b in zip(values, lo, hi)}
+def _ranges(names: Any, block: np.ndarray) -> dict[str, tuple[float, float]]:
+    """``(min, max)`` of each column of ``block`` (one reduction over them all), by name."""
+    lo, hi = np.min(block, axis=0), np.max(block, axis=0)
+    return {k: (float(a), float(b)) for k, a, b in zip(names, lo, hi)}
 
 
 class _WarmStart(dict):
@@ -414,14 +404,16 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
         if fitting:
             self.column_range_ = {}
         leaf = self._raw(X)
-        bad = [c for c, ok in zip(leaf, _finite(leaf)) if not ok]
+        block = np.column_stack(list(leaf.values())) if leaf else np.empty((n, 0))
+        finite = np.asarray(np.isfinite(block).all(axis=0))
+        bad = [c for c, ok in zip(leaf, finite) if not ok]
         if bad:  # named by the first parameter whose covariates read such a column
             p = next(p for p in self.parameter_names_
                      if any(set(self._leaves(v)) & set(bad) for v, _ in self.terms_[p]))
             raise ValueError(f"the covariates of parameter {p!r} have missing or "
                              f"non-numeric values (column(s) {bad})")
         if fitting:
-            self.column_range_ = _ranges(leaf, np.nanmin, np.nanmax)
+            self.column_range_ = _ranges(leaf, block)  # finite: checked above
             self.factor_mean_ = {}
             for ts in self.terms_.values():
                 for v, _ in ts:
@@ -448,7 +440,8 @@ class ParametricRegressor(RegressorMixin, BaseEstimator):
             phis.append(np.column_stack([np.ones(n),
                                          (raw - self.col_mean_[p]) / self.col_scale_[p]]))
         if fitting:
-            self.variable_range_ = _ranges(cache, np.min, np.max)
+            self.variable_range_ = (_ranges(cache, np.column_stack(list(cache.values())))
+                                    if cache else {})
         return phis
 
     #: What a Newton step that finds no decrease does: go on with IRLS steps (True) or stop.
@@ -1032,9 +1025,9 @@ class HamiltonianParameterRegressor(ParametricRegressor):
                          for p in onsite + couplings + extra}
         self._fit(X, y, coef_init)  # the parameters were validated above
         self.model_ = restrict(self._device, self.parameter_names_)
-        self.products_ = {v: cast(tuple[str, str], tuple(var[1:]))
+        self.products_ = {v: cast(tuple[str, str], self._var(v)[1:])
                           for ts in self.terms_.values() for v, _ in ts
-                          if (var := variable(v, self._columns)) and var[0] == "*"}
+                          if self._var(v)[0] == "*"}
         return self
 
     def _physics(self) -> Any:
