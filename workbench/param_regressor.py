@@ -122,6 +122,13 @@ def _ranges(names: Any, block: np.ndarray) -> dict[str, tuple[float, float]]:
     return {k: (float(a), float(b)) for k, a, b in zip(names, lo, hi)}
 
 
+def _device_frame(X: Any) -> None:
+    """A device's rows come as a DataFrame (its columns by name)."""
+    if not isinstance(X, pd.DataFrame):
+        raise ValueError("X must be a pandas DataFrame holding the onsite, coupling and "
+                         f"covariate columns by name, got {type(X).__name__}")
+
+
 class _WarmStart(dict):
     """:meth:`ParametricRegressor.coef_dict`: the coefficients, and the fit's calibration
     with the digest of its rows and its parameters' names (``out_of_bounds="calibrated"``
@@ -1001,9 +1008,7 @@ class HamiltonianParameterRegressor(ParametricRegressor):
             The fitted model.
         """
         onsite, couplings, features, library, graph, extra = self._check_params()
-        if not isinstance(X, pd.DataFrame):
-            raise ValueError("X must be a pandas DataFrame holding the onsite, coupling and "
-                             f"covariate columns by name, got {type(X).__name__}")
+        _device_frame(X)
         if len(X) == 0:
             raise ValueError("X has no rows")
         n, N = len(X), len(onsite)
@@ -1036,9 +1041,7 @@ class HamiltonianParameterRegressor(ParametricRegressor):
 
     def _check_X(self, X: Any) -> None:
         check_is_fitted(self)
-        if not isinstance(X, pd.DataFrame):
-            raise ValueError("X must be a pandas DataFrame holding the onsite, coupling and "
-                             f"covariate columns by name, got {type(X).__name__}")
+        _device_frame(X)
 
     def _rows(self, X: Any) -> tuple[pd.DataFrame, np.ndarray, list[np.ndarray]]:
         self._check_X(X)
