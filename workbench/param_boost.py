@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ._covariates import float_block
 from .hamiltonian import PARASITIC_KINDS, CouplingGraph, HamiltonianModel
 
 __all__ = ["default_library", "device_model",
@@ -40,19 +41,15 @@ def _names(value: Any, what: str) -> list[str]:
 
 
 def _columns(X: pd.DataFrame, names: list[str], what: str) -> np.ndarray:
-    position = {str(c): i for i, c in enumerate(X.columns)}
-    missing = [c for c in names if c not in position]
+    present = [str(c) for c in X.columns]
+    missing = [c for c in names if c not in present]
     if missing:
         raise ValueError(f"{what} column(s) {missing} are not columns of X; columns are: "
-                         f"{list(position)}")
-    index = [position[c] for c in names]
-    try:  # fast path: an all-numeric frame converts as one block
-        values = X.to_numpy(dtype=float)[:, index]
-    except (TypeError, ValueError):
-        try:
-            values = X.iloc[:, index].to_numpy(dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"{what} columns {names} must be numeric: {exc}") from None
+                         f"{present}")
+    try:
+        values = float_block(X, names)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{what} columns {names} must be numeric: {exc}") from None
     if not np.all(np.isfinite(values)):
         rows = np.flatnonzero(~np.isfinite(values).all(axis=1))[:10].tolist()
         raise ValueError(f"{what} columns contain NaN or infinite values (rows {rows})")
